@@ -1,0 +1,214 @@
+"""Model files: a TOML whose frame table reads like SYMORO's geometric table.
+
+    name = "PUMA 560"
+    gravity = [0.0, 0.0, -9.81]
+    known = ["IA1"]                 # parameters taken as known, not identified
+
+    #          j ant sigma gamma  b   alpha     d      theta  r
+    frames = [[1, 0,  0,    0,    0,  0,        0,     0,     0],
+              [2, 1,  0,    0,    0,  "-pi/2",  0,     0,     0]]
+
+    [parameters.1]                  # per frame, by name; a joint term listed here
+    ZZ = 0.35                       # (IA FV FS OFF K) is declared for that joint
+    IA = 0.0
+
+    [[couplings]]
+    name = "karf"
+    kind = "K"                      # K, IA, FV or FS
+    coeffs = { 27 = 1.0, 36 = -1.0 }
+    value = 19780.0
+
+    [labels]
+    K9 = "ks9"
+
+Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import operator
+import os
+import tempfile
+import tomllib
+from pathlib import Path
+
+from .tree import COUPLING_KINDS, INERTIAL, JOINT_TERMS, Coupling, Frame, ModelError, Tree
+
+COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
+_TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels"}
+_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
+
+
+def load_tree(path: str | os.PathLike[str]) -> Tree:
+    """Read a model file; errors name the file, the frame and the field."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the model file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelError(f"{path}: not valid TOML: {exc}") from None
+    return tree_from_dict(data, source=str(path))
+
+
+def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ModelError(f"{source}: unknown top-level key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    if "frames" not in data:
+        raise ModelError(f"{source}: no 'frames' table (one row [j, ant, sigma, gamma, b, alpha, d, theta, r] per frame)")
+    frames = []
+    for i, row in enumerate(data["frames"], start=1):
+        if not isinstance(row, list) or len(row) != len(COLUMNS):
+            raise ModelError(
+                f"{source}: frames row {i} must list the {len(COLUMNS)} columns {', '.join(COLUMNS)}; got {row!r}"
+            )
+        vals = {}
+        for col, v in zip(COLUMNS, row, strict=True):
+            where = f"{source}: frame {row[0]}, column {col}"
+            if col in ("j", "ant", "sigma"):
+                if not isinstance(v, int) or isinstance(v, bool):
+                    raise ModelError(f"{where}: expected an integer, got {v!r}")
+                vals[col] = v
+            else:
+                vals[col] = _number(v, where)
+        frames.append(Frame(**vals))
+
+    joint_terms: dict[int, tuple[str, ...]] = {}
+    values: dict[str, float] = {}
+    for key, table in data.get("parameters", {}).items():
+        where = f"{source}: [parameters.{key}]"
+        if not key.isdigit() or not isinstance(table, dict):
+            raise ModelError(f"{where}: sections are per frame number, like [parameters.3]")
+        j = int(key)
+        bad = [k for k in table if k not in INERTIAL and k not in JOINT_TERMS]
+        if bad:
+            raise ModelError(
+                f"{where}: unknown parameter(s) {bad}; per frame: {' '.join(INERTIAL)} and joint terms {' '.join(JOINT_TERMS)}"
+            )
+        terms = tuple(t for t in JOINT_TERMS if t in table)
+        if terms:
+            joint_terms[j] = terms
+        for k, v in table.items():
+            values[f"{k}{j}"] = _number(v, f"{where} {k}")
+
+    couplings = []
+    for i, c in enumerate(data.get("couplings", []), start=1):
+        where = f"{source}: coupling {i}"
+        missing = {"name", "kind", "coeffs"} - set(c)
+        if missing:
+            raise ModelError(f"{where}: missing {sorted(missing)}")
+        extra = set(c) - {"name", "kind", "coeffs", "value"}
+        if extra:
+            raise ModelError(f"{where}: unknown key(s) {sorted(extra)}")
+        if c["kind"] not in COUPLING_KINDS:
+            raise ModelError(f"{where}: kind {c['kind']!r} must be one of {COUPLING_KINDS}")
+        coeffs = {}
+        for k, v in c["coeffs"].items():
+            if not k.isdigit():
+                raise ModelError(f"{where}: coeffs keys are joint numbers, got {k!r}")
+            coeffs[int(k)] = _number(v, f"{where} coeff {k}")
+        couplings.append(Coupling(c["name"], c["kind"], coeffs))
+        if "value" in c:
+            values[c["name"]] = _number(c["value"], f"{where} value")
+
+    gravity = data.get("gravity", [0.0, 0.0, -9.81])
+    if not isinstance(gravity, list) or len(gravity) != 3:
+        raise ModelError(f"{source}: gravity must be a list of 3 numbers")
+    try:
+        return Tree(
+            name=str(data.get("name", Path(source).stem)),
+            frames=tuple(frames),
+            joint_terms=joint_terms,
+            couplings=tuple(couplings),
+            values=values,
+            known=frozenset(data.get("known", [])),
+            labels=dict(data.get("labels", {})),
+            gravity=tuple(_number(g, f"{source}: gravity") for g in gravity),
+        )
+    except ModelError as exc:
+        raise ModelError(f"{source}: {exc}") from None
+
+
+def save_tree(tree: Tree, path: str | os.PathLike[str]) -> None:
+    """Write a model file atomically (a crash never leaves half a file)."""
+    path = Path(path)
+    text = tree_to_toml(tree)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def tree_to_toml(tree: Tree) -> str:
+    lines = [f"name = {_q(tree.name)}", f"gravity = [{', '.join(_fmt(g) for g in tree.gravity)}]"]
+    if tree.known:
+        lines.append("known = [" + ", ".join(_q(k) for k in tree.parameter_names if k in tree.known) + "]")
+    lines += ["", "#  j, ant, sigma, gamma, b, alpha, d, theta, r", "frames = ["]
+    for f in tree.frames:
+        cells = [str(f.j), str(f.ant), str(f.sigma)] + [_fmt(getattr(f, c)) for c in COLUMNS[3:]]
+        lines.append("  [" + ", ".join(cells) + "],")
+    lines.append("]")
+    for f in tree.frames:
+        entries = [(k, tree.values.get(f"{k}{f.j}", 0.0)) for k in INERTIAL]
+        entries = [(k, v) for k, v in entries if v != 0.0]
+        entries += [(t, tree.values.get(f"{t}{f.j}", 0.0)) for t in tree.joint_terms.get(f.j, ())]
+        if entries:
+            lines += ["", f"[parameters.{f.j}]"] + [f"{k} = {_fmt(v)}" for k, v in entries]
+    for c in tree.couplings:
+        coeffs = ", ".join(f"{j} = {_fmt(v)}" for j, v in c.coeffs.items())
+        lines += ["", "[[couplings]]", f"name = {_q(c.name)}", f"kind = {_q(c.kind)}",
+                  f"coeffs = {{ {coeffs} }}", f"value = {_fmt(tree.values.get(c.name, 0.0))}"]
+    if tree.labels:
+        lines += ["", "[labels]"] + [f"{k} = {_q(v)}" for k, v in tree.labels.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _q(s: str) -> str:
+    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _fmt(v: float) -> str:
+    """A float as TOML, as a multiple of pi where that is exact."""
+    if v != 0.0:
+        for m in (1, 2, 3, 4, 6, 12):
+            k = round(v * m / math.pi)
+            if k != 0 and abs(k) <= 4 * m:
+                s = ("-" if k < 0 else "") + (f"{abs(k)}*pi" if abs(k) != 1 else "pi") + (f"/{m}" if m > 1 else "")
+                if _number(s, "") == v:
+                    return _q(s)
+    return repr(float(v))
+
+
+def _number(v: object, where: str) -> float:
+    if isinstance(v, bool):
+        raise ModelError(f"{where}: expected a number, got {v!r}")
+    if isinstance(v, int | float):
+        return float(v)
+    if isinstance(v, str):
+        try:
+            return float(_eval(ast.parse(v.strip(), mode="eval").body))
+        except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError):
+            pass
+    raise ModelError(f"{where}: expected a number or arithmetic on numbers and pi, got {v!r}")
+
+
+def _eval(node: ast.AST) -> float:
+    if isinstance(node, ast.Constant) and isinstance(node.value, int | float):
+        return node.value
+    if isinstance(node, ast.Name) and node.id == "pi":
+        return math.pi
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+        x = _eval(node.operand)
+        return -x if isinstance(node.op, ast.USub) else x
+    if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
+        return _OPS[type(node.op)](_eval(node.left), _eval(node.right))
+    raise ValueError("not arithmetic")

@@ -1,0 +1,280 @@
+"""A multibody tree in Khalil-Kleinfinger modified Denavit-Hartenberg notation.
+
+Frames are numbered 0..n; frame 0 is the fixed base, frame j is fixed to link j and
+a(j) < j is its antecedent. The transform from frame a(j) to frame j is
+
+    Rot(z, gamma) Trans(z, b) Rot(x, alpha) Trans(x, d) Rot(z, theta) Trans(z, r)
+
+and the joint variable q_j is added to theta (sigma = 0, revolute) or to r
+(sigma = 1, prismatic); sigma = 2 is a fixed frame. The theta and r columns hold the
+constant part (an offset for the variable one).
+
+Parameters, in a stable order that every result carries by name:
+  per frame j: XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj (about O_j, in frame j), then
+  the joint terms declared for it among IAj (rotor inertia), FVj (viscous), FSj
+  (Coulomb), OFFj (constant offset), Kj (stiffness of an elastic joint);
+  then the couplings, each named by the model.
+
+The generalized force of joint j (what an actuator must supply) is
+
+    tau_j = (rigid-body terms) + IA qdd + FV qd + FS sign(qd) + OFF + K q
+            + sum over couplings c of  c_j * value_c * f_kind(c . q)
+
+where a coupling is a linear combination c . q of joint variables with a kind:
+K (spring: c.q), IA (inertia: c.qdd), FV (viscous: c.qd) or FS (Coulomb: sign(c.qd)).
+An anti-roll bar is K with c = e_i - e_j; a geared wrist motor is IA/FV/FS with c the
+gear ratios of the joints it drives.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
+JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K")
+COUPLING_KINDS = ("K", "IA", "FV", "FS")
+REVOLUTE, PRISMATIC, FIXED = 0, 1, 2
+
+
+class ModelError(ValueError):
+    """A model description that cannot be used, with what and where."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One row of the geometric table (angles in rad, lengths in m)."""
+
+    j: int
+    ant: int
+    sigma: int
+    gamma: float = 0.0
+    b: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    r: float = 0.0
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """A term acting on the linear combination sum_j coeffs[j] * q_j (see module doc)."""
+
+    name: str
+    kind: str
+    coeffs: dict[int, float]
+
+
+@dataclass(frozen=True)
+class Tree:
+    """A modified-DH tree with its named parameter vector.
+
+    frames: rows for j = 1..n in order; joint_terms[j]: the joint terms declared for
+    frame j (subset of JOINT_TERMS); values: parameter name -> value (missing = 0);
+    known: names whose value is taken as known rather than identified;
+    labels: name -> the template's own label (e.g. K9 -> ks9) for reports.
+    """
+
+    name: str
+    frames: tuple[Frame, ...]
+    joint_terms: dict[int, tuple[str, ...]] = field(default_factory=dict)
+    couplings: tuple[Coupling, ...] = ()
+    values: dict[str, float] = field(default_factory=dict)
+    known: frozenset[str] = frozenset()
+    labels: dict[str, str] = field(default_factory=dict)
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    # ----- structure -------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of frames besides the base (= number of joint variables)."""
+        return len(self.frames)
+
+    @cached_property
+    def ant(self) -> np.ndarray:
+        """a(j) for j = 0..n (a(0) = -1)."""
+        return np.array([-1] + [f.ant for f in self.frames])
+
+    @cached_property
+    def sigma(self) -> np.ndarray:
+        """sigma_j for j = 0..n (the base counts as fixed)."""
+        return np.array([FIXED] + [f.sigma for f in self.frames])
+
+    @cached_property
+    def ancestors(self) -> list[list[int]]:
+        """ancestors[k]: the frames j >= 1 on the path from the base to k, k included."""
+        out: list[list[int]] = [[]]
+        for f in self.frames:
+            out.append([*out[f.ant], f.j])
+        return out
+
+    @cached_property
+    def children(self) -> list[list[int]]:
+        kids: list[list[int]] = [[] for _ in range(self.n + 1)]
+        for f in self.frames:
+            kids[f.ant].append(f.j)
+        return kids
+
+    @cached_property
+    def depth(self) -> np.ndarray:
+        return np.array([len(a) for a in self.ancestors])
+
+    # ----- constant geometry -----------------------------------------------------
+    @cached_property
+    def constant_rotation(self) -> np.ndarray:
+        """C_j = Rot(z, gamma) Rot(x, alpha), shape (n+1, 3, 3); index 0 is I."""
+        C = np.tile(np.eye(3), (self.n + 1, 1, 1))
+        for f in self.frames:
+            C[f.j] = _rotz(f.gamma) @ _rotx(f.alpha)
+        return C
+
+    @cached_property
+    def constant_offset(self) -> np.ndarray:
+        """u_j = Rot(z, gamma) (d, 0, b): origin of frame j in a(j) when r = 0, (n+1, 3)."""
+        u = np.zeros((self.n + 1, 3))
+        for f in self.frames:
+            u[f.j] = _rotz(f.gamma) @ np.array([f.d, 0.0, f.b])
+        return u
+
+    @cached_property
+    def theta0(self) -> np.ndarray:
+        return np.array([0.0] + [f.theta for f in self.frames])
+
+    @cached_property
+    def r0(self) -> np.ndarray:
+        return np.array([0.0] + [f.r for f in self.frames])
+
+    # ----- parameters --------------------------------------------------------------
+    @cached_property
+    def parameter_names(self) -> tuple[str, ...]:
+        names: list[str] = []
+        for f in self.frames:
+            names += [f"{p}{f.j}" for p in INERTIAL]
+            names += [f"{t}{f.j}" for t in JOINT_TERMS if t in self.joint_terms.get(f.j, ())]
+        names += [c.name for c in self.couplings]
+        return tuple(names)
+
+    @cached_property
+    def index(self) -> dict[str, int]:
+        """Parameter name -> column index."""
+        return {name: i for i, name in enumerate(self.parameter_names)}
+
+    @property
+    def p(self) -> int:
+        return len(self.parameter_names)
+
+    @cached_property
+    def parameters(self) -> np.ndarray:
+        """The parameter vector X in the order of parameter_names."""
+        return np.array([self.values.get(name, 0.0) for name in self.parameter_names])
+
+    @cached_property
+    def known_mask(self) -> np.ndarray:
+        return np.array([name in self.known for name in self.parameter_names], dtype=bool)
+
+    def label(self, name: str) -> str:
+        return self.labels.get(name, name)
+
+    def column(self, name_or_label: str) -> int:
+        """Column index of a parameter given by name or template label."""
+        if name_or_label in self.index:
+            return self.index[name_or_label]
+        for name, lab in self.labels.items():
+            if lab == name_or_label:
+                return self.index[name]
+        raise ModelError(
+            f"model {self.name!r} has no parameter {name_or_label!r}; "
+            f"parameters are named like {', '.join(self.parameter_names[:12])}, ..."
+        )
+
+    def inertial_block(self, X: np.ndarray | None = None) -> np.ndarray:
+        """The 10 inertial parameters of every frame, (n+1, 10); row 0 is the base (zero)."""
+        X = self.parameters if X is None else np.asarray(X, dtype=float)
+        block = np.zeros((self.n + 1, 10))
+        for f in self.frames:
+            block[f.j] = X[self.index[f"XX{f.j}"] : self.index[f"XX{f.j}"] + 10]
+        return block
+
+    def with_values(self, values: dict[str, float]) -> Tree:
+        """A copy with some parameter values replaced (names or labels accepted)."""
+        new = dict(self.values)
+        for key, v in values.items():
+            new[self.parameter_names[self.column(key)]] = float(v)
+        return _replace(self, values=new)
+
+    def with_known(self, known: set[str] | frozenset[str]) -> Tree:
+        return _replace(self, known=frozenset(self.parameter_names[self.column(k)] for k in known))
+
+
+def _replace(tree: Tree, **changes: object) -> Tree:
+    import dataclasses
+
+    return dataclasses.replace(tree, **changes)
+
+
+def _rotz(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rotx(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _validate(tree: Tree) -> None:
+    where = f"model {tree.name!r}"
+    for i, f in enumerate(tree.frames, start=1):
+        if f.j != i:
+            raise ModelError(f"{where}: frame rows must be numbered 1..n in order; row {i} says j={f.j}")
+        if not 0 <= f.ant < f.j:
+            raise ModelError(
+                f"{where}, frame {f.j}: antecedent a({f.j}) = {f.ant} must satisfy 0 <= a(j) < j"
+            )
+        if f.sigma not in (REVOLUTE, PRISMATIC, FIXED):
+            raise ModelError(
+                f"{where}, frame {f.j}: sigma = {f.sigma}; use 0 (revolute), 1 (prismatic), 2 (fixed)"
+            )
+        for col in ("gamma", "b", "alpha", "d", "theta", "r"):
+            v = getattr(f, col)
+            if not np.isfinite(v):
+                raise ModelError(f"{where}, frame {f.j}: {col} = {v} is not a finite number")
+    n = len(tree.frames)
+    for j, terms in tree.joint_terms.items():
+        if not 1 <= j <= n:
+            raise ModelError(f"{where}: joint terms given for frame {j}, which does not exist (1..{n})")
+        bad = [t for t in terms if t not in JOINT_TERMS]
+        if bad:
+            raise ModelError(f"{where}, frame {j}: unknown joint term(s) {bad}; known: {JOINT_TERMS}")
+        if tree.frames[j - 1].sigma == FIXED and terms:
+            raise ModelError(f"{where}, frame {j} is fixed (sigma=2) and cannot have joint terms {terms}")
+    seen = set()
+    for c in tree.couplings:
+        if c.kind not in COUPLING_KINDS:
+            raise ModelError(f"{where}, coupling {c.name!r}: kind {c.kind!r} not in {COUPLING_KINDS}")
+        for j in c.coeffs:
+            if not 1 <= j <= n or tree.frames[j - 1].sigma == FIXED:
+                raise ModelError(f"{where}, coupling {c.name!r}: joint {j} is not a moving joint")
+        if c.name in seen:
+            raise ModelError(f"{where}: two couplings are named {c.name!r}")
+        seen.add(c.name)
+    names = set(tree.parameter_names)
+    for c in tree.couplings:
+        if sum(1 for nm in tree.parameter_names if nm == c.name) > 1:
+            raise ModelError(f"{where}: coupling name {c.name!r} clashes with a standard parameter")
+    unknown = [k for k in tree.values if k not in names]
+    if unknown:
+        raise ModelError(f"{where}: values given for unknown parameter(s) {unknown[:5]}")
+    unknown = [k for k in tree.known if k not in names]
+    if unknown:
+        raise ModelError(f"{where}: 'known' lists unknown parameter(s) {unknown[:5]}")
+    for k, v in tree.values.items():
+        if not np.isfinite(v):
+            raise ModelError(f"{where}: parameter {k} = {v} is not a finite number")
+    if len(tree.gravity) != 3:
+        raise ModelError(f"{where}: gravity must have 3 components")
