@@ -60,7 +60,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
     if unknown:
         raise ModelError(f"{source}: unknown top-level key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
     if "frames" not in data:
-        raise ModelError(f"{source}: no 'frames' table (one row [j, ant, sigma, gamma, b, alpha, d, theta, r] per frame)")
+        raise ModelError(f"{source}: no 'frames' table (rows [j, ant, sigma, gamma, b, alpha, d, theta, r])")
     frames = []
     for i, row in enumerate(data["frames"], start=1):
         if not isinstance(row, list) or len(row) != len(COLUMNS):
@@ -88,7 +88,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         bad = [k for k in table if k not in INERTIAL and k not in JOINT_TERMS]
         if bad:
             raise ModelError(
-                f"{where}: unknown parameter(s) {bad}; per frame: {' '.join(INERTIAL)} and joint terms {' '.join(JOINT_TERMS)}"
+                f"{where}: unknown parameter(s) {bad}; per frame: {' '.join(INERTIAL)} {' '.join(JOINT_TERMS)}"
             )
         terms = tuple(t for t in JOINT_TERMS if t in table)
         if terms:
