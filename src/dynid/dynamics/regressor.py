@@ -1,0 +1,186 @@
+"""The identification model: W(q, qd, qdd) with W X = tau for every parameter vector X.
+
+Each link's Newton-Euler wrench is linear in its 10 inertial parameters. For link k we
+build once the 6 x 10 block B_k of force and moment per unit parameter, the moment
+taken about a reference point O* near the system (the centroid of the frame origins,
+per sample, so that precision does not depend on where the system is). Joint j, an
+ancestor of k, sees the column
+
+    W[j, col(k)] = z_j . N*_k + ((P_j - O*) x z_j) . F_k      (revolute)
+    W[j, col(k)] = z_j . F_k                                  (prismatic)
+
+so the cost is one small contraction per (row, link) pair actually requested:
+restricting rows and columns (the car uses 14 of 42 rows and 48 of ~440 columns)
+removes pairs, and the work drops in proportion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..kinematics.forward import KinematicState, cross, forward_kinematics, joint_array, to_local
+from ..model.tree import FIXED, INERTIAL, REVOLUTE, ModelError, Tree
+from .newton_euler import Wrench, backward_recursion, coupling_column, external_wrenches, joint_term_column
+
+Array = np.ndarray
+
+# (row, column) entries of the symmetric basis matrix of XX, XY, XZ, YY, YZ, ZZ
+_INERTIA_BASIS = (((0, 0),), ((0, 1), (1, 0)), ((0, 2), (2, 0)), ((1, 1),), ((1, 2), (2, 1)), ((2, 2),))
+CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache
+
+
+def resolve_rows(tree: Tree, rows: Sequence[int] | None) -> list[int]:
+    if rows is None:
+        return list(range(1, tree.n + 1))
+    out = [int(r) for r in rows]
+    bad = [r for r in out if not 1 <= r <= tree.n]
+    if bad:
+        raise ModelError(f"rows {bad} are not joints of model {tree.name!r} (1..{tree.n})")
+    return out
+
+
+def resolve_cols(tree: Tree, cols: Sequence[str | int] | None) -> list[int]:
+    if cols is None:
+        return list(range(tree.p))
+    out = []
+    for c in cols:
+        if isinstance(c, str):
+            out.append(tree.column(c))
+        elif 0 <= int(c) < tree.p:
+            out.append(int(c))
+        else:
+            raise ModelError(f"column index {c} out of range 0..{tree.p - 1}")
+    return out
+
+
+def link_block(st: KinematicState, k: int, ref: Array) -> Array:
+    """Force and moment about O* per unit inertial parameter of link k, (6, 10, N), frame-0 orientation."""
+    Rc, w, dw, dv = st.Rc[k], st.w[k], st.dw[k], st.dv[k]
+    N = st.N
+    B = np.zeros((6, 10, N))
+    wl, dwl = to_local(Rc, w), to_local(Rc, dw)
+    Ew = np.zeros((3, 6, N))
+    Edw = np.zeros((3, 6, N))
+    for i, entries in enumerate(_INERTIA_BASIS):
+        for r, c in entries:
+            Ew[r, i] = wl[c]
+            Edw[r, i] = dwl[c]
+    Nl = Edw + cross(wl[:, None, :], Ew)  # (3, 6, N): J omega-dot + omega x J omega per basis J
+    B[3:, :6] = Rc[0][:, None] * Nl[0] + Rc[1][:, None] * Nl[1] + Rc[2][:, None] * Nl[2]
+    for c in range(3):  # first moments: the unit vector along axis c of frame k
+        e = Rc[c]
+        B[:3, 6 + c] = cross(dw, e) + cross(w, cross(w, e))
+        B[3:, 6 + c] = cross(e, dv)
+    B[:3, 9] = dv
+    # moments about O* instead of O_k
+    B[3:, 6:] += cross((st.P[k] - ref)[:, None, :], B[:3, 6:])
+    return B
+
+
+def joint_axis(tree: Tree, st: KinematicState, j: int, ref: Array) -> Array:
+    """The 6-vector that picks joint j's force out of a (force, moment about O*) wrench, (6, N)."""
+    z = st.Rc[j][2]
+    if tree.sigma[j] == REVOLUTE:
+        return np.concatenate([cross(st.P[j] - ref, z), z])
+    return np.concatenate([z, np.zeros_like(z)])
+
+
+def regressor(
+    tree: Tree,
+    q: Array,
+    qd: Array,
+    qdd: Array,
+    wrenches: Sequence[Wrench] | None = None,
+    rows: Sequence[int] | None = None,
+    cols: Sequence[str | int] | None = None,
+) -> Array | tuple[Array, Array]:
+    """Identification model W, (N, len(rows), len(cols)), such that W X = tau.
+
+    rows: joint (frame) numbers, default all; cols: parameter names, labels or column
+    indices, default all. With wrenches, returns (W, Q) where Q (N, len(rows)) is the
+    generalized force of the external wrenches: W X = tau + Q, the known right-hand side.
+    The array is a view whose memory keeps samples last (np.ascontiguousarray for C order).
+    """
+    qs, single = joint_array(q, tree, "q")
+    qds, _ = joint_array(qd, tree, "qd")
+    qdds, _ = joint_array(qdd, tree, "qdd")
+    if not qs.shape == qds.shape == qdds.shape:
+        raise ModelError(f"q, qd, qdd must have the same shape; got {np.shape(q)}, {np.shape(qd)}, {np.shape(qdd)}")
+    R, Cols = resolve_rows(tree, rows), resolve_cols(tree, cols)
+    N = qs.shape[1]
+    W = np.zeros((len(R), len(Cols), N))
+    Q = np.zeros((len(R), N)) if wrenches is not None else None
+    plan = _plan(tree, R, Cols)
+    for n0 in range(0, N, CHUNK):
+        sl = slice(n0, min(N, n0 + CHUNK))
+        _fill(tree, plan, qs[:, sl], qds[:, sl], qdds[:, sl], W[:, :, sl], R, Cols)
+        if Q is not None:
+            st = forward_kinematics(tree, qs[:, sl])
+            ext = external_wrenches(tree, st, _slice_wrenches(wrenches, sl, N))
+            F: list = [None] * (tree.n + 1)
+            M: list = [None] * (tree.n + 1)
+            for k, (Fe, Me) in ext.items():
+                F[k], M[k] = Fe, Me
+            Q[:, sl] = backward_recursion(tree, st, F, M, sl.stop - sl.start)[np.array(R) - 1]
+    W = np.moveaxis(W, -1, 0)
+    if Q is None:
+        return W[0] if single else W
+    return (W[0], Q[:, 0]) if single else (W, Q.T)
+
+
+def _slice_wrenches(wrenches: Sequence[Wrench], sl: slice, N: int) -> list[Wrench]:
+    out = []
+    for w in wrenches:
+        v = np.asarray(w.values, dtype=float)
+        out.append(Wrench(w.link, v[sl] if v.ndim == 2 and v.shape[0] == N else v, w.point, w.frame))
+    return out
+
+
+def _plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
+    """Which links, pairs and joint-term columns the requested block needs."""
+    names = tree.parameter_names
+    row_pos = {j: i for i, j in enumerate(R)}
+    links: dict[int, tuple[list[int], list[int]]] = {}  # k -> (positions in Cols, parameter offsets 0..9)
+    terms: list[tuple[int, int, str]] = []  # (output col, joint, term)
+    couplings: list[tuple[int, object]] = []
+    by_name = {c.name: c for c in tree.couplings}
+    for pos, col in enumerate(Cols):
+        name = names[col]
+        kind = name.rstrip("0123456789")
+        if name in by_name:
+            couplings.append((pos, by_name[name]))
+        elif kind in INERTIAL:
+            k = int(name[len(kind):])
+            links.setdefault(k, ([], []))
+            links[k][0].append(pos)
+            links[k][1].append(INERTIAL.index(kind))
+        else:
+            terms.append((pos, int(name[len(kind):]), kind))
+    pairs = {}
+    for k, (pos, off) in links.items():
+        rows = [j for j in tree.ancestors[k] if j in row_pos and tree.sigma[j] != FIXED]
+        if rows:
+            pairs[k] = (np.array([row_pos[j] for j in rows]), rows, np.array(pos), np.array(off))
+    needed = sorted({j for k, (_, rows, _, _) in pairs.items() for j in rows} | set(pairs))
+    return {"pairs": pairs, "terms": terms, "couplings": couplings, "row_pos": row_pos, "frames": needed}
+
+
+def _fill(tree: Tree, plan: dict, q: Array, qd: Array, qdd: Array, W: Array, R: list[int], Cols: list[int]) -> None:
+    pairs = plan["pairs"]
+    if pairs:
+        st = forward_kinematics(tree, q, qd, qdd, frames=plan["frames"])
+        ref = sum(st.P[k] for k in pairs) / len(pairs)
+        axes = {j: joint_axis(tree, st, j, ref) for j in plan["frames"] if j in plan["row_pos"]}
+        for k, (rpos, rows, cpos, off) in pairs.items():
+            B = link_block(st, k, ref)[:, off]
+            S = np.stack([axes[j] for j in rows])
+            W[rpos[:, None], cpos[None, :]] = np.einsum("jsn,scn->jcn", S, B)
+    row_pos = plan["row_pos"]
+    for pos, j, term in plan["terms"]:
+        if j in row_pos:
+            W[row_pos[j], pos] = joint_term_column(term, q[j - 1], qd[j - 1], qdd[j - 1])
+    idx = np.array(R) - 1
+    for pos, c in plan["couplings"]:
+        W[:, pos] = coupling_column(c, q, qd, qdd, tree.n)[idx]
