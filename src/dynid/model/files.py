@@ -85,6 +85,8 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         if not key.isdigit() or not isinstance(table, dict):
             raise ModelError(f"{where}: sections are per frame number, like [parameters.3]")
         j = int(key)
+        if not 1 <= j <= len(frames):
+            raise ModelError(f"{where}: frame {j} does not exist (the table has frames 1..{len(frames)})")
         bad = [k for k in table if k not in INERTIAL and k not in JOINT_TERMS]
         if bad:
             raise ModelError(

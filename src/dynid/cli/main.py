@@ -1,0 +1,102 @@
+"""`dynid`: command-line entry point. Errors are printed as one clear line, never a traceback."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..model import ModelError, Tree
+
+SIGMA = {0: "R", 1: "P", 2: "F"}
+
+
+def format_table(tree: Tree) -> str:
+    """The geometric table in SYMORO's layout (angles in degrees where that reads better)."""
+    head = f"{'j':>3} {'a(j)':>4} {'sigma':>5} {'gamma':>9} {'b':>8} {'alpha':>9} {'d':>8} {'theta':>9} {'r':>8}"
+    lines = [head]
+    for f in tree.frames:
+        th = f"q{f.j}" + (f"{np.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
+        r = f"q{f.j}" + (f"{f.r:+.4g}" if f.r else "") if f.sigma == 1 else f"{f.r:.4g}"
+        lines.append(
+            f"{f.j:>3} {f.ant:>4} {SIGMA[f.sigma]:>5} {_deg(f.gamma):>9} {f.b:>8.4g} {_deg(f.alpha):>9} "
+            f"{f.d:>8.4g} {th:>9} {r:>8}"
+        )
+    return "\n".join(lines)
+
+
+def _deg(a: float) -> str:
+    return f"{np.degrees(a):.4g}°" if a else "0"
+
+
+def format_parameters(tree: Tree) -> str:
+    rows, line = [], []
+    for name, value in zip(tree.parameter_names, tree.parameters, strict=True):
+        tag = "*" if name in tree.known else ""
+        line.append(f"{tree.label(name) + tag:>8} = {value:<11.6g}")
+        if len(line) == 4:
+            rows.append("  ".join(line))
+            line = []
+    if line:
+        rows.append("  ".join(line))
+    return "\n".join(rows)
+
+
+def cmd_model_show(args: argparse.Namespace) -> int:
+    from .. import load_model
+
+    model = load_model(args.file)
+    tree = model.tree
+    print(f"{tree.name}: {tree.n} frames, {tree.p} parameters, gravity {list(tree.gravity)} m/s²\n")
+    print(format_table(tree))
+    print(f"\nParameters ({'* = known' if tree.known else 'values from the file'}):")
+    print(format_parameters(tree))
+    if tree.couplings:
+        print("\nCouplings:")
+        for c in tree.couplings:
+            combo = " + ".join(f"{v:g}·q{j}" for j, v in c.coeffs.items())
+            print(f"  {c.name}: {c.kind} on {combo}")
+    print()
+    print(model.base_parameters())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dynid", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"dynid {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    model = sub.add_parser("model", help="describe and generate models of a tree")
+    msub = model.add_subparsers(dest="model_command", required=True)
+    show = msub.add_parser("show", help="print the MDH table, the parameters and the base parameters")
+    show.add_argument("file", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
+    show.set_defaults(func=cmd_model_show)
+    try:
+        from . import symbolic_cmds
+    except ImportError:  # the symbolic layer is optional at this stage
+        pass
+    else:
+        symbolic_cmds.register(msub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ModelError as exc:
+        print(f"dynid: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into `head` and closed early: not an error
+        sys.stderr.close()
+        return 0
+    except KeyboardInterrupt:
+        print("dynid: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

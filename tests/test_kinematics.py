@@ -1,0 +1,66 @@
+"""Jacobians and J-dot qd against finite differences of the geometric model."""
+
+import numpy as np
+import pytest
+from oracles import random_states, random_tree
+
+from dynid import Model, load_model
+
+
+def skew_to_vec(S: np.ndarray) -> np.ndarray:
+    return np.array([S[2, 1] - S[1, 2], S[0, 2] - S[2, 0], S[1, 0] - S[0, 1]]) / 2
+
+
+def fd_jacobian(m: Model, q: np.ndarray, frame: int, point: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """6 x n Jacobian by central differences of the point position and of the frame rotation."""
+    J = np.zeros((6, m.n))
+    for j in range(m.n):
+        dq = np.zeros(m.n)
+        dq[j] = h
+        Tp, Tm = m.transforms(q + dq)[frame], m.transforms(q - dq)[frame]
+        J[:3, j] = ((Tp[:3, :3] @ point + Tp[:3, 3]) - (Tm[:3, :3] @ point + Tm[:3, 3])) / (2 * h)
+        R = m.transforms(q)[frame][:3, :3]
+        J[3:, j] = skew_to_vec((Tp[:3, :3] - Tm[:3, :3]) / (2 * h) @ R.T)
+    return J
+
+
+@pytest.mark.parametrize("tree_kw", [dict(seed=21, n=12), dict(seed=22, n=16, floating=True)])
+def test_jacobian_finite_differences(tree_kw):
+    tree = random_tree(**tree_kw)
+    m = Model(tree)
+    q, _, _ = random_states(tree, 3, seed=1)
+    point = np.array([0.1, -0.2, 0.3])
+    for frame in (tree.n, tree.n // 2):
+        J = m.jacobian(q, frame, point)
+        for s in range(3):
+            assert np.allclose(J[s], fd_jacobian(m, q[s], frame, point), atol=1e-7)
+        # expressed in another frame: rotate by that frame's orientation
+        Je = m.jacobian(q, frame, point, expressed_in=3)
+        R3 = m.transforms(q)[:, 3, :3, :3]
+        assert np.allclose(Je[:, :3], np.einsum("nji,njk->nik", R3, J[:, :3]), atol=1e-12)
+
+
+def test_jdot_qdot_finite_differences():
+    tree = random_tree(seed=23, n=14, floating=True)
+    m = Model(tree)
+    q, qd, _ = random_states(tree, 4, seed=2)
+    point = [0.2, 0.1, -0.1]
+    h = 1e-5
+    for frame in (tree.n, 8):
+        a = m.jdot_qdot(q, qd, frame, point)
+        for s in range(4):
+            Jp = m.jacobian(q[s] + h * qd[s], frame, point)
+            Jm = m.jacobian(q[s] - h * qd[s], frame, point)
+            assert np.allclose(a[s], (Jp - Jm) @ qd[s] / (2 * h), atol=1e-6 * max(1, np.abs(a[s]).max()))
+
+
+def test_jacobian_times_qd_is_the_velocity():
+    """J qd equals the velocity obtained by differentiating the position along a path."""
+    m = load_model("floating_tree")
+    rng = np.random.default_rng(3)
+    q, qd = rng.normal(size=m.n), rng.normal(size=m.n)
+    h = 1e-6
+    p = [0.05, 0.0, 0.02]
+    T = m.transforms(np.stack([q + h * qd, q - h * qd]))[:, 10]
+    v = ((T[0, :3, :3] @ p + T[0, :3, 3]) - (T[1, :3, :3] @ p + T[1, :3, 3])) / (2 * h)
+    assert np.allclose(m.jacobian(q, 10, p)[:3] @ qd, v, atol=1e-7)
