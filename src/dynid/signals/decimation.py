@@ -1,0 +1,187 @@
+"""Parallel decimation of an identification system (Gautier's method).
+
+The identification system Y = W X is sampled at the measurement rate (625 Hz for
+the car), far faster than the dynamics (~1 Hz): it has many more rows than it needs,
+and the high-frequency part of each column is mostly noise and model error. Parallel
+decimation low-passes every column of W and Y with the SAME zero-phase filter, then
+keeps one sample in `factor`. Because the filter F is linear and applied alike to
+every column, F(Y) = F(W X) = F(W) X: the decimated system has exactly the same
+solution as the original when the original is consistent, while the rows left
+carry only the band that the model describes. The same filter on both sides is
+what makes this legitimate; filtering W and Y differently would bias X.
+
+Conventions: time is axis 0; W is (N, m, p) with m equation rows per sample and p
+parameter columns (or (N, p) with one row per sample), Y is (N, m) (or (N,)). The
+kept samples are 0, factor, 2 factor, ...: output sample k is at time
+t[0] + k factor / fs.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import sosfiltfilt
+
+from . import _checks
+from .errors import SignalError
+from .filters import design_lowpass, pad_length
+
+
+@dataclass(frozen=True)
+class _Stage:
+    """One filter-and-keep-one-in-factor stage."""
+
+    factor: int
+    fs: float  # input rate, Hz
+    cutoff: float  # Hz
+    sos: NDArray[np.float64]
+    n_in: int
+
+    @property
+    def n_out(self) -> int:
+        return -(-self.n_in // self.factor)
+
+
+def _factors(factor: int | Sequence[int]) -> tuple[int, ...]:
+    items = tuple(factor) if isinstance(factor, (list, tuple)) else (factor,)
+    if not items:
+        raise SignalError("factor is an empty sequence; give at least one decimation factor")
+    for f in items:
+        if isinstance(f, bool) or not isinstance(f, numbers.Integral) or f < 2:
+            raise SignalError(f"each decimation factor must be an integer >= 2, got {f!r} in {factor!r}")
+    return tuple(int(f) for f in items)
+
+
+def _stages(n: int, factors: tuple[int, ...], fs: float, order: int, cutoff) -> list[_Stage]:
+    if cutoff is None:
+        cutoffs: tuple = (None,) * len(factors)
+    elif isinstance(cutoff, (list, tuple)):
+        if len(cutoff) != len(factors):
+            raise SignalError(f"{len(cutoff)} cut-offs for {len(factors)} decimation stages; give one per stage")
+        cutoffs = tuple(cutoff)
+    elif len(factors) == 1:
+        cutoffs = (cutoff,)
+    else:
+        raise SignalError(
+            f"one cut-off for {len(factors)} decimation stages; give a sequence of one per stage, or None"
+        )
+    stages = []
+    rate = fs
+    for i, (f, c) in enumerate(zip(factors, cutoffs, strict=True), start=1):
+        nyquist_out = rate / (2.0 * f)
+        if c is None:
+            c = 0.8 * nyquist_out
+        c = _checks.cutoff_frequency(c, rate)
+        if c >= nyquist_out:
+            raise SignalError(
+                f"decimation stage {i}: cut-off {c:g} Hz is not below the Nyquist frequency after decimation, "
+                f"fs/(2 factor) = {rate:g}/(2*{f}) = {nyquist_out:g} Hz; what lies between would alias. "
+                "Lower it (default 0.8 of that) or decimate less"
+            )
+        stage = _Stage(f, rate, c, design_lowpass(rate, c, order), n)
+        pad = pad_length(stage.sos)
+        if n <= pad:
+            raise SignalError(
+                f"decimation stage {i} (factor {f} at {rate:g} Hz) gets {n} samples; its order-{order} "
+                f"zero-phase filter pads {pad} samples at each end and needs at least {pad + 1}. "
+                "Use a longer record, fewer or smaller factors, or a lower order"
+            )
+        stages.append(stage)
+        n = stage.n_out
+        rate /= f
+    return stages
+
+
+def _decimate_columns(a: NDArray[np.float64], stages: list[_Stage], block: int) -> NDArray[np.float64]:
+    """Filter and decimate every column of a 2-D (N, C) array, `block` columns at a time."""
+    out = np.empty((stages[-1].n_out, a.shape[1]))
+    for c0 in range(0, a.shape[1], block):
+        # Columns as contiguous rows: each filter pass then runs along memory.
+        work = np.ascontiguousarray(a[:, c0 : c0 + block].T)
+        for s in stages:
+            work = sosfiltfilt(s.sos, work, axis=-1, padtype="odd", padlen=pad_length(s.sos))[:, :: s.factor]
+        out[:, c0 : c0 + block] = work.T
+    return out
+
+
+def decimate_parallel(
+    W: ArrayLike,
+    Y: ArrayLike,
+    factor: int | Sequence[int],
+    fs: float,
+    order: int = 8,
+    cutoff: float | Sequence[float] | None = None,
+    *,
+    block_columns: int | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Low-pass every column of W and Y with the same zero-phase filter, keep one sample in `factor`.
+
+    Parameters
+    ----------
+    W : array (N, m, p) or (N, p)
+        Observation matrix per sample: m equation rows, p parameter columns.
+    Y : array (N, m) or (N,)
+        Right-hand side per sample, matching W ((N, p) goes with (N,)).
+    factor : int >= 2, or a sequence of them
+        Decimation factor, or factors applied in turn (the TX40 reference uses
+        (10, 10): 100 in two stages, each with its own filter; one stage of 100 would
+        need a filter with a cut-off very close to zero in normalised frequency).
+    fs : float
+        Sample rate of W and Y, Hz.
+    order : int
+        Butterworth order of one pass (forward-backward doubles it).
+    cutoff : float, sequence of floats, or None
+        Anti-alias cut-off in Hz, one per stage for a sequence of factors; each must
+        be below the stage's output Nyquist frequency fs_in / (2 factor). None: 0.8 of
+        that frequency at every stage.
+    block_columns : int or None
+        Columns filtered at once; None picks blocks of about 16 MB of input, so that
+        the work space (a few times a block) stays small beside W whatever N, m, p.
+
+    Returns
+    -------
+    (Wd, Yd) : arrays (Nd, m, p) or (Nd, p), and (Nd, m) or (Nd,), with
+        Nd = ceil(N / prod(factors)) (rounded up at each stage); sample rate
+        fs / prod(factors). Same units as W and Y.
+
+    Notes
+    -----
+    The first and last rows carry the anti-alias filter's end transient
+    (`border_samples(fs, cutoff, order)` samples at the input rate). Cut the full-rate
+    data to the part you trust before decimating, or drop the corresponding rows after.
+    """
+    Wa = _checks.as_float(W, "W", min_ndim=2)
+    Ya = _checks.as_float(Y, "Y")
+    fs = _checks.rate(fs)
+    order = _checks.filter_order(order)
+    if Wa.ndim == 3:
+        expected = Wa.shape[:2]
+    elif Wa.ndim == 2:
+        expected = Wa.shape[:1]
+    else:
+        raise SignalError(f"W must be (N, m, p) or (N, p), got shape {Wa.shape}")
+    if Ya.shape != expected:
+        raise SignalError(
+            f"Y has shape {Ya.shape}, W has shape {Wa.shape}: Y must be {expected}, one value per sample and "
+            "equation row of W"
+        )
+    n = Wa.shape[0]
+    stages = _stages(n, _factors(factor), fs, order, cutoff)
+    W2 = Wa.reshape(n, -1)
+    Y2 = Ya.reshape(n, -1)
+    _checks.finite(Wa, "W", 0, "remove or repair those samples before decimating")
+    _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
+    if block_columns is None:
+        block = _checks.block_columns(n)
+    elif isinstance(block_columns, bool) or not isinstance(block_columns, numbers.Integral) or block_columns < 1:
+        raise SignalError(f"block_columns must be an integer >= 1 or None, not {block_columns!r}")
+    else:
+        block = int(block_columns)
+    nd = stages[-1].n_out
+    Wd = _decimate_columns(W2, stages, block).reshape((nd, *Wa.shape[1:]))
+    Yd = _decimate_columns(Y2, stages, block).reshape((nd, *Ya.shape[1:]))
+    return Wd, Yd

@@ -1,0 +1,102 @@
+"""Zero-phase Butterworth low-pass filtering (forward-backward, like MATLAB `filtfilt`).
+
+Paper §6.2: every measurement is low-pass filtered forward then backward, so the
+filter adds no phase (no lag between channels, which matters because W and Y mix
+positions, velocities, accelerations and forces sampled at the same instants).
+
+Conventions of this module, shared by the derivative and decimation modules:
+- `cutoff` and `fs` in Hz; `order` is the order of ONE pass. Forward-backward
+  squares the magnitude: the effective response is |H(f)|^2, i.e. twice the
+  roll-off of `order` (order 4 falls like an 8th-order filter) and -6 dB, not
+  -3 dB, at the cut-off. In the digital design (bilinear transform, prewarped)
+  |H(f)|^2 = 1 / (1 + (tan(pi f / fs) / tan(pi cutoff / fs))^(2 order)).
+- The filter is designed as second-order sections (numerically safe at the low
+  cut-off to sample-rate ratios of vehicle data, 3 Hz at 625 Hz).
+- Ends: like `filtfilt`, the record is extended at each end by an odd reflection of
+  3 x (number of filter taps) samples and the filter state starts in steady state.
+  This keeps the ends usable for smooth signals but does not make them exact: see
+  `border_samples` for how many end samples to distrust.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import butter, sosfiltfilt
+
+from . import _checks
+from .errors import SignalError
+
+
+def design_lowpass(fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
+    """Digital Butterworth low-pass of one pass as second-order sections, shape (ceil(order/2), 6).
+
+    Package helper; arguments are assumed already checked.
+    """
+    return np.asarray(butter(order, cutoff, btype="low", fs=fs, output="sos"), dtype=np.float64)
+
+
+def pad_length(sos: NDArray[np.float64]) -> int:
+    """Samples of odd-reflection padding added at each end, 3 x (number of taps), as `filtfilt`.
+
+    A section whose b2 and a2 are both zero (odd orders) is first order: it does not
+    add a tap. The record must be strictly longer than this.
+    """
+    taps = 2 * sos.shape[0] + 1
+    taps -= min(int(np.count_nonzero(sos[:, 2] == 0)), int(np.count_nonzero(sos[:, 5] == 0)))
+    return 3 * taps
+
+
+def apply_zero_phase(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int, name: str, context: str) -> NDArray:
+    """Forward-backward `sos` along `axis` of a checked float array, with the length check.
+
+    Package helper: `context` says which filter this is, for the error message.
+    """
+    pad = pad_length(sos)
+    n = a.shape[axis]
+    if n <= pad:
+        raise SignalError(
+            f"{name} has {n} samples along axis {axis}; {context} pads {pad} samples at each end "
+            f"and needs at least {pad + 1}. Use a longer record or a lower order"
+        )
+    return sosfiltfilt(sos, a, axis=axis, padtype="odd", padlen=pad)
+
+
+def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:
+    """Zero-phase Butterworth low-pass of `x` along `axis`.
+
+    Parameters
+    ----------
+    x : array (..., N, ...)
+        Real samples, N along `axis` (time is axis 0 by default), any unit.
+        Every other index is an independent channel filtered the same way.
+    fs : float
+        Sample rate in Hz (the paper's 1.6 ms sample time is fs = 625 Hz).
+    cutoff : float
+        Cut-off frequency in Hz of one pass, 0 < cutoff < fs/2. The forward-backward
+        gain there is 1/2 (-6 dB).
+    order : int
+        Butterworth order of one pass, >= 1. Forward-backward doubles it: the
+        default 4 gives the magnitude of an 8th-order filter with no phase.
+    axis : int
+        Time axis.
+
+    Returns
+    -------
+    array, same shape as `x`, float64, same unit.
+
+    Raises
+    ------
+    SignalError
+        cutoff not in (0, fs/2); order < 1; fewer samples than the end padding needs
+        (the message gives both numbers); a NaN or infinity in `x` (the message gives
+        the first bad sample index and column).
+    """
+    a = _checks.as_float(x, "x")
+    ax = _checks.time_axis(a, axis, "x")
+    fs = _checks.rate(fs)
+    order = _checks.filter_order(order)
+    cutoff = _checks.cutoff_frequency(cutoff, fs)
+    _checks.finite(a, "x", ax, "filtering would spread it over the whole record; fill or cut the gap first")
+    sos = design_lowpass(fs, cutoff, order)
+    return apply_zero_phase(sos, a, ax, "x", f"the order-{order} zero-phase low-pass")

@@ -1,0 +1,443 @@
+"""Tests of dynid.signals against closed forms.
+
+Oracles used (none is the code under test run a second time):
+- the Butterworth magnitude in closed form: the digital design is the bilinear
+  transform of the analog prototype with the cut-off prewarped, so one pass has
+  |H(f)|^2 = 1 / (1 + (tan(pi f/fs) / tan(pi fc/fs))^(2 n)), and forward-backward
+  multiplies a sinusoid by exactly that, with no phase;
+- the exact gains of the difference formulas on sinusoids: the central difference
+  gives sin(w h)/(w h) times the true derivative, the cumulative trapezoid gives
+  (w h/2) cot(w h/2) times the true integral;
+- Taylor / Peano error bounds of central differences, trapezoids and interpolation;
+- linearity: a consistent system Y = W X stays consistent under any linear filter
+  applied alike to every column, so least squares gives back X.
+"""
+
+from __future__ import annotations
+
+import re
+import tracemalloc
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.signal import butter, sosfilt
+
+from dynid.signals import (
+    SignalError,
+    border_samples,
+    common_clock,
+    decimate_parallel,
+    derivative,
+    filtered_derivatives,
+    integrate,
+    lowpass,
+    resample,
+    trim,
+)
+
+FS = 625.0  # the paper's 1.6 ms sample time
+H = 1.0 / FS
+
+
+def power_gain(f, fs, fc, order):
+    """Closed-form |H(f)|^2 of a digital Butterworth low-pass of one pass (= the forward-backward gain)."""
+    rho = np.tan(np.pi * np.asarray(f) / fs) / np.tan(np.pi * fc / fs)
+    return 1.0 / (1.0 + rho ** (2 * order))
+
+
+def sine_fit(t, y, w):
+    """Amplitude and phase (rad) of the sinusoid of angular frequency w that best fits y(t)."""
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    (s, c), *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return float(np.hypot(s, c)), float(np.arctan2(c, s))
+
+
+# ---------------------------------------------------------------- lowpass
+
+
+def test_lowpass_sinusoid_in_pass_band_has_no_lag_and_unit_amplitude():
+    f, fc, order = 1.0, 3.0, 4
+    t = np.arange(int(20 * FS)) * H
+    x = np.sin(2 * np.pi * f * t)
+    y = lowpass(x, FS, fc, order)
+    causal = sosfilt(butter(order, fc, fs=FS, output="sos"), x)  # one pass: delays, to show the test can tell
+
+    # Cross-correlation over a window of whole periods in the middle, lags -50..50.
+    period = int(FS / f)
+    window = np.arange(7 * period, 13 * period)
+    lags = np.arange(-50, 51)
+
+    def xcorr(out):
+        return np.array([out[window] @ x[window - k] for k in lags])
+
+    assert lags[np.argmax(xcorr(y))] == 0
+    assert lags[np.argmax(xcorr(causal))] > 5
+    amplitude, phase = sine_fit(t[window], y[window], 2 * np.pi * f)
+    assert abs(phase) < 1e-7
+    assert amplitude == pytest.approx(power_gain(f, FS, fc, order), abs=1e-7)
+    assert amplitude == pytest.approx(1.0, abs=2e-4)  # (1/3)^8 = 1.5e-4 of pass-band droop
+
+
+def test_lowpass_gain_follows_butterworth_formula_on_every_channel_along_axis():
+    fc, order = 3.0, 4
+    freqs = np.array([0.5, 2.0, 3.0, 4.5])  # at the cut-off the forward-backward gain is exactly 1/2
+    t = np.arange(int(24 * FS)) * H
+    x = np.sin(2 * np.pi * freqs[:, None] * t[None, :] + 0.3)  # channels on axis 0, time on axis 1
+    y = lowpass(x, FS, fc, order, axis=1)
+    assert y.shape == x.shape
+    window = slice(int(8 * FS), int(16 * FS))  # whole periods of every frequency, far from the ends
+    for i, f in enumerate(freqs):
+        amplitude, phase = sine_fit(t[window], y[i, window], 2 * np.pi * f)
+        assert amplitude == pytest.approx(power_gain(f, FS, fc, order), abs=1e-6)
+        assert abs(phase - 0.3) < 1e-5
+    assert power_gain(3.0, FS, fc, order) == pytest.approx(0.5)
+
+
+def test_lowpass_errors_name_the_problem():
+    x = np.zeros(1000)
+    with pytest.raises(SignalError, match=r"Nyquist.*312\.5 Hz"):
+        lowpass(x, FS, 312.5)
+    with pytest.raises(SignalError, match="order"):
+        lowpass(x, FS, 3.0, order=0)
+    with pytest.raises(SignalError, match="positive"):
+        lowpass(x, -FS, 3.0)
+
+
+def test_lowpass_too_short_message_gives_true_counts():
+    with pytest.raises(SignalError) as info:
+        lowpass(np.ones(10), FS, 3.0, order=4)
+    message = str(info.value)
+    have = int(re.search(r"has (\d+) samples", message).group(1))
+    need = int(re.search(r"at least (\d+)", message).group(1))
+    assert have == 10
+    # The stated minimum is the true one: it works at `need` samples and fails just below.
+    assert lowpass(np.ones(need), FS, 3.0, order=4) == pytest.approx(np.ones(need))
+    with pytest.raises(SignalError):
+        lowpass(np.ones(need - 1), FS, 3.0, order=4)
+
+
+def test_lowpass_nan_message_names_first_sample_and_column():
+    x = np.zeros((200, 3))
+    x[70, 0] = np.nan
+    x[40, 2] = np.inf
+    x[40, 1] = np.nan  # same sample as the inf, earlier column: reported first
+    with pytest.raises(SignalError, match=r"sample 40, column 1") as info:
+        lowpass(x, FS, 3.0)
+    assert "3 non-finite" in str(info.value)
+    xt = np.zeros((3, 200))
+    xt[2, 55] = np.nan
+    with pytest.raises(SignalError, match=r"sample 55, column 2"):
+        lowpass(xt, FS, 3.0, axis=1)
+    w = np.zeros((200, 2, 4))
+    w[9, 1, 3] = np.nan
+    with pytest.raises(SignalError, match=r"sample 9, column \(1, 3\)"):
+        lowpass(w, FS, 3.0)
+
+
+# ---------------------------------------------------------------- derivatives
+
+AMPS = np.array([0.8, 0.5, 0.3])
+FREQS = np.array([0.3, 0.7, 1.1])  # Hz: "dynamics around 1 Hz"
+PHASES = np.array([0.2, 1.0, -0.7])
+
+
+def sum_of_sines(t, k=0):
+    """k-th analytic derivative of sum_i A_i sin(w_i t + phi_i)."""
+    w = 2 * np.pi * FREQS
+    return np.sum(
+        AMPS[:, None] * w[:, None] ** k * np.sin(w[:, None] * t[None, :] + PHASES[:, None] + k * np.pi / 2), 0
+    )
+
+
+def test_central_difference_meets_taylor_bound():
+    t = np.arange(2000) * H
+    xd = derivative(sum_of_sines(t), FS)
+    # Central difference: error <= h^2/6 max|x'''|; one-sided end formula: <= h^2/3 max|x'''|.
+    m3 = np.sum(AMPS * (2 * np.pi * FREQS) ** 3)
+    err = np.abs(xd - sum_of_sines(t, 1))
+    assert err[1:-1].max() <= H**2 / 6 * m3
+    assert max(err[0], err[-1]) <= H**2 / 3 * m3
+    with pytest.raises(SignalError, match="at least 3"):
+        derivative(np.ones(2), FS)
+
+
+@pytest.mark.parametrize("order", [4, 6])
+def test_filtered_derivatives_match_analytic_derivatives(order):
+    fc = 3.0
+    t = np.arange(int(16 * FS)) * H
+    q, qd, qdd = filtered_derivatives(sum_of_sines(t), FS, fc, order=order)
+    # Far from the ends: beyond the border for tol = 1e-9 (plus the 2 samples of the
+    # one-sided end formulas) the end transient is ~1e-9 of the amplitude, and its
+    # derivatives ~ (2 pi fc)^k times that: negligible next to the bounds below.
+    n = border_samples(FS, fc, order, tol=1e-9) + 2
+    assert 2 * n < t.size - FS  # at least one second left to test
+    w = 2 * np.pi * FREQS
+    # Per component the operator multiplies the k-th derivative by G (sinc)^k, with
+    # G = |H|^2 the forward-backward gain and sinc = sin(w h)/(w h) the central
+    # difference gain. 1 - G = rho^2n / (1 + rho^2n) <= rho^2n, and
+    # 1 - sinc^k <= k (w h)^2 / 6, so 1 - G sinc^k <= rho^2n + k (w h)^2 / 6, and the
+    # error is at most sum_i A_i w_i^k (rho_i^2n + k (w_i h)^2 / 6).
+    rho = np.tan(np.pi * FREQS / FS) / np.tan(np.pi * fc / FS)
+    gain = power_gain(FREQS, FS, fc, order)
+    sinc = np.sin(w * H) / (w * H)
+    for k, out in enumerate((q, qd, qdd)):
+        exact = sum_of_sines(t, k)[n:-n]
+        bound = np.sum(AMPS * w**k * (rho ** (2 * order) + k * (w * H) ** 2 / 6))
+        assert np.abs(out[n:-n] - exact).max() <= bound
+        # Sharper: the output is the analytic derivative with each component scaled by
+        # its closed-form gain, to the end-transient level.
+        scaled = np.sum(
+            (AMPS * w**k * gain * sinc**k)[:, None]
+            * np.sin(w[:, None] * t[None, n:-n] + PHASES[:, None] + k * np.pi / 2),
+            0,
+        )
+        assert np.abs(out[n:-n] - scaled).max() <= 1e-8 * np.sum(AMPS * w**k)
+
+
+def test_filtered_derivatives_count_and_batch():
+    t = np.arange(3000) * H
+    x = np.stack([sum_of_sines(t), 2 * sum_of_sines(t)], axis=1)
+    outs = filtered_derivatives(x, FS, 3.0, nderiv=1)
+    assert len(outs) == 2 and all(o.shape == x.shape for o in outs)
+    np.testing.assert_allclose(outs[1][:, 1], 2 * outs[1][:, 0], rtol=1e-12, atol=1e-12)  # linearity
+    assert len(filtered_derivatives(x, FS, 3.0, nderiv=0)) == 1
+    with pytest.raises(SignalError, match="nderiv"):
+        filtered_derivatives(x, FS, 3.0, nderiv=-1)
+
+
+# ---------------------------------------------------------------- integration
+
+
+def test_trapezoid_integral_of_cos_within_bound_and_in_phase():
+    w = 2 * np.pi * 1.3
+    t = np.arange(int(10 * FS)) * H
+    x = integrate(np.cos(w * t), FS)
+    # Composite trapezoid on [0, t]: |error| <= t h^2 max|f''| / 12 = t h^2 w^2 / 12.
+    err = np.abs(x - np.sin(w * t) / w)
+    assert np.all(err <= t * H**2 * w**2 / 12 + 1e-15)
+    # No phase shift: exactly sin(w t)/w times the gain (w h/2) cot(w h/2).
+    np.testing.assert_allclose(x, (H / 2) / np.tan(w * H / 2) * np.sin(w * t), rtol=0, atol=1e-13)
+
+
+def test_trapezoid_error_is_second_order():
+    w, duration = 2 * np.pi * 1.3, 2.1
+    errors = []
+    for fs in (100.0, 200.0):
+        t = np.arange(int(duration * fs) + 1) / fs
+        errors.append(np.abs(integrate(np.cos(w * t), fs) - np.sin(w * t) / w).max())
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.02)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    fs=st.floats(1.0, 5000.0),
+    n=st.integers(1, 300),
+    a=st.floats(-100.0, 100.0),
+    b=st.floats(-100.0, 100.0),
+)
+def test_trapezoid_is_exact_on_linear_rates(fs, n, a, b):
+    t = np.arange(n) / fs
+    x0 = np.array([1.5, -2.0])
+    xd = np.stack([a + b * t, b - a * t])  # channels on axis 0, time on axis 1
+    x = integrate(xd, fs, x0=x0, axis=1)
+    exact = np.stack([x0[0] + a * t + b * t**2 / 2, x0[1] + b * t - a * t**2 / 2])
+    np.testing.assert_allclose(x, exact, rtol=1e-10, atol=1e-10 * (1 + abs(a) + abs(b)) * (1 + t[-1] ** 2))
+
+
+def test_integrate_rejects_mismatched_x0():
+    with pytest.raises(SignalError, match="x0"):
+        integrate(np.ones((10, 3)), FS, x0=np.ones(4))
+
+
+# ---------------------------------------------------------------- borders
+
+
+def test_beyond_border_a_record_filters_as_if_it_were_endless():
+    fc, order, tol = 3.0, 4, 1e-3
+    rng = np.random.default_rng(1)
+    long = rng.standard_normal(12000)  # white noise: the hardest case for the ends
+    a, b = 4000, 8000
+    seg = long[a:b]
+    endless = lowpass(long, FS, fc, order)[a:b]  # the segment's ends are > 6 s from the record's
+    err = np.abs(lowpass(seg, FS, fc, order) - endless)
+    n = border_samples(FS, fc, order, tol)
+    # The end extension (odd reflection 2 x0 - x[k], then a steady start) is within
+    # 3 max|x| and the true continuation within max|x| (the long record is scaled
+    # alike): mismatch E <= 4 max|x|, error <= E tol ||g||_1, and ||g||_1 = 1.38 < 2 for this filter.
+    bound = 8 * tol * np.abs(long).max()
+    assert err[n:-n].max() <= bound
+    assert err[:n].max() > bound  # and the first samples really are spoiled
+
+
+def test_border_samples_scales_with_time_constant():
+    n = border_samples(FS, 3.0, 4)
+    assert border_samples(2 * FS, 3.0, 4) == pytest.approx(2 * n, rel=0.01)
+    assert border_samples(FS, 6.0, 4) == pytest.approx(n / 2, rel=0.01)
+    assert border_samples(FS, 3.0, 4, tol=1e-6) > n > border_samples(FS, 3.0, 4, tol=1e-2)
+    with pytest.raises(SignalError, match="tol"):
+        border_samples(FS, 3.0, 4, tol=0.0)
+
+
+def test_trim():
+    x = np.arange(30).reshape(3, 10)
+    np.testing.assert_array_equal(trim(x, 2, axis=1), x[:, 2:8])
+    np.testing.assert_array_equal(trim(x, 0, axis=1), x)
+    with pytest.raises(SignalError, match="leaves nothing"):
+        trim(x, 5, axis=1)
+    with pytest.raises(SignalError, match="n must be"):
+        trim(x, -1)
+
+
+# ---------------------------------------------------------------- decimation
+
+
+def lstsq_stacked(W, Y):
+    p = W.shape[-1]
+    return np.linalg.lstsq(W.reshape(-1, p), Y.reshape(-1), rcond=None)[0]
+
+
+@pytest.mark.parametrize("factor", [10, (10, 10)])
+def test_decimated_consistent_system_gives_back_parameters(factor):
+    rng = np.random.default_rng(7)
+    n, m, p = 24000, 3, 6
+    W = rng.standard_normal((n, m, p)) + np.sin(2 * np.pi * 0.4 * np.arange(n) * H)[:, None, None]
+    X = rng.uniform(-3.0, 3.0, p) * 10.0 ** rng.integers(-2, 3, p)
+    Y = np.einsum("nmp,p->nm", W, X)
+    Wd, Yd = decimate_parallel(W, Y, factor, FS, block_columns=4)
+    total = np.prod(factor)
+    assert Wd.shape == (-(-n // total), m, p) and Yd.shape == (Wd.shape[0], m)
+    x_dec = lstsq_stacked(Wd, Yd)
+    assert np.linalg.norm(x_dec - X) <= 1e-10 * np.linalg.norm(X)
+    if factor == 10:
+        # The same system filtered (same filter on every column) but not decimated.
+        cutoff = 0.8 * FS / (2 * 10)
+        x_full = lstsq_stacked(lowpass(W, FS, cutoff, 8), lowpass(Y, FS, cutoff, 8))
+        assert np.linalg.norm(x_dec - x_full) <= 1e-10 * np.linalg.norm(X)
+
+
+def test_decimation_passes_band_and_stops_aliases():
+    n, factor, order = 12000, 10, 8
+    t = np.arange(n) * H
+    cutoff = 0.8 * FS / (2 * factor)  # 25 Hz; new Nyquist 31.25 Hz
+    freqs = np.array([[1.0, 40.0], [2.0, 100.0]])  # 40 Hz would alias to 22.5 Hz, 100 Hz to 25 Hz
+    W = np.sin(2 * np.pi * freqs[None, :, :] * t[:, None, None] + 0.1)
+    Y = np.cos(2 * np.pi * np.array([0.5, 45.0])[None, :] * t[:, None])
+    Wd, Yd = decimate_parallel(W, Y, factor, FS, order=order, block_columns=1)
+    td = t[::factor]
+    k = border_samples(FS, cutoff, order, tol=1e-9) // factor + 1
+    expect_w = power_gain(freqs, FS, cutoff, order)[None] * np.sin(2 * np.pi * freqs[None] * td[:, None, None] + 0.1)
+    expect_y = power_gain(np.array([0.5, 45.0]), FS, cutoff, order)[None] * np.cos(
+        2 * np.pi * np.array([0.5, 45.0])[None] * td[:, None]
+    )
+    np.testing.assert_allclose(Wd[k:-k], expect_w[k:-k], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(Yd[k:-k], expect_y[k:-k], rtol=0, atol=1e-6)
+    assert np.abs(Wd[k:-k, 0, 1]).max() < 1e-3  # the would-be alias is gone
+
+
+def test_two_stage_decimation_gain_is_product_of_stage_gains():
+    n, f = 30000, 0.5
+    t = np.arange(n) * H
+    W = np.sin(2 * np.pi * f * t)[:, None]  # (N, p) with p = 1
+    Wd, Yd = decimate_parallel(W, np.zeros(n), (10, 10), FS)
+    assert Wd.shape == (300, 1) and Yd.shape == (300,)
+    gain = power_gain(f, FS, 0.8 * FS / 20, 8) * power_gain(f, FS / 10, 0.8 * FS / 200, 8)
+    td = t[::100]
+    k = border_samples(FS / 10, 0.8 * FS / 200, 8, tol=1e-9) // 10 + 1
+    np.testing.assert_allclose(Wd[k:-k, 0], gain * np.sin(2 * np.pi * f * td[k:-k]), rtol=0, atol=1e-6)
+
+
+def test_decimation_errors():
+    n = 2000
+    W, Y = np.zeros((n, 2, 3)), np.zeros((n, 2))
+    with pytest.raises(SignalError, match="Y must be"):
+        decimate_parallel(W, np.zeros(n), 10, FS)
+    with pytest.raises(SignalError, match="integer >= 2"):
+        decimate_parallel(W, Y, 1, FS)
+    with pytest.raises(SignalError, match=r"stage 1.*alias"):
+        decimate_parallel(W, Y, 10, FS, cutoff=40.0)
+    with pytest.raises(SignalError, match="one per stage"):
+        decimate_parallel(W, Y, (10, 10), FS, cutoff=20.0)
+    with pytest.raises(SignalError, match=r"stage 2 \(factor 10 at 62\.5 Hz\) gets 25 samples"):
+        decimate_parallel(W[:250], Y[:250], (10, 10), FS)
+    W[123, 1, 2] = np.nan
+    with pytest.raises(SignalError, match=r"W has .* at sample 123, column \(1, 2\)"):
+        decimate_parallel(W, Y, 10, FS)
+
+
+# ---------------------------------------------------------------- resampling
+
+
+def smooth(t):
+    return np.sin(2 * np.pi * 0.5 * t) + 0.3 * np.cos(2 * np.pi * 1.3 * t + 0.4)
+
+
+def smooth_bound(k):
+    """max |d^k/dt^k smooth|."""
+    return (2 * np.pi * 0.5) ** k + 0.3 * (2 * np.pi * 1.3) ** k
+
+
+def test_resample_jittered_channel_onto_common_clock():
+    rng = np.random.default_rng(3)
+    t = np.arange(1000) / 100.0 + rng.uniform(-2e-3, 2e-3, 1000) + 0.05  # a 100 Hz sensor with jitter
+    h_max = np.diff(t).max()
+    clock = common_clock([t, np.linspace(-1.0, 9.0, 50)], FS)
+    assert clock[0] == t[0] and clock[-1] <= 9.0 and clock[-1] > 9.0 - 1 / FS
+    np.testing.assert_allclose(np.diff(clock), 1 / FS, rtol=1e-9)
+    x = np.stack([smooth(t), -2 * smooth(t)], axis=1)
+    cubic = resample(t, x, clock)
+    linear = resample(t, x[:, 0], clock, kind="linear")
+    exact = smooth(clock)
+    # Linear interpolation: |error| <= h^2 max|x''| / 8 (exact bound). Cubic spline:
+    # O(h^4 max|x''''|); the clamped spline's constant is 5/384, the not-a-knot
+    # spline's is larger near the ends, so take a generous 1.
+    assert np.abs(linear - exact).max() <= h_max**2 * smooth_bound(2) / 8
+    assert np.abs(cubic[:, 0] - exact).max() <= h_max**4 * smooth_bound(4)
+    assert np.abs(cubic[:, 1] + 2 * exact).max() <= 2 * h_max**4 * smooth_bound(4)
+    # Along another axis: components first, time second.
+    np.testing.assert_allclose(resample(t, x.T, clock, axis=1), cubic.T, rtol=0, atol=1e-12)
+
+
+def test_resample_errors_name_the_sample():
+    t = np.arange(10.0)
+    x = np.sin(t)
+    t_dup = t.copy()
+    t_dup[6] = t_dup[5]
+    with pytest.raises(SignalError, match=r"duplicated at sample 6"):
+        resample(t_dup, x, [1.0, 2.0])
+    t_back = t.copy()
+    t_back[4] = 2.5
+    with pytest.raises(SignalError, match=r"backwards at sample 4"):
+        resample(t_back, x, [1.0, 2.0])
+    with pytest.raises(SignalError, match=r"t_new\[2\] = 9\.5 s is outside"):
+        resample(t, x, [0.0, 9.0, 9.5, -1.0])
+    x_nan = x.copy()
+    x_nan[7] = np.nan
+    with pytest.raises(SignalError, match="sample 7"):
+        resample(t, x_nan, [1.0])
+    t_nan = t.copy()
+    t_nan[3] = np.nan
+    with pytest.raises(SignalError, match=r"t has .* at sample 3"):
+        resample(t_nan, x, [1.0])
+    with pytest.raises(SignalError, match="9 time stamps"):
+        resample(t[:9], x, [1.0])
+    with pytest.raises(SignalError, match="do not overlap"):
+        common_clock([t, t + 20.0], FS)
+
+
+def test_decimation_of_paper_sized_system_works_in_blocks():
+    # A 60 s test at 625 Hz, 14 equations, 48 parameters: the car's identification
+    # system, 200 MB. Filtering it in column blocks must not copy it whole.
+    n, m, p = 37500, 14, 48
+    W = np.ones((n, m, p))
+    Y = np.ones((n, m))
+    tracemalloc.start()
+    try:
+        Wd, _ = decimate_parallel(W, Y, (10, 10), FS)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < W.nbytes / 2
+    assert Wd.shape == (375, m, p)
+    np.testing.assert_allclose(Wd, 1.0, rtol=1e-9)  # a constant passes unchanged (DC gain 1)
