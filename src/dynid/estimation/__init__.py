@@ -1,0 +1,23 @@
+"""Estimation: ordinary and weighted least squares with standard deviations (paper §5),
+rank checks naming unidentifiable parameters, the %σ rule of thumb and essential parameters
+(§7.2), validation errors, streaming least squares, and the results object.
+
+Works on plain arrays and names: W (m, p), Y (m,), the equation group of each row, the p
+parameter names. It imports nothing from the model, kinematics or dynamics layers.
+"""
+
+from .errors import EstimationWarning, IdentificationError
+from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_parameters
+from .lsq import LSQSolution, check_rank, solve_lsq
+from .ols import ols
+from .quality import POOR_FACTOR, poorly_identified, relative_errors, relative_std_percent
+from .result import IdentificationResult, ResidualStats
+from .streaming import StreamingLS
+from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
+
+__all__ = [
+    "POOR_FACTOR", "RESIDUAL_TOL", "SIGMA_FLOOR", "EssentialResult", "EssentialStep", "EstimationWarning",
+    "GroupFit", "IdentificationError", "IdentificationResult", "LSQSolution", "ResidualStats", "StreamingLS",
+    "check_rank", "essential_parameters", "group_noise", "ols", "poorly_identified", "relative_errors",
+    "relative_std_percent", "solve_lsq", "wls",
+]

@@ -1,0 +1,76 @@
+"""Quality indicators: relative standard deviations, the 20x rule of thumb, relative errors."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._checks import as_groups, as_matrix, as_vector, group_rows, norm_ratio
+from .errors import IdentificationError
+
+POOR_FACTOR = 20.0
+"""Paper §7.2: a parameter whose %σ exceeds 20 times the smallest %σ is poorly identified."""
+
+
+def relative_std_percent(values: ArrayLike, std: ArrayLike) -> np.ndarray:
+    """``100 * std / |value|`` (%), elementwise; inf for a zero estimate with std > 0, 0 when both are 0."""
+    x = np.abs(np.asarray(values, dtype=float))
+    s = np.asarray(std, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = 100.0 * s / x
+    out[(x == 0) & (s == 0)] = 0.0
+    return out
+
+
+def poorly_identified(rel_std_percent: Mapping[str, float], factor: float = POOR_FACTOR) -> list[str]:
+    """Names whose %σ exceeds ``factor`` times the smallest %σ (paper §7.2), in the mapping's order.
+
+    A non-finite %σ (zero estimate) is always poor. With no finite %σ at all, every parameter is poor.
+    """
+    if factor <= 0:
+        raise IdentificationError(f"the poor-identification factor must be positive, got {factor}")
+    finite = [v for v in rel_std_percent.values() if np.isfinite(v)]
+    if not finite:
+        return list(rel_std_percent)
+    limit = factor * min(finite)
+    return [n for n, v in rel_std_percent.items() if not np.isfinite(v) or v > limit]
+
+
+def relative_errors(
+    W: ArrayLike,
+    Y: ArrayLike,
+    X: ArrayLike | Mapping[str, float],
+    groups: ArrayLike,
+    names: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """Relative error ``||Y_g - W_g X|| / ||Y_g||`` per equation group, plus ``"overall"``.
+
+    W : (m, p); Y : (m,); X : (p,) values in W's column order, or ``{name: value}`` with ``names``
+    giving W's column order (every name must be present); groups : (m,) group label of each row.
+    A group with ``||Y_g|| = 0`` gets 0 if its residual is 0 too, else inf. Direct validation passes
+    the identification data, cross validation data from a test not used for estimation (paper §7.2).
+    """
+    A = as_matrix(W, names)
+    m, p = A.shape
+    y = as_vector(Y, m)
+    if isinstance(X, Mapping):
+        if names is None:
+            raise IdentificationError("X given as {name: value} needs names (the parameter of each column of W)")
+        missing = [n for n in names if n not in X]
+        if missing:
+            raise IdentificationError(f"X has no value for parameters {missing}", parameters=missing)
+        x = np.array([float(X[n]) for n in names])
+    else:
+        x = np.asarray(X, dtype=float).reshape(-1)
+    if x.shape != (p,):
+        raise IdentificationError(f"X must have {p} values (one per column of W), got {x.shape[0]}")
+    g = as_groups(groups, m)
+    rows = group_rows(g)
+    if "overall" in rows:
+        raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
+    res = y - A @ x
+    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(y[idx])) for name, idx in rows.items()}
+    out["overall"] = norm_ratio(np.linalg.norm(res), np.linalg.norm(y))
+    return out

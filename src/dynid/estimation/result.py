@@ -1,0 +1,321 @@
+"""The result of an identification: named values, standard deviations, flags; table, dict, JSON."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .lsq import LSQSolution
+from .quality import POOR_FACTOR, poorly_identified, relative_std_percent
+
+FLAG_POOR = "poor"
+FLAG_KNOWN = "known"
+
+
+@dataclass(frozen=True)
+class ResidualStats:
+    """Residual statistics of an identification.
+
+    n_rows : rows of W (m). n_estimated : estimated parameters (q). dof : m - q.
+    sigma : standard deviation of the residual of the system actually solved (for WLS the
+    weighted one, dimensionless and ≈ 1 when the group noise levels are right).
+    rss : its squared norm. relative_residual : ``||Y - W X|| / ||Y||`` on the unweighted data,
+    with the known parameters included (units cancel).
+    """
+
+    n_rows: int
+    n_estimated: int
+    dof: int
+    sigma: float
+    rss: float
+    relative_residual: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON dict of the fields."""
+        return _jsonable(self.__dict__)
+
+
+def _default_validation() -> dict[str, dict[str, Any]]:
+    return {"direct": {}, "cross": {}}
+
+
+@dataclass(eq=False)
+class IdentificationResult:
+    """Identified parameters with their names (one entry per parameter, estimated or known).
+
+    names : all p parameter names, in the caller's order.
+    values : (p,) estimates (the fixed value for a known parameter), SI units of each parameter.
+    std : (p,) standard deviations (NaN for known parameters).
+    rel_std_percent : (p,) ``100 * std / |value|`` (NaN for known parameters).
+    flags : per parameter "" (fine), "poor" (%σ > poor_factor x smallest %σ) or "known".
+    labels, a_priori, truth, known : ``{name: ...}`` (labels default to the names).
+    method : "OLS" or "WLS". weights : ``{group: sigma_j}`` (WLS; {} for OLS).
+    condition_number : condition number of the matrix solved (W for OLS, the weighted W for WLS).
+    residual : ``ResidualStats``.
+    covariance : (q, q) covariance of the estimated parameters, order ``estimated_names``.
+    validation : ``{"direct": {...}, "cross": {...}}``, filled by the caller (e.g. relative errors).
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    std: np.ndarray
+    rel_std_percent: np.ndarray
+    flags: tuple[str, ...]
+    labels: dict[str, str]
+    a_priori: dict[str, float]
+    truth: dict[str, float]
+    known: dict[str, float]
+    method: str
+    weights: dict[str, float]
+    condition_number: float
+    residual: ResidualStats
+    covariance: np.ndarray
+    estimated_names: tuple[str, ...]
+    poor_factor: float = POOR_FACTOR
+    validation: dict[str, dict[str, Any]] = field(default_factory=_default_validation)
+
+    # ----------------------------------------------------------------- access by name
+    def index(self, name: str) -> int:
+        """Position of parameter ``name`` in ``names`` (KeyError naming it if absent)."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"no parameter {name!r} in this result") from None
+
+    def value(self, name: str) -> float:
+        """Estimate (or known value) of parameter ``name``."""
+        return float(self.values[self.index(name)])
+
+    @property
+    def estimates(self) -> dict[str, float]:
+        """``{name: value}`` of every parameter."""
+        return {n: float(v) for n, v in zip(self.names, self.values, strict=True)}
+
+    @property
+    def poor(self) -> list[str]:
+        """Names flagged as poorly identified."""
+        return [n for n, f in zip(self.names, self.flags, strict=True) if f == FLAG_POOR]
+
+    # ----------------------------------------------------------------- exports
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON dict (non-finite numbers become null).
+
+        Schema: ``{"method", "parameters": [{"name", "label", "value", "std", "rel_std_percent",
+        "a_priori", "truth", "flag"}], "validation": {"direct": {...}, "cross": {...}},
+        "condition_number", "weights": {group: sigma}, "residual": {...}, "poor_factor"}``.
+        """
+        params = [
+            {
+                "name": n,
+                "label": self.labels.get(n, n),
+                "value": float(self.values[i]),
+                "std": float(self.std[i]),
+                "rel_std_percent": float(self.rel_std_percent[i]),
+                "a_priori": self.a_priori.get(n),
+                "truth": self.truth.get(n),
+                "flag": self.flags[i],
+            }
+            for i, n in enumerate(self.names)
+        ]
+        return _jsonable(
+            {
+                "method": self.method,
+                "parameters": params,
+                "validation": self.validation,
+                "condition_number": self.condition_number,
+                "weights": self.weights,
+                "residual": self.residual.to_dict(),
+                "poor_factor": self.poor_factor,
+            }
+        )
+
+    def to_dataframe(self) -> Any:
+        """One row per parameter (index: name) with label, a_priori, truth, value, std, rel_std_percent, flag.
+
+        Imports pandas only here; raises ImportError saying so if it is not installed.
+        """
+        try:
+            import pandas as pd
+        except ImportError as exc:
+            raise ImportError(
+                "IdentificationResult.to_dataframe() needs pandas, which is not installed; "
+                "install pandas or use to_dict() / summary()"
+            ) from exc
+        rows = {
+            "label": [self.labels.get(n, n) for n in self.names],
+            "a_priori": [self.a_priori.get(n, np.nan) for n in self.names],
+            "truth": [self.truth.get(n, np.nan) for n in self.names],
+            "value": self.values.astype(float),
+            "std": self.std.astype(float),
+            "rel_std_percent": self.rel_std_percent.astype(float),
+            "flag": list(self.flags),
+        }
+        return pd.DataFrame(rows, index=pd.Index(self.names, name="name"))
+
+    def save_json(self, path: str | os.PathLike[str]) -> Path:
+        """Write ``to_dict()`` as JSON atomically: a temp file in the same directory, fsync, os.replace.
+
+        A failure at any point leaves the previous file (if any) untouched and no temp file behind.
+        The new file keeps the mode of the file it replaces, else 0o644. Returns the path written.
+        """
+        target = Path(path)
+        directory = target.parent
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                json.dump(self.to_dict(), fh, indent=2, allow_nan=False)
+                fh.write("\n")
+                fh.flush()
+                os.fsync(fh.fileno())
+            mode = target.stat().st_mode & 0o7777 if target.exists() else 0o644
+            os.chmod(tmp, mode)
+            os.replace(tmp, target)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return target
+
+    def summary(self) -> str:
+        """A paper-style text table: parameter (label), a priori, truth, estimate, std, %σ, flag."""
+        p, q = len(self.names), len(self.estimated_names)
+        r = self.residual
+        head = [
+            f"Identification by {self.method}: {r.n_rows} rows, {p} parameters "
+            f"({q} estimated, {p - q} known), {r.dof} degrees of freedom",
+            f"  condition number {_num(self.condition_number, '.4g')}"
+            f"{' (weighted W)' if self.method == 'WLS' else ''}, "
+            f"residual std {_num(r.sigma, '.4g')}{' (weighted, ~1 expected)' if self.method == 'WLS' else ''}, "
+            f"||Y - W X||/||Y|| = {_num(100 * r.relative_residual, '.3g')} %",
+        ]
+        show_label = any(self.labels.get(n, n) != n for n in self.names)
+        columns = ["parameter"] + (["label"] if show_label else [])
+        columns += (["a priori"] if self.a_priori else []) + (["truth"] if self.truth else [])
+        columns += ["estimated", "std", "%std", "flag"]
+        body = []
+        for i, n in enumerate(self.names):
+            row = [n] + ([self.labels.get(n, n)] if show_label else [])
+            if self.a_priori:
+                row.append(_num(self.a_priori.get(n), ".6g"))
+            if self.truth:
+                row.append(_num(self.truth.get(n), ".6g"))
+            row += [
+                _num(self.values[i], ".6g"),
+                _num(self.std[i], ".3g"),
+                _num(self.rel_std_percent[i], ".2f"),
+                self.flags[i],
+            ]
+            body.append(row)
+        widths = [max(len(c), *(len(b[k]) for b in body)) for k, c in enumerate(columns)]
+        text_cols = 2 if show_label else 1
+
+        def line(cells: Sequence[str]) -> str:
+            out = [c.ljust(w) if k < text_cols or k == len(cells) - 1 else c.rjust(w)
+                   for k, (c, w) in enumerate(zip(cells, widths, strict=True))]
+            return "  ".join(out).rstrip()
+
+        table = [line(columns), line(["-" * w for w in widths]), *(line(b) for b in body)]
+        est = {n: float(self.rel_std_percent[self.index(n)]) for n in self.estimated_names}
+        finite = {n: v for n, v in est.items() if np.isfinite(v)}
+        foot = []
+        if finite:
+            best = min(finite, key=finite.__getitem__)
+            foot.append(
+                f"poor: %std > {self.poor_factor:g} x the smallest %std ({finite[best]:.3g} % for {best}), "
+                f"paper §7.2; {len(self.poor)} flagged"
+            )
+        if self.weights:
+            foot.append("equation groups: residual std sigma_j (rows weighted by 1/sigma_j)")
+            gw = max(len(g) for g in self.weights)
+            foot += [f"  {g.ljust(gw)}  {s:.4g}" for g, s in self.weights.items()]
+        return "\n".join([*head, "", *table, "", *foot]).rstrip() + "\n"
+
+
+def _num(v: float | None, spec: str) -> str:
+    if v is None or (isinstance(v, float | np.floating) and np.isnan(v)):
+        return "-"
+    return format(float(v), spec)
+
+
+def _jsonable(obj: Any) -> Any:
+    """Plain JSON types: dict keys to str, arrays/tuples to lists, numpy scalars to Python, non-finite to None."""
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray):
+        return [_jsonable(v) for v in obj.tolist()]
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        x = float(obj)
+        return x if np.isfinite(x) else None
+    return obj
+
+
+def build_result(
+    solution: LSQSolution,
+    *,
+    names: Sequence[str],
+    estimated_names: Sequence[str],
+    known: Mapping[str, float],
+    labels: Mapping[str, str],
+    a_priori: Mapping[str, float],
+    truth: Mapping[str, float],
+    method: str,
+    weights: Mapping[str, float],
+    relative_residual: float,
+    poor_factor: float = POOR_FACTOR,
+) -> IdentificationResult:
+    """Assemble an ``IdentificationResult`` from a solution on the estimated parameters, by name."""
+    est_pos = {n: k for k, n in enumerate(estimated_names)}
+    p = len(names)
+    values = np.empty(p)
+    std = np.full(p, np.nan)
+    rel = np.full(p, np.nan)
+    sol_std = solution.std
+    sol_rel = relative_std_percent(solution.x, sol_std)
+    poor = set(poorly_identified(dict(zip(estimated_names, sol_rel, strict=True)), poor_factor))
+    flags = []
+    for i, n in enumerate(names):
+        if n in est_pos:
+            k = est_pos[n]
+            values[i], std[i], rel[i] = solution.x[k], sol_std[k], sol_rel[k]
+            flags.append(FLAG_POOR if n in poor else "")
+        else:
+            values[i] = known[n]
+            flags.append(FLAG_KNOWN)
+    return IdentificationResult(
+        names=tuple(names),
+        values=values,
+        std=std,
+        rel_std_percent=rel,
+        flags=tuple(flags),
+        labels={n: labels.get(n, n) for n in names},
+        a_priori=dict(a_priori),
+        truth=dict(truth),
+        known=dict(known),
+        method=method,
+        weights=dict(weights),
+        condition_number=solution.condition_number,
+        residual=ResidualStats(
+            n_rows=solution.n_rows,
+            n_estimated=len(estimated_names),
+            dof=solution.dof,
+            sigma=float(np.sqrt(solution.sigma2)),
+            rss=solution.rss,
+            relative_residual=float(relative_residual),
+        ),
+        covariance=solution.covariance,
+        estimated_names=tuple(estimated_names),
+        poor_factor=float(poor_factor),
+    )

@@ -1,0 +1,207 @@
+"""Least squares on data too big to hold: incremental QR, per equation group.
+
+For each group g, the accumulator keeps the (q+1, q+1) triangular factor R_g of ``[W_g | Y_g]``
+(q estimated parameters), updated per chunk by a QR of ``[R_g; W_chunk Y_chunk]``. Since
+``[W_g | Y_g] = Q_g R_g`` with Q_g orthonormal, R_g keeps everything least squares needs:
+column norms and inner products of W_g, ``W_g^T Y_g``, ``||Y_g||``, and for any X the residual
+norm ``||Y_g - W_g X|| = ||R_g [X; -1]||``. So:
+
+- OLS: QR of the stacked R_g gives the factor of the whole ``[W | Y]``; the batch solver runs
+  on it with the true row count and gives the same X, sigma and covariance as ``ols``;
+- WLS needs no second pass over the data: the per-group fits (eq. (8)) run on each R_g, and the
+  weighted system (eq. (10)) is the QR of the stacked ``R_g / sigma_j``.
+
+Memory: (q+1)^2 floats per group, whatever the number of rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._checks import (
+    as_groups,
+    as_label_map,
+    as_matrix,
+    as_names,
+    as_value_map,
+    as_vector,
+    group_rows,
+    norm_ratio,
+    split_known,
+)
+from .errors import IdentificationError
+from .lsq import LSQSolution, solve_lsq
+from .quality import POOR_FACTOR
+from .result import IdentificationResult, build_result
+from .wls import SIGMA_FLOOR, GroupFit, checked_sigmas, fit_group, warn_floored
+
+DEFAULT_GROUP = "all"
+"""Group label of rows added without ``group_labels``."""
+
+
+class StreamingLS:
+    """Accumulate ``(W, Y)`` chunk by chunk; solve by OLS or by WLS without holding W.
+
+    names : the p parameter names (W's column order), or an int p for names x1..xp.
+    labels, a_priori, truth, known, rank_tol, poor_factor : as in ``ols``; the known parameters
+    are moved to the right-hand side chunk by chunk.
+    """
+
+    def __init__(
+        self,
+        names: Sequence[str] | int,
+        *,
+        labels: Mapping[str, str] | None = None,
+        a_priori: Mapping[str, float] | None = None,
+        truth: Mapping[str, float] | None = None,
+        known: Mapping[str, float] | None = None,
+        rank_tol: float | None = None,
+        poor_factor: float = POOR_FACTOR,
+    ) -> None:
+        if isinstance(names, int | np.integer):
+            names = [f"x{k + 1}" for k in range(int(names))]
+        self.names: tuple[str, ...] = as_names(names)
+        self.labels = as_label_map(labels, self.names)
+        self.a_priori = as_value_map(a_priori, self.names, "a_priori")
+        self.truth = as_value_map(truth, self.names, "truth")
+        self.known = as_value_map(known, self.names, "known")
+        self.estimated_names = tuple(n for n in self.names if n not in self.known)
+        if not self.estimated_names:
+            raise IdentificationError("every parameter is fixed as known: there is nothing left to estimate")
+        self.rank_tol = rank_tol
+        self.poor_factor = poor_factor
+        self._R: dict[str, np.ndarray] = {}
+        self._rows: dict[str, int] = {}
+        self._y2: dict[str, float] = {}
+
+    # ----------------------------------------------------------------- accumulation
+    @property
+    def n_rows(self) -> int:
+        """Rows added so far."""
+        return sum(self._rows.values())
+
+    @property
+    def group_rows(self) -> dict[str, int]:
+        """``{group: rows added}`` in order of first appearance."""
+        return dict(self._rows)
+
+    def add(self, W_chunk: ArrayLike, Y_chunk: ArrayLike, group_labels: ArrayLike | None = None) -> None:
+        """Add rows: W_chunk (c, p), Y_chunk (c,), group_labels (c,) equation group per row
+        (default: all rows in group ``"all"``)."""
+        A = as_matrix(W_chunk, self.names, "W chunk")
+        if A.shape[1] != len(self.names):
+            raise IdentificationError(f"W chunk has {A.shape[1]} columns, expected {len(self.names)} (one per name)")
+        y = as_vector(Y_chunk, A.shape[0], "Y chunk")
+        if A.shape[0] == 0:
+            return
+        g = np.full(A.shape[0], DEFAULT_GROUP) if group_labels is None else as_groups(group_labels, A.shape[0])
+        split = split_known(A, y, self.names, self.known)
+        q = len(self.estimated_names)
+        for name, idx in group_rows(g).items():
+            R = self._R.get(name, np.zeros((q + 1, q + 1)))
+            block = np.column_stack([split.W_est[idx], split.Y_est[idx]])
+            self._R[name] = np.linalg.qr(np.vstack([R, block]), mode="r")
+            self._rows[name] = self._rows.get(name, 0) + idx.size
+            self._y2[name] = self._y2.get(name, 0.0) + float(y[idx] @ y[idx])
+
+    # ----------------------------------------------------------------- solving
+    def _require_rows(self) -> None:
+        if not self._rows:
+            raise IdentificationError("StreamingLS has no rows: add() data before solving")
+
+    def _stacked(self, sigmas: Mapping[str, float] | None = None) -> np.ndarray:
+        blocks = [R / (1.0 if sigmas is None else sigmas[g]) for g, R in self._R.items()]
+        return blocks[0] if len(blocks) == 1 else np.linalg.qr(np.vstack(blocks), mode="r")
+
+    def _solve(self, R: np.ndarray, context: str) -> LSQSolution:
+        q = len(self.estimated_names)
+        return solve_lsq(R[:, :q], R[:, q], self.estimated_names, n_rows=self.n_rows, rank_tol=self.rank_tol,
+                         context=context)
+
+    def _residual_norm(self, x: np.ndarray, group: str) -> float:
+        return float(np.linalg.norm(self._R[group] @ np.append(x, -1.0)))
+
+    def _result(self, sol: LSQSolution, method: str, weights: Mapping[str, float]) -> IdentificationResult:
+        res2 = sum(self._residual_norm(sol.x, g) ** 2 for g in self._R)
+        return build_result(
+            sol,
+            names=self.names,
+            estimated_names=self.estimated_names,
+            known=self.known,
+            labels=self.labels,
+            a_priori=self.a_priori,
+            truth=self.truth,
+            method=method,
+            weights=weights,
+            relative_residual=norm_ratio(np.sqrt(res2), np.sqrt(sum(self._y2.values()))),
+            poor_factor=self.poor_factor,
+        )
+
+    def solve(self) -> IdentificationResult:
+        """OLS on every row added (same as ``ols`` on the whole stack, to round-off)."""
+        self._require_rows()
+        return self._result(self._solve(self._stacked(), "W"), "OLS", {})
+
+    def group_fits(self, sigma_floor: float = SIGMA_FLOOR) -> dict[str, GroupFit]:
+        """Per-group fits (paper eq. (8)) from the accumulators; warns for floored groups."""
+        self._require_rows()
+        q = len(self.estimated_names)
+        n = self.n_rows
+        overall = float(np.sqrt(sum(float(R[:, q] @ R[:, q]) for R in self._R.values()) / n))
+        fits = {
+            g: fit_group(g, R[:, :q], R[:, q], self.estimated_names, n_rows=self._rows[g], rank_tol=self.rank_tol,
+                         sigma_floor=sigma_floor, fallback_rms=overall)
+            for g, R in self._R.items()
+        }
+        warn_floored(fits)
+        return fits
+
+    def group_sigmas(self, sigma_floor: float = SIGMA_FLOOR) -> dict[str, float]:
+        """``{group: sigma_j}`` (paper eq. (8)), units of Y."""
+        return {g: f.sigma for g, f in self.group_fits(sigma_floor).items()}
+
+    def solve_weighted(
+        self, group_sigmas: Mapping[str, float] | None = None, sigma_floor: float = SIGMA_FLOOR
+    ) -> IdentificationResult:
+        """WLS (paper eq. (8)-(10)) on every row added, same as ``wls`` on the whole stack.
+
+        group_sigmas : ``{group: sigma_j}`` to use instead of estimating them from the accumulators.
+        """
+        self._require_rows()
+        given = group_sigmas is not None
+        sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
+        return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
+
+    def relative_errors(self, X: ArrayLike | Mapping[str, float] | IdentificationResult) -> dict[str, float]:
+        """``||Y_g - W_g X|| / ||Y_g||`` per group plus ``"overall"`` on the rows added.
+
+        X : (p,) values in names order, ``{name: value}``, or an ``IdentificationResult``; the values
+        of known parameters must equal the known ones (they are already in the accumulators).
+        """
+        self._require_rows()
+        if isinstance(X, IdentificationResult):
+            X = X.estimates
+        if isinstance(X, Mapping):
+            missing = [n for n in self.estimated_names if n not in X]
+            if missing:
+                raise IdentificationError(f"X has no value for parameters {missing}", parameters=missing)
+            full = {n: float(X.get(n, self.known.get(n, np.nan))) for n in self.names}
+        else:
+            arr = np.asarray(X, dtype=float).reshape(-1)
+            if arr.size != len(self.names):
+                raise IdentificationError(f"X must have {len(self.names)} values (one per name), got {arr.size}")
+            full = dict(zip(self.names, arr.tolist(), strict=True))
+        wrong = [n for n, v in self.known.items() if full[n] != v]
+        if wrong:
+            raise IdentificationError(f"X changes known parameters {wrong}; they are fixed in the accumulators",
+                                      parameters=wrong)
+        x = np.array([full[n] for n in self.estimated_names])
+        out = {g: norm_ratio(self._residual_norm(x, g), np.sqrt(self._y2[g])) for g in self._R}
+        if "overall" in out:
+            raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
+        total = np.sqrt(sum(self._residual_norm(x, g) ** 2 for g in self._R))
+        out["overall"] = norm_ratio(total, np.sqrt(sum(self._y2.values())))
+        return out
