@@ -71,8 +71,10 @@ def energy(m: Model, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             continue
         J = np.array([[p[0], p[1], p[2]], [p[1], p[3], p[4]], [p[2], p[4], p[5]]])
         ms = to_world(s.Rc[j], p[6:9])
-        wl = np.stack([dot(s.Rc[j][c], s.w[j]) for c in range(3)])
-        E += 0.5 * p[9] * dot(s.v[j], s.v[j]) + dot(s.v[j], cross(s.w[j], ms)) + 0.5 * dot(wl, J @ wl)
+        w = s.omega(j)
+        v = np.zeros_like(w) if s.v[j] is None else s.v[j]
+        wl = np.stack([dot(s.Rc[j][c], w) for c in range(3)])
+        E += 0.5 * p[9] * dot(v, v) + dot(v, cross(w, ms)) + 0.5 * dot(wl, J @ wl)
         E -= dot(g[:, None], p[9] * s.P[j] + ms)
     X = tree.parameters
     for j, terms in tree.joint_terms.items():

@@ -55,7 +55,7 @@ def external_wrenches(tree: Tree, st: KinematicState, wrenches: Sequence[Wrench]
         vals = vals.T if vals.ndim == 2 else vals[:, None]
         Re = st.Rc[e]
         F, M = to_world(Re, vals[:3]), to_world(Re, vals[3:])
-        rp = np.tensordot(np.asarray(w.point, dtype=float), st.Rc[w.link], axes=1)
+        rp = to_world(st.Rc[w.link], np.asarray(w.point, dtype=float))
         M = M + cross(rp, F)
         F, M = np.broadcast_to(F, (3, N)), np.broadcast_to(M, (3, N))
         if w.link in out:
@@ -71,8 +71,8 @@ def inertia_tensor(p: Array) -> Array:
 
 def link_wrench(st: KinematicState, j: int, p: Array) -> tuple[Array, Array]:
     """Force and moment about O_j (frame-0 orientation) that link j's motion requires, (3, N) each."""
-    Rc, w, dw, dv = st.Rc[j], st.w[j], st.dw[j], st.dv[j]
-    ms = np.tensordot(p[6:9], Rc, axes=1)
+    Rc, w, dw, dv = st.Rc[j], st.omega(j), st.domega(j), st.dv[j]
+    ms = to_world(Rc, p[6:9])
     F = p[9] * dv + cross(dw, ms) + cross(w, cross(w, ms))
     J = inertia_tensor(p)
     wl, dwl = to_local(Rc, w), to_local(Rc, dw)
@@ -152,13 +152,14 @@ def rigid_body_torques(
     tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, *, gravity: bool = True, wrenches=None
 ) -> Array:
     """Newton-Euler without joint terms, samples last (n, N)."""
-    st = forward_kinematics(tree, q, qd, qdd, gravity=gravity)
     inert = tree.inertial_block(X)
+    loaded = [j for j in range(1, tree.n + 1) if inert[j].any()] + [w.link for w in wrenches or ()]
+    st = forward_kinematics(tree, q, qd, qdd, gravity=gravity, frames=loaded)
     F: list = [None] * (tree.n + 1)
     M: list = [None] * (tree.n + 1)
-    for f in tree.frames:
-        if inert[f.j].any():
-            F[f.j], M[f.j] = link_wrench(st, f.j, inert[f.j])
+    for j in loaded:
+        if inert[j].any():
+            F[j], M[j] = link_wrench(st, j, inert[j])
     for k, (Fe, Me) in external_wrenches(tree, st, wrenches).items():
         F[k] = -Fe if F[k] is None else F[k] - Fe
         M[k] = -Me if M[k] is None else M[k] - Me

@@ -57,7 +57,7 @@ def resolve_cols(tree: Tree, cols: Sequence[str | int] | None) -> list[int]:
 
 def link_block(st: KinematicState, k: int, ref: Array) -> Array:
     """Force and moment about O* per unit inertial parameter of link k, (6, 10, N), frame-0 orientation."""
-    Rc, w, dw, dv = st.Rc[k], st.w[k], st.dw[k], st.dv[k]
+    Rc, w, dw, dv = st.Rc[k], st.omega(k), st.domega(k), st.dv[k]
     N = st.N
     B = np.zeros((6, 10, N))
     wl, dwl = to_local(Rc, w), to_local(Rc, dw)

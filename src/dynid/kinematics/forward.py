@@ -35,16 +35,77 @@ def dot(a: Array, b: Array) -> Array:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def to_world(Rc: Array, v: Array) -> Array:
-    """R v for R stored by columns (3, 3, N) and v (3, N) or (3,)."""
+def combine(coeffs: Sequence[float], cols: Sequence[Array]) -> Array | None:
+    """sum_c coeffs[c] * cols[c] for constant coefficients, skipping zeros; None if all are zero."""
+    out = None
+    for k, x in zip(coeffs, cols, strict=True):
+        if k == 0.0:
+            continue
+        term = x if k == 1.0 else -x if k == -1.0 else k * x
+        out = term if out is None else out + term
+    return out
+
+
+def to_world(Rc: Sequence[Array], v: Array) -> Array:
+    """R v for a rotation given by its columns (x, y, z), each (3, N), and v (3, N) or (3,)."""
     if v.ndim == 1:
-        return np.tensordot(v, Rc, axes=1)
+        out = combine(v, Rc)
+        return np.zeros_like(Rc[0]) if out is None else out
     return Rc[0] * v[0] + Rc[1] * v[1] + Rc[2] * v[2]
 
 
-def to_local(Rc: Array, v: Array) -> Array:
-    """R^T v for R stored by columns (3, 3, N) and v (3, N)."""
+def to_local(Rc: Sequence[Array], v: Array) -> Array:
+    """R^T v for a rotation given by its columns and v (3, N)."""
     return np.stack([dot(Rc[0], v), dot(Rc[1], v), dot(Rc[2], v)])
+
+
+def _clean(M: Array) -> Array:
+    """Round entries within 1e-12 of 0 or +-1: cos(pi/2) is 6e-17 in floating point, 0 in the geometry."""
+    M = M.copy()
+    for v in (0.0, 1.0, -1.0):
+        M[np.abs(M - v) < 1e-12] = v
+    return M
+
+
+def _signed_permutation(M: Array) -> tuple[tuple[int, float], ...] | None:
+    """For M with one +-1 per column and zeros elsewhere: column c of A M is sign_c * A[:, k_c]."""
+    if not (np.isin(M, (0.0, 1.0, -1.0)).all() and (np.abs(M).sum(axis=0) == 1).all()):
+        return None
+    return tuple((int(np.flatnonzero(M[:, c])[0]), float(M[:, c].sum())) for c in range(3))
+
+
+def _plan(tree: Tree) -> list:
+    """Per-frame constants for the recursion, cached on the (immutable) tree instance."""
+    plan = tree.__dict__.get("_kinematic_plan")
+    if plan is None:
+        plan = [None]
+        for f in tree.frames:
+            C = _clean(tree.constant_rotation[f.j])
+            E = C if f.sigma == REVOLUTE else _clean(C @ np.array(
+                [[np.cos(f.theta), -np.sin(f.theta), 0.0], [np.sin(f.theta), np.cos(f.theta), 0.0], [0, 0, 1.0]]))
+            u = _clean(tree.constant_offset[f.j][None])[0]
+            plan.append((E, _signed_permutation(E), u))
+        tree.__dict__["_kinematic_plan"] = plan
+    return plan
+
+
+def _columns(Ra: Sequence[Array], E: Array, perm) -> list[Array]:
+    """Columns of Ra E for a constant E."""
+    if perm is not None:
+        return [Ra[k] if sgn > 0 else -Ra[k] for k, sgn in perm]
+    return [combine(E[:, c], Ra) for c in range(3)]
+
+
+def _add(*terms: Array | None) -> Array | None:
+    out = None
+    for t in terms:
+        if t is not None:
+            out = t if out is None else out + t
+    return out
+
+
+def _cross(a: Array | None, b: Array | None) -> Array | None:
+    return None if a is None or b is None else cross(a, b)
 
 
 def joint_array(x: object, tree: Tree, name: str) -> tuple[Array, bool]:
@@ -69,22 +130,38 @@ def joint_array(x: object, tree: Tree, name: str) -> tuple[Array, bool]:
 class KinematicState:
     """Per-frame quantities in frame-0 orientation, samples last; lists indexed by frame 0..n.
 
-    Rc[j]: rotation 0R_j by columns (x_j, y_j, z_j), (3, 3, N); P[j]: origin (3, N);
-    dP[j]: P_j - P_a(j) (3, N); w, dw: angular velocity, acceleration; v, dv: velocity and
-    acceleration of O_j (dv includes -g when gravity is on). None where not computed.
+    Rc[j]: rotation 0R_j as its columns (x_j, y_j, z_j), each (3, N); P[j]: origin (3, N);
+    dP[j]: P_j - P_a(j) (3, N); w, dw: angular velocity and acceleration; v, dv: velocity and
+    acceleration of O_j (dv includes -g when gravity is on). Frames not computed are None;
+    w, dw, v entries are None where they are structurally zero (a virtual chain's translations).
     """
 
-    Rc: list[Array]
-    P: list[Array]
-    dP: list[Array]
-    w: list[Array] | None = None
-    dw: list[Array] | None = None
-    v: list[Array] | None = None
-    dv: list[Array] | None = None
+    Rc: list
+    P: list
+    dP: list
+    w: list | None = None
+    dw: list | None = None
+    v: list | None = None
+    dv: list | None = None
 
     @property
     def N(self) -> int:
         return self.P[0].shape[-1]
+
+    def omega(self, j: int) -> Array:
+        """Angular velocity of frame j, zeros where structurally zero, (3, N)."""
+        return np.zeros((3, self.N)) if self.w[j] is None else self.w[j]
+
+    def domega(self, j: int) -> Array:
+        return np.zeros((3, self.N)) if self.dw[j] is None else self.dw[j]
+
+
+def needed_frames(tree: Tree, frames: Sequence[int]) -> Array:
+    """Mask of the frames on the paths from the base to the given frames."""
+    todo = np.zeros(tree.n + 1, dtype=bool)
+    for k in frames:
+        todo[tree.ancestors[k]] = True
+    return todo
 
 
 def forward_kinematics(
@@ -102,65 +179,67 @@ def forward_kinematics(
     With qdd, angular and linear accelerations are computed (dv0 = -g when gravity);
     velocities=True also computes v (the linear velocity of each origin).
     frames: compute only these frames and their ancestors (others stay None).
+    Constant rotations that are signed permutations (alpha, gamma multiples of pi/2)
+    cost nothing: the frame's columns are the parent's, reordered.
     """
     n, N = tree.n, q.shape[1]
-    C, U = tree.constant_rotation, tree.constant_offset
-    todo = np.zeros(n + 1, dtype=bool)
-    for k in range(1, n + 1) if frames is None else frames:
-        todo[tree.ancestors[k]] = True
-    eye = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, N))
+    todo = needed_frames(tree, range(1, n + 1) if frames is None else frames)
+    plan = _plan(tree)
+    eye = np.eye(3)
+    Rc: list = [[np.broadcast_to(eye[:, c, None], (3, N)) for c in range(3)]] + [None] * n
     zero = np.zeros((3, N))
-    Rc: list = [eye] + [None] * n
     P: list = [zero] + [None] * n
     dP: list = [zero] + [None] * n
     acc = qdd is not None
     w = dw = v = dv = None
     if qd is not None:
-        w = [zero] + [None] * n
-        v = [zero] + [None] * n if velocities else None
+        w = [None] * (n + 1)
+        v = [None] * (n + 1) if velocities else None
     if acc:
-        dw = [zero] + [None] * n
+        dw = [None] * (n + 1)
         g = np.asarray(tree.gravity, dtype=float)
-        dv = [np.broadcast_to((-g if gravity else 0.0 * g)[:, None], (3, N))] + [None] * n
+        dv = [np.broadcast_to(-g[:, None], (3, N)) if gravity else zero] + [None] * n
 
     for f in tree.frames:
         j, a = f.j, f.ant
         if not todo[j]:
             continue
-        Ra = Rc[a]
-        D = np.tensordot(C[j], Ra, axes=(0, 0))  # D[c] = sum_k C[k, c] Ra[k]: columns of Ra C_j
+        E, perm, u = plan[j]
+        D = _columns(Rc[a], E, perm)
         if f.sigma == REVOLUTE:
             th = f.theta + q[j - 1]
             c, s = np.cos(th), np.sin(th)
+            Rj = [c * D[0] + s * D[1], c * D[1] - s * D[0], D[2]]
         else:
-            c, s = np.cos(f.theta), np.sin(f.theta)
-        Rj = np.empty((3, 3, N))
-        Rj[0] = c * D[0] + s * D[1]
-        Rj[1] = c * D[1] - s * D[0]
-        Rj[2] = D[2]
+            Rj = D
         z = Rj[2]
-        r = f.r + q[j - 1] if f.sigma == PRISMATIC else f.r
-        d = np.tensordot(U[j], Ra, axes=1) + r * z
+        d = combine(u, Rc[a])
+        if f.sigma == PRISMATIC:
+            rz = (f.r + q[j - 1]) * z
+            d = rz if d is None else d + rz
+        elif f.r != 0.0:
+            d = f.r * z if d is None else d + f.r * z
+        if d is None:
+            d = zero
         Rc[j], dP[j], P[j] = Rj, d, P[a] + d
         if w is None:
             continue
         wa = w[a]
-        if f.sigma == REVOLUTE:
-            w[j] = wa + qd[j - 1] * z
-        else:
-            w[j] = wa
+        qdz = qd[j - 1] * z if f.sigma != FIXED else None
+        w[j] = _add(wa, qdz) if f.sigma == REVOLUTE else wa
         if v is not None:
-            v[j] = v[a] + cross(wa, d) + (qd[j - 1] * z if f.sigma == PRISMATIC else 0.0)
+            v[j] = _add(v[a], _cross(wa, d), qdz if f.sigma == PRISMATIC else None)
         if not acc:
             continue
         dwa = dw[a]
-        dvj = dv[a] + cross(dwa, d) + cross(wa, cross(wa, d))
+        wz = _cross(wa, z) if f.sigma != FIXED else None
+        dvj = _add(dv[a], _cross(dwa, d), _cross(wa, _cross(wa, d)))
         if f.sigma == REVOLUTE:
-            dw[j] = dwa + qdd[j - 1] * z + qd[j - 1] * cross(wa, z)
+            dw[j] = _add(dwa, qdd[j - 1] * z, None if wz is None else qd[j - 1] * wz)
         else:
             dw[j] = dwa
             if f.sigma == PRISMATIC:
-                dvj += qdd[j - 1] * z + 2.0 * qd[j - 1] * cross(wa, z)
+                dvj = _add(dvj, qdd[j - 1] * z, None if wz is None else (2.0 * qd[j - 1]) * wz)
         dv[j] = dvj
     return KinematicState(Rc, P, dP, w, dw, v, dv)
 
@@ -182,7 +261,7 @@ def _point(st: KinematicState, frame: int, point: Sequence[float] | None) -> tup
     """World-orientation offset R_k p of a point fixed in frame k, and its position."""
     if point is None:
         return np.zeros((3, 1)), st.P[frame]
-    rp = np.tensordot(np.asarray(point, dtype=float), st.Rc[frame], axes=1)
+    rp = to_world(st.Rc[frame], np.asarray(point, dtype=float))
     return rp, st.P[frame] + rp
 
 
@@ -237,7 +316,7 @@ def jdot_qdot(
         raise ModelError(f"q and qd must have the same shape; got {np.shape(q)} and {np.shape(qd)}")
     st = forward_kinematics(tree, qs, qds, np.zeros_like(qs), gravity=False, frames=[frame, expressed_in])
     rp, _ = _point(st, frame, point)
-    w, dw = st.w[frame], st.dw[frame]
+    w, dw = st.omega(frame), st.domega(frame)
     a = st.dv[frame] + cross(dw, rp) + cross(w, cross(w, rp))
     out = np.concatenate([np.broadcast_to(a, (3, qs.shape[1])), np.broadcast_to(dw, (3, qs.shape[1]))])
     if expressed_in != 0:
@@ -248,6 +327,6 @@ def jdot_qdot(
 
 
 __all__ = [
-    "FIXED", "KinematicState", "cross", "dot", "forward_kinematics", "jacobian", "jdot_qdot",
+    "FIXED", "KinematicState", "combine", "cross", "dot", "forward_kinematics", "jacobian", "jdot_qdot",
     "joint_array", "to_local", "to_world", "transforms",
 ]
