@@ -7,6 +7,7 @@ from oracles import random_states, random_tree
 
 from dynid import Model, Wrench, load_model
 from dynid.kinematics.forward import cross, dot, forward_kinematics, joint_array, to_world
+from dynid.kinematics.motion import dense, local_motion
 from dynid.model import Coupling, Frame, Tree
 
 
@@ -59,23 +60,26 @@ def test_wrenches_enter_as_minus_J_transpose_F():
 
 
 def energy(m: Model, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-    """Kinetic + gravity + spring energy from link velocities (not from the dynamics), (N,)."""
+    """Kinetic + gravity + spring energy from link velocities (not from the dynamics), (N,).
+
+    Per link, in its own frame: T = m v.v / 2 + v.(w x MS) + w.J w / 2 (about O_k);
+    potential -g.(m P_k + R_k MS) with positions from the geometric model.
+    """
     tree = m.tree
     qs, _ = joint_array(q, tree, "q")
     qds, _ = joint_array(qd, tree, "qd")
-    s = forward_kinematics(tree, qs, qds, velocities=True)
+    N = qs.shape[1]
+    mo = local_motion(tree, qs, qds, np.zeros_like(qs), velocities=True)
+    st = forward_kinematics(tree, qs)
     g = np.array(tree.gravity)
-    E = np.zeros(qs.shape[1])
+    E = np.zeros(N)
     for j, p in enumerate(tree.inertial_block()):
         if j == 0 or not p.any():
             continue
         J = np.array([[p[0], p[1], p[2]], [p[1], p[3], p[4]], [p[2], p[4], p[5]]])
-        ms = to_world(s.Rc[j], p[6:9])
-        w = s.omega(j)
-        v = np.zeros_like(w) if s.v[j] is None else s.v[j]
-        wl = np.stack([dot(s.Rc[j][c], w) for c in range(3)])
-        E += 0.5 * p[9] * dot(v, v) + dot(v, cross(w, ms)) + 0.5 * dot(wl, J @ wl)
-        E -= dot(g[:, None], p[9] * s.P[j] + ms)
+        w, v = dense(mo.w[j], N), dense(mo.v[j], N)
+        E += 0.5 * p[9] * dot(v, v) + dot(v, cross(w, p[6:9, None])) + 0.5 * dot(w, J @ w)
+        E -= dot(g[:, None], p[9] * st.P[j] + to_world(st.Rc[j], p[6:9]))
     X = tree.parameters
     for j, terms in tree.joint_terms.items():
         if "K" in terms:

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..kinematics import forward
+from ..kinematics import forward, motion
 from ..model.tree import Tree
 from . import base as _base
 from . import inertia, newton_euler
@@ -64,7 +64,7 @@ class Model:
         self, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0
     ) -> Array:
         """J-dot qd (N, 6) of the same point."""
-        return forward.jdot_qdot(self.tree, q, qd, frame, point, expressed_in)
+        return motion.jdot_qdot(self.tree, q, qd, frame, point, expressed_in)
 
     # dynamic models
     def inverse_dynamics(

@@ -12,10 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics.forward import KinematicState, cross, dot, forward_kinematics, joint_array, to_local, to_world
+from ..kinematics.forward import forward_kinematics, joint_array, to_local, to_world
+from ..kinematics.motion import Motion, Vec, local_motion, matvec, scale, umul, vadd, vcross
 from ..model.tree import FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
 
 Array = np.ndarray
+CHUNK = 4096  # samples per pass: keeps the per-frame arrays in cache
 
 
 @dataclass(frozen=True)
@@ -34,10 +36,9 @@ class Wrench:
     frame: int | None = None
 
 
-def external_wrenches(tree: Tree, st: KinematicState, wrenches: Sequence[Wrench] | None) -> dict[int, tuple]:
-    """Sum the wrenches per link as (force, moment about O_link) in frame-0 orientation, (3, N) each."""
-    out: dict[int, tuple] = {}
-    N = st.N
+def check_wrenches(tree: Tree, wrenches: Sequence[Wrench] | None, N: int) -> list[tuple[int, int, Array, Array]]:
+    """Validate the wrenches; returns (link, frame, values (6, N or 1), point (3,)) per wrench."""
+    out = []
     for i, w in enumerate(wrenches or ()):
         if not isinstance(w, Wrench):
             raise ModelError(f"wrenches[{i}] is a {type(w).__name__}; pass dynid.Wrench(link, values, point, frame)")
@@ -52,15 +53,36 @@ def external_wrenches(tree: Tree, st: KinematicState, wrenches: Sequence[Wrench]
         if not np.isfinite(vals).all():
             k = int(np.argwhere(~np.isfinite(vals.reshape(-1, 6)))[0, 0])
             raise ModelError(f"wrenches[{i}] on link {w.link}: non-finite value at sample {k}")
-        vals = vals.T if vals.ndim == 2 else vals[:, None]
-        Re = st.Rc[e]
-        F, M = to_world(Re, vals[:3]), to_world(Re, vals[3:])
-        rp = to_world(st.Rc[w.link], np.asarray(w.point, dtype=float))
-        M = M + cross(rp, F)
-        F, M = np.broadcast_to(F, (3, N)), np.broadcast_to(M, (3, N))
-        if w.link in out:
-            F, M = out[w.link][0] + F, out[w.link][1] + M
-        out[w.link] = (F, M)
+        point = np.asarray(w.point, dtype=float)
+        if point.shape != (3,) or not np.isfinite(point).all():
+            raise ModelError(f"wrenches[{i}] on link {w.link}: point must be 3 finite coordinates")
+        out.append((w.link, e, vals.T if vals.ndim == 2 else vals[:, None], point))
+    return out
+
+
+def local_wrenches(tree: Tree, q: Array, checked: list) -> dict[int, tuple[Vec, Vec]]:
+    """Sum the wrenches per link as (force, moment about O_link) in the link's frame."""
+    out: dict[int, tuple[Vec, Vec]] = {}
+    other = [(k, e) for k, e, _, _ in checked if e != k]
+    st = forward_kinematics(tree, q, frames=[x for pair in other for x in pair]) if other else None
+    for k, e, vals, point in checked:
+        F, M = vals[:3], vals[3:]
+        if e != k:
+            F, M = to_local(st.Rc[k], to_world(st.Rc[e], F)), to_local(st.Rc[k], to_world(st.Rc[e], M))
+        Fv: Vec = [F[0], F[1], F[2]]
+        Mv = vadd([M[0], M[1], M[2]], vcross([None if x == 0.0 else float(x) for x in point], Fv))
+        if k in out:
+            Fv, Mv = vadd(out[k][0], Fv), vadd(out[k][1], Mv)
+        out[k] = (Fv, Mv)
+    return out
+
+
+def slice_wrenches(wrenches: Sequence[Wrench] | None, sl: slice, N: int) -> list[Wrench]:
+    """The wrenches restricted to samples sl (values given per sample are sliced)."""
+    out = []
+    for w in wrenches or ():
+        v = np.asarray(w.values, dtype=float)
+        out.append(Wrench(w.link, v[sl] if v.ndim == 2 and v.shape[0] == N else v, w.point, w.frame))
     return out
 
 
@@ -69,36 +91,31 @@ def inertia_tensor(p: Array) -> Array:
     return np.array([[p[0], p[1], p[2]], [p[1], p[3], p[4]], [p[2], p[4], p[5]]])
 
 
-def link_wrench(st: KinematicState, j: int, p: Array) -> tuple[Array, Array]:
-    """Force and moment about O_j (frame-0 orientation) that link j's motion requires, (3, N) each."""
-    Rc, w, dw, dv = st.Rc[j], st.omega(j), st.domega(j), st.dv[j]
-    ms = to_world(Rc, p[6:9])
-    F = p[9] * dv + cross(dw, ms) + cross(w, cross(w, ms))
+def link_wrench(mo: Motion, j: int, p: Array) -> tuple[Vec, Vec]:
+    """Force and moment about O_j, in frame j, that link j's motion requires (Newton-Euler)."""
+    ms: Vec = [None if x == 0.0 else float(x) for x in p[6:9]]
+    w, dw, dv = mo.w[j], mo.dw[j], mo.dv[j]
+    F = vadd([scale(float(p[9]), x) for x in dv], umul(mo.u(j), ms))
     J = inertia_tensor(p)
-    wl, dwl = to_local(Rc, w), to_local(Rc, dw)
-    nl = np.tensordot(J, dwl, axes=1) + cross(wl, np.tensordot(J, wl, axes=1))
-    return F, to_world(Rc, nl) + cross(ms, dv)
+    return F, vadd(matvec(J, dw), vcross(w, matvec(J, w)), vcross(ms, dv))
 
 
-def backward_recursion(
-    tree: Tree, st: KinematicState, F: list, M: list, Nsamp: int
-) -> Array:
-    """Accumulate link wrenches towards the base; returns joint forces (n, N)."""
-    tau = np.zeros((tree.n, Nsamp))
+def backward_recursion(tree: Tree, mo: Motion, F: list, M: list) -> Array:
+    """Accumulate link wrenches (frame-local Vecs) towards the base; returns joint forces (n, N)."""
+    tau = np.zeros((tree.n, mo.N))
     F, M = list(F), list(M)
     for f in reversed(tree.frames):
         j, a = f.j, f.ant
         if F[j] is None:
             continue
-        z = st.Rc[j][2]
-        if f.sigma == REVOLUTE:
-            tau[j - 1] = dot(z, M[j])
-        elif f.sigma == PRISMATIC:
-            tau[j - 1] = dot(z, F[j])
+        x = M[j][2] if f.sigma == REVOLUTE else F[j][2] if f.sigma == PRISMATIC else None
+        if x is not None:
+            tau[j - 1] = x
         if a > 0:
-            mj = M[j] + cross(st.dP[j], F[j])
-            F[a] = F[j] if F[a] is None else F[a] + F[j]
-            M[a] = mj if M[a] is None else M[a] + mj
+            fa = mo.rot[j].to_parent(F[j])
+            ma = vadd(mo.rot[j].to_parent(M[j]), vcross(mo.offset[j], fa))
+            F[a] = fa if F[a] is None else vadd(F[a], fa)
+            M[a] = ma if M[a] is None else vadd(M[a], ma)
     return tau
 
 
@@ -152,18 +169,18 @@ def rigid_body_torques(
     tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, *, gravity: bool = True, wrenches=None
 ) -> Array:
     """Newton-Euler without joint terms, samples last (n, N)."""
+    checked = check_wrenches(tree, wrenches, q.shape[1])
     inert = tree.inertial_block(X)
-    loaded = [j for j in range(1, tree.n + 1) if inert[j].any()] + [w.link for w in wrenches or ()]
-    st = forward_kinematics(tree, q, qd, qdd, gravity=gravity, frames=loaded)
+    massive = [j for j in range(1, tree.n + 1) if inert[j].any()]
+    mo = local_motion(tree, q, qd, qdd, gravity=gravity, frames=massive + [k for k, _, _, _ in checked])
     F: list = [None] * (tree.n + 1)
     M: list = [None] * (tree.n + 1)
-    for j in loaded:
-        if inert[j].any():
-            F[j], M[j] = link_wrench(st, j, inert[j])
-    for k, (Fe, Me) in external_wrenches(tree, st, wrenches).items():
-        F[k] = -Fe if F[k] is None else F[k] - Fe
-        M[k] = -Me if M[k] is None else M[k] - Me
-    return backward_recursion(tree, st, F, M, q.shape[1])
+    for j in massive:
+        F[j], M[j] = link_wrench(mo, j, inert[j])
+    for k, (Fe, Me) in local_wrenches(tree, q, checked).items():
+        Fe, Me = [scale(-1.0, x) for x in Fe], [scale(-1.0, x) for x in Me]
+        F[k], M[k] = (Fe, Me) if F[k] is None else (vadd(F[k], Fe), vadd(M[k], Me))
+    return backward_recursion(tree, mo, F, M)
 
 
 def inverse_dynamics(
@@ -185,7 +202,13 @@ def inverse_dynamics(
     if not qs.shape == qds.shape == qdds.shape:
         raise ModelError(f"q, qd, qdd must have the same shape; got {np.shape(q)}, {np.shape(qd)}, {np.shape(qdd)}")
     X = tree.parameters if X is None else check_parameters(tree, X)
-    tau = rigid_body_torques(tree, qs, qds, qdds, X, wrenches=wrenches) + joint_terms(tree, X, qs, qds, qdds)
+    N = qs.shape[1]
+    check_wrenches(tree, wrenches, N)
+    tau = joint_terms(tree, X, qs, qds, qdds)
+    for n0 in range(0, N, CHUNK):  # chunks small enough for the per-frame arrays to stay in cache
+        sl = slice(n0, min(N, n0 + CHUNK))
+        tau[:, sl] += rigid_body_torques(tree, qs[:, sl], qds[:, sl], qdds[:, sl], X,
+                                         wrenches=slice_wrenches(wrenches, sl, N))
     tau[tree.sigma[1:] == FIXED] = 0.0
     return tau[:, 0] if single else tau.T
 

@@ -20,15 +20,24 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..kinematics.forward import KinematicState, cross, forward_kinematics, joint_array, to_local
+from ..kinematics.forward import KinematicState, cross, forward_kinematics, joint_array
+from ..kinematics.motion import Motion, Vec, local_motion, vadd, vcross
 from ..model.tree import FIXED, INERTIAL, REVOLUTE, ModelError, Tree
-from .newton_euler import Wrench, backward_recursion, coupling_column, external_wrenches, joint_term_column
+from .newton_euler import (
+    Wrench,
+    backward_recursion,
+    check_wrenches,
+    coupling_column,
+    joint_term_column,
+    local_wrenches,
+    slice_wrenches,
+)
 
 Array = np.ndarray
 
-# (row, column) entries of the symmetric basis matrix of XX, XY, XZ, YY, YZ, ZZ
+# the product E w of the symmetric basis matrix E of XX, XY, XZ, YY, YZ, ZZ with w: (component, source) pairs
 _INERTIA_BASIS = (((0, 0),), ((0, 1), (1, 0)), ((0, 2), (2, 0)), ((1, 1),), ((1, 2), (2, 1)), ((2, 2),))
-CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache
+from .newton_euler import CHUNK  # noqa: E402
 
 
 def resolve_rows(tree: Tree, rows: Sequence[int] | None) -> list[int]:
@@ -55,28 +64,38 @@ def resolve_cols(tree: Tree, cols: Sequence[str | int] | None) -> list[int]:
     return out
 
 
-def link_block(st: KinematicState, k: int, ref: Array) -> Array:
-    """Force and moment about O* per unit inertial parameter of link k, (6, 10, N), frame-0 orientation."""
-    Rc, w, dw, dv = st.Rc[k], st.omega(k), st.domega(k), st.dv[k]
-    N = st.N
-    B = np.zeros((6, 10, N))
-    wl, dwl = to_local(Rc, w), to_local(Rc, dw)
-    Ew = np.zeros((3, 6, N))
-    Edw = np.zeros((3, 6, N))
+def link_block(st: KinematicState, mo: Motion, k: int, ref: Array) -> Array:
+    """Force and moment about O* per unit inertial parameter of link k, (6, 10, N), frame-0 orientation.
+
+    Built in frame k (where the structure is sparse) from Khalil's columns, then rotated:
+    inertia J: (0, J dw + w x J w); first moment along axis c: (U e_c, e_c x dv); mass: (dv, 0).
+    """
+    N, Rc = mo.N, st.Rc[k]
+    w, dw, dv, U = mo.w[k], mo.dw[k], mo.dv[k], mo.u(k)
+    L = np.zeros((6, 10, N))  # the block in frame k
     for i, entries in enumerate(_INERTIA_BASIS):
+        Ew: Vec = [None, None, None]
+        Edw: Vec = [None, None, None]
         for r, c in entries:
-            Ew[r, i] = wl[c]
-            Edw[r, i] = dwl[c]
-    Nl = Edw + cross(wl[:, None, :], Ew)  # (3, 6, N): J omega-dot + omega x J omega per basis J
-    B[3:, :6] = Rc[0][:, None] * Nl[0] + Rc[1][:, None] * Nl[1] + Rc[2][:, None] * Nl[2]
-    for c in range(3):  # first moments: the unit vector along axis c of frame k
-        e = Rc[c]
-        B[:3, 6 + c] = cross(dw, e) + cross(w, cross(w, e))
-        B[3:, 6 + c] = cross(e, dv)
-    B[:3, 9] = dv
+            Ew[r], Edw[r] = w[c], dw[c]
+        _put(L[3:, i], vadd(Edw, vcross(w, Ew)))
+    for c in range(3):
+        _put(L[:3, 6 + c], [U[0][c], U[1][c], U[2][c]])
+        _put(L[3:, 6 + c], vcross([1.0 if i == c else None for i in range(3)], dv))
+    _put(L[:3, 9], dv)
+    B = np.empty_like(L)
+    for part in (slice(0, 3), slice(3, 6)):
+        Lp = L[part]
+        B[part] = Rc[0][:, None] * Lp[0] + Rc[1][:, None] * Lp[1] + Rc[2][:, None] * Lp[2]
     # moments about O* instead of O_k
     B[3:, 6:] += cross((st.P[k] - ref)[:, None, :], B[:3, 6:])
     return B
+
+
+def _put(out: Array, v: Vec) -> None:
+    for i in range(3):
+        if v[i] is not None:
+            out[i] = v[i]
 
 
 def joint_axis(tree: Tree, st: KinematicState, j: int, ref: Array) -> Array:
@@ -116,26 +135,19 @@ def regressor(
     for n0 in range(0, N, CHUNK):
         sl = slice(n0, min(N, n0 + CHUNK))
         _fill(tree, plan, qs[:, sl], qds[:, sl], qdds[:, sl], W[:, :, sl], R, Cols)
-        if Q is not None:
-            st = forward_kinematics(tree, qs[:, sl])
-            ext = external_wrenches(tree, st, _slice_wrenches(wrenches, sl, N))
+        if Q is not None:  # generalized force of the wrenches: the backward recursion of them alone
+            qc = qs[:, sl]
+            checked = check_wrenches(tree, slice_wrenches(wrenches, sl, N), qc.shape[1])
+            mo = local_motion(tree, qc, qc, qc, frames=[k for k, _, _, _ in checked])
             F: list = [None] * (tree.n + 1)
             M: list = [None] * (tree.n + 1)
-            for k, (Fe, Me) in ext.items():
+            for k, (Fe, Me) in local_wrenches(tree, qc, checked).items():
                 F[k], M[k] = Fe, Me
-            Q[:, sl] = backward_recursion(tree, st, F, M, sl.stop - sl.start)[np.array(R) - 1]
+            Q[:, sl] = backward_recursion(tree, mo, F, M)[np.array(R) - 1]
     W = np.moveaxis(W, -1, 0)
     if Q is None:
         return W[0] if single else W
     return (W[0], Q[:, 0]) if single else (W, Q.T)
-
-
-def _slice_wrenches(wrenches: Sequence[Wrench], sl: slice, N: int) -> list[Wrench]:
-    out = []
-    for w in wrenches:
-        v = np.asarray(w.values, dtype=float)
-        out.append(Wrench(w.link, v[sl] if v.ndim == 2 and v.shape[0] == N else v, w.point, w.frame))
-    return out
 
 
 def _plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
@@ -170,11 +182,12 @@ def _plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
 def _fill(tree: Tree, plan: dict, q: Array, qd: Array, qdd: Array, W: Array, R: list[int], Cols: list[int]) -> None:
     pairs = plan["pairs"]
     if pairs:
-        st = forward_kinematics(tree, q, qd, qdd, frames=plan["frames"])
+        st = forward_kinematics(tree, q, frames=plan["frames"])
+        mo = local_motion(tree, q, qd, qdd, frames=list(pairs))
         ref = sum(st.P[k] for k in pairs) / len(pairs)
         axes = {j: joint_axis(tree, st, j, ref) for j in plan["frames"] if j in plan["row_pos"]}
         for k, (rpos, rows, cpos, off) in pairs.items():
-            B = link_block(st, k, ref)[:, off]
+            B = link_block(st, mo, k, ref)[:, off]
             S = np.stack([axes[j] for j in rows])
             W[rpos[:, None], cpos[None, :]] = np.einsum("jsn,scn->jcn", S, B)
     row_pos = plan["row_pos"]

@@ -74,8 +74,12 @@ def _signed_permutation(M: Array) -> tuple[tuple[int, float], ...] | None:
     return tuple((int(np.flatnonzero(M[:, c])[0]), float(M[:, c].sum())) for c in range(3))
 
 
-def _plan(tree: Tree) -> list:
-    """Per-frame constants for the recursion, cached on the (immutable) tree instance."""
+def frame_plan(tree: Tree) -> list:
+    """Per-frame constants (E_j, its signed permutation or None, u_j), cached on the (immutable) tree.
+
+    E_j = Rot(z, gamma) Rot(x, alpha) for a revolute frame, times Rot(z, theta) otherwise;
+    u_j = Rot(z, gamma) (d, 0, b), the origin of frame j in a(j) when r = 0.
+    """
     plan = tree.__dict__.get("_kinematic_plan")
     if plan is None:
         plan = [None]
@@ -94,18 +98,6 @@ def _columns(Ra: Sequence[Array], E: Array, perm) -> list[Array]:
     if perm is not None:
         return [Ra[k] if sgn > 0 else -Ra[k] for k, sgn in perm]
     return [combine(E[:, c], Ra) for c in range(3)]
-
-
-def _add(*terms: Array | None) -> Array | None:
-    out = None
-    for t in terms:
-        if t is not None:
-            out = t if out is None else out + t
-    return out
-
-
-def _cross(a: Array | None, b: Array | None) -> Array | None:
-    return None if a is None or b is None else cross(a, b)
 
 
 def joint_array(x: object, tree: Tree, name: str) -> tuple[Array, bool]:
@@ -128,32 +120,19 @@ def joint_array(x: object, tree: Tree, name: str) -> tuple[Array, bool]:
 
 @dataclass
 class KinematicState:
-    """Per-frame quantities in frame-0 orientation, samples last; lists indexed by frame 0..n.
+    """Per-frame poses in frame-0 orientation, samples last; lists indexed by frame 0..n.
 
     Rc[j]: rotation 0R_j as its columns (x_j, y_j, z_j), each (3, N); P[j]: origin (3, N);
-    dP[j]: P_j - P_a(j) (3, N); w, dw: angular velocity and acceleration; v, dv: velocity and
-    acceleration of O_j (dv includes -g when gravity is on). Frames not computed are None;
-    w, dw, v entries are None where they are structurally zero (a virtual chain's translations).
+    dP[j]: P_j - P_a(j) (3, N), computed from the local geometry. None where not computed.
     """
 
     Rc: list
     P: list
     dP: list
-    w: list | None = None
-    dw: list | None = None
-    v: list | None = None
-    dv: list | None = None
 
     @property
     def N(self) -> int:
         return self.P[0].shape[-1]
-
-    def omega(self, j: int) -> Array:
-        """Angular velocity of frame j, zeros where structurally zero, (3, N)."""
-        return np.zeros((3, self.N)) if self.w[j] is None else self.w[j]
-
-    def domega(self, j: int) -> Array:
-        return np.zeros((3, self.N)) if self.dw[j] is None else self.dw[j]
 
 
 def needed_frames(tree: Tree, frames: Sequence[int]) -> Array:
@@ -164,42 +143,21 @@ def needed_frames(tree: Tree, frames: Sequence[int]) -> Array:
     return todo
 
 
-def forward_kinematics(
-    tree: Tree,
-    q: Array,
-    qd: Array | None = None,
-    qdd: Array | None = None,
-    *,
-    gravity: bool = True,
-    velocities: bool = False,
-    frames: Sequence[int] | None = None,
-) -> KinematicState:
-    """Forward recursion over the tree; q, qd, qdd samples-last (n, N) as from `joint_array`.
+def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = None) -> KinematicState:
+    """Poses of the frames in frame 0; q samples-last (n, N) as from `joint_array`.
 
-    With qdd, angular and linear accelerations are computed (dv0 = -g when gravity);
-    velocities=True also computes v (the linear velocity of each origin).
     frames: compute only these frames and their ancestors (others stay None).
     Constant rotations that are signed permutations (alpha, gamma multiples of pi/2)
     cost nothing: the frame's columns are the parent's, reordered.
     """
     n, N = tree.n, q.shape[1]
     todo = needed_frames(tree, range(1, n + 1) if frames is None else frames)
-    plan = _plan(tree)
+    plan = frame_plan(tree)
     eye = np.eye(3)
-    Rc: list = [[np.broadcast_to(eye[:, c, None], (3, N)) for c in range(3)]] + [None] * n
     zero = np.zeros((3, N))
+    Rc: list = [[np.broadcast_to(eye[:, c, None], (3, N)) for c in range(3)]] + [None] * n
     P: list = [zero] + [None] * n
     dP: list = [zero] + [None] * n
-    acc = qdd is not None
-    w = dw = v = dv = None
-    if qd is not None:
-        w = [None] * (n + 1)
-        v = [None] * (n + 1) if velocities else None
-    if acc:
-        dw = [None] * (n + 1)
-        g = np.asarray(tree.gravity, dtype=float)
-        dv = [np.broadcast_to(-g[:, None], (3, N)) if gravity else zero] + [None] * n
-
     for f in tree.frames:
         j, a = f.j, f.ant
         if not todo[j]:
@@ -212,36 +170,14 @@ def forward_kinematics(
             Rj = [c * D[0] + s * D[1], c * D[1] - s * D[0], D[2]]
         else:
             Rj = D
-        z = Rj[2]
         d = combine(u, Rc[a])
-        if f.sigma == PRISMATIC:
-            rz = (f.r + q[j - 1]) * z
-            d = rz if d is None else d + rz
-        elif f.r != 0.0:
-            d = f.r * z if d is None else d + f.r * z
+        r = f.r + q[j - 1] if f.sigma == PRISMATIC else f.r
+        if np.any(r != 0.0):
+            d = r * Rj[2] if d is None else d + r * Rj[2]
         if d is None:
             d = zero
         Rc[j], dP[j], P[j] = Rj, d, P[a] + d
-        if w is None:
-            continue
-        wa = w[a]
-        qdz = qd[j - 1] * z if f.sigma != FIXED else None
-        w[j] = _add(wa, qdz) if f.sigma == REVOLUTE else wa
-        if v is not None:
-            v[j] = _add(v[a], _cross(wa, d), qdz if f.sigma == PRISMATIC else None)
-        if not acc:
-            continue
-        dwa = dw[a]
-        wz = _cross(wa, z) if f.sigma != FIXED else None
-        dvj = _add(dv[a], _cross(dwa, d), _cross(wa, _cross(wa, d)))
-        if f.sigma == REVOLUTE:
-            dw[j] = _add(dwa, qdd[j - 1] * z, None if wz is None else qd[j - 1] * wz)
-        else:
-            dw[j] = dwa
-            if f.sigma == PRISMATIC:
-                dvj = _add(dvj, qdd[j - 1] * z, None if wz is None else (2.0 * qd[j - 1]) * wz)
-        dv[j] = dvj
-    return KinematicState(Rc, P, dP, w, dw, v, dv)
+    return KinematicState(Rc, P, dP)
 
 
 def transforms(tree: Tree, q: Array) -> Array:
@@ -265,7 +201,7 @@ def _point(st: KinematicState, frame: int, point: Sequence[float] | None) -> tup
     return rp, st.P[frame] + rp
 
 
-def _check_frame(tree: Tree, frame: int, what: str = "frame") -> None:
+def check_frame(tree: Tree, frame: int, what: str = "frame") -> None:
     if not 0 <= frame <= tree.n:
         raise ModelError(f"{what} {frame} does not exist in model {tree.name!r} (frames 0..{tree.n})")
 
@@ -278,8 +214,8 @@ def jacobian(
     Rows: linear velocity of the point, then angular velocity of the frame, with
     components in frame `expressed_in` (default 0). Column j is the effect of qd_j.
     """
-    _check_frame(tree, frame)
-    _check_frame(tree, expressed_in, "expressed_in frame")
+    check_frame(tree, frame)
+    check_frame(tree, expressed_in, "expressed_in frame")
     qs, single = joint_array(q, tree, "q")
     st = forward_kinematics(tree, qs, frames=[frame, expressed_in])
     N = qs.shape[1]
@@ -304,29 +240,19 @@ def _local_cols(Rc: Array, V: Array) -> Array:
     return np.stack([(Rc[c][:, None, :] * V).sum(axis=0) for c in range(3)])
 
 
-def jdot_qdot(
-    tree: Tree, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0
-) -> Array:
-    """J-dot times qd for the point of `jacobian`, (N, 6): its acceleration when qdd = 0, without gravity."""
-    _check_frame(tree, frame)
-    _check_frame(tree, expressed_in, "expressed_in frame")
-    qs, single = joint_array(q, tree, "q")
-    qds, _ = joint_array(qd, tree, "qd")
-    if qds.shape != qs.shape:
-        raise ModelError(f"q and qd must have the same shape; got {np.shape(q)} and {np.shape(qd)}")
-    st = forward_kinematics(tree, qs, qds, np.zeros_like(qs), gravity=False, frames=[frame, expressed_in])
-    rp, _ = _point(st, frame, point)
-    w, dw = st.omega(frame), st.domega(frame)
-    a = st.dv[frame] + cross(dw, rp) + cross(w, cross(w, rp))
-    out = np.concatenate([np.broadcast_to(a, (3, qs.shape[1])), np.broadcast_to(dw, (3, qs.shape[1]))])
-    if expressed_in != 0:
-        Re = st.Rc[expressed_in]
-        out = np.concatenate([to_local(Re, out[:3]), to_local(Re, out[3:])])
-    out = out.T
-    return out[0] if single else out
-
-
 __all__ = [
-    "FIXED", "KinematicState", "combine", "cross", "dot", "forward_kinematics", "jacobian", "jdot_qdot",
-    "joint_array", "to_local", "to_world", "transforms",
+    "FIXED",
+    "KinematicState",
+    "check_frame",
+    "combine",
+    "cross",
+    "dot",
+    "forward_kinematics",
+    "frame_plan",
+    "jacobian",
+    "joint_array",
+    "needed_frames",
+    "to_local",
+    "to_world",
+    "transforms",
 ]
