@@ -24,6 +24,7 @@ from ..kinematics.forward import KinematicState, cross, forward_kinematics, join
 from ..kinematics.motion import Motion, Vec, local_motion, vadd, vcross
 from ..model.tree import FIXED, INERTIAL, REVOLUTE, ModelError, Tree
 from .newton_euler import (
+    CHUNK,
     Wrench,
     backward_recursion,
     check_wrenches,
@@ -37,7 +38,6 @@ Array = np.ndarray
 
 # the product E w of the symmetric basis matrix E of XX, XY, XZ, YY, YZ, ZZ with w: (component, source) pairs
 _INERTIA_BASIS = (((0, 0),), ((0, 1), (1, 0)), ((0, 2), (2, 0)), ((1, 1),), ((1, 2), (2, 1)), ((2, 2),))
-from .newton_euler import CHUNK  # noqa: E402
 
 
 def resolve_rows(tree: Tree, rows: Sequence[int] | None) -> list[int]:
