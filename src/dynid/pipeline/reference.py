@@ -1,0 +1,111 @@
+"""Published base-parameter tables, matched to ours by parameter combination.
+
+A reference table (CSV, no header) has one base parameter per row:
+`expression, OLS value, OLS %σ, WLS value, WLS %σ`, the expression a linear
+combination such as `Izz1 + 1.0*Ia1 + 0.07*mz3`. Names are translated to dynid's
+(`Izz` -> `ZZ`, ...) by a prefix table; a row matches our base parameter whose
+regrouping expression is the same combination (coefficients equal to the table's
+rounding). Where a publication parametrizes a term differently, `combinations` gives
+the published quantity as a linear combination of our base parameters instead.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..dynamics import BaseParameters
+from ..model import ModelError
+
+_TERM = re.compile(r"([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)\s*\*\s*)?([A-Za-z_][A-Za-z_0-9]*)")
+
+
+def parse_combination(expr: str, names: Mapping[str, str] | None = None) -> dict[str, float]:
+    """'Izz1 + 1.0*Ia1 - 0.05*m3' -> {'ZZ1': 1.0, 'IA1': 1.0, 'M3': -0.05} with names {'Izz': 'ZZ', ...}."""
+    out: dict[str, float] = {}
+    pos = 0
+    text = expr.strip()
+    while pos < len(text):
+        m = _TERM.match(text, pos)
+        if m is None or m.end() == pos:
+            raise ModelError(f"cannot read the combination {expr!r} at {text[pos:]!r}")
+        sign, coef, name = m.groups()
+        prefix, number = re.match(r"(.*?)(\d*)$", name).groups()
+        key = (names or {}).get(prefix, prefix) + number if name not in (names or {}) else names[name]
+        out[key] = out.get(key, 0.0) + (-1.0 if sign == "-" else 1.0) * float(coef or 1.0)
+        pos = m.end()
+        while pos < len(text) and text[pos] == " ":
+            pos += 1
+    return out
+
+
+@dataclass(frozen=True)
+class ReferenceRow:
+    expression: str
+    ols: float
+    ols_rel_std: float
+    wls: float
+    wls_rel_std: float
+
+
+def read_reference(path: str | Path) -> list[ReferenceRow]:
+    rows = []
+    with open(path, newline="") as fh:
+        for line, rec in enumerate(csv.reader(fh), start=1):
+            if not rec:
+                continue
+            try:
+                rows.append(ReferenceRow(rec[0], *(float(x) for x in rec[1:5])))
+            except (ValueError, TypeError):
+                raise ModelError(
+                    f"{path}, line {line}: expected 'expression, OLS value, OLS %σ, WLS value, WLS %σ'; got {rec}"
+                ) from None
+    return rows
+
+
+@dataclass(frozen=True)
+class Match:
+    """A published row and the same quantity computed from our base parameters (weights over them)."""
+
+    row: ReferenceRow
+    label: str
+    weights: dict[str, float]
+
+    def value(self, names: list[str], values: np.ndarray) -> float:
+        return float(sum(w * values[names.index(n)] for n, w in self.weights.items()))
+
+    def std(self, names: list[str], cov: np.ndarray) -> float:
+        idx = [names.index(n) for n in self.weights]
+        w = np.array(list(self.weights.values()))
+        return float(np.sqrt(w @ cov[np.ix_(idx, idx)] @ w))
+
+
+def match_reference(
+    rows: list[ReferenceRow],
+    base: BaseParameters,
+    names: Mapping[str, str],
+    combinations: Mapping[str, str] | None = None,
+    rtol: float = 1e-4,
+) -> tuple[list[Match], list[ReferenceRow]]:
+    """Match published rows to our base parameters; returns (matches, rows left unmatched)."""
+    ours = [parse_combination(e) for e in base.expressions]
+    combos = {k: parse_combination(v) for k, v in (combinations or {}).items()}
+    matches, unmatched = [], []
+    for row in rows:
+        pub = parse_combination(row.expression, names)
+        label = next(iter(pub))
+        if len(pub) == 1 and label in combos:  # a quantity the publication defines differently
+            matches.append(Match(row, label, combos[label]))
+            continue
+        for name, comb in zip(base.names, ours, strict=True):
+            if comb.keys() == pub.keys() and all(abs(comb[k] - pub[k]) <= rtol + rtol * abs(pub[k]) for k in pub):
+                matches.append(Match(row, name, {name: 1.0}))
+                break
+        else:
+            unmatched.append(row)
+    return matches, unmatched
