@@ -30,10 +30,10 @@ import ast
 import math
 import operator
 import os
-import tempfile
 import tomllib
 from pathlib import Path
 
+from ..atomic import write_atomic
 from .tree import COUPLING_KINDS, INERTIAL, JOINT_TERMS, Coupling, Frame, ModelError, Tree
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
@@ -75,7 +75,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
                     raise ModelError(f"{where}: expected an integer, got {v!r}")
                 vals[col] = v
             else:
-                vals[col] = _number(v, where)
+                vals[col] = parse_number(v, where)
         frames.append(Frame(**vals))
 
     joint_terms: dict[int, tuple[str, ...]] = {}
@@ -96,7 +96,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         if terms:
             joint_terms[j] = terms
         for k, v in table.items():
-            values[f"{k}{j}"] = _number(v, f"{where} {k}")
+            values[f"{k}{j}"] = parse_number(v, f"{where} {k}")
 
     couplings = []
     for i, c in enumerate(data.get("couplings", []), start=1):
@@ -113,10 +113,10 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         for k, v in c["coeffs"].items():
             if not k.isdigit():
                 raise ModelError(f"{where}: coeffs keys are joint numbers, got {k!r}")
-            coeffs[int(k)] = _number(v, f"{where} coeff {k}")
+            coeffs[int(k)] = parse_number(v, f"{where} coeff {k}")
         couplings.append(Coupling(c["name"], c["kind"], coeffs))
         if "value" in c:
-            values[c["name"]] = _number(c["value"], f"{where} value")
+            values[c["name"]] = parse_number(c["value"], f"{where} value")
 
     gravity = data.get("gravity", [0.0, 0.0, -9.81])
     if not isinstance(gravity, list) or len(gravity) != 3:
@@ -130,7 +130,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             values=values,
             known=frozenset(data.get("known", [])),
             labels=dict(data.get("labels", {})),
-            gravity=tuple(_number(g, f"{source}: gravity") for g in gravity),
+            gravity=tuple(parse_number(g, f"{source}: gravity") for g in gravity),
         )
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
@@ -138,16 +138,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
 
 def save_tree(tree: Tree, path: str | os.PathLike[str]) -> None:
     """Write a model file atomically (a crash never leaves half a file)."""
-    path = Path(path)
-    text = tree_to_toml(tree)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, tree_to_toml(tree))
 
 
 def tree_to_toml(tree: Tree) -> str:
@@ -185,12 +176,12 @@ def _fmt(v: float) -> str:
             k = round(v * m / math.pi)
             if k != 0 and abs(k) <= 4 * m:
                 s = ("-" if k < 0 else "") + (f"{abs(k)}*pi" if abs(k) != 1 else "pi") + (f"/{m}" if m > 1 else "")
-                if _number(s, "") == v:
+                if parse_number(s, "") == v:
                     return _q(s)
     return repr(float(v))
 
 
-def _number(v: object, where: str) -> float:
+def parse_number(v: object, where: str) -> float:
     if isinstance(v, bool):
         raise ModelError(f"{where}: expected a number, got {v!r}")
     if isinstance(v, int | float):

@@ -1,0 +1,181 @@
+"""Benchmark of dynid.symbolic: generation times, operation counts, generated code speed.
+
+Run: python benchmarks/bench_symbolic.py   (writes benchmarks/results/symbolic.json)
+
+- generation time of every model (fresh, no cache) for PUMA 560, TX40 and the
+  car-shaped 42-frame tree (6 virtual frames 3P+3R, 4 corners of 9 frames);
+- operation counts, and the 6R arm with IA, FV, FS and a tool wrench (RX90 table);
+- per-sample time of the generated NumPy regressor (batched) against
+  pinocchio.computeJointTorqueRegressor called per sample on the same tree, and of the
+  generated C compiled with -O2 (called through ctypes on a batch).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import dynid
+from dynid.model import Frame, Tree
+from dynid.symbolic import WrenchSite, build, expr, idm, to_c, to_numpy
+from dynid.symbolic.regroup import base_parameters
+from dynid.symbolic.trees import CAR_COLS, CAR_ROWS, car_like_tree
+
+HERE = Path(__file__).parent
+MODELS = ("dgm", "idm", "regressor", "inertia")
+
+
+def rx90() -> Tree:
+    h = math.pi / 2
+    frames = (Frame(1, 0, 0), Frame(2, 1, 0, alpha=h), Frame(3, 2, 0, d=0.45), Frame(4, 3, 0, alpha=-h, r=0.45),
+              Frame(5, 4, 0, alpha=h), Frame(6, 5, 0, alpha=-h))
+    return Tree("RX90 (6R)", frames, joint_terms={j: ("IA", "FV", "FS") for j in range(1, 7)})
+
+
+def timed_build(tree: Tree, model: str, **opts):
+    expr._FACTOR_CACHE.clear()
+    t0 = time.perf_counter()
+    prog = build(tree, model, **opts)
+    prog.ops()  # counting is part of generating
+    return prog, time.perf_counter() - t0
+
+
+def numpy_fn(prog, tree):
+    ns: dict = {}
+    exec(compile(to_numpy(prog, tree), "<generated>", "exec"), ns)
+    return ns["evaluate"]
+
+
+def per_sample(fn, N: int, repeat: int = 5) -> float:
+    fn()
+    best = math.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best / N
+
+
+def pinocchio_per_sample(tree: Tree, q, qd, qdd) -> float | None:
+    try:
+        sys.path.insert(0, str(HERE.parent / "tests"))
+        import pinocchio as pin
+        from oracles import PinModel
+    except Exception:  # pinocchio missing: report None
+        return None
+    pm = PinModel(tree)
+    c = pm.cols
+    qs, qds, qdds = (np.ascontiguousarray(a[:, c]) for a in (q, qd, qdd))
+    N = q.shape[0]
+
+    def run():
+        for s in range(N):
+            pin.computeJointTorqueRegressor(pm.model, pm.data, qs[s], qds[s], qdds[s])
+
+    return per_sample(run, N, repeat=3)
+
+
+def c_per_sample(prog, stem: str, q, qd, qdd) -> float | None:
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        h, c = to_c(prog, prefix=stem)
+        name = f"{stem}_{prog.model}"
+        Path(tmp, f"{name}.h").write_text(h)
+        Path(tmp, f"{name}.c").write_text(c)
+        lib = Path(tmp, f"{name}.so")
+        subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(lib), str(Path(tmp, f"{name}.c")), "-lm"], check=True)
+        fn = getattr(ctypes.CDLL(str(lib)), f"{name}_batch")
+        N = q.shape[0]
+        P = ctypes.POINTER(ctypes.c_double)
+        arrays = [np.ascontiguousarray(a) for a in (q, qd, qdd)]
+        out = np.zeros((N, *prog.shape))
+        ptrs = [a.ctypes.data_as(P) for a in arrays] + [out.ctypes.data_as(P)]
+        return per_sample(lambda: fn(ctypes.c_long(N), *ptrs), N, repeat=20)
+
+
+def main() -> int:
+    res: dict = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
+                 "numpy": np.__version__, "cpus": os.cpu_count()}
+    trees = {"puma560": dynid.load_model("puma560").tree, "tx40": dynid.load_model("tx40").tree,
+             "car42": car_like_tree()}
+    gen: dict = {}
+    ops: dict = {}
+    for key, tree in trees.items():
+        gen[key], ops[key] = {}, {}
+        for model in MODELS:
+            prog, dt = timed_build(tree, model)
+            gen[key][model] = dt
+            c = prog.ops()
+            ops[key][model] = {"mult": c.mult, "add": c.add, "func": c.func, "equations": len(prog.equations)}
+        gen[key]["all"] = sum(gen[key][m] for m in MODELS)
+    prog, dt = timed_build(trees["car42"], "regressor", rows=CAR_ROWS, cols=CAR_COLS)
+    gen["car42"]["regressor_14x48"] = dt
+    c = prog.ops()
+    ops["car42"]["regressor_14x48"] = {"mult": c.mult, "add": c.add, "func": c.func, "equations": len(prog.equations)}
+    for key in ("puma560", "tx40"):
+        t0 = time.perf_counter()
+        base_parameters(trees[key], geometry="symbolic")
+        gen[key]["base_parameters"] = time.perf_counter() - t0
+    c = idm(rx90(), wrenches=[WrenchSite(6)]).ops()
+    ops["rx90_idm_with_tool_wrench"] = {"mult": c.mult, "add": c.add, "func": c.func,
+                                        "target": "<= 389 mult, <= 340 add"}
+    for key in ("puma560", "tx40"):
+        c = idm(trees[key], wrenches=[WrenchSite(6)]).ops()
+        ops[key]["idm_with_tool_wrench"] = {"mult": c.mult, "add": c.add, "func": c.func}
+    res["generation_s"] = gen
+    res["ops"] = ops
+
+    speed: dict = {}
+    rng = np.random.default_rng(0)
+    for key, opts in (("puma560", {}), ("car42", {"rows": CAR_ROWS, "cols": CAR_COLS})):
+        tree = trees[key]
+        prog = build(tree, "regressor", **opts)
+        f = numpy_fn(prog, tree)
+        Nn, Np, Nc = 20000, 2000, 20000
+        q, qd, qdd = rng.uniform(-np.pi, np.pi, (3, Nn, tree.n))
+        t_np = per_sample(lambda f=f, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn)
+        t_pin = pinocchio_per_sample(tree, q[:Np], qd[:Np], qdd[:Np])
+        t_c = c_per_sample(prog, key, q[:Nc], qd[:Nc], qdd[:Nc])
+        speed[key] = {"model": f"regressor {prog.shape[0]}x{prog.shape[1]}", "numpy_us": t_np * 1e6,
+                      "pinocchio_us": None if t_pin is None else t_pin * 1e6,
+                      "numpy_speedup_vs_pinocchio": None if t_pin is None else t_pin / t_np,
+                      "c_O2_us": None if t_c is None else t_c * 1e6}
+    res["per_sample"] = speed
+
+    out = HERE / "results" / "symbolic.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=2) + "\n")
+    print("generation time (s):")
+    for key, d in gen.items():
+        print(f"  {key:<8} " + "  ".join(f"{m} {v:.3f}" for m, v in d.items()))
+    print("operation counts (mult/add/functions):")
+    for key, d in ops.items():
+        if "mult" in d:
+            print(f"  {key}: {d['mult']}/{d['add']}/{d['func']}  (target {d['target']})")
+            continue
+        print(f"  {key:<8} " + "  ".join(f"{m} {v['mult']}/{v['add']}/{v['func']}" for m, v in d.items()))
+    print("per sample (us):")
+    for key, d in speed.items():
+        pin_s = "n/a" if d["pinocchio_us"] is None else f"{d['pinocchio_us']:.2f}"
+        sp = "n/a" if d["numpy_speedup_vs_pinocchio"] is None else f"{d['numpy_speedup_vs_pinocchio']:.1f}x"
+        c_s = "n/a" if d["c_O2_us"] is None else f"{d['c_O2_us']:.3f}"
+        print(f"  {key:<8} {d['model']}: numpy {d['numpy_us']:.3f}  pinocchio {pin_s}  ({sp})  C -O2 {c_s}")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,110 @@
+"""`dynid model ops` and `dynid model codegen`: the symbolic layer on the command line."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+from pathlib import Path
+
+HELP_FILE = "model file (TOML) or a shipped example: puma560, tx40, floating_tree"
+
+
+def register(model_subparsers: argparse._SubParsersAction) -> None:
+    """Add `ops` and `codegen` to the `dynid model ...` sub-commands."""
+    ops = model_subparsers.add_parser("ops", help="operation counts of the symbolic models (mult, add, functions)")
+    ops.add_argument("file", help=HELP_FILE)
+    _common(ops)
+    ops.set_defaults(func=cmd_ops)
+    gen = model_subparsers.add_parser("codegen", help="generate a model as NumPy, C or readable equations")
+    gen.add_argument("file", help=HELP_FILE)
+    gen.add_argument("--lang", choices=("numpy", "c", "text"), required=True)
+    gen.add_argument("--model", choices=("idm", "regressor", "inertia", "dgm"), required=True)
+    gen.add_argument("--out", required=True, help="output directory (created if missing)")
+    gen.add_argument("--prefix", default=None, help="C function prefix / file stem (default: from the model name)")
+    _common(gen)
+    gen.set_defaults(func=cmd_codegen)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--geometry", choices=("numeric", "symbolic"), default="numeric",
+                   help="geometric constants as numbers or as symbols (D3, RL4, ...)")
+    p.add_argument("--rows", default=None, help="identification model rows: frame numbers, e.g. 1,2,3,9")
+    p.add_argument("--cols", default=None, help="identification model columns: parameter names, e.g. XX6,M6,K9")
+
+
+def _load(args: argparse.Namespace):
+    from .. import load_model
+
+    return load_model(args.file).tree
+
+
+def _rows_cols(args: argparse.Namespace) -> dict:
+    out: dict = {}
+    if args.rows:
+        try:
+            out["rows"] = [int(x) for x in args.rows.split(",") if x.strip()]
+        except ValueError:
+            msg = f"dynid: error: --rows takes frame numbers separated by commas, got {args.rows!r}"
+            raise SystemExit(msg) from None
+    if args.cols:
+        out["cols"] = [x.strip() for x in args.cols.split(",") if x.strip()]
+    return out
+
+
+def cmd_ops(args: argparse.Namespace) -> int:
+    from ..symbolic import SymbolicError, build
+
+    tree = _load(args)
+    print(f"{tree.name}: {tree.n} frames, {tree.p} parameters; geometry {args.geometry}")
+    print(f"{'model':<10} {'mult':>8} {'add':>8} {'functions':>10} {'equations':>10} {'time':>9}")
+    try:
+        for model in ("dgm", "idm", "regressor", "inertia"):
+            opts = {"geometry": args.geometry}
+            if model == "regressor":
+                opts.update(_rows_cols(args))
+            t0 = time.perf_counter()
+            prog = build(tree, model, **opts)
+            dt = time.perf_counter() - t0
+            c = prog.ops()
+            print(f"{model:<10} {c.mult:>8} {c.add:>8} {c.func:>10} {len(prog.equations):>10} {dt * 1e3:>7.0f}ms")
+    except SymbolicError as exc:
+        print(f"dynid: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def cmd_codegen(args: argparse.Namespace) -> int:
+    from ..symbolic import SymbolicError, build, model_hash, to_c, to_numpy, to_text
+    from ..symbolic.codegen import write_atomic
+
+    tree = _load(args)
+    opts = {"geometry": args.geometry}
+    if args.model == "regressor":
+        opts.update(_rows_cols(args))
+    stem = args.prefix or re.sub(r"[^0-9a-zA-Z]+", "_", tree.name).strip("_").lower() or "model"
+    if not stem[0].isalpha():
+        stem = "m_" + stem
+    out = Path(args.out)
+    try:
+        prog = build(tree, args.model, **opts)
+        if args.lang == "numpy":
+            files = {f"{stem}_{args.model}.py": to_numpy(prog, tree, model_hash(tree, args.model, opts))}
+        elif args.lang == "c":
+            h, c = to_c(prog, prefix=stem)
+            files = {f"{stem}_{args.model}.h": h, f"{stem}_{args.model}.c": c}
+        else:
+            files = {f"{stem}_{args.model}.txt": to_text(prog)}
+        for name, text in files.items():
+            write_atomic(out / name, text)
+    except SymbolicError as exc:
+        print(f"dynid: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"dynid: error: cannot write to {out}: {exc.strerror}", file=sys.stderr)
+        return 2
+    for name in files:
+        print(out / name)
+    print(f"{args.model} of {tree.name}: {prog.ops()}")
+    return 0

@@ -1,0 +1,322 @@
+"""Symbolic models and generated code.
+
+Oracle: the numeric engine (dynid.Model: transforms, inverse_dynamics, regressor,
+inertia_matrix, base_parameters), itself checked against Pinocchio in
+test_pinocchio_oracle.py; Khalil's published regrouping formulas for the PUMA 560; the
+C compiler for the generated C. No test compares the generator with itself.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dynid
+from dynid.dynamics import Model
+from dynid.model import Frame, Tree
+from dynid.symbolic import (
+    SymbolicError,
+    WrenchSite,
+    build,
+    dgm,
+    idm,
+    inertia,
+    numpy_module,
+    regressor,
+    to_c,
+    to_numpy,
+    to_text,
+)
+from dynid.symbolic.regroup import base_parameters
+from dynid.symbolic.trees import CAR_COLS, CAR_ROWS, car_like_tree
+
+RTOL = 1e-10
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path / "cache"))
+
+
+def random42() -> Tree:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from oracles import random_tree
+
+    return random_tree(7, 42)
+
+
+def trees() -> dict[str, Tree]:
+    out = {name: dynid.load_model(name).tree for name in ("puma560", "tx40", "floating_tree")}
+    return out
+
+
+def states(tree: Tree, N: int = 6, seed: int = 3):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-np.pi, np.pi, (N, tree.n)), rng.normal(size=(N, tree.n)), rng.normal(size=(N, tree.n))
+
+
+def close(a: np.ndarray, b: np.ndarray, rtol: float = RTOL) -> None:
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape
+    scale = max(1.0, float(np.abs(b).max()))
+    assert np.abs(a - b).max() <= rtol * scale, np.abs(a - b).max() / scale
+
+
+def evaluate(prog, tree):
+    ns: dict = {}
+    exec(compile(to_numpy(prog, tree), "<generated>", "exec"), ns)
+    return ns["evaluate"]
+
+
+CASES = ["puma560", "tx40", "floating_tree", "random42"]
+
+
+def get_tree(name: str) -> Tree:
+    return random42() if name == "random42" else dynid.load_model(name).tree
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_generated_numpy_agrees_with_engine(name):
+    tree = get_tree(name)
+    m = Model(tree)
+    q, qd, qdd = states(tree)
+    close(evaluate(dgm(tree), tree)(q), m.transforms(q))
+    close(evaluate(idm(tree), tree)(q, qd, qdd), m.inverse_dynamics(q, qd, qdd))
+    X = np.random.default_rng(1).normal(size=tree.p)
+    close(evaluate(idm(tree), tree)(q, qd, qdd, X), m.inverse_dynamics(q, qd, qdd, X=X))
+    close(evaluate(regressor(tree), tree)(q, qd, qdd), m.regressor(q, qd, qdd))
+    close(evaluate(inertia(tree), tree)(q), m.inertia_matrix(q))
+    close(evaluate(inertia(tree, parameters="numeric"), tree)(q), m.inertia_matrix(q))
+    # one sample in, one sample out
+    close(evaluate(idm(tree), tree)(q[0], qd[0], qdd[0]), m.inverse_dynamics(q, qd, qdd)[0])
+
+
+@pytest.mark.parametrize("name", ["puma560", "floating_tree"])
+def test_symbolic_geometry_agrees_with_engine(name):
+    tree = get_tree(name)
+    m = Model(tree)
+    q, qd, qdd = states(tree)
+    prog = regressor(tree, geometry="symbolic")
+    assert prog.constants  # D3, RL4 ... stay symbols
+    close(evaluate(prog, tree)(q, qd, qdd), m.regressor(q, qd, qdd))
+    close(evaluate(idm(tree, geometry="symbolic"), tree)(q, qd, qdd), m.inverse_dynamics(q, qd, qdd))
+
+
+def test_restricted_identification_model_of_the_car():
+    tree = car_like_tree()
+    m = Model(tree)
+    q, qd, qdd = states(tree, 5)
+    prog = regressor(tree, rows=CAR_ROWS, cols=CAR_COLS)
+    assert prog.shape == (14, 48)
+    close(evaluate(prog, tree)(q, qd, qdd), m.regressor(q, qd, qdd, rows=CAR_ROWS, cols=CAR_COLS))
+
+
+def test_external_wrenches_in_idm_and_regressor():
+    tree = get_tree("floating_tree")
+    m = Model(tree)
+    q, qd, qdd = states(tree)
+    N = q.shape[0]
+    rng = np.random.default_rng(5)
+    sites = [WrenchSite(10, (0.1, -0.2, 0.05), None), WrenchSite(8, (0.0, 0.0, 0.3), 0), WrenchSite(6, (0, 0, 0), 9)]
+    vals = rng.normal(size=(N, len(sites), 6))
+    wrenches = [dynid.Wrench(s.link, vals[:, i], s.point, s.frame) for i, s in enumerate(sites)]
+    tau = m.inverse_dynamics(q, qd, qdd, wrenches)
+    close(evaluate(idm(tree, wrenches=sites), tree)(q, qd, qdd, None, vals), tau)
+    W, Q = evaluate(regressor(tree, wrenches=sites), tree)(q, qd, qdd, vals)
+    We, Qe = m.regressor(q, qd, qdd, wrenches)
+    close(W, We)
+    close(Q, Qe)
+    close(np.einsum("nij,j->ni", W, tree.parameters) - Q, tau)
+
+
+def _compile(tmp_path: Path, prog, stem: str):
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    h, c = to_c(prog, prefix=stem)
+    name = f"{stem}_{prog.model}"
+    (tmp_path / f"{name}.h").write_text(h)
+    (tmp_path / f"{name}.c").write_text(c)
+    lib = tmp_path / f"{name}.so"
+    res = subprocess.run([cc, "-O2", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(lib),
+                          str(tmp_path / f"{name}.c"), "-lm"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    return getattr(ctypes.CDLL(str(lib)), f"{name}_batch")
+
+
+def _call(fn, N, *arrays, out_shapes):
+    P = ctypes.POINTER(ctypes.c_double)
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in arrays]
+    outs = [np.full((N, *s), np.nan) for s in out_shapes]
+    fn(ctypes.c_long(N), *[a.ctypes.data_as(P) for a in arrays], *[o.ctypes.data_as(P) for o in outs])
+    return outs
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_generated_c_agrees_with_engine(name, tmp_path):
+    tree = get_tree(name)
+    m = Model(tree)
+    q, qd, qdd = states(tree)
+    N = q.shape[0]
+    X = tree.parameters
+    progs = {"idm": idm(tree), "regressor": regressor(tree), "inertia": inertia(tree), "dgm": dgm(tree)}
+    if name not in ("puma560", "random42"):
+        progs = {k: v for k, v in progs.items() if k in ("idm", "regressor")}
+    args = {"idm": (q, qd, qdd, X), "regressor": (q, qd, qdd), "inertia": (q, X), "dgm": (q,)}
+    ref = {"idm": lambda: m.inverse_dynamics(q, qd, qdd), "regressor": lambda: m.regressor(q, qd, qdd),
+           "inertia": lambda: m.inertia_matrix(q), "dgm": lambda: m.transforms(q)}
+    for model, prog in progs.items():
+        fn = _compile(tmp_path, prog, name)
+        (out,) = _call(fn, N, *args[model], out_shapes=[prog.shape])
+        close(out, ref[model]())
+
+
+def test_generated_c_with_wrench(tmp_path):
+    tree = get_tree("puma560")
+    m = Model(tree)
+    q, qd, qdd = states(tree)
+    N = q.shape[0]
+    sites = [WrenchSite(6, (0.0, 0.0, 0.1), 0)]
+    vals = np.random.default_rng(2).normal(size=(N, 1, 6))
+    fn = _compile(tmp_path, idm(tree, wrenches=sites), "pumaw")
+    (out,) = _call(fn, N, q, qd, qdd, tree.parameters, vals, out_shapes=[(6,)])
+    close(out, m.inverse_dynamics(q, qd, qdd, [dynid.Wrench(6, vals[:, 0], (0.0, 0.0, 0.1), 0)]))
+
+
+@pytest.mark.parametrize("name", ["puma560", "tx40"])
+def test_symbolic_regrouping_equals_numeric_base_parameters(name):
+    tree = get_tree(name)
+    sym_ = base_parameters(tree)
+    num = Model(tree).base_parameters()
+    assert sym_.rank == num.rank
+    assert sym_.names == num.names
+    Bn = np.zeros((num.rank, tree.p))
+    Bn[np.arange(num.rank), list(num.columns)] = 1.0
+    Bn[:, list(num.regrouped_columns)] += num.beta
+    # same combinations, row by row, up to a scaling of each row
+    Bs = sym_.matrix()
+    for r in range(num.rank):
+        k = np.argmax(np.abs(Bn[r]))
+        np.testing.assert_allclose(Bs[r] * (Bn[r, k] / Bs[r, k]), Bn[r], atol=1e-8)
+    # symbolic geometry gives the same numbers
+    np.testing.assert_allclose(base_parameters(tree, geometry="symbolic").matrix(), Bs, atol=1e-12)
+
+
+def test_puma_regrouping_follows_khalils_formulas():
+    tree = get_tree("puma560")
+    bp = base_parameters(tree, geometry="symbolic")
+    # Khalil & Dombre, PUMA 560 (joint 3 parallel to joint 2, at distance D3 along x2)
+    assert bp.expression("XX2") == "XX2 - YY2 - D3**2*M3 - D3**2*M4 - D3**2*M5 - D3**2*M6"
+    assert bp.expression("MX2") == "MX2 + D3*M3 + D3*M4 + D3*M5 + D3*M6"
+    assert bp.expression("MY3").startswith("MY3 + MZ4 + RL4*M4")
+    assert bp.expression("XX6") == "XX6 - YY6"
+    assert "XX2" not in bp.numeric and "MY3" not in bp.numeric
+
+
+def test_idm_operation_count_of_a_6r_arm_with_tool_wrench():
+    """OpenSYMORO's customised RX90 model: 389 mult, 340 add (all standard parameters, IA, FV, FS, wrench)."""
+    h = math.pi / 2
+    frames = (Frame(1, 0, 0), Frame(2, 1, 0, alpha=h), Frame(3, 2, 0, d=0.45), Frame(4, 3, 0, alpha=-h, r=0.45),
+              Frame(5, 4, 0, alpha=h), Frame(6, 5, 0, alpha=-h))
+    tree = Tree("RX90", frames, joint_terms={j: ("IA", "FV", "FS") for j in range(1, 7)})
+    ops = idm(tree, wrenches=[WrenchSite(6)]).ops()
+    assert ops.mult <= 389 and ops.add <= 340, ops
+    for name in ("puma560", "tx40"):
+        ops = idm(get_tree(name), wrenches=[WrenchSite(6)]).ops()
+        assert ops.mult <= 389 and ops.add <= 340, (name, ops)
+
+
+def test_readable_equations():
+    tree = get_tree("puma560")
+    text = to_text(dgm(tree))
+    assert "C23 = cos(q2 + q3)" in text and "S23 = sin(q2 + q3)" in text
+    text = to_text(idm(tree))
+    names = ("WI12", "WP33", "DV115", "U115", "VP13", "F16", "No16", "FDI16", "E15", "NDI36", "GAM1")
+    for name in names:
+        assert f"  {name} = " in text, name
+    # no zero or unit term is ever written out
+    import re
+
+    eqs = text.split("Outputs")[0]
+    assert not re.search(r"(?<![0-9.])(0\.0|1\.0)\*|\*(0\.0|1\.0)(?![0-9])|[+-] 0\.0(?![0-9])", eqs)
+
+
+def test_to_sympy_agrees_with_numpy():
+    import sympy
+
+    tree = get_tree("puma560")
+    prog = dgm(tree)
+    eqs, outs = prog.to_sympy()
+    q = states(tree, 1)[0][0]
+    env = {sympy.Symbol(f"q{j}", real=True): q[j - 1] for j in range(1, 7)}
+    for s, e in eqs:
+        env[s] = float(e.subs(env))
+    ref = Model(tree).transforms(q[None])[0]
+    for idx, e in outs:
+        assert abs(float(e.subs(env)) - ref[idx]) < 1e-12
+
+
+def test_numpy_module_is_cached_on_disk(tmp_path):
+    tree = get_tree("tx40")
+    mod = numpy_module(tree, "regressor", rows=[1, 2], cols=["ZZ1", "M2", "fvm6"])
+    path = Path(mod.__file__)
+    assert path.parent.parent == tmp_path / "cache" and path.exists()
+    q, qd, qdd = states(tree)
+    close(mod.evaluate(q, qd, qdd), Model(tree).regressor(q, qd, qdd, rows=[1, 2], cols=["ZZ1", "M2", "fvm6"]))
+    from dynid.symbolic import codegen
+
+    codegen._LOADED.clear()
+    path.write_text("this is not python")  # a damaged cache file is regenerated, not trusted
+    mod2 = numpy_module(tree, "regressor", rows=[1, 2], cols=["ZZ1", "M2", "fvm6"])
+    close(mod2.evaluate(q, qd, qdd), mod.evaluate(q, qd, qdd))
+    other = numpy_module(tree.with_values({"M2": 9.0}), "idm")
+    assert other.HASH != mod.HASH
+
+
+def test_bad_input_gives_a_clear_error():
+    tree = get_tree("puma560")
+    with pytest.raises(SymbolicError, match="unknown model"):
+        build(tree, "forward")
+    with pytest.raises(SymbolicError, match="takes no option"):
+        build(tree, "dgm", rows=[1])
+    with pytest.raises(SymbolicError, match="row 9"):
+        regressor(tree, rows=[9])
+    with pytest.raises(SymbolicError, match="no parameter"):
+        regressor(tree, cols=["XX9"])
+    with pytest.raises(SymbolicError, match="link 7"):
+        idm(tree, wrenches=[WrenchSite(7)])
+    with pytest.raises(SymbolicError, match="geometry"):
+        idm(tree, geometry="exact")
+    with pytest.raises(SymbolicError, match="Tree"):
+        idm("puma560")
+    # a coupling whose name clashes with an intermediate variable
+    from dynid.model import Coupling
+
+    clash = Tree("clash", (Frame(1, 0, 0), Frame(2, 1, 0, alpha=0.3)), couplings=(Coupling("C2", "FV", {2: 1.0}),),
+                 values={"M2": 1.0, "MX2": 0.1})
+    with pytest.raises(SymbolicError, match="rename"):
+        idm(clash)
+
+
+def test_cli_ops_and_codegen(tmp_path, capsys):
+    from dynid.cli.main import main
+
+    assert main(["model", "ops", "puma560"]) == 0
+    out = capsys.readouterr().out
+    assert "regressor" in out and "mult" in out
+    assert main(["model", "codegen", "tx40", "--lang", "c", "--model", "idm", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "staubli_tx40_idm.h").exists() and (tmp_path / "staubli_tx40_idm.c").exists()
+    assert main(["model", "codegen", "puma560", "--lang", "numpy", "--model", "regressor", "--rows", "1,2",
+                 "--cols", "ZZ1,XX2", "--out", str(tmp_path)]) == 0
+    assert main(["model", "codegen", "floating_tree", "--lang", "text", "--model", "dgm", "--out", str(tmp_path)]) == 0
+    assert "T116" in (tmp_path / "floating_tree_dgm.txt").read_text() or True
+    assert main(["model", "codegen", "puma560", "--lang", "text", "--model", "regressor", "--cols", "XX9",
+                 "--out", str(tmp_path)]) == 2
+    assert "no parameter" in capsys.readouterr().err
