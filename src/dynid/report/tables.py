@@ -1,0 +1,60 @@
+"""Parameter tables in the paper's layout: name, a priori, (truth), estimate, %σ, flag, (reference)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..estimation import IdentificationResult
+
+
+def _cell(v: float | None, spec: str = ".6g") -> str:
+    return "" if v is None or (isinstance(v, float) and not np.isfinite(v)) else format(v, spec)
+
+
+def parameter_table(
+    result: IdentificationResult,
+    sections: Sequence[tuple[str, Sequence[str]]] | None = None,
+    reference: Mapping[str, tuple[float, float]] | None = None,
+    reference_title: str = "published",
+) -> str:
+    """A text table per section (title, parameter names); all parameters in one section by default.
+
+    reference: name -> (value, %σ) shown beside our estimate (e.g. a publication's).
+    """
+    sections = sections or [(f"{result.method} estimates", list(result.names))]
+    has_truth = bool(result.truth)
+    head = ["parameter", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "%σ", "flag"]
+    if reference:
+        head += [reference_title, f"{reference_title} %σ"]
+    out = []
+    for title, names in sections:
+        rows = [head]
+        for name in names:
+            i = result.index(name)
+            row = [result.labels.get(name, name), _cell(result.a_priori.get(name))]
+            if has_truth:
+                row.append(_cell(result.truth.get(name)))
+            row += [_cell(float(result.values[i])), _cell(float(result.rel_std_percent[i]), ".2f"), result.flags[i]]
+            if reference:
+                ref = reference.get(name)
+                row += [_cell(ref[0]), _cell(ref[1], ".2f")] if ref else ["", ""]
+            rows.append(row)
+        widths = [max(len(r[c]) for r in rows) for c in range(len(head))]
+        lines = [title, "  ".join(h.rjust(w) for h, w in zip(rows[0], widths, strict=True))]
+        lines.append("  ".join("-" * w for w in widths))
+        lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows[1:]]
+        out.append("\n".join(lines))
+    return "\n\n".join(out)
+
+
+def validation_table(errors: Mapping[str, Mapping[str, float]]) -> str:
+    """Relative errors ||Y - W X|| / ||Y|| per group, one column per validation kind (direct, cross)."""
+    kinds = [k for k in errors if errors[k]]
+    groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
+    lines = ["group".rjust(12) + "".join(k.rjust(12) for k in kinds)]
+    for g in groups:
+        lines.append(g.rjust(12) + "".join(
+            (f"{100 * errors[k][g]:.2f} %" if g in errors[k] else "").rjust(12) for k in kinds))
+    return "\n".join(lines)
