@@ -64,6 +64,25 @@ def cmd_model_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_identify(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..pipeline.config import load_config
+    from ..pipeline.run import identify, write_outputs
+    from ..report import parameter_table, validation_table
+
+    cfg = load_config(args.config)
+    run = identify(cfg, progress=lambda msg: print(f"· {msg}", file=sys.stderr))
+    print(parameter_table(run.result, reference=run.reference_values() or None))
+    print("\nValidation, relative error ||Y - W X|| / ||Y||:")
+    print(validation_table(run.errors))
+    out = Path(args.out)
+    files = write_outputs(run, out, f"Identification of {run.model.name}",
+                          progress=lambda msg: print(f"· {msg}", file=sys.stderr))
+    print(f"\nwrote {', '.join(str(f) for f in files)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dynid", description=__doc__)
     parser.add_argument("--version", action="version", version=f"dynid {__version__}")
@@ -73,6 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
     show = msub.add_parser("show", help="print the MDH table, the parameters and the base parameters")
     show.add_argument("file", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     show.set_defaults(func=cmd_model_show)
+    ident = sub.add_parser("identify", help="identify the parameters of a model from measurement files")
+    ident.add_argument("config", help="identification config (TOML)")
+    ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
+    ident.set_defaults(func=cmd_identify)
     try:
         from . import symbolic_cmds
     except ImportError:  # the symbolic layer is optional at this stage
