@@ -26,3 +26,11 @@ def test_bad_file_is_one_clear_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("dynid: error:") and "m.toml" in err and "9 columns" in err
     assert "Traceback" not in err
+
+
+def test_model_show_template_prints_the_paper_car():
+    out = run("model", "show", "--template", "peugeot406")
+    assert out.returncode == 0, out.stderr
+    assert "42 frames" in out.stdout and "paper estimates: NOT realisable" in out.stdout
+    assert "YY6" in out.stdout.split("NOT realisable")[1].splitlines()[1]
+    assert "48 of 48" in out.stdout

@@ -48,6 +48,13 @@ def format_parameters(tree: Tree) -> str:
 def cmd_model_show(args: argparse.Namespace) -> int:
     from .. import load_model
 
+    if args.template:
+        from .vehicle_cmds import show_template
+
+        print(show_template(args.template))
+        return 0
+    if not args.file:
+        raise ModelError("give a model file (or a shipped example: puma560, tx40, floating_tree) or --template NAME")
     model = load_model(args.file)
     tree = model.tree
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters, gravity {list(tree.gravity)} m/s²\n")
@@ -90,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     model = sub.add_parser("model", help="describe and generate models of a tree")
     msub = model.add_subparsers(dest="model_command", required=True)
     show = msub.add_parser("show", help="print the MDH table, the parameters and the base parameters")
-    show.add_argument("file", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
+    show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
+    show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
     show.set_defaults(func=cmd_model_show)
     ident = sub.add_parser("identify", help="identify the parameters of a model from measurement files")
     ident.add_argument("config", help="identification config (TOML)")

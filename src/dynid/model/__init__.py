@@ -3,6 +3,7 @@
 from importlib import resources
 from pathlib import Path
 
+from .consistency import Violation, check_physical
 from .files import load_tree, save_tree, tree_from_dict, tree_to_toml
 from .tree import (
     COUPLING_KINDS,
@@ -29,6 +30,6 @@ def example_path(name: str) -> Path:
 
 __all__ = [
     "COUPLING_KINDS", "EXAMPLES", "FIXED", "INERTIAL", "JOINT_TERMS", "PRISMATIC", "REVOLUTE",
-    "Coupling", "Frame", "ModelError", "Tree", "example_path", "load_tree", "save_tree",
+    "Coupling", "Frame", "ModelError", "Tree", "Violation", "check_physical", "example_path", "load_tree", "save_tree",
     "tree_from_dict", "tree_to_toml",
 ]

@@ -1,0 +1,18 @@
+"""The paper's car: 42-frame template, parameter sets, kinematic tables, aerodynamics, statics,
+the identification equations and their base parameters (frame conventions: template.py)."""
+
+from .aero import Aerodynamics, AeroError, aero_wrench
+from .equations import CarEquations, car_base_parameters, car_identification
+from .geometry import AxleGeometry, CarGeometry, GeometryError
+from .parameters import ParameterSet, a_priori, paper_estimates, truth
+from .statics import RestState, design_preloads, rest_state
+from .tables import KinematicTable, KinematicTableError, KinematicTables, default_tables, load_table_csv, load_tables
+from .template import CORNERS, DAMPERS, EQUATION_ROWS, TIRES, WHEELS, car_template, paper_parameter_names
+
+__all__ = [
+    "CORNERS", "DAMPERS", "EQUATION_ROWS", "TIRES", "WHEELS", "AeroError", "Aerodynamics", "AxleGeometry",
+    "CarEquations", "CarGeometry", "GeometryError", "KinematicTable", "KinematicTableError", "KinematicTables",
+    "ParameterSet", "RestState", "a_priori", "aero_wrench", "car_base_parameters", "car_identification",
+    "car_template", "default_tables", "design_preloads", "load_table_csv", "load_tables", "paper_estimates",
+    "paper_parameter_names", "rest_state", "truth",
+]

@@ -1,0 +1,255 @@
+"""The car's identification equations Y = W X (paper §5) and their base parameters.
+
+Joint roles (DESIGN §5): 1-6 free (no actuator: tau = 0), dampers and tires elastic
+(tau = 0, their K FV FS OFF and the anti-roll couplings are columns of W), steering,
+camber, caster and kingpin are kinematic inputs, half track and half wheelbase constant,
+wheel spin without a known torque. Only the equations with a known right-hand side are
+kept: x y z yaw pitch roll (rows 1-6), the four dampers (9 18 27 36) and the four tires
+(15 24 33 42), plus a wheel's spin row (14 23 32 41) where its torque is given.
+
+Y is the generalized force of the measured wheel wrenches (and of the aerodynamic
+wrench), minus the contribution of the parameters taken as known. The wheel wrenches
+are given as the dynamometric wheels give them: force and moment about the WHEEL CENTRE
+in the non-spinning wheel frame (x forward, y left along the axle, z up: the axes of the
+tire frame). They act on the tire-deflection link, whose origin is the contact point,
+wheel_radius - q15 below the centre, so the moment is carried there first.
+
+Base parameters. With every joint of the tree free to move (the engine's numeric method
+on random states), the paper's 48 parameters form a base set: nothing regroups and
+nothing is eliminated, as the paper says (§4.2); `base="generic"` uses it. The car does
+not move that way: the half track and half wheelbase are constants, and the tabulated
+joints move by a degree or two. With them held still (`base="car"`), the wheel centres
+still move along the dampers, so the wheel masses do NOT regroup into M6 (M6 is the
+chassis alone; the car's mass is M6 + M14 + M23 + M32 + M41), but the diametral wheel
+inertias do: the 4 relations
+
+    XX6 + YY14 + YY23 + YY32 + YY41,   ZZ6 + YY14 + YY23 + YY32 + YY41,   XXw - YYw
+
+leave 44 base parameters (for an axisymmetric wheel XXw - YYw = 0). On track data the
+generic set is therefore nearly rank deficient in YY14..YY41 (and XX6, ZZ6 with them):
+use base="car", or give the wheel inertias as known.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dynamics import BaseParameters, Model, Wrench
+from ..model.tree import FIXED, ModelError, Tree
+from .template import (
+    CHASSIS_GROUPS,
+    CONSTANT_JOINTS,
+    DAMPERS,
+    EQUATION_ROWS,
+    FRAMES,
+    TIRES,
+    WHEELS,
+    paper_parameter_names,
+    tabulated,
+)
+
+Array = np.ndarray
+
+
+def group_name(row: int) -> str:
+    """Equation group of a row: x y z yaw pitch roll, susp9, tire15, spin14, ..."""
+    if row <= 6:
+        return CHASSIS_GROUPS[row - 1]
+    if row in DAMPERS:
+        return f"susp{row}"
+    if row in TIRES:
+        return f"tire{row}"
+    if row in WHEELS:
+        return f"spin{row}"
+    raise ModelError(f"joint {row} has no equation in the car's identification model")
+
+
+def still_tree(tree: Tree) -> Tree:
+    """The tree with the constant and tabulated joints made fixed (the car's motion for base parameters)."""
+    still = set(CONSTANT_JOINTS) | {j for k in range(4) for j in tabulated(k)}
+    frames = tuple(dataclasses.replace(f, sigma=FIXED) if f.j in still else f for f in tree.frames)
+    return dataclasses.replace(tree, frames=frames)
+
+
+_CACHE: dict[tuple, tuple[Tree, object]] = {}
+
+
+def _cached(tree: Tree, key: tuple, make):
+    """Memoise per tree object (Tree holds dicts, so it is not hashable); a few entries only."""
+    full = (id(tree), *key)
+    hit = _CACHE.get(full)
+    if hit is not None and hit[0] is tree:
+        return hit[1]
+    if len(_CACHE) > 32:
+        _CACHE.clear()
+    value = make()
+    _CACHE[full] = (tree, value)
+    return value
+
+
+def identified(tree: Tree) -> list[str]:
+    """The paper's parameters not listed as known, in the paper's order."""
+    return [n for n in paper_parameter_names() if n not in tree.known]
+
+
+def _base(tree: Tree, rows: tuple[int, ...], motion: str) -> BaseParameters:
+    def make() -> BaseParameters:
+        t = still_tree(tree) if motion == "car" else tree
+        return Model(t).base_parameters(rows=list(rows), cols=identified(tree))
+
+    return _cached(tree, ("base", rows, motion), make)
+
+
+def car_base_parameters(tree: Tree | Model, motion: str = "generic", spin_rows: Sequence[int] = ()) -> BaseParameters:
+    """Base parameters of the paper's 48 for the car's equations (see the module doc).
+
+    motion: "generic" (every joint moves) or "car" (constant and tabulated joints still).
+    spin_rows: wheel frames whose spin equation is used too.
+    """
+    tree = tree.tree if isinstance(tree, Model) else tree
+    if motion not in ("generic", "car"):
+        raise ModelError(f"motion = {motion!r}: use 'generic' or 'car'")
+    _check_car(tree)
+    return _base(tree, (*EQUATION_ROWS, *sorted(spin_rows)), motion)
+
+
+def _check_car(tree: Tree) -> None:
+    if tree.n != FRAMES or any(f"K{t}" not in tree.index for t in TIRES) or "karf" not in tree.index:
+        raise ModelError(f"model {tree.name!r} is not the car template (dynid.vehicle.car_template)")
+
+
+def _radius(tree: Tree) -> float:
+    """Unloaded radius: the wheel centre's distance from the contact point at q = 0 (same for every wheel)."""
+    def make() -> float:
+        T = Model(tree).transforms(np.zeros(tree.n))
+        return float(np.linalg.norm(T[WHEELS[0], :3, 3] - T[TIRES[0], :3, 3]))
+
+    return _cached(tree, ("radius",), make)
+
+
+@dataclass(frozen=True)
+class CarEquations:
+    """Y = W X_B stacked group by group: W (m, p), Y (m,), groups (m,) labels, X_B named by `names`.
+
+    Unpacks as `W, Y, groups = car_identification(...)`. base: the regrouping relations
+    (X_B = base.values(X) for a full parameter vector X of the tree); labels: the paper's
+    labels of the names; rows: the joints used, in the stacking order.
+    """
+
+    W: Array
+    Y: Array
+    groups: Array
+    names: tuple[str, ...]
+    labels: tuple[str, ...]
+    base: BaseParameters
+    rows: tuple[int, ...]
+
+    def __iter__(self):
+        return iter((self.W, self.Y, self.groups))
+
+    def residual(self, X: Array) -> Array:
+        """Y - W X_B for a full parameter vector X of the tree (the model error)."""
+        return self.Y - self.W @ self.base.values(X)
+
+
+def wheel_wrench_array(wheel_wrenches: Array | Mapping[int, Array], N: int) -> Array:
+    """(N, 4, 6) from an (N, 4, 6) array or a mapping wheel frame (14, 23, 32, 41) -> (N, 6)."""
+    if isinstance(wheel_wrenches, Mapping):
+        bad = set(wheel_wrenches) - set(WHEELS)
+        if bad or len(wheel_wrenches) != 4:
+            raise ModelError(
+                f"wheel_wrenches: need one (N, 6) array per wheel {WHEELS}; got keys {sorted(wheel_wrenches)}"
+            )
+        ww = np.stack([np.asarray(wheel_wrenches[w], dtype=float) for w in WHEELS], axis=1)
+    else:
+        ww = np.asarray(wheel_wrenches, dtype=float)
+    if ww.shape != (N, 4, 6):
+        raise ModelError(
+            f"wheel_wrenches must be ({N}, 4, 6): per sample, per wheel (rear left, rear right, front left, "
+            f"front right), Fx Fy Fz Mx My Mz at the wheel centre in the wheel frame; got {ww.shape}"
+        )
+    if not np.isfinite(ww).all():
+        i, k, c = np.argwhere(~np.isfinite(ww))[0]
+        raise ModelError(f"wheel_wrenches: non-finite value at sample {i}, wheel {WHEELS[k]}, component {c}")
+    return ww
+
+
+def car_identification(
+    model: Model | Tree,
+    q: Array,
+    qd: Array,
+    qdd: Array,
+    wheel_wrenches: Array | Mapping[int, Array],
+    aero_wrench: Wrench | None = None,
+    spin_torques: Mapping[int, Array] | None = None,
+    base: str | BaseParameters = "generic",
+) -> CarEquations:
+    """W, Y and the equation groups of the car's identification model over N samples.
+
+    q, qd, qdd: (N, 42) joint trajectories (constant joints' columns 0, tabulated ones filled,
+    e.g. by `KinematicTables.joints`). wheel_wrenches: (N, 4, 6) ground-on-wheel wrenches,
+    N and N·m, at the wheel centres in the wheel frames (rear left, rear right, front left,
+    front right). aero_wrench: the aerodynamic Wrench on link 6 (`aero.aero_wrench`).
+    spin_torques: wheel frame -> (N,) torque on the wheel about its axle (z, pointing left)
+    from the driveline and brakes, N·m; adds that wheel's spin equation.
+    base: "generic", "car" (see the module doc) or a BaseParameters of the same rows.
+
+    Parameters of the tree outside the paper's 48, or listed in tree.known, are known:
+    their contribution goes to Y. Rows are stacked group by group (all samples of x, then y...).
+    """
+    model = model if isinstance(model, Model) else Model(model)
+    tree = model.tree
+    _check_car(tree)
+    q, qd, qdd = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    N = q.shape[0]
+    ww = wheel_wrench_array(wheel_wrenches, N)
+    spin_torques = dict(spin_torques or {})
+    bad = set(spin_torques) - set(WHEELS)
+    if bad:
+        raise ModelError(f"spin_torques: keys must be wheel frames {WHEELS}; got {sorted(bad)}")
+    spin = sorted(spin_torques)
+    rows = (*EQUATION_ROWS, *spin)
+    bp = car_base_parameters(tree, base, spin) if isinstance(base, str) else base
+    ident = set(identified(tree))
+    X = tree.parameters
+    known_cols = [i for i, n in enumerate(tree.parameter_names) if n not in ident and X[i] != 0.0]
+    used = [tree.parameter_names[c] for c in (*bp.columns, *bp.regrouped_columns)]
+    if any(n not in ident for n in used):
+        raise ModelError(
+            f"the base set uses {[n for n in used if n not in ident]}, known in {tree.name!r}; "
+            f"pass base='generic' or 'car' to compute one without them"
+        )
+
+    # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
+    rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
+    F, M = ww[:, :, :3], ww[:, :, 3:]
+    M_contact = M + np.stack([-rho * F[:, :, 1], rho * F[:, :, 0], np.zeros_like(rho)], axis=2)
+    wrenches = [Wrench(t, np.concatenate([F[:, k], M_contact[:, k]], axis=1), frame=t) for k, t in enumerate(TIRES)]
+    if aero_wrench is not None:
+        wrenches.append(aero_wrench)
+
+    cols = list(bp.columns) + known_cols
+    W, Q = model.regressor(q, qd, qdd, wrenches, rows=list(rows), cols=cols)
+    W = np.asarray(W)
+    nb = len(bp.columns)
+    Y = Q.copy()
+    for i, w in enumerate(spin):  # the ground's moment about the axle acts on the wheel itself
+        k = WHEELS.index(w)
+        Y[:, len(EQUATION_ROWS) + i] += np.asarray(spin_torques[w], dtype=float) + M[:, k, 1]
+    if known_cols:
+        Y -= W[:, :, nb:] @ X[known_cols]
+    Wb = W[:, :, :nb]
+    names = tuple(bp.names)
+    return CarEquations(
+        W=np.ascontiguousarray(Wb.transpose(1, 0, 2)).reshape(-1, nb),
+        Y=Y.T.reshape(-1),
+        groups=np.repeat(np.array([group_name(r) for r in rows]), N),
+        names=names,
+        labels=tuple(tree.label(n) for n in names),
+        base=bp,
+        rows=rows,
+    )

@@ -1,0 +1,112 @@
+"""The car at rest on flat ground: attitude, tire loads, damper preloads.
+
+At rest the ground pushes each contact point (origin of the tire frame) vertically with
+a force F_i, and every free or elastic joint is in equilibrium. Unknowns: height q3,
+pitch q5, roll q6, the four damper clearances (unless held at the design position), the
+four tire deflections and the four loads; equations: the inverse dynamic model of the
+z, pitch, roll, damper and tire joints equals zero (x, y and yaw hold by symmetry of
+vertical forces) and each contact point lies on the ground z0 = 0. The tabulated joints
+follow the kinematic tables. Solved by Newton's method (scipy `root`) with the engine's
+inverse dynamics, so it holds for any geometry and parameter set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import root
+
+from ..dynamics import Model, Wrench
+from ..model.tree import Tree
+from .geometry import GeometryError
+from .template import CORNERS, DAMPERS, TIRES, WHEELS
+
+KN = 1000.0
+
+
+@dataclass(frozen=True)
+class RestState:
+    """q (42,) at rest; loads (4,) N, the vertical ground force on each tire (rear left first)."""
+
+    q: np.ndarray
+    loads: np.ndarray
+
+    @property
+    def tire_deflections(self) -> np.ndarray:
+        return self.q[np.array(TIRES) - 1]
+
+    @property
+    def damper_clearances(self) -> np.ndarray:
+        return self.q[np.array(DAMPERS) - 1]
+
+
+def rest_state(tree: Tree, tables=None, fix_dampers: bool = False, steering_wheel: float = 0.0) -> RestState:
+    """Equilibrium at rest on flat ground (q1 = q2 = q4 = 0); raises GeometryError if a wheel floats.
+
+    tables: KinematicTables for the tabulated joints (default: the 406's); fix_dampers: hold
+    the dampers at q = 0 (their equations are then not imposed: see `design_preloads`).
+    """
+    from .tables import default_tables
+
+    tables = default_tables() if tables is None else tables
+    model = Model(tree)
+    weight = -tree.gravity[2] * sum(tree.values.get(f"M{j}", 0.0) for j in range(1, tree.n + 1))
+    kts = [tree.values.get(f"K{t}", 0.0) for t in TIRES]
+    if min(kts) <= 0.0 or weight <= 0.0:
+        raise GeometryError(
+            f"rest state of {tree.name!r}: needs positive tire stiffnesses and masses; got kt = {kts}, "
+            f"total weight {weight:.6g} N"
+        )
+    damp = [] if fix_dampers else list(DAMPERS)
+    rows = [3, 5, 6, *damp, *TIRES]
+    nd = len(damp)
+    zero = np.zeros(tree.n)
+
+    def state(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q = zero.copy()
+        q[[2, 4, 5]] = x[:3]
+        for i, d in enumerate(damp):
+            q[d - 1] = x[3 + i]
+        for i, t in enumerate(TIRES):
+            q[t - 1] = x[3 + nd + i]
+        q = tables.joints(q[None], zero[None], zero[None], steering_wheel)[0][0]
+        return q, x[3 + nd + 4:] * KN
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        q, F = state(x)
+        ws = [Wrench(t, np.array([0.0, 0.0, f, 0.0, 0.0, 0.0]), frame=0) for t, f in zip(TIRES, F, strict=True)]
+        tau = model.inverse_dynamics(q, zero, zero, wrenches=ws)[np.array(rows) - 1] / KN
+        z = model.transforms(q)[np.array(TIRES), 2, 3]
+        return np.concatenate([tau, z * 1e3])
+
+    q0 = zero.copy()
+    radius = float(np.linalg.norm(model.transforms(q0)[TIRES[0], :3, 3] - model.transforms(q0)[WHEELS[0], :3, 3]))
+    defl = weight / 4 / np.mean(kts)
+    x0 = np.concatenate([[radius - defl, 0.0, 0.0], np.zeros(nd), np.full(4, defl), np.full(4, weight / 4 / KN)])
+    sol = root(residual, x0, method="hybr", options={"xtol": 1e-13})
+    if not sol.success or np.abs(residual(sol.x)).max() > 1e-7:
+        raise GeometryError(f"rest state of {tree.name!r}: no static equilibrium found ({sol.message})")
+    q, F = state(sol.x)
+    floating = [i for i in range(4) if F[i] <= 0.0]
+    if floating:
+        i = floating[0]
+        raise GeometryError(
+            f"{tree.name!r}: the {CORNERS[i]} wheel (frame {WHEELS[i]}) would float at rest: its vertical load "
+            f"would be {F[i]:.6g} N, a negative tire deflection q{TIRES[i]} = {q[TIRES[i] - 1] * 1e3:.4g} mm; "
+            f"the centre of mass is outside the wheels' support: check the axle positions, half tracks and masses"
+        )
+    return RestState(q, F)
+
+
+def design_preloads(tree: Tree, tables=None) -> np.ndarray:
+    """Damper offsets (4,) that make the design position (all dampers at q = 0) the rest state.
+
+    The tires alone then decide the attitude and how the weight splits between the wheels.
+    """
+    rest = rest_state(tree, tables, fix_dampers=True)
+    zero = np.zeros(tree.n)
+    ws = [Wrench(t, np.array([0.0, 0.0, f, 0.0, 0.0, 0.0]), frame=0) for t, f in zip(TIRES, rest.loads, strict=True)]
+    tau = Model(tree).inverse_dynamics(rest.q, zero, zero, wrenches=ws)[np.array(DAMPERS) - 1]
+    off = np.array([tree.values.get(f"OFF{d}", 0.0) for d in DAMPERS])
+    return off - tau

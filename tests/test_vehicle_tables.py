@@ -1,0 +1,105 @@
+"""Kinematic tables, aerodynamics and the template's text. Oracles: cubic polynomials (which
+cubic splines reproduce exactly), finite differences for the chain rule, the drag formula
+½ρSV²Cx, and the paper's numbers in the printed text."""
+
+import numpy as np
+import pytest
+
+from dynid import Model
+from dynid.cli.vehicle_cmds import show_template
+from dynid.model import ModelError
+from dynid.vehicle.aero import AeroError, aero_wrench
+from dynid.vehicle.tables import KinematicTable, KinematicTableError, default_tables, load_table_csv, load_tables
+from dynid.vehicle.template import DAMPERS, car_template
+
+U = np.linspace(-0.1, 0.1, 9)
+H = np.linspace(-2.0, 2.0, 7)
+
+
+def cubic(u, h):
+    return 0.1 * u - 3.0 * u**2 + 20.0 * u**3 + 0.05 * h - 0.01 * h**3 + 0.5 * u * h
+
+
+def test_bicubic_table_reproduces_a_cubic_and_its_derivatives():
+    t = KinematicTable("camber", "front left", U, cubic(*np.meshgrid(U, H, indexing="ij")), H)
+    u, h = np.array([-0.073, 0.0, 0.051]), np.array([1.3, -0.4, 0.0])
+    f, fu, fh, fuu, fuh, fhh = t.derivatives(u, h)
+    np.testing.assert_allclose(f, cubic(u, h), atol=1e-12)
+    np.testing.assert_allclose(fu, 0.1 - 6.0 * u + 60.0 * u**2 + 0.5 * h, atol=1e-10)
+    np.testing.assert_allclose(fh, 0.05 - 0.03 * h**2 + 0.5 * u, atol=1e-10)
+    np.testing.assert_allclose(fuu, -6.0 + 120.0 * u, atol=1e-8)
+    np.testing.assert_allclose(fuh, 0.5, atol=1e-9)
+    np.testing.assert_allclose(fhh, -0.06 * h, atol=1e-9)
+
+
+def test_joint_velocities_and_accelerations_match_finite_differences():
+    t = np.linspace(0.0, 1.0, 2001)
+    dt = t[1] - t[0]
+    q, qd, qdd = (np.zeros((t.size, 42)) for _ in range(3))
+    w = 2 * np.pi * 1.3
+    for k, d in enumerate(DAMPERS):
+        q[:, d - 1], qd[:, d - 1], qdd[:, d - 1] = 0.05 * np.sin(w * t + k), 0.05 * w * np.cos(w * t + k), \
+            -0.05 * w * w * np.sin(w * t + k)
+    h = (2.0 * np.sin(3 * t), 6.0 * np.cos(3 * t), -18.0 * np.sin(3 * t))
+    q, qd, qdd = default_tables().joints(q, qd, qdd, h)
+    for j in (10, 11, 12, 28, 29, 30, 37, 38):
+        np.testing.assert_allclose(np.gradient(q[:, j - 1], dt)[5:-5], qd[5:-5, j - 1], atol=1e-5)
+        np.testing.assert_allclose(np.gradient(qd[:, j - 1], dt)[5:-5], qdd[5:-5, j - 1], atol=1e-4)
+    assert np.ptp(q[:, 27]) > 0.1  # the front left wheel steers with the steering wheel
+
+
+def test_out_of_range_names_the_table_the_input_and_the_range():
+    q = np.zeros((3, 42))
+    q[2, 8] = 0.2  # rear left damper clearance beyond the 0.12 m of the tables
+    with pytest.raises(KinematicTableError, match=r"'steering' of the rear left corner: damper clearance = 0.2 m at "
+                                                  r"sample 2 is outside the table's range \[-0.12, 0.12\] m"):
+        default_tables().joints(q, q, q)
+    with pytest.raises(KinematicTableError, match="steering-wheel angle = 12 rad at sample 0"):
+        default_tables().joints(np.zeros((1, 42)), np.zeros((1, 42)), np.zeros((1, 42)), 12.0)
+
+
+def test_csv_and_toml_tables(tmp_path):
+    grid = tmp_path / "camber.csv"
+    lines = ["travel\\steering," + ",".join(repr(float(x)) for x in H)]
+    lines += [repr(float(u)) + "," + ",".join(repr(float(cubic(u, x))) for x in H) for u in U]
+    grid.write_text("\n".join(lines) + "\n")
+    t = load_table_csv(grid, "camber", "front left")
+    np.testing.assert_allclose(t(np.array([0.03]), 0.7), cubic(0.03, 0.7), atol=1e-12)
+    two = tmp_path / "caster.csv"
+    two.write_text("travel,caster_deg\n" + "\n".join(f"{u:g},{10 * u + 1:g}" for u in U) + "\n")
+    np.testing.assert_allclose(load_table_csv(two, "caster", "rear left", units="deg")(0.05), np.radians(1.5))
+    toml = tmp_path / "tables.toml"
+    toml.write_text('[rear_right.camber]\nunits = "deg"\ntravel = [-0.1, -0.05, 0.0, 0.05, 0.1]\n'
+                    "values = [1.0, 0.5, 0.0, -0.5, -1.0]\n")
+    tabs = load_tables(toml)
+    np.testing.assert_allclose(tabs.table(1, "camber")(0.02), np.radians(-0.2), atol=1e-12)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[middle.camber]\ntravel = [0, 1]\nvalues = [0, 1]\n")
+    with pytest.raises(KinematicTableError, match=r"\[middle\] is not a corner"):
+        load_tables(bad)
+    short = tmp_path / "short.csv"
+    short.write_text("travel,value\n0,1\n0.1,x\n0.2,1\n0.3,1\n")
+    with pytest.raises(KinematicTableError, match=r"short\.csv, line 3: expected numbers"):
+        load_table_csv(short, "camber", "rear left")
+
+
+def test_drag_at_speed_and_reversing_is_refused():
+    model = Model(car_template(check_rest=False))
+    q, qd = np.zeros((1, 42)), np.zeros((1, 42))
+    qd[0, 1] = 30.0  # forward along y0 at zero yaw
+    w = aero_wrench(model, q, qd)
+    qbar = 0.5 * 1.225 * 30.0**2 * 2.0
+    np.testing.assert_allclose(w.values[0, :3], [qbar * 0.12, 0.0, -qbar * 0.31], atol=1e-9)  # up, right, forward
+    qd[0, 1] = -30.0
+    with pytest.raises(AeroError, match="outside the tables"):
+        aero_wrench(model, q, qd)
+
+
+def test_show_template_text():
+    text = show_template("peugeot406")
+    for needle in ("42 frames", "(0.319, 0.003, 1.405)", "paper estimates: NOT realisable", "YY6", "triangle",
+                   "a priori: realisable", "truth: realisable", "48 of 48", "44 of 48",
+                   "XX6 = XX6 + YY14 + YY23 + YY32 + YY41", "ks9", "kt42", "karf", "off36"):
+        assert needle in text, needle
+    with pytest.raises(ModelError, match="no car template 'beetle'"):
+        show_template("beetle")
