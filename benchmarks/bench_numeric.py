@@ -20,11 +20,12 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
 
-from car_like import ROWS, car_like_tree, identification_columns  # noqa: E402
 from oracles import PinModel, random_states  # noqa: E402
 
 import dynid  # noqa: E402
 from dynid import Model  # noqa: E402
+from dynid.vehicle import car_template  # noqa: E402
+from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names  # noqa: E402
 
 
 def best_of(f, repeat: int = 3) -> float:
@@ -73,10 +74,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=10_000)
     args = ap.parse_args()
-    car = Model(car_like_tree())
+    car = Model(car_template())
     results = [
         bench("PUMA 560", dynid.load_model("puma560"), args.samples),
-        bench("car-like 42 frames", car, args.samples, ROWS, identification_columns(car.tree)),
+        bench("Peugeot 406 (42 frames)", car, args.samples, list(EQUATION_ROWS), paper_parameter_names()),
     ]
     print(f"{'model':<20} {'what':<28} {'dynid µs':>9} {'Pinocchio µs':>13} {'speed-up':>9}  target")
     for r in results:

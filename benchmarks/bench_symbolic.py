@@ -30,7 +30,11 @@ import dynid
 from dynid.model import Frame, Tree
 from dynid.symbolic import WrenchSite, build, expr, idm, to_c, to_numpy
 from dynid.symbolic.regroup import base_parameters
-from dynid.symbolic.trees import CAR_COLS, CAR_ROWS, car_like_tree
+from dynid.vehicle import car_template
+from dynid.vehicle.template import EQUATION_ROWS as CAR_ROWS
+from dynid.vehicle.template import paper_parameter_names
+
+CAR_COLS = tuple(paper_parameter_names())
 
 HERE = Path(__file__).parent
 MODELS = ("dgm", "idm", "regressor", "inertia")
@@ -110,7 +114,7 @@ def main() -> int:
     res: dict = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
                  "numpy": np.__version__, "cpus": os.cpu_count()}
     trees = {"puma560": dynid.load_model("puma560").tree, "tx40": dynid.load_model("tx40").tree,
-             "car42": car_like_tree()}
+             "car42": car_template()}
     gen: dict = {}
     ops: dict = {}
     for key, tree in trees.items():

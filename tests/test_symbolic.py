@@ -35,7 +35,11 @@ from dynid.symbolic import (
     to_text,
 )
 from dynid.symbolic.regroup import base_parameters
-from dynid.symbolic.trees import CAR_COLS, CAR_ROWS, car_like_tree
+from dynid.vehicle import car_template
+from dynid.vehicle.template import EQUATION_ROWS as CAR_ROWS
+from dynid.vehicle.template import paper_parameter_names
+
+CAR_COLS = tuple(paper_parameter_names())
 
 RTOL = 1e-10
 
@@ -110,7 +114,7 @@ def test_symbolic_geometry_agrees_with_engine(name):
 
 
 def test_restricted_identification_model_of_the_car():
-    tree = car_like_tree()
+    tree = car_template()
     m = Model(tree)
     q, qd, qdd = states(tree, 5)
     prog = regressor(tree, rows=CAR_ROWS, cols=CAR_COLS)
