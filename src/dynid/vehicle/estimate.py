@@ -1,0 +1,207 @@
+"""Joint coordinates of the car from its sensors (the paper's §6.2): q, qd, qdd of all 42 frames.
+
+Input: the channels of `sensors.paper_suite` on one clock, converted to SI (rad, rad/s, m,
+m/s, m/s², N, N·m). Each joint is taken from its best sensor, filtered by the same
+zero-phase Butterworth, and differentiated by central differences (integrated by the
+trapezoidal rule where the sensor gives a rate):
+
+  yaw, pitch, roll (q4, q5, q6)   Euler rates from the gyros; angles = integrated rates,
+                                  pulled to the absolute inclinometer angles below a
+                                  crossover frequency (complementary filter, zero phase)
+  x, y (q1, q2)                   velocity of O6 from the Correvit, accelerations from the IMU
+  z (q3)                          height of O6 from the four lasers, acceleration from the IMU
+  dampers, steering, camber       the camera's channels
+  caster, kingpin                 the template's kinematic tables (chain rule)
+  wheel spin                      the wheel speeds, integrated
+  tire deflection                 geometry: the tire frame's origin lies on the ground
+  half track, half wheelbase      constant (0: their value is in the MDH r column)
+
+The wheel wrenches and spin torques pass through the same low-pass, so that both sides
+of Y = W X carry the same band.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dynamics import Model
+from ..kinematics.forward import forward_kinematics, joint_array
+from ..model import ModelError
+from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
+from .geometry import CarGeometry
+from .sensors import CORNER_TAGS, ISO_AXES, WFT_COMPONENTS, correvit_point, laser_point
+from .tables import KinematicTables, default_tables
+from .template import FRAMES
+
+Array = np.ndarray
+# frame 0 coordinates of the ISO earth axes (X forward = y0, Y left = -x0, Z up = z0), as columns
+EARTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class CarConditioning:
+    """cutoff (Hz) and order of the zero-phase Butterworth on every signal; attitude_crossover (Hz):
+    below it the inclinometers set roll and pitch, above it the integrated gyros; border (s):
+    trimmed at each end (None: the filter's transient)."""
+
+    cutoff: float = 4.0
+    order: int = 4
+    attitude_crossover: float = 0.2
+    border: float | None = None
+
+
+@dataclass(frozen=True)
+class CarTrajectory:
+    """Estimated joint trajectories and measured loads on one clock: t (N,) s, q, qd, qdd (N, 42),
+    wheel_wrenches (N, 4, 6) (car_identification's convention), spin_torques (N, 4) N·m or None,
+    steering_wheel (N,) rad."""
+
+    t: Array
+    q: Array
+    qd: Array
+    qdd: Array
+    wheel_wrenches: Array
+    spin_torques: Array | None
+    steering_wheel: Array
+
+    def trimmed(self, n: int) -> CarTrajectory:
+        sl = slice(n, len(self.t) - n)
+        return CarTrajectory(self.t[sl], self.q[sl], self.qd[sl], self.qdd[sl], self.wheel_wrenches[sl],
+                             None if self.spin_torques is None else self.spin_torques[sl], self.steering_wheel[sl])
+
+
+def required_channels(spin: bool = False) -> list[str]:
+    names = ["imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_ax", "imu_ay", "imu_az", "imu_roll",
+             "imu_pitch", "correvit_vx", "correvit_vy", "steering_wheel"]
+    for c in CORNER_TAGS:
+        names += [f"laser_height_{c}", f"clearance_{c}", f"steer_{c}", f"camber_{c}", f"wheel_speed_{c}"]
+        names += [f"wft_{c}_{k}" for k in WFT_COMPONENTS]
+        if spin:
+            names.append(f"spin_torque_{c}")
+    return names
+
+
+def _rz(a: Array) -> Array:
+    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _ry(a: Array) -> Array:
+    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def _rx(a: Array) -> Array:
+    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+
+
+def chassis_rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
+    """0R6 (N, 3, 3) from ISO yaw, pitch (nose down > 0), roll: the template's q4 = yaw, q5 = -pitch, q6 = roll."""
+    return EARTH @ _rz(yaw) @ _ry(pitch) @ _rx(roll) @ ISO_AXES
+
+
+def estimate_joints(
+    channels: Mapping[str, Array],
+    fs: float,
+    model: Model,
+    geometry: CarGeometry | None = None,
+    tables: KinematicTables | None = None,
+    conditioning: CarConditioning | None = None,
+) -> CarTrajectory:
+    """q, qd, qdd of the 42 joints and the filtered loads from the sensor channels (SI), trimmed of the borders."""
+    g = geometry or CarGeometry()
+    tables = tables or default_tables(g)
+    c = conditioning or CarConditioning()
+    missing = [n for n in required_channels() if n not in channels]
+    if missing:
+        raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
+    ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    N = len(ch["imu_roll"])
+    if model.n != FRAMES:
+        raise ModelError(f"the car estimator needs the 42-frame car template; got {model.name!r} ({model.n} frames)")
+
+    def lp(x: Array) -> Array:
+        return lowpass(x, fs, c.cutoff, order=c.order, axis=0)
+
+    def smooth(x: Array) -> tuple[Array, Array, Array]:
+        return filtered_derivatives(x, fs, c.cutoff, order=c.order, nderiv=2)
+
+    def from_rate(rate: Array) -> tuple[Array, Array]:
+        """Low-passed rate and its derivative."""
+        r, rd = filtered_derivatives(rate, fs, c.cutoff, order=c.order, nderiv=1)
+        return r, rd
+
+    q, qd, qdd = (np.zeros((N, FRAMES)) for _ in range(3))
+    # --- attitude: Euler rates (ISO ZYX) from the gyros, angles fused with the inclinometers
+    A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
+    w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
+    p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
+    phi, theta = lowpass(ch["imu_roll"], fs, c.cutoff, c.order), lowpass(ch["imu_pitch"], fs, c.cutoff, c.order)
+    for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
+        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
+        dphi = p + (qb * sp + r * cp) * np.tan(theta)
+        dtheta = qb * cp - r * sp
+        dpsi = (qb * sp + r * cp) / ct
+        phi_i, theta_i = integrate(dphi, fs), integrate(dtheta, fs)
+        phi = phi_i + lowpass(ch["imu_roll"] - phi_i, fs, c.attitude_crossover, c.order)
+        theta = theta_i + lowpass(ch["imu_pitch"] - theta_i, fs, c.attitude_crossover, c.order)
+    psi = integrate(dpsi, fs)
+    for j, (angle, rate, sign) in enumerate(((psi, dpsi, 1.0), (theta, dtheta, -1.0), (phi, dphi, 1.0))):
+        rf, rdf = from_rate(rate)
+        q[:, 3 + j], qd[:, 3 + j], qdd[:, 3 + j] = sign * lp(angle), sign * rf, sign * rdf
+    R6 = chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])
+
+    # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground)
+    z_est = np.mean([ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
+                     for k, t in enumerate(CORNER_TAGS)], axis=0)
+    q[:, 2], qd[:, 2], _ = smooth(z_est)
+    # --- translational accelerations of O6 from the IMU (specific force at its mounting point)
+    dw6 = derivative(lp(w6), fs, axis=0)
+    r_imu = np.asarray(g.imu_position, dtype=float)
+    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
+    a_imu6 = f6 + np.einsum("nji,j->ni", R6, np.asarray(model.tree.gravity))
+    a_o6 = a_imu6 - np.cross(dw6, r_imu) - np.cross(w6, np.cross(w6, r_imu))
+    a0 = np.einsum("nij,nj->ni", R6, a_o6)
+    # --- velocity of O6: the Correvit gives the horizontal components (chassis x, y), the lasers the vertical
+    pc = np.asarray(correvit_point(g))
+    v_c = np.stack([ch["correvit_vx"], ch["correvit_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
+    ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
+    v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
+    s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
+    v0 = v_known + s[:, None] * (R6 @ ez6)
+    for j in range(2):
+        v = lp(v0[:, j])
+        q[:, j], qd[:, j], qdd[:, j] = integrate(v, fs), v, lp(a0[:, j])
+    qdd[:, 2] = lp(a0[:, 2])
+
+    # --- corners: camera channels, wheel speeds
+    for k, t in enumerate(CORNER_TAGS):
+        b = 7 + 9 * k  # frame numbers b..b+8; column of frame j is j - 1
+        for frame, name in ((b + 2, "clearance"), (b + 3, "steer"), (b + 4, "camber")):
+            q[:, frame - 1], qd[:, frame - 1], qdd[:, frame - 1] = smooth(ch[f"{name}_{t}"])
+        w, dw = from_rate(ch[f"wheel_speed_{t}"])
+        q[:, b + 6], qd[:, b + 6], qdd[:, b + 6] = integrate(w, fs), w, dw
+    h = smooth(ch["steering_wheel"])
+    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"))
+
+    # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire)
+    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[15 + 9 * k for k in range(4)])
+    for k in range(4):
+        f = 15 + 9 * k
+        z_axis = st.Rc[f][2]
+        q[:, f - 1], qd[:, f - 1], qdd[:, f - 1] = smooth(-st.P[f][2] / z_axis[2])
+
+    ww = lp(np.stack([np.stack([ch[f"wft_{t}_{k}"] for k in WFT_COMPONENTS], axis=1) for t in CORNER_TAGS], axis=1))
+    spin = None
+    if all(f"spin_torque_{t}" in ch for t in CORNER_TAGS):
+        spin = lp(np.stack([ch[f"spin_torque_{t}"] for t in CORNER_TAGS], axis=1))
+    traj = CarTrajectory(np.arange(N) / fs, q, qd, qdd, ww, spin, h[0])
+    b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
+    if 2 * b >= N:
+        raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
+                         f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
+    return traj.trimmed(b)

@@ -1,0 +1,108 @@
+"""Joint coordinates of the car from its sensor channels.
+
+Oracle: a known smooth trajectory of all 42 joints is turned into the noise-free channels
+by `sensors.ideal_channels` (the sensor suite's definition, written independently of the
+estimator); the estimator must give the trajectory back. The bounds follow from the
+filter: content at <= 1 Hz through a 4th-order zero-phase Butterworth at 4 Hz keeps
+|H|^2 = 1/(1 + (1/4)^8) > 1 - 2e-5, and central differences at 625 Hz are exact to
+(w h)^2 / 6 < 2e-4 relative for 1 Hz; the rest is the trapezoidal integration, O(h^2).
+"""
+
+import numpy as np
+import pytest
+
+import dynid
+from dynid.vehicle import car_template
+from dynid.vehicle.estimate import CarConditioning, estimate_joints
+from dynid.vehicle.geometry import CarGeometry
+from dynid.vehicle.sensors import ideal_channels
+from dynid.vehicle.tables import default_tables
+
+FS = 625.0
+
+
+def sine(t, amp, f, ph=0.0):
+    w = 2 * np.pi * f
+    return amp * np.sin(w * t + ph), amp * w * np.cos(w * t + ph), -amp * w**2 * np.sin(w * t + ph)
+
+
+def integral(x, t):
+    """Cumulative integral, Simpson-accurate on the fine grid used here."""
+    out = np.zeros_like(x)
+    out[1:] = np.cumsum((x[1:] + x[:-1]) / 2 * np.diff(t))
+    return out
+
+
+@pytest.fixture(scope="module")
+def truth():
+    model = dynid.Model(car_template())
+    g = CarGeometry()
+    tables = default_tables(g)
+    t = np.arange(0, 12, 1 / FS)
+    N = len(t)
+    q, qd, qdd = (np.zeros((N, 42)) for _ in range(3))
+    v = 25.0
+    psi, dpsi, ddpsi = sine(t, 0.1, 0.5)
+    q[:, 3], qd[:, 3], qdd[:, 3] = psi, dpsi, ddpsi
+    vx, vy = -v * np.sin(psi), v * np.cos(psi)  # forward at yaw psi, in frame 0 (x0 right, y0 forward)
+    qd[:, 0], qd[:, 1] = vx, vy
+    qdd[:, 0], qdd[:, 1] = -v * np.cos(psi) * dpsi, -v * np.sin(psi) * dpsi
+    q[:, 0], q[:, 1] = integral(vx, t), integral(vy, t)
+    q[:, 2], qd[:, 2], qdd[:, 2] = (a + b for a, b in zip((0.0, 0.0, 0.0), sine(t, 0.01, 0.8), strict=True))
+    q[:, 4], qd[:, 4], qdd[:, 4] = sine(t, 0.01, 0.6, 1.0)
+    q[:, 5], qd[:, 5], qdd[:, 5] = sine(t, 0.02, 0.5)
+    for k in range(4):
+        b = 7 + 9 * k
+        q[:, b + 1], qd[:, b + 1], qdd[:, b + 1] = sine(t, 0.02, 0.7 + 0.1 * k, k)
+        w = v / 0.3 + 2.0 * np.sin(2 * np.pi * 0.3 * t)
+        qd[:, b + 6], qdd[:, b + 6] = w, 2.0 * 2 * np.pi * 0.3 * np.cos(2 * np.pi * 0.3 * t)
+        q[:, b + 6] = integral(w, t)
+    h = sine(t, 0.5, 0.5)
+    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h)
+    # raise the car so that the tires touch the ground: z of the tire frames' origins at 0 on average
+    T = model.transforms(q)
+    q[:, 2] -= np.mean([T[:, f, 2, 3] for f in (15, 24, 33, 42)])
+    T = model.transforms(q)
+    for f in (15, 24, 33, 42):  # deflection along the tire axis putting its origin on the ground
+        q[:, f - 1] = -T[:, f, 2, 3] / T[:, f, 2, 2]
+    qd[:, [14, 23, 32, 41]] = np.gradient(q[:, [14, 23, 32, 41]], 1 / FS, axis=0, edge_order=2)
+    qdd[:, [14, 23, 32, 41]] = np.gradient(qd[:, [14, 23, 32, 41]], 1 / FS, axis=0, edge_order=2)
+    ww = np.zeros((N, 4, 6))
+    ww[:, :, 2] = 4000.0 + 200 * np.sin(2 * np.pi * 0.4 * t)[:, None]
+    channels = ideal_channels(model, q, qd, qdd, ww, h[0], np.zeros((N, 4)), g)
+    return model, t, q, qd, qdd, ww, channels
+
+
+def si(channels):
+    """The channels in SI, as the io layer would deliver them (deg -> rad, km/h -> m/s, mm -> m, rev/s -> rad/s)."""
+    out = {}
+    for k, x in channels.items():
+        if k.startswith(("imu_roll", "imu_pitch", "imu_yaw", "steer_", "camber_", "steering_wheel")):
+            x = np.radians(x)
+        elif k == "correvit_vx":
+            x = x / 3.6
+        elif k.startswith(("laser_height", "clearance")):
+            x = x / 1000.0
+        elif k.startswith("wheel_speed"):
+            x = 2 * np.pi * x
+        out[k] = x
+    return out
+
+
+def test_estimated_joints_match_the_trajectory(truth):
+    model, t, q, qd, qdd, ww, channels = truth
+    est = estimate_joints(si(channels), FS, model, conditioning=CarConditioning(cutoff=4.0))
+    i = np.searchsorted(t, est.t[0])
+    sl = slice(i, i + len(est.t))
+    for j in (2, 3, 4, 5, 8, 9, 10, 11, 12, 13, 14, 26, 27, 28, 31, 32, 40, 41):
+        for name, a, b in (("q", est.q, q), ("qd", est.qd, qd), ("qdd", est.qdd, qdd)):
+            scale = max(np.abs(b[sl, j]).max(), 1e-3 if name == "q" else 1e-2)
+            err = np.abs(a[:, j] - b[sl, j]).max() / scale
+            # tire deflections are millimetres from the geometry, and their truth qdd is itself a second
+            # finite difference here: 1 %; every other joint 0.5 %
+            assert err < (1e-2 if j + 1 in (15, 24, 33, 42) else 5e-3), (name, j + 1, err)
+    # ground velocities and accelerations (positions in the plane are defined up to a constant)
+    for j in (0, 1):
+        assert np.abs(est.qd[:, j] - qd[sl, j]).max() < 1e-3 * 25
+        assert np.abs(est.qdd[:, j] - qdd[sl, j]).max() < 5e-3 * np.abs(qdd[:, j]).max()
+    assert np.abs(est.wheel_wrenches[:, :, 2] - ww[sl, :, 2]).max() < 1e-3 * 4000
