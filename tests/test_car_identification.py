@@ -1,0 +1,60 @@
+"""End-to-end identification of the car's parameters on trajectories with a known truth.
+
+The wheel wrenches are those that make the paper's 14 equations hold for the truth set
+(test_vehicle.required_wrenches: the engine's inverse dynamics, least-norm correction of
+plausible tire forces), so on exact joint trajectories Gautier's weighted least squares must
+give the truth back to round-off; through the sensor channels and the estimator (filtering,
+integration, derivation), close to it.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from test_vehicle import driving, required_wrenches
+
+import dynid
+from dynid.estimation import EstimationWarning, wls
+from dynid.pipeline.car import car_system
+from dynid.pipeline.robot import GroupedSystem
+from dynid.vehicle import car_identification, car_template
+from dynid.vehicle import parameters as params
+from dynid.vehicle.estimate import CarTrajectory
+
+
+@pytest.fixture(scope="module")
+def model():
+    return dynid.Model(car_template(None, params.truth().values))
+
+
+def test_noise_free_trajectories_give_the_truth_to_1e6(model):
+    rng = np.random.default_rng(3)
+    parts, base = [], None
+    for _ in range(6):
+        q, qd, qdd = driving(model, rng, N=120, steer=2.0)
+        F, q = required_wrenches(model, q, qd, qdd, [], rng)
+        eq = car_identification(model, q, qd, qdd, F)
+        parts.append(GroupedSystem(eq.W, eq.Y, eq.groups, np.zeros(len(eq.Y))))
+        base = eq.base
+    sys = GroupedSystem.stack(parts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EstimationWarning)  # noise-free groups: sigma floored, by design
+        res = wls(sys.W, sys.Y, sys.groups, list(base.names))
+    true = base.values(model.tree.parameters)
+    rel = np.abs(res.values - true) / np.maximum(np.abs(true), 1e-3 * np.abs(true).max())
+    assert rel.max() < 1e-6, dict(zip(base.names, rel, strict=True))
+
+
+def test_parallel_decimation_keeps_the_exact_solution(model):
+    """car_system filters and decimates W and Y alike: on exact data the solution is unchanged."""
+    rng = np.random.default_rng(4)
+    q, qd, qdd = driving(model, rng, N=600, steer=2.0)
+    F, q = required_wrenches(model, q, qd, qdd, [], rng)
+    fs = 600 / 2.0
+    traj = CarTrajectory(np.arange(600) / fs, q, qd, qdd, F, None, np.zeros(600))
+    sys, base = car_system(model, traj, fs, decimate=(5,))
+    full, _ = car_system(model, traj, fs, decimate=())
+    assert sys.W.shape[0] == full.W.shape[0] // 5
+    true = base.values(model.tree.parameters)
+    for s in (sys, full):
+        assert np.abs(s.Y - s.W @ true).max() < 1e-8 * np.abs(s.Y).max()
