@@ -1,75 +1,62 @@
 """Real data: the Staubli TX40's base parameters from its measured positions and torques.
 
-Oracle: the published OLS/WLS identification of the same files (figaroh-plus,
-TX40_bp_5.csv). Our estimates come from our own model, filter, regressor, decimation and
-least squares; only the published values are read for comparison.
+Runs the shipped example config (examples/tx40/identify.toml) through `dynid identify`'s
+pipeline. Oracle: the published OLS/WLS identification of the same files (figaroh-plus,
+TX40_bp_5.csv); our estimates come from our own model, filter, regressor, decimation and
+least squares, and only the published values are read for comparison.
 """
 
-import numpy as np
+import dataclasses
+import json
+from pathlib import Path
+
 import pytest
 
-import dynid
-from dynid.estimation import ols, wls
-from dynid.pipeline import Conditioning, JointTest, joint_system, match_reference, read_reference
+from dynid.pipeline.config import load_config
+from dynid.pipeline.run import identify, write_outputs
 
-FS = 5000.0
-GEAR = np.array([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
-# published names -> dynid names (prefix of each parameter)
-NAMES = {"Ixx": "XX", "Ixy": "XY", "Ixz": "XZ", "Iyy": "YY", "Iyz": "YZ", "Izz": "ZZ", "mx": "MX", "my": "MY",
-         "mz": "MZ", "m": "M", "Ia": "IA", "fv": "FV", "fs": "FS", "off": "OFF"}
-# The publication splits motor 6 (on q_m6 = 32 q5 + 32 q6) into cross terms (Iam6, fvm6), with the
-# diagonal parts inside IA5, FV5, FV6, and gives fsm6 on the joint side; dynid keeps the motor's own
-# rotor inertia and frictions. The same quantities in dynid's base parameters:
-COMBINATIONS = {"fvm6": "1024*fvm6", "FV5": "FV5 + 1024*fvm6", "FV6": "FV6 + 1024*fvm6",
-                "Iam6": "1024*Iam6", "IA5": "IA5 + 1024*Iam6", "fsm6": "32*fsm6"}
-MIN_SPEED = dict(enumerate([0.0501, 0.0501, 0.0750, 0.0716, 0.0559, 0.1222], start=1))
-
-
-def joint_data(folder) -> JointTest:
-    qm = np.loadtxt(folder / "pos_read_data.csv", delimiter=",", skiprows=1)
-    tm = np.loadtxt(folder / "curr_data.csv", delimiter=",", skiprows=1)
-    Nq = np.diag(GEAR)
-    Nq[5, 4] = 32.0  # q_m6 = 32 q5 + 32 q6
-    q = np.linalg.solve(Nq, qm.T).T + np.array([0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0])
-    return JointTest("exciting trajectory", FS, q, tm @ Nq)  # tau = Nq^T tau_m
+CONFIG = Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml"
 
 
 @pytest.fixture(scope="module")
-def identified(tx40_data):
-    folder = tx40_data
-    model = dynid.load_model("tx40")
-    base = model.base_parameters()
-    sys = joint_system(model, joint_data(folder), base, Conditioning(25.0, 4, 0.1, (10, 10), MIN_SPEED))
-    names = list(base.names)
-    matches, unmatched = match_reference(read_reference(folder / "TX40_bp_5.csv"), base, NAMES, COMBINATIONS)
-    return names, ols(sys.W, sys.Y, names), wls(sys.W, sys.Y, sys.groups, names), matches, unmatched
+def runs(tx40_data):
+    cfg = load_config(CONFIG)
+    return identify(cfg), identify(dataclasses.replace(cfg, method="ols"))
 
 
-def test_every_published_parameter_is_matched(identified):
-    _, _, _, matches, unmatched = identified
-    assert not unmatched and len(matches) == 60
+def test_every_published_parameter_is_matched(runs):
+    assert len(runs[0].reference) == 60
 
 
-def test_well_identified_parameters_agree_with_the_publication(identified):
+def test_well_identified_parameters_agree_with_the_publication(runs):
     """Published WLS %σ <= 2 %: our WLS estimate within max(3 σ_published, 10 %) of the published value."""
-    names, _, res, matches, _ = identified
+    run = runs[0]
+    names, values = list(run.result.names), run.result.values
     checked = 0
-    for m in matches:
+    for m in run.reference:
         if m.row.wls_rel_std > 2.0:
             continue
-        pub, ours = m.row.wls, m.value(names, res.values)
-        sigma_pub = abs(pub) * m.row.wls_rel_std / 100
-        assert abs(ours - pub) <= max(3 * sigma_pub, 0.10 * abs(pub)), (m.label, ours, pub)
+        pub, ours = m.row.wls, m.value(names, values)
+        assert abs(ours - pub) <= max(3 * abs(pub) * m.row.wls_rel_std / 100, 0.10 * abs(pub)), (m.label, ours, pub)
         checked += 1
     assert checked >= 10
 
 
-def test_ols_and_wls_uncertainties_are_of_the_published_order(identified):
+def test_uncertainties_are_of_the_published_order(runs):
     """Our %σ for the well-identified parameters is within a factor 2 of the published one (same data, method)."""
-    names, r_ols, r_wls, matches, _ = identified
-    for m in matches:
-        if m.row.wls_rel_std > 2.0 or len(m.weights) > 1 or m.label not in names:
-            continue
-        i = names.index(m.label)
-        assert 0.5 < r_wls.rel_std_percent[i] / m.row.wls_rel_std < 2.0, m.label
-        assert 0.5 < r_ols.rel_std_percent[i] / m.row.ols_rel_std < 2.0, m.label
+    for run, pick in ((runs[0], lambda r: r.wls_rel_std), (runs[1], lambda r: r.ols_rel_std)):
+        names = list(run.result.names)
+        for m in run.reference:
+            if m.row.wls_rel_std > 2.0 or m.weights != {m.label: 1.0}:
+                continue
+            ours = run.result.rel_std_percent[names.index(m.label)]
+            assert 0.5 < ours / pick(m.row) < 2.0, (run.result.method, m.label)
+
+
+def test_outputs_are_written(runs, tmp_path):
+    files = write_outputs(runs[0], tmp_path, "TX40")
+    assert {f.name for f in files} >= {"results.json", "report.html"}
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert len(data["parameters"]) == 60 and data["validation"]["direct"]["overall"] < 0.1
+    assert "Comparison with the published identification" in (tmp_path / "report.html").read_text()
+    assert not list(tmp_path.glob(".*.tmp"))

@@ -76,11 +76,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
     from ..pipeline.config import load_config
     from ..pipeline.run import identify, write_outputs
-    from ..report import parameter_table, validation_table
+    from ..report import validation_table
 
     cfg = load_config(args.config)
     run = identify(cfg, progress=lambda msg: print(f"· {msg}", file=sys.stderr))
-    print(parameter_table(run.result, reference=run.reference_values() or None))
+    print(run.summary())
+    if run.reference:
+        print("\nComparison with the published identification:")
+        print(run.reference_table())
     print("\nValidation, relative error ||Y - W X|| / ||Y||:")
     print(validation_table(run.errors))
     out = Path(args.out)

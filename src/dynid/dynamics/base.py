@@ -101,6 +101,7 @@ def base_parameters(
     dep = live[diag <= tol]
     W1, W2 = W[:, indep], W[:, dep]
     beta = np.linalg.lstsq(W1, W2, rcond=None)[0] if dep.size else np.zeros((indep.size, 0))
+    beta[np.abs(beta) < 1e-10] = 0.0  # round-off of the sampled solve, not a regrouping
     names = tree.parameter_names
     col_names = [names[C[i]] for i in range(len(C))]
     exprs = []

@@ -36,3 +36,35 @@ def car_system(
     sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1), Y.T.reshape(-1), np.repeat(labels, n),
                         np.tile(t, rows))
     return sys, eq.base
+
+
+def car_sections(names: list[str], tree) -> list[tuple[str, list[str]]]:
+    """The paper's tables: chassis (Table 2), suspensions and anti-roll bars (Table 3), wheels, tires (Table 5)."""
+    from ..vehicle.template import DAMPERS, TIRES, WHEELS
+
+    def joint(n: str) -> int | None:
+        digits = n[len(n.rstrip("0123456789")):]
+        return int(digits) if digits else None
+
+    chassis = [n for n in names if joint(n) == 6]
+    susp = [n for n in names if joint(n) in DAMPERS] + [n for n in names if joint(n) is None]
+    wheels = [n for n in names if joint(n) in WHEELS]
+    tires = [n for n in names if joint(n) in TIRES]
+    sections = [("Chassis (paper Table 2)", chassis), ("Suspensions and anti-roll bars (paper Table 3)", susp),
+                ("Wheels", wheels), ("Tire vertical stiffness (paper Table 5)", tires)]
+    return [(title, group) for title, group in sections if group]
+
+
+def consistency_text(result, base: BaseParameters) -> str:
+    """Whether the estimated chassis and wheels are physically realisable (only meaningful without regrouping)."""
+    from ..model import check_physical
+
+    if base.regrouped:
+        return ("Inertial parameters regroup in this base set (" + ", ".join(base.regrouped)
+                + "): the physical-consistency check applies to standard parameters only.")
+    values = dict(zip(result.names, (float(v) for v in result.values), strict=True))
+    problems = check_physical(values)
+    if not problems:
+        return "The estimated chassis and wheels are physically realisable (mass > 0, inertia at the centre of " \
+               "mass positive definite, triangle inequalities hold)."
+    return "NOT physically realisable:\n" + "\n".join(f"  {p}" for p in problems)

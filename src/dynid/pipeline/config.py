@@ -1,7 +1,8 @@
 """The identification config (TOML): model, tests and their roles, channels, conditioning, method.
 
     [model]
-    example = "tx40"                 # or file = "robot.toml" (relative to this config)
+    example = "tx40"                 # or file = "robot.toml" (relative to this config),
+                                     # or template = "peugeot406" (a car: see below)
 
     [[tests]]
     name = "exciting trajectory"
@@ -35,6 +36,25 @@
     names = { Izz = "ZZ" }
     combinations = { fvm6 = "1024*fvm6" }
 
+A car (template = "peugeot406") reads one logger file per test with the channels of
+`dynid.vehicle.sensors` (`file = "sine.csv"`, and optionally `truth = "sine.json"`, the
+simulator's sidecar with the true parameters), estimates the 42 joints from them and
+assembles the paper's 14 equations:
+
+    [channels]                       # only where the file's names differ from the suite's
+    imu_yaw_rate = { channel = "GyroZ", unit = "deg/s" }
+
+    [conditioning]
+    cutoff = 4.0                     # Hz, on every signal (the paper: ~3 Hz, order 5-8)
+    order = 4
+    decimate = [5, 10]
+    attitude_crossover = 0.2         # Hz: inclinometers below, integrated gyros above
+
+    [identification]
+    method = "wls"
+    base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
+    aero = true                      # the aerodynamic wrench of the template's tables in Y
+
 Every error names the config file and the key, and says what is expected.
 """
 
@@ -62,12 +82,25 @@ class TestSpec:
     role: str
     files: dict[str, Path]
     fs: float | None
+    truth: Path | None = None
 
 
 @dataclass(frozen=True)
 class ChannelSpec:
     channels: tuple[str, ...]
     unit: str | None
+
+
+@dataclass(frozen=True)
+class CarSettings:
+    """The car's conditioning and options (see the module doc)."""
+
+    cutoff: float = 4.0
+    order: int = 4
+    decimate: tuple[int, ...] = (5, 10)
+    attitude_crossover: float = 0.2
+    base: str = "generic"
+    aero: bool = True
 
 
 @dataclass(frozen=True)
@@ -82,6 +115,11 @@ class IdentifyConfig:
     known: dict[str, float] = field(default_factory=dict)
     poor_factor: float = 20.0
     reference: dict[str, Any] | None = None
+    car: CarSettings | None = None
+
+    @property
+    def kind(self) -> str:
+        return "car" if self.car is not None else "robot"
 
 
 _TOP = {"model", "tests", "channels", "transmission", "conditioning", "identification", "reference"}
@@ -104,16 +142,25 @@ def load_config(path: str | Path) -> IdentifyConfig:
     if unknown:
         raise ConfigError(f"{path}: unknown section(s) {sorted(unknown)}; sections: {sorted(_TOP)}")
     m = data.get("model", {})
-    if "example" in m:
+    car = None
+    if "template" in m:
+        model: str | Path = str(m["template"])
+        car = _car_settings(data, err)
+    elif "example" in m:
         model: str | Path = str(m["example"])
     elif "file" in m:
         model = here / m["file"]
     else:
-        raise err("model", "give example = \"tx40\" (a shipped model) or file = \"model.toml\"")
+        raise err("model", "give example = \"tx40\" (a shipped model), file = \"model.toml\" "
+                           "or template = \"peugeot406\"")
 
     tests = []
     for i, t in enumerate(data.get("tests", []), start=1):
         key = f"tests {i}"
+        if car is not None:
+            if not isinstance(t.get("file"), str):
+                raise err(key, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
+            t = {**t, "files": {"channels": t["file"]}}
         if not isinstance(t.get("files"), dict) or not t["files"]:
             raise err(key, "needs files = { quantity = \"file\", ... }")
         role = t.get("role", "identify")
@@ -124,12 +171,20 @@ def load_config(path: str | Path) -> IdentifyConfig:
             if not f.exists():
                 raise err(key, f"file for {q!r} not found: {f}")
         fs = t.get("fs")
-        tests.append(TestSpec(str(t.get("name", f"test {i}")), role, files, None if fs is None else float(fs)))
+        truth = here / t["truth"] if "truth" in t else None
+        if truth is not None and not truth.exists():
+            raise err(key, f"truth file not found: {truth}")
+        tests.append(TestSpec(str(t.get("name", f"test {i}")), role, files, None if fs is None else float(fs), truth))
     if not any(t.role == "identify" for t in tests):
         raise err("tests", "at least one test must have role = \"identify\"")
 
     channels = {}
     for q, spec in data.get("channels", {}).items():
+        if car is not None:  # a renamed sensor channel: { channel = "...", unit = "..." }
+            if not isinstance(spec, dict) or "channel" not in spec:
+                raise err(f"channels.{q}", "expected { channel = \"name in the file\", unit = \"...\" }")
+            channels[q] = ChannelSpec((spec["channel"],), spec.get("unit"))
+            continue
         if not isinstance(spec, dict) or "channels" not in spec:
             raise err(f"channels.{q}", "expected { channels = [...], unit = \"...\" }")
         channels[q] = ChannelSpec(tuple(spec["channels"]), spec.get("unit"))
@@ -142,7 +197,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
         except ModelError as exc:
             raise err("transmission", str(exc)) from None
 
-    c = data.get("conditioning", {})
+    c = {} if car is not None else data.get("conditioning", {})
     extra = set(c) - {"cutoff", "order", "border", "decimate", "min_speed"}
     if extra:
         raise err("conditioning", f"unknown key(s) {sorted(extra)}")
@@ -168,5 +223,22 @@ def load_config(path: str | Path) -> IdentifyConfig:
     return IdentifyConfig(
         path=path, model=model, tests=tuple(tests), channels=channels, transmission=transmission,
         conditioning=cond, method=method, known={k: float(v) for k, v in ident.get("known", {}).items()},
-        poor_factor=float(ident.get("poor_factor", 20.0)), reference=ref,
+        poor_factor=float(ident.get("poor_factor", 20.0)), reference=ref, car=car,
+    )
+
+
+def _car_settings(data: dict, err) -> CarSettings:
+    c = data.get("conditioning", {})
+    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover"}
+    if extra:
+        raise err("conditioning", f"unknown key(s) {sorted(extra)} for a car")
+    ident = data.get("identification", {})
+    base = str(ident.get("base", "generic"))
+    if base not in ("generic", "car"):
+        raise err("identification", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
+    d = c.get("decimate", [5, 10])
+    return CarSettings(
+        cutoff=float(c.get("cutoff", 4.0)), order=int(c.get("order", 4)),
+        decimate=tuple(int(x) for x in (d if isinstance(d, list) else [d])),
+        attitude_crossover=float(c.get("attitude_crossover", 0.2)), base=base, aero=bool(ident.get("aero", True)),
     )

@@ -37,16 +37,31 @@ class IdentificationRun:
     validate: dict[str, GroupedSystem] = field(default_factory=dict)
     errors: dict[str, dict[str, float]] = field(default_factory=dict)
     reference: list[Match] = field(default_factory=list)
+    sections: list[tuple[str, list[str]]] | None = None  # how the parameter tables are grouped
+    notes: str = ""  # printed under the tables (e.g. the physical-consistency verdict)
 
-    def reference_values(self) -> dict[str, tuple[float, float]]:
-        """Published values (value, %σ) keyed by our base-parameter name, same method as ours."""
-        use_wls = self.result.method == "WLS"
-        out = {}
+    def summary(self) -> str:
+        text = parameter_table(self.result, self.sections)
+        return f"{text}\n\n{self.notes}" if self.notes else text
+
+    def reference_table(self) -> str:
+        """Our estimate of each published quantity beside the published value (same method), and the gap in σ."""
+        r = self.result
+        names = list(r.names)
+        cov = np.zeros((len(names), len(names)))
+        idx = [names.index(n) for n in r.estimated_names]
+        cov[np.ix_(idx, idx)] = r.covariance
+        use_wls = r.method == "WLS"
+        lines = [f"{'published':>10} {'ours':>12} {'ours %σ':>8} {'published':>12} {'pub. %σ':>8} {'gap/σ_pub':>9}  as"]
         for m in self.reference:
-            if len(m.weights) == 1 and next(iter(m.weights)) == m.label and m.weights[m.label] == 1.0:
-                row = m.row
-                out[m.label] = (row.wls, row.wls_rel_std) if use_wls else (row.ols, row.ols_rel_std)
-        return out
+            pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+            ours = m.value(names, r.values)
+            ours_rel = 100 * m.std(names, cov) / abs(ours) if ours else float("nan")
+            gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
+            how = " + ".join(f"{w:g}*{n}" if w != 1 else n for n, w in m.weights.items())
+            lines.append(f"{m.label:>10} {ours:>12.6g} {ours_rel:>8.2f} {pub:>12.6g} {pub_rel:>8.2f} {gap:>9.2f}"
+                         f"  {how}")
+        return "\n".join(lines)
 
 
 def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int) -> JointTest:
@@ -84,8 +99,104 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int) -> JointTest:
     return JointTest(spec.name, float(fs), q, tau)
 
 
+def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np.ndarray], float]:
+    """The sensor suite's channels of one logger file, in SI, on the file's common clock."""
+    from ..io import read_recording, to_si
+    from ..vehicle.estimate import required_channels
+
+    path = spec.files["channels"]
+    rec = read_recording(path, fs=spec.fs)
+    wanted = required_channels(spin=False)
+    renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
+    in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
+    rec.require(list(in_file.values()))
+    al = rec.aligned(list(in_file.values()))
+    out = {}
+    for q, name in in_file.items():
+        unit = renamed.get(q, (None, None))[1] or rec.channel(name).unit
+        out[q], _ = to_si(al[name], unit, channel=name, source=str(path))
+    fs = 1.0 / float(np.median(np.diff(al.t)))
+    return out, fs
+
+
+def read_truth(path: Path, tree) -> dict[str, float]:
+    """True parameter values from a simulator's JSON sidecar: a {name or label: value} table under
+    "true_parameters", "truth" or "parameters" (a list of {"name", "value"} records is accepted too)."""
+    data = json.loads(Path(path).read_text())
+    for key in ("true_parameters", "truth", "parameters"):
+        table = data.get(key)
+        if isinstance(table, dict) and all(isinstance(v, int | float) for v in table.values()):
+            break
+        if isinstance(table, list):
+            table = {r["name"]: r["value"] for r in table if isinstance(r, dict) and "name" in r}
+            break
+    else:
+        raise ConfigError(f"{path}: no true parameter table (\"true_parameters\": {{name: value}})")
+    return {tree.parameter_names[tree.column(k)]: float(v) for k, v in table.items()}
+
+
+def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
+    from ..vehicle import Aerodynamics, car_template
+    from ..vehicle import parameters as sets
+    from ..vehicle.estimate import CarConditioning, estimate_joints
+    from .car import car_system
+
+    if cfg.model != "peugeot406":
+        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
+    settings = cfg.car
+    tree = car_template()
+    if cfg.known:
+        known = {tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}
+        tree = tree.with_values(known).with_known(set(known))
+    model = Model(tree)
+    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
+    aero = Aerodynamics() if settings.aero else None
+    systems: dict[str, GroupedSystem] = {}
+    base = None
+    truth: dict[str, float] = {}
+    for spec in cfg.tests:
+        say(f"reading {spec.name!r} and estimating the joint coordinates")
+        channels, fs = load_car_channels(cfg, spec)
+        traj = estimate_joints(channels, fs, model, conditioning=cond)
+        systems[spec.name], base = car_system(model, traj, fs, settings.decimate, base=settings.base, aero=aero)
+        if spec.truth is not None and not truth:
+            truth = read_truth(spec.truth, tree)
+    names = list(base.names)
+
+    def base_values(values: dict[str, float]) -> dict[str, float]:
+        X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
+        return dict(zip(names, base.values(X), strict=True))
+
+    ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
+    kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(sets.a_priori().values),
+              truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
+    result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+              else ols(ident.W, ident.Y, names, **kw))
+    from .car import car_sections, consistency_text
+
+    run = IdentificationRun(model, base, result, ident, sections=car_sections(names, tree),
+                            notes="Physical consistency of the estimates: " + consistency_text(result, base))
+    return _validate(cfg, run, systems)
+
+
+def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
+    result = run.result
+    run.errors["direct"] = relative_errors(run.identify.W, run.identify.Y, result.values, run.identify.groups)
+    cross = [t for t in cfg.tests if t.role == "validate"]
+    if cross:
+        val = GroupedSystem.stack([systems[t.name] for t in cross])
+        run.validate = {t.name: systems[t.name] for t in cross}
+        run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+    result.validation.update(run.errors)
+    return run
+
+
 def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> IdentificationRun:
+    """Run the identification a config describes (a robot from joint files, or a car from its sensors)."""
     say = progress or (lambda _msg: None)
+    if cfg.kind == "car":
+        return _identify_car(cfg, say)
     from .. import load_model
 
     model = load_model(cfg.model)
@@ -105,14 +216,7 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     kw = dict(a_priori=a_priori, known=cfg.known or None, poor_factor=cfg.poor_factor)
     result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
               else ols(ident.W, ident.Y, names, **kw))
-    run = IdentificationRun(model, base, result, ident)
-    run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
-    cross = [t for t in cfg.tests if t.role == "validate"]
-    if cross:
-        val = GroupedSystem.stack([systems[t.name] for t in cross])
-        run.validate = {t.name: systems[t.name] for t in cross}
-        run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
-    result.validation.update(run.errors)
+    run = _validate(cfg, IdentificationRun(model, base, result, ident), systems)
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])
         run.reference, unmatched = match_reference(rows, base, cfg.reference.get("names", {}),
@@ -128,7 +232,7 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
     say = progress or (lambda _msg: None)
     out.mkdir(parents=True, exist_ok=True)
     r = run.result
-    tables = parameter_table(r, reference=run.reference_values() or None)
+    tables = run.summary()
     say("drawing figures")
     figs = []
     for kind, sys in [("direct", run.identify)] + [("cross", s) for s in run.validate.values()]:
@@ -145,7 +249,10 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
     written = [write_atomic(out / "results.json", json.dumps(data, indent=2, allow_nan=False, default=_json))]
     for i, (_, png) in enumerate(figs, start=1):
         written.append(write_atomic(out / f"figure{i}.png", png))
-    sections = [Section("Estimated base parameters", tables),
+    sections = [Section("Estimated base parameters", tables)]
+    if run.reference:
+        sections.append(Section("Comparison with the published identification", run.reference_table()))
+    sections += [
                 Section("Regrouping relations", str(run.base)),
                 Section("Validation: relative error ||Y - W X|| / ||Y||", validation_table(run.errors), figs)]
     written.append(write_atomic(out / "report.html", render_html(title, sections)))

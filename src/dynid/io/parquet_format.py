@@ -1,0 +1,115 @@
+"""Parquet measurement files (needs pyarrow: the `parquet` extra).
+
+A table with a time column (time, t, Time or TIME, or `time=`; float seconds, or a
+timestamp column, then made relative to its first row with the start kept in the
+metadata) or a sample rate from the caller, and one numeric column per channel.
+Units come from each field's metadata, key b"unit" (or b"units"); the recording's
+metadata from the schema metadata key b"dynid.metadata" (JSON object of strings).
+Nulls mean "no sample at this row" (multi-rate channels in one table); NaN values
+are samples whose value is NaN. Text and other non-numeric columns are not read
+(listed in `Recording.skipped`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._atomic import atomic_path
+from ._optional import require
+from ._table import Column, grid_of, recording_from_columns
+from .errors import FileFormatError
+from .recording import Recording
+
+META_KEY = b"dynid.metadata"
+_TIME_FACTOR = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+def _unit_of(field: Any) -> str:
+    meta = field.metadata or {}
+    raw = meta.get(b"unit", meta.get(b"units", b""))
+    return raw.decode("utf-8", errors="replace") if isinstance(raw, bytes) else str(raw)
+
+
+def read_parquet(path: str | os.PathLike[str], *, fs: float | None = None, time: str | None = None) -> Recording:
+    """Read a Parquet file into a `Recording` (layout in the module docstring).
+
+    Parameters
+    ----------
+    path : the file.
+    fs : Hz, sample rate when there is no time column.
+    time : name of the time column if it is not time/t/Time/TIME.
+    """
+    pa = require("pyarrow", "Reading Parquet files")
+    pq = require("pyarrow.parquet", "Reading Parquet files")
+    path = Path(path)
+    label = str(path)
+    try:
+        pfile = pq.ParquetFile(path)
+        schema = pfile.schema_arrow
+    except (pa.ArrowInvalid, OSError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise FileFormatError(f"{label}: not a readable Parquet file ({exc})", source=label) from None
+    metadata = {"format": "parquet"}
+    schema_meta = schema.metadata or {}
+    if META_KEY in schema_meta:
+        try:
+            stored = json.loads(schema_meta[META_KEY].decode("utf-8"))
+            metadata.update({str(k): str(v) for k, v in stored.items()})
+        except (ValueError, AttributeError):
+            metadata["metadata_error"] = "dynid.metadata is not a JSON object"
+    columns, skipped = [], {}
+    for field in schema:
+        # One column at a time: the memory peak is the data plus one column, not twice the file.
+        col = pfile.read(columns=[field.name], use_pandas_metadata=False).column(0)
+        unit = _unit_of(field)
+        kind = field.type
+        if pa.types.is_timestamp(kind):
+            ticks = np.asarray(col.cast(pa.int64()).cast(pa.float64()).to_numpy(), dtype=np.float64)
+            nulls = col.null_count
+            start = col[0].as_py() if len(col) else None
+            values = (ticks - ticks[0]) * _TIME_FACTOR[kind.unit] if ticks.size else ticks
+            if start is not None:
+                metadata.setdefault(f"{field.name}.start", start.isoformat())
+            unit = "s"
+        elif pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind):
+            values = np.asarray(col.cast(pa.float64()).to_numpy(), dtype=np.float64)
+            nulls = col.null_count
+        else:
+            skipped[field.name] = f"column of type {kind}, not numeric"
+            continue
+        present = ~np.asarray(col.is_null().to_numpy(), dtype=bool) if nulls else None
+        del col
+        columns.append(Column(field.name, unit, values if present is None else values[present], present))
+    if not columns:
+        raise FileFormatError(f"{label}: no numeric column in the file", source=label)
+    return recording_from_columns(path, columns, time=time, fs=fs, metadata=metadata, skipped=skipped)
+
+
+def write_parquet(recording: Recording, path: str | os.PathLike[str], *, compression: str = "snappy") -> Path:
+    """Write the recording as Parquet, atomically (a time column "time" in s, nulls where a channel has no sample).
+
+    Units go in each field's metadata (b"unit"), the recording's metadata in the
+    schema metadata (b"dynid.metadata", JSON). Returns the path written.
+    """
+    pa = require("pyarrow", "Writing Parquet files")
+    pq = require("pyarrow.parquet", "Writing Parquet files")
+    path = Path(path)
+    grid = grid_of(recording)
+    fields = [pa.field("time", pa.float64(), nullable=False, metadata={b"unit": b"s"})]
+    arrays = [pa.array(grid.time, type=pa.float64())]
+    for name, unit, values, present in zip(grid.names, grid.units, grid.values, grid.present, strict=True):
+        fields.append(pa.field(name, pa.float64(), metadata={b"unit": unit.encode("utf-8")}))
+        mask = None if present is None else ~present
+        arrays.append(pa.array(values, type=pa.float64(), mask=mask))
+    meta = {k: v for k, v in recording.metadata.items() if k != "format"}
+    schema = pa.schema(fields, metadata={META_KEY: json.dumps(meta).encode("utf-8")})
+    table = pa.Table.from_arrays(arrays, schema=schema)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp, compression=compression)
+    return path
