@@ -209,7 +209,8 @@ def test_round_trip_of_any_sparse_recording(tmp_path: Path, fmt: str, rec: Recor
         assert a.unit == b.unit
         np.testing.assert_array_equal(b.time, a.time)
         assert np.array_equal(b.values, a.values, equal_nan=True)
-        assert np.array_equal(np.signbit(b.values), np.signbit(a.values))
+        real = ~np.isnan(a.values)
+        assert np.array_equal(np.signbit(b.values[real]), np.signbit(a.values[real]))  # -0.0 stays -0.0
 
 
 def test_round_trips_give_the_same_aligned_channels(tmp_path: Path) -> None:
@@ -363,6 +364,32 @@ def test_csv_parsed_in_blocks_keeps_line_numbers(tmp_path: Path, monkeypatch: py
     np.testing.assert_array_equal(lines_b, expected)
 
 
+def test_parquet_from_other_tools_timestamps_units_and_text_columns(tmp_path: Path) -> None:
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    stamps = np.datetime64("2024-05-02T10:00:00") + np.arange(4) * np.timedelta64(1600, "us")
+    table = pa.table(
+        {
+            "Time": pa.array(stamps, type=pa.timestamp("us")),
+            "roll": pa.array([0.0, 1.0, None, 3.0]),
+            "gear": pa.array([3, 3, 4, 4], type=pa.int8()),
+            "driver": pa.array(["a", "b", "c", "d"]),
+        }
+    )
+    schema = table.schema.set(1, table.schema.field("roll").with_metadata({b"unit": b"deg"}))
+    path = tmp_path / "logger.parquet"
+    pq.write_table(table.cast(schema), path)
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.channel("gear").time, [0.0, 0.0016, 0.0032, 0.0048])
+    np.testing.assert_array_equal(rec.channel("roll").time, [0.0, 0.0016, 0.0048])  # the null is no sample
+    assert rec.channel("roll").unit == "deg" and rec.channel("gear").unit == ""
+    assert "not numeric" in rec.skipped["driver"] and rec.metadata["Time.start"].startswith("2024-05-02T10:00:00")
+    pandas = pytest.importorskip("pandas")
+    frame = pandas.DataFrame({"t": [0.0, 0.5, 1.0], "speed": [1.0, 2.0, 3.0]})
+    frame.to_parquet(tmp_path / "pandas.parquet")
+    np.testing.assert_array_equal(read_recording(tmp_path / "pandas.parquet").channel("speed").time, [0.0, 0.5, 1.0])
+
+
 def test_mat_struct_channels_units_and_v73(tmp_path: Path) -> None:
     import scipy.io
 
@@ -474,6 +501,11 @@ def test_unknown_extension_and_unknown_option(tmp_path: Path) -> None:
     path = write_recording(multirate(), tmp_path / "x.csv")
     with pytest.raises(TypeError, match=r"unknown option.*sheet"):
         read_recording(path, sheet=1)
+    if HAVE_ASAMMDF:  # an option given as None is "not given", whatever the format
+        mf4 = write_recording(multirate(), tmp_path / "x.mf4")
+        assert read_recording(mf4, fs=None).names == multirate().names
+        with pytest.raises(TypeError, match=r"reading mdf: unknown option\(s\) fs; options of this format: none"):
+            read_recording(mf4, fs=625.0)
     with pytest.raises(FileNotFoundError, match=r"nope\.csv"):
         read_recording(tmp_path / "nope.csv")
 

@@ -71,7 +71,7 @@ def format_of(path: str | os.PathLike[str], format: str | None = None) -> str:
 def _check_options(func: Callable[..., Any], fmt: str, options: dict[str, Any], what: str) -> None:
     params = inspect.signature(func).parameters
     allowed = [p for p, v in params.items() if v.kind is inspect.Parameter.KEYWORD_ONLY]
-    unknown = [k for k in options if k not in allowed]
+    unknown = [k for k, v in options.items() if k not in allowed and v is not None]  # None: not given
     if unknown:
         raise TypeError(
             f"{what} {fmt}: unknown option(s) {', '.join(unknown)}; "
@@ -86,7 +86,8 @@ def read_recording(path: str | os.PathLike[str], format: str | None = None, **op
     ----------
     path : the file.
     format : "csv", "parquet", "mat" or "mdf"; None: from the extension.
-    options : the format's options (module docstring), e.g. fs= for a CSV without time column.
+    options : the format's options (module docstring), e.g. fs= for a CSV without time column;
+        an option set to None counts as not given (so fs=None may be passed for any format).
 
     Values are as in the file (units not converted: see `ChannelMap` / `to_si`). The
     data checks run when channels are used (`Recording.aligned`, `ChannelMap.apply`,
@@ -98,7 +99,8 @@ def read_recording(path: str | os.PathLike[str], format: str | None = None, **op
     _check_options(reader, fmt, options, "reading")
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
-    return reader(path, **options)
+    params = inspect.signature(reader).parameters
+    return reader(path, **{k: v for k, v in options.items() if k in params})
 
 
 def write_recording(
@@ -111,4 +113,5 @@ def write_recording(
     fmt = format_of(path, format)
     writer = WRITERS[fmt]
     _check_options(writer, fmt, options, "writing")
-    return writer(recording, Path(path), **options)
+    params = inspect.signature(writer).parameters
+    return writer(recording, Path(path), **{k: v for k, v in options.items() if k in params})

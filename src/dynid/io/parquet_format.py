@@ -26,7 +26,7 @@ from .errors import FileFormatError
 from .recording import Recording
 
 META_KEY = b"dynid.metadata"
-_TIME_FACTOR = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_TICKS_PER_SECOND = {"s": 1.0, "ms": 1e3, "us": 1e6, "ns": 1e9}
 
 
 def _unit_of(field: Any) -> str:
@@ -70,10 +70,11 @@ def read_parquet(path: str | os.PathLike[str], *, fs: float | None = None, time:
         unit = _unit_of(field)
         kind = field.type
         if pa.types.is_timestamp(kind):
-            ticks = np.asarray(col.cast(pa.int64()).cast(pa.float64()).to_numpy(), dtype=np.float64)
+            # Integer ticks since the first row (exact), then to s: epoch ns do not fit a float64.
+            ticks = np.asarray(col.cast(pa.int64()).fill_null(0).to_numpy(), dtype=np.int64)
             nulls = col.null_count
             start = col[0].as_py() if len(col) else None
-            values = (ticks - ticks[0]) * _TIME_FACTOR[kind.unit] if ticks.size else ticks
+            values = (ticks - ticks[0]) / _TICKS_PER_SECOND[kind.unit] if ticks.size else ticks.astype(np.float64)
             if start is not None:
                 metadata.setdefault(f"{field.name}.start", start.isoformat())
             unit = "s"
