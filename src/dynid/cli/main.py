@@ -116,12 +116,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _user_errors() -> tuple[type[Exception], ...]:
+    """The errors that report bad input (files, configs, data) rather than a bug: one line, no traceback."""
+    from ..estimation.errors import IdentificationError
+    from ..io.errors import DataError
+    from ..signals.errors import SignalError
+    from ..symbolic.expr import SymbolicError
+
+    return ModelError, DataError, SignalError, IdentificationError, SymbolicError
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except ModelError as exc:
+    except _user_errors() as exc:
         print(f"dynid: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and closed early: not an error

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
-from ..estimation import IdentificationResult, ols, relative_errors, wls
+from ..estimation import IdentificationError, IdentificationResult, ols, relative_errors, wls
 from ..model import ModelError
 from ..report import Section, parameter_table, render_html, residual_histograms, validation_figure, validation_table
 from .config import ConfigError, IdentifyConfig, TestSpec
@@ -171,10 +171,14 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
     kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(sets.a_priori().values),
               truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
-    result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
-              else ols(ident.W, ident.Y, names, **kw))
-    from .car import car_sections, consistency_text
+    from .car import car_sections, consistency_text, excitation_hint
 
+    try:
+        result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+                  else ols(ident.W, ident.Y, names, **kw))
+    except IdentificationError as exc:
+        hint = excitation_hint(list(exc.parameters))
+        raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
     run = IdentificationRun(model, base, result, ident, sections=car_sections(names, tree),
                             notes="Physical consistency of the estimates: " + consistency_text(result, base))
     return _validate(cfg, run, systems)
@@ -214,8 +218,11 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
     kw = dict(a_priori=a_priori, known=cfg.known or None, poor_factor=cfg.poor_factor)
-    result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
-              else ols(ident.W, ident.Y, names, **kw))
+    try:
+        result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+                  else ols(ident.W, ident.Y, names, **kw))
+    except IdentificationError as exc:
+        raise ConfigError(f"{cfg.path}: {exc}") from None
     run = _validate(cfg, IdentificationRun(model, base, result, ident), systems)
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])

@@ -1,0 +1,81 @@
+"""`dynid identify` on bad configs: one clear line naming the file and key, and nothing half-written."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.cli.main import main
+
+GOOD = """
+[model]
+example = "puma560"
+
+[[tests]]
+name = "t"
+fs = 200.0
+files = {{ q = "{q}", tau = "{tau}" }}
+
+[channels]
+q = {{ channels = ["j1", "j2", "j3", "j4", "j5", "j6"], unit = "rad" }}
+tau = {{ channels = ["j1", "j2", "j3", "j4", "j5", "j6"], unit = "N.m" }}
+
+[conditioning]
+cutoff = 10.0
+decimate = [2]
+"""
+
+
+@pytest.fixture
+def files(tmp_path: Path):
+    """Joint positions and the torques the engine computes for them: a consistent robot test."""
+    import dynid
+
+    m = dynid.load_model("puma560")
+    t = np.arange(0, 6, 1 / 200.0)
+    rng = np.random.default_rng(0)
+    a, w, p = rng.uniform(0.3, 1, 6), rng.uniform(0.5, 2, 6), rng.uniform(0, 6, 6)
+    q = a * np.sin(np.outer(t, w) + p)
+    qd = a * w * np.cos(np.outer(t, w) + p)
+    qdd = -a * w**2 * np.sin(np.outer(t, w) + p)
+    tau = m.inverse_dynamics(q, qd, qdd)
+    head = ",".join(f"j{i}" for i in range(1, 7))
+    np.savetxt(tmp_path / "q.csv", q, delimiter=",", header=head, comments="")
+    np.savetxt(tmp_path / "tau.csv", tau, delimiter=",", header=head, comments="")
+    return tmp_path
+
+
+def run(tmp_path: Path, text: str, capsys, out: str = "out", q: str = "q.csv") -> tuple[int, str, str]:
+    cfg = tmp_path / "identify.toml"
+    cfg.write_text(text.format(q=tmp_path / q, tau=tmp_path / "tau.csv"))
+    rc = main(["identify", str(cfg), "--out", str(tmp_path / out)])
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def test_a_consistent_robot_test_is_identified(files, capsys):
+    rc, out, err = run(files, GOOD, capsys)
+    assert rc == 0, err
+    assert (files / "out" / "report.html").exists() and (files / "out" / "results.json").exists()
+    assert "joint1" in out
+
+
+def test_missing_file_is_named(files, capsys):
+    rc, _, err = run(files, GOOD, capsys, q="nope.csv")
+    assert rc == 2 and "identify.toml" in err and "not found" in err and "nope.csv" in err
+    assert not (files / "out").exists()
+
+
+@pytest.mark.parametrize("change, words", [
+    (('"j6"], unit = "rad"', '"j7"], unit = "rad"'), ["q.csv", "j7", "j1, j2, j3, j4, j5, j6"]),
+    (("[conditioning]", "[identification]\nmethod = \"lasso\"\n[conditioning]"), ["method", "lasso"]),
+    (("[conditioning]", "[identification]\nknown = {{ ZZ9 = 1.0 }}\n[conditioning]"), ["ZZ9", "base parameters"]),
+    (("cutoff = 10.0", "cutoff = 150.0"), ["Nyquist", "100 Hz"]),
+])
+def test_bad_configs_fail_with_one_clear_line(files, capsys, change, words):
+    rc, _, err = run(files, GOOD.replace(*change), capsys)
+    last = err.strip().splitlines()[-1]  # progress lines come first
+    assert rc == 2 and last.startswith("dynid: error:") and "Traceback" not in err
+    for w in words:
+        assert w in err, (w, err)
+    assert not (files / "out" / "results.json").exists()  # nothing half-written
