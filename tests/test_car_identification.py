@@ -58,3 +58,15 @@ def test_parallel_decimation_keeps_the_exact_solution(model):
     true = base.values(model.tree.parameters)
     for s in (sys, full):
         assert np.abs(s.Y - s.W @ true).max() < 1e-8 * np.abs(s.Y).max()
+
+
+def test_generated_regressor_gives_the_same_rows(model):
+    """car_identification with generated code equals it with the engine (W, Y to round-off)."""
+    from dynid.symbolic.generated import GeneratedRegressor
+
+    rng = np.random.default_rng(5)
+    q, qd, qdd = driving(model, rng, N=50, steer=2.0)
+    F, q = required_wrenches(model, q, qd, qdd, [], rng)
+    a = car_identification(model, q, qd, qdd, F)
+    b = car_identification(model, q, qd, qdd, F, regressor=GeneratedRegressor(model.tree))
+    assert np.allclose(a.W, b.W, rtol=1e-10, atol=1e-9) and np.allclose(a.Y, b.Y, rtol=1e-10, atol=1e-8)

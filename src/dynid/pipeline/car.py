@@ -18,11 +18,14 @@ def car_system(
     decimate: tuple[int, ...] = (5, 10),
     base: str | BaseParameters = "generic",
     aero: Aerodynamics | None = None,
+    regressor=None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
-    anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group."""
+    anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
+    regressor: see `car_identification` (generated code is several times faster than the engine here)."""
     aw = aero_wrench(model, traj.q, traj.qd, aero) if aero is not None else None
-    eq = car_identification(model, traj.q, traj.qd, traj.qdd, traj.wheel_wrenches, aw, base=base)
+    eq = car_identification(model, traj.q, traj.qd, traj.qdd, traj.wheel_wrenches, aw, base=base,
+                            regressor=regressor)
     rows, N = len(eq.rows), len(traj.t)
     W = eq.W.reshape(rows, N, -1).transpose(1, 0, 2)
     Y = eq.Y.reshape(rows, N).T

@@ -187,6 +187,7 @@ def car_identification(
     aero_wrench: Wrench | None = None,
     spin_torques: Mapping[int, Array] | None = None,
     base: str | BaseParameters = "generic",
+    regressor=None,
 ) -> CarEquations:
     """W, Y and the equation groups of the car's identification model over N samples.
 
@@ -197,6 +198,8 @@ def car_identification(
     spin_torques: wheel frame -> (N,) torque on the wheel about its axle (z, pointing left)
     from the driveline and brakes, N·m; adds that wheel's spin equation.
     base: "generic", "car" (see the module doc) or a BaseParameters of the same rows.
+    regressor: a callable with `Model.regressor`'s signature (q, qd, qdd, wrenches, rows, cols) -> (W, Q),
+    e.g. `dynid.symbolic.generated.GeneratedRegressor(tree)` for generated code; default the engine's.
 
     Parameters of the tree outside the paper's 48, or listed in tree.known, are known:
     their contribution goes to Y. Rows are stacked group by group (all samples of x, then y...).
@@ -233,7 +236,7 @@ def car_identification(
         wrenches.append(aero_wrench)
 
     cols = list(bp.columns) + known_cols
-    W, Q = model.regressor(q, qd, qdd, wrenches, rows=list(rows), cols=cols)
+    W, Q = (regressor or model.regressor)(q, qd, qdd, wrenches, rows=list(rows), cols=cols)
     W = np.asarray(W)
     nb = len(bp.columns)
     Y = Q.copy()
