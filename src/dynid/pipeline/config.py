@@ -49,6 +49,7 @@ assembles the paper's 14 equations:
     order = 4
     decimate = [5, 10]
     attitude_crossover = 0.2         # Hz: inclinometers below, integrated gyros above
+    segment = 60.0                   # s: long tests are processed in overlapping segments (bounded memory)
 
     [identification]
     method = "wls"
@@ -99,6 +100,7 @@ class CarSettings:
     order: int = 4
     decimate: tuple[int, ...] = (5, 10)
     attitude_crossover: float = 0.2
+    segment: float = 60.0
     base: str = "generic"
     aero: bool = True
 
@@ -229,7 +231,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
 
 def _car_settings(data: dict, err) -> CarSettings:
     c = data.get("conditioning", {})
-    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover"}
+    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover", "segment"}
     if extra:
         raise err("conditioning", f"unknown key(s) {sorted(extra)} for a car")
     ident = data.get("identification", {})
@@ -240,5 +242,6 @@ def _car_settings(data: dict, err) -> CarSettings:
     return CarSettings(
         cutoff=float(c.get("cutoff", 4.0)), order=int(c.get("order", 4)),
         decimate=tuple(int(x) for x in (d if isinstance(d, list) else [d])),
-        attitude_crossover=float(c.get("attitude_crossover", 0.2)), base=base, aero=bool(ident.get("aero", True)),
+        attitude_crossover=float(c.get("attitude_crossover", 0.2)), segment=float(c.get("segment", 60.0)),
+        base=base, aero=bool(ident.get("aero", True)),
     )

@@ -136,10 +136,15 @@ def read_truth(path: Path, tree) -> dict[str, float]:
 
 
 def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
-    from ..vehicle import Aerodynamics, car_template
+    """The car: per test, overlapping segments -> joints -> 14 equations -> decimated rows, accumulated
+    into an incremental QR per equation group (W is never held whole, whatever the test's length)."""
+    from ..estimation import StreamingLS
+    from ..signals import border_samples
+    from ..symbolic.generated import GeneratedRegressor
+    from ..vehicle import Aerodynamics, car_base_parameters, car_template
     from ..vehicle import parameters as sets
     from ..vehicle.estimate import CarConditioning, estimate_joints
-    from .car import car_system
+    from .car import car_sections, car_system, consistency_text, excitation_hint
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
@@ -149,39 +154,54 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         known = {tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}
         tree = tree.with_values(known).with_known(set(known))
     model = Model(tree)
-    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
-    aero = Aerodynamics() if settings.aero else None
-    systems: dict[str, GroupedSystem] = {}
-    base = None
+    base = car_base_parameters(tree, settings.base)
+    names = list(base.names)
     truth: dict[str, float] = {}
     for spec in cfg.tests:
-        say(f"reading {spec.name!r} and estimating the joint coordinates")
-        channels, fs = load_car_channels(cfg, spec)
-        traj = estimate_joints(channels, fs, model, conditioning=cond)
-        systems[spec.name], base = car_system(model, traj, fs, settings.decimate, base=settings.base, aero=aero)
-        if spec.truth is not None and not truth:
+        if spec.truth is not None:
             truth = read_truth(spec.truth, tree)
-    names = list(base.names)
+            break
 
     def base_values(values: dict[str, float]) -> dict[str, float]:
         X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
         return dict(zip(names, base.values(X), strict=True))
 
-    ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
-    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
     kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(sets.a_priori().values),
               truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
-    from .car import car_sections, consistency_text, excitation_hint
-
+    streams = {"identify": StreamingLS(names, **kw), "validate": StreamingLS(names, **kw)}
+    shown: dict[str, GroupedSystem] = {}
+    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
+    aero = Aerodynamics() if settings.aero else None
+    fast = GeneratedRegressor(tree)
+    for spec in cfg.tests:
+        channels, fs = load_car_channels(cfg, spec)
+        N = len(next(iter(channels.values())))
+        b = border_samples(fs, cond.cutoff, cond.order)
+        step = max(int(settings.segment * fs), 4 * b)
+        starts = list(range(0, max(N - 2 * b, 1), step))
+        for i, start in enumerate(starts):
+            say(f"{spec.name}: joints and equations, segment {i + 1}/{len(starts)}")
+            lo, hi = start, min(N, start + step + 2 * b)  # consecutive segments overlap by the two borders
+            traj = estimate_joints({k: v[lo:hi] for k, v in channels.items()}, fs, model, conditioning=cond)
+            sys, _ = car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast)
+            streams[spec.role].add(sys.W, sys.Y, sys.groups)
+            shown.setdefault(spec.name, sys)
+    ident = streams["identify"]
+    say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.upper()})")
     try:
-        result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
-                  else ols(ident.W, ident.Y, names, **kw))
+        result = ident.solve_weighted() if cfg.method == "wls" else ident.solve()
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
-    run = IdentificationRun(model, base, result, ident, sections=car_sections(names, tree),
-                            notes="Physical consistency of the estimates: " + consistency_text(result, base))
-    return _validate(cfg, run, systems)
+    run = IdentificationRun(model, base, result, GroupedSystem.stack(
+        [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
+        notes="Physical consistency of the estimates: " + consistency_text(result, base))
+    run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
+    run.errors["direct"] = ident.relative_errors(result)
+    if streams["validate"].n_rows:
+        run.errors["cross"] = streams["validate"].relative_errors(result)
+    result.validation.update(run.errors)
+    return run
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
