@@ -71,7 +71,7 @@ def test_bad_arrays_name_the_sample_and_frame():
         m.inverse_dynamics(q, q[:3], q)
     with pytest.raises(ModelError, match="no parameter 'ZZ9'"):
         m.regressor(q, q, q, cols=["ZZ9"])
-    with pytest.raises(ModelError, match="rows"):
+    with pytest.raises(ModelError, match="row 0 is not a joint"):
         m.regressor(q, q, q, rows=[0])
     with pytest.raises(ModelError, match="78 values"):
         m.inverse_dynamics(q, q, q, X=np.ones(3))

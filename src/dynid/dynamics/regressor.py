@@ -41,26 +41,29 @@ _INERTIA_BASIS = (((0, 0),), ((0, 1), (1, 0)), ((0, 2), (2, 0)), ((1, 1),), ((1,
 
 
 def resolve_rows(tree: Tree, rows: Sequence[int] | None) -> list[int]:
+    """Joint (frame) numbers 1..n; all by default."""
     if rows is None:
         return list(range(1, tree.n + 1))
-    out = [int(r) for r in rows]
-    bad = [r for r in out if not 1 <= r <= tree.n]
-    if bad:
-        raise ModelError(f"rows {bad} are not joints of model {tree.name!r} (1..{tree.n})")
+    out = []
+    for r in rows:
+        if isinstance(r, bool) or not isinstance(r, int | np.integer) or not 1 <= int(r) <= tree.n:
+            raise ModelError(f"row {r!r} is not a joint of model {tree.name!r} (frame numbers 1..{tree.n})")
+        out.append(int(r))
     return out
 
 
 def resolve_cols(tree: Tree, cols: Sequence[str | int] | None) -> list[int]:
+    """Column indices of parameters given by name, label or index; all by default."""
     if cols is None:
         return list(range(tree.p))
     out = []
     for c in cols:
         if isinstance(c, str):
             out.append(tree.column(c))
-        elif 0 <= int(c) < tree.p:
+        elif not isinstance(c, bool) and isinstance(c, int | np.integer) and 0 <= int(c) < tree.p:
             out.append(int(c))
         else:
-            raise ModelError(f"column index {c} out of range 0..{tree.p - 1}")
+            raise ModelError(f"column {c!r} is not a parameter name or an index 0..{tree.p - 1}")
     return out
 
 

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..dynamics.regressor import resolve_cols as _engine_cols
+from ..dynamics.regressor import resolve_rows as _engine_rows
 from ..model.tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, ModelError, Tree
 from .expr import ONE, ZERO, Poly, Program, SymbolicError, add, const, cross, dot, mul, neg, scale, sub, sym
 from .geometry import Geometry, axis_sym
@@ -327,31 +329,19 @@ def check_sites(tree: Tree, sites: Sequence[WrenchSite]) -> list[WrenchSite]:
 
 
 def resolve_rows(tree: Tree, rows: Sequence[int] | None) -> list[int]:
-    if rows is None:
-        return list(range(1, tree.n + 1))
-    out = []
-    for r in rows:
-        if isinstance(r, bool) or not isinstance(r, int | np.integer) or not 1 <= int(r) <= tree.n:
-            raise SymbolicError(f"row {r!r} is not a joint of model {tree.name!r} (frame numbers 1..{tree.n})")
-        out.append(int(r))
-    return out
+    """The engine's rows, with its error as a SymbolicError."""
+    try:
+        return _engine_rows(tree, rows)
+    except ModelError as exc:
+        raise SymbolicError(str(exc)) from None
 
 
 def resolve_cols(tree: Tree, cols: Sequence[str | int] | None) -> list[int]:
-    if cols is None:
-        return list(range(tree.p))
-    out = []
-    for c in cols:
-        if isinstance(c, str):
-            try:
-                out.append(tree.column(c))
-            except ModelError as exc:
-                raise SymbolicError(str(exc)) from None
-        elif isinstance(c, int | np.integer) and 0 <= int(c) < tree.p:
-            out.append(int(c))
-        else:
-            raise SymbolicError(f"column {c!r} is not a parameter name or an index 0..{tree.p - 1}")
-    return out
+    """The engine's columns, with its error as a SymbolicError."""
+    try:
+        return _engine_cols(tree, cols)
+    except ModelError as exc:
+        raise SymbolicError(str(exc)) from None
 
 
 # ----- the models -------------------------------------------------------------------------------
