@@ -35,10 +35,16 @@ def integral(x, t):
 
 @pytest.fixture(scope="module")
 def truth():
+    return smooth_drive()
+
+
+def smooth_drive(duration: float = 12.0):
+    """A known smooth trajectory of all 42 joints and its noise-free channels:
+    (model, t, q, qd, qdd, wheel wrenches, channels)."""
     model = dynid.Model(car_template())
     g = CarGeometry()
     tables = default_tables(g)
-    t = np.arange(0, 12, 1 / FS)
+    t = np.arange(0, duration, 1 / FS)
     N = len(t)
     q, qd, qdd = (np.zeros((N, 42)) for _ in range(3))
     v = 25.0

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..dynamics import BaseParameters, Model
 from ..signals import decimate_parallel
-from ..vehicle import Aerodynamics, aero_wrench, car_identification
+from ..vehicle import WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.estimate import CarTrajectory
 from .robot import GroupedSystem
 
@@ -19,25 +19,47 @@ def car_system(
     base: str | BaseParameters = "generic",
     aero: Aerodynamics | None = None,
     regressor=None,
+    cutoff: float | None = None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
-    regressor: see `car_identification` (generated code is several times faster than the engine here)."""
+    regressor: see `car_identification` (generated code is several times faster than the engine here).
+    cutoff: the low-pass (Hz) every signal of traj went through; when given, W is computed only on every
+    decimate[0]-th sample (those signals hold nothing above a few times the cut-off, far below the
+    reduced Nyquist frequency, so nothing aliases) and the rest of the decimation is done in parallel;
+    not done when twice the wheel-spin frequency would reach the reduced Nyquist frequency. The
+    dry-friction columns sign(qd), not band-limited, are built at the full rate.
+    """
+    decimate = tuple(decimate or ())
+    full, fs_full, full_decimate = traj, fs, decimate
+    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
+    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
+    if cutoff is not None and decimate and fs / (2 * decimate[0]) >= max(5 * cutoff, spin / 0.9):
+        k = decimate[0]
+        traj = CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
+                             None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
+        fs, decimate = fs / k, decimate[1:]
     aw = aero_wrench(model, traj.q, traj.qd, aero) if aero is not None else None
     eq = car_identification(model, traj.q, traj.qd, traj.qdd, traj.wheel_wrenches, aw, base=base,
                             regressor=regressor)
     rows, N = len(eq.rows), len(traj.t)
-    W = eq.W.reshape(rows, N, -1).transpose(1, 0, 2)
-    Y = eq.Y.reshape(rows, N).T
-    if decimate:
-        W, Y = decimate_parallel(W, Y, decimate, fs)
-        t = traj.t[:: int(np.prod(decimate))][: W.shape[0]]
-    else:
-        t = traj.t
-    n = W.shape[0]
-    labels = eq.groups.reshape(rows, N)[:, 0]
-    sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1), Y.T.reshape(-1), np.repeat(labels, n),
-                        np.tile(t, rows))
+    step = int(np.prod(decimate)) if decimate else 1
+    parts = []
+    for r in range(rows):  # car_identification stacks group by group: each block is contiguous (N, p)
+        W, Y = eq.W[r * N:(r + 1) * N], eq.Y[r * N:(r + 1) * N]
+        if decimate:
+            W, Y = decimate_parallel(W, Y, decimate, fs)
+        t = traj.t[::step][: W.shape[0]]
+        parts.append(GroupedSystem(W, Y, np.full(W.shape[0], eq.groups[r * N]), t))
+    if full is not traj:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
+        for c, name in enumerate(eq.names):
+            if name.startswith("FS") and name[2:].isdigit() and int(name[2:]) in eq.rows:
+                r = eq.rows.index(int(name[2:]))
+                col = np.sign(full.qd[:, int(name[2:]) - 1])
+                dec, _ = decimate_parallel(col[:, None], np.zeros_like(col), full_decimate, fs_full)
+                n = min(len(dec), parts[r].W.shape[0])
+                parts[r].W[:n, c] = dec[:n, 0]
+    sys = GroupedSystem.stack(parts)
     return sys, eq.base
 
 

@@ -183,7 +183,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             say(f"{spec.name}: joints and equations, segment {i + 1}/{len(starts)}")
             lo, hi = start, min(N, start + step + 2 * b)  # consecutive segments overlap by the two borders
             traj = estimate_joints({k: v[lo:hi] for k, v in channels.items()}, fs, model, conditioning=cond)
-            sys, _ = car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast)
+            sys, _ = car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
+                                cutoff=cond.cutoff)
             streams[spec.role].add(sys.W, sys.Y, sys.groups)
             shown.setdefault(spec.name, sys)
     ident = streams["identify"]
