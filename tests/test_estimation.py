@@ -12,12 +12,14 @@ import json
 import os
 import pathlib
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import statsmodels.api as sm
 from scipy import stats
 
+import dynid.atomic
 from dynid import estimation
 from dynid.estimation import (
     EstimationWarning,
@@ -31,7 +33,6 @@ from dynid.estimation import (
     relative_errors,
     wls,
 )
-from dynid.estimation import result as result_module
 
 RTOL = 1e-10
 
@@ -351,11 +352,13 @@ def test_save_json_round_trip_and_atomic(tmp_path, monkeypatch):
     assert json.loads(target.read_text())["validation"]["direct"]["overall"] is None
     good = target.read_text()
 
-    def broken_dump(obj, fh, **kw):
-        fh.write('{"parameters": [')  # half a file, then the disk "fails"
+    real_write_text = Path.write_text
+
+    def broken_write(self, text, *args, **kw):
+        real_write_text(self, text[: len(text) // 2], *args, **kw)  # half a file, then the disk "fails"
         raise OSError("disk full")
 
-    monkeypatch.setattr(result_module.json, "dump", broken_dump)
+    monkeypatch.setattr(Path, "write_text", broken_write)
     with pytest.raises(OSError, match="disk full"):
         res.save_json(target)
     monkeypatch.undo()
@@ -364,7 +367,7 @@ def test_save_json_round_trip_and_atomic(tmp_path, monkeypatch):
     def broken_replace(src, dst):
         raise OSError("rename failed")
 
-    monkeypatch.setattr(result_module.os, "replace", broken_replace)
+    monkeypatch.setattr(dynid.atomic.os, "replace", broken_replace)
     with pytest.raises(OSError, match="rename failed"):
         res.save_json(tmp_path / "new.json")
     assert os.listdir(tmp_path) == ["result.json"]

@@ -107,12 +107,10 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("config", help="identification config (TOML)")
     ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
     ident.set_defaults(func=cmd_identify)
-    try:
-        from . import symbolic_cmds
-    except ImportError:  # the symbolic layer is optional at this stage
-        pass
-    else:
-        symbolic_cmds.register(msub)
+    from . import simulate_cmds, symbolic_cmds
+
+    symbolic_cmds.register(msub)
+    simulate_cmds.register(sub)
     return parser
 
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._atomic import atomic_path
+from ..atomic import atomic_path
 from ._table import TIME_NAMES, Column, Grid, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording

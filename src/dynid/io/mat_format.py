@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import scipy.io as sio
 
-from ._atomic import atomic_path
+from ..atomic import atomic_path
 from ._optional import require
 from ._table import TIME_NAMES, time_in_seconds, uniform_time
 from .errors import FileFormatError

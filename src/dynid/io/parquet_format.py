@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ._atomic import atomic_path
+from ..atomic import atomic_path
 from ._optional import require
 from ._table import Column, grid_of, recording_from_columns
 from .errors import FileFormatError

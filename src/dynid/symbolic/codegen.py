@@ -14,10 +14,10 @@ import importlib.util
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 from types import ModuleType
 
+from ..atomic import write_atomic as _write_atomic
 from ..model.files import tree_to_toml
 from ..model.tree import Tree
 from .expr import Poly, Program, SymbolicError, factored, symbols_of
@@ -312,16 +312,9 @@ def cache_dir() -> Path:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write then rename, so that a reader never sees half a file."""
+    """Write then rename (dynid.atomic), so that a reader never sees half a file; creates the folder."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    _write_atomic(path, text)
 
 
 def import_file(path: Path, name: str) -> ModuleType:

@@ -382,8 +382,11 @@ def ideal_channels(
     N = q.shape[0]
     deg = np.degrees
     out: dict[str, np.ndarray] = {}
-    T6 = model.transforms(q)[:, 6]  # (N, 4, 4)
-    R6 = T6[:, :3, :3]
+    from ..kinematics.forward import forward_kinematics, joint_array
+
+    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[6])  # frame 6 only
+    R6 = np.stack([np.asarray(c).T for c in st.Rc[6]], axis=2)  # (N, 3, 3), columns = axes of frame 6
+    O6 = np.asarray(st.P[6]).T  # (N, 3)
     A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     imu = np.asarray(g.imu_position, dtype=float)
     J = model.jacobian(q, 6, point=imu, expressed_in=6)
@@ -399,12 +402,11 @@ def ideal_channels(
     out["imu_pitch"] = deg(-np.arcsin(np.clip(Rv[:, 2, 0], -1.0, 1.0)))
     out["imu_roll"] = deg(np.arctan2(Rv[:, 2, 1], Rv[:, 2, 2]))
     p = np.asarray(correvit_point(g))
-    Jc = model.jacobian(q, 6, point=p, expressed_in=6)
-    v_iso = np.einsum("nij,nj->ni", Jc[:, :3], qd) @ ISO_AXES.T
+    v_iso = (tw[:, :3] + np.cross(tw[:, 3:], p - imu)) @ ISO_AXES.T  # the chassis' twist moved to the point
     out["correvit_vx"], out["correvit_vy"] = v_iso[:, 0] * 3.6, v_iso[:, 1]
     for k, c in enumerate(CORNER_TAGS):
         b = 7 + 9 * k
-        P0 = np.einsum("nij,j->ni", R6, np.asarray(laser_point(g, k))) + T6[:, :3, 3]
+        P0 = np.einsum("nij,j->ni", R6, np.asarray(laser_point(g, k))) + O6
         out[f"laser_height_{c}"] = 1e3 * P0[:, 2] / R6[:, 2, 0]
         out[f"clearance_{c}"] = 1e3 * q[:, b + 1]
         out[f"steer_{c}"] = deg(q[:, b + 2])

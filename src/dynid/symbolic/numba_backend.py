@@ -1,0 +1,238 @@
+"""Per-sample scalar Python code from a Program, compiled by Numba, cached on disk.
+
+The NumPy backend (codegen.to_numpy) is batched: every intermediate is an (N,) array,
+which is right for an identification over thousands of samples and wrong for a
+simulator that needs one sample at a time inside an integration loop. This backend
+writes what `to_c` writes, in Python: one function per model taking one sample,
+
+    def <name>(q, qd, qdd, X, wrench, out[, Q]):     # the arrays the model reads
+        S4 = math.sin(q[3])                          # Khalil's intermediate variables
+        ...
+        out[k] = ...                                 # flat row-major output, zeros included
+
+with q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench (sites, 6), out and
+any extra output flat float64 arrays. The module source is written atomically to
+`cache_dir()/numba/<name>_<hash>.py` (hash of the model and of this generator) and
+imported from there, so that `numba.njit(cache=True)` can keep the machine code next
+to it: the first run compiles (seconds), the next ones load. Without numba the same
+functions run as plain Python (about 100x slower), with a warning.
+
+`compile_source` does the same for any source the caller assembles (the simulator puts
+its generated models and its integration kernel in one module so that Numba can inline
+across them and cache the whole).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import sys
+import warnings
+from pathlib import Path
+from types import ModuleType
+
+from ..model.tree import Tree
+from .codegen import _ARGS, _eq_text, cache_dir, format_poly, import_file, model_hash, write_atomic
+from .expr import Program, SymbolicError
+
+BACKEND_VERSION = "1"
+_LOADED: dict[str, ModuleType] = {}
+
+
+class NumbaMissingWarning(RuntimeWarning):
+    """numba is not installed: generated code runs as plain Python (slow but correct)."""
+
+
+def have_numba() -> bool:
+    try:
+        importlib.import_module("numba")
+    except ImportError:
+        return False
+    return True
+
+
+def jit(fn):
+    """numba.njit(cache=True) when numba is importable, else the function itself (with a warning once)."""
+    try:
+        from numba import njit
+    except ImportError:
+        _warn_missing()
+        return fn
+    return njit(cache=True)(fn)
+
+
+_WARNED = [False]
+
+
+def _warn_missing() -> None:
+    if not _WARNED[0]:
+        _WARNED[0] = True
+        warnings.warn("numba is not installed: dynid's generated per-sample code runs as plain Python, about 100x "
+                      "slower; install numba (pip install numba)", NumbaMissingWarning, stacklevel=3)
+
+
+def _prod(shape) -> int:
+    out = 1
+    for s in shape:
+        out *= s
+    return out
+
+
+def _flat(idx, shape) -> int:
+    k = 0
+    for i, s in zip(idx, shape, strict=True):
+        k = k * s + i
+    return k
+
+
+def arguments(prog: Program) -> list[str]:
+    """Input arrays of the per-sample function, in order: those of the model kind (q, qd, qdd as the
+    kind takes them; X and wrench only when the code reads them), or for a custom Program the ones it reads."""
+    used = {prog.inputs[k][0] for k in prog.meta.get("used_inputs", prog.inputs)}
+    kind = _ARGS.get(prog.model)
+    if kind is None:
+        return [a for a in ("q", "qd", "qdd", "X", "wrench") if a in used or a == "q"]
+    return [a for a in kind if a in ("q", "qd", "qdd") or a in used]
+
+
+def scalar_source(prog: Program, name: str | None = None) -> str:
+    """Source of `def <name>(inputs..., out, extras...)` for one sample (see the module doc)."""
+    name = name or prog.model
+    if not name.isidentifier():
+        raise SymbolicError(f"function name {name!r} is not a Python identifier")
+    args = arguments(prog)
+    outs = ["out", *prog.extra_outputs]
+    L = [f"def {name}({', '.join(args + outs)}):",
+         f'    """{prog.model} of {prog.meta.get("tree", "?")}, one sample; {prog.ops()}.',
+         f"    out: flat row-major {list(prog.shape)}"
+         + "".join(f", {k}: flat {list(s)}" for k, (s, _) in prog.extra_outputs.items()) + '."""']
+    for k, v in prog.constants.items():
+        L.append(f"    {k} = {v!r}")
+    used = prog.meta.get("used_inputs", sorted(prog.inputs))
+    for sym_name in sorted(used, key=lambda k: (str(prog.inputs[k][0]), str(prog.inputs[k][1]))):
+        src, idx = prog.inputs[sym_name]
+        if src == "wrench":
+            L.append(f"    {sym_name} = wrench[{idx[0]}, {idx[1]}]")
+        else:
+            L.append(f"    {sym_name} = {src}[{idx}]")
+    for eq in prog.equations:
+        rhs = _eq_text(eq, "numpy")
+        if eq.kind in ("sin", "cos"):
+            rhs = "math." + rhs
+        elif eq.kind == "sign":
+            rhs = "_sign" + rhs[len("sign"):]
+        L.append(f"    {eq.name} = {rhs}")
+    for oname, shape, entries in [("out", tuple(prog.shape), prog.outputs)] + [
+            (k, tuple(s), e) for k, (s, e) in prog.extra_outputs.items()]:
+        flat = {_flat(idx, shape): p for idx, p in entries}
+        size = _prod(shape)
+        if len(flat) < size // 4:  # sparse (an inertia matrix): clear, then write the nonzero entries
+            L.append(f"    {oname}[:] = 0.0")
+            L += [f"    {oname}[{k}] = {format_poly(p)}" for k, p in sorted(flat.items())]
+        else:
+            L += [f"    {oname}[{k}] = {format_poly(flat[k]) if k in flat else '0.0'}" for k in range(size)]
+    L.append("    return 0")
+    return "\n".join(L) + "\n"
+
+
+HEADER = '''"""Generated by dynid.symbolic.numba_backend. Do not edit: regenerate instead."""
+
+import math  # noqa: F401
+
+import numpy as np  # noqa: F401
+
+
+def _sign(x):
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+'''
+
+
+def _footer(names: list[str], key: str) -> str:
+    lines = ["", f"KEY = {key!r}", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
+             "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
+             "    _sign = njit(cache=True)(_sign)"]
+    lines += [f"    {n} = njit(cache=True)({n})" for n in names]
+    return "\n".join(lines) + "\n"
+
+
+def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb") -> ModuleType | None:
+    """Import (from the disk cache, or after writing it) a module HEADER + body whose functions
+    `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
+    (NOT of the text: the generator's factoring order may vary between processes), naming the module.
+
+    Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
+    numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
+    only, None when it is not there.
+    """
+    mod_name = f"{prefix}_{key}"
+    if mod_name in _LOADED:
+        return _LOADED[mod_name]
+    path = cache_dir() / "numba" / f"{mod_name}.py"
+    mod = None
+    if path.exists():  # the same key: the same model (its text may differ in the order of factored terms)
+        try:
+            mod = import_file(path, mod_name)
+            if getattr(mod, "KEY", None) != key:
+                mod = None
+        except Exception:  # a damaged cache file is regenerated, never trusted
+            mod = None
+    if mod is None and body is None:  # load only
+        return None
+    if mod is None:
+        src = HEADER + body + _footer(names, key)
+        try:
+            write_atomic(path, src)
+            mod = import_file(path, mod_name)
+        except OSError:  # read-only cache: an in-memory module (numba then cannot cache: compiles every run)
+            mod = ModuleType(mod_name)
+            exec(compile(src, f"<dynid numba {mod_name}>", "exec"), mod.__dict__)
+    if not getattr(mod, "NUMBA", False):
+        _warn_missing()
+    sys.modules.setdefault(mod_name, mod)
+    _LOADED[mod_name] = mod
+    return mod
+
+
+def source_key(*parts: str) -> str:
+    """A short hash of the given texts and this generator's version."""
+    h = hashlib.sha256(("\0".join((BACKEND_VERSION, *parts))).encode())
+    return h.hexdigest()[:20]
+
+
+def numba_model(tree: Tree, model: str, name: str | None = None, **options):
+    """The compiled per-sample function of a model (dgm, idm, regressor, inertia) of a tree.
+
+    options: those of dynid.symbolic.build (parameters="numeric" bakes the tree's values in,
+    wrenches=[WrenchSite, ...], rows/cols for the regressor). Returns the function; its
+    argument list is `arguments(build(...))` (see the module doc).
+    """
+    from .models import build
+
+    name = name or model
+    h = source_key(model_hash(tree, model, options), name)
+    mod_name = f"dynid_nb_{model}_{h}"
+    if mod_name not in _LOADED:
+        path = cache_dir() / "numba" / f"{mod_name}.py"
+        body = None
+        if path.exists():
+            try:
+                mod = import_file(path, mod_name)
+                if getattr(mod, "KEY", None) == h:
+                    sys.modules.setdefault(mod_name, mod)
+                    _LOADED[mod_name] = mod
+            except Exception:
+                body = None
+        if mod_name not in _LOADED:
+            prog = build(tree, model, **options)
+            body = scalar_source(prog, name)
+            compile_source(body, [name], h, prefix=f"dynid_nb_{model}")
+    return getattr(_LOADED[mod_name], name)
+
+
+def cached_module_path(key: str, prefix: str = "dynid_nb") -> Path:
+    return cache_dir() / "numba" / f"{prefix}_{key}.py"
+
+
+__all__ = ["BACKEND_VERSION", "NumbaMissingWarning", "arguments", "compile_source", "have_numba", "jit",
+           "numba_model", "scalar_source", "source_key"]

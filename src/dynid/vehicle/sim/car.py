@@ -1,0 +1,361 @@
+"""The simulated car: its tree, its generated and compiled models, and the run loop.
+
+`CarSimulator(parameters, geometry, tables, aero, tires, settings)` builds the tree of the
+car template with the true parameters plus a small tire damping declared as FV on the
+tire joints (`sim_tree`: car_identification moves it to Y as a known term, so the tire
+equations stay exact), generates three per-sample models with numeric parameters
+(numba_backend): the kinematics of the tire frames and of frame 6, the inverse dynamics
+with the four tire wrench sites and the aerodynamic site, and M(q) v; and compiles them
+with the kernel (kernel.py) into one cached module. `run(manoeuvre)` integrates with
+RK4 on the 625 Hz acquisition clock (substeps optional) and returns a SimulationResult.
+
+Step: one RK4 step per 1.6 ms sample by default. The fastest dynamics are the wheel hop
+(about 13 Hz) and the tire-slip/spin loop through the relaxation lengths (about 30 Hz):
+omega dt <= 0.3, well inside RK4's stability and accuracy range; `test_simulator`
+halves the step and bounds the change of the lateral acceleration and the wheel loads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import inspect
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...model.tree import Tree
+from ...symbolic import numba_backend as nb
+from ...symbolic.models import Builder, WrenchSite, finish, idm
+from ..aero import Aerodynamics, reference_point
+from ..geometry import CarGeometry
+from ..parameters import ParameterSet, truth
+from ..statics import rest_state
+from ..tables import STEERING_RATIO, KinematicTables, default_tables
+from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, car_template
+from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
+from .bicycle import bicycle
+from .interp import pack_aero, pack_tables
+from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre, pack
+from .tires import MagicFormula
+
+SAMPLE_TIME = 1.6e-3
+
+
+class SimulationError(RuntimeError):
+    """The integration left the model's domain (a table's range, a non-finite state)."""
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """dt: sample time (s); substeps: RK4 steps per sample; switches for the energy tests:
+    aero, tire_horizontal (Fx, Fy, Mz), rolling_resistance; tire_damping: c_t (N.s/m, FV on
+    the tire joints); steering robot natural frequency (Hz) and damping; speed controller
+    gains kp (1/s), ki (1/s^2) on the speed error, drive torque limits (N.m, total)."""
+
+    dt: float = SAMPLE_TIME
+    substeps: int = 1
+    aero: bool = True
+    tire_horizontal: bool = True
+    rolling_resistance: bool = True
+    tire_damping: float = 100.0
+    steering_frequency: float = 8.0
+    steering_damping: float = 0.8
+    kp: float = 1.0
+    ki: float = 0.3
+    drive_max: float = 3000.0
+    drive_min: float = -600.0
+
+    def __post_init__(self) -> None:
+        if not (self.dt > 0 and self.substeps >= 1 and self.tire_damping >= 0):
+            raise ValueError(f"simulator settings: need dt > 0, substeps >= 1, tire_damping >= 0; got {self}")
+
+
+def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometry | None = None,
+             tire_damping: float = 100.0) -> Tree:
+    """The car template with the parameter set and FV (tire damping) on the tire joints."""
+    if parameters is None:
+        parameters = truth(geometry)
+    values = dict(parameters if isinstance(parameters, dict) else parameters.values)
+    tree = car_template(geometry, values, name="Peugeot 406 (simulated truth)", check_rest=False)
+    terms = dict(tree.joint_terms)
+    for t in TIRES:
+        terms[t] = ("FV", "K")
+    tree = dataclasses.replace(tree, joint_terms=terms)
+    return tree.with_values({**values, **{f"FV{t}": float(tire_damping) for t in TIRES}})
+
+
+def kinematics_program(tree: Tree):
+    """Poses and twists the kernel needs: per tire frame (R 9, P 3 in frame 0; w, v 3+3 in its own
+    frame), then frame 6 (v, w in frame 6): K.NKIN outputs (see kernel.py)."""
+    b = Builder(tree, "kin", (K.NKIN,), "numeric", "numeric")
+    out = b.prog.outputs
+    from ...model.tree import FIXED
+    from ...symbolic.expr import add, mul
+
+    def velocity(k: int) -> list:
+        v = [{}, {}, {}]
+        for j in tree.ancestors[k]:
+            if tree.frames[j - 1].sigma == FIXED:
+                continue
+            _, jv = b.jac(j, k)
+            qd = b.geo.qd(j)
+            v = [add(v[c], mul(jv[c], qd)) for c in range(3)]
+        return [b.prog.define(f"V{c + 1}{k}", v[c]) for c in range(3)]
+
+    for i, t in enumerate(TIRES):
+        R, P = b.geo.abs_rot(t), b.geo.abs_pos(t)
+        o = K.KIN_CORNER * i
+        for r in range(3):
+            for c in range(3):
+                out.append(((o + 3 * r + c,), R[r][c]))
+            out.append(((o + 9 + r,), P[r]))
+        w, v = b.w(t), velocity(t)
+        for c in range(3):
+            out.append(((o + 12 + c,), w[c]))
+            out.append(((o + 15 + c,), v[c]))
+    v6, w6 = velocity(CHASSIS), b.w(CHASSIS)
+    for c in range(3):
+        out.append(((K.KIN_6 + c,), v6[c]))
+        out.append(((K.KIN_6 + 3 + c,), w6[c]))
+    return finish(b)
+
+
+def _module_key(tree: Tree, aero_point) -> str:
+    """Hash of what the compiled module depends on: the tree, the kernel and its helpers, the aero point."""
+    from ...model.files import tree_to_toml
+
+    here = Path(__file__).parent
+    srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py"))
+    return nb.source_key(tree_to_toml(tree), repr(list(tree.gravity)), srcs, repr([float(x) for x in aero_point]))
+
+
+def _module_source(tree: Tree, aero_point) -> tuple[str, list[str]]:
+    sites = [WrenchSite(t) for t in TIRES] + [WrenchSite(CHASSIS, tuple(float(x) for x in aero_point), CHASSIS)]
+    inertial = {n: v for n, v in tree.values.items() if n[:2] in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ")
+                or (n.startswith("M") and n[1:].isdigit())}
+    inert = dataclasses.replace(tree, joint_terms={}, couplings=(), gravity=(0.0, 0.0, 0.0), values=inertial,
+                                known=frozenset(), labels={})
+    kin = kinematics_program(tree)
+    dyn = idm(tree, parameters="numeric", wrenches=sites)
+    mv = idm(inert, parameters="numeric")
+    kernel_src = inspect.getsource(K).replace("from __future__ import annotations\n", "")
+    here = Path(__file__).parent
+    deps = hashlib.sha256(b"".join((here / f).read_bytes() for f in ("tires.py", "interp.py"))).hexdigest()[:16]
+    body = "\n".join([f"# kernel dependencies: tires.py + interp.py {deps}", kernel_src,
+                      "# ----- generated models -----",
+                      nb.scalar_source(kin, "car_kin"), nb.scalar_source(dyn, "car_idm"),
+                      nb.scalar_source(mv, "car_mv")])
+    return body, [*K.JITTED, "car_kin", "car_idm", "car_mv"]
+
+
+@dataclass
+class CompileInfo:
+    generate_s: float = 0.0
+    import_s: float = 0.0
+    first_call_s: float = 0.0
+    module: str = ""
+
+
+class CarSimulator:
+    """A car to drive: tree, tables, tires, aerodynamics and the compiled kernel (see module doc)."""
+
+    def __init__(
+        self,
+        parameters: ParameterSet | dict | None = None,
+        geometry: CarGeometry | None = None,
+        tables: KinematicTables | None = None,
+        aero: Aerodynamics | None = None,
+        tires: MagicFormula | tuple[MagicFormula, ...] | None = None,
+        settings: SimSettings | None = None,
+    ) -> None:
+        self.geometry = CarGeometry() if geometry is None else geometry
+        self.tables = default_tables(self.geometry) if tables is None else tables
+        self.aero = Aerodynamics() if aero is None else aero
+        tires = MagicFormula() if tires is None else tires
+        self.tires = tuple(tires) if isinstance(tires, tuple) else (tires,) * 4
+        self.settings = SimSettings() if settings is None else settings
+        self.parameters = truth(self.geometry, self.tables) if parameters is None else parameters
+        self.tree = sim_tree(self.parameters, self.geometry, self.settings.tire_damping)
+        self.rest = rest_state(self.tree, self.tables)
+        self.mass = sum(self.tree.values.get(f"M{j}", 0.0) for j in range(1, 43))
+        self.radius = self.geometry.wheel_radius
+        from ...dynamics import Model
+
+        g = -self.tree.gravity[2]
+        b_rear = self.geometry.wheelbase * (self.rest.loads[2] + self.rest.loads[3]) / (self.mass * g)
+        iz = float(Model(self.tree).inertia_matrix(self.rest.q)[3, 3]) - self.mass * b_rear**2
+        self.bicycle = bicycle(self.rest.loads, self.tires, self.geometry.wheelbase, g, iz)
+        self.mu = min(min(t.peak_friction(float(f))) for t, f in zip(self.tires, self.rest.loads, strict=True))
+        self.aero_point = reference_point(self.geometry) if self.aero.point is None else np.asarray(self.aero.point)
+        self.compile_info = CompileInfo()
+        t0 = time.perf_counter()
+        key = _module_key(self.tree, self.aero_point)
+        module = nb.compile_source(None, [], key, prefix="dynid_car")
+        if module is None:
+            body, names = _module_source(self.tree, self.aero_point)
+            module = nb.compile_source(body, names, key, prefix="dynid_car")
+        self.compile_info.generate_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        self.module = module
+        self.compile_info.import_s = time.perf_counter() - t0
+        self.compile_info.module = self.module.__name__
+        self._packed_tables = pack_tables(self.tables)
+        self._packed_aero = pack_aero(self.aero)
+
+    # ----- packing ------------------------------------------------------------------------
+    def car_constants(self) -> dict[str, float]:
+        return {"mass": self.mass, "radius": self.radius, "ratio": STEERING_RATIO,
+                "wheelbase": self.geometry.wheelbase, "understeer": self.bicycle.understeer, "mu": self.mu,
+                "bicycle": self.bicycle}
+
+    def _par(self) -> np.ndarray:
+        s, a = self.settings, self.aero
+        p = np.zeros(K.NPAR)
+        p[K.P_R0], p[K.P_G], p[K.P_MASS] = self.radius, -self.tree.gravity[2], self.mass
+        p[K.P_RATIO], p[K.P_WB], p[K.P_US] = STEERING_RATIO, self.geometry.wheelbase, self.bicycle.understeer
+        p[K.P_KP], p[K.P_KI], p[K.P_TDMAX], p[K.P_TDMIN] = s.kp, s.ki, s.drive_max, s.drive_min
+        p[K.P_WS], p[K.P_ZS] = 2 * np.pi * s.steering_frequency, s.steering_damping
+        p[K.P_RHO], p[K.P_AREA], p[K.P_LEN], p[K.P_VMIN] = a.rho, a.area, a.length, a.min_speed
+        p[K.P_AREF:K.P_AREF + 3] = self.aero_point
+        p[K.P_AERO_ON] = float(s.aero)
+        p[K.P_HORIZ] = float(s.tire_horizontal)
+        p[K.P_ROLL] = float(s.rolling_resistance)
+        p[K.P_VLOW] = 1.0
+        return p
+
+    def _tire(self) -> np.ndarray:
+        out = np.zeros((4, 27))
+        for k, t in enumerate(TIRES):
+            out[k, :25] = self.tires[k].pack()
+            out[k, 25] = self.tree.values[f"K{t}"]
+            out[k, 26] = self.tree.values.get(f"FV{t}", 0.0)
+        return out
+
+    def initial_state(self, speed: float, q: np.ndarray | None = None) -> np.ndarray:
+        """Rest attitude (or q), rolling straight ahead at `speed` m/s with the wheels turning freely."""
+        q = self.rest.q if q is None else np.asarray(q, dtype=float)
+        y = np.zeros(K.NY)
+        for i, j in enumerate(K.FREE):
+            y[i] = q[j - 1]
+        y[K.NF + 1] = speed  # qd2: forward along y0 at zero yaw
+        for k, t in enumerate(TIRES):
+            re = self.radius - q[t - 1] / 3.0
+            y[K.NF + 10 + k] = speed / re
+        return y
+
+    # ----- running --------------------------------------------------------------------------
+    def run(self, m: Manoeuvre | str, duration: float | None = None, y0: np.ndarray | None = None,
+            progress: Callable[[float], None] | None = None, **params) -> SimulationResult:
+        """Drive a manoeuvre (a Manoeuvre, or a name with parameters) and record every 1.6 ms sample."""
+        if isinstance(m, str):
+            m = manoeuvre(m, **params)
+        elif params:
+            raise ManoeuvreError("pass parameters with a manoeuvre name, or build the Manoeuvre with them")
+        dur = m.duration if duration is None else float(duration)
+        man = pack(m, self.car_constants())
+        s = self.settings
+        N = round(dur / s.dt) + 1
+        y = self.initial_state(m.speed) if y0 is None else np.array(y0, dtype=float)
+        RQ, RQD, RQDD = np.zeros((N, 42)), np.zeros((N, 42)), np.zeros((N, 42))
+        RW, RR = np.zeros((N, 4, 6)), np.zeros((N, K.NREC))
+        status = np.zeros(2, dtype=np.int64)
+        XB, YB, NX, NY, C = self._packed_tables
+        ax, aC = self._packed_aero
+        par, tire = self._par(), self._tire()
+        chunk = max(1, round(1.0 / s.dt))  # one second of driving per call: progress and interrupts
+        done = 0
+        t_first = time.perf_counter()
+        while done < N:
+            n = min(chunk, N - done)
+            rows = n if done + n == N else n + 1  # records `rows` samples, advances rows - 1 steps
+            sl = slice(done, done + rows)
+            self.module.simulate(y, done * s.dt, s.dt, rows, s.substeps, par, tire, man, XB, YB, NX, NY, C, ax, aC,
+                                 RQ[sl], RQD[sl], RQDD[sl], RW[sl], RR[sl], status)
+            if self.compile_info.first_call_s == 0.0:
+                self.compile_info.first_call_s = time.perf_counter() - t_first
+            if status[0] != K.S_OK:
+                k = done + int(status[1])
+                what = ("a damper travel or the steering-wheel angle left the kinematic tables' range"
+                        if status[0] == K.S_TABLE else "the state became non-finite (the car left the model)")
+                raise SimulationError(f"{m.name} at t = {k * s.dt:.4f} s (sample {k}): {what}; "
+                                      f"reduce the speed or the steering of the manoeuvre")
+            done += n
+            if progress is not None:
+                progress(min(done, N) * s.dt)
+        return SimulationResult(self, m, np.arange(N) * s.dt, RQ, RQD, RQDD, RW, RR)
+
+
+@dataclass
+class SimulationResult:
+    """The recorded samples of one run (625 Hz): q, qd, qdd (N, 42), wheel wrenches (N, 4, 6) at the
+    wheel centres in the non-spinning wheel frames, steering wheel h, h', h'' (rad), spin torques (N, 4),
+    contact flags (N, 4), slips kappa and alpha (N, 4)."""
+
+    sim: CarSimulator
+    manoeuvre: Manoeuvre
+    time: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    wheel_wrenches: np.ndarray
+    record: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # the massless tire links' accelerations are not used by any equation; give their derivative
+        cols = np.array(TIRES) - 1
+        if self.time.size > 2:
+            self.qdd[:, cols] = np.gradient(self.qd[:, cols], self.time, axis=0)
+
+    @property
+    def steering_wheel(self) -> np.ndarray:
+        return self.record[:, 0:3]
+
+    @property
+    def spin_torques(self) -> np.ndarray:
+        return self.record[:, 3:7]
+
+    @property
+    def contact(self) -> np.ndarray:
+        return self.record[:, 7:11] > 0.5
+
+    @property
+    def slips(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.record[:, 11:15], self.record[:, 15:19]
+
+    @property
+    def tree(self) -> Tree:
+        return self.sim.tree
+
+    def aero_wrench(self):
+        from ...dynamics import Model
+        from ..aero import aero_wrench
+
+        if not self.sim.settings.aero:
+            return None
+        return aero_wrench(Model(self.tree), self.q, self.qd, self.sim.aero, self.sim.geometry)
+
+    def identification(self, base: str = "generic", spin: bool = True, model=None):
+        """car_identification on the true trajectories (the simulator's own tree; spin rows with the torques)."""
+        from ...dynamics import Model
+        from ..equations import car_identification
+
+        model = Model(self.tree) if model is None else model
+        spin_torques = {w: self.spin_torques[:, k] for k, w in enumerate(WHEELS)} if spin else None
+        return car_identification(model, self.q, self.qd, self.qdd, self.wheel_wrenches, self.aero_wrench(),
+                                  spin_torques, base=base)
+
+    def ideal_channels(self) -> dict[str, np.ndarray]:
+        from ...dynamics import Model
+        from ..sensors import ideal_channels
+
+        return ideal_channels(Model(self.tree), self.q, self.qd, self.qdd, self.wheel_wrenches,
+                              self.steering_wheel[:, 0], self.spin_torques, self.sim.geometry)
+
+    @property
+    def dampers(self) -> np.ndarray:
+        return self.q[:, np.array(DAMPERS) - 1]

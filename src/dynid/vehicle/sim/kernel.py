@@ -1,0 +1,391 @@
+"""The simulator's per-step kernel: car forward dynamics, tires, driver, RK4 loop.
+
+This file is a TEMPLATE: `car.py` compiles it together with three functions generated
+from the car's tree (numba_backend), which replace the stubs at the bottom of this file:
+
+  car_kin(q, qd, out)          poses and twists of the tire frames and frame 6 (KIN_* layout)
+  car_idm(q, qd, qdd, wrench, out)   inverse dynamics with the tree's numeric parameters and
+                               wrench sites: 4 tire frames (origin, own axes), aero on link 6
+  car_mv(q, qd, qdd, out)      M(q) qdd (the IDM of the tree without gravity, joint terms or
+                               couplings, called with qd = 0)
+
+Forward dynamics (DESIGN, issue 5). Free joints f: x y z yaw pitch roll, the 4 dampers,
+the 4 wheel spins. Prescribed: the tabulated joints (steering, camber, caster, kingpin:
+functions of the corner's damper travel u and the steering-wheel angle h), with
+qdd_p = F qdd_f + b by the chain rule (F = df/du on the damper column). Constant joints
+0. Tire deflections: the contact condition (tire frame origin on the ground) gives q and
+qd in closed form; the tire links are massless and terminal, so their acceleration does
+not enter. Then
+
+  (M_ff + M_fp F) qdd_f = tau_f - h_f,   h = IDM(q, qd, [0, b], wrenches)
+
+with tau_f = 0 except on the wheel spins (drive + brake torque, plus the ground's moment
+about the axle at the wheel centre, which in the tree acts on the hub: see
+car_identification). The prescribed joints' actuators act on their own joints only.
+
+State y (NY): qf (14), qdf (14), tire relaxation ux (4), uy (4), speed-controller
+integral, steering-wheel angle and rate (2). Free joint order: FREE (1-based).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dynid.vehicle.sim.interp import eval_ppoly, eval_table
+from dynid.vehicle.sim.tires import magic_formula
+
+FREE = (1, 2, 3, 4, 5, 6, 9, 18, 27, 36, 14, 23, 32, 41)
+NF = 14
+NY = 39
+Y_UX, Y_UY, Y_INT, Y_H, Y_HD = 28, 32, 36, 37, 38
+# kinematics outputs: per corner 18 values (R15 row-major 9, P15 3, w15 3, v15 3), then frame 6 (v6 3, w6 3)
+KIN_CORNER = 18
+KIN_6 = 72
+NKIN = 78
+# scalar parameters
+P_R0, P_G, P_MASS, P_RATIO, P_WB, P_US, P_KP, P_KI, P_TDMAX, P_TDMIN = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
+P_WS, P_ZS, P_RHO, P_AREA, P_LEN, P_VMIN, P_AREF, P_AERO_ON, P_HORIZ, P_ROLL = 10, 11, 12, 13, 14, 15, 16, 19, 20, 21
+P_VLOW = 22
+NPAR = 23
+# per-corner tire parameters after the Magic Formula ones: kt, ct
+# recorded per sample (REC): h, hd, hdd, spin torques 4, contact flags 4, slips kappa 4, alpha 4
+NREC = 19
+# manoeuvre kinds
+M_CONST, M_SINE, M_BRAKE, M_SPIRAL, M_STEP, M_LANE = 0, 1, 2, 3, 4, 5
+# status codes
+S_OK, S_TABLE, S_NONFINITE = 0, 1, 2
+
+
+def smoothstep(x):
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+
+
+def path_offset(man, s):
+    """Left offset of the lane-change centreline at the distance s along y0 (quintic transitions)."""
+    s1, s2, s3, s4, D = man[5], man[6], man[7], man[8], man[4]
+    if s < s1:
+        return 0.0
+    if s < s2:
+        return D * smoothstep((s - s1) / (s2 - s1))
+    if s < s3:
+        return D
+    if s < s4:
+        return D * (1.0 - smoothstep((s - s3) / (s4 - s3)))
+    return 0.0
+
+
+def driver(t, y, v, par, man, out):
+    """Steering-wheel target, total drive torque and the brake torque per wheel.
+
+    man: [kind, v_ref, t0, a, b, c, d, e, f, g]; out[0] h_ref, out[1] drive torque (front axle, N.m),
+    out[2:6] brake torque magnitude on the wheels rl rr fl fr (N.m, >= 0), out[6] speed error.
+    """
+    kind = int(man[0])
+    vref = man[1]
+    t0 = man[2]
+    h_ref = 0.0
+    brake = 0.0
+    drive_on = 1.0
+    if kind == M_SINE:
+        if t > t0:
+            taper = smoothstep((t - t0) * man[4])  # the amplitude grows over the first period
+            h_ref = man[3] * taper * math.sin(2.0 * math.pi * man[4] * (t - t0))
+    elif kind == M_BRAKE:
+        if t > t0:
+            on = smoothstep((t - t0) / man[5]) * smoothstep((v - man[6]) / 1.0)
+            brake = on * man[3]
+            drive_on = 1.0 - smoothstep((t - t0) / man[5])
+    elif kind == M_SPIRAL:
+        if t > t0:
+            h_ref = min(man[3] * (t - t0), man[4])
+    elif kind == M_STEP:
+        if t > t0:
+            h_ref = man[3] * smoothstep((t - t0) / man[4])
+    elif kind == M_LANE:
+        psi = y[3]
+        Lp = max(man[9] * v, 5.0)
+        px = y[0] - Lp * math.sin(psi)
+        py = y[1] + Lp * math.cos(psi)
+        e = path_offset(man, py) + px
+        h_ref = par[P_RATIO] * (par[P_WB] + par[P_US] * v * v) * 2.0 * e / (Lp * Lp)
+    err = vref - v
+    mR = par[P_MASS] * par[P_R0]
+    ff = (par[P_MASS] * par[P_G] * 0.012 + 0.5 * par[P_RHO] * par[P_AREA] * 0.31 * v * v * par[P_AERO_ON]) * par[P_R0]
+    td = ff + mR * (par[P_KP] * err + par[P_KI] * y[Y_INT])
+    td = min(max(td, par[P_TDMIN]), par[P_TDMAX]) * drive_on
+    out[0] = h_ref
+    out[1] = td
+    if kind == M_BRAKE:
+        share = man[4]
+        out[2] = out[3] = brake * (1.0 - share) * 0.5
+        out[4] = out[5] = brake * share * 0.5
+    else:
+        out[2] = out[3] = out[4] = out[5] = 0.0
+    out[6] = err if drive_on > 0.5 else 0.0
+    return 0
+
+
+def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
+               q, qd, qdd, wr, kin, hv, mv, zv, F, A, rhs, tab, ctl, tf, record, krow, RQ, RQD, RQDD, RW, RR):
+    """dy/dt at (t, y); with record, the sample's q, qd, qdd, wheel wrenches and controls go to row krow."""
+    status = S_OK
+    for i in range(42):
+        q[i] = 0.0
+        qd[i] = 0.0
+        qdd[i] = 0.0
+    for i in range(NF):
+        q[FREE[i] - 1] = y[i]
+        qd[FREE[i] - 1] = y[NF + i]
+    h = y[Y_H]
+    hd = y[Y_HD]
+    # tabulated joints (chain rule on the damper travel and the steering-wheel angle)
+    for k in range(4):
+        b = 7 + 9 * k
+        u = q[b + 1]
+        ud = qd[b + 1]
+        for n in range(4):
+            if eval_table(XB, YB, TNX, TNY, C, 4 * k + n, u, h, tab) != 0:
+                status = S_TABLE
+            j = b + 2 + n
+            q[j] = tab[0]
+            qd[j] = tab[1] * ud + tab[2] * hd
+            F[k, n] = tab[1]
+            # b without the hdd term (added once the driver has decided hdd)
+            qdd[j] = tab[3] * ud * ud + 2.0 * tab[4] * ud * hd + tab[5] * hd * hd
+            F[k, 4 + n] = tab[2]
+    # tire deflections from the contact condition, at q15 = qd15 = 0 first
+    car_kin(q, qd, kin)
+    v6 = kin[KIN_6 + 2]  # forward speed of O6
+    driver(t, y, v6, par, man, ctl)
+    hdd = par[P_WS] * par[P_WS] * (ctl[0] - h) - 2.0 * par[P_ZS] * par[P_WS] * hd
+    for k in range(4):
+        for n in range(4):
+            qdd[7 + 9 * k + 2 + n] += F[k, 4 + n] * hdd
+    R0 = par[P_R0]
+    for k in range(4):
+        o = KIN_CORNER * k
+        r20, r21, r22 = kin[o + 6], kin[o + 7], kin[o + 8]
+        pz = kin[o + 11]
+        w0, w1 = kin[o + 12], kin[o + 13]
+        pen = -pz / r22
+        vc0 = kin[o + 15] + w1 * pen
+        vc1 = kin[o + 16] - w0 * pen
+        vc2 = kin[o + 17]
+        pend = -(vc0 * r20 + vc1 * r21 + vc2 * r22) / r22
+        kt = tire[k, 25]
+        ct = tire[k, 26]
+        Fz = kt * pen + ct * pend
+        contact = pen > 0.0 and Fz > 0.0
+        jt = 7 + 9 * k + 7  # column of the tire joint
+        jw = jt - 1  # column of the wheel joint
+        omega = qd[jw]
+        # ground axes in frame 15: normal n = (r20, r21, r22); heading xg = x15 made horizontal; yg = n x xg
+        xn = 1.0 - r20 * r20
+        inv = 1.0 / math.sqrt(xn * xn + (r20 * r21) ** 2 + (r20 * r22) ** 2)
+        xg0, xg1, xg2 = xn * inv, -r20 * r21 * inv, -r20 * r22 * inv
+        yg0 = r21 * xg2 - r22 * xg1
+        yg1 = r22 * xg0 - r20 * xg2
+        yg2 = r20 * xg1 - r21 * xg0
+        Vx = vc0 * xg0 + vc1 * xg1 + vc2 * xg2
+        Vy = vc0 * yg0 + vc1 * yg1 + vc2 * yg2
+        aVx = abs(Vx)
+        sx = tire[k, 20]
+        sy = tire[k, 21]
+        Re = R0 - pen / 3.0
+        Vsx = Vx - omega * Re
+        Vsy = Vy
+        ux = y[Y_UX + k]
+        uy = y[Y_UY + k]
+        kappa = ux / sx
+        alpha = math.atan(-uy / sy)
+        for c in range(6):
+            wr[k, c] = 0.0
+        if contact:
+            q[jt] = pen
+            qd[jt] = pend
+            # the Magic Formula's load is the tire spring's force; Fx, Fy act in the ground plane and the
+            # normal force N is what leaves the massless tire link in equilibrium along its axis z15:
+            # N n.z15 + Fx xg.z15 + Fy yg.z15 = kt q + ct qd (the identification's tire equation)
+            magic_formula(tire[k], Fz, kappa, alpha, tf)
+            fx = tf[0] * par[P_HORIZ]
+            fy = tf[1] * par[P_HORIZ]
+            mz = tf[2] * par[P_HORIZ]
+            N = (Fz - fx * xg2 - fy * yg2) / r22
+            wr[k, 0] = fx * xg0 + fy * yg0 + N * r20
+            wr[k, 1] = fx * xg1 + fy * yg1 + N * r21
+            wr[k, 2] = Fz
+            rho = R0 - pen
+            wr[k, 4] = -tire[k, 22] * Fz * rho * math.tanh(omega * Re / 0.3) * par[P_ROLL]
+            wr[k, 3] = mz * r20
+            wr[k, 4] += mz * r21
+            wr[k, 5] = mz * r22
+            dy[Y_UX + k] = -Vsx - aVx * ux / sx
+            dy[Y_UY + k] = -Vsy - aVx * uy / sy
+        else:
+            q[jt] = 0.0
+            qd[jt] = 0.0
+            dy[Y_UX + k] = -(aVx + par[P_VLOW]) * ux / sx
+            dy[Y_UY + k] = -(aVx + par[P_VLOW]) * uy / sy
+        if record:
+            RR[krow, 7 + k] = 1.0 if contact else 0.0
+            RR[krow, 11 + k] = kappa
+            RR[krow, 15 + k] = alpha
+    # aerodynamic wrench on link 6 at the reference point (as dynid.vehicle.aero_wrench)
+    for c in range(6):
+        wr[4, c] = 0.0
+    if par[P_AERO_ON] != 0.0:
+        p0, p1, p2 = par[P_AREF], par[P_AREF + 1], par[P_AREF + 2]
+        a0, a1, a2 = kin[KIN_6 + 3], kin[KIN_6 + 4], kin[KIN_6 + 5]
+        vr1 = kin[KIN_6 + 1] + a2 * p0 - a0 * p2
+        vr2 = kin[KIN_6 + 2] + a0 * p1 - a1 * p0
+        fwd = vr2
+        left = -vr1
+        V2 = fwd * fwd + left * left
+        beta = 0.0 if par[P_VMIN] * par[P_VMIN] > V2 else math.atan2(left, fwd)
+        qS = 0.5 * par[P_RHO] * V2 * par[P_AREA]
+        cx = eval_ppoly(ax, aC, 0, beta)
+        cy = eval_ppoly(ax, aC, 1, beta)
+        cz = eval_ppoly(ax, aC, 2, beta)
+        cl = eval_ppoly(ax, aC, 3, beta)
+        cm = eval_ppoly(ax, aC, 4, beta)
+        cn = eval_ppoly(ax, aC, 5, beta)
+        L = par[P_LEN]
+        # ISO (x fwd, y left, z up) -> frame 6 (up, right, fwd)
+        wr[4, 0] = qS * cz
+        wr[4, 1] = -qS * cy
+        wr[4, 2] = -qS * cx
+        wr[4, 3] = qS * L * cn
+        wr[4, 4] = -qS * L * cm
+        wr[4, 5] = qS * L * cl
+    # generalized forces: h with the free accelerations at zero
+    car_idm(q, qd, qdd, wr, hv)
+    for i in range(NF):
+        rhs[i] = -hv[FREE[i] - 1]
+    for k in range(4):
+        rho = R0 - q[7 + 9 * k + 7]
+        my_centre = wr[k, 4] - rho * wr[k, 0]
+        drive = 0.5 * ctl[1] if k >= 2 else 0.0
+        spin = drive - ctl[2 + k] * math.tanh(qd[7 + 9 * k + 6] / 0.5)
+        rhs[10 + k] += spin + my_centre
+        if record:
+            RR[krow, 3 + k] = spin
+    # A = M_ff + M_fp F: columns M v for v = e_i (+ F on the corner's tabulated joints)
+    for i in range(NF):
+        for j in range(42):
+            mv[j] = 0.0
+        mv[FREE[i] - 1] = 1.0
+        if 6 <= i < 10:
+            k = i - 6
+            for n in range(4):
+                mv[7 + 9 * k + 2 + n] = F[k, n]
+        car_mv(q, zv, mv, A[i])
+    M = np.empty((NF, NF))
+    for i in range(NF):
+        for j in range(NF):
+            M[j, i] = A[i, FREE[j] - 1]
+    x = np.linalg.solve(M, rhs[:NF])
+    for i in range(NF):
+        dy[i] = y[NF + i]
+        dy[NF + i] = x[i]
+    for k in range(4):
+        for n in range(4):
+            qdd[7 + 9 * k + 2 + n] += F[k, n] * x[6 + k]
+    for i in range(NF):
+        qdd[FREE[i] - 1] = x[i]
+    dy[Y_INT] = ctl[6]
+    dy[Y_H] = hd
+    dy[Y_HD] = hdd
+    if record:
+        for j in range(42):
+            RQ[krow, j] = q[j]
+            RQD[krow, j] = qd[j]
+            RQDD[krow, j] = qdd[j]
+        for k in range(4):
+            rho = R0 - q[7 + 9 * k + 7]
+            RW[krow, k, 0] = wr[k, 0]
+            RW[krow, k, 1] = wr[k, 1]
+            RW[krow, k, 2] = wr[k, 2]
+            RW[krow, k, 3] = wr[k, 3] + rho * wr[k, 1]
+            RW[krow, k, 4] = wr[k, 4] - rho * wr[k, 0]
+            RW[krow, k, 5] = wr[k, 5]
+        RR[krow, 0] = h
+        RR[krow, 1] = hd
+        RR[krow, 2] = hdd
+    for i in range(NY):
+        if not math.isfinite(dy[i]):
+            status = S_NONFINITE
+    return status
+
+
+def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, RQ, RQD, RQDD, RW, RR, status):
+    """RK4 with nsub substeps per sample; records every sample (the first stage of its step)."""
+    q = np.zeros(42)
+    qd = np.zeros(42)
+    qdd = np.zeros(42)
+    wr = np.zeros((5, 6))
+    kin = np.zeros(NKIN)
+    hv = np.zeros(42)
+    mv = np.zeros(42)
+    zv = np.zeros(42)
+    F = np.zeros((4, 8))
+    A = np.zeros((NF, 42))
+    rhs = np.zeros(NF)
+    tab = np.zeros(6)
+    ctl = np.zeros(7)
+    tf = np.zeros(3)
+    k1 = np.zeros(NY)
+    k2 = np.zeros(NY)
+    k3 = np.zeros(NY)
+    k4 = np.zeros(NY)
+    yt = np.zeros(NY)
+    hs = dt / nsub
+    for n in range(nsteps):
+        for s in range(nsub):
+            t = t0 + n * dt + s * hs
+            st = derivative(t, y, k1, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv, zv,
+                            F, A, rhs, tab, ctl, tf, s == 0, n, RQ, RQD, RQDD, RW, RR)
+            if st != S_OK:
+                status[0] = st
+                status[1] = n
+                return n
+            if n == nsteps - 1:
+                break  # the last sample is recorded; no step beyond it
+            for i in range(NY):
+                yt[i] = y[i] + 0.5 * hs * k1[i]
+            derivative(t + 0.5 * hs, yt, k2, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv,
+                       zv, F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            for i in range(NY):
+                yt[i] = y[i] + 0.5 * hs * k2[i]
+            derivative(t + 0.5 * hs, yt, k3, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv,
+                       zv, F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            for i in range(NY):
+                yt[i] = y[i] + hs * k3[i]
+            derivative(t + hs, yt, k4, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv, zv,
+                       F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            for i in range(NY):
+                y[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    status[0] = S_OK
+    status[1] = nsteps
+    return nsteps
+
+
+# ----- stubs, replaced by the generated models in the compiled module -------------------------------------
+def car_kin(q, qd, out):  # pragma: no cover - replaced
+    raise NotImplementedError("car_kin is generated per car (dynid.vehicle.sim.car)")
+
+
+def car_idm(q, qd, qdd, wrench, out):  # pragma: no cover - replaced
+    raise NotImplementedError("car_idm is generated per car (dynid.vehicle.sim.car)")
+
+
+def car_mv(q, qd, qdd, out):  # pragma: no cover - replaced
+    raise NotImplementedError("car_mv is generated per car (dynid.vehicle.sim.car)")
+
+
+JITTED = ("smoothstep", "path_offset", "driver", "derivative", "simulate")
