@@ -93,6 +93,36 @@ def cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_demo(args: argparse.Namespace) -> int:
+    import time
+    from pathlib import Path
+
+    from ..pipeline.demo import run_demo
+    from ..pipeline.run import write_outputs
+    from ..report import validation_table
+    from .simulate_cmds import progress_bar
+
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    say = lambda msg: print(f"· {msg}", file=sys.stderr)  # noqa: E731
+    run = run_demo(out, quick=args.quick, seed=args.seed, progress=say, simulation_progress=progress_bar)
+    r = run.result
+    print(run.summary())
+    print("\nValidation, relative error ||Y - W X|| / ||Y|| (direct: sine and spiral; cross: braking):")
+    print(validation_table(run.errors))
+    tree = run.model.tree
+    wheels = sum(tree.values.get(f"M{w}", 0.0) for w in (14, 23, 32, 41))
+    m6, true_m6 = r.value("M6"), r.truth.get("M6")
+    if true_m6:
+        err = 100 * (m6 - true_m6) / (true_m6 + wheels)
+        print(f"\nTotal mass: {m6 + wheels:.1f} kg estimated, {true_m6 + wheels:.1f} kg true ({err:+.2f} %)")
+    files = write_outputs(run, out, "dynid demo: the simulated Peugeot 406", progress=say)
+    print(f"\nwrote {out / 'report.html'}, {out / 'results.json'}, the figures, and the test files and "
+          f"config in {out} (dynid identify {out / 'identify.toml'} reruns it) in {time.perf_counter() - t0:.1f} s")
+    del files
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dynid", description=__doc__)
     parser.add_argument("--version", action="version", version=f"dynid {__version__}")
@@ -103,6 +133,11 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
     show.set_defaults(func=cmd_model_show)
+    demo = sub.add_parser("demo", help="the paper's experiment on the simulated Peugeot 406, end to end")
+    demo.add_argument("--out", default="dynid-demo", help="output folder (default: dynid-demo)")
+    demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")
+    demo.add_argument("--seed", type=int, default=406, help="seed of the sensor noise (default 406)")
+    demo.set_defaults(func=cmd_demo)
     ident = sub.add_parser("identify", help="identify the parameters of a model from measurement files")
     ident.add_argument("config", help="identification config (TOML)")
     ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")

@@ -33,7 +33,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_simulate)
 
 
-def _progress(total: float):
+def progress_bar(total: float):
+    """A progress bar on stderr for `total` simulated seconds: (report(t), close())."""
     try:
         from tqdm import tqdm
     except ImportError:
@@ -64,7 +65,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         print("dynid: building the car (first run: compiling its models, about 30 s)", file=sys.stderr)
         sim = CarSimulator()
-        report, close = _progress(m.duration)
+        report, close = progress_bar(m.duration)
         t1 = time.perf_counter()
         try:
             result = sim.run(m, progress=report)

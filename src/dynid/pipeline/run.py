@@ -121,7 +121,8 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np
 
 def read_truth(path: Path, tree) -> dict[str, float]:
     """True parameter values from a simulator's JSON sidecar: a {name or label: value} table under
-    "true_parameters", "truth" or "parameters" (a list of {"name", "value"} records is accepted too)."""
+    "true_parameters", "truth" or "parameters" (a list of {"name", "value"} records is accepted too).
+    Parameters the model does not have are left out."""
     data = json.loads(Path(path).read_text())
     for key in ("true_parameters", "truth", "parameters"):
         table = data.get(key)
@@ -132,7 +133,13 @@ def read_truth(path: Path, tree) -> dict[str, float]:
             break
     else:
         raise ConfigError(f"{path}: no true parameter table (\"true_parameters\": {{name: value}})")
-    return {tree.parameter_names[tree.column(k)]: float(v) for k, v in table.items()}
+    out = {}
+    for k, v in table.items():  # terms only the simulator has (its tire damping) are not in this model
+        try:
+            out[tree.parameter_names[tree.column(k)]] = float(v)
+        except ModelError:
+            continue
+    return out
 
 
 def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
@@ -196,7 +203,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes="Physical consistency of the estimates: " + consistency_text(result, base))
+        notes="Physical consistency of the estimates: " + consistency_text(result, base, tree))
     run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
     run.errors["direct"] = ident.relative_errors(result)
     if streams["validate"].n_rows:

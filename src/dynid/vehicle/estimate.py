@@ -32,7 +32,16 @@ from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
 from .geometry import CarGeometry
-from .sensors import CORNER_TAGS, ISO_AXES, WFT_COMPONENTS, correvit_point, laser_point
+from .sensors import (
+    CORNER_TAGS,
+    ISO_AXES,
+    WFT_COMPONENTS,
+    SensorChannel,
+    SensorSuite,
+    correvit_point,
+    laser_point,
+    paper_suite,
+)
 from .tables import KinematicTables, default_tables
 from .template import FRAMES
 
@@ -45,12 +54,31 @@ EARTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 class CarConditioning:
     """cutoff (Hz) and order of the zero-phase Butterworth on every signal; attitude_crossover (Hz):
     below it the inclinometers set roll and pitch, above it the integrated gyros; border (s):
-    trimmed at each end (None: the filter's transient)."""
+    trimmed at each end (None: the filter's transient); compensate_delays: advance each channel by
+    its sensor's low-frequency delay (see `sensor_delay`)."""
 
     cutoff: float = 4.0
     order: int = 4
     attitude_crossover: float = 0.2
     border: float | None = None
+    compensate_delays: bool = True
+
+
+def sensor_delay(channel: SensorChannel, fs: float) -> float:
+    """Low-frequency delay (s) of a channel: its band limit, a 2nd-order Butterworth at `bandwidth`
+    (group delay sqrt(2) / (2 pi f_c) well below f_c), plus half a hold period when the sensor samples
+    slower than the logger. A 10 Hz inertial unit lags a 150 Hz force transducer by about 25 ms, several
+    degrees of phase at 0.5 Hz: enough to bias inertias and damping if left in."""
+    delay = 0.0 if channel.bandwidth is None else np.sqrt(2.0) / (2 * np.pi * channel.bandwidth)
+    if channel.rate < fs:
+        delay += 0.5 / channel.rate
+    return delay
+
+
+def advance(x: Array, delay: float, fs: float) -> Array:
+    """x(t + delay) on the same clock (linear interpolation of a band-limited signal; ends held)."""
+    n = np.arange(len(x), dtype=float)
+    return np.interp(n + delay * fs, n, x)
 
 
 @dataclass(frozen=True)
@@ -111,8 +139,11 @@ def estimate_joints(
     geometry: CarGeometry | None = None,
     tables: KinematicTables | None = None,
     conditioning: CarConditioning | None = None,
+    suite: SensorSuite | None = None,
 ) -> CarTrajectory:
-    """q, qd, qdd of the 42 joints and the filtered loads from the sensor channels (SI), trimmed of the borders."""
+    """q, qd, qdd of the 42 joints and the filtered loads from the sensor channels (SI), trimmed of the borders.
+
+    suite: the sensors' definitions, for their delays (default: the paper's suite on this geometry)."""
     g = geometry or CarGeometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
@@ -120,6 +151,9 @@ def estimate_joints(
     if missing:
         raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
     ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    if c.compensate_delays:
+        suite = suite or paper_suite(g)
+        ch = {k: advance(v, sensor_delay(suite[k], fs), fs) if k in suite.names else v for k, v in ch.items()}
     N = len(ch["imu_roll"])
     if model.n != FRAMES:
         raise ModelError(f"the car estimator needs the 42-frame car template; got {model.name!r} ({model.n} frames)")
@@ -188,12 +222,15 @@ def estimate_joints(
     h = smooth(ch["steering_wheel"])
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"))
 
-    # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire)
-    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[15 + 9 * k for k in range(4)])
-    for k in range(4):
+    # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
+    # corner takes the chassis height its own laser implies: attitude errors then act over the 0.35 m between
+    # laser and wheel, not over the wheelbase
+    for k, t in enumerate(CORNER_TAGS):
         f = 15 + 9 * k
-        z_axis = st.Rc[f][2]
-        q[:, f - 1], qd[:, f - 1], qdd[:, f - 1] = smooth(-st.P[f][2] / z_axis[2])
+        qk = q.copy()
+        qk[:, 2] = ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
+        st = forward_kinematics(model.tree, joint_array(qk, model.tree, "q")[0], frames=[f])
+        q[:, f - 1], qd[:, f - 1], qdd[:, f - 1] = smooth(-st.P[f][2] / st.Rc[f][2][2])
 
     ww = lp(np.stack([np.stack([ch[f"wft_{t}_{k}"] for k in WFT_COMPONENTS], axis=1) for t in CORNER_TAGS], axis=1))
     spin = None
