@@ -375,17 +375,10 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     return nsteps
 
 
-# ----- stubs, replaced by the generated models in the compiled module -------------------------------------
-def car_kin(q, qd, out):  # pragma: no cover - replaced
-    raise NotImplementedError("car_kin is generated per car (dynid.vehicle.sim.car)")
-
-
-def car_idm(q, qd, qdd, wrench, out):  # pragma: no cover - replaced
-    raise NotImplementedError("car_idm is generated per car (dynid.vehicle.sim.car)")
-
-
-def car_mv(q, qd, qdd, out):  # pragma: no cover - replaced
-    raise NotImplementedError("car_mv is generated per car (dynid.vehicle.sim.car)")
+# ----- the generated models: this file is a template; the compiled module (dynid.vehicle.sim.car) appends
+# car_kin(q, qd, out), car_idm(q, qd, qdd, wrench, out) and car_mv(q, qd, qdd, out), generated for the car,
+# after this source. The names are declared here so that the template reads (and lints) as a whole.
+car_kin = car_idm = car_mv = None
 
 
 JITTED = ("smoothstep", "path_offset", "driver", "derivative", "simulate")
