@@ -44,22 +44,24 @@ def car_system(
                             regressor=regressor)
     rows, N = len(eq.rows), len(traj.t)
     step = int(np.prod(decimate)) if decimate else 1
-    parts = []
-    for r in range(rows):  # car_identification stacks group by group: each block is contiguous (N, p)
-        W, Y = eq.W[r * N:(r + 1) * N], eq.Y[r * N:(r + 1) * N]
-        if decimate:
-            W, Y = decimate_parallel(W, Y, decimate, fs)
-        t = traj.t[::step][: W.shape[0]]
-        parts.append(GroupedSystem(W, Y, np.full(W.shape[0], eq.groups[r * N]), t))
+    W = np.ascontiguousarray(eq.W.reshape(rows, N, -1).transpose(1, 0, 2))  # (N, rows, p): one filter pass
+    Y = np.ascontiguousarray(eq.Y.reshape(rows, N).T)
+    if decimate:
+        W, Y = decimate_parallel(W, Y, decimate, fs)
     if full is not traj:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
-        for c, name in enumerate(eq.names):
-            if name.startswith("FS") and name[2:].isdigit() and int(name[2:]) in eq.rows:
-                r = eq.rows.index(int(name[2:]))
-                col = np.sign(full.qd[:, int(name[2:]) - 1])
-                dec, _ = decimate_parallel(col[:, None], np.zeros_like(col), full_decimate, fs_full)
-                n = min(len(dec), parts[r].W.shape[0])
-                parts[r].W[:n, c] = dec[:n, 0]
-    sys = GroupedSystem.stack(parts)
+        fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
+                   if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
+        if fs_cols:
+            signs = np.sign(full.qd[:, [j - 1 for _, _, j in fs_cols]])
+            dec, _ = decimate_parallel(signs, np.zeros(len(signs)), full_decimate, fs_full)
+            n = min(len(dec), W.shape[0])
+            for i, (c, r, _) in enumerate(fs_cols):
+                W[:n, r, c] = dec[:n, i]
+    t = traj.t[::step][: W.shape[0]]
+    n = W.shape[0]
+    labels = eq.groups.reshape(rows, N)[:, 0]
+    sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1), Y.T.reshape(-1), np.repeat(labels, n),
+                        np.tile(t, rows))
     return sys, eq.base
 
 

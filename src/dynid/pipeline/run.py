@@ -8,6 +8,8 @@ report. Outputs are written atomically to the output folder.
 from __future__ import annotations
 
 import json
+import os
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,9 +101,10 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int) -> JointTest:
     return JointTest(spec.name, float(fs), q, tau)
 
 
-def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np.ndarray], float]:
-    """The sensor suite's channels of one logger file, in SI, on the file's common clock."""
-    from ..io import read_recording, to_si
+def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np.ndarray], dict[str, float], float]:
+    """The sensor suite's channels of one logger file on the file's common clock, in the file's units (views,
+    no copy of a long record), with the factor of each to SI; and the sample rate."""
+    from ..io import read_recording, unit_factor
     from ..vehicle.estimate import required_channels
 
     path = spec.files["channels"]
@@ -111,12 +114,12 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np
     in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
     rec.require(list(in_file.values()))
     al = rec.aligned(list(in_file.values()))
-    out = {}
+    values, factors = {}, {}
     for q, name in in_file.items():
         unit = renamed.get(q, (None, None))[1] or rec.channel(name).unit
-        out[q], _ = to_si(al[name], unit, channel=name, source=str(path))
+        values[q], factors[q] = al[name], unit_factor(unit, channel=name, source=str(path))[0]
     fs = 1.0 / float(np.median(np.diff(al.t)))
-    return out, fs
+    return values, factors, fs
 
 
 def read_truth(path: Path, tree) -> dict[str, float]:
@@ -180,20 +183,35 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
     aero = Aerodynamics() if settings.aero else None
     fast = GeneratedRegressor(tree)
-    for spec in cfg.tests:
-        channels, fs = load_car_channels(cfg, spec)
-        N = len(next(iter(channels.values())))
-        b = border_samples(fs, cond.cutoff, cond.order)
-        step = max(int(settings.segment * fs), 4 * b)
-        starts = list(range(0, max(N - 2 * b, 1), step))
-        for i, start in enumerate(starts):
-            say(f"{spec.name}: joints and equations, segment {i + 1}/{len(starts)}")
-            lo, hi = start, min(N, start + step + 2 * b)  # consecutive segments overlap by the two borders
-            traj = estimate_joints({k: v[lo:hi] for k, v in channels.items()}, fs, model, conditioning=cond)
-            sys, _ = car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
-                                cutoff=cond.cutoff)
-            streams[spec.role].add(sys.W, sys.Y, sys.groups)
-            shown.setdefault(spec.name, sys)
+    def segment_rows(channels, factors, fs, lo, hi):
+        si = {k: v[lo:hi] * factors[k] for k, v in channels.items()}  # units converted segment by segment
+        traj = estimate_joints(si, fs, model, conditioning=cond)
+        return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
+                          cutoff=cond.cutoff)[0]
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    def use(spec: TestSpec, job, k: int, n_seg: int) -> None:
+        sys = job.result()
+        say(f"{spec.name}: joints and equations, segment {k}/{n_seg}")
+        streams[spec.role].add(sys.W, sys.Y, sys.groups)
+        shown.setdefault(spec.name, sys)
+
+    # segments on both cores: NumPy and SciPy release the GIL in their loops, and threads share the record
+    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+        for spec in cfg.tests:
+            channels, factors, fs = load_car_channels(cfg, spec)
+            N = len(next(iter(channels.values())))
+            b = border_samples(fs, cond.cutoff, cond.order)
+            step = max(int(settings.segment * fs), 4 * b)
+            starts = list(range(0, max(N - 2 * b, 1), step))
+            jobs: deque = deque()
+            for i, lo in enumerate(starts):  # consecutive segments overlap by the two borders
+                jobs.append(pool.submit(segment_rows, channels, factors, fs, lo, min(N, lo + step + 2 * b)))
+                if len(jobs) == 3:  # at most three segments in flight; a result is dropped once used
+                    use(spec, jobs.popleft(), i - 1, len(starts))
+            while jobs:  # segment numbers are 1-based: the job popped is number len(starts) - len(jobs) after it
+                use(spec, jobs.popleft(), len(starts) - len(jobs), len(starts))
     ident = streams["identify"]
     say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.upper()})")
     try:

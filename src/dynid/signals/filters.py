@@ -20,6 +20,8 @@ Conventions of this module, shared by the derivative and decimation modules:
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import butter, sosfiltfilt
@@ -31,9 +33,18 @@ from .errors import SignalError
 def design_lowpass(fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
     """Digital Butterworth low-pass of one pass as second-order sections, shape (ceil(order/2), 6).
 
-    Package helper; arguments are assumed already checked.
+    Package helper; arguments are assumed already checked. The design is cached: a pipeline asks
+    for the same few filters thousands of times (each caller gets its own copy: scipy's sosfilt
+    wants a writable array).
     """
-    return np.asarray(butter(order, cutoff, btype="low", fs=fs, output="sos"), dtype=np.float64)
+    return _design(float(fs), float(cutoff), int(order)).copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _design(fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
+    sos = np.asarray(butter(order, cutoff, btype="low", fs=fs, output="sos"), dtype=np.float64)
+    sos.setflags(write=False)
+    return sos
 
 
 def pad_length(sos: NDArray[np.float64]) -> int:

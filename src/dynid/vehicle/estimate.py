@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
@@ -212,25 +213,39 @@ def estimate_joints(
         q[:, j], qd[:, j], qdd[:, j] = integrate(v, fs), v, lp(a0[:, j])
     qdd[:, 2] = lp(a0[:, 2])
 
-    # --- corners: camera channels, wheel speeds
-    for k, t in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k  # frame numbers b..b+8; column of frame j is j - 1
-        for frame, name in ((b + 2, "clearance"), (b + 3, "steer"), (b + 4, "camber")):
-            q[:, frame - 1], qd[:, frame - 1], qdd[:, frame - 1] = smooth(ch[f"{name}_{t}"])
-        w, dw = from_rate(ch[f"wheel_speed_{t}"])
-        q[:, b + 6], qd[:, b + 6], qdd[:, b + 6] = integrate(w, fs), w, dw
+    # --- corners: camera channels and wheel speeds, each kind filtered as one (N, 4) matrix
+    for name, offset in (("clearance", 1), ("steer", 2), ("camber", 3)):
+        cols = [7 + 9 * k + offset for k in range(4)]  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
+        q[:, cols], qd[:, cols], qdd[:, cols] = smooth(np.stack([ch[f"{name}_{t}"] for t in CORNER_TAGS], axis=1))
+    w, dw = from_rate(np.stack([ch[f"wheel_speed_{t}"] for t in CORNER_TAGS], axis=1))
+    spin = [7 + 9 * k + 6 for k in range(4)]
+    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(w, fs), w, dw
     h = smooth(ch["steering_wheel"])
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"))
 
     # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
     # corner takes the chassis height its own laser implies: attitude errors then act over the 0.35 m between
-    # laser and wheel, not over the wheelbase
-    for k, t in enumerate(CORNER_TAGS):
-        f = 15 + 9 * k
-        qk = q.copy()
-        qk[:, 2] = ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
-        st = forward_kinematics(model.tree, joint_array(qk, model.tree, "q")[0], frames=[f])
-        q[:, f - 1], qd[:, f - 1], qdd[:, f - 1] = smooth(-st.P[f][2] / st.Rc[f][2][2])
+    # laser and wheel, not over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0
+    # serves the four corners.
+    # The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
+    # (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work.
+    tires = [15 + 9 * k for k in range(4)]
+    k_sub = max(1, int(fs / (20 * c.cutoff)))
+    sub = np.arange(0, N, k_sub)
+    if sub[-1] != N - 1:
+        sub = np.append(sub, N - 1)
+    q0 = q[sub].copy()
+    q0[:, 2] = 0.0
+    st = forward_kinematics(model.tree, joint_array(q0, model.tree, "q")[0], frames=tires)
+    n_all = np.arange(N)
+    deflection = np.empty((N, 4))
+    for k, (t, f) in enumerate(zip(CORNER_TAGS, tires, strict=True)):
+        z_laser = ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
+        pz = CubicSpline(sub, st.P[f][2])(n_all)
+        zz = CubicSpline(sub, st.Rc[f][2][2])(n_all)
+        deflection[:, k] = -(pz + z_laser) / zz
+    cols = [f - 1 for f in tires]
+    q[:, cols], qd[:, cols], qdd[:, cols] = smooth(deflection)
 
     ww = lp(np.stack([np.stack([ch[f"wft_{t}_{k}"] for k in WFT_COMPONENTS], axis=1) for t in CORNER_TAGS], axis=1))
     spin = None
