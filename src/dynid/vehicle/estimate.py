@@ -175,19 +175,19 @@ def estimate_joints(
     A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
     p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
-    phi, theta = lowpass(ch["imu_roll"], fs, c.cutoff, c.order), lowpass(ch["imu_pitch"], fs, c.cutoff, c.order)
+    incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+    phi, theta = lp(incl).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
         sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
         dphi = p + (qb * sp + r * cp) * np.tan(theta)
         dtheta = qb * cp - r * sp
         dpsi = (qb * sp + r * cp) / ct
-        phi_i, theta_i = integrate(dphi, fs), integrate(dtheta, fs)
-        phi = phi_i + lowpass(ch["imu_roll"] - phi_i, fs, c.attitude_crossover, c.order)
-        theta = theta_i + lowpass(ch["imu_pitch"] - theta_i, fs, c.attitude_crossover, c.order)
+        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
     psi = integrate(dpsi, fs)
-    for j, (angle, rate, sign) in enumerate(((psi, dpsi, 1.0), (theta, dtheta, -1.0), (phi, dphi, 1.0))):
-        rf, rdf = from_rate(rate)
-        q[:, 3 + j], qd[:, 3 + j], qdd[:, 3 + j] = sign * lp(angle), sign * rf, sign * rdf
+    sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
+    rf, rdf = from_rate(np.stack([dpsi, dtheta, dphi], axis=1))
+    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * lp(np.stack([psi, theta, phi], axis=1)), sign * rf, sign * rdf
     R6 = chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])
 
     # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground)
@@ -208,10 +208,8 @@ def estimate_joints(
     v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
     v0 = v_known + s[:, None] * (R6 @ ez6)
-    for j in range(2):
-        v = lp(v0[:, j])
-        q[:, j], qd[:, j], qdd[:, j] = integrate(v, fs), v, lp(a0[:, j])
-    qdd[:, 2] = lp(a0[:, 2])
+    v = lp(v0[:, :2])
+    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
 
     # --- corners: camera channels and wheel speeds, each kind filtered as one (N, 4) matrix
     for name, offset in (("clearance", 1), ("steer", 2), ("camber", 3)):
