@@ -236,8 +236,8 @@ def jacobian(
 
 
 def _local_cols(Rc: Array, V: Array) -> Array:
-    """R^T applied to each column of V (3, n, N)."""
-    return np.stack([(Rc[c][:, None, :] * V).sum(axis=0) for c in range(3)])
+    """R^T applied to each column of V (3, n, N): out[c, j] = column c of R . V[:, j]."""
+    return np.einsum("cin,ijn->cjn", np.asarray(Rc), V, optimize=True)
 
 
 __all__ = [

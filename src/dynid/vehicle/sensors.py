@@ -59,6 +59,7 @@ Values not in the paper's Table 1 are chosen and marked `source="chosen"`.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -295,25 +296,39 @@ class SensorSuite:
         return out
 
 
+@functools.lru_cache(maxsize=64)
+def _butter2(bandwidth: float, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from scipy.signal import butter, lfilter_zi
+
+    b, a = butter(2, bandwidth / (0.5 * rate))
+    return b, a, lfilter_zi(b, a)
+
+
 def lowpass(x: np.ndarray, bandwidth: float | None, rate: float) -> np.ndarray:
     """Causal 2nd-order Butterworth low-pass at `bandwidth` Hz, started in steady state at x[0]."""
-    from scipy.signal import butter, lfilter, lfilter_zi
+    from scipy.signal import lfilter
 
     if bandwidth is None or bandwidth >= 0.45 * rate or x.size < 2:
         return x
-    b, a = butter(2, bandwidth / (0.5 * rate))
-    y, _ = lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])
+    b, a, zi = _butter2(float(bandwidth), float(rate))
+    y, _ = lfilter(b, a, x, zi=zi * x[0])
     return y
+
+
+@functools.lru_cache(maxsize=64)
+def _hold_index(n: int, sensor_rate: float, rate: float) -> np.ndarray:
+    t = np.arange(n) / rate
+    k = np.floor(t * sensor_rate + 1e-9)  # the sensor sample last taken at or before t
+    idx = np.minimum(np.ceil(k / sensor_rate * rate - 1e-9).astype(int), n - 1)
+    idx.setflags(write=False)
+    return idx
 
 
 def sample_and_hold(x: np.ndarray, sensor_rate: float, rate: float) -> np.ndarray:
     """Sample x (on the clock `rate`) at the sensor's own rate and hold each value until the next."""
     if sensor_rate >= rate:
         return x
-    t = np.arange(x.size) / rate
-    k = np.floor(t * sensor_rate + 1e-9)  # the sensor sample last taken at or before t
-    idx = np.minimum(np.ceil(k / sensor_rate * rate - 1e-9).astype(int), x.size - 1)
-    return x[idx]
+    return x[_hold_index(x.size, float(sensor_rate), float(rate))]
 
 
 def corrupt(x: np.ndarray, c: SensorChannel, rate: float, error: np.ndarray | None) -> np.ndarray:
