@@ -209,3 +209,56 @@ def test_bad_input(sim, tmp_path):
     with pytest.raises(OutputError, match="format"):
         check_output(tmp_path / "x.xlsx")
     assert kernel.NY == 39
+
+
+def test_residual_through_the_sensor_suite_is_of_the_order_the_accuracies_predict(sim):
+    """Every channel through the sensor models (Table 1: noise, biases, band limits, holds) and the
+    estimator: the true parameters leave a residual of the order a first-order error budget of the
+    sensors predicts, group by group (within a factor 3 either way). The budget, from the suite's numbers:
+    noise, white at the sensor's own rate (it is added after the band limit), is low-passed by the 4 Hz
+    filter (standard deviation times sqrt(2 fc / rate)), biases (drawn once per run) stay;
+    forces = mass x acceleration error + the four wheel-force zeros, moments = that force x a lever arm
+    (1.5 m along, 0.75 m across the car), dampers = ks x clearance error + a wheel-force zero,
+    tires = kt x (laser zero + laser noise + inclinometer bias over the 0.35 m laser-to-wheel offset).
+    Each group stays below 3x its budget; each family (forces, moments, dampers, tires) above a third of it."""
+    from dynid.io import to_si
+    from dynid.vehicle import Aerodynamics, aero_wrench
+    from dynid.vehicle.equations import car_identification
+    from dynid.vehicle.estimate import CarConditioning, estimate_joints
+    from dynid.vehicle.sensors import paper_suite
+
+    run = sim.run("sine", duration=12.0)
+    suite = paper_suite()
+    meas = suite.measure(run.ideal_channels(), np.random.default_rng(7))
+    si = {k: to_si(v, suite[k].unit)[0] for k, v in meas.items()}
+    model = Model(run.tree)
+    fc = 4.0
+    tr = estimate_joints(si, 625.0, model, conditioning=CarConditioning(cutoff=fc))
+    aero = aero_wrench(model, tr.q, tr.qd, Aerodynamics())
+    eq = car_identification(model, tr.q, tr.qd, tr.qdd, tr.wheel_wrenches, aero)
+    res = eq.residual(run.tree.parameters)
+
+    def error(name: str, scale: float = 1.0) -> float:  # SI error of a channel after the filter
+        c = suite[name]
+        return scale * (c.accuracy * np.sqrt(2 * fc / c.rate) + c.bias)
+
+    mass = sum(run.tree.values.get(f"M{j}", 0.0) for j in range(1, 43))
+    zeros = 2 * suite["wft_rl_Fz"].bias  # four independent zeros add up as 2 sigma
+    # ground x is across the car here (it drives along y0): the lateral accelerometer; y along: the longitudinal
+    force = {"x": mass * error("imu_ay") + zeros, "y": mass * error("imu_ax") + zeros,
+             "z": mass * error("imu_az") + zeros}
+    kt = np.mean([run.tree.values[f"K{t}"] for t in TIRES])
+    laser = error("laser_height_rl", 1e-3) + np.radians(error("imu_roll")) * 0.35
+    budget = {**force, "yaw": 1.5 * force["x"], "pitch": 1.5 * force["z"], "roll": 0.75 * force["z"]}
+    zero = suite["wft_rl_Fz"].bias
+    budget.update({f"susp{d}": 24000.0 * error("clearance_rl", 1e-3) + zero for d in (9, 18, 27, 36)})
+    budget.update({f"tire{t}": kt * laser + zero for t in TIRES})
+    rms = {g: float(np.sqrt(np.mean(res[eq.groups == g] ** 2))) for g in budget}
+    for g, b in budget.items():  # no group beyond 3x its budget
+        assert rms[g] < 3 * b, (g, rms[g], b)
+    # and not far below it either: per family, since a bias drawn once per run can be small for one group
+    for family in (("x", "y", "z"), ("yaw", "pitch", "roll"), tuple(f"susp{d}" for d in (9, 18, 27, 36)),
+                   tuple(f"tire{t}" for t in TIRES)):
+        got = np.sqrt(np.mean([rms[g] ** 2 for g in family]))
+        want = np.sqrt(np.mean([budget[g] ** 2 for g in family]))
+        assert got > want / 3, (family, got, want)
