@@ -71,24 +71,31 @@ def cmd_model_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _say(msg: str) -> None:
+    print(f"· {msg}", file=sys.stderr)
+
+
+def _print_run(run, validation_title: str) -> None:
+    """The tables of an identification, the published comparison if any, and the validation errors."""
+    from ..report import validation_table
+
+    print(run.summary())
+    if run.reference:
+        print("\nComparison with the published identification:")
+        print(run.reference_table())
+    print(f"\n{validation_title}")
+    print(validation_table(run.errors))
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..pipeline.config import load_config
     from ..pipeline.run import identify, write_outputs
-    from ..report import validation_table
 
-    cfg = load_config(args.config)
-    run = identify(cfg, progress=lambda msg: print(f"· {msg}", file=sys.stderr))
-    print(run.summary())
-    if run.reference:
-        print("\nComparison with the published identification:")
-        print(run.reference_table())
-    print("\nValidation, relative error ||Y - W X|| / ||Y||:")
-    print(validation_table(run.errors))
-    out = Path(args.out)
-    files = write_outputs(run, out, f"Identification of {run.model.name}",
-                          progress=lambda msg: print(f"· {msg}", file=sys.stderr))
+    run = identify(load_config(args.config), progress=_say)
+    _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
+    files = write_outputs(run, Path(args.out), f"Identification of {run.model.name}", progress=_say)
     print(f"\nwrote {', '.join(str(f) for f in files)}")
     return 0
 
@@ -99,27 +106,22 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     from ..pipeline.demo import run_demo
     from ..pipeline.run import write_outputs
-    from ..report import validation_table
+    from ..vehicle import WHEELS
     from .simulate_cmds import progress_bar
 
     t0 = time.perf_counter()
     out = Path(args.out)
-    say = lambda msg: print(f"· {msg}", file=sys.stderr)  # noqa: E731
-    run = run_demo(out, quick=args.quick, seed=args.seed, progress=say, simulation_progress=progress_bar)
-    r = run.result
-    print(run.summary())
-    print("\nValidation, relative error ||Y - W X|| / ||Y|| (direct: sine and spiral; cross: braking):")
-    print(validation_table(run.errors))
-    tree = run.model.tree
-    wheels = sum(tree.values.get(f"M{w}", 0.0) for w in (14, 23, 32, 41))
+    run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar)
+    _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| (direct: sine and spiral; cross: braking):")
+    r, tree = run.result, run.model.tree
+    wheels = sum(tree.values.get(f"M{w}", 0.0) for w in WHEELS)
     m6, true_m6 = r.value("M6"), r.truth.get("M6")
     if true_m6:
         err = 100 * (m6 - true_m6) / (true_m6 + wheels)
         print(f"\nTotal mass: {m6 + wheels:.1f} kg estimated, {true_m6 + wheels:.1f} kg true ({err:+.2f} %)")
-    files = write_outputs(run, out, "dynid demo: the simulated Peugeot 406", progress=say)
+    write_outputs(run, out, "dynid demo: the simulated Peugeot 406", progress=_say)
     print(f"\nwrote {out / 'report.html'}, {out / 'results.json'}, the figures, and the test files and "
           f"config in {out} (dynid identify {out / 'identify.toml'} reruns it) in {time.perf_counter() - t0:.1f} s")
-    del files
     return 0
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.tree import FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
+from ..model.tree import PRISMATIC, REVOLUTE, ModelError, Tree
 
 Array = np.ndarray
 
@@ -241,7 +241,6 @@ def _local_cols(Rc: Array, V: Array) -> Array:
 
 
 __all__ = [
-    "FIXED",
     "KinematicState",
     "check_frame",
     "combine",

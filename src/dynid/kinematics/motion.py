@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.tree import FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
+from ..model.tree import PRISMATIC, REVOLUTE, ModelError, Tree
 from .forward import check_frame, forward_kinematics, frame_plan, joint_array, needed_frames, to_local, to_world
 
 Array = np.ndarray
@@ -226,4 +226,4 @@ def jdot_qdot(
     return out[0] if single else out
 
 
-__all__ = ["FIXED", "FrameRotation", "Motion", "dense", "jdot_qdot", "local_motion", "matvec", "vadd", "vcross"]
+__all__ = ["FrameRotation", "Motion", "dense", "jdot_qdot", "local_motion", "matvec", "vadd", "vcross"]

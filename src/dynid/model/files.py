@@ -41,18 +41,20 @@ _TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "l
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
 
 
-def load_tree(path: str | os.PathLike[str]) -> Tree:
-    """Read a model file; errors name the file, the frame and the field."""
+def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception] = ModelError) -> dict:
+    """The table of a TOML file; a missing file or bad TOML raises `error` naming the file (and the line)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
-        raise ModelError(f"{path}: cannot read the model file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
+        raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"{path}: not valid TOML: {exc}") from None
-    return tree_from_dict(data, source=str(path))
+        raise error(f"{path}: not valid TOML: {exc}") from None
+
+
+def load_tree(path: str | os.PathLike[str]) -> Tree:
+    """Read a model file; errors name the file, the frame and the field."""
+    return tree_from_dict(read_toml(path, "model file"), source=str(path))
 
 
 def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:

@@ -61,7 +61,6 @@ Every error names the config file and the key, and says what is expected.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -69,7 +68,7 @@ from typing import Any
 import numpy as np
 
 from ..model import ModelError
-from ..model.files import parse_number
+from ..model.files import parse_number, read_toml
 from .robot import Conditioning
 
 
@@ -129,12 +128,7 @@ _TOP = {"model", "tests", "channels", "transmission", "conditioning", "identific
 
 def load_config(path: str | Path) -> IdentifyConfig:
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read the config ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "config", ConfigError)
     here = path.resolve().parent
 
     def err(key: str, msg: str) -> ConfigError:

@@ -81,7 +81,7 @@ def joint_system(
     t = (np.arange(test.q.shape[0])[keep] / test.fs)
     # decimate W, Y and the speeds with the same filter, so that the speed test sees the decimated samples
     Wd, Yd = decimate_parallel(W, Y, c.decimate, test.fs)
-    _, speed = decimate_parallel(qd[:, :, None], qd, c.decimate, test.fs)
+    speed, _ = decimate_parallel(qd, qd[:, 0], c.decimate, test.fs)  # the speeds as the columns of one row
     td = t[:: int(np.prod(c.decimate))][: Wd.shape[0]]
     parts = []
     for i, j in enumerate(rows):

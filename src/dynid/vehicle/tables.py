@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import math
 import os
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline, RectBivariateSpline
 
+from ..model.files import read_toml
 from ..model.tree import ModelError
 from .geometry import CarGeometry, side
 from .template import CORNERS, base
@@ -278,12 +278,7 @@ def _named(build, path: Path) -> KinematicTable:
 def load_tables(path: str | os.PathLike[str], defaults: KinematicTables | None = None) -> KinematicTables:
     """Tables from a TOML file; corners/tables it does not give keep the defaults."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise KinematicTableError(f"{path}: cannot read the tables ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise KinematicTableError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "tables", KinematicTableError)
     out = default_tables() if defaults is None else defaults
     for ckey, tabs in data.items():
         if ckey not in CORNER_KEYS or not isinstance(tabs, dict):
