@@ -317,6 +317,22 @@ def test_decimated_consistent_system_gives_back_parameters(factor):
         assert np.linalg.norm(x_dec - x_full) <= 1e-10 * np.linalg.norm(X)
 
 
+def test_structural_zero_columns_stay_zero_and_the_others_are_filtered_alike():
+    # Identification matrices are mostly structural zeros; decimation skips them (zero in, zero out)
+    # and must filter the other columns exactly as if they were alone.
+    rng = np.random.default_rng(3)
+    n, m, p = 6000, 2, 5
+    W = rng.standard_normal((n, m, p))
+    W[:, 0, 1] = 0.0
+    W[:, :, 3] = 0.0
+    Y = rng.standard_normal((n, m))
+    Wd, Yd = decimate_parallel(W, Y, 10, FS, block_columns=3)
+    assert not Wd[:, 0, 1].any() and not Wd[:, :, 3].any()
+    cutoff = 0.8 * FS / (2 * 10)
+    np.testing.assert_allclose(Wd, lowpass(W, FS, cutoff, 8)[::10], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(Yd, lowpass(Y, FS, cutoff, 8)[::10], rtol=0, atol=1e-12)
+
+
 def test_decimation_passes_band_and_stops_aliases():
     n, factor, order = 12000, 10, 8
     t = np.arange(n) * H

@@ -96,15 +96,20 @@ def _stages(n: int, factors: tuple[int, ...], fs: float, order: int, cutoff) -> 
     return stages
 
 
-def _decimate_columns(a: NDArray[np.float64], stages: list[_Stage], block: int) -> NDArray[np.float64]:
-    """Filter and decimate every column of a 2-D (N, C) array, `block` columns at a time."""
-    out = np.empty((stages[-1].n_out, a.shape[1]))
-    for c0 in range(0, a.shape[1], block):
+def _decimate_columns(
+    a: NDArray[np.float64], stages: list[_Stage], block: int, columns: NDArray[np.intp] | None = None
+) -> NDArray[np.float64]:
+    """Filter and decimate the columns (all, or those listed) of a 2-D (N, C) array, `block` at a time;
+    the columns not listed are left zero."""
+    out = np.zeros((stages[-1].n_out, a.shape[1]))
+    columns = np.arange(a.shape[1]) if columns is None else columns
+    for c0 in range(0, len(columns), block):
+        cols = columns[c0 : c0 + block]
         # Columns as contiguous rows: each filter pass then runs along memory.
-        work = np.ascontiguousarray(a[:, c0 : c0 + block].T)
+        work = np.ascontiguousarray(a[:, cols].T)
         for s in stages:
             work = sosfiltfilt(s.sos, work, axis=-1, padtype="odd", padlen=pad_length(s.sos))[:, :: s.factor]
-        out[:, c0 : c0 + block] = work.T
+        out[:, cols] = work.T
     return out
 
 
@@ -182,6 +187,9 @@ def decimate_parallel(
     else:
         block = int(block_columns)
     nd = stages[-1].n_out
-    Wd = _decimate_columns(W2, stages, block).reshape((nd, *Wa.shape[1:]))
+    # identification matrices are mostly structural zeros (a joint's row holds only its subtree's
+    # parameters): the filter maps zero to zero, so only the other columns are filtered
+    live = np.flatnonzero(np.any(W2 != 0, axis=0))
+    Wd = _decimate_columns(W2, stages, block, live).reshape((nd, *Wa.shape[1:]))
     Yd = _decimate_columns(Y2, stages, block).reshape((nd, *Ya.shape[1:]))
     return Wd, Yd
