@@ -415,3 +415,71 @@ def test_estimation_layer_imports_no_model_layers():
     for path in package.glob("*.py"):
         for mod in _dynid_imports(ast.parse(path.read_text())):
             assert mod.split(".")[0] not in ("model", "kinematics", "dynamics"), f"{path.name} imports {mod}"
+
+
+# ---------------------------------------------------------------- sensor offsets (systematic uncertainty)
+
+
+def _biased_system(b: np.ndarray, rng_seed: int = 5):
+    """A two-group system built from two 'measured' signals u1, u2 whose zero offsets are b:
+    W and Y depend on them nonlinearly, as the car's equations depend on their channels."""
+    rng = np.random.default_rng(rng_seed)
+    t = np.linspace(0.0, 10.0, 400)
+    u1 = np.sin(1.3 * t) + b[0]
+    u2 = np.cos(0.7 * t) + 0.3 * t / 10 + b[1]
+    X = np.array([2.0, -1.0, 0.5, 3.0])
+    Wa = np.column_stack([u1, u1 * u2, np.ones_like(t), np.zeros_like(t)])
+    Wb = np.column_stack([np.zeros_like(t), u2 ** 2, np.sin(u1), u2])
+    truth_a = np.column_stack([np.sin(1.3 * t), np.sin(1.3 * t) * np.cos(0.7 * t), np.ones_like(t), 0 * t]) @ X
+    truth_b = np.column_stack([0 * t, (np.cos(0.7 * t) + 0.03 * t) ** 2, np.sin(np.sin(1.3 * t)),
+                               np.cos(0.7 * t) + 0.03 * t]) @ X
+    W = np.vstack([Wa, Wb])
+    Y = np.concatenate([truth_a + 0.05 * rng.standard_normal(t.size) + 4.0 * b[0],
+                        truth_b + 0.2 * rng.standard_normal(t.size)])
+    groups = np.repeat(["a", "b"], t.size)
+    return W, Y, groups
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_sensor_offsets_propagate_as_a_finite_difference_of_the_estimate(weighted):
+    """ΔX for a one-σ offset equals the change of the least-squares estimate when the data are rebuilt
+    with that offset (re-solved by numpy, same weights), to first order; the covariance is their sum."""
+    names = ["a", "b", "c", "d"]
+    sigma_b = np.array([0.02, 0.05])
+    W0, Y0, g = _biased_system(np.zeros(2))
+    s = StreamingLS(names, known={"c": 0.5})
+    s.add(W0, Y0, g)
+    res = s.solve_weighted() if weighted else s.solve()
+    acc = s.bias_accumulator()
+    eps = 1e-4  # the derivative by a small offset, scaled to one sigma
+    for k in range(2):
+        b = np.zeros(2)
+        b[k] = eps * sigma_b[k]
+        W1, Y1, _ = _biased_system(b)
+        acc.add(f"u{k + 1}", W0, Y0, (W1 - W0) / eps, (Y1 - Y0) / eps, g)
+    full = s.with_systematic(res, acc)
+    w = np.array([1.0 / res.weights[x] if weighted else 1.0 for x in g])
+    est = [0, 1, 3]
+
+    def solve(W, Y):
+        Ye = Y - W[:, 2] * 0.5
+        return np.linalg.lstsq(W[:, est] * w[:, None], Ye * w, rcond=None)[0]
+
+    x0 = solve(W0, Y0)
+    np.testing.assert_allclose(x0, [res.value(n) for n in ("a", "b", "d")], rtol=1e-10)
+    shifts = []
+    for k in range(2):
+        b = np.zeros(2)
+        b[k] = sigma_b[k]
+        W1, Y1, _ = _biased_system(b * 1e-3)
+        shifts.append((solve(W1, Y1) - x0) / 1e-3)  # one-σ shift by finite difference
+        np.testing.assert_allclose(full.systematic.shifts[f"u{k + 1}"], shifts[-1], rtol=1e-3, atol=1e-9)
+    cov = sum(np.outer(d, d) for d in shifts)
+    np.testing.assert_allclose(full.systematic.covariance, cov, rtol=2e-3, atol=1e-12)
+    np.testing.assert_allclose(full.std_total[[0, 1, 3]], np.hypot(res.std[[0, 1, 3]], np.sqrt(np.diag(cov))),
+                               rtol=2e-3)
+    main = f"u{1 + int(abs(shifts[1][0]) > abs(shifts[0][0]))}"
+    assert np.isnan(full.std_total[2]) and full.systematic.main_source("a") == main
+    d = full.to_dict()["parameters"][0]
+    assert d["std_total"] > d["std"] and d["main_offset"] == main
+    assert "%std total" in full.summary()

@@ -79,3 +79,42 @@ def test_bad_configs_fail_with_one_clear_line(files, capsys, change, words):
     for w in words:
         assert w in err, (w, err)
     assert not (files / "out" / "results.json").exists()  # nothing half-written
+
+
+CAR = """
+[model]
+template = "peugeot406"
+
+[[tests]]
+file = "sine.csv"
+
+[uncertainty]
+{uncertainty}
+"""
+
+
+@pytest.mark.parametrize("uncertainty, words", [
+    ('offsets = { imu_azz = 0.01 }', ["[uncertainty]", "'imu_azz'", "imu_az"]),
+    ('offsets = { imu_az = -0.01 }', ["[uncertainty]", "imu_az", ">= 0"]),
+    ('offsets = { imu_az = "a lot" }', ["[uncertainty]", "imu_az"]),
+    ('offsets = { imu_az = 0.01 }\nsegments = 0', ["[uncertainty]", "segments", ">= 1"]),
+    ('offset = { imu_az = 0.01 }', ["[uncertainty]", "unknown key", "offset"]),
+])
+def test_sensor_offset_declarations_are_checked(tmp_path, uncertainty, words):
+    from dynid.pipeline.config import ConfigError, load_config
+
+    (tmp_path / "sine.csv").write_text("time\n0\n")
+    cfg = tmp_path / "identify.toml"
+    cfg.write_text(CAR.format(uncertainty=uncertainty))
+    with pytest.raises(ConfigError) as exc:
+        load_config(cfg)
+    for w in words:
+        assert w in str(exc.value), (w, str(exc.value))
+    cfg.write_text(CAR.format(uncertainty='offsets = { imu_az = 0.01, laser_height_rl = 0.5 }\nsegments = 3'))
+    settings = load_config(cfg).car
+    assert settings.offsets == {"imu_az": 0.01, "laser_height_rl": 0.5} and settings.offset_segments == 3
+
+
+def test_sensor_offsets_are_for_the_car_only(files, capsys):
+    rc, _, err = run(files, GOOD + "\n[uncertainty]\noffsets = {{ j1 = 0.01 }}\n", capsys)
+    assert rc == 2 and "[uncertainty]" in err and "car template only" in err

@@ -1,6 +1,7 @@
 """Estimation: ordinary and weighted least squares with standard deviations (paper §5),
 rank checks naming unidentifiable parameters, the %σ rule of thumb and essential parameters
-(§7.2), validation errors, streaming least squares, and the results object.
+(§7.2), validation errors, streaming least squares, the sensor offsets' systematic
+uncertainty, and the results object.
 
 Works on plain arrays and names: W (m, p), Y (m,), the equation group of each row, the p
 parameter names. It imports nothing from the model, kinematics or dynamics layers.
@@ -13,11 +14,14 @@ from .ols import ols
 from .quality import POOR_FACTOR, poorly_identified, relative_errors, relative_std_percent
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS
+from .systematic import BiasAccumulator, SystematicUncertainty, propagate
 from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
 
 __all__ = [
-    "POOR_FACTOR", "RESIDUAL_TOL", "SIGMA_FLOOR", "EssentialResult", "EssentialStep", "EstimationWarning",
+    "POOR_FACTOR", "RESIDUAL_TOL", "SIGMA_FLOOR", "BiasAccumulator", "EssentialResult", "EssentialStep",
+    "EstimationWarning",
     "GroupFit", "IdentificationError", "IdentificationResult", "LSQSolution", "ResidualStats", "StreamingLS",
-    "check_rank", "essential_parameters", "group_noise", "ols", "poorly_identified", "relative_errors",
+    "SystematicUncertainty",
+    "check_rank", "essential_parameters", "group_noise", "ols", "poorly_identified", "propagate", "relative_errors",
     "relative_std_percent", "solve_lsq", "wls",
 ]

@@ -14,6 +14,7 @@ import numpy as np
 from ..atomic import atomic_path
 from .lsq import LSQSolution
 from .quality import POOR_FACTOR, poorly_identified, relative_std_percent
+from .systematic import SystematicUncertainty
 
 FLAG_POOR = "poor"
 FLAG_KNOWN = "known"
@@ -61,6 +62,8 @@ class IdentificationResult:
     residual : ``ResidualStats``.
     covariance : (q, q) covariance of the estimated parameters, order ``estimated_names``.
     validation : ``{"direct": {...}, "cross": {...}}``, filled by the caller (e.g. relative errors).
+    systematic : the declared sensor offsets' effect (`with_systematic`), or None; `std` stays the
+    statistical (paper) one, `std_total` combines both.
     """
 
     names: tuple[str, ...]
@@ -80,6 +83,7 @@ class IdentificationResult:
     estimated_names: tuple[str, ...]
     poor_factor: float = POOR_FACTOR
     validation: dict[str, dict[str, Any]] = field(default_factory=_default_validation)
+    systematic: SystematicUncertainty | None = None
 
     # ----------------------------------------------------------------- access by name
     def index(self, name: str) -> int:
@@ -99,6 +103,30 @@ class IdentificationResult:
         return {n: float(v) for n, v in zip(self.names, self.values, strict=True)}
 
     @property
+    def std_systematic(self) -> np.ndarray:
+        """(p,) standard deviations caused by the declared sensor offsets (0 without any; NaN if known)."""
+        out = np.where(np.isnan(self.std), np.nan, 0.0)
+        if self.systematic is not None:
+            for k, n in enumerate(self.systematic.names):
+                out[self.index(n)] = self.systematic.std[k]
+        return out
+
+    @property
+    def std_total(self) -> np.ndarray:
+        """(p,) combined standard uncertainty: statistical and systematic in quadrature."""
+        return np.hypot(self.std, self.std_systematic)
+
+    @property
+    def rel_std_total_percent(self) -> np.ndarray:
+        return relative_std_percent(self.values, self.std_total)
+
+    def with_systematic(self, systematic: SystematicUncertainty) -> IdentificationResult:
+        """This result with the sensor offsets' uncertainty attached (flags unchanged: paper's rule)."""
+        import dataclasses
+
+        return dataclasses.replace(self, systematic=systematic)
+
+    @property
     def poor(self) -> list[str]:
         """Names flagged as poorly identified."""
         return [n for n, f in zip(self.names, self.flags, strict=True) if f == FLAG_POOR]
@@ -109,8 +137,11 @@ class IdentificationResult:
 
         Schema: ``{"method", "parameters": [{"name", "label", "value", "std", "rel_std_percent",
         "a_priori", "truth", "flag"}], "validation": {"direct": {...}, "cross": {...}},
-        "condition_number", "weights": {group: sigma}, "residual": {...}, "poor_factor"}``.
+        "condition_number", "weights": {group: sigma}, "residual": {...}, "poor_factor"}``; with sensor
+        offsets declared, each parameter also has "std_systematic", "std_total", "rel_std_total_percent"
+        and "main_offset" (the offset that moves it most).
         """
+        sys_std, total, rel_total = self.std_systematic, self.std_total, self.rel_std_total_percent
         params = [
             {
                 "name": n,
@@ -121,6 +152,10 @@ class IdentificationResult:
                 "a_priori": self.a_priori.get(n),
                 "truth": self.truth.get(n),
                 "flag": self.flags[i],
+                **({"std_systematic": float(sys_std[i]), "std_total": float(total[i]),
+                    "rel_std_total_percent": float(rel_total[i]),
+                    "main_offset": self.systematic.main_source(n) if n in self.systematic.names else None}
+                   if self.systematic is not None else {}),
             }
             for i, n in enumerate(self.names)
         ]
@@ -185,7 +220,8 @@ class IdentificationResult:
         show_label = any(self.labels.get(n, n) != n for n in self.names)
         columns = ["parameter"] + (["label"] if show_label else [])
         columns += (["a priori"] if self.a_priori else []) + (["truth"] if self.truth else [])
-        columns += ["estimated", "std", "%std", "flag"]
+        columns += ["estimated", "std", "%std"] + (["%std total"] if self.systematic is not None else []) + ["flag"]
+        rel_total = self.rel_std_total_percent
         body = []
         for i, n in enumerate(self.names):
             row = [n] + ([self.labels.get(n, n)] if show_label else [])
@@ -197,6 +233,7 @@ class IdentificationResult:
                 _num(self.values[i], ".6g"),
                 _num(self.std[i], ".3g"),
                 _num(self.rel_std_percent[i], ".2f"),
+                *([_num(rel_total[i], ".2f")] if self.systematic is not None else []),
                 self.flags[i],
             ]
             body.append(row)
@@ -218,6 +255,8 @@ class IdentificationResult:
                 f"poor: %std > {self.poor_factor:g} x the smallest %std ({finite[best]:.3g} % for {best}), "
                 f"paper §7.2; {len(self.poor)} flagged"
             )
+        if self.systematic is not None:
+            foot.append("%std total: with the declared sensor offsets propagated (%std is the paper's, statistical)")
         if self.weights:
             foot.append("equation groups: residual std sigma_j (rows weighted by 1/sigma_j)")
             gw = max(len(g) for g in self.weights)

@@ -36,6 +36,7 @@ from .errors import IdentificationError
 from .lsq import LSQSolution, solve_lsq
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
+from .systematic import BiasAccumulator, propagate
 from .wls import SIGMA_FLOOR, GroupFit, checked_sigmas, fit_group, warn_floored
 
 DEFAULT_GROUP = "all"
@@ -174,6 +175,20 @@ class StreamingLS:
         given = group_sigmas is not None
         sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
         return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
+
+    def bias_accumulator(self) -> BiasAccumulator:
+        """An accumulator of sensor-offset effects on rows of this system's columns (see `systematic`)."""
+        cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
+        known = np.array([self.names.index(n) for n in self.known], dtype=int)
+        return BiasAccumulator(cols, known, np.array(list(self.known.values()), dtype=float))
+
+    def with_systematic(self, result: IdentificationResult, accumulator: BiasAccumulator) -> IdentificationResult:
+        """`result` (from `solve` or `solve_weighted` on these rows) with the offsets' uncertainty attached."""
+        sigmas = result.weights or None
+        q = len(self.estimated_names)
+        R = self._stacked(sigmas)[:q, :q]
+        x = np.array([result.value(n) for n in self.estimated_names])
+        return result.with_systematic(propagate(R.T @ R, accumulator, x, self.estimated_names, sigmas))
 
     def relative_errors(self, X: ArrayLike | Mapping[str, float] | IdentificationResult) -> dict[str, float]:
         """``||Y_g - W_g X|| / ||Y_g||`` per group plus ``"overall"`` on the rows added.

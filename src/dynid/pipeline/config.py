@@ -56,6 +56,10 @@ assembles the paper's 14 equations:
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
 
+    [uncertainty]                    # optional: the sensors' zero offsets (1 sigma, each channel's unit),
+    offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # propagated to the estimates (%σ total)
+    segments = 2                     # segments per test on which their effect is evaluated
+
 Every error names the config file and the key, and says what is expected.
 """
 
@@ -102,6 +106,8 @@ class CarSettings:
     segment: float = 60.0
     base: str = "generic"
     aero: bool = True
+    offsets: dict[str, float] = field(default_factory=dict)  # channel -> 1-sigma zero offset, channel unit
+    offset_segments: int = 2
 
 
 @dataclass(frozen=True)
@@ -123,7 +129,7 @@ class IdentifyConfig:
         return "car" if self.car is not None else "robot"
 
 
-_TOP = {"model", "tests", "channels", "transmission", "conditioning", "identification", "reference"}
+_TOP = {"model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty"}
 
 
 def load_config(path: str | Path) -> IdentifyConfig:
@@ -150,6 +156,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
         raise err("model", "give example = \"tx40\" (a shipped model), file = \"model.toml\" "
                            "or template = \"peugeot406\"")
 
+    if "uncertainty" in data and car is None:
+        raise err("uncertainty", "sensor offsets are propagated for the car template only; remove the section")
     tests = []
     for i, t in enumerate(data.get("tests", []), start=1):
         key = f"tests {i}"
@@ -233,9 +241,41 @@ def _car_settings(data: dict, err) -> CarSettings:
     if base not in ("generic", "car"):
         raise err("identification", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
     d = c.get("decimate", [5, 10])
+    offsets, segments = _offsets(data.get("uncertainty", {}), err)
     return CarSettings(
         cutoff=float(c.get("cutoff", 4.0)), order=int(c.get("order", 4)),
         decimate=tuple(int(x) for x in (d if isinstance(d, list) else [d])),
         attitude_crossover=float(c.get("attitude_crossover", 0.2)), segment=float(c.get("segment", 60.0)),
-        base=base, aero=bool(ident.get("aero", True)),
+        base=base, aero=bool(ident.get("aero", True)), offsets=offsets, offset_segments=segments,
     )
+
+
+def _offsets(u: dict, err) -> tuple[dict[str, float], int]:
+    """[uncertainty] offsets = { channel = 1-sigma zero offset in the channel's unit }, segments = n."""
+    from ..vehicle.estimate import required_channels
+
+    extra = set(u) - {"offsets", "segments"}
+    if extra:
+        raise err("uncertainty", f"unknown key(s) {sorted(extra)}; keys: offsets, segments")
+    raw = u.get("offsets", {})
+    if not isinstance(raw, dict):
+        raise err("uncertainty", "offsets must be a table { channel = 1-sigma zero offset in its unit, ... }")
+    known = required_channels(spin=False)
+    offsets = {}
+    for name, v in raw.items():
+        if name not in known:
+            raise err("uncertainty", f"offsets: no channel {name!r} among the sensor suite's; channels: "
+                                     f"{', '.join(known)}")
+        try:
+            value = parse_number(v, f"offsets.{name}")
+        except ModelError as exc:
+            raise err("uncertainty", str(exc)) from None
+        if not np.isfinite(value) or value < 0:
+            raise err("uncertainty", f"offsets.{name} = {v!r}: give a standard deviation >= 0 in the channel's unit")
+        if value > 0:
+            offsets[name] = value
+    segments = u.get("segments", 2)
+    if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
+        raise err("uncertainty", f"segments = {segments!r}: give a whole number >= 1 (segments per test on which "
+                                 "the offsets' effect is evaluated)")
+    return offsets, segments

@@ -27,8 +27,9 @@ TESTS = (  # name, manoeuvre, role, duration (s) full / quick
 )
 
 
-def demo_config(files: dict[str, str], known: dict[str, float]) -> str:
+def demo_config(files: dict[str, str], known: dict[str, float], offsets: dict[str, float]) -> str:
     known_text = ", ".join(f"{k} = {v!r}" for k, v in known.items())
+    offsets_text = ", ".join(f"{k} = {v!r}" for k, v in offsets.items())
     lines = ["# The simulated Peugeot 406 of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
              "", "[model]", 'template = "peugeot406"', ""]
     for (name, man, role, _, _), path in zip(TESTS, files.values(), strict=True):
@@ -37,13 +38,17 @@ def demo_config(files: dict[str, str], known: dict[str, float]) -> str:
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2", "",
               "[identification]", 'method = "wls"', 'base = "generic"',
               "# the wheels' masses and inertias, weighed and measured on a bench (see the tutorial)",
-              f"known = {{ {known_text} }}", ""]
+              f"known = {{ {known_text} }}", "",
+              "[uncertainty]",
+              "# the sensors' zero offsets (1 sigma, channel units: the suite's figures), propagated to %σ total",
+              f"offsets = {{ {offsets_text} }}", ""]
     return "\n".join(lines)
 
 
 def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress | None = None,
              simulation_progress=None) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
+    from ..vehicle.sensors import paper_suite
     from ..vehicle.sim import CarSimulator
     from ..vehicle.sim.recording import write_test
     from .car import car_demo_known
@@ -64,5 +69,6 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
             close()
         path, _ = write_test(result, data / f"{man}.csv", seed=seed + i)
         files[man] = path.relative_to(out).as_posix()
-    config = write_atomic(out / "identify.toml", demo_config(files, car_demo_known(sim.tree)))
+    offsets = {c.name: c.bias for c in paper_suite(sim.geometry) if c.bias}
+    config = write_atomic(out / "identify.toml", demo_config(files, car_demo_known(sim.tree), offsets))
     return identify(load_config(config), progress=say)

@@ -183,11 +183,35 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
     aero = Aerodynamics() if settings.aero else None
     fast = GeneratedRegressor(tree)
-    def segment_rows(channels, factors, fs, lo, hi):
+    def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None):
         si = {k: v[lo:hi] * factors[k] for k, v in channels.items()}  # units converted segment by segment
+        if offset is not None:  # one sensor's zero moved by its standard deviation (file unit)
+            si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
         traj = estimate_joints(si, fs, model, conditioning=cond)
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
                           cutoff=cond.cutoff)[0]
+
+    offsets = ident_offsets = None
+    if settings.offsets:
+        ident_offsets = streams["identify"].bias_accumulator()
+
+    def offset_jobs(pool, spec: TestSpec, channels, factors, fs, segments: list[tuple[int, int]]) -> list:
+        """The declared offsets' effect, evaluated on a few segments spread over the test (scaled to all)."""
+        pick = np.unique(np.linspace(0, len(segments) - 1, min(settings.offset_segments, len(segments))).round())
+        scale = len(segments) / len(pick)
+        jobs = []
+        for i in pick.astype(int):
+            lo, hi = segments[i]
+            base_job = pool.submit(segment_rows, channels, factors, fs, lo, hi)
+            jobs += [(f"{spec.name}: {q}", scale, base_job, pool.submit(segment_rows, channels, factors, fs, lo, hi,
+                                                                        (q, b)))
+                     for q, b in settings.offsets.items()]
+        return jobs
+
+    def use_offsets(jobs: list) -> None:
+        for source, scale, base_job, job in jobs:
+            b, p = base_job.result(), job.result()
+            ident_offsets.add(source, b.W, b.Y, p.W - b.W, p.Y - b.Y, b.groups, scale)
 
     from concurrent.futures import ThreadPoolExecutor
 
@@ -204,14 +228,20 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             N = len(next(iter(channels.values())))
             b = border_samples(fs, cond.cutoff, cond.order)
             step = max(int(settings.segment * fs), 4 * b)
-            starts = list(range(0, max(N - 2 * b, 1), step))
+            segments = [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
             jobs: deque = deque()
-            for i, lo in enumerate(starts):  # consecutive segments overlap by the two borders
-                jobs.append(pool.submit(segment_rows, channels, factors, fs, lo, min(N, lo + step + 2 * b)))
+            for i, (lo, hi) in enumerate(segments):  # consecutive segments overlap by the two borders
+                jobs.append(pool.submit(segment_rows, channels, factors, fs, lo, hi))
                 if len(jobs) == 3:  # at most three segments in flight; a result is dropped once used
-                    use(spec, jobs.popleft(), i - 1, len(starts))
-            while jobs:  # segment numbers are 1-based: the job popped is number len(starts) - len(jobs) after it
-                use(spec, jobs.popleft(), len(starts) - len(jobs), len(starts))
+                    use(spec, jobs.popleft(), i - 1, len(segments))
+            if ident_offsets is not None and spec.role == "identify":
+                offsets = offset_jobs(pool, spec, channels, factors, fs, segments)
+            while jobs:  # segment numbers are 1-based: the job popped is number len(segments) - len(jobs) after it
+                use(spec, jobs.popleft(), len(segments) - len(jobs), len(segments))
+            if offsets:
+                say(f"{spec.name}: the effect of {len(settings.offsets)} sensor offsets")
+                use_offsets(offsets)
+                offsets = None
     ident = streams["identify"]
     say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.upper()})")
     try:
@@ -219,15 +249,31 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
+    if ident_offsets is not None:
+        result = ident.with_systematic(result, ident_offsets)
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes="Physical consistency of the estimates: " + consistency_text(result, base, tree))
+        notes=offsets_note(result) + "Physical consistency of the estimates: " + consistency_text(result, base, tree))
     run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
     run.errors["direct"] = ident.relative_errors(result)
     if streams["validate"].n_rows:
         run.errors["cross"] = streams["validate"].relative_errors(result)
     result.validation.update(run.errors)
     return run
+
+
+def offsets_note(result) -> str:
+    """What %σ total means, and which declared sensor offsets weigh most (empty without offsets)."""
+    sys = result.systematic
+    if sys is None:
+        return ""
+    counts: dict[str, int] = {}
+    for n in sys.names:
+        channel = sys.main_source(n).split(": ")[-1]
+        counts[channel] = counts.get(channel, 0) + 1
+    top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
+    return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' declared zero offsets, "
+            f"propagated to first order. The offsets that move most estimates (parameters): {top}.\n")
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:

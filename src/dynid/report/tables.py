@@ -1,4 +1,7 @@
-"""Parameter tables in the paper's layout: name, a priori, (truth), estimate, %σ, flag, (reference)."""
+"""Parameter tables in the paper's layout: name, a priori, (truth), estimate, %σ, (%σ total), flag, (reference).
+
+%σ is the paper's (least squares, statistical); %σ total adds the declared sensor offsets' effect.
+"""
 
 from __future__ import annotations
 
@@ -25,7 +28,9 @@ def parameter_table(
     """
     sections = sections or [(f"{result.method} estimates", list(result.names))]
     has_truth = bool(result.truth)
-    head = ["parameter", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "%σ", "flag"]
+    total = result.rel_std_total_percent if result.systematic is not None else None
+    head = ["parameter", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "%σ"]
+    head += (["%σ total"] if total is not None else []) + ["flag"]
     if reference:
         head += [reference_title, f"{reference_title} %σ"]
     out = []
@@ -36,7 +41,8 @@ def parameter_table(
             row = [result.labels.get(name, name), _cell(result.a_priori.get(name))]
             if has_truth:
                 row.append(_cell(result.truth.get(name)))
-            row += [_cell(float(result.values[i])), _cell(float(result.rel_std_percent[i]), ".2f"), result.flags[i]]
+            row += [_cell(float(result.values[i])), _cell(float(result.rel_std_percent[i]), ".2f")]
+            row += ([_cell(float(total[i]), ".2f")] if total is not None else []) + [result.flags[i]]
             if reference:
                 ref = reference.get(name)
                 row += [_cell(ref[0]), _cell(ref[1], ".2f")] if ref else ["", ""]
