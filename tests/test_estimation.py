@@ -483,3 +483,16 @@ def test_sensor_offsets_propagate_as_a_finite_difference_of_the_estimate(weighte
     d = full.to_dict()["parameters"][0]
     assert d["std_total"] > d["std"] and d["main_offset"] == main
     assert "%std total" in full.summary()
+
+
+def test_streaming_group_rms_of_y_and_of_the_residual():
+    W, Y, g = _biased_system(np.zeros(2))
+    s = StreamingLS(["a", "b", "c", "d"])
+    for chunk in np.array_split(np.arange(len(Y)), 3):
+        s.add(W[chunk], Y[chunk], g[chunk])
+    res = s.solve()
+    r = Y - W @ res.values
+    for grp in ("a", "b"):
+        rows = g == grp
+        assert s.group_rms()[grp] == pytest.approx(np.sqrt(np.mean(Y[rows] ** 2)), rel=1e-12)
+        assert s.group_rms(res)[grp] == pytest.approx(np.sqrt(np.mean(r[rows] ** 2)), rel=1e-9)

@@ -84,7 +84,7 @@ def _print_run(run, validation_title: str) -> None:
         print("\nComparison with the published identification:")
         print(run.reference_table())
     print(f"\n{validation_title}")
-    print(validation_table(run.errors))
+    print(validation_table(run.errors, run.not_excited))
 
 
 def cmd_identify(args: argparse.Namespace) -> int:

@@ -176,6 +176,14 @@ class StreamingLS:
         sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
         return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
 
+    def group_rms(self, X: ArrayLike | Mapping[str, float] | IdentificationResult | None = None) -> dict[str, float]:
+        """``{group: RMS of Y}`` over the rows added, or of the residual ``Y - W X`` when X is given."""
+        self._require_rows()
+        if X is None:
+            return {g: float(np.sqrt(self._y2[g] / self._rows[g])) for g in self._R}
+        x = self._estimated_values(X)
+        return {g: self._residual_norm(x, g) / np.sqrt(self._rows[g]) for g in self._R}
+
     def bias_accumulator(self) -> BiasAccumulator:
         """An accumulator of sensor-offset effects on rows of this system's columns (see `systematic`)."""
         cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
@@ -197,6 +205,16 @@ class StreamingLS:
         of known parameters must equal the known ones (they are already in the accumulators).
         """
         self._require_rows()
+        x = self._estimated_values(X)
+        out = {g: norm_ratio(self._residual_norm(x, g), np.sqrt(self._y2[g])) for g in self._R}
+        if "overall" in out:
+            raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
+        total = np.sqrt(sum(self._residual_norm(x, g) ** 2 for g in self._R))
+        out["overall"] = norm_ratio(total, np.sqrt(sum(self._y2.values())))
+        return out
+
+    def _estimated_values(self, X: ArrayLike | Mapping[str, float] | IdentificationResult) -> np.ndarray:
+        """The estimated parameters' values of X (all p values, by name or in order), known ones checked."""
         if isinstance(X, IdentificationResult):
             X = X.estimates
         if isinstance(X, Mapping):
@@ -213,10 +231,4 @@ class StreamingLS:
         if wrong:
             raise IdentificationError(f"X changes known parameters {wrong}; they are fixed in the accumulators",
                                       parameters=wrong)
-        x = np.array([full[n] for n in self.estimated_names])
-        out = {g: norm_ratio(self._residual_norm(x, g), np.sqrt(self._y2[g])) for g in self._R}
-        if "overall" in out:
-            raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
-        total = np.sqrt(sum(self._residual_norm(x, g) ** 2 for g in self._R))
-        out["overall"] = norm_ratio(total, np.sqrt(sum(self._y2.values())))
-        return out
+        return np.array([full[n] for n in self.estimated_names])

@@ -55,12 +55,19 @@ def parameter_table(
     return "\n\n".join(out)
 
 
-def validation_table(errors: Mapping[str, Mapping[str, float]]) -> str:
-    """Relative errors ||Y - W X|| / ||Y|| per group, one column per validation kind (direct, cross)."""
+def validation_table(errors: Mapping[str, Mapping[str, float]],
+                     not_excited: Mapping[str, Sequence[str]] | None = None) -> str:
+    """Relative errors ||Y - W X|| / ||Y|| per group, one column per validation kind (direct, cross);
+    not_excited: per kind, the groups whose Y the test barely moves (marked with *)."""
     kinds = [k for k in errors if errors[k]]
+    marked = {k: set((not_excited or {}).get(k, ())) for k in kinds}
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
-    lines = ["group".rjust(12) + "".join(k.rjust(12) for k in kinds)]
+    lines = ["group".rjust(12) + "".join(k.rjust(13) for k in kinds)]
     for g in groups:
         lines.append(g.rjust(12) + "".join(
-            (f"{100 * errors[k][g]:.2f} %" if g in errors[k] else "").rjust(12) for k in kinds))
+            ((f"{100 * errors[k][g]:.2f} %" + ("*" if g in marked[k] else " ")) if g in errors[k] else "").rjust(13)
+            for k in kinds))
+    if any(marked.values()):
+        lines.append("* the test barely moves this equation (RMS of Y below twice the identification's residual "
+                     "RMS there): its relative error mostly compares noise with a small signal")
     return "\n".join(lines)
