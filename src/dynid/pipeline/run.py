@@ -227,6 +227,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         for spec in cfg.tests:
             channels, factors, fs = load_car_channels(cfg, spec)
             N = len(next(iter(channels.values())))
+            say(f"{spec.name}: read {N} samples of {len(channels)} channels at {fs:g} Hz")
             b = border_samples(fs, cond.cutoff, cond.order)
             step = max(int(settings.segment * fs), 4 * b)
             segments = [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
