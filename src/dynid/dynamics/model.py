@@ -66,12 +66,20 @@ class Model:
         """J-dot qd (N, 6) of the same point."""
         return motion.jdot_qdot(self.tree, q, qd, frame, point, expressed_in)
 
-    # dynamic models
+    # dynamic models; backend: "numba" (compiled, the default when numba is installed) or "numpy"
+    # (the batched reference engine), see dynamics.newton_euler.resolve_backend
     def inverse_dynamics(
-        self, q: Array, qd: Array, qdd: Array, wrenches: Sequence[Wrench] | None = None, X: Array | None = None
+        self,
+        q: Array,
+        qd: Array,
+        qdd: Array,
+        wrenches: Sequence[Wrench] | None = None,
+        X: Array | None = None,
+        *,
+        backend: str | None = None,
     ) -> Array:
         """Joint forces tau (N, n); X defaults to the model's parameter values."""
-        return newton_euler.inverse_dynamics(self.tree, q, qd, qdd, wrenches, X)
+        return newton_euler.inverse_dynamics(self.tree, q, qd, qdd, wrenches, X, backend=backend)
 
     def regressor(
         self,
@@ -81,19 +89,34 @@ class Model:
         wrenches: Sequence[Wrench] | None = None,
         rows: Sequence[int] | None = None,
         cols: Sequence[str | int] | None = None,
+        *,
+        out: Array | None = None,
+        backend: str | None = None,
     ) -> Array | tuple[Array, Array]:
-        """W (N, rows, cols) with W X = tau; with wrenches, (W, Q) and W X = tau + Q."""
-        return _regressor.regressor(self.tree, q, qd, qdd, wrenches, rows, cols)
+        """W (N, rows, cols) with W X = tau; with wrenches, (W, Q) and W X = tau + Q.
 
-    def inertia_matrix(self, q: Array, X: Array | None = None) -> Array:
+        out: a preallocated zeroed float64 C-contiguous array of W's shape, filled and returned;
+        only entries that can be non-zero are written, so it can be reused for the same rows
+        and columns without clearing it (see dynamics.regressor.regressor).
+        """
+        return _regressor.regressor(self.tree, q, qd, qdd, wrenches, rows, cols, out=out, backend=backend)
+
+    def inertia_matrix(self, q: Array, X: Array | None = None, *, backend: str | None = None) -> Array:
         """M(q), (N, n, n)."""
-        return inertia.inertia_matrix(self.tree, q, X)
+        return inertia.inertia_matrix(self.tree, q, X, backend=backend)
 
     def forward_dynamics(
-        self, q: Array, qd: Array, tau: Array, wrenches: Sequence[Wrench] | None = None, X: Array | None = None
+        self,
+        q: Array,
+        qd: Array,
+        tau: Array,
+        wrenches: Sequence[Wrench] | None = None,
+        X: Array | None = None,
+        *,
+        backend: str | None = None,
     ) -> Array:
         """qdd (N, n) from the joint forces tau."""
-        return inertia.forward_dynamics(self.tree, q, qd, tau, wrenches, X)
+        return inertia.forward_dynamics(self.tree, q, qd, tau, wrenches, X, backend=backend)
 
     def base_parameters(
         self, rows: Sequence[int] | None = None, cols: Sequence[str | int] | None = None, seed: int = 0

@@ -3,10 +3,17 @@
 Forward recursion of velocities and accelerations (gravity enters as dV0 = -g), then
 a backward recursion of the link wrenches, from which every joint takes the
 component along or about its own z axis. External wrenches act on chosen links.
+
+Two engines compute the same models: "numba" (compiled.py, per-sample machine code,
+the default when numba is installed) and "numpy" (this module and regressor.py,
+batched array operations, the reference). `resolve_backend` chooses.
 """
 
 from __future__ import annotations
 
+import functools
+import os
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -18,6 +25,33 @@ from ..model.tree import FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
 
 Array = np.ndarray
 CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache (1-2k measured best)
+BACKENDS = ("numba", "numpy")
+_WARNED: list[bool] = [False]
+
+
+def resolve_backend(backend: str | None = None) -> str:
+    """The engine to run: `backend` if given, else $DYNID_BACKEND, else "numba" when numba is installed.
+
+    "numba" without a working numba falls back to "numpy" (with one warning): same results, slower.
+    """
+    b = backend if backend is not None else (os.environ.get("DYNID_BACKEND", "").strip().lower() or "numba")
+    if b not in BACKENDS:
+        where = "backend" if backend is not None else "DYNID_BACKEND"
+        raise ModelError(f"{where} = {b!r}: use one of {BACKENDS}")
+    if b == "numba" and not _numba_works():
+        if not _WARNED[0]:
+            _WARNED[0] = True
+            warnings.warn("numba is not installed: dynid's dynamics run on the NumPy engine (same results, "
+                          "several times slower); pip install numba", RuntimeWarning, stacklevel=3)
+        return "numpy"
+    return b
+
+
+@functools.cache
+def _numba_works() -> bool:
+    from . import compiled  # imports numba on first use; without it HAVE_NUMBA is False
+
+    return compiled.HAVE_NUMBA
 
 
 @dataclass(frozen=True)
@@ -190,12 +224,16 @@ def inverse_dynamics(
     qdd: Array,
     wrenches: Sequence[Wrench] | None = None,
     X: Array | None = None,
+    *,
+    backend: str | None = None,
 ) -> Array:
     """Joint forces/torques (N, n) that produce qdd at (q, qd) under gravity and the wrenches.
 
     tau = M(q) qdd + H(q, qd) + joint terms - J^T F_ext; X defaults to the model's values.
-    Fixed frames get 0.
+    Fixed frames get 0. backend: "numba", "numpy" or None (see `resolve_backend`).
     """
+    if resolve_backend(backend) == "numba":
+        return _compiled_inverse_dynamics(tree, q, qd, qdd, wrenches, X)
     qs, single = joint_array(q, tree, "q")
     qds, _ = joint_array(qd, tree, "qd")
     qdds, _ = joint_array(qdd, tree, "qdd")
@@ -211,6 +249,19 @@ def inverse_dynamics(
                                          wrenches=slice_wrenches(wrenches, sl, N))
     tau[tree.sigma[1:] == FIXED] = 0.0
     return tau[:, 0] if single else tau.T
+
+
+def _compiled_inverse_dynamics(tree: Tree, q, qd, qdd, wrenches, X) -> Array:
+    from . import compiled
+
+    qs, single = compiled.joint_rows(q, tree, "q")
+    qds, _ = compiled.joint_rows(qd, tree, "qd")
+    qdds, _ = compiled.joint_rows(qdd, tree, "qdd")
+    if not qs.shape == qds.shape == qdds.shape:
+        raise ModelError(f"q, qd, qdd must have the same shape; got {np.shape(q)}, {np.shape(qd)}, {np.shape(qdd)}")
+    X = tree.parameters if X is None else check_parameters(tree, X)
+    tau = compiled.inverse_dynamics(tree, qs, qds, qdds, X, check_wrenches(tree, wrenches, qs.shape[0]))
+    return tau[0] if single else tau
 
 
 def check_parameters(tree: Tree, X: object) -> Array:

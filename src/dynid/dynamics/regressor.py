@@ -31,6 +31,7 @@ from .newton_euler import (
     coupling_column,
     joint_term_column,
     local_wrenches,
+    resolve_backend,
     slice_wrenches,
 )
 
@@ -117,14 +118,79 @@ def regressor(
     wrenches: Sequence[Wrench] | None = None,
     rows: Sequence[int] | None = None,
     cols: Sequence[str | int] | None = None,
+    *,
+    out: Array | None = None,
+    backend: str | None = None,
 ) -> Array | tuple[Array, Array]:
     """Identification model W, (N, len(rows), len(cols)), such that W X = tau.
 
     rows: joint (frame) numbers, default all; cols: parameter names, labels or column
     indices, default all. With wrenches, returns (W, Q) where Q (N, len(rows)) is the
     generalized force of the external wrenches: W X = tau + Q, the known right-hand side.
-    The array is a view whose memory keeps samples last (np.ascontiguousarray for C order).
+
+    out: a preallocated float64 array of W's shape ((len(rows), len(cols)) for one sample),
+    C-contiguous, filled and returned. The numba engine writes only the entries that can be
+    non-zero for these rows and columns and leaves the others as they are: pass a zeroed
+    buffer (np.zeros) the first time; reusing it for the same rows and columns keeps its
+    zeros. Without out, W is a new zeroed array.
+    backend: "numba", "numpy" or None (see newton_euler.resolve_backend). The numba engine
+    returns C-contiguous arrays; the numpy engine a view whose memory keeps samples last.
     """
+    if resolve_backend(backend) == "numba":
+        return _compiled_regressor(tree, q, qd, qdd, wrenches, rows, cols, out)
+    W = _numpy_regressor(tree, q, qd, qdd, wrenches, rows, cols)
+    if out is None:
+        return W
+    Wn = W[0] if isinstance(W, tuple) else W
+    check_out(out, Wn.shape)
+    np.copyto(out, Wn)
+    return (out, W[1]) if isinstance(W, tuple) else out
+
+
+def check_out(out: object, shape: tuple[int, ...]) -> None:
+    """The `out` buffer must be a writeable float64 C-contiguous array of W's shape."""
+    if not isinstance(out, np.ndarray) or out.dtype != np.float64 or out.shape != tuple(shape):
+        got = f"{out.dtype} {out.shape}" if isinstance(out, np.ndarray) else type(out).__name__
+        raise ModelError(f"out must be a float64 array of shape {tuple(shape)} (samples, rows, cols); got {got}")
+    if not out.flags.c_contiguous or not out.flags.writeable:
+        raise ModelError("out must be C-contiguous and writeable (allocate it with np.zeros(shape))")
+
+
+def _compiled_regressor(tree: Tree, q, qd, qdd, wrenches, rows, cols, out) -> Array | tuple[Array, Array]:
+    from . import compiled
+
+    qs, single = compiled.joint_rows(q, tree, "q")
+    qds, _ = compiled.joint_rows(qd, tree, "qd")
+    qdds, _ = compiled.joint_rows(qdd, tree, "qdd")
+    if not qs.shape == qds.shape == qdds.shape:
+        raise ModelError(f"q, qd, qdd must have the same shape; got {np.shape(q)}, {np.shape(qd)}, {np.shape(qdd)}")
+    R, Cols = resolve_rows(tree, rows), resolve_cols(tree, cols)
+    N = qs.shape[0]
+    checked = check_wrenches(tree, wrenches, N) if wrenches is not None else None
+    shape = (len(R), len(Cols)) if single else (N, len(R), len(Cols))
+    if out is not None:
+        check_out(out, shape)
+    if len(set(R)) == len(R) and len(set(Cols)) == len(Cols):
+        W = np.zeros((N, len(R), len(Cols))) if out is None else out.reshape(N, len(R), len(Cols))
+        Q = compiled.regressor(tree, qs, qds, qdds, R, Cols, checked, W)
+    else:  # repeated rows or columns: compute each once, then copy
+        uR, ri = np.unique(R, return_inverse=True)
+        uC, ci = np.unique(Cols, return_inverse=True)
+        Wu = np.zeros((N, len(uR), len(uC)))
+        Qu = compiled.regressor(tree, qs, qds, qdds, [int(x) for x in uR], [int(x) for x in uC], checked, Wu)
+        W, Q = Wu[:, ri][:, :, ci], Qu[:, ri]
+        if out is not None:
+            out.reshape(W.shape)[...] = W
+    if out is not None:
+        W = out
+    elif single:
+        W = W[0]
+    if wrenches is None:
+        return W
+    return W, (Q[0] if single else Q)
+
+
+def _numpy_regressor(tree: Tree, q, qd, qdd, wrenches, rows, cols) -> Array | tuple[Array, Array]:
     qs, single = joint_array(q, tree, "q")
     qds, _ = joint_array(qd, tree, "qd")
     qdds, _ = joint_array(qdd, tree, "qdd")
