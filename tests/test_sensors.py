@@ -84,3 +84,33 @@ def test_ideal_channels_at_rest_and_moving():
     J = m.jacobian(q, 6, point=correvit_point(CarGeometry()), expressed_in=6)
     v = np.einsum("nij,nj->ni", J[:, :3], qd)  # frame 6: up, right, forward
     assert np.allclose(ch["correvit_vx"], 3.6 * v[:, 2]) and np.allclose(ch["correvit_vy"], -v[:, 1])
+
+
+@pytest.mark.parametrize("bandwidth", [5.0, 10.0, 30.0, 150.0, 200.0])
+def test_lowpass_is_scipys_butterworth_started_in_steady_state(bandwidth):
+    """The band limit (closed-form design, FFT convolution) is scipy's butter(2) + lfilter from the
+    steady state at x[0], to round-off, on a signal that starts far from zero."""
+    from scipy.signal import butter, lfilter, lfilter_zi
+
+    from dynid.vehicle.sensors import lowpass
+
+    x = 50.0 + np.cumsum(np.random.default_rng(4).normal(size=7001))
+    b, a = butter(2, bandwidth / 312.5)
+    ref, _ = lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])
+    assert np.abs(lowpass(x, bandwidth, 625.0) - ref).max() < 1e-11 * np.abs(x).max()
+
+
+def test_fast_fft_length_is_the_next_5_smooth_number():
+    from dynid.vehicle.sensors import _fast_length
+
+    def smooth(m: int) -> bool:
+        for p in (2, 3, 5):
+            while m % p == 0:
+                m //= p
+        return m == 1
+
+    for n in [*range(1, 400), 12501 + 1100, 2_250_001]:
+        m = n
+        while not smooth(m):
+            m += 1
+        assert _fast_length(n) == m, n

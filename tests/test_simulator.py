@@ -162,22 +162,96 @@ def test_step_halving(sim, sine):
     assert np.abs(sine.wheel_wrenches[:, :, 2] - fine.wheel_wrenches[:, :, 2]).max() < 10.0
 
 
-@pytest.mark.xfail(reason="open: the simulated yaw-rate gain is 11-15 % below the bicycle model's at 1 m/s^2 "
-                          "(roll steer of the tables explains about half); under investigation", strict=False)
-def test_steady_cornering_matches_bicycle_model(sim):
-    """At 1 m/s^2 the steady yaw-rate gain and the understeer gradient match the linear bicycle
-    model built from the same mass distribution and the Magic Formula's cornering stiffness."""
-    r = sim.run("step", speed=80.0, lateral_acceleration=1.0, duration=7.0)
+@pytest.mark.parametrize("speed", [50.0, 80.0, 130.0])
+def test_steady_cornering_matches_bicycle_model(sim, speed):
+    """At about 1 m/s^2 (step steer) the steady yaw-rate gain and the understeer gradient match the
+    linear bicycle model built from the same parameters (bicycle.py): mass distribution and the Magic
+    Formula's cornering stiffness, plus the first-order terms the simulated car adds, each computed
+    from the parameters (tables, tire, aero) and quasi-static equilibria of the engine's model. The
+    classic model alone is 15 % off at 80 km/h (K 0.76e-3 against 1.84e-3 rad per m/s^2); the terms
+    (1e-3 rad per m/s^2): roll steer 0.55, pneumatic trail 0.39, the tires' forces along the car 0.10,
+    toe x load transfer 0.08, aero lift on the loads -0.02, drive force on the steered wheels -0.02,
+    aero side force and yaw moment -0.01 (total 1.83).
+
+    Tolerance: what the linear model leaves out is second order in a_y or the steer angle: the lateral
+    forces turned by the steer angle itself (Fy sin delta: +0.5 % of K at 80 km/h, +1 % at 50), the
+    Magic Formula's curvature at these slips (+0.5 %), the dampers' Coulomb friction band (roll travel
+    within fs / (ks + anti-roll) of its frictionless value), the 0.5 s average over the friction's
+    chatter. Seen: K within 1.2 %, gain within 0.3 % (30..140 km/h, 0.4..1.7 m/s^2). K within 3 %;
+    the gain within 1 %. The speed is the centre line's: the Correvit sits 1 m right of it, where a
+    left turn adds r x 1 m (1.4 % at 30 km/h)."""
+    from dynid.vehicle.sensors import correvit_point
+
+    r = sim.run("step", speed=speed, lateral_acceleration=1.0, duration=7.0)
     ch = r.ideal_channels()
     tail = slice(-300, None)
-    v = np.mean(ch["correvit_vx"][tail]) / 3.6
     rate = np.radians(np.mean(ch["imu_yaw_rate"][tail]))
+    v = np.mean(ch["correvit_vx"][tail]) / 3.6 - rate * correvit_point(sim.geometry)[1]
     delta = np.mean(r.steering_wheel[tail, 0]) / 16.0
-    ay = v * rate
-    bike = sim.bicycle
-    assert rate / delta == pytest.approx(bike.yaw_rate_gain(v), rel=0.05)
-    K_meas = (delta - bike.wheelbase * rate / v) / ay
-    assert K_meas == pytest.approx(bike.understeer, rel=0.15, abs=2e-4)
+    bike = sim.cornering_model(v)
+    assert rate / delta == pytest.approx(bike.yaw_rate_gain(v), rel=0.01)
+    K_meas = (delta - bike.wheelbase * rate / v) / (v * rate)
+    assert K_meas == pytest.approx(bike.understeer_at(v), rel=0.03)
+    if speed == 80.0:  # the extension is what makes them agree
+        assert rate / delta < 0.9 * sim.bicycle.yaw_rate_gain(v)
+
+
+def test_bicycle_model_is_consistent(sim):
+    """The extended model's 2-DOF response at 0 Hz is its steady gain v^2 / (L + K v^2); without drive
+    and aerodynamics K is the closed form; with its terms zero it is the classic model; each term of
+    the closed form pushes towards understeer for this car; the destabilising aerodynamic yaw moment
+    lowers K with speed."""
+    from dynid.vehicle.sim.bicycle import Bicycle
+
+    v = 25.0
+    ext = sim.cornering_model(v)
+    assert ext.lateral_gain(v, 0.0) == pytest.approx(v * ext.yaw_rate_gain(v), rel=1e-12)
+    classic = sim.bicycle
+    assert classic.understeer == pytest.approx(classic.mass_front / classic.cf - classic.mass_rear / classic.cr)
+    assert classic.lateral_gain(v, 0.0) == pytest.approx(v * v / (classic.wheelbase + classic.understeer * v * v))
+    base = dict(wheelbase=ext.wheelbase, mass_front=ext.mass_front, mass_rear=ext.mass_rear, cf=ext.cf, cr=ext.cr,
+                yaw_inertia=ext.yaw_inertia)
+    plain = Bicycle(**base)
+    for term in ({"trail": ext.trail}, {"roll_steer": ext.roll_steer}, {"toe_force": ext.toe_force},
+                 {"yaw_moment": ext.yaw_moment}):
+        bike = Bicycle(**base, **term)
+        assert bike.understeer > plain.understeer, term
+        assert bike.understeer_at(v) == pytest.approx(bike.understeer, rel=1e-9)
+    assert ext.roll_steer[0] < 0 < ext.roll_steer[1]  # the front steers out of the turn, the rear into it
+    assert ext.understeer_at(40.0) < ext.understeer_at(20.0) < ext.understeer
+
+
+def test_compiled_kinematics_match_the_engine(sim, sine):
+    """The kernel's tire-frame poses and twists (own axes) and frame 6's twist are the engine's."""
+    model = Model(sim.tree)
+    out = np.zeros(kernel.NKIN)
+    for q, qd in zip(sine.q[::1500], sine.qd[::1500], strict=True):
+        sim.module.car_kin(q, qd, out)
+        T = model.transforms(q)
+        for k, t in enumerate((*TIRES, 6)):
+            J = model.jacobian(q, t, expressed_in=t)
+            tw = J @ qd  # (v, w) of O_t in frame t
+            if t == 6:
+                assert np.allclose(out[kernel.KIN_6:], tw, rtol=1e-12, atol=1e-10)
+                continue
+            o = kernel.KIN_CORNER * k
+            assert np.allclose(out[o:o + 9].reshape(3, 3), T[t, :3, :3], atol=1e-12)
+            assert np.allclose(out[o + 9:o + 12], T[t, :3, 3], atol=1e-12)
+            assert np.allclose(out[o + 12:o + 15], tw[3:], atol=1e-10)
+            assert np.allclose(out[o + 15:o + 18], tw[:3], rtol=1e-12, atol=1e-10)
+
+
+def test_compiled_inertia_rows_match_the_engine(sim, sine):
+    """The kernel's mass matrix (the free joints' rows of M(q), composite bodies) is the engine's."""
+    M = Model(sim.tree).inertia_matrix(sine.q[::1500])
+    out = np.zeros(kernel.NF * kernel.NF_ROW)
+    free = np.array(kernel.FREE) - 1
+    tab = [7 + 9 * k + 2 + n for k in range(4) for n in range(4)]
+    for q, m in zip(sine.q[::1500], M, strict=True):
+        sim.module.car_inertia(q, out)
+        rows = out.reshape(kernel.NF, kernel.NF_ROW)
+        cols = np.concatenate([free, tab])
+        assert np.allclose(rows[:, cols], m[np.ix_(free, cols)], rtol=1e-12, atol=1e-10 * np.abs(m).max())
 
 
 def test_tables_match_scipy(sim):

@@ -60,6 +60,7 @@ Values not in the paper's Table 1 are chosen and marked `source="chosen"`.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -297,22 +298,66 @@ class SensorSuite:
 
 
 @functools.lru_cache(maxsize=64)
-def _butter2(bandwidth: float, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from scipy.signal import butter, lfilter_zi
+def _butter2(bandwidth: float, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of scipy.signal.butter(2, bandwidth / (rate / 2)) in closed form: the analogue 2nd-order
+    Butterworth through the bilinear transform, pre-warped at the bandwidth (no scipy.signal import:
+    it costs up to a second per process)."""
+    k = math.tan(math.pi * bandwidth / rate)
+    n = 1.0 / (1.0 + math.sqrt(2.0) * k + k * k)
+    b0 = k * k * n
+    a = [1.0, 2.0 * (k * k - 1.0) * n, (1.0 - math.sqrt(2.0) * k + k * k) * n]
+    return np.array([b0, 2.0 * b0, b0]), np.array(a)
 
-    b, a = butter(2, bandwidth / (0.5 * rate))
-    return b, a, lfilter_zi(b, a)
+
+@functools.lru_cache(maxsize=64)
+def _impulse_response(bandwidth: float, rate: float) -> np.ndarray:
+    """The filter's impulse response, closed form from its complex pole pair p, conj(p), cut where it has
+    decayed below 1e-17 (so convolving with it is the recursion to round-off)."""
+    b, a = _butter2(bandwidth, rate)
+    p = complex(np.roots(a)[0])
+    n = np.arange(math.ceil(math.log(1e-17) / math.log(abs(p))) + 3)
+    g = (p ** (n + 1)).imag / p.imag  # impulse response of 1 / a(z)
+    h = b[0] * g
+    h[1:] += b[1] * g[:-1]
+    h[2:] += b[2] * g[:-2]
+    h.setflags(write=False)
+    return h
+
+
+def _fast_length(n: int) -> int:
+    """The smallest 2^i 3^j 5^k >= n (an FFT size numpy transforms fast)."""
+    best = 1 << max(n - 1, 0).bit_length()
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            m = p35
+            while m < n:
+                m *= 2
+            best = min(best, m)
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
+@functools.lru_cache(maxsize=64)
+def _spectrum(bandwidth: float, rate: float, nfft: int) -> np.ndarray:
+    return np.fft.rfft(_impulse_response(bandwidth, rate), nfft)
 
 
 def lowpass(x: np.ndarray, bandwidth: float | None, rate: float) -> np.ndarray:
-    """Causal 2nd-order Butterworth low-pass at `bandwidth` Hz, started in steady state at x[0]."""
-    from scipy.signal import lfilter
+    """Causal 2nd-order Butterworth low-pass at `bandwidth` Hz, started in steady state at x[0].
 
+    The convolution with the impulse response by FFT, the input extended before its start by x[0]:
+    scipy's lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0]) to round-off, without per-sample recursion."""
     if bandwidth is None or bandwidth >= 0.45 * rate or x.size < 2:
         return x
-    b, a, zi = _butter2(float(bandwidth), float(rate))
-    y, _ = lfilter(b, a, x, zi=zi * x[0])
-    return y
+    h = _impulse_response(float(bandwidth), float(rate))
+    m = h.size
+    nfft = _fast_length(x.size + m)  # circular wrap-around only reaches the m - 1 leading samples dropped
+    xp = np.concatenate([np.full(m, x[0]), x])
+    y = np.fft.irfft(np.fft.rfft(xp, nfft) * _spectrum(float(bandwidth), float(rate), nfft), nfft)
+    return y[m:m + x.size]
 
 
 @functools.lru_cache(maxsize=64)
@@ -404,9 +449,11 @@ def ideal_channels(
     O6 = np.asarray(st.P[6]).T  # (N, 3)
     A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     imu = np.asarray(g.imu_position, dtype=float)
-    J = model.jacobian(q, 6, point=imu, expressed_in=6)
-    tw = np.einsum("nij,nj->ni", J, qd)
-    acc = np.einsum("nij,nj->ni", J[:, :3], qdd) + model.jdot_qdot(q, qd, 6, point=imu, expressed_in=6)[:, :3]
+    J = model.jacobian(q, 6, point=imu)  # ground axes, rotated to frame 6 below (6 x N, not 6 x 42 x N)
+    tw0 = np.concatenate([np.einsum("nij,nj->ni", J, qd), np.einsum("nij,nj->ni", J[:, :3], qdd)], axis=1)
+    tw6 = np.einsum("nji,nkj->nki", R6, tw0.reshape(N, 3, 3))  # each 3-vector into frame 6
+    tw = tw6[:, :2].reshape(N, 6)
+    acc = tw6[:, 2] + model.jdot_qdot(q, qd, 6, point=imu, expressed_in=6)[:, :3]
     w_iso = tw[:, 3:] @ A.T
     out["imu_roll_rate"], out["imu_pitch_rate"], out["imu_yaw_rate"] = (deg(w_iso[:, i]) for i in range(3))
     grav = np.asarray(model.tree.gravity, dtype=float)

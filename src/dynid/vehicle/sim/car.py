@@ -5,9 +5,11 @@ car template with the true parameters plus a small tire damping declared as FV o
 tire joints (`sim_tree`: car_identification moves it to Y as a known term, so the tire
 equations stay exact), generates three per-sample models with numeric parameters
 (numba_backend): the kinematics of the tire frames and of frame 6, the inverse dynamics
-with the four tire wrench sites and the aerodynamic site, and M(q) v; and compiles them
-with the kernel (kernel.py) into one cached module. `run(manoeuvre)` integrates with
-RK4 on the 625 Hz acquisition clock (substeps optional) and returns a SimulationResult.
+with the four tire wrench sites and the aerodynamic site, and the free joints' rows of
+the inertia matrix M(q) (composite bodies: one pass, where NF products M v would cost
+eight times as much); and compiles them with the kernel (kernel.py) into one cached
+module. `run(manoeuvre)` integrates with RK4 on the 625 Hz acquisition clock (substeps
+optional) and returns a SimulationResult.
 
 Step: one RK4 step per 1.6 ms sample by default. The fastest dynamics are the wheel hop
 (about 13 Hz) and the tire-slip/spin loop through the relaxation lengths (about 30 Hz):
@@ -27,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...model.tree import Tree
+from ...model.tree import PRISMATIC, Tree
 from ...symbolic import numba_backend as nb
-from ...symbolic.models import Builder, WrenchSite, finish, idm
+from ...symbolic.expr import ZERO, add, cross
+from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
 from ..aero import Aerodynamics, reference_point
 from ..geometry import CarGeometry
 from ..parameters import ParameterSet, truth
@@ -37,7 +40,7 @@ from ..statics import rest_state
 from ..tables import STEERING_RATIO, KinematicTables, default_tables
 from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, car_template
 from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
-from .bicycle import bicycle
+from .bicycle import Bicycle, Car, bicycle, cornering_bicycle
 from .interp import pack_aero, pack_tables
 from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre, pack
 from .tires import MagicFormula
@@ -93,18 +96,18 @@ def kinematics_program(tree: Tree):
     frame), then frame 6 (v, w in frame 6): K.NKIN outputs (see kernel.py)."""
     b = Builder(tree, "kin", (K.NKIN,), "numeric", "numeric")
     out = b.prog.outputs
-    from ...model.tree import FIXED
-    from ...symbolic.expr import add, mul
+    vel: dict[int, list] = {0: [ZERO] * 3}
 
     def velocity(k: int) -> list:
-        v = [{}, {}, {}]
-        for j in tree.ancestors[k]:
-            if tree.frames[j - 1].sigma == FIXED:
-                continue
-            _, jv = b.jac(j, k)
-            qd = b.geo.qd(j)
-            v = [add(v[c], mul(jv[c], qd)) for c in range(3)]
-        return [b.prog.define(f"V{c + 1}{k}", v[c]) for c in range(3)]
+        """Velocity of O_k in frame k, recursively (one rotation per frame, not one Jacobian column per
+        ancestor: half the operations of the kinematics and of its compile time)."""
+        if k not in vel:
+            i = tree.frames[k - 1].ant
+            v = b.geo.down(k, add3(velocity(i), cross(b.w(i), b.geo.pos(k))))
+            if tree.frames[k - 1].sigma == PRISMATIC:
+                v[2] = add(v[2], b.geo.qd(k))
+            vel[k] = b.geo.name3("V", k, v)
+        return vel[k]
 
     for i, t in enumerate(TIRES):
         R, P = b.geo.abs_rot(t), b.geo.abs_pos(t)
@@ -124,12 +127,25 @@ def kinematics_program(tree: Tree):
     return finish(b)
 
 
+def free_rows_inertia(inert: Tree):
+    """The inertia matrix's rows of the free joints (K.FREE), columns of the free and tabulated joints
+    (the rest left zero), shape (K.NF, K.NF_ROW): composite bodies, numeric parameters."""
+    prog = inertia(inert, "numeric", "numeric")
+    rows = {j - 1: i for i, j in enumerate(K.FREE)}
+    cols = set(rows) | {7 + 9 * k + 2 + n for k in range(4) for n in range(4)}
+    prog.outputs = [((rows[i], j), v) for (i, j), v in prog.outputs if i in rows and j in cols]
+    prog.shape = (K.NF, K.NF_ROW)
+    return prog.prune()
+
+
 def _module_key(tree: Tree, aero_point) -> str:
-    """Hash of what the compiled module depends on: the tree, the kernel and its helpers, the aero point."""
+    """Hash of what the compiled module depends on: the tree, the kernel and its helpers, the functions
+    here that generate the models, the aero point."""
     from ...model.files import tree_to_toml
 
     here = Path(__file__).parent
     srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py"))
+    srcs += "".join(inspect.getsource(f) for f in (kinematics_program, free_rows_inertia, _module_source))
     return nb.source_key(tree_to_toml(tree), repr(list(tree.gravity)), srcs, repr([float(x) for x in aero_point]))
 
 
@@ -141,15 +157,15 @@ def _module_source(tree: Tree, aero_point) -> tuple[str, list[str]]:
                                 known=frozenset(), labels={})
     kin = kinematics_program(tree)
     dyn = idm(tree, parameters="numeric", wrenches=sites)
-    mv = idm(inert, parameters="numeric")
+    mass = free_rows_inertia(inert)
     kernel_src = inspect.getsource(K).replace("from __future__ import annotations\n", "")
     here = Path(__file__).parent
     deps = hashlib.sha256(b"".join((here / f).read_bytes() for f in ("tires.py", "interp.py"))).hexdigest()[:16]
     body = "\n".join([f"# kernel dependencies: tires.py + interp.py {deps}", kernel_src,
                       "# ----- generated models -----",
                       nb.scalar_source(kin, "car_kin"), nb.scalar_source(dyn, "car_idm"),
-                      nb.scalar_source(mv, "car_mv")])
-    return body, [*K.JITTED, "car_kin", "car_idm", "car_mv"]
+                      nb.scalar_source(mass, "car_inertia")])
+    return body, [*K.JITTED, "car_kin", "car_idm", "car_inertia"]
 
 
 @dataclass
@@ -205,6 +221,14 @@ class CarSimulator:
         self.compile_info.module = self.module.__name__
         self._packed_tables = pack_tables(self.tables)
         self._packed_aero = pack_aero(self.aero)
+
+    def cornering_model(self, speed: float) -> Bicycle:
+        """The extended linear bicycle model at `speed` m/s (bicycle.py: loads at speed, trail, roll steer,
+        toe x load transfer, the tires' longitudinal forces, drive, aerodynamics) of this car; the
+        manoeuvres use the classic `self.bicycle`. Assumes the tire forces and rolling resistance on."""
+        aero = self.aero if self.settings.aero else None
+        car = Car(self.tree, self.tables, self.rest, self.tires, self.geometry, aero)
+        return cornering_bicycle(self.bicycle, car, speed)
 
     # ----- packing ------------------------------------------------------------------------
     def car_constants(self) -> dict[str, float]:

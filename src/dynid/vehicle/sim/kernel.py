@@ -6,8 +6,9 @@ from the car's tree (numba_backend), which replace the stubs at the bottom of th
   car_kin(q, qd, out)          poses and twists of the tire frames and frame 6 (KIN_* layout)
   car_idm(q, qd, qdd, wrench, out)   inverse dynamics with the tree's numeric parameters and
                                wrench sites: 4 tire frames (origin, own axes), aero on link 6
-  car_mv(q, qd, qdd, out)      M(q) qdd (the IDM of the tree without gravity, joint terms or
-                               couplings, called with qd = 0)
+  car_inertia(q, out)          the rows of the inertia matrix M(q) of the free joints (composite
+                               bodies), flat (NF, 42): out[NF_ROW * i + c] = M[FREE[i] - 1, c] on
+                               the free and tabulated columns c (the others are left 0)
 
 Forward dynamics (DESIGN, issue 5). Free joints f: x y z yaw pitch roll, the 4 dampers,
 the 4 wheel spins. Prescribed: the tabulated joints (steering, camber, caster, kingpin:
@@ -19,9 +20,10 @@ not enter. Then
 
   (M_ff + M_fp F) qdd_f = tau_f - h_f,   h = IDM(q, qd, [0, b], wrenches)
 
-with tau_f = 0 except on the wheel spins (drive + brake torque, plus the ground's moment
-about the axle at the wheel centre, which in the tree acts on the hub: see
-car_identification). The prescribed joints' actuators act on their own joints only.
+solved by Gaussian elimination (lu_solve), with tau_f = 0 except on the wheel spins (drive
++ brake torque, plus the ground's moment about the axle at the wheel centre, which in the
+tree acts on the hub: see car_identification). The prescribed joints' actuators act on
+their own joints only.
 
 State y (NY): qf (14), qdf (14), tire relaxation ux (4), uy (4), speed-controller
 integral, steering-wheel angle and rate (2). Free joint order: FREE (1-based).
@@ -44,6 +46,7 @@ Y_UX, Y_UY, Y_INT, Y_H, Y_HD = 28, 32, 36, 37, 38
 KIN_CORNER = 18
 KIN_6 = 72
 NKIN = 78
+NF_ROW = 42  # columns of car_inertia's rows
 # scalar parameters
 P_R0, P_G, P_MASS, P_RATIO, P_WB, P_US, P_KP, P_KI, P_TDMAX, P_TDMIN = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
 P_WS, P_ZS, P_RHO, P_AREA, P_LEN, P_VMIN, P_AREF, P_AERO_ON, P_HORIZ, P_ROLL = 10, 11, 12, 13, 14, 15, 16, 19, 20, 21
@@ -131,8 +134,56 @@ def driver(t, y, v, par, man, out):
     return 0
 
 
+def reduced_inertia(Af, F, M):
+    """M (NF, NF) = M_ff + M_fp F from the free rows Af of M: column i is M e_FREE[i] plus, for a damper,
+    M times the tabulated joints' chain-rule column F[k, :4]."""
+    for i in range(NF):
+        c = FREE[i] - 1
+        for j in range(NF):
+            M[j, i] = Af[NF_ROW * j + c]
+    for k in range(4):
+        for n in range(4):
+            c = 7 + 9 * k + 2 + n
+            f = F[k, n]
+            for j in range(NF):
+                M[j, 6 + k] += Af[NF_ROW * j + c] * f
+    return 0
+
+
+def lu_solve(M, x):
+    """x <- M^-1 x by Gaussian elimination with partial pivoting, in place (M is overwritten): a 14 x 14
+    system without the allocations and copies of np.linalg.solve. Returns 1 if M is singular."""
+    n = x.size
+    for c in range(n):
+        p = c
+        big = abs(M[c, c])
+        for r in range(c + 1, n):
+            if abs(M[r, c]) > big:
+                big = abs(M[r, c])
+                p = r
+        if big == 0.0:
+            return 1
+        if p != c:
+            for k in range(c, n):
+                M[c, k], M[p, k] = M[p, k], M[c, k]
+            x[c], x[p] = x[p], x[c]
+        inv = 1.0 / M[c, c]
+        for r in range(c + 1, n):
+            f = M[r, c] * inv
+            if f != 0.0:
+                for k in range(c + 1, n):
+                    M[r, k] -= f * M[c, k]
+                x[r] -= f * x[c]
+    for c in range(n - 1, -1, -1):
+        acc = x[c]
+        for k in range(c + 1, n):
+            acc -= M[c, k] * x[k]
+        x[c] = acc / M[c, c]
+    return 0
+
+
 def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
-               q, qd, qdd, wr, kin, hv, mv, zv, F, A, rhs, tab, ctl, tf, record, krow, RQ, RQD, RQDD, RW, RR):
+               q, qd, qdd, wr, kin, hv, Af, M, x, F, rhs, tab, ctl, tf, record, krow, RQ, RQD, RQDD, RW, RR):
     """dy/dt at (t, y); with record, the sample's q, qd, qdd, wheel wrenches and controls go to row krow."""
     status = S_OK
     for i in range(42):
@@ -275,21 +326,13 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         rhs[10 + k] += spin + my_centre
         if record:
             RR[krow, 3 + k] = spin
-    # A = M_ff + M_fp F: columns M v for v = e_i (+ F on the corner's tabulated joints)
+    # M_ff + M_fp F from the free joints' rows of M (one composite-body pass, not NF products M v)
+    car_inertia(q, Af)
+    reduced_inertia(Af, F, M)
     for i in range(NF):
-        for j in range(42):
-            mv[j] = 0.0
-        mv[FREE[i] - 1] = 1.0
-        if 6 <= i < 10:
-            k = i - 6
-            for n in range(4):
-                mv[7 + 9 * k + 2 + n] = F[k, n]
-        car_mv(q, zv, mv, A[i])
-    M = np.empty((NF, NF))
-    for i in range(NF):
-        for j in range(NF):
-            M[j, i] = A[i, FREE[j] - 1]
-    x = np.linalg.solve(M, rhs[:NF])
+        x[i] = rhs[i]
+    if lu_solve(M, x) != 0:
+        status = S_NONFINITE
     for i in range(NF):
         dy[i] = y[NF + i]
         dy[NF + i] = x[i]
@@ -331,10 +374,10 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     wr = np.zeros((5, 6))
     kin = np.zeros(NKIN)
     hv = np.zeros(42)
-    mv = np.zeros(42)
-    zv = np.zeros(42)
+    Af = np.zeros(NF * NF_ROW)
+    M = np.zeros((NF, NF))
+    x = np.zeros(NF)
     F = np.zeros((4, 8))
-    A = np.zeros((NF, 42))
     rhs = np.zeros(NF)
     tab = np.zeros(6)
     ctl = np.zeros(7)
@@ -348,8 +391,8 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     for n in range(nsteps):
         for s in range(nsub):
             t = t0 + n * dt + s * hs
-            st = derivative(t, y, k1, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv, zv,
-                            F, A, rhs, tab, ctl, tf, s == 0, n, RQ, RQD, RQDD, RW, RR)
+            st = derivative(t, y, k1, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af, M,
+                            x, F, rhs, tab, ctl, tf, s == 0, n, RQ, RQD, RQDD, RW, RR)
             if st != S_OK:
                 status[0] = st
                 status[1] = n
@@ -358,16 +401,16 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
                 break  # the last sample is recorded; no step beyond it
             for i in range(NY):
                 yt[i] = y[i] + 0.5 * hs * k1[i]
-            derivative(t + 0.5 * hs, yt, k2, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv,
-                       zv, F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            derivative(t + 0.5 * hs, yt, k2, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
+                       M, x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 yt[i] = y[i] + 0.5 * hs * k2[i]
-            derivative(t + 0.5 * hs, yt, k3, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv,
-                       zv, F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            derivative(t + 0.5 * hs, yt, k3, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
+                       M, x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 yt[i] = y[i] + hs * k3[i]
-            derivative(t + hs, yt, k4, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, mv, zv,
-                       F, A, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+            derivative(t + hs, yt, k4, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af, M,
+                       x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 y[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     status[0] = S_OK
@@ -376,9 +419,9 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
 
 
 # ----- the generated models: this file is a template; the compiled module (dynid.vehicle.sim.car) appends
-# car_kin(q, qd, out), car_idm(q, qd, qdd, wrench, out) and car_mv(q, qd, qdd, out), generated for the car,
+# car_kin(q, qd, out), car_idm(q, qd, qdd, wrench, out) and car_inertia(q, out), generated for the car,
 # after this source. The names are declared here so that the template reads (and lints) as a whole.
-car_kin = car_idm = car_mv = None
+car_kin = car_idm = car_inertia = None
 
 
-JITTED = ("smoothstep", "path_offset", "driver", "derivative", "simulate")
+JITTED = ("smoothstep", "path_offset", "driver", "reduced_inertia", "lu_solve", "derivative", "simulate")

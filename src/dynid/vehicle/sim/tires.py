@@ -92,6 +92,11 @@ class MagicFormula:
         """dFy/d(alpha) at zero slip, N/rad (positive): Ky of the module doc."""
         return self.pKy1 * self.Fz0 * math.sin(2.0 * math.atan(Fz / (self.pKy2 * self.Fz0)))
 
+    def cornering_stiffness_slope(self, Fz: float) -> float:
+        """dKy/dFz (rad^-1): the load sensitivity of the cornering stiffness."""
+        x = Fz / (self.pKy2 * self.Fz0)
+        return 2.0 * self.pKy1 * math.cos(2.0 * math.atan(x)) / (self.pKy2 * (1.0 + x * x))
+
     def peak_friction(self, Fz: float) -> tuple[float, float]:
         """(mu_x, mu_y) at the load Fz."""
         dfz = (Fz - self.Fz0) / self.Fz0
