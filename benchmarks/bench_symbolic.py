@@ -5,9 +5,12 @@ Run: python benchmarks/bench_symbolic.py   (writes benchmarks/results/symbolic.j
 - generation time of every model (fresh, no cache) for PUMA 560, TX40 and the
   car-shaped 42-frame tree (6 virtual frames 3P+3R, 4 corners of 9 frames);
 - operation counts, and the 6R arm with IA, FV, FS and a tool wrench (RX90 table);
-- per-sample time of the generated NumPy regressor (batched) against
-  pinocchio.computeJointTorqueRegressor called per sample on the same tree, and of the
-  generated C compiled with -O2 (called through ctypes on a batch).
+- per-sample time of the generated NumPy regressor (batched, N = 20000, results dropped as
+  they come, as a caller looping over batches does: the module reuses their buffers) against
+  pinocchio.computeJointTorqueRegressor called per sample on the same tree, also with the
+  module's results writeable (READONLY = False: a reused buffer's zero rows cleared each
+  call) and with no buffer reuse (POOL_MIN huge: fresh zeroed pages each call, as for a caller
+  keeping every result), and of the generated C compiled with -O2 (called through ctypes).
 """
 
 from __future__ import annotations
@@ -55,9 +58,11 @@ def timed_build(tree: Tree, model: str, **opts):
     return prog, time.perf_counter() - t0
 
 
-def numpy_fn(prog, tree):
+def numpy_fn(prog, tree, **settings):
+    """The generated module's evaluate, with module settings (READONLY, CHUNK) overridden."""
     ns: dict = {}
     exec(compile(to_numpy(prog, tree), "<generated>", "exec"), ns)
+    ns.update(settings)
     return ns["evaluate"]
 
 
@@ -147,15 +152,20 @@ def main() -> int:
     for key, opts in (("puma560", {}), ("car42", {"rows": CAR_ROWS, "cols": CAR_COLS})):
         tree = trees[key]
         prog = build(tree, "regressor", **opts)
-        f = numpy_fn(prog, tree)
+        f, fw = numpy_fn(prog, tree), numpy_fn(prog, tree, READONLY=False)
+        ff = numpy_fn(prog, tree, POOL_MIN=1 << 62)
         Nn, Np, Nc = 20000, 2000, 20000
         q, qd, qdd = rng.uniform(-np.pi, np.pi, (3, Nn, tree.n))
-        t_np = per_sample(lambda f=f, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn)
+        t_np = per_sample(lambda f=f, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn, repeat=7)
+        t_npw = per_sample(lambda f=fw, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn, repeat=7)
+        t_npf = per_sample(lambda f=ff, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn, repeat=7)
         t_pin = pinocchio_per_sample(tree, q[:Np], qd[:Np], qdd[:Np])
         t_c = c_per_sample(prog, key, q[:Nc], qd[:Nc], qdd[:Nc])
         speed[key] = {"model": f"regressor {prog.shape[0]}x{prog.shape[1]}", "numpy_us": t_np * 1e6,
+                      "numpy_writeable_us": t_npw * 1e6, "numpy_fresh_buffers_us": t_npf * 1e6,
                       "pinocchio_us": None if t_pin is None else t_pin * 1e6,
                       "numpy_speedup_vs_pinocchio": None if t_pin is None else t_pin / t_np,
+                      "numpy_writeable_speedup_vs_pinocchio": None if t_pin is None else t_pin / t_npw,
                       "c_O2_us": None if t_c is None else t_c * 1e6}
     res["per_sample"] = speed
 
@@ -175,8 +185,12 @@ def main() -> int:
     for key, d in speed.items():
         pin_s = "n/a" if d["pinocchio_us"] is None else f"{d['pinocchio_us']:.2f}"
         sp = "n/a" if d["numpy_speedup_vs_pinocchio"] is None else f"{d['numpy_speedup_vs_pinocchio']:.1f}x"
+        spw = ("n/a" if d["numpy_writeable_speedup_vs_pinocchio"] is None
+               else f"{d['numpy_writeable_speedup_vs_pinocchio']:.1f}x")
         c_s = "n/a" if d["c_O2_us"] is None else f"{d['c_O2_us']:.3f}"
-        print(f"  {key:<8} {d['model']}: numpy {d['numpy_us']:.3f}  pinocchio {pin_s}  ({sp})  C -O2 {c_s}")
+        print(f"  {key:<8} {d['model']}: numpy {d['numpy_us']:.3f}  pinocchio {pin_s}  ({sp})  "
+              f"numpy writeable {d['numpy_writeable_us']:.3f} ({spw})  fresh buffers "
+              f"{d['numpy_fresh_buffers_us']:.3f}  C -O2 {c_s}")
     print(f"wrote {out}")
     return 0
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import os
 import shutil
 import subprocess
 import sys
@@ -138,6 +139,170 @@ def test_external_wrenches_in_idm_and_regressor():
     close(W, We)
     close(Q, Qe)
     close(np.einsum("nij,j->ni", W, tree.parameters) - Q, tau)
+
+
+def _namespace(prog, tree, **settings) -> dict:
+    """The generated module's namespace, with module settings (CHUNK, POOL_MIN) overridden."""
+    ns: dict = {}
+    exec(compile(to_numpy(prog, tree), "<generated>", "exec"), ns)
+    ns.update(settings)
+    return ns
+
+
+@pytest.mark.parametrize("N, chunk", [(1, 4), (3, 4), (4, 4), (5, 4), (11, 4), (9, 1), (0, 4)])
+def test_generated_numpy_over_chunk_boundaries(N, chunk):
+    tree = get_tree("puma560")
+    m = Model(tree)
+    q, qd, qdd = states(tree, max(N, 1), seed=N)
+    q, qd, qdd = q[:N], qd[:N], qdd[:N]
+    ns = _namespace(regressor(tree), tree, CHUNK=chunk)
+    W = ns["evaluate"](q, qd, qdd)
+    assert W.shape == (N, 6, tree.p)
+    if N:
+        close(W, m.regressor(q, qd, qdd))
+    tau = _namespace(idm(tree), tree, CHUNK=chunk)["evaluate"](q, qd, qdd)
+    assert tau.shape == (N, 6)
+    if N:
+        close(tau, m.inverse_dynamics(q, qd, qdd))
+
+
+def test_generated_numpy_output_layout_and_single_sample():
+    tree = get_tree("tx40")
+    m = Model(tree)
+    q, qd, qdd = states(tree, 7)
+    f = evaluate(regressor(tree), tree)
+    W = f(q, qd, qdd)
+    # a view (N, rows, cols) of a C-ordered (rows * cols, N) buffer: one contiguous row per entry
+    assert W.shape == (7, 6, tree.p) and W.base is not None and W.base.shape == (6 * tree.p, 7)
+    assert W.transpose(1, 2, 0).flags.c_contiguous and not W.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        W[0, 0, 0] = 1.0
+    w1 = f(q[2], qd[2], qdd[2])
+    assert w1.shape == (6, tree.p)
+    close(w1, m.regressor(q, qd, qdd)[2])
+    # inputs in any layout
+    close(f(np.asfortranarray(q), qd[:, :].copy(order="F"), qdd), m.regressor(q, qd, qdd))
+
+
+@pytest.mark.parametrize("readonly", [True, False])
+def test_generated_numpy_reuses_only_dropped_buffers(readonly):
+    tree = get_tree("puma560")
+    m = Model(tree)
+    q, qd, qdd = states(tree, 9)
+    ref = m.regressor(q, qd, qdd)
+    ns = _namespace(regressor(tree), tree, POOL_MIN=0, CHUNK=4, READONLY=readonly)
+    f = ns["evaluate"]
+    a = f(q, qd, qdd)
+    a_copy = a.copy()
+    b = f(q[::-1], qd[::-1], qdd[::-1])  # a is held: b gets another buffer
+    assert not np.shares_memory(a, b)
+    np.testing.assert_array_equal(a, a_copy)
+    address = a.base.__array_interface__["data"][0]
+    if readonly:
+        with pytest.raises(ValueError, match="read-only"):
+            a[...] = 7.0
+        a.base.flags.writeable = True  # made writeable on purpose: the buffer is cleared before reuse
+        a.flags.writeable = True
+    a[...] = 7.0  # the caller writes into a result, then drops it
+    del a
+    c = f(q, qd, qdd)
+    assert c.base.__array_interface__["data"][0] == address  # reused...
+    close(c, ref)  # ...with its structural zeros zero again
+    close(b, ref[::-1])
+    del c
+    d = f(q, qd, qdd)  # reused without clearing (read-only) or cleared: still right
+    close(d, ref)
+    ns["release"]()
+    assert not ns["_POOL"]
+
+
+def test_generated_numpy_from_two_threads():
+    from concurrent.futures import ThreadPoolExecutor
+
+    tree = get_tree("puma560")
+    m = Model(tree)
+    ns = _namespace(regressor(tree), tree, POOL_MIN=0, CHUNK=16)
+    runs = [states(tree, 40 + k, seed=k) for k in range(8)]
+    with ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(lambda s: ns["evaluate"](*s), runs))
+    for (q, qd, qdd), W in zip(runs, results, strict=True):
+        close(W, m.regressor(q, qd, qdd))
+
+
+def test_generated_sincos_against_libm():
+    ns = _namespace(regressor(get_tree("puma560")), get_tree("puma560"))
+    rng = np.random.default_rng(0)
+    xs = [np.linspace(-20.0, 20.0, 4001), rng.uniform(-9.9e4, 9.9e4, 4000), np.arange(-64, 64) * np.pi / 4,
+          np.array([0.0, 1e-300, -3.0, 1e5 + 1.0, -1e7]), np.array([np.nan, 1.0, np.inf])]
+    for x in xs:
+        s, c, w, k = np.empty_like(x), np.empty_like(x), np.empty((3, x.size)), np.empty(x.size, np.int64)
+        with np.errstate(invalid="ignore"):
+            ns["_sincos"](x, s, c, w[0], w[1], w[2], k)
+            es, ec = np.sin(x), np.cos(x)
+        np.testing.assert_allclose(s, es, rtol=0, atol=3e-16)
+        np.testing.assert_allclose(c, ec, rtol=0, atol=3e-16)
+
+
+@pytest.mark.parametrize("name", ["floating_tree", "car"])
+def test_both_projections_of_the_regressor_agree_with_engine(name):
+    """W and Q through the joints' unit twists or through wrenches moved back (models._regressor)."""
+    from dynid.symbolic.models import _regressor
+
+    tree = car_template() if name == "car" else get_tree(name)
+    m = Model(tree)
+    q, qd, qdd = states(tree, 5)
+    N = q.shape[0]
+    if name == "car":
+        rows, cols = list(CAR_ROWS), list(CAR_COLS)
+        sites = [WrenchSite(k, (0.0, 0.0, 0.0), k) for k in (15, 24, 33, 42)] + [WrenchSite(6, (0.5, 0.0, 0.2))]
+    else:
+        rows, cols = None, None
+        sites = [WrenchSite(10, (0.1, -0.2, 0.05), None), WrenchSite(8, (0.0, 0.0, 0.3), 0), WrenchSite(6)]
+    vals = np.random.default_rng(5).normal(size=(N, len(sites), 6))
+    wrenches = [dynid.Wrench(s.link, vals[:, i], s.point, s.frame) for i, s in enumerate(sites)]
+    We, Qe = m.regressor(q, qd, qdd, wrenches, rows=rows, cols=cols)
+    counts = set()
+    for back_w in (False, True):
+        for back_q in (False, True):
+            prog = _regressor(tree, rows, cols, "numeric", sites, back_w, back_q)
+            W, Q = evaluate(prog, tree)(q, qd, qdd, vals)
+            close(W, We)
+            close(Q, Qe)
+            counts.add((prog.ops().mult, prog.ops().add))
+    best = regressor(tree, rows=rows, cols=cols, wrenches=sites).ops()
+    assert all(best.mult <= a or best.add <= b for a, b in counts)
+    if name == "car":  # long corners, few parameters: moving the wrenches back pays
+        assert (best.mult, best.add) == min(counts)
+
+
+def test_generated_text_does_not_depend_on_the_hash_seed():
+    code = (
+        "import hashlib, dynid\n"
+        "from dynid.symbolic import build, to_c, to_numpy, to_text\n"
+        "from dynid.vehicle import car_template\n"
+        "from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names\n"
+        "car, puma = car_template(), dynid.load_model('puma560').tree\n"
+        "progs = [(build(car, 'regressor', rows=EQUATION_ROWS, cols=paper_parameter_names()), car),\n"
+        "         (build(car, 'idm'), car), (build(puma, 'regressor'), puma), (build(puma, 'inertia'), puma)]\n"
+        "text = ''.join(to_numpy(p, t) + ''.join(to_c(p)) + to_text(p) for p, t in progs)\n"
+        "print(hashlib.sha256(text.encode()).hexdigest())\n"
+    )
+    digests = set()
+    for seed in ("0", "1", "12345"):
+        path = os.pathsep.join([str(Path(dynid.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])
+        env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": path}
+        res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+        digests.add(res.stdout.strip())
+    assert len(digests) == 1
+
+
+def test_generated_numpy_rejects_clashing_names():
+    from dynid.model import Coupling
+
+    tree = Tree("clash", (Frame(1, 0, 0), Frame(2, 1, 0, alpha=0.3)), couplings=(Coupling("_t0", "FV", {2: 1.0}),),
+                values={"M2": 1.0, "MX2": 0.1})
+    with pytest.raises(SymbolicError, match="clashes"):
+        to_numpy(idm(tree), tree)
 
 
 def _compile(tmp_path: Path, prog, stem: str):

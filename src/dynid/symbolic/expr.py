@@ -192,7 +192,7 @@ def _pieces(terms: list[tuple[tuple[str, ...], float]]) -> list[tuple[bool, str,
         return [(c < 0, "*".join(factors), len(factors) - 1, 0, False)]
     counts: dict[object, int] = {}
     for m, c in terms:
-        for s in set(m):
+        for s in dict.fromkeys(m):  # not set(m): its order, hence the tie-breaks, would follow PYTHONHASHSEED
             counts[s] = counts.get(s, 0) + 1
         if abs(c) != 1.0 and m:
             counts[abs(c)] = counts.get(abs(c), 0) + 1

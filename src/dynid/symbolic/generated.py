@@ -3,7 +3,10 @@
 `GeneratedRegressor(tree)(q, qd, qdd, wrenches, rows, cols)` returns what
 `Model.regressor` returns with wrenches, (W, Q), from the generated identification model of
 exactly those rows, columns and wrench sites (generated once, cached on disk by a hash of
-the model; tested against the engine to 1e-10).
+the model; tested against the engine to 1e-10). Unlike the engine's, W (N, rows, cols) and
+Q (N, rows) are read-only views (samples first) of (entries, N) buffers that a later call
+reuses once they are dropped: copy them to modify (`car_identification` only reads W and
+copies Q).
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ import numpy as np
 from ..dynamics.regressor import resolve_cols as _engine_cols
 from ..dynamics.regressor import resolve_rows as _engine_rows
 from ..model.tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, ModelError, Tree
-from .expr import ONE, ZERO, Poly, Program, SymbolicError, add, const, cross, dot, mul, neg, scale, sub, sym
+from .expr import ONE, ZERO, OpCount, Poly, Program, SymbolicError, add, const, cross, dot, mul, neg, scale, sub, sym
 from .geometry import Geometry, axis_sym
 
 PARAMETER_MODES = ("symbolic", "numeric")
@@ -291,6 +291,37 @@ class Builder:
             "M": (z3, vp),
         }
 
+    # ----- wrenches per unit parameter on the joints above ------------------------------------
+    def projected(
+        self, k: int, wrenches: dict[str, tuple[list[Poly], list[Poly]]], stop: int, row_of: dict[int, int]
+    ) -> dict[tuple[int, str], Poly]:
+        """(joint j, key) -> generalized force on the row joints j above k of each wrench (moment
+        about O_k, force) given in frame k: moved back frame by frame to `stop` (an ancestor of k,
+        or k) and read on each joint passed, then projected on the joints above `stop` through
+        their unit twists moved to `stop`."""
+        out: dict[tuple[int, str], Poly] = {}
+        i = k
+        while True:
+            if i in row_of and self.sigma(i) != FIXED:
+                for key, (No, F) in wrenches.items():
+                    out[i, key] = No[2] if self.sigma(i) == REVOLUTE else F[2]
+            if i == stop:
+                break
+            wrenches = {key: self.moved_up(i, No, F, key) for key, (No, F) in wrenches.items()}
+            i = self.ant(i)
+        for j in self.tree.ancestors[stop]:
+            if j != stop and j in row_of and self.sigma(j) != FIXED:
+                a, v = self.jac(j, stop)
+                for key, (No, F) in wrenches.items():
+                    out[j, key] = add(dot(a, No), dot(v, F))
+        return out
+
+    def moved_up(self, k: int, No: list[Poly], F: list[Poly], tag: str) -> tuple[list[Poly], list[Poly]]:
+        """(moment about O_i, force) in frame i = a(k) of a wrench given about O_k in frame k."""
+        g = self.geo
+        f = g.name3("FB", k, g.up(k, F), f"_{tag}")
+        return g.name3("NB", k, add3(g.up(k, No), cross(g.pos(k), f)), f"_{tag}"), f
+
 
 def add3(a: list[Poly], b: list[Poly]) -> list[Poly]:
     return [add(x, y) for x, y in zip(a, b, strict=True)]
@@ -415,7 +446,27 @@ def regressor(
 
     With wrench sites, a second output Q (len(rows),) holds the wrenches' generalized
     forces J^T w, so that W X = tau + Q (the engine's convention).
+
+    A link's wrench per unit parameter is projected on its ancestors' joints either through
+    the joints' unit twists moved forward to the link (shared by every link below them: right
+    for an arm), or moved back to the nearest frame shared with another link and projected
+    there (right for long branches with few parameters, like a car's corners); both are
+    built, for W and for Q, and the one with fewer operations is kept.
     """
+    best = _regressor(tree, rows, cols, geometry, wrenches, False, False)
+    for back_w, back_q in ((True, False), (False, True), (True, True)) if wrenches else ((True, False),):
+        prog = _regressor(tree, rows, cols, geometry, wrenches, back_w, back_q)
+        if _better(prog.ops(), best.ops()):
+            best = prog
+    return best
+
+
+def _better(a: OpCount, b: OpCount) -> bool:
+    """Fewer multiplications and additions, none more of either."""
+    return a.mult <= b.mult and a.add <= b.add and (a.mult, a.add) != (b.mult, b.add)
+
+
+def _regressor(tree: Tree, rows, cols, geometry: str, wrenches, back_w: bool, back_q: bool) -> Program:
     check_tree(tree)
     R, C = resolve_rows(tree, rows), resolve_cols(tree, cols)
     b = Builder(tree, "regressor", (len(R), len(C)), geometry, "numeric", wrenches)
@@ -423,10 +474,13 @@ def regressor(
     b.prog.meta.update(rows=R, cols=[names[c] for c in C])
     row_of = {j: r for r, j in enumerate(R)}
     anc = tree.ancestors
-    blocks: dict[int, dict] = {}
+    split = {ci: _split(tree, names[col]) for ci, col in enumerate(C)}
+    inertial = {frame for frame, kind in split.values() if kind in INERTIAL}
+    meet = _meeting_frames(tree, inertial) if back_w else {k: k for k in inertial}
+    entries: dict[int, dict[tuple[int, str], Poly]] = {}
     for ci, col in enumerate(C):
         name = names[col]
-        frame, kind = _split(tree, name)
+        frame, kind = split[ci]
         if kind is None:  # coupling
             c = tree.couplings[[cp.name for cp in tree.couplings].index(name)]
             f = b.coupling_value([cp.name for cp in tree.couplings].index(name))
@@ -438,30 +492,62 @@ def regressor(
             if frame in row_of:
                 b.prog.outputs.append(((row_of[frame], ci), b.joint_column(kind, frame)))
             continue
+        if frame not in entries:
+            kinds = {k for fr, k in split.values() if fr == frame and k in INERTIAL}
+            blocks = b.param_blocks(frame)
+            entries[frame] = b.projected(frame, {k: blocks[k] for k in sorted(kinds)}, meet[frame], row_of)
         for j in anc[frame]:
-            if j not in row_of or b.sigma(j) == FIXED:
-                continue
-            if frame not in blocks:
-                blocks[frame] = b.param_blocks(frame)
-            No, F = blocks[frame][kind]
-            a, v = b.jac(j, frame)
-            entry = add(dot(a, No), dot(v, F))
+            entry = entries[frame].get((j, kind))
             if entry:
                 b.prog.outputs.append(((row_of[j], ci), entry))
     if b.sites:
-        qout = []
-        acc: dict[int, Poly] = {}
+        acc = _site_generalized_forces(b, row_of, back_q)
+        b.prog.extra_outputs["Q"] = ((len(R),), [((row_of[j],), p) for j, p in acc.items() if p])
+    return finish(b)
+
+
+def _meeting_frames(tree: Tree, frames: set[int]) -> dict[int, int]:
+    """For each frame k of the set: the nearest frame at or above k that is an ancestor of
+    another frame of the set (k itself if it is one), else the root-most frame above k."""
+    anc = tree.ancestors
+    count: dict[int, int] = {}
+    for k in frames:
+        for a in anc[k]:
+            count[a] = count.get(a, 0) + 1
+    return {k: next((a for a in reversed(anc[k]) if count[a] >= 2), anc[k][0]) for k in frames}
+
+
+def _site_generalized_forces(b: Builder, row_of: dict[int, int], back: bool) -> dict[int, Poly]:
+    """Q_j = J_j^T w summed over the wrench sites, per row joint j: through the joints' unit
+    twists at each site, or (back) the sites' wrenches summed while moved back to the root."""
+    anc = b.tree.ancestors
+    acc: dict[int, Poly] = {}
+    if not back:
         for s, site in enumerate(b.sites):
             F, M = b.site_wrench(s)
             for j in anc[site.link]:
                 if j in row_of and b.sigma(j) != FIXED:
                     a, v = b.jac(j, site.link)
                     acc[j] = add(acc.get(j, ZERO), dot(a, M), dot(v, F))
-        for j, p in acc.items():
-            if p:
-                qout.append(((row_of[j],), p))
-        b.prog.extra_outputs["Q"] = ((len(R),), qout)
-    return finish(b)
+        return acc
+    at: dict[int, tuple[list[Poly], list[Poly]]] = {}
+    for s, site in enumerate(b.sites):
+        F, M = b.site_wrench(s)
+        old = at.get(site.link)
+        at[site.link] = (add3(old[0], M), add3(old[1], F)) if old else (M, F)
+    rows = {j for j in row_of if b.sigma(j) != FIXED}
+    for i in range(b.n, 0, -1):  # an antecedent has a smaller number than its children
+        if i not in at:
+            continue
+        M, F = at.pop(i)
+        if i in rows:
+            acc[i] = add(acc.get(i, ZERO), M[2] if b.sigma(i) == REVOLUTE else F[2])
+        a = b.ant(i)
+        if a > 0 and rows & set(anc[a]):
+            M, F = b.moved_up(i, M, F, "Q")
+            old = at.get(a)
+            at[a] = (add3(old[0], M), add3(old[1], F)) if old else (M, F)
+    return {j: acc[j] for j in sorted(acc)}
 
 
 def inertia(tree: Tree, geometry: str = "numeric", parameters: str = "symbolic") -> Program:

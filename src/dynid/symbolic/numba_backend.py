@@ -32,7 +32,16 @@ from pathlib import Path
 from types import ModuleType
 
 from ..model.tree import Tree
-from .codegen import _ARGS, _eq_text, cache_dir, format_poly, import_file, model_hash, write_atomic
+from .codegen import (
+    _ARGS,
+    _eq_text,
+    cache_dir,
+    format_poly,
+    generator_fingerprint,
+    import_file,
+    model_hash,
+    write_atomic,
+)
 from .expr import Program, SymbolicError
 
 BACKEND_VERSION = "1"
@@ -195,8 +204,8 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
 
 
 def source_key(*parts: str) -> str:
-    """A short hash of the given texts and this generator's version."""
-    h = hashlib.sha256(("\0".join((BACKEND_VERSION, *parts))).encode())
+    """A short hash of the given texts and of this generator's source (see codegen.generator_fingerprint)."""
+    h = hashlib.sha256(("\0".join((BACKEND_VERSION, generator_fingerprint(), *parts))).encode())
     return h.hexdigest()[:20]
 
 
