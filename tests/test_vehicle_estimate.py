@@ -113,3 +113,23 @@ def test_estimated_joints_match_the_trajectory(truth):
         assert np.abs(est.qd[:, j] - qd[sl, j]).max() < 1e-3 * 25
         assert np.abs(est.qdd[:, j] - qdd[sl, j]).max() < 5e-3 * np.abs(qdd[:, j]).max()
     assert np.abs(est.wheel_wrenches[:, :, 2] - ww[sl, :, 2]).max() < 1e-3 * 4000
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.0016, 0.0037, -0.0031, 0.5, 2.0])
+def test_advance_is_linear_interpolation_with_the_ends_held(delay):
+    from dynid.vehicle.estimate import advance
+
+    x = np.random.default_rng(1).standard_normal(700)
+    n = np.arange(x.size, dtype=float)
+    np.testing.assert_allclose(advance(x, delay, 625.0), np.interp(n + delay * 625.0, n, x), rtol=0, atol=1e-15)
+
+
+def test_chassis_rotation_is_the_iso_zyx_sequence():
+    from scipy.spatial.transform import Rotation
+
+    from dynid.vehicle.estimate import EARTH, chassis_rotation
+    from dynid.vehicle.sensors import ISO_AXES
+
+    yaw, pitch, roll = np.random.default_rng(0).uniform(-3.0, 3.0, (3, 50))
+    ref = EARTH @ Rotation.from_euler("ZYX", np.c_[yaw, pitch, roll]).as_matrix() @ ISO_AXES
+    np.testing.assert_allclose(chassis_rotation(yaw, pitch, roll), ref, rtol=0, atol=1e-14)

@@ -44,10 +44,18 @@ def car_system(
                             regressor=regressor)
     rows, N = len(eq.rows), len(traj.t)
     step = int(np.prod(decimate)) if decimate else 1
-    W = np.ascontiguousarray(eq.W.reshape(rows, N, -1).transpose(1, 0, 2))  # (N, rows, p): one filter pass
-    Y = np.ascontiguousarray(eq.Y.reshape(rows, N).T)
+    W3 = eq.W.reshape(rows, N, -1)
+    # only the (row, column) pairs that are not structural zeros (126 of the paper's 14 x 48) and Y go
+    # through the filter, gathered as one (N, live + rows) array
+    live_r, live_c = np.nonzero(np.any(W3 != 0, axis=1))
+    both = np.empty((N, live_r.size + rows))
+    both[:, : live_r.size] = W3[live_r, :, live_c].T
+    both[:, live_r.size :] = eq.Y.reshape(rows, N).T
     if decimate:
-        W, Y = decimate_parallel(W, Y, decimate, fs)
+        both, _ = decimate_parallel(both, None, decimate, fs)
+    W = np.zeros((both.shape[0], rows, W3.shape[2]))
+    W[:, live_r, live_c] = both[:, : live_r.size]
+    Y = both[:, live_r.size :]
     if full is not traj:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]

@@ -115,7 +115,7 @@ def _decimate_columns(
 
 def decimate_parallel(
     W: ArrayLike,
-    Y: ArrayLike,
+    Y: ArrayLike | None,
     factor: int | Sequence[int],
     fs: float,
     order: int = 8,
@@ -129,8 +129,9 @@ def decimate_parallel(
     ----------
     W : array (N, m, p) or (N, p)
         Observation matrix per sample: m equation rows, p parameter columns.
-    Y : array (N, m) or (N,)
-        Right-hand side per sample, matching W ((N, p) goes with (N,)).
+    Y : array (N, m) or (N,), or None
+        Right-hand side per sample, matching W ((N, p) goes with (N,)); None: W alone
+        (any array whose columns all need the same treatment), and Yd is None.
     factor : int >= 2, or a sequence of them
         Decimation factor, or factors applied in turn (the TX40 reference uses
         (10, 10): 100 in two stages, each with its own filter; one stage of 100 would
@@ -160,7 +161,7 @@ def decimate_parallel(
     data to the part you trust before decimating, or drop the corresponding rows after.
     """
     Wa = _checks.as_float(W, "W", min_ndim=2)
-    Ya = _checks.as_float(Y, "Y")
+    Ya = _checks.as_float(np.zeros(Wa.shape[:-1]) if Y is None else Y, "Y")
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
     if Wa.ndim == 3:
@@ -191,5 +192,7 @@ def decimate_parallel(
     # parameters): the filter maps zero to zero, so only the other columns are filtered
     live = np.flatnonzero(np.any(W2 != 0, axis=0))
     Wd = _decimate_columns(W2, stages, block, live).reshape((nd, *Wa.shape[1:]))
+    if Y is None:
+        return Wd, None
     Yd = _decimate_columns(Y2, stages, block).reshape((nd, *Ya.shape[1:]))
     return Wd, Yd

@@ -78,8 +78,14 @@ def sensor_delay(channel: SensorChannel, fs: float) -> float:
 
 def advance(x: Array, delay: float, fs: float) -> Array:
     """x(t + delay) on the same clock (linear interpolation of a band-limited signal; ends held)."""
-    n = np.arange(len(x), dtype=float)
-    return np.interp(n + delay * fs, n, x)
+    shift = delay * fs
+    k = int(np.floor(shift))
+    f = shift - k
+    n = len(x)
+    # samples n + k and n + k + 1, clipped to the record (the ends held), blended by the fraction
+    lo = x[np.clip(np.arange(k, n + k), 0, n - 1)] if k else x
+    hi = x[np.clip(np.arange(k + 1, n + k + 1), 0, n - 1)]
+    return lo + f * (hi - lo) if f else lo.copy()
 
 
 @dataclass(frozen=True)
@@ -113,24 +119,20 @@ def required_channels(spin: bool = False) -> list[str]:
     return names
 
 
-def _rz(a: Array) -> Array:
-    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _ry(a: Array) -> Array:
-    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def _rx(a: Array) -> Array:
-    c, s, z, o = np.cos(a), np.sin(a), np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+def _zyx(yaw: Array, pitch: Array, roll: Array) -> Array:
+    """Rot(z, yaw) Rot(y, pitch) Rot(x, roll), (N, 3, 3), written out (one array, no products of stacks)."""
+    cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    R = np.empty((len(cz), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
+    R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
+    R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = -sy, cy * sx, cy * cx
+    return R
 
 
 def chassis_rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
     """0R6 (N, 3, 3) from ISO yaw, pitch (nose down > 0), roll: the template's q4 = yaw, q5 = -pitch, q6 = roll."""
-    return EARTH @ _rz(yaw) @ _ry(pitch) @ _rx(roll) @ ISO_AXES
+    yaw, pitch, roll = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float)) for a in (yaw, pitch, roll)))
+    return EARTH @ _zyx(yaw, pitch, roll) @ ISO_AXES
 
 
 def estimate_joints(
@@ -219,7 +221,7 @@ def estimate_joints(
     spin = [7 + 9 * k + 6 for k in range(4)]
     q[:, spin], qd[:, spin], qdd[:, spin] = integrate(w, fs), w, dw
     h = smooth(ch["steering_wheel"])
-    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"))
+    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"), copy=False)
 
     # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
     # corner takes the chassis height its own laser implies: attitude errors then act over the 0.35 m between

@@ -150,14 +150,15 @@ class KinematicTables:
         qdd: Array,
         steering_wheel: tuple[Array, Array, Array] | Array | float = 0.0,
         measured: Sequence[str] = (),
+        copy: bool = True,
     ) -> tuple[Array, Array, Array]:
         """Copies of q, qd, qdd (N, 42) with the tabulated joints filled from the damper columns.
 
         steering_wheel: (h, h', h'') arrays (N,) or one angle (rad, held still). measured:
         table names whose joints are already in q, qd, qdd (e.g. ("steering", "camber") from a
-        camera) and are kept.
+        camera) and are kept. copy=False fills float (N, 42) arrays in place (the returned ones are used).
         """
-        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True) for a in (q, qd, qdd))
+        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None) for a in (q, qd, qdd))
         N = q.shape[0]
         if isinstance(steering_wheel, tuple):
             h, hd, hdd = (np.broadcast_to(np.asarray(a, dtype=float), (N,)) for a in steering_wheel)
