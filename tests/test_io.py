@@ -181,6 +181,23 @@ def test_round_trip_keeps_every_channel_on_its_own_time_base(tmp_path: Path, fmt
     assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary file left
 
 
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_reading_only_some_channels(tmp_path: Path, fmt: str) -> None:
+    """channels= keeps exactly those channels, equal to a whole read's; the rest are named as not read,
+    so that a missing-channel error still shows them."""
+    rec = multirate()
+    path = write_recording(rec, tmp_path / f"sine.{fmt}")
+    keep = rec.names[1:3]
+    part, whole = read_recording(path, channels=keep), read_recording(path)
+    assert part.names == keep
+    for n in keep:
+        np.testing.assert_array_equal(part.channel(n).values, whole.channel(n).values)
+        np.testing.assert_array_equal(part.channel(n).time, whole.channel(n).time)
+    assert all("not among the channels asked for" in part.skipped[n] for n in rec.names if n not in keep)
+    with pytest.raises(MissingChannelError, match=f"'{rec.names[0]}' \\(in the file but not read: not among"):
+        part.require([rec.names[0]])
+
+
 @st.composite
 def sparse_recordings(draw) -> Recording:
     """Channels on random subsets of a common grid, values any floats including NaN and infinities."""

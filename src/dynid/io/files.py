@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import inspect
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -79,13 +79,21 @@ def _check_options(func: Callable[..., Any], fmt: str, options: dict[str, Any], 
         )
 
 
-def read_recording(path: str | os.PathLike[str], format: str | None = None, **options: Any) -> Recording:
+def read_recording(
+    path: str | os.PathLike[str],
+    format: str | None = None,
+    *,
+    channels: Sequence[str] | None = None,
+    **options: Any,
+) -> Recording:
     """Read a measurement file into a `Recording` (channels with units, each on its own time base).
 
     Parameters
     ----------
     path : the file.
     format : "csv", "parquet", "mat" or "mdf"; None: from the extension.
+    channels : keep only these channels (the others are listed in `Recording.skipped`); Parquet
+        files then read only those columns, the other formats are read whole and trimmed.
     options : the format's options (module docstring), e.g. fs= for a CSV without time column;
         an option set to None counts as not given (so fs=None may be passed for any format).
 
@@ -100,7 +108,15 @@ def read_recording(path: str | os.PathLike[str], format: str | None = None, **op
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
     params = inspect.signature(reader).parameters
-    return reader(path, **{k: v for k, v in options.items() if k in params})
+    kwargs = {k: v for k, v in options.items() if k in params}
+    if channels is not None and "channels" in params:
+        return reader(path, channels=list(channels), **kwargs)
+    rec = reader(path, **kwargs)
+    if channels is not None:
+        keep = set(channels)
+        rec.skipped.update({n: "not among the channels asked for" for n in rec.channels if n not in keep})
+        rec.channels = {n: c for n, c in rec.channels.items() if n in keep}
+    return rec
 
 
 def write_recording(

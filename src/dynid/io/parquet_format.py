@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ._optional import require
-from ._table import Column, grid_of, recording_from_columns
+from ._table import TIME_NAMES, Column, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording
 
@@ -35,7 +36,13 @@ def _unit_of(field: Any) -> str:
     return raw.decode("utf-8", errors="replace") if isinstance(raw, bytes) else str(raw)
 
 
-def read_parquet(path: str | os.PathLike[str], *, fs: float | None = None, time: str | None = None) -> Recording:
+def read_parquet(
+    path: str | os.PathLike[str],
+    *,
+    fs: float | None = None,
+    time: str | None = None,
+    channels: Sequence[str] | None = None,
+) -> Recording:
     """Read a Parquet file into a `Recording` (layout in the module docstring).
 
     Parameters
@@ -43,6 +50,9 @@ def read_parquet(path: str | os.PathLike[str], *, fs: float | None = None, time:
     path : the file.
     fs : Hz, sample rate when there is no time column.
     time : name of the time column if it is not time/t/Time/TIME.
+    channels : read only these columns (and the time column); the others are listed in
+        `Recording.skipped` as not read. A logger file often holds many more channels than
+        an identification needs: this saves their memory and reading time.
     """
     pa = require("pyarrow", "Reading Parquet files")
     pq = require("pyarrow.parquet", "Reading Parquet files")
@@ -64,7 +74,11 @@ def read_parquet(path: str | os.PathLike[str], *, fs: float | None = None, time:
         except (ValueError, AttributeError):
             metadata["metadata_error"] = "dynid.metadata is not a JSON object"
     columns, skipped = [], {}
+    wanted = None if channels is None else set(channels) | {time, *TIME_NAMES} - {None}
     for field in schema:
+        if wanted is not None and field.name not in wanted:
+            skipped[field.name] = "not among the channels asked for"
+            continue
         # One column at a time: the memory peak is the data plus one column, not twice the file.
         col = pfile.read(columns=[field.name], use_pandas_metadata=False).column(0)
         unit = _unit_of(field)

@@ -109,10 +109,10 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np
     from ..vehicle.estimate import required_channels
 
     path = spec.files["channels"]
-    rec = read_recording(path, fs=spec.fs)
     wanted = required_channels(spin=False)
     renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
     in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
+    rec = read_recording(path, fs=spec.fs, channels=list(in_file.values()))
     rec.require(list(in_file.values()))
     al = rec.aligned(list(in_file.values()))
     values, factors = {}, {}
