@@ -81,11 +81,18 @@ def advance(x: Array, delay: float, fs: float) -> Array:
     shift = delay * fs
     k = int(np.floor(shift))
     f = shift - k
+    # samples n + k and n + k + 1 (the ends held), blended by the fraction
+    lo = _shifted(x, k)
+    return lo + f * (_shifted(x, k + 1) - lo) if f else lo
+
+
+def _shifted(x: Array, k: int) -> Array:
+    """y[n] = x[clip(n + k)]: x moved k samples earlier, its end values held."""
     n = len(x)
-    # samples n + k and n + k + 1, clipped to the record (the ends held), blended by the fraction
-    lo = x[np.clip(np.arange(k, n + k), 0, n - 1)] if k else x
-    hi = x[np.clip(np.arange(k + 1, n + k + 1), 0, n - 1)]
-    return lo + f * (hi - lo) if f else lo.copy()
+    k = max(-n, min(n, k))
+    if k >= 0:
+        return np.concatenate([x[k:], np.full(k, x[-1])])
+    return np.concatenate([np.full(-k, x[0]), x[: n + k]])
 
 
 @dataclass(frozen=True)
