@@ -228,9 +228,10 @@ def jacobian(
             J[3:, j - 1] = z
         elif tree.sigma[j] == PRISMATIC:
             J[:3, j - 1] = z
-    if expressed_in != 0:
+    if expressed_in != 0:  # only the ancestors' columns are non-zero: rotate those
         Re = st.Rc[expressed_in]
-        J = np.concatenate([_local_cols(Re, J[:3]), _local_cols(Re, J[3:])])
+        cols = [j - 1 for j in tree.ancestors[frame]]
+        J[:3, cols], J[3:, cols] = _local_cols(Re, J[:3, cols]), _local_cols(Re, J[3:, cols])
     out = np.moveaxis(J, -1, 0)
     return out[0] if single else out
 
