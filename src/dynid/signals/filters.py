@@ -24,9 +24,10 @@ import functools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter
 
 from . import _checks
+from ._zero_phase import sos_filtfilt
 from .errors import SignalError
 
 
@@ -70,7 +71,7 @@ def apply_zero_phase(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int
             f"{name} has {n} samples along axis {axis}; {context} pads {pad} samples at each end "
             f"and needs at least {pad + 1}. Use a longer record or a lower order"
         )
-    return sosfiltfilt(sos, a, axis=axis, padtype="odd", padlen=pad)
+    return sos_filtfilt(sos, a, axis, pad)
 
 
 def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:
