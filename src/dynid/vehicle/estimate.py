@@ -220,14 +220,15 @@ def estimate_joints(
     v = lp(v0[:, :2])
     q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
 
-    # --- corners: camera channels and wheel speeds, each kind filtered as one (N, 4) matrix
-    for name, offset in (("clearance", 1), ("steer", 2), ("camber", 3)):
-        cols = [7 + 9 * k + offset for k in range(4)]  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
-        q[:, cols], qd[:, cols], qdd[:, cols] = smooth(np.stack([ch[f"{name}_{t}"] for t in CORNER_TAGS], axis=1))
-    w, dw = from_rate(np.stack([ch[f"wheel_speed_{t}"] for t in CORNER_TAGS], axis=1))
+    # --- corners: camera channels, wheel speeds and the steering wheel, filtered as one (N, 17) matrix
+    names = [f"{n}_{t}" for n in ("clearance", "steer", "camber", "wheel_speed") for t in CORNER_TAGS]
+    x, xd, xdd = smooth(np.stack([ch[n] for n in names] + [ch["steering_wheel"]], axis=1))
+    for i, offset in enumerate((1, 2, 3)):  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
+        cols, sl = [7 + 9 * k + offset for k in range(4)], slice(4 * i, 4 * i + 4)
+        q[:, cols], qd[:, cols], qdd[:, cols] = x[:, sl], xd[:, sl], xdd[:, sl]
     spin = [7 + 9 * k + 6 for k in range(4)]
-    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(w, fs), w, dw
-    h = smooth(ch["steering_wheel"])
+    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(x[:, 12:16], fs), x[:, 12:16], xd[:, 12:16]
+    h = x[:, 16], xd[:, 16], xdd[:, 16]
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"), copy=False)
 
     # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
