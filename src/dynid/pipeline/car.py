@@ -44,12 +44,12 @@ def car_system(
                             regressor=regressor)
     rows, N = len(eq.rows), len(traj.t)
     step = int(np.prod(decimate)) if decimate else 1
-    W3 = eq.W.reshape(rows, N, -1)
+    W3 = eq.per_sample  # (N, rows, p)
     # only the (row, column) pairs that are not structural zeros (126 of the paper's 14 x 48) and Y go
     # through the filter, gathered as one (N, live + rows) array
-    live_r, live_c = np.nonzero(np.any(W3 != 0, axis=1))
+    live_r, live_c = np.nonzero(np.any(W3 != 0, axis=0))
     both = np.empty((N, live_r.size + rows))
-    both[:, : live_r.size] = W3[live_r, :, live_c].T
+    both[:, : live_r.size] = W3[:, live_r, live_c]
     both[:, live_r.size :] = eq.Y.reshape(rows, N).T
     if decimate:
         both, _ = decimate_parallel(both, None, decimate, fs)

@@ -33,6 +33,7 @@ use base="car", or give the wheel inertias as known.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -140,13 +141,18 @@ class CarEquations:
     labels of the names; rows: the joints used, in the stacking order.
     """
 
-    W: Array
+    per_sample: Array  # (N, rows, p): W sample by sample, as the regressor gives it (no copy)
     Y: Array
     groups: Array
     names: tuple[str, ...]
     labels: tuple[str, ...]
     base: BaseParameters
     rows: tuple[int, ...]
+
+    @functools.cached_property
+    def W(self) -> Array:
+        """(rows N, p), group by group (made on first use: a pipeline that filters columns reads per_sample)."""
+        return np.ascontiguousarray(self.per_sample.transpose(1, 0, 2)).reshape(-1, self.per_sample.shape[2])
 
     def __iter__(self):
         return iter((self.W, self.Y, self.groups))
@@ -248,7 +254,7 @@ def car_identification(
     Wb = W[:, :, :nb]
     names = tuple(bp.names)
     return CarEquations(
-        W=np.ascontiguousarray(Wb.transpose(1, 0, 2)).reshape(-1, nb),
+        per_sample=Wb,
         Y=Y.T.reshape(-1),
         groups=np.repeat(np.array([group_name(r) for r in rows]), N),
         names=names,
