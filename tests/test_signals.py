@@ -331,6 +331,9 @@ def test_structural_zero_columns_stay_zero_and_the_others_are_filtered_alike():
     cutoff = 0.8 * FS / (2 * 10)
     np.testing.assert_allclose(Wd, lowpass(W, FS, cutoff, 8)[::10], rtol=0, atol=1e-12)
     np.testing.assert_allclose(Yd, lowpass(Y, FS, cutoff, 8)[::10], rtol=0, atol=1e-12)
+    W_alone, no_y = decimate_parallel(W, None, 10, FS)  # W without a right-hand side
+    assert no_y is None
+    np.testing.assert_allclose(W_alone, lowpass(W, FS, cutoff, 8)[::10], rtol=0, atol=1e-12)
 
 
 def test_decimation_passes_band_and_stops_aliases():

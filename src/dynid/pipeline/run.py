@@ -192,22 +192,19 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
                           cutoff=cond.cutoff)[0]
 
-    offsets = ident_offsets = None
-    if settings.offsets:
-        ident_offsets = streams["identify"].bias_accumulator()
+    ident_offsets = streams["identify"].bias_accumulator() if settings.offsets else None
 
-    def offset_jobs(pool, spec: TestSpec, channels, factors, fs, segments: list[tuple[int, int]]) -> list:
-        """The declared offsets' effect, evaluated on a few segments spread over the test (scaled to all)."""
-        pick = np.unique(np.linspace(0, len(segments) - 1, min(settings.offset_segments, len(segments))).round())
-        scale = len(segments) / len(pick)
-        jobs = []
-        for i in pick.astype(int):
-            lo, hi = segments[i]
-            base_job = pool.submit(segment_rows, channels, factors, fs, lo, hi)
-            jobs += [(f"{spec.name}: {q}", scale, base_job, pool.submit(segment_rows, channels, factors, fs, lo, hi,
-                                                                        (q, b)))
-                     for q, b in settings.offsets.items()]
-        return jobs
+    def picked(n_segments: int) -> dict[int, float]:
+        """The segments (index -> weight) on which the declared offsets' effect is evaluated: a few spread
+        over the test, each standing for len / picked of them."""
+        pick = np.unique(np.linspace(0, n_segments - 1, min(settings.offset_segments, n_segments)).round())
+        return {int(i): n_segments / len(pick) for i in pick}
+
+    def offset_jobs(pool, spec: TestSpec, channels, factors, fs, segment, base_job, scale) -> list:
+        """Each declared offset applied alone to one segment, paired with that segment's own rows."""
+        return [(f"{spec.name}: {q}", scale, base_job, pool.submit(segment_rows, channels, factors, fs, *segment,
+                                                                   (q, b)))
+                for q, b in settings.offsets.items()]
 
     def use_offsets(jobs: list) -> None:
         for source, scale, base_job, job in jobs:
@@ -231,19 +228,20 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             b = border_samples(fs, cond.cutoff, cond.order)
             step = max(int(settings.segment * fs), 4 * b)
             segments = [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
+            with_offsets = picked(len(segments)) if ident_offsets is not None and spec.role == "identify" else {}
             jobs: deque = deque()
+            pending: list = []  # the offsets' jobs, used once the test's segments are accumulated
             for i, (lo, hi) in enumerate(segments):  # consecutive segments overlap by the two borders
                 jobs.append(pool.submit(segment_rows, channels, factors, fs, lo, hi))
+                if i in with_offsets:
+                    pending += offset_jobs(pool, spec, channels, factors, fs, (lo, hi), jobs[-1], with_offsets[i])
                 if len(jobs) == 3:  # at most three segments in flight; a result is dropped once used
                     use(spec, jobs.popleft(), i - 1, len(segments))
-            if ident_offsets is not None and spec.role == "identify":
-                offsets = offset_jobs(pool, spec, channels, factors, fs, segments)
             while jobs:  # segment numbers are 1-based: the job popped is number len(segments) - len(jobs) after it
                 use(spec, jobs.popleft(), len(segments) - len(jobs), len(segments))
-            if offsets:
+            if pending:
                 say(f"{spec.name}: the effect of {len(settings.offsets)} sensor offsets")
-                use_offsets(offsets)
-                offsets = None
+                use_offsets(pending)
     ident = streams["identify"]
     say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.upper()})")
     try:

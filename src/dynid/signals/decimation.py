@@ -160,7 +160,6 @@ def decimate_parallel(
     data to the part you trust before decimating, or drop the corresponding rows after.
     """
     Wa = _checks.as_float(W, "W", min_ndim=2)
-    Ya = _checks.as_float(np.zeros(Wa.shape[:-1]) if Y is None else Y, "Y")
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
     if Wa.ndim == 3:
@@ -169,7 +168,8 @@ def decimate_parallel(
         expected = Wa.shape[:1]
     else:
         raise SignalError(f"W must be (N, m, p) or (N, p), got shape {Wa.shape}")
-    if Ya.shape != expected:
+    Ya = None if Y is None else _checks.as_float(Y, "Y")
+    if Ya is not None and Ya.shape != expected:
         raise SignalError(
             f"Y has shape {Ya.shape}, W has shape {Wa.shape}: Y must be {expected}, one value per sample and "
             "equation row of W"
@@ -177,9 +177,9 @@ def decimate_parallel(
     n = Wa.shape[0]
     stages = _stages(n, _factors(factor), fs, order, cutoff)
     W2 = Wa.reshape(n, -1)
-    Y2 = Ya.reshape(n, -1)
     _checks.finite(Wa, "W", 0, "remove or repair those samples before decimating")
-    _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
+    if Ya is not None:
+        _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
     if block_columns is None:
         block = _checks.block_columns(n)
     elif isinstance(block_columns, bool) or not isinstance(block_columns, numbers.Integral) or block_columns < 1:
@@ -191,7 +191,6 @@ def decimate_parallel(
     # parameters): the filter maps zero to zero, so only the other columns are filtered
     live = np.flatnonzero(np.any(W2 != 0, axis=0))
     Wd = _decimate_columns(W2, stages, block, live).reshape((nd, *Wa.shape[1:]))
-    if Y is None:
+    if Ya is None:
         return Wd, None
-    Yd = _decimate_columns(Y2, stages, block).reshape((nd, *Ya.shape[1:]))
-    return Wd, Yd
+    return Wd, _decimate_columns(Ya.reshape(n, -1), stages, block).reshape((nd, *Ya.shape[1:]))

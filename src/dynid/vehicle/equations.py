@@ -134,7 +134,8 @@ def _radius(tree: Tree) -> float:
 
 @dataclass(frozen=True)
 class CarEquations:
-    """Y = W X_B stacked group by group: W (m, p), Y (m,), groups (m,) labels, X_B named by `names`.
+    """Y = W X_B stacked group by group: W (m, p), Y (m,), groups (m,) labels, X_B named by `names`
+    (W also as per_sample, (N, rows, p), the regressor's own layout).
 
     Unpacks as `W, Y, groups = car_identification(...)`. base: the regrouping relations
     (X_B = base.values(X) for a full parameter vector X of the tree); labels: the paper's
