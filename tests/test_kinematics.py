@@ -64,3 +64,26 @@ def test_jacobian_times_qd_is_the_velocity():
     T = m.transforms(np.stack([q + h * qd, q - h * qd]))[:, 10]
     v = ((T[0, :3, :3] @ p + T[0, :3, 3]) - (T[1, :3, :3] @ p + T[1, :3, 3])) / (2 * h)
     assert np.allclose(m.jacobian(q, 10, p)[:3] @ qd, v, atol=1e-7)
+
+
+@pytest.mark.parametrize("expressed_in", [0, 5])
+def test_point_velocity_is_the_derivative_of_the_position(expressed_in):
+    """point_velocity (J qd without J) against central differences of the point's position along a path,
+    on a floating random tree, batched, and one sample alone."""
+    from dynid.kinematics.forward import point_velocity
+
+    tree = random_tree(seed=24, n=14, floating=True)
+    m = Model(tree)
+    q, qd, _ = random_states(tree, 5, seed=4)
+    p, frame, h = np.array([0.2, -0.1, 0.3]), tree.n, 1e-6
+    Tp, Tm = m.transforms(q + h * qd), m.transforms(q - h * qd)
+    v0 = ((Tp[:, frame, :3, :3] @ p + Tp[:, frame, :3, 3]) - (Tm[:, frame, :3, :3] @ p + Tm[:, frame, :3, 3])) / (2 * h)
+    Rdot = (Tp[:, frame, :3, :3] - Tm[:, frame, :3, :3]) / (2 * h)
+    W = Rdot @ m.transforms(q)[:, frame, :3, :3].transpose(0, 2, 1)  # skew(omega)
+    w0 = np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], axis=1)
+    Re = m.transforms(q)[:, expressed_in, :3, :3]
+    v, w = point_velocity(tree, q, qd, frame, p, expressed_in)
+    assert np.allclose(v, np.einsum("nji,nj->ni", Re, v0), atol=1e-7)
+    assert np.allclose(w, np.einsum("nji,nj->ni", Re, w0), atol=1e-7)
+    v1, w1 = point_velocity(tree, q[2], qd[2], frame, p, expressed_in)
+    assert v1.shape == (3,) and np.allclose(v1, v[2], atol=1e-14) and np.allclose(w1, w[2], atol=1e-14)

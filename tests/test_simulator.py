@@ -255,7 +255,7 @@ def test_compiled_inertia_rows_match_the_engine(sim, sine):
 
 
 def test_tables_match_scipy(sim):
-    from dynid.vehicle.sim.interp import eval_table
+    from dynid.vehicle.table_poly import eval_table
     from dynid.vehicle.tables import TABLE_NAMES
 
     rng = np.random.default_rng(3)

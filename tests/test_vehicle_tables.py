@@ -103,3 +103,33 @@ def test_show_template_text():
         assert needle in text, needle
     with pytest.raises(ModelError, match="no car template 'beetle'"):
         show_template("beetle")
+
+
+@pytest.mark.parametrize("measured", [(), ("steering", "camber")])
+def test_compiled_tables_equal_scipys_splines(monkeypatch, measured):
+    """The compiled evaluation (piecewise polynomials, cells found by walking) against scipy's own splines
+    (FITPACK bicubic B-splines, CubicSpline), on a smooth record and on samples in random order, with a
+    user table on an uneven steering grid."""
+    import dynid.vehicle.tables as tables_module
+
+    assert tables_module.table_joints is not None, "numba is a runtime dependency"
+    uneven = np.array([-3.0, -1.7, -0.4, 0.0, 0.9, 2.2, 3.0])
+    tabs = default_tables().replace(2, "caster", KinematicTable(
+        "caster", "front left", U, cubic(*np.meshgrid(U, uneven, indexing="ij")) + np.sin(5 * U)[:, None], uneven))
+    rng = np.random.default_rng(7)
+    t = np.linspace(0.0, 20.0, 5001)
+    q, qd, qdd = (np.zeros((t.size, 42)) for _ in range(3))
+    for k, d in enumerate(DAMPERS):
+        w = 2 * np.pi * (0.7 + 0.3 * k)
+        q[:, d - 1], qd[:, d - 1], qdd[:, d - 1] = 0.09 * np.sin(w * t), 0.09 * w * np.cos(w * t), \
+            -0.09 * w * w * np.sin(w * t)
+    h = (2.9 * np.sin(0.9 * t), 2.61 * np.cos(0.9 * t), -2.349 * np.sin(0.9 * t))
+    shuffled = rng.permutation(t.size)
+    for order in (slice(None), shuffled):
+        args = [a[order] for a in (q, qd, qdd)], tuple(x[order] for x in h)
+        compiled = tabs.joints(*args[0], args[1], measured=measured)
+        monkeypatch.setattr(tables_module, "table_joints", None)
+        reference = tabs.joints(*args[0], args[1], measured=measured)
+        monkeypatch.undo()
+        for a, b in zip(compiled, reference, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-11 * np.abs(b).max())

@@ -236,6 +236,30 @@ def jacobian(
     return out[0] if single else out
 
 
+def point_velocity(
+    tree: Tree, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0
+) -> tuple[Array, Array]:
+    """J qd without J: the linear velocity of a point fixed in `frame` and the frame's angular velocity,
+    each (N, 3), components in frame `expressed_in`; only the frame's ancestors are visited."""
+    check_frame(tree, frame)
+    check_frame(tree, expressed_in, "expressed_in frame")
+    qs, single = joint_array(q, tree, "q")
+    qds, _ = joint_array(qd, tree, "qd")
+    st = forward_kinematics(tree, qs, frames=[frame, expressed_in])
+    _, Pp = _point(st, frame, point)
+    v, w = np.zeros((3, qs.shape[1])), np.zeros((3, qs.shape[1]))
+    for j in tree.ancestors[frame]:
+        zq = st.Rc[j][2] * qds[j - 1]
+        if tree.sigma[j] == REVOLUTE:
+            v += cross(zq, Pp - st.P[j])
+            w += zq
+        elif tree.sigma[j] == PRISMATIC:
+            v += zq
+    if expressed_in != 0:
+        v, w = to_local(st.Rc[expressed_in], v), to_local(st.Rc[expressed_in], w)
+    return (v.T[0], w.T[0]) if single else (v.T, w.T)
+
+
 def _local_cols(Rc: Array, V: Array) -> Array:
     """R^T applied to each column of V (3, n, N): out[c, j] = column c of R . V[:, j]."""
     return np.einsum("cin,ijn->cjn", np.asarray(Rc), V, optimize=True)
@@ -252,6 +276,7 @@ __all__ = [
     "jacobian",
     "joint_array",
     "needed_frames",
+    "point_velocity",
     "to_local",
     "to_world",
     "transforms",

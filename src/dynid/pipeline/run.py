@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
@@ -219,8 +220,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         streams[spec.role].add(sys.W, sys.Y, sys.groups)
         shown.setdefault(spec.name, sys)
 
-    # segments on both cores: NumPy and SciPy release the GIL in their loops, and threads share the record
-    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+    # segments on both cores: NumPy and SciPy release the GIL in their loops, and threads share the record.
+    # BLAS keeps to one thread inside each: its own threads would only compete with the segments' (and spin)
+    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, \
+            threadpool_limits(limits=1, user_api="blas"):
         for spec in cfg.tests:
             channels, factors, fs = load_car_channels(cfg, spec)
             N = len(next(iter(channels.values())))

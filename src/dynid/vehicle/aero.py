@@ -22,6 +22,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model, Wrench
+from ..kinematics.forward import point_velocity
 from ..model.tree import ModelError
 from .geometry import CarGeometry
 from .template import CHASSIS
@@ -105,8 +106,7 @@ def aero_wrench(
     aero = Aerodynamics() if aero is None else aero
     p = reference_point(geometry) if aero.point is None else np.asarray(aero.point, dtype=float)
     q, qd = np.atleast_2d(q), np.atleast_2d(qd)
-    J = model.jacobian(q, CHASSIS, point=p, expressed_in=CHASSIS)
-    v = np.einsum("nij,nj->ni", J[:, :3, :], qd)  # frame 6: up, right, forward
+    v, _ = point_velocity(model.tree, q, qd, CHASSIS, point=p, expressed_in=CHASSIS)  # frame 6: up, right, forward
     forward, left = v[:, 2], -v[:, 1]
     V2 = forward**2 + left**2
     slow = aero.min_speed**2 > V2

@@ -81,18 +81,21 @@ def advance(x: Array, delay: float, fs: float) -> Array:
     shift = delay * fs
     k = int(np.floor(shift))
     f = shift - k
-    # samples n + k and n + k + 1 (the ends held), blended by the fraction
-    lo = _shifted(x, k)
-    return lo + f * (_shifted(x, k + 1) - lo) if f else lo
-
-
-def _shifted(x: Array, k: int) -> Array:
-    """y[n] = x[clip(n + k)]: x moved k samples earlier, its end values held."""
     n = len(x)
-    k = max(-n, min(n, k))
-    if k >= 0:
-        return np.concatenate([x[k:], np.full(k, x[-1])])
-    return np.concatenate([np.full(-k, x[0]), x[: n + k]])
+    # y[i] = lo + f (hi - lo), lo = x[clip(i + k)], hi = x[clip(i + k + 1)]: both inside for a <= i < b,
+    # and the held end values outside
+    a = min(n, max(0, -k))
+    b = max(a, min(n, n - 1 - k))
+    out = np.empty(n)
+    out[:a], out[b:] = x[0], x[-1]
+    seg = out[a:b]
+    if f:
+        np.subtract(x[a + k + 1 : b + k + 1], x[a + k : b + k], out=seg)
+        seg *= f
+        seg += x[a + k : b + k]
+    else:
+        seg[:] = x[a + k : b + k]
+    return out
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,13 @@ def _zyx(yaw: Array, pitch: Array, roll: Array) -> Array:
 def chassis_rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
     """0R6 (N, 3, 3) from ISO yaw, pitch (nose down > 0), roll: the template's q4 = yaw, q5 = -pitch, q6 = roll."""
     yaw, pitch, roll = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float)) for a in (yaw, pitch, roll)))
-    return EARTH @ _zyx(yaw, pitch, roll) @ ISO_AXES
+    # EARTH and ISO_AXES are signed permutations: their product with R is a signed gather of R's entries
+    return _zyx(yaw, pitch, roll)[:, _ROWS, _COLS] * _SIGNS
+
+
+_ROWS = np.abs(EARTH).argmax(axis=1)[:, None]  # EARTH[i] picks row _ROWS[i] of R
+_COLS = np.abs(ISO_AXES).argmax(axis=0)[None, :]  # ISO_AXES[:, j] picks column _COLS[j]
+_SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None, :]]
 
 
 def estimate_joints(
@@ -179,7 +188,8 @@ def estimate_joints(
         r, rd = filtered_derivatives(rate, fs, c.cutoff, order=c.order, nderiv=1)
         return r, rd
 
-    q, qd, qdd = (np.zeros((N, FRAMES)) for _ in range(3))
+    # column-major: every joint is written as a column, and the equations read them as columns
+    q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
     # --- attitude: Euler rates (ISO ZYX) from the gyros, angles fused with the inclinometers
     A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
@@ -220,9 +230,19 @@ def estimate_joints(
     v = lp(v0[:, :2])
     q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
 
-    # --- corners: camera channels, wheel speeds and the steering wheel, filtered as one (N, 17) matrix
+    # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
+    # with the loads (24 wheel-wrench components, the 4 spin torques when measured): one pass of the filter
     names = [f"{n}_{t}" for n in ("clearance", "steer", "camber", "wheel_speed") for t in CORNER_TAGS]
-    x, xd, xdd = smooth(np.stack([ch[n] for n in names] + [ch["steering_wheel"]], axis=1))
+    names += ["steering_wheel"] + [f"wft_{t}_{k}" for t in CORNER_TAGS for k in WFT_COMPONENTS]
+    has_spin = all(f"spin_torque_{t}" in ch for t in CORNER_TAGS)
+    names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
+    raw = np.empty((N, len(names)))
+    for i, n in enumerate(names):
+        raw[:, i] = ch[n]
+    filtered = lp(raw)
+    x = filtered[:, :17]
+    xd = derivative(x, fs)
+    xdd = derivative(xd, fs)
     for i, offset in enumerate((1, 2, 3)):  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
         cols, sl = [7 + 9 * k + offset for k in range(4)], slice(4 * i, 4 * i + 4)
         q[:, cols], qd[:, cols], qdd[:, cols] = x[:, sl], xd[:, sl], xdd[:, sl]
@@ -245,20 +265,17 @@ def estimate_joints(
     q0 = q[sub].copy()
     q0[:, 2] = 0.0
     st = forward_kinematics(model.tree, joint_array(q0, model.tree, "q")[0], frames=tires)
-    n_all = np.arange(N)
-    deflection = np.empty((N, 4))
-    for k, (t, f) in enumerate(zip(CORNER_TAGS, tires, strict=True)):
-        z_laser = ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
-        pz = CubicSpline(sub, st.P[f][2])(n_all)
-        zz = CubicSpline(sub, st.Rc[f][2][2])(n_all)
-        deflection[:, k] = -(pz + z_laser) / zz
+    # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
+    pz_zz = CubicSpline(sub, np.stack([st.P[f][2] for f in tires] + [st.Rc[f][2][2] for f in tires], axis=1))(
+        np.arange(N))
+    z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
+        - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
+    deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
     cols = [f - 1 for f in tires]
     q[:, cols], qd[:, cols], qdd[:, cols] = smooth(deflection)
 
-    ww = lp(np.stack([np.stack([ch[f"wft_{t}_{k}"] for k in WFT_COMPONENTS], axis=1) for t in CORNER_TAGS], axis=1))
-    spin = None
-    if all(f"spin_torque_{t}" in ch for t in CORNER_TAGS):
-        spin = lp(np.stack([ch[f"spin_torque_{t}"] for t in CORNER_TAGS], axis=1))
+    ww = filtered[:, 17:41].reshape(N, 4, len(WFT_COMPONENTS))
+    spin = filtered[:, 41:45] if has_spin else None
     traj = CarTrajectory(np.arange(N) / fs, q, qd, qdd, ww, spin, h[0])
     b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
     if 2 * b >= N:

@@ -28,6 +28,7 @@ front_left, front_right; name among the four above) with arrays `travel`, option
 from __future__ import annotations
 
 import csv
+import functools
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -40,6 +41,7 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 from ..model.files import read_toml
 from ..model.tree import ModelError
 from .geometry import CarGeometry, side
+from .table_poly import pack, table_joints
 from .template import CORNERS, base
 
 TABLE_NAMES = ("steering", "camber", "caster", "kingpin")
@@ -135,6 +137,18 @@ class KinematicTables:
         if len(self.tables) != 4 or any(set(t) != set(TABLE_NAMES) for t in self.tables):
             raise KinematicTableError(f"kinematic tables: need the tables {TABLE_NAMES} for each of the 4 corners")
 
+    def _packed(self, todo: tuple[tuple[int, str], ...]) -> tuple:
+        """The tables `todo` (corner, name) packed for `table_joints`, with which tables use the steering and
+        their damper and joint columns; built once per set (the tables are immutable)."""
+        cache = self.__dict__.setdefault("_packed_cache", {})
+        if todo not in cache:
+            tabs = [self.tables[k][n] for k, n in todo]
+            steering = np.array([t.steering is not None for t in tabs])
+            u_cols = np.array([base(k) + 1 for k, _ in todo], dtype=np.int64)
+            out_cols = np.array([base(k) + 2 + TABLE_NAMES.index(n) for k, n in todo], dtype=np.int64)
+            cache[todo] = (*pack(tabs), steering, u_cols, out_cols)
+        return cache[todo]
+
     def table(self, corner: int, name: str) -> KinematicTable:
         return self.tables[corner][name]
 
@@ -168,17 +182,21 @@ class KinematicTables:
         unknown = set(measured) - set(TABLE_NAMES)
         if unknown:
             raise KinematicTableError(f"measured = {sorted(unknown)}: not table names {TABLE_NAMES}")
-        for k in range(4):
+        todo = [(k, name) for k in range(4) for name in TABLE_NAMES if name not in measured]
+        if table_joints is not None and q.dtype == qd.dtype == qdd.dtype == np.float64:
+            packed = self._packed(tuple(todo))
+            bad = table_joints(*packed, q, qd, qdd, *(np.ascontiguousarray(a) for a in (h, hd, hdd)))
+            if bad < 0:
+                return q, qd, qdd
+        # without numba, or off a table's grid (the scipy path names the table, input and sample)
+        for k, name in todo:
             b = base(k)
             u, ud, udd = q[:, b + 1], qd[:, b + 1], qdd[:, b + 1]
-            for i, name in enumerate(TABLE_NAMES):
-                if name in measured:
-                    continue
-                f, fu, fh, fuu, fuh, fhh = self.tables[k][name].derivatives(u, h)
-                j = b + 2 + i  # column of frame b+3+i
-                q[:, j] = f
-                qd[:, j] = fu * ud + fh * hd
-                qdd[:, j] = fuu * ud**2 + 2 * fuh * ud * hd + fhh * hd**2 + fu * udd + fh * hdd
+            f, fu, fh, fuu, fuh, fhh = self.tables[k][name].derivatives(u, h)
+            j = b + 2 + TABLE_NAMES.index(name)  # column of frame b+3+i
+            q[:, j] = f
+            qd[:, j] = fu * ud + fh * hd
+            qdd[:, j] = fuu * ud**2 + 2 * fuh * ud * hd + fhh * hd**2 + fu * udd + fh * hdd
         return q, qd, qdd
 
 
@@ -190,6 +208,7 @@ STEERING_RATIO = 16.0
 ACKERMANN = 0.25  # rad^-1: the inner front wheel steers by delta + 0.25 delta^2
 
 
+@functools.lru_cache(maxsize=8)  # immutable, and every segment of a test asks for them
 def default_tables(geometry: CarGeometry | None = None) -> KinematicTables:
     """Tables of a 406-class saloon (MacPherson front, multi-link rear), smooth in both inputs.
 

@@ -144,7 +144,8 @@ def _module_key(tree: Tree, aero_point) -> str:
     from ...model.files import tree_to_toml
 
     here = Path(__file__).parent
-    srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py"))
+    srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py",
+                                                                     "../table_poly.py"))
     srcs += "".join(inspect.getsource(f) for f in (kinematics_program, free_rows_inertia, _module_source))
     return nb.source_key(tree_to_toml(tree), repr(list(tree.gravity)), srcs, repr([float(x) for x in aero_point]))
 
@@ -160,8 +161,9 @@ def _module_source(tree: Tree, aero_point) -> tuple[str, list[str]]:
     mass = free_rows_inertia(inert)
     kernel_src = inspect.getsource(K).replace("from __future__ import annotations\n", "")
     here = Path(__file__).parent
-    deps = hashlib.sha256(b"".join((here / f).read_bytes() for f in ("tires.py", "interp.py"))).hexdigest()[:16]
-    body = "\n".join([f"# kernel dependencies: tires.py + interp.py {deps}", kernel_src,
+    deps = hashlib.sha256(b"".join((here / f).read_bytes()
+                                   for f in ("tires.py", "interp.py", "../table_poly.py"))).hexdigest()[:16]
+    body = "\n".join([f"# kernel dependencies: tires.py + interp.py + table_poly.py {deps}", kernel_src,
                       "# ----- generated models -----",
                       nb.scalar_source(kin, "car_kin"), nb.scalar_source(dyn, "car_idm"),
                       nb.scalar_source(mass, "car_inertia")])

@@ -35,8 +35,9 @@ import math
 
 import numpy as np
 
-from dynid.vehicle.sim.interp import eval_ppoly, eval_table
+from dynid.vehicle.sim.interp import eval_ppoly
 from dynid.vehicle.sim.tires import magic_formula
+from dynid.vehicle.table_poly import eval_table
 
 FREE = (1, 2, 3, 4, 5, 6, 9, 18, 27, 36, 14, 23, 32, 41)
 NF = 14
