@@ -25,20 +25,23 @@ def car_system(
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
     regressor: see `car_identification` (generated code is several times faster than the engine here).
     cutoff: the low-pass (Hz) every signal of traj went through; when given, W is computed only on every
-    decimate[0]-th sample (those signals hold nothing above a few times the cut-off, far below the
-    reduced Nyquist frequency, so nothing aliases) and the rest of the decimation is done in parallel;
-    not done when twice the wheel-spin frequency would reach the reduced Nyquist frequency. The
+    k-th sample, k the largest divisor of the whole decimation factor whose reduced Nyquist frequency is
+    at least 5 x the cut-off (those signals hold nothing above a few times it, so nothing aliases) and
+    above twice the wheel-spin frequency; the rest of the decimation is one parallel stage. The
     dry-friction columns sign(qd), not band-limited, are built at the full rate.
     """
     decimate = tuple(decimate or ())
     full, fs_full, full_decimate = traj, fs, decimate
     # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
     spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
-    if cutoff is not None and decimate and fs / (2 * decimate[0]) >= max(5 * cutoff, spin / 0.9):
-        k = decimate[0]
+    total = int(np.prod(decimate)) if decimate else 1
+    # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both; the rest in one stage
+    k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= max(5 * cutoff, spin / 0.9)),
+             None) if cutoff is not None and total > 1 else None
+    if k is not None:
         traj = CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
                              None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
-        fs, decimate = fs / k, decimate[1:]
+        fs, decimate = fs / k, (total // k,)
     aw = aero_wrench(model, traj.q, traj.qd, aero) if aero is not None else None
     eq = car_identification(model, traj.q, traj.qd, traj.qdd, traj.wheel_wrenches, aw, base=base,
                             regressor=regressor)
@@ -61,7 +64,7 @@ def car_system(
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
             signs = np.sign(full.qd[:, [j - 1 for _, _, j in fs_cols]])
-            dec, _ = decimate_parallel(signs, np.zeros(len(signs)), full_decimate, fs_full)
+            dec, _ = decimate_parallel(signs, None, full_decimate, fs_full)
             n = min(len(dec), W.shape[0])
             for i, (c, r, _) in enumerate(fs_cols):
                 W[:n, r, c] = dec[:n, i]
