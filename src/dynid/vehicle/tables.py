@@ -183,7 +183,7 @@ class KinematicTables:
         if unknown:
             raise KinematicTableError(f"measured = {sorted(unknown)}: not table names {TABLE_NAMES}")
         todo = [(k, name) for k in range(4) for name in TABLE_NAMES if name not in measured]
-        if table_joints is not None and q.dtype == qd.dtype == qdd.dtype == np.float64:
+        if table_joints is not None and todo:
             packed = self._packed(tuple(todo))
             bad = table_joints(*packed, q, qd, qdd, *(np.ascontiguousarray(a) for a in (h, hd, hdd)))
             if bad < 0:
