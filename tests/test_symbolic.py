@@ -439,9 +439,9 @@ def test_numpy_module_is_cached_on_disk(tmp_path):
     assert path.parent.parent == tmp_path / "cache" and path.exists()
     q, qd, qdd = states(tree)
     close(mod.evaluate(q, qd, qdd), Model(tree).regressor(q, qd, qdd, rows=[1, 2], cols=["ZZ1", "M2", "fvm6"]))
-    from dynid.symbolic import codegen
+    from dynid.symbolic import cache
 
-    codegen._LOADED.clear()
+    cache._LOADED.clear()
     path.write_text("this is not python")  # a damaged cache file is regenerated, not trusted
     mod2 = numpy_module(tree, "regressor", rows=[1, 2], cols=["ZZ1", "M2", "fvm6"])
     close(mod2.evaluate(q, qd, qdd), mod.evaluate(q, qd, qdd))

@@ -77,7 +77,7 @@ def cmd_ops(args: argparse.Namespace) -> int:
 
 def cmd_codegen(args: argparse.Namespace) -> int:
     from ..symbolic import SymbolicError, build, model_hash, to_c, to_numpy, to_text
-    from ..symbolic.codegen import write_atomic
+    from ..symbolic.cache import write_atomic
 
     tree = _load(args)
     opts = {"geometry": args.geometry}

@@ -7,9 +7,11 @@
     base_parameters(tree, geometry="symbolic")             # Khalil's regrouping rules
 """
 
-from .codegen import cache_dir, model_hash, numpy_module, to_c, to_numpy, to_text
+from .cache import cache_dir, model_hash, numpy_module
+from .codegen import to_c, to_text
 from .expr import OpCount, Program, SymbolicError
 from .models import MODELS, WrenchSite, build, dgm, idm, inertia, regressor
+from .numpy_code import to_numpy
 from .regroup import SymbolicBaseParameters, base_parameters
 
 __all__ = [

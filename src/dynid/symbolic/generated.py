@@ -17,7 +17,7 @@ import numpy as np
 
 from ..dynamics import Wrench
 from ..model.tree import Tree
-from .codegen import numpy_module
+from .cache import numpy_module
 from .models import WrenchSite
 
 

@@ -1,6 +1,6 @@
 """Per-sample scalar Python code from a Program, compiled by Numba, cached on disk.
 
-The NumPy backend (codegen.to_numpy) is batched: every intermediate is an (N,) array,
+The NumPy backend (numpy_code.to_numpy) is batched: every intermediate is an (N,) array,
 which is right for an identification over thousands of samples and wrong for a
 simulator that needs one sample at a time inside an integration loop. This backend
 writes what `to_c` writes, in Python: one function per model taking one sample,
@@ -32,16 +32,8 @@ from pathlib import Path
 from types import ModuleType
 
 from ..model.tree import Tree
-from .codegen import (
-    _ARGS,
-    _eq_text,
-    cache_dir,
-    format_poly,
-    generator_fingerprint,
-    import_file,
-    model_hash,
-    write_atomic,
-)
+from .cache import cache_dir, generator_fingerprint, import_file, model_hash, write_atomic
+from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
 
 BACKEND_VERSION = "1"
@@ -204,7 +196,7 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
 
 
 def source_key(*parts: str) -> str:
-    """A short hash of the given texts and of this generator's source (see codegen.generator_fingerprint)."""
+    """A short hash of the given texts and of this generator's source (see cache.generator_fingerprint)."""
     h = hashlib.sha256(("\0".join((BACKEND_VERSION, generator_fingerprint(), *parts))).encode())
     return h.hexdigest()[:20]
 

@@ -186,7 +186,7 @@ def base_parameters(
     tree: Tree, geometry: str = "numeric", samples: int | None = None, seed: int = 0, tol: float = 1e-9
 ) -> SymbolicBaseParameters:
     """Base parameters of the full identification model (all rows and columns)."""
-    from .codegen import numpy_module
+    from .cache import numpy_module
 
     rel, removed, constants = rules(tree, geometry)
     names = tree.parameter_names
