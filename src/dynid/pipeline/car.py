@@ -35,10 +35,11 @@ def car_system(
     # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
     spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
     total = int(np.prod(decimate)) if decimate else 1
-    # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both; the rest in one stage
-    k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= max(5 * cutoff, spin / 0.9)),
-             None) if cutoff is not None and total > 1 else None
-    if k is not None:
+    k = None
+    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
+        needed = max(5 * cutoff, spin / 0.9)
+        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
+    if k is not None:  # W there, the rest of the decimation in one stage
         traj = CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
                              None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
         fs, decimate = fs / k, (total // k,)

@@ -210,9 +210,10 @@ def estimate_joints(
     R6 = chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])
 
     # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground)
-    z_est = np.mean([ch[f"laser_height_{t}"] * R6[:, 2, 0] - R6[:, 2, :] @ np.asarray(laser_point(g, k))
-                     for k, t in enumerate(CORNER_TAGS)], axis=0)
-    q[:, 2], qd[:, 2], _ = smooth(z_est)
+    # each laser's own estimate (N, 4), used again for the tire deflections below
+    z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
+        - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
+    q[:, 2], qd[:, 2], _ = smooth(z_laser.mean(axis=1))
     # --- translational accelerations of O6 from the IMU (specific force at its mounting point)
     dw6 = derivative(lp(w6), fs, axis=0)
     r_imu = np.asarray(g.imu_position, dtype=float)
@@ -268,8 +269,6 @@ def estimate_joints(
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     pz_zz = CubicSpline(sub, np.stack([st.P[f][2] for f in tires] + [st.Rc[f][2][2] for f in tires], axis=1))(
         np.arange(N))
-    z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
-        - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
     deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
     cols = [f - 1 for f in tires]
     q[:, cols], qd[:, cols], qdd[:, cols] = smooth(deflection)
