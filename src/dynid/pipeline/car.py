@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
@@ -20,6 +22,7 @@ def car_system(
     aero: Aerodynamics | None = None,
     regressor=None,
     cutoff: float | None = None,
+    min_speed: Mapping[int, float] | None = None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
@@ -29,6 +32,10 @@ def car_system(
     at least 5 x the cut-off (those signals hold nothing above a few times it, so nothing aliases) and
     above twice the wheel-spin frequency; the rest of the decimation is one parallel stage. The
     dry-friction columns sign(qd), not band-limited, are built at the full rate.
+    min_speed: joint (a damper) -> m/s: that joint's rows are left out where its estimated |qd| is below.
+    Near a reversal the dry friction is no function of the velocity (it sticks, or follows a law steeper
+    than any filter resolves) and the velocity's noise flips sign(qd): those rows would pull fs towards 0
+    and let the damping absorb it.
     """
     decimate = tuple(decimate or ())
     full, fs_full, full_decimate = traj, fs, decimate
@@ -72,8 +79,13 @@ def car_system(
     t = traj.t[::step][: W.shape[0]]
     n = W.shape[0]
     labels = eq.groups.reshape(rows, N)[:, 0]
-    sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1), Y.T.reshape(-1), np.repeat(labels, n),
-                        np.tile(t, rows))
+    keep = np.ones((rows, n), dtype=bool)
+    for j, v in (min_speed or {}).items():
+        if j in eq.rows:
+            keep[eq.rows.index(j)] = np.abs(traj.qd[::step, j - 1][:n]) >= v
+    keep = keep.reshape(-1)
+    sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1)[keep], Y.T.reshape(-1)[keep],
+                        np.repeat(labels, n)[keep], np.tile(t, rows)[keep])
     return sys, eq.base
 
 

@@ -50,6 +50,10 @@ assembles the paper's 14 equations:
     decimate = [5, 10]
     attitude_crossover = 0.2         # Hz: inclinometers below, integrated gyros above
     segment = 60.0                   # s: long tests are processed in overlapping segments (bounded memory)
+    compensate_delays = true         # advance each channel by its sensor's delay (band limit, hold); false
+                                     # for channels a logger already aligned
+    min_speed = 0.01                 # m/s: damper rows left out where |clearance rate| is below (dry
+                                     # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none
 
     [identification]
     method = "wls"
@@ -104,6 +108,8 @@ class CarSettings:
     decimate: tuple[int, ...] = (5, 10)
     attitude_crossover: float = 0.2
     segment: float = 60.0
+    compensate_delays: bool = True
+    min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.01))
     base: str = "generic"
     aero: bool = True
     offsets: dict[str, float] = field(default_factory=dict)  # channel -> 1-sigma zero offset, channel unit
@@ -233,7 +239,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
 
 def _car_settings(data: dict, err) -> CarSettings:
     c = data.get("conditioning", {})
-    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover", "segment"}
+    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays",
+                      "min_speed"}
     if extra:
         raise err("conditioning", f"unknown key(s) {sorted(extra)} for a car")
     ident = data.get("identification", {})
@@ -246,8 +253,35 @@ def _car_settings(data: dict, err) -> CarSettings:
         cutoff=float(c.get("cutoff", 4.0)), order=int(c.get("order", 4)),
         decimate=tuple(int(x) for x in (d if isinstance(d, list) else [d])),
         attitude_crossover=float(c.get("attitude_crossover", 0.2)), segment=float(c.get("segment", 60.0)),
+        compensate_delays=_flag(c, "compensate_delays", True, err), min_speed=_car_min_speed(c, err),
         base=base, aero=bool(ident.get("aero", True)), offsets=offsets, offset_segments=segments,
     )
+
+
+DAMPER_FRAMES = (9, 18, 27, 36)
+
+
+def _car_min_speed(c: dict, err) -> dict[int, float]:
+    """[conditioning] min_speed for a car: one speed (m/s) for the four dampers, or { 9 = 0.01, ... }."""
+    raw = c.get("min_speed", 0.01)
+    table = dict.fromkeys(DAMPER_FRAMES, raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else raw
+    if not isinstance(table, dict):
+        raise err("conditioning", f"min_speed = {raw!r}; use a speed in m/s (0.01) or {{ 9 = 0.01, 27 = 0.02 }}")
+    out = {}
+    for k, v in table.items():
+        if str(k) not in {str(d) for d in DAMPER_FRAMES} or isinstance(v, bool) or not isinstance(v, int | float) \
+                or v < 0:
+            raise err("conditioning", f"min_speed: {k} = {v!r}; keys are the damper frames "
+                      f"{', '.join(map(str, DAMPER_FRAMES))}, values speeds >= 0 in m/s")
+        out[int(k)] = float(v)
+    return out
+
+
+def _flag(table: dict, key: str, default: bool, err) -> bool:
+    value = table.get(key, default)
+    if not isinstance(value, bool):
+        raise err("conditioning", f"{key} = {value!r}; use true or false")
+    return value
 
 
 def _offsets(u: dict, err) -> tuple[dict[str, float], int]:

@@ -182,7 +182,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
               truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
     streams = {"identify": StreamingLS(names, **kw), "validate": StreamingLS(names, **kw)}
     shown: dict[str, GroupedSystem] = {}
-    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover)
+    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
+                            compensate_delays=settings.compensate_delays)
     aero = Aerodynamics() if settings.aero else None
     fast = GeneratedRegressor(tree)
     def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None):
@@ -191,7 +192,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
         traj = estimate_joints(si, fs, model, conditioning=cond)
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
-                          cutoff=cond.cutoff)[0]
+                          cutoff=cond.cutoff, min_speed=settings.min_speed)[0]
 
     ident_offsets = streams["identify"].bias_accumulator() if settings.offsets else None
 

@@ -67,13 +67,14 @@ class CarConditioning:
 
 def sensor_delay(channel: SensorChannel, fs: float) -> float:
     """Low-frequency delay (s) of a channel: its band limit, a 2nd-order Butterworth at `bandwidth`
-    (group delay sqrt(2) / (2 pi f_c) well below f_c), plus half a hold period when the sensor samples
-    slower than the logger. A 10 Hz inertial unit lags a 150 Hz force transducer by about 25 ms, several
+    (group delay sqrt(2) / (2 pi f_c) well below f_c), plus the mean age of a held value when the sensor
+    samples slower than the logger. A 10 Hz inertial unit lags a 150 Hz force transducer by about 25 ms, several
     degrees of phase at 0.5 Hz: enough to bias inertias and damping if left in."""
     delay = 0.0 if channel.bandwidth is None else np.sqrt(2.0) / (2 * np.pi * channel.bandwidth)
-    if channel.rate < fs:
-        delay += 0.5 / channel.rate
-    return delay
+    # a value held from the sensor's sample until the next is read on the logger's ticks: its age is
+    # uniform over 0, 1/fs, ..., 1/rate - 1/fs, mean (1/rate - 1/fs) / 2 -- continuous in fs, so a time
+    # column's rounding (fs = 625.0000000000688 for a 625 Hz sensor) gives no spurious delay
+    return delay + max(0.0, 0.5 * (1.0 / channel.rate - 1.0 / fs))
 
 
 def advance(x: Array, delay: float, fs: float) -> Array:
@@ -151,6 +152,47 @@ _COLS = np.abs(ISO_AXES).argmax(axis=0)[None, :]  # ISO_AXES[:, j] picks column 
 _SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None, :]]
 
 
+_CAMERA_TABLES = (("steer", "steering"), ("camber", "camber"))
+
+
+def _saturated_cameras(ch: Mapping[str, Array], suite: SensorSuite) -> dict[str, Array]:
+    """The camera channels that reach a limit of their range somewhere: name -> (N,) mask. The values are
+    in SI here and the ranges in the channel's unit; a saturated sample sits exactly on the limit (the logger
+    clips after quantising), so the test is made on the limits converted to SI, within a hundredth of the
+    channel's resolution."""
+    out = {}
+    for t in CORNER_TAGS:
+        for prefix, _ in _CAMERA_TABLES:
+            name = f"{prefix}_{t}"
+            c = suite[name] if name in suite.names else None
+            if c is None or c.range is None:
+                continue
+            scale = np.pi / 180.0 if c.unit == "deg" else 1.0
+            tol = 0.01 * c.resolution
+            mask = c.saturated(ch[name] / scale + np.where(ch[name] > 0, tol, -tol))
+            if mask.any():
+                out[name] = mask
+    return out
+
+
+def _from_tables(ch: dict[str, Array], clipped: Mapping[str, Array], tables: KinematicTables, suite: SensorSuite,
+                 fs: float | None) -> None:
+    """Saturated camera samples replaced, in place, by the kinematic tables' value at the measured damper
+    clearance and steering-wheel angle: a spiral steers the front wheels past the cameras' 5° range, and a
+    clipped steering angle biases every front-corner equation. With delays compensated (fs given) the mask
+    is widened by the channel's advance so that no sample the shift moved off the limit is kept."""
+    for name, mask in clipped.items():
+        prefix, tag = name.split("_")
+        k = CORNER_TAGS.index(tag)
+        if fs is not None:
+            reach = int(np.ceil(sensor_delay(suite[name], fs) * fs)) + 1
+            mask = np.convolve(mask, np.ones(2 * reach + 1), mode="same") > 0
+        table = tables.table(k, dict(_CAMERA_TABLES)[prefix])
+        x = ch[name].copy()
+        x[mask] = table(ch[f"clearance_{tag}"][mask], ch["steering_wheel"][mask])
+        ch[name] = x
+
+
 def estimate_joints(
     channels: Mapping[str, Array],
     fs: float,
@@ -170,9 +212,11 @@ def estimate_joints(
     if missing:
         raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
     ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    suite = suite or paper_suite(g)
+    clipped = _saturated_cameras(ch, suite)
     if c.compensate_delays:
-        suite = suite or paper_suite(g)
         ch = {k: advance(v, sensor_delay(suite[k], fs), fs) if k in suite.names else v for k, v in ch.items()}
+    _from_tables(ch, clipped, tables, suite, fs if c.compensate_delays else None)
     N = len(ch["imu_roll"])
     if model.n != FRAMES:
         raise ModelError(f"the car estimator needs the 42-frame car template; got {model.name!r} ({model.n} frames)")

@@ -110,6 +110,12 @@ class SensorChannel:
     joint: int | None = None
     source: str = PAPER
 
+    def saturated(self, x: np.ndarray) -> np.ndarray:
+        """Where the logged values x (channel unit) sit at a limit of `range`: (N,) bool."""
+        if self.range is None:
+            return np.zeros(np.shape(x), dtype=bool)
+        return (x <= self.range[0]) | (x >= self.range[1])
+
     def as_dict(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 

@@ -52,7 +52,9 @@ NF_ROW = 42  # columns of car_inertia's rows
 P_R0, P_G, P_MASS, P_RATIO, P_WB, P_US, P_KP, P_KI, P_TDMAX, P_TDMIN = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
 P_WS, P_ZS, P_RHO, P_AREA, P_LEN, P_VMIN, P_AREF, P_AERO_ON, P_HORIZ, P_ROLL = 10, 11, 12, 13, 14, 15, 16, 19, 20, 21
 P_VLOW = 22
-NPAR = 23
+P_FS = 23  # the dampers' dry friction fs9, fs18, fs27, fs36 (N), then its speed scale v_s (m/s)
+P_FVS = 27
+NPAR = 28
 # per-corner tire parameters after the Magic Formula ones: kt, ct
 # recorded per sample (REC): h, hd, hdd, spin torques 4, contact flags 4, slips kappa 4, alpha 4
 NREC = 19
@@ -319,6 +321,10 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
     car_idm(q, qd, qdd, wr, hv)
     for i in range(NF):
         rhs[i] = -hv[FREE[i] - 1]
+    # the dampers' dry friction, fs tanh(qd / v_s): a smooth law, so that the force is defined at reversal
+    # (a sign(qd) inside the RK4 stages chatters there); past a few v_s it is fs sign(qd)
+    for k in range(4):
+        rhs[6 + k] -= par[P_FS + k] * math.tanh(qd[7 + 9 * k + 1] / par[P_FVS])
     for k in range(4):
         rho = R0 - q[7 + 9 * k + 7]
         my_centre = wr[k, 4] - rho * wr[k, 0]

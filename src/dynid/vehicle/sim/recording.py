@@ -99,6 +99,7 @@ def sidecar(result, seed: int | None, noise: bool, truth: bool, names: list[str]
         "seed": seed, "noise": noise, "truth_channels": truth,
         "sample_time": float(sim.settings.dt), "samples": int(result.time.size),
         "settings": dataclasses.asdict(sim.settings),
+        "damper_dry_friction": "fs * tanh(qd / v_s), v_s = settings.friction_speed (m/s): fs sign(qd) past a few v_s",
         "tires": [t.as_dict() for t in sim.tires],
         "tree": tree.name,
         "true_parameters": params,
