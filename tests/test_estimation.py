@@ -334,10 +334,11 @@ def test_to_dict_schema_and_summary():
     assert d["validation"] == {"direct": {}, "cross": {}}
     assert set(d["weights"]) == {"chassis", "susp9"}
     p0, p5 = d["parameters"][0], d["parameters"][5]
-    assert set(p0) == {"name", "label", "value", "std", "rel_std_percent", "a_priori", "truth", "flag"}
+    assert set(p0) == {"name", "label", "value", "std", "rel_std_percent", "a_priori", "truth", "flag", "paper_rule",
+                       "scale"}
     assert p0["label"] == "ks9" and p0["a_priori"] == 2.0 and d["parameters"][1]["truth"] == 1.0
     assert p5 == {"name": "P5", "label": "P5", "value": 0.3, "std": None, "rel_std_percent": None,
-                  "a_priori": None, "truth": None, "flag": "known"}
+                  "a_priori": None, "truth": None, "flag": "known", "paper_rule": "known", "scale": 0.3}
     text = res.summary()
     for word in ("WLS", "ks9", "a priori", "truth", "%std", "known", "chassis", "susp9"):
         assert word in text

@@ -89,6 +89,21 @@ def car_system(
     return sys, eq.base
 
 
+COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is 1 cm of centre-of-mass shift
+
+
+def car_scales(values: Mapping[str, float]) -> dict[str, float]:
+    """The engineering scale of the chassis parameters whose value may be near zero: products of inertia
+    against the smallest principal moment of the chassis inertia about O6, first moments against a
+    centre-of-mass shift (M6 x COM_SCALE). The others are judged against their own value (the default)."""
+    v = {n: float(values.get(n, 0.0)) for n in ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "M6")}
+    inertia = np.array([[v["XX6"], v["XY6"], v["XZ6"]], [v["XY6"], v["YY6"], v["YZ6"]],
+                        [v["XZ6"], v["YZ6"], v["ZZ6"]]])
+    out = dict.fromkeys(("XY6", "XZ6", "YZ6"), abs(float(np.linalg.eigvalsh(inertia).min())))
+    out.update(dict.fromkeys(("MX6", "MY6", "MZ6"), COM_SCALE * abs(v["M6"])))
+    return {n: s for n, s in out.items() if n in values}
+
+
 def car_sections(names: list[str], tree) -> list[tuple[str, list[str]]]:
     """The paper's tables: chassis (Table 2), suspensions and anti-roll bars (Table 3), wheels, tires (Table 5)."""
     from ..vehicle.template import DAMPERS, TIRES, WHEELS

@@ -29,7 +29,8 @@
     [identification]
     method = "wls"                   # or "ols"
     known = { IA1 = 0.36 }           # fixed parameters: their contribution moves to Y
-    poor_factor = 20.0
+    poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
+    flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
 
     [reference]                      # optional: a published base-parameter table to compare with
     file = "published.csv"
@@ -127,6 +128,7 @@ class IdentifyConfig:
     method: str = "wls"
     known: dict[str, float] = field(default_factory=dict)
     poor_factor: float = 20.0
+    flag_percent: float = 2.5
     reference: dict[str, Any] | None = None
     car: CarSettings | None = None
 
@@ -233,7 +235,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
     return IdentifyConfig(
         path=path, model=model, tests=tuple(tests), channels=channels, transmission=transmission,
         conditioning=cond, method=method, known={k: float(v) for k, v in ident.get("known", {}).items()},
-        poor_factor=float(ident.get("poor_factor", 20.0)), reference=ref, car=car,
+        poor_factor=float(ident.get("poor_factor", 20.0)), flag_percent=_positive(ident, "flag_percent", 2.5, err),
+        reference=ref, car=car,
     )
 
 
@@ -275,6 +278,13 @@ def _car_min_speed(c: dict, err) -> dict[int, float]:
                       f"{', '.join(map(str, DAMPER_FRAMES))}, values speeds >= 0 in m/s")
         out[int(k)] = float(v)
     return out
+
+
+def _positive(table: dict, key: str, default: float, err) -> float:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+        raise err("identification", f"{key} = {value!r}; use a positive number")
+    return float(value)
 
 
 def _flag(table: dict, key: str, default: bool, err) -> bool:

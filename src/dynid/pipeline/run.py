@@ -7,6 +7,7 @@ report. Outputs are written atomically to the output folder.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections import deque
@@ -156,7 +157,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     from ..vehicle import Aerodynamics, car_base_parameters, car_template
     from ..vehicle import parameters as sets
     from ..vehicle.estimate import CarConditioning, estimate_joints
-    from .car import car_sections, car_system, consistency_text, excitation_hint
+    from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
@@ -255,6 +256,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
     if ident_offsets is not None:
         result = ident.with_systematic(result, ident_offsets)
+    result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
+                                 flag_percent=cfg.flag_percent)
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
         notes=offsets_note(result) + "Physical consistency of the estimates: " + consistency_text(result, base, tree))
@@ -326,6 +329,7 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
                   else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
+    result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
     run = _validate(cfg, IdentificationRun(model, base, result, ident), systems)
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])

@@ -30,7 +30,8 @@ def parameter_table(
     has_truth = bool(result.truth)
     total = result.rel_std_total_percent if result.systematic is not None else None
     head = ["parameter", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "%σ"]
-    head += (["%σ total"] if total is not None else []) + ["flag"]
+    head += (["%σ total"] if total is not None else []) + ["flag", "paper rule"]
+    flags = result.uncertainty_flags
     if reference:
         head += [reference_title, f"{reference_title} %σ"]
     out = []
@@ -42,7 +43,7 @@ def parameter_table(
             if has_truth:
                 row.append(_cell(result.truth.get(name)))
             row += [_cell(float(result.values[i])), _cell(float(result.rel_std_percent[i]), ".2f")]
-            row += ([_cell(float(total[i]), ".2f")] if total is not None else []) + [result.flags[i]]
+            row += ([_cell(float(total[i]), ".2f")] if total is not None else []) + [flags[i], result.flags[i]]
             if reference:
                 ref = reference.get(name)
                 row += [_cell(ref[0]), _cell(ref[1], ".2f")] if ref else ["", ""]
