@@ -115,6 +115,44 @@ def test_estimated_joints_match_the_trajectory(truth):
     assert np.abs(est.wheel_wrenches[:, :, 2] - ww[sl, :, 2]).max() < 1e-3 * 4000
 
 
+@pytest.mark.parametrize("compensate", [False, True])
+def test_saturated_camera_samples_come_from_the_tables(truth, compensate):
+    """A camera clipped at its range (a spiral steers the front wheels past the cameras' 5°) is replaced where
+    it sits on a limit by the tables' value: the steering and camber joints come back as from the unclipped
+    channels. Oracle: the trajectory, whose steering and camber are the tables' (smooth_drive)."""
+    import dataclasses
+
+    from dynid.vehicle.sensors import paper_suite
+
+    model, t, q, qd, _, _, channels = truth
+    clipped, ranges = dict(channels), {}
+    for name in ("steer_fl", "steer_fr", "camber_rl"):
+        x = channels[name]
+        limit = 0.5 * np.abs(x).max()  # half the samples' peak: a long stretch on each limit
+        ranges[name] = (-limit, limit)
+        clipped[name] = np.clip(x, -limit, limit)
+        assert np.mean(np.abs(clipped[name]) >= limit) > 0.1
+    suite = paper_suite()
+    for name, r in ranges.items():
+        suite = suite.replace(name, range=r)
+    if not compensate:  # ideal channels: no sensor dynamics to undo
+        cond = CarConditioning(cutoff=4.0, compensate_delays=False)
+    else:  # every declared delay made zero: the mask's widening by the advance is exercised, the shift is 0
+        suite = dataclasses.replace(suite, channels=tuple(dataclasses.replace(c, bandwidth=None, rate=FS)
+                                                          for c in suite.channels))
+        cond = CarConditioning(cutoff=4.0)
+    est = estimate_joints(si(clipped), FS, model, conditioning=cond, suite=suite)
+    ref = estimate_joints(si(channels), FS, model, conditioning=CarConditioning(cutoff=4.0, compensate_delays=False))
+    i = np.searchsorted(t, est.t[0])
+    sl = slice(i, i + len(est.t))
+    for j in (28, 37, 11):  # steer fl, steer fr, camber rl (frame numbers)
+        for a, r, b in ((est.q, ref.q, q), (est.qd, ref.qd, qd)):
+            scale = np.abs(b[sl, j - 1]).max()
+            # the same bound as the unclipped estimate (test above): 0.5 % of the joint's scale
+            assert np.abs(a[:, j - 1] - b[sl, j - 1]).max() < 5e-3 * scale, j
+            assert np.abs(a[:, j - 1] - r[:, j - 1]).max() < 5e-3 * scale, j
+
+
 @pytest.mark.parametrize("delay", [0.0, 0.0016, 0.0037, -0.0031, 0.5, 2.0])
 def test_advance_is_linear_interpolation_with_the_ends_held(delay):
     from dynid.vehicle.estimate import advance
