@@ -7,7 +7,11 @@
     [[tests]]
     name = "exciting trajectory"
     role = "identify"                # or "validate" (cross-validation only)
-    fs = 5000.0                      # sample rate when the files have no time column
+    fs = 5000.0                      # sample rate when the files have no time column (with one: optional,
+                                     # checked against it)
+    start = 2.0                      # optional: s, the part of the test used (the files' time base)
+    end = 58.0
+    max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
     files = { q = "pos.csv", tau = "torques.csv" }
 
     [channels]                       # quantity -> channels, one per joint, with the file's unit
@@ -92,6 +96,9 @@ class TestSpec:
     files: dict[str, Path]
     fs: float | None
     truth: Path | None = None
+    start: float | None = None  # s, in the files' time base: the part of the test used
+    end: float | None = None
+    max_gap: float = 10.0  # sample periods: a longer hole in the time stamps is refused
 
 
 @dataclass(frozen=True)
@@ -137,6 +144,7 @@ class IdentifyConfig:
         return "car" if self.car is not None else "robot"
 
 
+_TEST_KEYS = {"name", "role", "fs", "files", "file", "truth", "start", "end", "max_gap"}
 _TOP = {"model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty"}
 
 
@@ -172,6 +180,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
         if car is not None:
             if not isinstance(t.get("file"), str):
                 raise err(key, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
+            if {"start", "end", "max_gap"} & set(t):
+                raise err(key, "start, end and max_gap are for robot tests; cut the car's logger file instead")
             t = {**t, "files": {"channels": t["file"]}}
         if not isinstance(t.get("files"), dict) or not t["files"]:
             raise err(key, "needs files = { quantity = \"file\", ... }")
@@ -182,11 +192,27 @@ def load_config(path: str | Path) -> IdentifyConfig:
         for q, f in files.items():
             if not f.exists():
                 raise err(key, f"file for {q!r} not found: {f}")
+        extra = set(t) - _TEST_KEYS
+        if extra:
+            raise err(key, f"unknown key(s) {sorted(extra)}; keys: {', '.join(sorted(_TEST_KEYS))}")
         fs = t.get("fs")
+        if fs is not None and not _number(fs, lambda v: v > 0):
+            raise err(key, f"fs = {fs!r}; give the sample rate in Hz (a positive number)")
+        window = {k: t.get(k) for k in ("start", "end")}
+        for k, v in window.items():
+            if v is not None and not _number(v):
+                raise err(key, f"{k} = {v!r}; give a time in s (a number, in the files' time base)")
+        if None not in window.values() and not window["start"] < window["end"]:
+            raise err(key, f"start = {window['start']!r} s is not before end = {window['end']!r} s")
+        max_gap = t.get("max_gap", 10.0)
+        if not _number(max_gap, lambda v: v >= 1):
+            raise err(key, f"max_gap = {max_gap!r}; give the longest hole allowed in the time stamps, in sample "
+                           "periods (a number >= 1)")
         truth = here / t["truth"] if "truth" in t else None
         if truth is not None and not truth.exists():
             raise err(key, f"truth file not found: {truth}")
-        tests.append(TestSpec(str(t.get("name", f"test {i}")), role, files, None if fs is None else float(fs), truth))
+        tests.append(TestSpec(str(t.get("name", f"test {i}")), role, files, None if fs is None else float(fs), truth,
+                              *(None if v is None else float(v) for v in window.values()), float(max_gap)))
     if not any(t.role == "identify" for t in tests):
         raise err("tests", "at least one test must have role = \"identify\"")
 
@@ -278,6 +304,12 @@ def _car_min_speed(c: dict, err) -> dict[int, float]:
                       f"{', '.join(map(str, DAMPER_FRAMES))}, values speeds >= 0 in m/s")
         out[int(k)] = float(v)
     return out
+
+
+def _number(value, ok=lambda v: True) -> bool:
+    """A finite int or float (not a bool) for which `ok` holds."""
+    return (not isinstance(value, bool) and isinstance(value, int | float) and bool(np.isfinite(value))
+            and bool(ok(value)))
 
 
 def _positive(table: dict, key: str, default: float, err) -> float:

@@ -69,28 +69,26 @@ class IdentificationRun:
         return "\n".join(lines)
 
 
-def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int) -> JointTest:
-    """Joint positions and forces of one test from its files, through the channel map and transmission."""
-    from ..io import read_recording, to_si
+def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progress | None = None) -> JointTest:
+    """Joint positions and forces of one test from its files, on one uniform clock (`timebase`: time columns,
+    repeated rows, jitter, gaps, two files' clocks, the start..end window), through the channel map and
+    transmission."""
+    from ..io import to_si
+    from .timebase import on_one_clock
 
-    arrays = {}
-    fs = spec.fs
+    wanted = {}
     for quantity in ("q", "tau"):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
         if quantity not in cfg.channels:
             raise ConfigError(f"{cfg.path}: [channels] has no {quantity!r} = {{ channels = [...], unit = ... }}")
-        ch = cfg.channels[quantity]
-        rec = read_recording(spec.files[quantity], fs=fs)
-        cols = []
-        for name in ch.channels:
-            c = rec.channel(name)
-            values, _ = to_si(c.values, ch.unit or c.unit, channel=name)
-            cols.append(values)
-        arrays[quantity] = np.stack(cols, axis=1)
-        if fs is None:
-            t = rec.channel(ch.channels[0]).time
-            fs = 1.0 / float(np.median(np.diff(t)))
+        wanted[quantity] = (spec.files[quantity], list(cfg.channels[quantity].channels))
+    fs, channels = on_one_clock(wanted, spec.fs, test=spec.name, config=cfg.path, start=spec.start, end=spec.end,
+                                max_gap=spec.max_gap, say=progress or (lambda _m: None))
+    arrays = {}
+    for quantity, chans in channels.items():
+        unit = cfg.channels[quantity].unit
+        arrays[quantity] = np.stack([to_si(c.values, unit or c.unit, channel=c.name)[0] for c in chans], axis=1)
     q, tau = arrays["q"], arrays["tau"]
     if "q" in cfg.transmission:
         q = q @ cfg.transmission["q"].T
@@ -319,7 +317,7 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     systems: dict[str, GroupedSystem] = {}
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
-        systems[spec.name] = joint_system(model, load_joint_test(cfg, spec, model.n), base, cfg.conditioning)
+        systems[spec.name] = joint_system(model, load_joint_test(cfg, spec, model.n, say), base, cfg.conditioning)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")

@@ -1,0 +1,214 @@
+"""A robot test's files on one uniform clock: time columns, repeated rows, jitter, gaps, two clocks, a window.
+
+Each file is read once. A file with a time column is used on its own stamps (an `fs` in the
+test's config must then agree with them); a file without one needs the test's `fs`. Per time
+base (a file's rows): rows with identical stamps are averaged into one sample; stamps going
+back, or a hole longer than `max_gap` sample periods, are refused with the file, line, sample
+and time. The clock is q's own stamps when they are uniform, else a uniform clock at q's rate;
+it is cut to the span every file covers and to the test's `start`..`end`, and every channel
+not already on it is interpolated onto it (`dynid.io.align`: cubic for q, linear for tau).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..io import Channel, DataError, FileFormatError, GapError, Recording, TimeBaseError, align, read_recording
+from ..io.align import InterpSpec
+from ..io.checks import locate
+
+RATE_TOLERANCE = 0.01  # relative: a config fs and a time column further apart than this disagree
+UNIFORM = 1e-3  # stamps within this fraction of a step of a uniform clock are used as they are
+
+
+@dataclass
+class Stream:
+    """Channels of one file on one time base, repeated stamps merged: the base's nominal step and quality."""
+
+    source: str
+    timed: bool  # from a time column (False: rows at the config's fs)
+    t: NDArray[np.float64]
+    channels: dict[str, Channel]
+    h: float
+    uniform: bool
+    t0: float = 0.0  # the uniform clock's origin: t0 + k h
+    repeated: int = 0
+    jitter_rms: float = 0.0
+    jitter_max: float = 0.0
+    largest_gap: float = 0.0
+
+    def report(self) -> str:
+        ms = 1e3
+        text = (f"{self.source}: time column, {self.t.size} samples at {1 / self.h:.6g} Hz; {self.repeated} "
+                f"repeated row(s) (identical time stamps) averaged; jitter {self.jitter_rms * ms:.3g} ms RMS, "
+                f"{self.jitter_max * ms:.3g} ms max; largest gap {self.largest_gap * ms:.3g} ms "
+                f"({self.largest_gap / self.h:.3g} sample periods)")
+        return text if self.uniform else text + "; resampled onto a uniform clock"
+
+
+def _where(source: str, lines: NDArray[np.int64] | None, k: int, t: float, offset: int = 0) -> str:
+    text = locate(source, None, offset + k, t)
+    return text if lines is None else text.replace(", sample", f", line {int(lines[k])}, sample", 1)
+
+
+def read_test_file(path: Path, fs: float | None, test: str, config: Path) -> tuple[Recording, bool]:
+    """The file, and whether its samples carry their own time stamps (a time column)."""
+    try:
+        return read_recording(path, fs=fs), fs is None
+    except FileFormatError as exc:
+        if fs is None:
+            if "no time column" in str(exc):
+                raise FileFormatError(f"{exc}. Or give the rate in the config: fs = ... (Hz) in test {test!r} of "
+                                      f"{config}", source=str(path)) from None
+            raise
+        try:  # a time column: used, and fs checked against it by the caller
+            return read_recording(path), True
+        except DataError:
+            raise exc from None
+
+
+def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
+           window: tuple[float | None, float | None] = (None, None)) -> Stream:
+    """The channels (one time base) with repeated stamps averaged, checked for stamps going back and holes;
+    with a window (start, end), only the rows from just before start to just after end."""
+    t, lines = chans[0].time, chans[0].lines
+    offset = 0  # of the first row kept, for messages
+    if timed and window != (None, None) and t.size > 2:
+        margin = 2 * max_gap * float(np.median(np.abs(np.diff(t))))
+        lo = -np.inf if window[0] is None else window[0] - margin
+        hi = np.inf if window[1] is None else window[1] + margin
+        inside = np.flatnonzero((t >= lo) & (t <= hi))
+        if inside.size and (inside[0] > 0 or inside[-1] < t.size - 1):
+            rows = slice(int(inside[0]), int(inside[-1]) + 1)
+            offset = rows.start
+            chans = [Channel(c.name, c.unit, c.values[rows], t[rows], None if lines is None else lines[rows])
+                     for c in chans]
+            t, lines = chans[0].time, chans[0].lines
+    if not timed or t.size < 3:
+        h = float(t[1] - t[0]) if t.size > 1 else 1.0
+        return Stream(source, timed, t, {c.name: c for c in chans}, h, True, float(t[0]) if t.size else 0.0)
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        k = int(bad[0])
+        raise TimeBaseError(f"{_where(source, lines, k, np.nan, offset)}: time stamp is {t[k]}; fix the logger "
+                            "export or keep to a part of the test without it (start, end)", source=source,
+                            sample=offset + k)
+    step = np.diff(t)
+    back = np.flatnonzero(step < 0.0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise TimeBaseError(
+            f"{_where(source, lines, k, float(t[k]), offset)}: time goes back from {float(t[k - 1]):.6g} s "
+            f"(sample {offset + k - 1}) "
+            f"to {float(t[k]):.6g} s ({back.size} such step(s) in all): the time stamps must not decrease. Sort the "
+            "rows by time or fix the logger's clock, or keep to a part before or after it (start, end in the test)",
+            source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
+    first = np.flatnonzero(np.concatenate(([True], step > 0.0)))
+    repeated = t.size - first.size
+    if repeated:  # rows with one stamp: one sample, their mean
+        counts = np.diff(np.append(first, t.size))[:, None]
+        merged = np.add.reduceat(np.column_stack([c.values for c in chans]), first, axis=0) / counts
+        t_lines = None if lines is None else lines[first]
+        chans = [Channel(c.name, c.unit, merged[:, i], t[first], t_lines) for i, c in enumerate(chans)]
+    tu = chans[0].time
+    su = np.diff(tu)
+    h0 = float(np.median(su))
+    h = float(tu[-1] - tu[0]) / max(round(float(tu[-1] - tu[0]) / h0), 1)  # exact for a clock with holes
+    big = np.flatnonzero(su > max_gap * h)
+    if big.size:
+        i = int(big[0])
+        k = int(first[i + 1])
+        raise GapError(
+            f"{_where(source, lines, k, float(t[k]), offset)}: no sample for {su[i] * 1e3:.4g} ms before it (from "
+            f"t = {float(tu[i]):.6g} s), {su[i] / h:.3g} sample periods at {1 / h:.6g} Hz, over max_gap = {max_gap:g} "
+            f"({big.size} such gap(s) in all). Keep to a part of the test without it (start, end in the test) or "
+            "raise max_gap in the test if interpolating across it is acceptable",
+            source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
+    slots = np.rint((tu - tu[0]) / h)
+    h, t0 = np.polyfit(slots, tu, 1)  # the logger's clock: the stamps' least-squares line
+    h, t0 = float(h), float(t0)
+    jitter = tu - t0 - slots * h
+    uniform = bool(np.max(np.abs(jitter)) <= UNIFORM * h and np.all(np.diff(slots) == 1))
+    return Stream(source, timed, tu, {c.name: c for c in chans}, h, uniform, t0, repeated,
+                  float(np.sqrt(np.mean(jitter**2))), float(np.max(np.abs(jitter))), float(np.max(su)))
+
+
+def on_one_clock(
+    wanted: dict[str, tuple[Path, list[str]]],
+    fs: float | None,
+    *,
+    test: str,
+    config: Path,
+    start: float | None = None,
+    end: float | None = None,
+    max_gap: float = 10.0,
+    say: Callable[[str], None] = lambda _m: None,
+) -> tuple[float, dict[str, list[Channel]]]:
+    """{quantity: (file, channel names)} -> (rate, {quantity: channels on one uniform clock, file units}).
+
+    The first quantity sets the clock (module docstring)."""
+    records: dict[Path, tuple[Recording, bool]] = {}
+    streams: list[Stream] = []
+    home: dict[tuple[str, str], Stream] = {}
+    for quantity, (path, names) in wanted.items():
+        if path not in records:
+            records[path] = read_test_file(path, fs, test, config)
+        rec, timed = records[path]
+        for name in names:
+            ch = rec.channel(name)
+            s = next((s for s in streams if s.source == rec.label and name in s.channels), None)
+            if s is None:
+                same = [c for c in rec.channels.values() if c.time is ch.time or np.array_equal(c.time, ch.time)]
+                needed = {n for _, (p, ns) in wanted.items() if p == path for n in ns}
+                s = stream([c for c in same if c.name in needed], rec.label, timed, max_gap, (start, end))
+                streams.append(s)
+                if timed:
+                    say(f"{test}: {s.report()}")
+            home[quantity, name] = s
+    for s in streams:
+        if s.timed and fs is not None and abs(1 / s.h - fs) > RATE_TOLERANCE * fs:
+            raise DataError(
+                f"{config}: test {test!r} gives fs = {fs:g} Hz but the time column of {s.source} says "
+                f"{1 / s.h:.6g} Hz (step {s.h * 1e3:.6g} ms): remove fs from the test (the time column is used), or "
+                "correct it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=s.source)
+    ref = home[next(iter(wanted)), wanted[next(iter(wanted))][1][0]]
+    first = np.ceil((ref.t[0] - ref.t0) / ref.h)
+    clock = ref.t if ref.uniform else ref.t0 + ref.h * np.arange(first, np.floor((ref.t[-1] - ref.t0) / ref.h) + 1)
+    lo, hi = max(s.t[0] for s in streams), min(s.t[-1] for s in streams)
+    if lo > hi:
+        spans = "; ".join(f"{q} ({p}) covers {home[q, ns[0]].t[0]:.6g}..{home[q, ns[0]].t[-1]:.6g} s"
+                          for q, (p, ns) in wanted.items())
+        raise DataError(f"{config}: test {test!r}: the files do not overlap in time: {spans}. Are they from the "
+                        "same test, and stamped by the same clock?")
+    tol = 1e-9 * max(abs(hi), ref.h)
+    for k, v in (("start", start), ("end", end)):
+        if v is not None and not lo - tol <= v <= hi + tol:
+            raise DataError(f"{config}: test {test!r}: {k} = {v:g} s is outside the record, which covers "
+                            f"{lo:.6g}..{hi:.6g} s (in every file); give a time inside it")
+    a = lo if start is None else max(lo, start)
+    b = hi if end is None else min(hi, end)
+    clock = clock[(clock >= a - tol) & (clock <= b + tol)]
+    clock = clock[(clock >= lo) & (clock <= hi)]
+    if len(streams) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
+        say(f"{test}: the files overlap over {lo:.6g}..{hi:.6g} s: that span is used")
+    specs = [InterpSpec(f"{q}:{n}", home[q, n].channels[n], "cubic" if q == "q" else "linear")
+             for q, (_, ns) in wanted.items() for n in ns]
+    if any(not s.uniform or not (s.t is ref.t or np.array_equal(s.t, ref.t)) for s in streams):
+        say(f"{test}: every channel on one uniform {1 / ref.h:.6g} Hz clock, {clock.size} samples "
+            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    al = align(specs, t=clock, source=ref.source, gap_factor=None)
+    out = {q: [Channel(n, home[q, n].channels[n].unit, al[f"{q}:{n}"], al.t) for n in ns]
+           for q, (_, ns) in wanted.items()}
+    return (_rate(ref.h) if ref.timed or fs is None else fs), out
+
+
+def _rate(h: float) -> float:
+    """1 / h, snapped to its 9 significant digits when within 1e-9 of them (1000.0000000000002 -> 1000)."""
+    rate = 1.0 / h
+    snapped = float(f"{rate:.9g}")
+    return snapped if abs(snapped - rate) <= 1e-9 * rate else rate
