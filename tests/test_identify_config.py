@@ -118,3 +118,45 @@ def test_sensor_offset_declarations_are_checked(tmp_path, uncertainty, words):
 def test_sensor_offsets_are_for_the_car_only(files, capsys):
     rc, _, err = run(files, GOOD + "\n[uncertainty]\noffsets = {{ j1 = 0.01 }}\n", capsys)
     assert rc == 2 and "[uncertainty]" in err and "car template only" in err
+
+
+CAR_OPTIONS = """
+[model]
+template = "peugeot406"
+
+[[tests]]
+file = "sine.csv"
+
+[conditioning]
+{conditioning}
+
+[identification]
+{identification}
+"""
+
+
+@pytest.mark.parametrize("conditioning, identification, words", [
+    ('min_speed = "fast"', "", ["[conditioning]", "min_speed", "m/s"]),
+    ("min_speed = { 10 = 0.01 }", "", ["[conditioning]", "min_speed", "10", "9, 18, 27, 36"]),
+    ("min_speed = { 9 = -0.01 }", "", ["[conditioning]", "min_speed", ">= 0"]),
+    ("compensate_delays = 1", "", ["[conditioning]", "compensate_delays", "true or false"]),
+    ("", "flag_percent = 0", ["[identification]", "flag_percent", "positive"]),
+    ("", 'flag_percent = "5 %"', ["[identification]", "flag_percent", "positive"]),
+])
+def test_car_conditioning_options_are_checked(tmp_path, conditioning, identification, words):
+    from dynid.pipeline.config import ConfigError, load_config
+
+    (tmp_path / "sine.csv").write_text("time\n0\n")
+    cfg = tmp_path / "identify.toml"
+    cfg.write_text(CAR_OPTIONS.format(conditioning=conditioning, identification=identification))
+    with pytest.raises(ConfigError) as exc:
+        load_config(cfg)
+    for w in words:
+        assert w in str(exc.value), (w, str(exc.value))
+    cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.02, 27 = 0 }\ncompensate_delays = false",
+                                      identification="flag_percent = 4"))
+    c = load_config(cfg)
+    assert c.car.min_speed == {9: 0.02, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
+    cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
+    c = load_config(cfg)
+    assert c.car.min_speed == {9: 0.01, 18: 0.01, 27: 0.01, 36: 0.01} and c.car.compensate_delays
