@@ -1,4 +1,5 @@
 """Estimation: ordinary and weighted least squares with standard deviations (paper §5),
+instrumental variables (IDIM-IV) against errors in the variables,
 rank checks naming unidentifiable parameters, the %σ rule of thumb and essential parameters
 (§7.2), validation errors, streaming least squares, the sensor offsets' systematic
 uncertainty, and the results object.
@@ -9,19 +10,20 @@ parameter names. It imports nothing from the model, kinematics or dynamics layer
 
 from .errors import EstimationWarning, IdentificationError
 from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_parameters
+from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .ols import ols
 from .quality import POOR_FACTOR, poorly_identified, relative_errors, relative_std_percent
 from .result import IdentificationResult, ResidualStats
-from .streaming import StreamingLS
+from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
 from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
 
 __all__ = [
     "POOR_FACTOR", "RESIDUAL_TOL", "SIGMA_FLOOR", "BiasAccumulator", "EssentialResult", "EssentialStep",
     "EstimationWarning",
-    "GroupFit", "IdentificationError", "IdentificationResult", "LSQSolution", "ResidualStats", "StreamingLS",
-    "SystematicUncertainty",
-    "check_rank", "essential_parameters", "group_noise", "ols", "poorly_identified", "propagate", "relative_errors",
-    "relative_std_percent", "solve_lsq", "wls",
+    "GroupFit", "IdentificationError", "IdentificationResult", "InstrumentSums", "LSQSolution", "ResidualStats",
+    "StreamingLS", "SystematicUncertainty",
+    "check_rank", "essential_parameters", "group_noise", "iv", "ols", "poorly_identified", "propagate",
+    "relative_errors", "relative_std_percent", "solve_lsq", "wls",
 ]

@@ -33,6 +33,7 @@ from ._checks import (
     split_known,
 )
 from .errors import IdentificationError
+from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
@@ -176,6 +177,40 @@ class StreamingLS:
         sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
         return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
 
+    def instrument_sums(self) -> InstrumentSums:
+        """An accumulator of instruments for rows of this system (``solve_iv``)."""
+        cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
+        known = np.array([self.names.index(n) for n in self.known], dtype=int)
+        return InstrumentSums(cols, known, np.array(list(self.known.values()), dtype=float))
+
+    def solve_iv(self, sums: InstrumentSums, group_sigmas: Mapping[str, float] | None = None, iterations: int = 3,
+                 sigma_floor: float = SIGMA_FLOOR) -> IdentificationResult:
+        """Weighted instrumental variables (IDIM-IV, see `iv`) on the rows added, with `sums` accumulated on the
+        same rows. The weights start from `group_sigmas` (default: WLS's) and are re-estimated from the IV
+        residuals `iterations` times (p_g: the parameters each group identifies alone, as in WLS; 0: the
+        given weights as they are)."""
+        self._require_rows()
+        if sums.rows != self._rows:
+            raise IdentificationError(f"the instruments were accumulated on other rows ({sums.rows}) than the system "
+                                      f"({self._rows}): add the same chunks to both")
+        fits = self.group_fits(sigma_floor)
+        sigmas = dict(group_sigmas) if group_sigmas is not None else {g: f.sigma for g, f in fits.items()}
+        sigmas = checked_sigmas(sigmas, list(self._R))
+        q, n = len(self.estimated_names), self.n_rows
+        for _ in range(iterations):
+            x, Ainv, S = sums.solve(sigmas, self.estimated_names)
+            res = {g: self._residual_norm(x, g) for g in self._R}
+            floor = {g: sigma_floor * np.sqrt(self._y2[g] / self._rows[g]) for g in self._R}
+            sigmas = {g: max(res[g] / np.sqrt(max(self._rows[g] - len(fits[g].parameters), 1)), floor[g], 1e-300)
+                      for g in self._R}
+        x, Ainv, S = sums.solve(sigmas, self.estimated_names)
+        rss_w = sum(self._residual_norm(x, g) ** 2 / sigmas[g] ** 2 for g in self._R)
+        s2 = rss_w / (n - q)
+        cov = iv_covariance(Ainv, S, s2)
+        ls = self._solve(self._stacked(sigmas), "W (weighted)")  # the weighted W's condition number
+        sol = LSQSolution(x, cov / s2, float(rss_w), n, n - q, float(s2), cov, ls.condition_number)
+        return self._result(sol, "IV", sigmas)
+
     def group_rms(self, X: ArrayLike | Mapping[str, float] | IdentificationResult | None = None) -> dict[str, float]:
         """``{group: RMS of Y}`` over the rows added, or of the residual ``Y - W X`` when X is given."""
         self._require_rows()
@@ -232,3 +267,23 @@ class StreamingLS:
             raise IdentificationError(f"X changes known parameters {wrong}; they are fixed in the accumulators",
                                       parameters=wrong)
         return np.array([full[n] for n in self.estimated_names])
+
+
+def iv(
+    W: ArrayLike,
+    Y: ArrayLike,
+    Z: ArrayLike,
+    groups: ArrayLike,
+    names: Sequence[str],
+    *,
+    group_sigmas: Mapping[str, float] | None = None,
+    iterations: int = 3,
+    **kw,
+) -> IdentificationResult:
+    """Weighted instrumental variables (IDIM-IV, see `iv`) on a whole system: W (m, p), Y (m,), instruments
+    Z (m, p), groups (m,); the other arguments as in ``wls`` and `StreamingLS.solve_iv`."""
+    s = StreamingLS(names, **kw)
+    s.add(W, Y, groups)
+    sums = s.instrument_sums()
+    sums.add(W, Y, Z, groups)
+    return s.solve_iv(sums, group_sigmas, iterations)

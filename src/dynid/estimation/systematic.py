@@ -69,10 +69,14 @@ class BiasAccumulator:
     terms: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
 
     def add(self, source: str, W: ArrayLike, Y: ArrayLike, dW: ArrayLike, dY: ArrayLike, groups: ArrayLike,
-            scale: float = 1.0) -> None:
+            scale: float = 1.0, Z: ArrayLike | None = None, dZ: ArrayLike | None = None) -> None:
         """Rows (W, Y and their changes for the source's one-σ offset), grouped; `scale` multiplies
-        their sums (a sample of a long test's segments standing for all of it)."""
+        their sums (a sample of a long test's segments standing for all of it). For an instrumental-variable
+        estimate X̂ = A⁻¹ Zᵀ Ω Y, give the instruments Z and their change dZ: the bracket is then
+        Zᵀ (ΔY − ΔW X̂) + ΔZᵀ (Y − W X̂) (least squares is the case Z = W)."""
         W, Y, dW, dY = (np.asarray(a, dtype=float) for a in (W, Y, dW, dY))
+        Z = W if Z is None else np.asarray(Z, dtype=float)
+        dZ = dW if dZ is None else np.asarray(dZ, dtype=float)
         groups = np.asarray(groups)
         Y = Y - W[:, self.known_columns] @ self.known_values
         dY = dY - dW[:, self.known_columns] @ self.known_values
@@ -80,9 +84,10 @@ class BiasAccumulator:
         for g in dict.fromkeys(groups.tolist()):
             rows = groups == g
             We, dWe = W[rows][:, self.columns], dW[rows][:, self.columns]
-            # bracket = a - B x with a = Wᵀ ΔY + ΔWᵀ Y, B = Wᵀ ΔW + ΔWᵀ W
-            a = scale * (We.T @ dY[rows] + dWe.T @ Y[rows])
-            B = scale * (We.T @ dWe + dWe.T @ We)
+            Ze, dZe = Z[rows][:, self.columns], dZ[rows][:, self.columns]
+            # bracket = a - B x with a = Zᵀ ΔY + ΔZᵀ Y, B = Zᵀ ΔW + ΔZᵀ W
+            a = scale * (Ze.T @ dY[rows] + dZe.T @ Y[rows])
+            B = scale * (Ze.T @ dWe + dZe.T @ We)
             if g in per:
                 a, B = a + per[g][0], B + per[g][1]
             per[g] = (a, B)
@@ -97,8 +102,8 @@ def propagate(
 ) -> SystematicUncertainty:
     """ΔX_k for every source and their covariance.
 
-    normal : (q, q) A of the weighted system solved; x : (q,) the estimates; group_sigmas :
-    the WLS weights σ_g (None: OLS, all 1).
+    normal : (q, q) A of the weighted system solved (Σ Zᵀ W / σ² for instrumental variables);
+    x : (q,) the estimates; group_sigmas : the weights σ_g (None: OLS, all 1).
     """
     x = np.asarray(x, dtype=float)
     shifts = {}
