@@ -2,7 +2,7 @@
 
 Oracle: the true parameter set the simulator drove with (its sidecar). The sensor suite adds
 seeded noise, biases, band limits and quantisation, so the estimates are checked at the level
-those allow: the total mass within 0.5 %, the cross-validation error (lane change, step steer)
+those allow: the total mass within 0.5 %, the cross-validation error (step steer, gentler braking)
 below 10 %, every parameter the flag does not mark "uncertain" within 5 % of its engineering scale
 (its value; a principal moment for a product of inertia; M6 x 0.2 m, i.e. 1 cm of centre of mass,
 for a first moment) and within 3 sigma of its truth, sigma the combined uncertainty: the
@@ -27,7 +27,7 @@ def demo(tmp_path_factory):
 def test_outputs_and_rerunnable_config(demo):
     out, _ = demo
     assert (out / "report.html").stat().st_size > 10_000
-    files = {"sine.csv", "sine.json", "spiral.csv", "braking.csv", "lane.csv", "step.csv"}
+    files = {"sine.csv", "sine.json", "spiral.csv", "braking.csv", "lane.csv", "step.csv", "braking80.csv"}
     assert {p.name for p in (out / "data").iterdir()} >= files
     assert 'template = "peugeot406"' in (out / "identify.toml").read_text()
     assert not list(out.rglob(".*.tmp*"))  # nothing half-written

@@ -69,6 +69,7 @@ def test_missing_file_is_named(files, capsys):
 @pytest.mark.parametrize("change, words", [
     (('"j6"], unit = "rad"', '"j7"], unit = "rad"'), ["q.csv", "j7", "j1, j2, j3, j4, j5, j6"]),
     (("[conditioning]", "[identification]\nmethod = \"lasso\"\n[conditioning]"), ["method", "lasso"]),
+    (("[conditioning]", "[identification]\nmethod = \"iv\"\n[conditioning]"), ["method", "iv", "robot", "wls"]),
     (("[conditioning]", "[identification]\nknown = {{ ZZ9 = 1.0 }}\n[conditioning]"), ["ZZ9", "base parameters"]),
     (("cutoff = 10.0", "cutoff = 150.0"), ["Nyquist", "100 Hz"]),
 ])
@@ -142,6 +143,8 @@ file = "sine.csv"
     ("compensate_delays = 1", "", ["[conditioning]", "compensate_delays", "true or false"]),
     ("", "flag_percent = 0", ["[identification]", "flag_percent", "positive"]),
     ("", 'flag_percent = "5 %"', ["[identification]", "flag_percent", "positive"]),
+    ("", 'method = "iv"\niv_passes = 0', ["[identification]", "iv_passes", "1 to 10"]),
+    ("", 'method = "iv"\niv_passes = 1.5', ["[identification]", "iv_passes", "whole number"]),
 ])
 def test_car_conditioning_options_are_checked(tmp_path, conditioning, identification, words):
     from dynid.pipeline.config import ConfigError, load_config
@@ -154,9 +157,10 @@ def test_car_conditioning_options_are_checked(tmp_path, conditioning, identifica
     for w in words:
         assert w in str(exc.value), (w, str(exc.value))
     cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.02, 27 = 0 }\ncompensate_delays = false",
-                                      identification="flag_percent = 4"))
+                                      identification='flag_percent = 4\nmethod = "iv"\niv_passes = 3'))
     c = load_config(cfg)
     assert c.car.min_speed == {9: 0.02, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
+    assert c.method == "iv" and c.car.iv_passes == 3
     cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
     c = load_config(cfg)
     assert c.car.min_speed == {9: 0.01, 18: 0.01, 27: 0.01, 36: 0.01} and c.car.compensate_delays

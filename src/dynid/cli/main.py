@@ -113,7 +113,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar)
     _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| "
-                    "(direct: sine, spiral, braking; cross: lane change, step steer):")
+                    "(direct: sine, spiral, braking, lane change; cross: step steer, gentler braking):")
     r, tree = run.result, run.model.tree
     wheels = sum(tree.values.get(f"M{w}", 0.0) for w in WHEELS)
     m6, true_m6 = r.value("M6"), r.truth.get("M6")

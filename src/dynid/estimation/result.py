@@ -66,7 +66,8 @@ class IdentificationResult:
     which an error matters (a product of inertia against a principal moment, a first moment against a
     centimetre of centre-of-mass shift times the mass). flag_percent : `uncertainty_flags` threshold.
     labels, a_priori, truth, known : ``{name: ...}`` (labels default to the names).
-    method : "OLS" or "WLS". weights : ``{group: sigma_j}`` (WLS; {} for OLS).
+    method : "OLS", "WLS" or "IV" (weighted instrumental variables). weights : ``{group: sigma_j}`` (WLS and
+    IV; {} for OLS).
     condition_number : condition number of the matrix solved (W for OLS, the weighted W for WLS).
     residual : ``ResidualStats``.
     covariance : (q, q) covariance of the estimated parameters, order ``estimated_names``.
@@ -253,8 +254,8 @@ class IdentificationResult:
             f"Identification by {self.method}: {r.n_rows} rows, {p} parameters "
             f"({q} estimated, {p - q} known), {r.dof} degrees of freedom",
             f"  condition number {_num(self.condition_number, '.4g')}"
-            f"{' (weighted W)' if self.method == 'WLS' else ''}, "
-            f"residual std {_num(r.sigma, '.4g')}{' (weighted, ~1 expected)' if self.method == 'WLS' else ''}, "
+            f"{' (weighted W)' if self.weights else ''}, "
+            f"residual std {_num(r.sigma, '.4g')}{' (weighted, ~1 expected)' if self.weights else ''}, "
             f"||Y - W X||/||Y|| = {_num(100 * r.relative_residual, '.3g')} %",
         ]
         show_label = any(self.labels.get(n, n) != n for n in self.names)

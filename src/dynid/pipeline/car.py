@@ -8,8 +8,9 @@ import numpy as np
 
 from ..dynamics import BaseParameters, Model
 from ..signals import decimate_parallel
-from ..vehicle import WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import DAMPERS, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.estimate import CarTrajectory
+from ..vehicle.instruments import suspension_loads, suspension_response
 from .robot import GroupedSystem
 
 
@@ -23,6 +24,8 @@ def car_system(
     regressor=None,
     cutoff: float | None = None,
     min_speed: Mapping[int, float] | None = None,
+    instruments: Mapping[str, float] | None = None,
+    keep: np.ndarray | None = None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
@@ -36,9 +39,12 @@ def car_system(
     Near a reversal the dry friction is no function of the velocity (it sticks, or follows a law steeper
     than any filter resolves) and the velocity's noise flips sign(qd): those rows would pull fs towards 0
     and let the damping absorb it.
+    instruments: parameter values (the previous estimate): the system's Z (IDIM-IV) is then W of the
+    trajectory whose clearances are the suspensions' simulated response to the measured loads
+    (`vehicle.instruments`), conditioned exactly as W; min_speed then applies to the simulated rates.
+    keep: the rows to keep (the `kept` mask of another system of the same samples) instead of min_speed's.
     """
     decimate = tuple(decimate or ())
-    full, fs_full, full_decimate = traj, fs, decimate
     # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
     spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
     total = int(np.prod(decimate)) if decimate else 1
@@ -46,47 +52,85 @@ def car_system(
     if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
         needed = max(5 * cutoff, spin / 0.9)
         k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
-    if k is not None:  # W there, the rest of the decimation in one stage
-        traj = CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
-                             None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
-        fs, decimate = fs / k, (total // k,)
-    aw = aero_wrench(model, traj.q, traj.qd, aero) if aero is not None else None
-    eq = car_identification(model, traj.q, traj.qd, traj.qdd, traj.wheel_wrenches, aw, base=base,
+    # W there, the rest of the decimation in one stage
+    k, rest = (1, decimate) if k is None else (k, (total // k,))
+    coarse = _every(traj, k)
+    aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
+    eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
                             regressor=regressor)
-    rows, N = len(eq.rows), len(traj.t)
-    step = int(np.prod(decimate)) if decimate else 1
+    W, Y = _decimated(eq, traj.qd, fs, k, rest, decimate)
+    Z, sim = None, traj
+    if instruments is not None:
+        sim = _simulated_suspensions(model.tree, traj, coarse, eq, instruments)
+        sim_eq = car_identification(model, _every(sim, k).q, _every(sim, k).qd, _every(sim, k).qdd,
+                                    coarse.wheel_wrenches, aw, base=base, regressor=regressor)
+        Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate)
+    rows, n = len(eq.rows), W.shape[0]
+    step = k * (int(np.prod(rest)) if rest else 1)
+    t = traj.t[::step][:n]
+    labels = eq.groups.reshape(rows, -1)[:, 0]
+    if keep is None:
+        keep = np.ones((rows, n), dtype=bool)
+        for j, v in (min_speed or {}).items():
+            if j in eq.rows:
+                # rows chosen on the instruments' clearance rate when there are instruments: chosen on the measured
+                # one, the kept rows' noise would lean with the rate's sign, and the instruments would see it
+                keep[eq.rows.index(j)] = np.abs(sim.qd[::step, j - 1][:n]) >= v
+        keep = keep.reshape(-1)
+
+    def stacked(A):
+        return None if A is None else A.transpose(1, 0, 2).reshape(rows * n, -1)[keep]
+
+    sys = GroupedSystem(stacked(W), Y.T.reshape(-1)[keep], np.repeat(labels, n)[keep], np.tile(t, rows)[keep],
+                        stacked(Z), keep)
+    return sys, eq.base
+
+
+def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
+    if k == 1:
+        return traj
+    return CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
+                         None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
+
+
+def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...], decimate: tuple[int, ...]):
+    """W (n, rows, p) and Y (n, rows) of equations computed on every k-th sample, decimated by `rest` (W's
+    live entries and Y through one parallel filter); the dry-friction columns from the full-rate qd_full."""
+    rows, p = len(eq.rows), eq.per_sample.shape[2]
     W3 = eq.per_sample  # (N, rows, p)
+    N = W3.shape[0]
     # only the (row, column) pairs that are not structural zeros (126 of the paper's 14 x 48) and Y go
     # through the filter, gathered as one (N, live + rows) array
     live_r, live_c = np.nonzero(np.any(W3 != 0, axis=0))
     both = np.empty((N, live_r.size + rows))
     both[:, : live_r.size] = W3[:, live_r, live_c]
     both[:, live_r.size :] = eq.Y.reshape(rows, N).T
-    if decimate:
-        both, _ = decimate_parallel(both, None, decimate, fs)
-    W = np.zeros((both.shape[0], rows, W3.shape[2]))
+    if rest:
+        both, _ = decimate_parallel(both, None, rest, fs / k)
+    W = np.zeros((both.shape[0], rows, p))
     W[:, live_r, live_c] = both[:, : live_r.size]
     Y = both[:, live_r.size :]
-    if full is not traj:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
+    if k > 1:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            signs = np.sign(full.qd[:, [j - 1 for _, _, j in fs_cols]])
-            dec, _ = decimate_parallel(signs, None, full_decimate, fs_full)
+            signs = np.sign(qd_full[:, [j - 1 for _, _, j in fs_cols]])
+            dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
             for i, (c, r, _) in enumerate(fs_cols):
                 W[:n, r, c] = dec[:n, i]
-    t = traj.t[::step][: W.shape[0]]
-    n = W.shape[0]
-    labels = eq.groups.reshape(rows, N)[:, 0]
-    keep = np.ones((rows, n), dtype=bool)
-    for j, v in (min_speed or {}).items():
-        if j in eq.rows:
-            keep[eq.rows.index(j)] = np.abs(traj.qd[::step, j - 1][:n]) >= v
-    keep = keep.reshape(-1)
-    sys = GroupedSystem(W.transpose(1, 0, 2).reshape(rows * n, -1)[keep], Y.T.reshape(-1)[keep],
-                        np.repeat(labels, n)[keep], np.tile(t, rows)[keep])
-    return sys, eq.base
+    return W, Y
+
+
+def _simulated_suspensions(tree, traj: CarTrajectory, coarse: CarTrajectory, eq, values: Mapping[str, float]):
+    """traj with the dampers' q, qd, qdd replaced by the identified suspensions' response to the measured loads
+    (the loads from the equations of the coarse samples), started from the estimated state at the first sample."""
+    cols = np.array(DAMPERS) - 1
+    load = suspension_loads(tree, eq, values, coarse.qdd)
+    qs, qds, qdds = suspension_response(tree, values, coarse.t, load, traj.t, traj.q[0, cols], traj.qd[0, cols])
+    q, qd, qdd = traj.q.copy(), traj.qd.copy(), traj.qdd.copy()
+    q[:, cols], qd[:, cols], qdd[:, cols] = qs, qds, qdds
+    return CarTrajectory(traj.t, q, qd, qdd, traj.wheel_wrenches, traj.spin_torques, traj.steering_wheel)
 
 
 COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is 1 cm of centre-of-mass shift

@@ -61,7 +61,8 @@ assembles the paper's 14 equations:
                                      # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none
 
     [identification]
-    method = "wls"
+    method = "wls"                   # or "iv": IDIM-IV, instruments from the suspensions simulated with the
+    iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
 
@@ -122,6 +123,7 @@ class CarSettings:
     aero: bool = True
     offsets: dict[str, float] = field(default_factory=dict)  # channel -> 1-sigma zero offset, channel unit
     offset_segments: int = 2
+    iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
 
 
 @dataclass(frozen=True)
@@ -249,8 +251,11 @@ def load_config(path: str | Path) -> IdentifyConfig:
     )
     ident = data.get("identification", {})
     method = str(ident.get("method", "wls")).lower()
-    if method not in ("ols", "wls"):
-        raise err("identification", f"method = {method!r}; use \"ols\" or \"wls\"")
+    if method not in ("ols", "wls", "iv"):
+        raise err("identification", f"method = {method!r}; use \"ols\", \"wls\" or \"iv\" (a car)")
+    if method == "iv" and car is None:
+        raise err("identification", "method = \"iv\" takes its instruments from a simulation of the car's "
+                  "suspensions driven by the measured loads; a robot has none here: use \"wls\"")
     ref = data.get("reference")
     if ref is not None:
         if "file" not in ref:
@@ -284,7 +289,16 @@ def _car_settings(data: dict, err) -> CarSettings:
         attitude_crossover=float(c.get("attitude_crossover", 0.2)), segment=float(c.get("segment", 60.0)),
         compensate_delays=_flag(c, "compensate_delays", True, err), min_speed=_car_min_speed(c, err),
         base=base, aero=bool(ident.get("aero", True)), offsets=offsets, offset_segments=segments,
+        iv_passes=_iv_passes(ident, err),
     )
+
+
+def _iv_passes(ident: dict, err) -> int:
+    n = ident.get("iv_passes", 2)
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 10:
+        raise err("identification", f"iv_passes = {n!r}: give a whole number from 1 to 10 (IDIM-IV passes: "
+                  "simulate the suspensions with the last estimate, re-estimate)")
+    return n
 
 
 DAMPER_FRAMES = (9, 18, 27, 36)

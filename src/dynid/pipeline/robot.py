@@ -50,16 +50,21 @@ class JointTest:
 
 @dataclass
 class GroupedSystem:
-    """Stacked identification system: W (m, p), Y (m,), groups (m,) labels, t (m,) sample times."""
+    """Stacked identification system: W (m, p), Y (m,), groups (m,) labels, t (m,) sample times, and the
+    instruments Z (m, p) of an IDIM-IV pass (None otherwise); kept: which rows of the full (equations x
+    samples) grid these are, where a row selection made them (None otherwise)."""
 
     W: Array
     Y: Array
     groups: Array
     t: Array
+    Z: Array | None = None
+    kept: Array | None = None
 
     @staticmethod
     def stack(parts: Sequence[GroupedSystem]) -> GroupedSystem:
-        return GroupedSystem(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("W", "Y", "groups", "t")))
+        Z = None if any(p.Z is None for p in parts) else np.concatenate([p.Z for p in parts])
+        return GroupedSystem(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("W", "Y", "groups", "t")), Z)
 
 
 def condition(test: JointTest, c: Conditioning) -> tuple[Array, Array, Array, Array, slice]:

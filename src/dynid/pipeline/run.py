@@ -20,7 +20,7 @@ from threadpoolctl import threadpool_limits
 
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
-from ..estimation import IdentificationError, IdentificationResult, ols, relative_errors, wls
+from ..estimation import IdentificationError, IdentificationResult, ols, propagate, relative_errors, wls
 from ..model import ModelError
 from ..report import Section, parameter_table, render_html, residual_histograms, validation_figure, validation_table
 from .config import ConfigError, IdentifyConfig, TestSpec
@@ -185,13 +185,21 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
                             compensate_delays=settings.compensate_delays)
     aero = Aerodynamics() if settings.aero else None
     fast = GeneratedRegressor(tree)
-    def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None):
+    def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None, instruments=None,
+                     keep=None):
         si = {k: v[lo:hi] * factors[k] for k, v in channels.items()}  # units converted segment by segment
         if offset is not None:  # one sensor's zero moved by its standard deviation (file unit)
             si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
         traj = estimate_joints(si, fs, model, conditioning=cond)
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
-                          cutoff=cond.cutoff, min_speed=settings.min_speed)[0]
+                          cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep)[0]
+
+    def segments_of(spec: TestSpec):
+        channels, factors, fs = load_car_channels(cfg, spec)
+        N = len(next(iter(channels.values())))
+        b = border_samples(fs, cond.cutoff, cond.order)
+        step = max(int(settings.segment * fs), 4 * b)
+        return channels, factors, fs, [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
 
     ident_offsets = streams["identify"].bias_accumulator() if settings.offsets else None
 
@@ -220,17 +228,51 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         streams[spec.role].add(sys.W, sys.Y, sys.groups)
         shown.setdefault(spec.name, sys)
 
+    def iv_pass(pool, last, final: bool):
+        """Instruments from the last estimate on every identification segment (and, on the final pass, on the
+        offsets' segments), then the IV estimate on the same rows (their own: min_speed applies to the simulated
+        rates)."""
+        values = dict(zip(last.names, (float(v) for v in last.values), strict=True))
+        ident = StreamingLS(names, **kw)
+        sums = ident.instrument_sums()
+        acc = ident.bias_accumulator() if settings.offsets and final else None
+        for spec in (t for t in cfg.tests if t.role == "identify"):
+            channels, factors, fs, segments = segments_of(spec)
+            picks = picked(len(segments)) if acc is not None else {}
+            jobs: deque = deque()
+            for i, seg in enumerate(segments):
+                jobs.append((i, seg, pool.submit(segment_rows, channels, factors, fs, *seg, None, values)))
+                while len(jobs) > (0 if i == len(segments) - 1 else 2):
+                    j, (lo, hi), job = jobs.popleft()
+                    sys = job.result()
+                    ident.add(sys.W, sys.Y, sys.groups)
+                    sums.add(sys.W, sys.Y, sys.Z, sys.groups)
+                    # each offset's rows on the same samples as the segment's (its own simulation, same rows)
+                    moved = {q: pool.submit(segment_rows, channels, factors, fs, lo, hi, (q, b), values, sys.kept)
+                             for q, b in settings.offsets.items()} if j in picks else {}
+                    for q, m in moved.items():
+                        p = m.result()
+                        acc.add(f"{spec.name}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, picks[j],
+                                Z=sys.Z, dZ=p.Z - sys.Z)
+        try:
+            # the paper's weights (eq. (8), as WLS): the two estimates then differ by their instruments alone
+            result = ident.solve_iv(sums, last.weights or None, iterations=0)
+        except IdentificationError as exc:
+            raise ConfigError(f"{cfg.path}: method = \"iv\": {exc}") from None
+        if acc is not None:
+            x = np.array([result.value(n) for n in ident.estimated_names])
+            result = result.with_systematic(propagate(sums.normal(result.weights), acc, x, ident.estimated_names,
+                                                      result.weights))
+        return result, ident
+
     # segments on both cores: NumPy and SciPy release the GIL in their loops, and threads share the record.
     # BLAS keeps to one thread inside each: its own threads would only compete with the segments' (and spin)
     with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, \
             threadpool_limits(limits=1, user_api="blas"):
         for spec in cfg.tests:
-            channels, factors, fs = load_car_channels(cfg, spec)
-            N = len(next(iter(channels.values())))
-            say(f"{spec.name}: read {N} samples of {len(channels)} channels at {fs:g} Hz")
-            b = border_samples(fs, cond.cutoff, cond.order)
-            step = max(int(settings.segment * fs), 4 * b)
-            segments = [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
+            channels, factors, fs, segments = segments_of(spec)
+            say(f"{spec.name}: read {len(next(iter(channels.values())))} samples of {len(channels)} channels at "
+                f"{fs:g} Hz")
             with_offsets = picked(len(segments)) if ident_offsets is not None and spec.role == "identify" else {}
             jobs: deque = deque()
             pending: list = []  # the offsets' jobs, used once the test's segments are accumulated
@@ -245,15 +287,20 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             if pending:
                 say(f"{spec.name}: the effect of {len(settings.offsets)} sensor offsets")
                 use_offsets(pending)
-    ident = streams["identify"]
-    say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.upper()})")
-    try:
-        result = ident.solve_weighted() if cfg.method == "wls" else ident.solve()
-    except IdentificationError as exc:
-        hint = excitation_hint(list(exc.parameters))
-        raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
-    if ident_offsets is not None:
-        result = ident.with_systematic(result, ident_offsets)
+        ident = streams["identify"]
+        say(f"estimating {len(names)} parameters from {ident.n_rows} rows "
+            f"({'WLS' if cfg.method == 'iv' else cfg.method.upper()})")
+        try:
+            result = ident.solve() if cfg.method == "ols" else ident.solve_weighted()
+        except IdentificationError as exc:
+            hint = excitation_hint(list(exc.parameters))
+            raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
+        if ident_offsets is not None:
+            result = ident.with_systematic(result, ident_offsets)
+        for k in range(settings.iv_passes if cfg.method == "iv" else 0):
+            say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
+            result, ident = iv_pass(pool, result, final=k == settings.iv_passes - 1)
+
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
                                  flag_percent=cfg.flag_percent)
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
