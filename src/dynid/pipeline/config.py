@@ -1,8 +1,11 @@
 """The identification config (TOML): model, tests and their roles, channels, conditioning, method.
 
-    [model]
-    example = "tx40"                 # or file = "robot.toml" (relative to this config),
-                                     # or template = "peugeot406" (a car: see below)
+    [model]                          # one of:
+    example = "tx40"                 # a shipped robot model,
+                                     # or file = "robot.toml" (a robot model file, relative to this config),
+                                     # or template = "peugeot406" (a car: see below),
+                                     # or vehicle = "peugeot406" (a car described by a vehicle file: a shipped
+                                     # vehicle's name, or a path ending in .toml relative to this config)
 
     [[tests]]
     name = "exciting trajectory"
@@ -14,7 +17,7 @@
     max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
     files = { q = "pos.csv", tau = "torques.csv" }
 
-    [channels]                       # quantity -> channels, one per joint, with the file's unit
+    [channels]                       # quantity (q, tau) -> channels, one per joint, with the file's unit
     q = { channels = ["Joint_1", "Joint_2"], unit = "rad" }
     tau = { channels = ["Joint_1", "Joint_2"], unit = "N.m" }
 
@@ -25,9 +28,9 @@
 
     [conditioning]
     cutoff = 25.0                    # Hz, zero-phase Butterworth on positions
-    order = 4
+    order = 4                        # a whole number >= 1
     border = 0.1                     # s trimmed at each end (default: the filter transient)
-    decimate = [10, 10]
+    decimate = [10, 10]              # whole factors >= 2, applied in turn (or one: decimate = 10)
     min_speed = { 1 = 0.05 }         # rows of joint 1 dropped where |qd1| < 0.05
 
     [identification]
@@ -41,10 +44,12 @@
     names = { Izz = "ZZ" }
     combinations = { fvm6 = "1024*fvm6" }
 
-A car (template = "peugeot406") reads one logger file per test with the channels of
-`dynid.vehicle.sensors` (`file = "sine.csv"`, and optionally `truth = "sine.json"`, the
-simulator's sidecar with the true parameters), estimates the 42 joints from them and
-assembles the paper's 14 equations:
+A car ([model] template = "peugeot406", or vehicle = "name" or "my_car.toml": the template with that
+vehicle file's geometry, tables and values) reads one logger file per test with the channels of
+`dynid.vehicle.sensors`, estimates the 42 joints from them and assembles the paper's 14 equations.
+Its [[tests]] take name, role, fs (optional, as above), `file = "sine.csv"` and optionally
+`truth = "sine.json"` (the simulator's sidecar with the true parameters); [transmission] and
+[reference] are the robot's only, [uncertainty] the car's only:
 
     [channels]                       # only where the file's names differ from the suite's
     imu_yaw_rate = { channel = "GyroZ", unit = "deg/s" }
@@ -60,7 +65,7 @@ assembles the paper's 14 equations:
     min_speed = 0.01                 # m/s: damper rows left out where |clearance rate| is below (dry
                                      # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none
 
-    [identification]
+    [identification]                 # known, poor_factor and flag_percent as for a robot, and:
     method = "wls"                   # or "iv": IDIM-IV, instruments from the suspensions simulated with the
     iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
@@ -70,11 +75,15 @@ assembles the paper's 14 equations:
     offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # propagated to the estimates (%σ total)
     segments = 2                     # segments per test on which their effect is evaluated
 
-Every error names the config file and the key, and says what is expected.
+Every section is strict: an unknown section or key (in every [[tests]] entry too) is an error naming
+the file, the section, the key and the nearest valid key; so is a value of the wrong type. Every
+error names the config file and the key, and says what is expected.
 """
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -140,14 +149,62 @@ class IdentifyConfig:
     flag_percent: float = 2.5
     reference: dict[str, Any] | None = None
     car: CarSettings | None = None
+    # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
+    vehicle: str | Path | None = None
 
     @property
     def kind(self) -> str:
         return "car" if self.car is not None else "robot"
 
 
-_TEST_KEYS = {"name", "role", "fs", "files", "file", "truth", "start", "end", "max_gap"}
-_TOP = {"model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty"}
+Err = Callable[[str, str], ConfigError]  # (where, e.g. "[model]", message) -> the error naming the file
+
+# the keys each section reads; a car and a robot read different ones (see the module doc)
+_TOP = ("model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty")
+_MODEL_KEYS = ("example", "file", "template", "vehicle")
+_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
+_CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth")
+_ROBOT_QUANTITIES = ("q", "tau")
+_TRANSMISSION_KEYS = ("q", "q_offset", "tau")
+_ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
+_CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
+_ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes")
+_REFERENCE_KEYS = ("file", "names", "combinations")
+_UNCERTAINTY_KEYS = ("offsets", "segments")
+_FOR_A_CAR = "a car's key: [model] template or vehicle"
+
+
+def did_you_mean(name: object, valid: Sequence[str]) -> str:
+    """The hint " did you mean 'x'?" for the nearest of `valid` (difflib), or "" when none is close."""
+    close = difflib.get_close_matches(str(name), list(valid), n=1)
+    return f" did you mean {close[0]!r}?" if close else ""
+
+
+def unknown_keys(keys: Sequence[object], valid: Sequence[str], what: str = "key",
+                 notes: dict[str, str] | None = None) -> str:
+    """The message for keys that are not among `valid`: "unknown key 'know'; did you mean 'known'? valid keys:
+    ...". `notes` explain keys valid elsewhere (a robot's key in a car's section) instead of a guess."""
+    notes = notes or {}
+    whats = {"quantity": "quantities"}.get(what, what + "s")
+    listing = f"valid {whats}: {', '.join(sorted(valid))}"
+    hints = [(k, f" ({notes[k]})" if k in notes else did_you_mean(k, valid)) for k in keys]
+    if len(hints) == 1:
+        k, hint = hints[0]
+        return f"unknown {what} {k!r}{';' + hint if hint.startswith(' did') else hint + ';'} {listing}"
+    items = ", ".join(f"{k!r}{' (' + hint.strip() + ')' if hint.startswith(' did') else hint}" for k, hint in hints)
+    return f"unknown {whats} {items}; {listing}"
+
+
+def _keys(table: dict, valid: Sequence[str], where: str, err: Err, notes: dict[str, str] | None = None) -> None:
+    unknown = [k for k in table if k not in valid]
+    if unknown:
+        raise err(where, unknown_keys(unknown, valid, notes=notes))
+
+
+def _test_label(i: int, t: object) -> str:
+    name = t.get("name") if isinstance(t, dict) else None
+    return f'[[tests]] #{i} ("{name}")' if isinstance(name, str) else f"[[tests]] #{i}"
 
 
 def load_config(path: str | Path) -> IdentifyConfig:
@@ -155,148 +212,320 @@ def load_config(path: str | Path) -> IdentifyConfig:
     data = read_toml(path, "config", ConfigError)
     here = path.resolve().parent
 
-    def err(key: str, msg: str) -> ConfigError:
-        return ConfigError(f"{path}: [{key}] {msg}")
+    def err(where: str, msg: str) -> ConfigError:
+        return ConfigError(f"{path}: {where} {msg}")
 
-    unknown = set(data) - _TOP
-    if unknown:
-        raise ConfigError(f"{path}: unknown section(s) {sorted(unknown)}; sections: {sorted(_TOP)}")
-    m = data.get("model", {})
-    car = None
-    if "template" in m:
-        model: str | Path = str(m["template"])
-        car = _car_settings(data, err)
-    elif "example" in m:
-        model: str | Path = str(m["example"])
-    elif "file" in m:
-        model = here / m["file"]
-    else:
-        raise err("model", "give example = \"tx40\" (a shipped model), file = \"model.toml\" "
-                           "or template = \"peugeot406\"")
+    _sections(data, path)
+    model, vehicle = _model(data.get("model", {}), here, err)
+    is_car = vehicle is not None or "template" in data.get("model", {})
+    if "uncertainty" in data and not is_car:
+        raise err("[uncertainty]", "sensor offsets are propagated for the car template only ([model] template or "
+                                   "vehicle); remove the section")
+    for name in ("transmission", "reference"):
+        if name in data and is_car:
+            raise err(f"[{name}]", "is for a robot's joint files; a car reads its sensor suite's channels: remove "
+                                   "the section")
+    _keys(data.get("conditioning", {}), _CAR_CONDITIONING if is_car else _ROBOT_CONDITIONING, "[conditioning]",
+          err, {"border": "a robot's key: a car's borders are its filters' transients"} if is_car
+          else dict.fromkeys(set(_CAR_CONDITIONING) - set(_ROBOT_CONDITIONING), _FOR_A_CAR))
+    ident = data.get("identification", {})
+    _keys(ident, _CAR_IDENTIFICATION if is_car else _ROBOT_IDENTIFICATION, "[identification]", err,
+          None if is_car else dict.fromkeys(set(_CAR_IDENTIFICATION) - set(_ROBOT_IDENTIFICATION), _FOR_A_CAR))
+    car = _car_settings(data, err) if is_car else None
+    tests = _tests(data.get("tests", []), here, is_car, err)
+    channels = _channels(data.get("channels", {}), is_car, err)
+    transmission = _transmission(data.get("transmission", {}), err)
+    cond = Conditioning() if is_car else _robot_conditioning(data.get("conditioning", {}), err)
 
-    if "uncertainty" in data and car is None:
-        raise err("uncertainty", "sensor offsets are propagated for the car template only; remove the section")
-    tests = []
-    for i, t in enumerate(data.get("tests", []), start=1):
-        key = f"tests {i}"
-        if car is not None:
-            if not isinstance(t.get("file"), str):
-                raise err(key, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
-            if {"start", "end", "max_gap"} & set(t):
-                raise err(key, "start, end and max_gap are for robot tests; cut the car's logger file instead")
-            t = {**t, "files": {"channels": t["file"]}}
-        if not isinstance(t.get("files"), dict) or not t["files"]:
-            raise err(key, "needs files = { quantity = \"file\", ... }")
+    method = ident.get("method", "wls")
+    if not isinstance(method, str) or method.lower() not in ("ols", "wls", "iv"):
+        raise err("[identification]", f"method = {method!r}; use \"ols\", \"wls\" or \"iv\" (a car)")
+    method = method.lower()
+    if method == "iv" and car is None:
+        raise err("[identification]", "method = \"iv\" takes its instruments from a simulation of the car's "
+                  "suspensions driven by the measured loads; a robot has none here: use \"wls\"")
+    return IdentifyConfig(
+        path=path, model=model, tests=tests, channels=channels, transmission=transmission,
+        conditioning=cond, method=method, known=_known(ident, err),
+        poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
+        reference=_reference(data.get("reference"), here, err), car=car, vehicle=vehicle,
+    )
+
+
+def _sections(data: dict, path: Path) -> None:
+    """Only the known sections, each a table ([[tests]]: an array of tables)."""
+    for name, value in data.items():
+        if name in _TOP:
+            continue
+        if isinstance(value, dict):
+            close = difflib.get_close_matches(name, _TOP, n=1)
+            hint = f"; did you mean [{close[0]}]?" if close else ";"
+            raise ConfigError(f"{path}: unknown section [{name}]{hint} sections: {', '.join(_TOP)}")
+        homes = [f"[{s}]" for s, keys in (("model", _MODEL_KEYS), ("conditioning", (*_CAR_CONDITIONING, "border")),
+                                          ("identification", _CAR_IDENTIFICATION)) if name in keys]
+        hint = f" (a key of {' or '.join(homes)}: write it under that section's header)" if homes else ""
+        raise ConfigError(f"{path}: unknown top-level key {name!r}{hint}; the config's keys belong in its sections: "
+                          f"{', '.join(_TOP)}")
+    for name in _TOP:
+        value = data.get(name)
+        if name == "tests":
+            if value is not None and not isinstance(value, list):
+                raise ConfigError(f"{path}: [[tests]] must be an array of tables: write each test under its own "
+                                  "[[tests]] header (two brackets), not [tests]" if isinstance(value, dict) else
+                                  f"{path}: tests = {value!r}; write each test under its own [[tests]] header")
+        elif value is not None and not isinstance(value, dict):
+            raise ConfigError(f"{path}: {name} = {value!r}; [{name}] is a section: write [{name}] on its own line "
+                              "and its keys below")
+
+
+def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None]:
+    """[model]: the model (a shipped name or a robot file's path) and the vehicle (a car's vehicle file: a
+    resolved Path, or a shipped vehicle's name; None for a robot or the template alone)."""
+    where = "[model]"
+    unknown = [k for k in m if k not in _MODEL_KEYS]
+    if unknown:  # e.g. wheelbase: a car's dimensions are its vehicle file's
+        raise err(where, unknown_keys(unknown, _MODEL_KEYS) + " (a car's geometry, tables and known values are "
+                         "its vehicle file's: vehicle = \"my_car.toml\")")
+    given = [k for k in _MODEL_KEYS if k in m]
+    if not given:
+        raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "
+                         "or vehicle = \"peugeot406\" (a car: a shipped vehicle or a vehicle file)")
+    if {"template", "vehicle"} <= set(given):
+        raise err(where, f"template = {m['template']!r} and vehicle = {m['vehicle']!r} together: give one (vehicle "
+                         "describes the car on the peugeot406 template; template alone is the shipped Peugeot 406)")
+    if len(given) > 1:
+        raise err(where, f"{' and '.join(given)} together: give one of {', '.join(_MODEL_KEYS)}")
+    key = given[0]
+    value = m[key]
+    if not isinstance(value, str) or not value.strip():
+        raise err(where, f"{key} = {value!r}; give a name or a file name (a string)")
+    if key == "vehicle":
+        if not value.lower().endswith(".toml"):
+            return "peugeot406", value  # a shipped vehicle's name (resolved with the vehicle files)
+        file = (here / value).resolve()
+        if not file.is_file():
+            raise err(where, f"vehicle file not found: {file}")
+        return "peugeot406", file
+    return (here / value if key == "file" else value), None
+
+
+def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, ...]:
+    tests: list[TestSpec] = []
+    seen: dict[str, int] = {}
+    valid = _CAR_TEST_KEYS if is_car else _ROBOT_TEST_KEYS
+    notes = ({"files": "a robot test's key; a car test reads one logger file: file = \"test.csv\""} if is_car else
+             {"file": "a car test's key; a robot test reads files = { q = \"...\", tau = \"...\" }",
+              "truth": "a car test's key: the simulator's sidecar"})
+    for i, t in enumerate(raw, start=1):  # a list: checked in _sections
+        where = _test_label(i, t)
+        if not isinstance(t, dict):
+            raise err(where, f"= {t!r}; each test is a table of keys under its own [[tests]] header")
+        if is_car and {"start", "end", "max_gap"} & set(t):
+            raise err(where, "start, end and max_gap are for robot tests; cut the car's logger file instead")
+        _keys(t, valid, where, err, notes)
+        name = t.get("name", f"test {i}")
+        if not isinstance(name, str) or not name.strip():
+            raise err(where, f"name = {name!r}; give the test's name (a string)")
+        if name in seen:
+            raise err(where, f"name = {name!r} is test #{seen[name]}'s too; give each test its own name")
+        seen[name] = i
         role = t.get("role", "identify")
         if role not in ("identify", "validate"):
-            raise err(key, f"role = {role!r}; use \"identify\" or \"validate\"")
-        files = {q: here / f for q, f in t["files"].items()}
+            raise err(where, f"role = {role!r}; use \"identify\" or \"validate\"")
+        if is_car:
+            if not isinstance(t.get("file"), str):
+                raise err(where, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
+            files = {"channels": here / t["file"]}
+        else:
+            files = _test_files(t.get("files"), here, where, err)
         for q, f in files.items():
             if not f.exists():
-                raise err(key, f"file for {q!r} not found: {f}")
-        extra = set(t) - _TEST_KEYS
-        if extra:
-            raise err(key, f"unknown key(s) {sorted(extra)}; keys: {', '.join(sorted(_TEST_KEYS))}")
+                raise err(where, f"file for {q!r} not found: {f}")
         fs = t.get("fs")
         if fs is not None and not _number(fs, lambda v: v > 0):
-            raise err(key, f"fs = {fs!r}; give the sample rate in Hz (a positive number)")
+            raise err(where, f"fs = {fs!r}; give the sample rate in Hz (a positive number)")
         window = {k: t.get(k) for k in ("start", "end")}
         for k, v in window.items():
             if v is not None and not _number(v):
-                raise err(key, f"{k} = {v!r}; give a time in s (a number, in the files' time base)")
+                raise err(where, f"{k} = {v!r}; give a time in s (a number, in the files' time base)")
         if None not in window.values() and not window["start"] < window["end"]:
-            raise err(key, f"start = {window['start']!r} s is not before end = {window['end']!r} s")
+            raise err(where, f"start = {window['start']!r} s is not before end = {window['end']!r} s")
         max_gap = t.get("max_gap", 10.0)
         if not _number(max_gap, lambda v: v >= 1):
-            raise err(key, f"max_gap = {max_gap!r}; give the longest hole allowed in the time stamps, in sample "
-                           "periods (a number >= 1)")
-        truth = here / t["truth"] if "truth" in t else None
-        if truth is not None and not truth.exists():
-            raise err(key, f"truth file not found: {truth}")
-        tests.append(TestSpec(str(t.get("name", f"test {i}")), role, files, None if fs is None else float(fs), truth,
+            raise err(where, f"max_gap = {max_gap!r}; give the longest hole allowed in the time stamps, in sample "
+                             "periods (a number >= 1)")
+        truth = t.get("truth")
+        if truth is not None:
+            if not isinstance(truth, str):
+                raise err(where, f"truth = {truth!r}; give the simulator's sidecar file (a string)")
+            truth = here / truth
+            if not truth.exists():
+                raise err(where, f"truth file not found: {truth}")
+        tests.append(TestSpec(name, role, files, None if fs is None else float(fs), truth,
                               *(None if v is None else float(v) for v in window.values()), float(max_gap)))
     if not any(t.role == "identify" for t in tests):
-        raise err("tests", "at least one test must have role = \"identify\"")
+        raise err("[[tests]]", "at least one test must have role = \"identify\"")
+    return tuple(tests)
 
+
+def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Path]:
+    """A robot test's files = { q = "positions.csv", tau = "torques.csv" } (one file may hold both)."""
+    if not isinstance(files, dict) or not files:
+        raise err(where, "needs files = { q = \"positions.csv\", tau = \"torques.csv\" } (a table of quantity = "
+                         "file; one file may hold both)")
+    unknown = [q for q in files if q not in _ROBOT_QUANTITIES]
+    if unknown:
+        raise err(where, "files: " + unknown_keys(unknown, _ROBOT_QUANTITIES, what="quantity"))
+    for q in _ROBOT_QUANTITIES:
+        if q not in files:
+            raise err(where, f"files has no {q!r}: give files = {{ q = \"...\", tau = \"...\" }}")
+        if not isinstance(files[q], str):
+            raise err(where, f"files: {q} = {files[q]!r}; give a file name (a string, relative to this config)")
+    return {q: here / f for q, f in files.items()}
+
+
+def _channels(raw: dict, is_car: bool, err: Err) -> dict[str, ChannelSpec]:
+    """[channels]: a robot's quantity -> { channels = [...], unit }; a car's renamed sensor channels."""
+    if is_car:
+        from ..vehicle.estimate import required_channels
+
+        valid, inner = required_channels(spin=False), ("channel", "unit")
+        expected = "{ channel = \"name in the file\", unit = \"...\" }"
+    else:
+        valid, inner = _ROBOT_QUANTITIES, ("channels", "unit")
+        expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
+    unknown = [q for q in raw if q not in valid]
+    if unknown:
+        raise err("[channels]", unknown_keys(unknown, valid, what="channel" if is_car else "quantity"))
     channels = {}
-    for q, spec in data.get("channels", {}).items():
-        if car is not None:  # a renamed sensor channel: { channel = "...", unit = "..." }
-            if not isinstance(spec, dict) or "channel" not in spec:
-                raise err(f"channels.{q}", "expected { channel = \"name in the file\", unit = \"...\" }")
-            channels[q] = ChannelSpec((spec["channel"],), spec.get("unit"))
-            continue
-        if not isinstance(spec, dict) or "channels" not in spec:
-            raise err(f"channels.{q}", "expected { channels = [...], unit = \"...\" }")
-        channels[q] = ChannelSpec(tuple(spec["channels"]), spec.get("unit"))
+    for q, spec in raw.items():
+        where = f"[channels.{q}]"
+        if not isinstance(spec, dict) or inner[0] not in spec:
+            raise err(where, f"= {spec!r}; expected {expected}")
+        _keys(spec, inner, where, err)
+        names = spec[inner[0]]
+        if is_car:
+            names = [names] if isinstance(names, str) else None
+        if not isinstance(names, list) or not names or not all(isinstance(c, str) for c in names):
+            raise err(where, f"{inner[0]} = {spec[inner[0]]!r}; expected {expected}")
+        unit = spec.get("unit")
+        if unit is not None and not isinstance(unit, str):
+            raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
+        channels[q] = ChannelSpec(tuple(names), unit)
+    return channels
 
-    transmission = {}
-    for k, v in data.get("transmission", {}).items():
+
+def _transmission(raw: dict, err: Err) -> dict[str, np.ndarray]:
+    """[transmission] q, tau: matrices (rows of equal length); q_offset: one number per joint."""
+    where = "[transmission]"
+    _keys(raw, _TRANSMISSION_KEYS, where, err)
+    out = {}
+    for k, v in raw.items():
+        if k == "q_offset":
+            ok = isinstance(v, list) and v and not any(isinstance(x, list | dict) for x in v)
+            expected = "a list of numbers, one per joint: q_offset = [0, \"-pi/2\"]"
+        else:
+            ok = (isinstance(v, list) and v and all(isinstance(r, list) and r for r in v)
+                  and len({len(r) for r in v}) == 1)
+            expected = f"a matrix, a list of rows of equal length: {k} = [[\"1/32\", 0], [0, \"1/32\"]]"
+        if not ok:
+            raise err(where, f"{k} = {v!r}; give {expected}")
         try:
-            transmission[k] = np.array(
-                [[parse_number(x, k) for x in row] if isinstance(row, list) else parse_number(row, k) for row in v])
+            out[k] = np.array([[parse_number(x, k) for x in row] if isinstance(row, list) else parse_number(row, k)
+                               for row in v])
         except ModelError as exc:
-            raise err("transmission", str(exc)) from None
+            raise err(where, str(exc)) from None
+    return out
 
-    c = {} if car is not None else data.get("conditioning", {})
-    extra = set(c) - {"cutoff", "order", "border", "decimate", "min_speed"}
-    if extra:
-        raise err("conditioning", f"unknown key(s) {sorted(extra)}")
-    decimate = c.get("decimate", [10, 10])
-    cond = Conditioning(
-        cutoff=float(c.get("cutoff", 25.0)),
-        order=int(c.get("order", 4)),
-        border=None if c.get("border") is None else float(c["border"]),
-        decimate=tuple(int(x) for x in (decimate if isinstance(decimate, list) else [decimate])),
-        min_speed={int(k): float(v) for k, v in c.get("min_speed", {}).items()},
-    )
-    ident = data.get("identification", {})
-    method = str(ident.get("method", "wls")).lower()
-    if method not in ("ols", "wls", "iv"):
-        raise err("identification", f"method = {method!r}; use \"ols\", \"wls\" or \"iv\" (a car)")
-    if method == "iv" and car is None:
-        raise err("identification", "method = \"iv\" takes its instruments from a simulation of the car's "
-                  "suspensions driven by the measured loads; a robot has none here: use \"wls\"")
-    ref = data.get("reference")
-    if ref is not None:
-        if "file" not in ref:
-            raise err("reference", "needs file = \"published.csv\"")
-        ref = {**ref, "file": here / ref["file"]}
-        if not ref["file"].exists():
-            raise err("reference", f"file not found: {ref['file']}")
-    return IdentifyConfig(
-        path=path, model=model, tests=tuple(tests), channels=channels, transmission=transmission,
-        conditioning=cond, method=method, known={k: float(v) for k, v in ident.get("known", {}).items()},
-        poor_factor=float(ident.get("poor_factor", 20.0)), flag_percent=_positive(ident, "flag_percent", 2.5, err),
-        reference=ref, car=car,
+
+def _robot_conditioning(c: dict, err: Err) -> Conditioning:
+    where = "[conditioning]"
+    border = c.get("border")
+    if border is not None and not _number(border, lambda v: v >= 0):
+        raise err(where, f"border = {border!r}; give the time trimmed at each end in s (a number >= 0)")
+    return Conditioning(
+        cutoff=_float(c, "cutoff", 25.0, where, err, "a cut-off in Hz (a positive number)"),
+        order=_whole(c, "order", 4, where, err),
+        border=None if border is None else float(border),
+        decimate=_decimate(c, (10, 10), where, err),
+        min_speed=_robot_min_speed(c.get("min_speed", {}), where, err),
     )
 
 
-def _car_settings(data: dict, err) -> CarSettings:
+def _robot_min_speed(raw: object, where: str, err: Err) -> dict[int, float]:
+    """[conditioning] min_speed for a robot: { joint (1-based) = speed >= 0 }."""
+    if not isinstance(raw, dict):
+        raise err(where, f"min_speed = {raw!r}; give {{ joint = speed, ... }}, e.g. {{ 1 = 0.05 }} (joints from 1)")
+    out = {}
+    for k, v in raw.items():
+        if not k.isdigit() or int(k) < 1 or not _number(v, lambda x: x >= 0):
+            raise err(where, f"min_speed: {k} = {v!r}; keys are joint numbers (from 1), values speeds >= 0 "
+                             "(rad/s or m/s)")
+        out[int(k)] = float(v)
+    return out
+
+
+def _known(ident: dict, err: Err) -> dict[str, float]:
+    """[identification] known = { parameter = value }: numbers (or arithmetic on numbers and pi)."""
+    raw = ident.get("known", {})
+    if not isinstance(raw, dict):
+        raise err("[identification]", f"known = {raw!r}; give a table of fixed parameters and their values: "
+                                      "known = { IA1 = 0.36 }")
+    out = {}
+    for name, v in raw.items():
+        try:
+            value = parse_number(v, f"known: {name}")
+        except ModelError as exc:
+            raise err("[identification]", f"{exc} (the parameter's fixed value, SI)") from None
+        if not np.isfinite(value):
+            raise err("[identification]", f"known: {name} = {v!r}; give a finite number (its fixed value, SI)")
+        out[name] = value
+    return out
+
+
+def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
+    """[reference] file (required), names and combinations: tables of strings."""
+    if ref is None:
+        return None
+    where = "[reference]"
+    _keys(ref, _REFERENCE_KEYS, where, err)
+    if not isinstance(ref.get("file"), str):
+        raise err(where, "needs file = \"published.csv\"")
+    for k in ("names", "combinations"):
+        table = ref.get(k, {})
+        if not isinstance(table, dict) or not all(isinstance(v, str) for v in table.values()):
+            raise err(where, f"{k} = {table!r}; give a table of strings: " +
+                      ("names = { Izz = \"ZZ\" }" if k == "names" else "combinations = { fvm6 = \"1024*fvm6\" }"))
+    ref = {**ref, "file": here / ref["file"]}
+    if not ref["file"].exists():
+        raise err(where, f"file not found: {ref['file']}")
+    return ref
+
+
+def _car_settings(data: dict, err: Err) -> CarSettings:
+    """The car's [conditioning], [identification] options and [uncertainty] (keys checked by the caller)."""
     c = data.get("conditioning", {})
-    extra = set(c) - {"cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays",
-                      "min_speed"}
-    if extra:
-        raise err("conditioning", f"unknown key(s) {sorted(extra)} for a car")
     ident = data.get("identification", {})
-    base = str(ident.get("base", "generic"))
+    where = "[conditioning]"
+    base = ident.get("base", "generic")
     if base not in ("generic", "car"):
-        raise err("identification", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
-    d = c.get("decimate", [5, 10])
+        raise err("[identification]", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
     offsets, segments = _offsets(data.get("uncertainty", {}), err)
     return CarSettings(
-        cutoff=float(c.get("cutoff", 4.0)), order=int(c.get("order", 4)),
-        decimate=tuple(int(x) for x in (d if isinstance(d, list) else [d])),
-        attitude_crossover=float(c.get("attitude_crossover", 0.2)), segment=float(c.get("segment", 60.0)),
-        compensate_delays=_flag(c, "compensate_delays", True, err), min_speed=_car_min_speed(c, err),
-        base=base, aero=bool(ident.get("aero", True)), offsets=offsets, offset_segments=segments,
-        iv_passes=_iv_passes(ident, err),
+        cutoff=_float(c, "cutoff", 4.0, where, err, "a cut-off in Hz (a positive number)"),
+        order=_whole(c, "order", 4, where, err), decimate=_decimate(c, (5, 10), where, err, empty=True),
+        attitude_crossover=_float(c, "attitude_crossover", 0.2, where, err, "a crossover in Hz (a positive number)"),
+        segment=_float(c, "segment", 60.0, where, err, "a segment length in s (a positive number)"),
+        compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
+        base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
+        offset_segments=segments, iv_passes=_iv_passes(ident, err),
     )
 
 
-def _iv_passes(ident: dict, err) -> int:
+def _iv_passes(ident: dict, err: Err) -> int:
     n = ident.get("iv_passes", 2)
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 10:
-        raise err("identification", f"iv_passes = {n!r}: give a whole number from 1 to 10 (IDIM-IV passes: "
+        raise err("[identification]", f"iv_passes = {n!r}: give a whole number from 1 to 10 (IDIM-IV passes: "
                   "simulate the suspensions with the last estimate, re-estimate)")
     return n
 
@@ -304,17 +533,16 @@ def _iv_passes(ident: dict, err) -> int:
 DAMPER_FRAMES = (9, 18, 27, 36)
 
 
-def _car_min_speed(c: dict, err) -> dict[int, float]:
+def _car_min_speed(c: dict, err: Err) -> dict[int, float]:
     """[conditioning] min_speed for a car: one speed (m/s) for the four dampers, or { 9 = 0.01, ... }."""
     raw = c.get("min_speed", 0.01)
     table = dict.fromkeys(DAMPER_FRAMES, raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else raw
     if not isinstance(table, dict):
-        raise err("conditioning", f"min_speed = {raw!r}; use a speed in m/s (0.01) or {{ 9 = 0.01, 27 = 0.02 }}")
+        raise err("[conditioning]", f"min_speed = {raw!r}; use a speed in m/s (0.01) or {{ 9 = 0.01, 27 = 0.02 }}")
     out = {}
     for k, v in table.items():
-        if str(k) not in {str(d) for d in DAMPER_FRAMES} or isinstance(v, bool) or not isinstance(v, int | float) \
-                or v < 0:
-            raise err("conditioning", f"min_speed: {k} = {v!r}; keys are the damper frames "
+        if str(k) not in {str(d) for d in DAMPER_FRAMES} or not _number(v, lambda x: x >= 0):
+            raise err("[conditioning]", f"min_speed: {k} = {v!r}; keys are the damper frames "
                       f"{', '.join(map(str, DAMPER_FRAMES))}, values speeds >= 0 in m/s")
         out[int(k)] = float(v)
     return out
@@ -326,46 +554,72 @@ def _number(value, ok=lambda v: True) -> bool:
             and bool(ok(value)))
 
 
-def _positive(table: dict, key: str, default: float, err) -> float:
+def _float(table: dict, key: str, default: float, where: str, err: Err, expected: str) -> float:
+    """A positive number."""
     value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
-        raise err("identification", f"{key} = {value!r}; use a positive number")
+    if not _number(value, lambda v: v > 0):
+        raise err(where, f"{key} = {value!r}; give {expected}")
     return float(value)
 
 
-def _flag(table: dict, key: str, default: bool, err) -> bool:
+def _whole(table: dict, key: str, default: int, where: str, err: Err) -> int:
+    """The filter order: a whole number >= 1 (4.7 is refused, not truncated)."""
     value = table.get(key, default)
-    if not isinstance(value, bool):
-        raise err("conditioning", f"{key} = {value!r}; use true or false")
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise err(where, f"{key} = {value!r}; give the Butterworth order, a whole number >= 1")
     return value
 
 
-def _offsets(u: dict, err) -> tuple[dict[str, float], int]:
+def _decimate(table: dict, default: tuple[int, ...], where: str, err: Err, empty: bool = False) -> tuple[int, ...]:
+    """decimate = 10 or [10, 10]: whole factors >= 2 applied in turn (2.5 is refused, not truncated); `empty`: []
+    (no decimation) is accepted."""
+    raw = table.get("decimate", list(default))
+    factors = raw if isinstance(raw, list) else [raw]
+    if (not factors and not empty) or any(isinstance(f, bool) or not isinstance(f, int) or f < 2 for f in factors):
+        raise err(where, f"decimate = {raw!r}; give whole decimation factors >= 2, applied in turn: [10, 10] "
+                         "(or one: 10)")
+    return tuple(factors)
+
+
+def _positive(table: dict, key: str, default: float, err: Err, where: str = "[identification]") -> float:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+        raise err(where, f"{key} = {value!r}; use a positive number")
+    return float(value)
+
+
+def _flag(table: dict, key: str, default: bool, where: str, err: Err) -> bool:
+    value = table.get(key, default)
+    if not isinstance(value, bool):
+        raise err(where, f"{key} = {value!r}; use true or false")
+    return value
+
+
+def _offsets(u: dict, err: Err) -> tuple[dict[str, float], int]:
     """[uncertainty] offsets = { channel = 1-sigma zero offset in the channel's unit }, segments = n."""
     from ..vehicle.estimate import required_channels
 
-    extra = set(u) - {"offsets", "segments"}
-    if extra:
-        raise err("uncertainty", f"unknown key(s) {sorted(extra)}; keys: offsets, segments")
+    where = "[uncertainty]"
+    _keys(u, _UNCERTAINTY_KEYS, where, err)
     raw = u.get("offsets", {})
     if not isinstance(raw, dict):
-        raise err("uncertainty", "offsets must be a table { channel = 1-sigma zero offset in its unit, ... }")
+        raise err(where, "offsets must be a table { channel = 1-sigma zero offset in its unit, ... }")
     known = required_channels(spin=False)
     offsets = {}
     for name, v in raw.items():
         if name not in known:
-            raise err("uncertainty", f"offsets: no channel {name!r} among the sensor suite's; channels: "
-                                     f"{', '.join(known)}")
+            raise err(where, f"offsets: no channel {name!r} among the sensor suite's;{did_you_mean(name, known)} "
+                             f"channels: {', '.join(known)}")
         try:
             value = parse_number(v, f"offsets.{name}")
         except ModelError as exc:
-            raise err("uncertainty", str(exc)) from None
+            raise err(where, str(exc)) from None
         if not np.isfinite(value) or value < 0:
-            raise err("uncertainty", f"offsets.{name} = {v!r}: give a standard deviation >= 0 in the channel's unit")
+            raise err(where, f"offsets.{name} = {v!r}: give a standard deviation >= 0 in the channel's unit")
         if value > 0:
             offsets[name] = value
     segments = u.get("segments", 2)
     if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
-        raise err("uncertainty", f"segments = {segments!r}: give a whole number >= 1 (segments per test on which "
-                                 "the offsets' effect is evaluated)")
+        raise err(where, f"segments = {segments!r}: give a whole number >= 1 (segments per test on which "
+                         "the offsets' effect is evaluated)")
     return offsets, segments
