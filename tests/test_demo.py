@@ -29,7 +29,7 @@ def test_outputs_and_rerunnable_config(demo):
     assert (out / "report.html").stat().st_size > 10_000
     files = {"sine.csv", "sine.json", "spiral.csv", "braking.csv", "lane.csv", "step.csv", "braking80.csv"}
     assert {p.name for p in (out / "data").iterdir()} >= files
-    assert 'template = "peugeot406"' in (out / "identify.toml").read_text()
+    assert 'vehicle = "peugeot406"' in (out / "identify.toml").read_text()
     assert not list(out.rglob(".*.tmp*"))  # nothing half-written
 
 

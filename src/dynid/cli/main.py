@@ -111,7 +111,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     out = Path(args.out)
-    run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar)
+    run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar,
+                   vehicle=args.vehicle)
     _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| "
                     "(direct: sine, spiral, braking, lane change; cross: step steer, gentler braking):")
     r, tree = run.result, run.model.tree
@@ -120,7 +121,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if true_m6:
         err = 100 * (m6 - true_m6) / (true_m6 + wheels)
         print(f"\nTotal mass: {m6 + wheels:.1f} kg estimated, {true_m6 + wheels:.1f} kg true ({err:+.2f} %)")
-    write_outputs(run, out, "dynid demo: the simulated Peugeot 406", progress=_say)
+    write_outputs(run, out, f"dynid demo: the simulated {tree.name}", progress=_say)
     print(f"\nwrote {out / 'report.html'}, {out / 'results.json'}, the figures, and the test files and "
           f"config in {out} (dynid identify {out / 'identify.toml'} reruns it) in {time.perf_counter() - t0:.1f} s")
     return 0
@@ -136,19 +137,25 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
     show.set_defaults(func=cmd_model_show)
-    demo = sub.add_parser("demo", help="the paper's experiment on the simulated Peugeot 406, end to end")
+    demo = sub.add_parser("demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
+                          description="Simulate the paper's tests with a vehicle's sensor suite, write the files "
+                                      "and the config, identify and report. Example: dynid demo --out demo")
     demo.add_argument("--out", default="dynid-demo", help="output folder (default: dynid-demo)")
     demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")
     demo.add_argument("--seed", type=int, default=406, help="seed of the sensor noise (default 406)")
+    demo.add_argument("--vehicle", default="peugeot406",
+                      help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
+                           "(default: peugeot406)")
     demo.set_defaults(func=cmd_demo)
     ident = sub.add_parser("identify", help="identify the parameters of a model from measurement files")
     ident.add_argument("config", help="identification config (TOML)")
     ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
     ident.set_defaults(func=cmd_identify)
-    from . import simulate_cmds, symbolic_cmds
+    from . import simulate_cmds, symbolic_cmds, vehicle_cmds
 
     symbolic_cmds.register(msub)
     simulate_cmds.register(sub)
+    vehicle_cmds.register(sub)
     return parser
 
 

@@ -30,6 +30,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", action="store_true", help="add the noise-free truth channels true_q*, true_qd*, ...")
     p.add_argument("--noise-free", action="store_true", help="sensor channels without noise and bias")
     p.add_argument("--out", required=True, help="output file (.csv, .parquet, .mf4)")
+    p.add_argument("--vehicle", default="peugeot406",
+                   help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
+                        "(default: peugeot406)")
     p.set_defaults(func=cmd_simulate)
 
 
@@ -56,7 +59,8 @@ def progress_bar(total: float):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from ..vehicle.sim import CarSimulator, ManoeuvreError, SimulationError, manoeuvre
+    from ..pipeline.demo import simulated_car
+    from ..vehicle.sim import ManoeuvreError, SimulationError, manoeuvre
     from ..vehicle.sim.recording import OutputError, check_output, write_test
 
     try:
@@ -64,7 +68,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         check_output(args.out, args.format)
         t0 = time.perf_counter()
         print("dynid: building the car (first run: compiling its models, about 30 s)", file=sys.stderr)
-        sim = CarSimulator()
+        sim = simulated_car(args.vehicle)
         report, close = progress_bar(m.duration)
         t1 = time.perf_counter()
         try:

@@ -1,6 +1,10 @@
-"""Text of `dynid model show --template NAME` for the shipped car template."""
+"""`dynid vehicle list|new|show` (vehicle files) and the text of `dynid model show --template NAME`."""
 
 from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
 
 import numpy as np
 
@@ -90,4 +94,98 @@ def show_template(name: str) -> str:
     rs = rest_state(car_template(geometry, sets[2].values))
     add("Truth set at rest on flat ground: vertical loads (N) " + ", ".join(
         f"{CORNERS[i]} {rs.loads[i]:.1f}" for i in range(4)) + f"; total {rs.loads.sum():.1f} N")
+    return "\n".join(out)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add `vehicle` to the top-level `dynid` sub-commands."""
+    p = subparsers.add_parser("vehicle", help="vehicle files: the shipped ones, a starting file, what a file describes",
+                              description="A car is a vehicle file (TOML: geometry, sensors, tables, a priori and "
+                                          "known values; docs/vehicle.md). Example: dynid vehicle show peugeot406")
+    sub = p.add_subparsers(dest="vehicle_command", required=True)
+    lst = sub.add_parser("list", help="the shipped vehicles")
+    lst.set_defaults(func=cmd_list)
+    new = sub.add_parser("new", help="write a commented starting vehicle file (the 406's values, to edit)")
+    new.add_argument("name", help="the car's name, as the reports will show it")
+    new.add_argument("--out", required=True, help="the file to write (.toml); an existing file is not replaced")
+    new.set_defaults(func=cmd_new)
+    show = sub.add_parser("show", help="frames, parameters, base parameters and the a priori set's consistency")
+    show.add_argument("vehicle", help="a shipped vehicle's name or a vehicle file")
+    show.set_defaults(func=cmd_show)
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    from ..vehicle.description import load_vehicle, shipped_vehicles
+
+    for name in shipped_vehicles():
+        v = load_vehicle(name)
+        g = v.geometry
+        print(f"{name:<14} {v.name}: wheelbase {g.wheelbase:.3g} m, tracks {2 * g.front.half_track:.3g} / "
+              f"{2 * g.rear.half_track:.3g} m, {'with' if v.truth else 'no'} simulation truth")
+    return 0
+
+
+def cmd_new(args: argparse.Namespace) -> int:
+    from ..atomic import write_atomic
+    from ..vehicle.description import VehicleError, vehicle_path
+
+    out = Path(args.out)
+    if out.suffix != ".toml":
+        raise VehicleError(f"{out}: a vehicle file ends in .toml")
+    if out.exists():
+        raise VehicleError(f"{out} exists: give another --out, or edit that file")
+    head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
+            "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
+    lines = [line for line in vehicle_path("peugeot406").read_text(encoding="utf-8").splitlines()
+             if not line.startswith("# ")]
+    for i, line in enumerate(lines):  # JSON's string escapes are TOML's
+        if line.startswith("name = "):
+            lines[i] = f"name = {json.dumps(args.name)}"
+        elif line.startswith("description = "):
+            lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
+    write_atomic(out, "\n".join(head + lines).rstrip() + "\n")
+    print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from ..vehicle.description import load_vehicle
+
+    print(show_vehicle(load_vehicle(args.vehicle)))
+    return 0
+
+
+def show_vehicle(v) -> str:
+    """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
+    from ..vehicle.equations import car_base_parameters
+    from ..vehicle.template import CORNERS, WHEELS, car_template, paper_parameter_names, role
+
+    tree = car_template(v.geometry, v.a_priori.values, name=v.name)
+    g = v.geometry
+    out = [f"{v.name} ({v.source}): {tree.n} frames, {len(paper_parameter_names())} parameters of the paper",
+           "Frame 6 (chassis): x6 up, y6 right, z6 forward; origin on the rear axle, midway between the rear wheel "
+           "centres, at their height.",
+           f"Wheelbase {g.wheelbase:.4g} m; half tracks {g.front.half_track:.4g} m front, {g.rear.half_track:.4g} m "
+           f"rear; wheel radius {g.wheel_radius:.4g} m; inertial unit at {list(g.imu_position)} m in frame 6.", ""]
+    lines = format_table(tree).splitlines()
+    out.append(f"{lines[0]}  role")
+    for fr, line in zip(tree.frames, lines[1:], strict=True):
+        where = "" if fr.j <= 6 else f", {CORNERS[(fr.j - 7) // 9]}"
+        out.append(f"{line}  {role(fr.j)}{where}")
+    out += ["", f"  {'parameter':>9} {'a priori':>12} {'truth':>12} {'known':>10}"]
+    for n in paper_parameter_names():
+        t = "" if v.truth is None else f"{v.truth.values[n]:.6g}"
+        k = f"{v.known[n]:.6g}" if n in v.known else ""
+        out.append(f"  {tree.label(n):>9} {v.a_priori.values[n]:>12.6g} {t:>12} {k:>10}")
+    known = tree.with_values(v.known).with_known(set(v.known)) if v.known else tree
+    base = car_base_parameters(known, "car")
+    out += ["", f"Base parameters with the car's own motion (constant and tabulated joints still): {base.rank} "
+            f"identified of {len(paper_parameter_names()) - len(v.known)} not known; regrouped: "
+            f"{' '.join(tree.label(n) for n in base.regrouped) or 'none'}"]
+    for n, e in zip(base.names, base.expressions, strict=True):
+        if e != n:
+            out.append(f"    {tree.label(n):>6} = {e}")
+    bad = check_physical(v.a_priori.values, frames=[6, *WHEELS])
+    out += ["", "A priori chassis and wheels: " + ("physically realisable" if not bad else "NOT realisable:")]
+    out += [f"  {b.message}" for b in bad]
     return "\n".join(out)

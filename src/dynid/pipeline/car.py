@@ -182,12 +182,6 @@ def consistency_text(result, base: BaseParameters, tree=None) -> str:
     return "NOT physically realisable:\n" + "\n".join(f"  {p}" for p in problems)
 
 
-def car_demo_known(tree) -> dict[str, float]:
-    """The wheels' masses and inertias at the tree's values: weighed and measured on a bench in practice,
-    and barely separable from the chassis in track data (see vehicle.equations)."""
-    return {f"{p}{w}": tree.values.get(f"{p}{w}", 0.0) for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
-
-
 # which standard test excites what (the paper's tests and ISO manoeuvres)
 _EXCITATION = (
     (("XX6", "XY6", "XZ6", "MX6"), "roll: a sine steer at speed or a double lane change (ISO 3888-2)"),

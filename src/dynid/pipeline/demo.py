@@ -1,6 +1,6 @@
-"""`dynid demo`: the paper's experiment on the simulated Peugeot 406, end to end.
+"""`dynid demo`: the paper's experiment on the simulated Peugeot 406 (or another vehicle file), end to end.
 
-The simulated car (the `truth` parameter set) is driven through five tests and recorded
+The simulated car (the vehicle file's [truth] set) is driven through five tests and recorded
 by its sensor suite (Table 1, seeded noise): a sine steer at 90 km/h, a spiral and a
 straight-line braking from 100 km/h, for identification, and a double lane change and a
 step steer, for cross-validation (TEST_PLAN says why the braking moved). The logger files,
@@ -12,6 +12,7 @@ the report, the figures and results.json.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -42,33 +43,42 @@ TEST_PLAN = (
     "ten seeds).\n")
 
 
-def demo_config(files: dict[str, str], known: dict[str, float], offsets: dict[str, float]) -> str:
-    known_text = ", ".join(f"{k} = {v!r}" for k, v in known.items())
+def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) -> str:
     offsets_text = ", ".join(f"{k} = {v!r}" for k, v in offsets.items())
     lines = ["# The simulated Peugeot 406 of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
              "# Identified on the sine, spiral, braking (its heave separates the springs from the anti-roll bars)",
              "# and a lane change, cross-validated on a step steer and a gentler braking.",
-             "", "[model]", 'template = "peugeot406"', ""]
+             "", "[model]", "# the car: a shipped vehicle's name or a vehicle file (its geometry, tables, a priori and",
+             "# known values: the wheels, weighed on a bench)", f"vehicle = {json.dumps(vehicle)}", ""]
     for (name, key, _, _, role, _, _), path in zip(TESTS, files.values(), strict=True):
         lines += ["[[tests]]", f'name = "{name}"', f'role = "{role}"', f'file = "{path}"']
         lines += [f'truth = "{Path(path).with_suffix(".json").as_posix()}"', ""] if key == "sine" else [""]
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2", "",
-              "[identification]", 'method = "wls"', 'base = "generic"',
-              "# the wheels' masses and inertias, weighed and measured on a bench (see the tutorial)",
-              f"known = {{ {known_text} }}", "",
+              "[identification]", 'method = "wls"', 'base = "generic"', "",
               "[uncertainty]",
               "# the sensors' zero offsets (1 sigma, channel units: the suite's figures), propagated to %σ total",
               f"offsets = {{ {offsets_text} }}", ""]
     return "\n".join(lines)
 
 
-def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None) -> dict:
-    """The demo's tests driven by the simulated car: file key -> SimulationResult (noise-free motion)."""
+def simulated_car(vehicle: str = "peugeot406"):
+    """The simulator of a vehicle (a shipped name or a vehicle file) driven with its [truth] set."""
+    from ..vehicle.description import VehicleError, load_vehicle
     from ..vehicle.sim import CarSimulator
 
+    v = load_vehicle(vehicle)
+    if v.truth is None:
+        raise VehicleError(f"{v.source}: no [truth] set: a simulation needs the parameters to drive with (give "
+                           "[truth], e.g. the a priori values: copy [a_priori] there)")
+    return CarSimulator(v.truth, v.geometry, v.tables, v.aero)
+
+
+def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None,
+                   vehicle: str = "peugeot406") -> dict:
+    """The demo's tests driven by the simulated car: file key -> SimulationResult (noise-free motion)."""
     say = progress or (lambda _m: None)
     say("building the simulated car (the first run compiles its models: about 30 s)")
-    sim = CarSimulator()
+    sim = simulated_car(vehicle)
     results = {}
     for name, key, man, params, _, full, short in TESTS:
         duration = short if quick else full
@@ -81,12 +91,13 @@ def simulate_tests(quick: bool = False, progress: Progress | None = None, simula
     return results
 
 
-def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fmt: str = "csv") -> Path:
+def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fmt: str = "csv",
+               vehicle: str = "peugeot406") -> Path:
     """The logger files of the simulated tests (sensor noise seeded by seed + the test's index, or none) and
-    the identification config in `out`; returns the config's path."""
+    the identification config in `out` (for `vehicle`: a shipped name, or a vehicle file, written as an absolute
+    path); returns the config's path."""
     from ..vehicle.sensors import paper_suite
     from ..vehicle.sim.recording import write_test
-    from .car import car_demo_known
 
     data = out / "data"
     data.mkdir(parents=True, exist_ok=True)
@@ -96,14 +107,15 @@ def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fm
         files[key] = path.relative_to(out).as_posix()
     sim = next(iter(results.values())).sim
     offsets = {c.name: c.bias for c in paper_suite(sim.geometry) if c.bias} if noise else {}
-    return write_atomic(out / "identify.toml", demo_config(files, car_demo_known(sim.tree), offsets))
+    where = Path(vehicle).resolve().as_posix() if vehicle.endswith(".toml") else vehicle
+    return write_atomic(out / "identify.toml", demo_config(files, where, offsets))
 
 
 def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress | None = None,
-             simulation_progress=None) -> IdentificationRun:
+             simulation_progress=None, vehicle: str = "peugeot406") -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
-    results = simulate_tests(quick, say, simulation_progress)
-    run = identify(load_config(write_demo(out, results, seed)), progress=say)
+    results = simulate_tests(quick, say, simulation_progress, vehicle)
+    run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)
     run.notes = TEST_PLAN + run.notes
     return run

@@ -152,17 +152,19 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     from ..estimation import StreamingLS
     from ..signals import border_samples
     from ..symbolic.generated import GeneratedRegressor
-    from ..vehicle import Aerodynamics, car_base_parameters, car_template
-    from ..vehicle import parameters as sets
+    from ..vehicle import car_base_parameters, car_template
+    from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import CarConditioning, estimate_joints
     from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
     settings = cfg.car
-    tree = car_template()
-    if cfg.known:
-        known = {tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}
+    vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+    tree = car_template(vehicle.geometry, vehicle.a_priori.values, name=vehicle.name)
+    # the bench values of the vehicle file, then the config's (a config may fix more, or other values)
+    known = {**vehicle.known, **{tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}}
+    if known:
         tree = tree.with_values(known).with_known(set(known))
     model = Model(tree)
     base = car_base_parameters(tree, settings.base)
@@ -177,20 +179,22 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
         return dict(zip(names, base.values(X), strict=True))
 
-    kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(sets.a_priori().values),
+    kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
               truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
     streams = {"identify": StreamingLS(names, **kw), "validate": StreamingLS(names, **kw)}
     shown: dict[str, GroupedSystem] = {}
     cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
                             compensate_delays=settings.compensate_delays)
-    aero = Aerodynamics() if settings.aero else None
+    aero = vehicle.aero if settings.aero else None
     fast = GeneratedRegressor(tree)
+    suite = vehicle.suite
+
     def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None, instruments=None,
                      keep=None):
         si = {k: v[lo:hi] * factors[k] for k, v in channels.items()}  # units converted segment by segment
         if offset is not None:  # one sensor's zero moved by its standard deviation (file unit)
             si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
-        traj = estimate_joints(si, fs, model, conditioning=cond)
+        traj = estimate_joints(si, fs, model, vehicle.geometry, vehicle.tables, cond, suite)
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
                           cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep)[0]
 

@@ -1,0 +1,336 @@
+"""A car described by a vehicle file (TOML): what a vehicle engineer writes from the data sheets and the
+bench files they have. The paper's 42-frame template takes its geometry, kinematic and aerodynamic
+tables, sensor positions, a priori and known values from it; the Peugeot 406 is one shipped file.
+
+Frame 6 (the chassis): x6 UP, y6 to the RIGHT, z6 FORWARD, origin O6 on the rear axle, midway between
+the rear wheel centres, at their height in the design position (docs/vehicle.md draws it). Every key
+that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); parameters are SI.
+
+    name = "Peugeot 406 saloon"
+    [axles]
+    wheelbase_m = 2.70                      # front axle ahead of the rear one (O6)
+    [axles.front]                           # the steered axle (the template's front corners steer)
+    half_track_m = 0.755
+    damper_lateral_tilt_deg = 11.0          # front view, top inboard positive
+    damper_longitudinal_tilt_deg = 3.0      # side view, top rearward positive
+    kingpin_inclination_deg = 12.0          # front view, top inboard positive
+    caster_deg = 3.5                        # side view, top rearward positive
+    kingpin_offset_m = 0.06                 # wheel centre to kingpin axis, inboard
+    anti_roll_bar = true                    # false: karf is known to be 0
+    [axles.rear]
+    ...
+    [wheels]
+    radius_m = 0.317                        # unloaded
+    centre_height_m = 0.0                   # x6 of the wheel centres at design (0: O6 at their height)
+    [imu]                                   # optional: where the inertial unit is
+    position_m = [0.0, 0.0, 0.0]            # in frame 6
+    axes = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]   # rows: the unit's x, y, z in frame 6 (ISO 8855)
+    [tables]                                # optional: the maker's kinematic tables (default: from the geometry)
+    file = "kc.toml"                        # vehicle.tables' TOML format, and/or one CSV per table:
+    front_left.camber = { csv = "fl_camber.csv", units = "deg" }
+    [aero]                                  # optional
+    rho_kg_m3 = 1.225
+    area_m2 = 2.0
+    length_m = 2.70
+    [a_priori]                              # the parameters' a priori values (names or the paper's labels)
+    XX6 = 6810.44
+    [truth]                                 # optional: the set a simulation drives with; a damper offset left
+    ...                                     # out is the static preload that holds it at its design position
+    [known]                                 # optional: values measured on a bench, not identified
+    M14 = 35.0
+
+Errors name the file, the section and the key, and say the fix; an unknown key names the nearest
+valid one.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..model.files import read_toml
+from ..model.tree import ModelError
+from .aero import Aerodynamics, AeroError, reference_point
+from .geometry import AxleGeometry, CarGeometry, GeometryError
+from .parameters import ParameterSet
+from .sensors import SensorSuite, paper_suite
+from .tables import CORNER_KEYS, TABLE_NAMES, KinematicTableError, KinematicTables, default_tables, load_table_csv
+from .tables import load_tables as load_table_file
+from .template import CORNERS, DAMPERS, labels, paper_parameter_names
+
+AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
+             "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
+SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "imu": dict, "tables": dict,
+            "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
+REQUIRED = ("name", "axles", "wheels", "a_priori")
+# plausible passenger-car ranges: outside them the number is a unit slip or a typo, not a car
+RANGES = {"wheelbase_m": (1.5, 4.5), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
+          "centre_height_m": (-0.3, 0.3), "kingpin_offset_m": (0.0, 0.2), "rho_kg_m3": (0.5, 1.5),
+          "area_m2": (0.5, 10.0), "length_m": (1.0, 6.0)}
+ANGLE_LIMIT_DEG = 45.0  # a damper or kingpin axis tilted further is no longer a suspension axis
+
+
+class VehicleError(ModelError):
+    """A vehicle file that cannot describe a car: the message names the file, the key and the fix."""
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """A car for the template: name, geometry, kinematic tables, aerodynamics, sensor suite, a priori values,
+    the simulation's truth (None when the file gives none) and the parameters known from a bench."""
+
+    name: str
+    geometry: CarGeometry
+    tables: KinematicTables
+    aero: Aerodynamics
+    a_priori: ParameterSet
+    truth: ParameterSet | None
+    known: dict[str, float] = field(default_factory=dict)
+    source: str = ""
+
+    @property
+    def suite(self) -> SensorSuite:
+        """The sensors fitted: the paper's suite (Table 1) at this car's positions."""
+        return paper_suite(self.geometry)
+
+
+def shipped_vehicles() -> list[str]:
+    """Names of the vehicle files shipped with dynid."""
+    folder = resources.files("dynid.vehicle") / "vehicles"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def vehicle_path(name_or_path: str | os.PathLike[str]) -> Path:
+    """The file of a shipped vehicle name, or the path given (a name not shipped and not a file is an error)."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        if not p.exists():
+            raise VehicleError(f"{p}: no such vehicle file; `dynid vehicle new NAME --out {p}` writes a starting one")
+        return p
+    if str(name_or_path) in shipped_vehicles():
+        return Path(str(resources.files("dynid.vehicle") / "vehicles" / f"{name_or_path}.toml"))
+    raise VehicleError(f"no shipped vehicle {str(name_or_path)!r} and no such file; shipped: "
+                       f"{', '.join(shipped_vehicles())} (or give a path to a .toml vehicle file)")
+
+
+def load_vehicle(name_or_path: str | os.PathLike[str] = "peugeot406") -> Vehicle:
+    """Read and check a vehicle file (a path, or a shipped vehicle's name)."""
+    path = vehicle_path(name_or_path)
+    data = read_toml(path, "vehicle file", VehicleError)
+    return vehicle_from_dict(data, path)
+
+
+def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
+    where = str(path)
+    _keys(data, set(SECTIONS), where, "the top level")
+    missing = [k for k in REQUIRED if k not in data]
+    if missing:
+        raise VehicleError(f"{where}: missing {', '.join(repr(k) for k in missing)} (see `dynid vehicle new`)")
+    for k, kind in SECTIONS.items():
+        if k in data and not isinstance(data[k], kind):
+            what = "a table [" + k + "]" if kind is dict else "a string"
+            raise VehicleError(f"{where}: {k!r} must be {what}; got {data[k]!r}")
+    geometry = _geometry(data, where)
+    tables = _tables(data.get("tables", {}), geometry, path)
+    aero = _aero(data.get("aero", {}), geometry, where)
+    names = _parameter_names()
+    a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True)
+    known = _parameters(data.get("known", {}), names, where, "known", complete=False)
+    for axle, bar in (("front", "karf"), ("rear", "karr")):
+        if not data["axles"][axle].get("anti_roll_bar", True):
+            if known.get(bar, 0.0) != 0.0:
+                raise VehicleError(f"{where}: [axles.{axle}] anti_roll_bar = false but [known] {bar} = {known[bar]}")
+            known[bar] = 0.0
+            a_priori[bar] = 0.0
+    truth = None
+    if "truth" in data:
+        truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False), a_priori, known, geometry,
+                       tables, where)
+    name = data["name"].strip()
+    if not name:
+        raise VehicleError(f"{where}: name is empty; give the car's name")
+    return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
+                   truth, known, where)
+
+
+def _keys(table: dict, valid: set[str], where: str, section: str) -> None:
+    for k in table:
+        if k not in valid:
+            near = difflib.get_close_matches(k, sorted(valid), n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            raise VehicleError(f"{where}: {section}: unknown key {k!r}{hint} valid keys: {', '.join(sorted(valid))}")
+
+
+def _number(table: dict, key: str, where: str, section: str, default: float | None = None) -> float:
+    if key not in table:
+        if default is None:
+            raise VehicleError(f"{where}: {section}: missing {key}")
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise VehicleError(f"{where}: {section}: {key} = {v!r} must be a finite number")
+    lo_hi = RANGES.get(key)
+    if lo_hi is not None and not lo_hi[0] <= v <= lo_hi[1]:
+        raise VehicleError(f"{where}: {section}: {key} = {v} is outside {lo_hi[0]}..{lo_hi[1]} for a passenger car "
+                           f"(is the unit right? the key says it: {key.rsplit('_', 1)[-1]})")
+    if key.endswith("_deg") and abs(v) > ANGLE_LIMIT_DEG:
+        raise VehicleError(f"{where}: {section}: {key} = {v}° tilts the axis more than {ANGLE_LIMIT_DEG:g}° from the "
+                           "vertical (an axis nearly parallel to the ground guides no suspension); angles are in "
+                           "degrees")
+    return float(v)
+
+
+def _geometry(data: dict, where: str) -> CarGeometry:
+    axles = data["axles"]
+    _keys(axles, {"wheelbase_m", "front", "rear"}, where, "[axles]")
+    for a in ("front", "rear"):
+        if not isinstance(axles.get(a), dict):
+            raise VehicleError(f"{where}: missing the table [axles.{a}] (half_track_m, damper tilts, kingpin, ...)")
+    wheelbase = _number(axles, "wheelbase_m", where, "[axles]")
+
+    def axle(a: str, position: float) -> AxleGeometry:
+        t = axles[a]
+        sec = f"[axles.{a}]"
+        _keys(t, AXLE_KEYS, where, sec)
+        if not isinstance(t.get("anti_roll_bar", True), bool):
+            raise VehicleError(f"{where}: {sec}: anti_roll_bar = {t['anti_roll_bar']!r} must be true or false")
+        deg = {k: math.radians(_number(t, f"{k}_deg", where, sec, 0.0))
+               for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster")}
+        return AxleGeometry(half_track=_number(t, "half_track_m", where, sec), position=position,
+                            kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
+
+    wheels = data["wheels"]
+    _keys(wheels, {"radius_m", "centre_height_m"}, where, "[wheels]")
+    imu = data.get("imu", {})
+    _keys(imu, {"position_m", "axes"}, where, "[imu]")
+    position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
+    axes = _vector(imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]), (3, 3), where, "[imu] axes")
+    try:
+        g = CarGeometry(front=axle("front", wheelbase), rear=axle("rear", 0.0),
+                        wheel_radius=_number(wheels, "radius_m", where, "[wheels]"),
+                        wheel_centre_height=_number(wheels, "centre_height_m", where, "[wheels]", 0.0),
+                        imu_position=tuple(float(x) for x in position),
+                        imu_axes=tuple(tuple(float(x) for x in r) for r in axes))
+    except GeometryError as exc:
+        raise VehicleError(f"{where}: {exc}") from None
+    return g
+
+
+def _vector(v, shape: tuple[int, ...], where: str, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != shape or not np.isfinite(a).all():
+        raise VehicleError(f"{where}: {what} must be {'x'.join(map(str, shape))} finite numbers; got {v!r}")
+    return a
+
+
+def _tables(t: dict, g: CarGeometry, path: Path) -> KinematicTables:
+    where = str(path)
+    _keys(t, {"file", *CORNER_KEYS}, where, "[tables]")
+    tables = default_tables(g)
+    try:
+        if "file" in t:
+            tables = load_table_file(path.parent / str(t["file"]), defaults=tables)
+        for ckey in CORNER_KEYS:
+            corner = t.get(ckey, {})
+            if not isinstance(corner, dict):
+                raise VehicleError(f"{where}: [tables.{ckey}] must be a table of {', '.join(TABLE_NAMES)}")
+            _keys(corner, set(TABLE_NAMES), where, f"[tables.{ckey}]")
+            for name, spec in corner.items():
+                if not isinstance(spec, dict) or "csv" not in spec:
+                    raise VehicleError(f"{where}: [tables.{ckey}] {name} = {{ csv = \"file.csv\", units = \"deg\" }}")
+                _keys(spec, {"csv", "units"}, where, f"[tables.{ckey}] {name}")
+                k = CORNER_KEYS.index(ckey)
+                tab = load_table_csv(path.parent / str(spec["csv"]), name, CORNERS[k],
+                                     spec.get("units", "rad"))
+                tables = tables.replace(k, name, tab)
+    except KinematicTableError as exc:
+        raise VehicleError(f"{where}: [tables]: {exc}") from None
+    return tables
+
+
+def _aero(t: dict, g: CarGeometry, where: str) -> Aerodynamics:
+    """The default coefficient tables (a saloon's) with the file's density, area and length, applied at this car's
+    reference point (mid-wheelbase, centreline, ground)."""
+    _keys(t, {"rho_kg_m3", "area_m2", "length_m"}, where, "[aero]")
+    d = Aerodynamics()
+    try:
+        return Aerodynamics(rho=_number(t, "rho_kg_m3", where, "[aero]", d.rho),
+                            area=_number(t, "area_m2", where, "[aero]", d.area),
+                            length=_number(t, "length_m", where, "[aero]", d.length),
+                            point=tuple(float(x) for x in reference_point(g)))
+    except AeroError as exc:
+        raise VehicleError(f"{where}: [aero]: {exc}") from None
+
+
+def _parameter_names() -> dict[str, str]:
+    """Accepted name or label -> dynid name, for the paper's 48 parameters."""
+    lab = labels()
+    out = {n: n for n in paper_parameter_names()}
+    out.update({lab[n]: n for n in paper_parameter_names() if n in lab})
+    return out
+
+
+def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for k, v in t.items():
+        if k not in names:
+            near = difflib.get_close_matches(k, sorted(names), n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            raise VehicleError(f"{where}: [{section}] unknown parameter {k!r}{hint} (the paper's 48: XX6..M6, ks9 h9 "
+                               "fs9 off9 (K9 FV9 FS9 OFF9), XX14 YY14 ZZ14 M14, kt15 (K15), ..., karf, karr)")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise VehicleError(f"{where}: [{section}] {k} = {v!r} must be a finite number (SI units)")
+        n = names[k]
+        if n in out:
+            raise VehicleError(f"{where}: [{section}] {n} is given twice (as a name and as a label)")
+        out[n] = float(v)
+    for n, v in out.items():
+        kind = n.rstrip("0123456789")
+        if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr")) and v < 0:
+            raise VehicleError(f"{where}: [{section}] {n} = {v}: a mass, stiffness, damping or friction is >= 0")
+    if complete:
+        absent = [n for n in paper_parameter_names() if n not in out
+                  and not n.startswith(("FS", "OFF"))]  # the paper gives no a priori fs and off: 0
+        if absent:
+            raise VehicleError(f"{where}: [{section}] lacks {', '.join(absent[:8])}{' ...' if len(absent) > 8 else ''}"
+                               " (every parameter needs an a priori value; fs and off may be left out: 0)")
+        out = {n: out.get(n, 0.0) for n in paper_parameter_names()}
+    return out
+
+
+def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
+           tables: KinematicTables, where: str) -> ParameterSet:
+    """The simulation's set: the file's [truth], the known values and the a priori values for the rest; a damper
+    offset not given is the static preload that holds the damper at its design position."""
+    from ..model.consistency import check_physical
+    from .statics import design_preloads
+    from .template import WHEELS, car_template
+
+    values = {**a_priori, **known, **given}
+    sources = {n: f"{where} [truth]" if n in given else f"{where} [known]" if n in known else f"{where} [a_priori]"
+               for n in values}
+    problems = check_physical(values, frames=[6, *WHEELS])
+    if problems:
+        raise VehicleError(f"{where}: [truth] is not a physically realisable car: {problems[0]} (a simulation needs "
+                           "one: mass > 0, inertia at the centre of mass positive definite, triangle inequalities)")
+    offsets = [d for d in DAMPERS if f"OFF{d}" not in given]
+    if offsets:
+        try:
+            tree = car_template(g, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}})
+            preloads = design_preloads(tree, tables)
+        except GeometryError as exc:
+            raise VehicleError(f"{where}: [truth]: {exc}") from None
+        for d, f in zip(DAMPERS, preloads, strict=True):
+            if d in offsets:
+                values[f"OFF{d}"] = float(f)
+                sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
+    return ParameterSet("truth", values, sources)

@@ -1,0 +1,183 @@
+"""Vehicle files (`vehicle.description`): the shipped 406, another car's geometry against hand formulas and
+Pinocchio, and bad files refused with one line naming the file, the key and the fix.
+
+Oracles: the paper's 406 values as the template had them in code (the refactor must change nothing),
+hand formulas for wheel centres and contact points, Pinocchio's inverse dynamics of the same tree.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.cli.main import main
+from dynid.dynamics import Model
+from dynid.model.tree import INERTIAL
+from dynid.vehicle import parameters as sets
+from dynid.vehicle.description import VehicleError, load_vehicle, shipped_vehicles, vehicle_path
+from dynid.vehicle.geometry import CarGeometry
+from dynid.vehicle.template import DAMPERS, TIRES, WHEELS, car_template, tabulated
+
+SHIPPED = vehicle_path("peugeot406").read_text(encoding="utf-8")
+
+# another car: a compact SUV's proportions, vertical rear dampers, no kingpin inclination at the rear
+SUV = (SHIPPED.replace("wheelbase_m = 2.7", "wheelbase_m = 2.64")
+       .replace("half_track_m = 0.755", "half_track_m = 0.79")
+       .replace("half_track_m = 0.75", "half_track_m = 0.80")
+       .replace("damper_lateral_tilt_deg = 8.0", "damper_lateral_tilt_deg = 0.0")
+       .replace("kingpin_inclination_deg = 5.0", "kingpin_inclination_deg = 0.0")
+       .replace("kingpin_offset_m = 0.03", "kingpin_offset_m = 0.0")
+       .replace("radius_m = 0.317", "radius_m = 0.35")
+       .replace("centre_height_m = 0.0", "centre_height_m = 0.05"))
+
+
+def write(tmp_path: Path, text: str, name: str = "car.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_the_shipped_406_is_the_paper_car_as_it_was():
+    """The 406 file gives the template's geometry, the paper's a priori set and the simulation's truth exactly
+    (the values are written with all their digits; the offsets are recomputed from the same statics)."""
+    assert "peugeot406" in shipped_vehicles()
+    v = load_vehicle("peugeot406")
+    assert v.geometry == CarGeometry()
+    assert v.a_priori.values == sets.a_priori().values
+    assert v.truth.values == sets.truth().values
+    assert v.known == {f"{p}{w}": sets.WHEEL[p] for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
+
+
+def test_geometry_of_another_car_by_hand(tmp_path):
+    """Wheel centres at design and at +-50 mm of clearance (tabulated joints held at 0) move along the damper
+    axis the file's tilts give, u = (1, -side tan(lateral), -tan(longitudinal)) / norm in frame 6; the contact
+    point is the unloaded radius minus the tire deflection straight below the upright wheel."""
+    v = load_vehicle(write(tmp_path, SUV))
+    g = v.geometry
+    assert g.wheelbase == pytest.approx(2.64) and g.front.half_track == 0.79 and g.rear.damper_lateral_tilt == 0.0
+    model = Model(car_template(g, v.a_priori.values))
+    for corner in range(4):
+        side = 1 if corner % 2 else -1
+        ax = g.front if corner >= 2 else g.rear
+        half = 0.79 if corner >= 2 else 0.80
+        centre = np.array([0.05, side * half, 2.64 if corner >= 2 else 0.0])
+        u = np.array([1.0, -side * math.tan(ax.damper_lateral_tilt), -math.tan(ax.damper_longitudinal_tilt)])
+        u /= np.linalg.norm(u)
+        for clearance in (-0.05, 0.0, 0.05):
+            q = np.zeros(42)
+            q[DAMPERS[corner] - 1] = clearance
+            q[TIRES[corner] - 1] = 0.012
+            assert not any(q[j - 1] for j in tabulated(corner))
+            T = model.transforms(q)
+            T6 = np.linalg.inv(T[6])
+            wheel = (T6 @ T[WHEELS[corner]])[:3, 3]
+            contact = (T6 @ T[TIRES[corner]])[:3, 3]
+            np.testing.assert_allclose(wheel, centre + clearance * u, atol=1e-12)
+            np.testing.assert_allclose(contact, wheel - (0.35 - 0.012) * np.array([1.0, 0.0, 0.0]), atol=1e-12)
+
+
+def test_inverse_dynamics_of_a_vehicle_file_matches_pinocchio(tmp_path):
+    """The rigid-body inverse dynamics of the tree built from a vehicle file against Pinocchio's rnea on the same
+    MDH frames (the oracle's own conversion), random states."""
+    pin = pytest.importorskip("pinocchio")  # noqa: F841 - the oracle needs it
+    from oracles import PinModel, random_states
+
+    v = load_vehicle(write(tmp_path, SUV))
+    tree = car_template(v.geometry, v.truth.values)
+    values = {k: x for k, x in tree.values.items() if k.rstrip("0123456789") in INERTIAL}
+    tree = dataclasses.replace(tree, couplings=(), joint_terms={}, values=values)
+    q, qd, qdd = random_states(tree, 10, seed=3)
+    tau = Model(tree).inverse_dynamics(q, qd, qdd)
+    ref = PinModel(tree).rnea(q, qd, qdd)
+    assert np.abs(tau - ref).max() / np.abs(ref).max() < 1e-10
+
+
+def test_no_anti_roll_bar_means_known_zero(tmp_path):
+    v = load_vehicle(write(tmp_path, SHIPPED.replace("anti_roll_bar = true", "anti_roll_bar = false", 1)))
+    assert v.known["karf"] == 0.0 and "karr" not in v.known and v.a_priori.values["karf"] == 0.0
+
+
+def test_labels_and_names_are_both_accepted_and_offsets_come_from_statics(tmp_path):
+    text = SHIPPED.replace("ks9 = 24425.0", "K9 = 24425.0")
+    v = load_vehicle(write(tmp_path, text))
+    assert v.truth.values["K9"] == 24425.0
+    assert v.truth.values["OFF9"] == pytest.approx(sets.truth().values["OFF9"], rel=1e-12)
+
+
+def _a_priori_without(name: str) -> str:
+    head, rest = SHIPPED.split("[a_priori]", 1)
+    body, tail = rest.split("[truth]", 1)
+    body = "\n".join(line for line in body.splitlines() if not line.startswith(f"{name} ="))
+    return head + "[a_priori]" + body + "\n[truth]" + tail
+
+
+BAD = [  # (change, words in the one-line error)
+    (lambda s: s.replace("[axles.rear]", "[axles.middle]"), ["[axles]", "'middle'", "valid keys: front, rear"]),
+    (lambda s: s.split("[axles.rear]")[0] + "[wheels]" + s.split("[wheels]")[1], ["missing the table [axles.rear]"]),
+    (lambda s: s.replace("half_track_m = 0.755", "half_track_m = -0.755"), ["[axles.front]", "half_track_m", "0.4"]),
+    (lambda s: s.replace("half_track_m = 0.755", "half_track_m = 755"), ["half_track_m", "unit"]),
+    (lambda s: s.replace("wheelbase_m = 2.7", "wheelbase_m = 2700"), ["wheelbase_m", "unit"]),
+    (lambda s: s.replace("radius_m = 0.317", 'radius_m = "0.317 m"'), ["radius_m", "finite number"]),
+    (lambda s: s.replace("damper_lateral_tilt_deg = 11.0", "damper_lateral_tilt_deg = 85.0"),
+     ["damper_lateral_tilt_deg", "parallel to the ground"]),
+    (lambda s: s.replace("caster_deg = 3.5", "caster_deg = 0.061"), None),  # a small angle is accepted
+    (lambda s: s.replace("wheelbase_m = 2.7", "wheelbase_m = -2.7"), ["wheelbase_m", "1.5..4.5"]),
+    (lambda s: s.replace("kingpin_offset_m = 0.06", "kingpin_ofset_m = 0.06"), ["kingpin_ofset_m",
+                                                                                "did you mean 'kingpin_offset_m'"]),
+    (lambda s: s.replace("[wheels]", "[wheel]"), ["'wheel'", "did you mean 'wheels'"]),
+    (lambda s: s + "\n[sensors]\nradar = true\n", ["'sensors'"]),
+    (lambda s: s.replace("anti_roll_bar = true", 'anti_roll_bar = "yes"', 1), ["anti_roll_bar", "true or false"]),
+    (lambda s: s.replace("[known]", "[known]\nM99 = 3.0"), ["[known]", "'M99'"]),
+    (lambda s: s.replace("[known]", "[known]\nkarff = 3.0"), ["did you mean 'karf'"]),
+    (lambda s: s.replace("M14 = 35.0\nXX23", "M14 = -35.0\nXX23"), ["[known]", "M14", ">= 0"]),
+    (lambda s: _a_priori_without("kt15"), ["[a_priori]", "lacks", "K15"]),
+    (lambda s: s.replace("axes = [[0.0, 0.0, 1.0]", "axes = [[0.0, 0.0, 2.0]"), ["imu_axes", "rotation"]),
+    (lambda s: s.replace("position_m = [0.0, 0.0, 0.0]", "position_m = [0.0, 0.0]"), ["[imu] position_m", "3"]),
+    (lambda s: s.replace('name = "Peugeot 406 saloon"', ""), ["missing 'name'"]),
+    (lambda s: s.replace("ZZ6 = 714.26", "ZZ6 = 90000.0"), ["[truth]", "realisable"]),
+    (lambda s: s.replace("# [tables]", '[tables]\nfront_left.camber = { csv = "nope.csv", units = "deg" }\n#'),
+     ["[tables]", "nope.csv", "cannot read"]),
+    (lambda s: s.replace("# [tables]", '[tables]\nfront_left.toe = { csv = "t.csv" }\n#'),
+     ["[tables.front_left]", "'toe'"]),
+    (lambda s: s.replace("# [tables]", '[tables]\nfront_left.camber = { csv = "bad.csv", units = "deg" }\n#'),
+     ["bad.csv"]),
+    (lambda s: s.replace("[aero]", "").replace("# [tables]", "[aero]\narea_m2 = 0.0\n#"), ["area_m2", "0.5"]),
+    (lambda s: s.replace("wheelbase_m = 2.7", "wheelbase_m = 2.7\nwheelbase_m = 2.8"), ["not valid TOML"]),
+]
+
+
+@pytest.mark.parametrize("change, words", BAD)
+def test_bad_vehicle_files_give_one_line(tmp_path, change, words):
+    (tmp_path / "bad.csv").write_text("travel,camber\n0.0,1.0\n-0.1,0.5\n0.1,2.0\n0.2,3.0\n")  # travel not increasing
+    path = write(tmp_path, change(SHIPPED))
+    if words is None:
+        load_vehicle(path)
+        return
+    with pytest.raises(VehicleError) as exc:
+        load_vehicle(path)
+    msg = str(exc.value)
+    assert str(path) in msg and "\n" not in msg, msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_cli_vehicle_commands(tmp_path, capsys):
+    assert main(["vehicle", "list"]) == 0
+    assert "peugeot406" in capsys.readouterr().out
+    out = tmp_path / "mine.toml"
+    assert main(["vehicle", "new", "Estate 2.0", "--out", str(out)]) == 0
+    v = load_vehicle(out)
+    assert v.name == "Estate 2.0" and v.geometry == CarGeometry()
+    assert main(["vehicle", "new", "again", "--out", str(out)]) == 2  # never replaces a file
+    assert load_vehicle(out).name == "Estate 2.0"
+    assert main(["vehicle", "show", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Estate 2.0" in text and "physically realisable" in text and "32 identified" in text
+    bad = write(tmp_path, SHIPPED.replace("[wheels]", "[wheel]"), "bad.toml")
+    assert main(["demo", "--vehicle", str(bad), "--out", str(tmp_path / "demo")]) == 2
+    assert "did you mean 'wheels'" in capsys.readouterr().err
+    assert not (tmp_path / "demo").exists()  # nothing written
