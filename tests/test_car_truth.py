@@ -1,7 +1,8 @@
 """The car's answer against the simulator's truth, from the files a user would feed (issue 12).
 
 Oracle: the true parameter set the simulator drove with (its sidecar), which the estimator never
-sees. The demo's six tests are simulated once; their logger files go through `dynid identify`
+sees. The demo's six tests are simulated once per shipped vehicle (the 406 and the compact SUV); their
+logger files go through `dynid identify`
 exactly as a user's would: noise-free (band limits, sample-and-hold and quantisation of the
 paper's Table 1, no noise or offsets), then with the suite's noise and offsets on ten seeds, by
 weighted least squares (the demo's choice) and by IDIM-IV (`method = "iv"`).
@@ -25,9 +26,14 @@ from dynid.pipeline.run import identify
 SEEDS = range(1, 11)
 
 
-@pytest.fixture(scope="module")
-def tests():
-    return simulate_tests()
+_SIMULATED: dict[str, dict] = {}
+
+
+def simulated(vehicle: str) -> dict:
+    """The demo's tests of a shipped vehicle, simulated once per session."""
+    if vehicle not in _SIMULATED:
+        _SIMULATED[vehicle] = simulate_tests(vehicle=vehicle)
+    return _SIMULATED[vehicle]
 
 
 def judged(result) -> dict[str, tuple[float, float, float, str]]:
@@ -54,11 +60,13 @@ def with_method(config, method: str):
     return other
 
 
-@pytest.mark.parametrize("method", ["wls", "iv"])
-def test_noise_free_files_recover_the_truth(tests, tmp_path, method):
+@pytest.mark.parametrize("vehicle, method", [("peugeot406", "wls"), ("peugeot406", "iv"), ("compact_suv", "wls"),
+                                             ("compact_suv", "iv")])
+def test_noise_free_files_recover_the_truth(tmp_path, vehicle, method):
     """Every parameter within 1 % (dry friction 5 %) from noise-free sensor files, and the cross-validation
-    below 2 % in every group the validation tests move."""
-    run = identify(load_config(with_method(write_demo(tmp_path, tests, noise=False), method)))
+    below 2 % in every group the validation tests move, for every shipped vehicle."""
+    files = write_demo(tmp_path, simulated(vehicle), noise=False, vehicle=vehicle)
+    run = identify(load_config(with_method(files, method)))
     assert run.result.method == method.upper()
     errors = {n: e for n, (e, *_rest) in judged(run.result).items()}
     assert len(errors) == 32
@@ -80,14 +88,17 @@ def bound(name: str) -> float:
     raise KeyError(name)
 
 
-@pytest.fixture(scope="module", params=["wls", "iv"])
-def seeds(request, tests, tmp_path_factory):
-    """The demo's identification on ten seeds of the sensor suite (Parquet files, for speed), by each method."""
+@pytest.fixture(scope="module", params=[("peugeot406", "wls"), ("peugeot406", "iv"), ("compact_suv", "wls")],
+                ids=lambda p: "-".join(p))
+def seeds(request, tmp_path_factory):
+    """The demo's identification on ten seeds of the sensor suite (Parquet files, for speed), by each method; the
+    second shipped vehicle by the demo's method."""
+    vehicle, method = request.param
     out = {}
     for seed in SEEDS:
         folder = tmp_path_factory.mktemp(f"seed{seed}")
-        run = identify(load_config(with_method(write_demo(folder, tests, seed=seed, fmt="parquet"), request.param)))
-        out[seed] = judged(run.result)
+        files = write_demo(folder, simulated(vehicle), seed=seed, fmt="parquet", vehicle=vehicle)
+        out[seed] = judged(identify(load_config(with_method(files, method))).result)
     return out
 
 
