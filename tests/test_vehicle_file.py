@@ -129,7 +129,7 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("kingpin_offset_m = 0.06", "kingpin_ofset_m = 0.06"), ["kingpin_ofset_m",
                                                                                 "did you mean 'kingpin_offset_m'"]),
     (lambda s: s.replace("[wheels]", "[wheel]"), ["'wheel'", "did you mean 'wheels'"]),
-    (lambda s: s + "\n[sensors]\nradar = true\n", ["'sensors'"]),
+    (lambda s: s + "\n[radars]\nfront = true\n", ["'radars'"]),
     (lambda s: s.replace("anti_roll_bar = true", 'anti_roll_bar = "yes"', 1), ["anti_roll_bar", "true or false"]),
     (lambda s: s.replace("[known]", "[known]\nM99 = 3.0"), ["[known]", "'M99'"]),
     (lambda s: s.replace("[known]", "[known]\nkarff = 3.0"), ["did you mean 'karf'"]),
@@ -147,6 +147,10 @@ BAD = [  # (change, words in the one-line error)
      ["bad.csv"]),
     (lambda s: s.replace("[aero]", "").replace("# [tables]", "[aero]\narea_m2 = 0.0\n#"), ["area_m2", "0.5"]),
     (lambda s: s.replace("wheelbase_m = 2.7", "wheelbase_m = 2.7\nwheelbase_m = 2.8"), ["not valid TOML"]),
+    (lambda s: s.replace("[imu]", "[sensors]\nlasers = false\n[imu]"), ["lasers = false", "K15", "[known]",
+                                                                       "tire bench"]),
+    (lambda s: s.replace("[imu]", "[sensors]\nradar = true\n[imu]"), ["[sensors]", "'radar'", "cameras, lasers"]),
+    (lambda s: s.replace("[imu]", "[sensors]\ncameras = 0\n[imu]"), ["[sensors] cameras", "true or false"]),
 ]
 
 

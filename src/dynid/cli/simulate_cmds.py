@@ -60,6 +60,7 @@ def progress_bar(total: float):
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from ..pipeline.demo import simulated_car
+    from ..vehicle.description import load_vehicle
     from ..vehicle.sim import ManoeuvreError, SimulationError, manoeuvre
     from ..vehicle.sim.recording import OutputError, check_output, write_test
 
@@ -77,7 +78,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             close()
         t2 = time.perf_counter()
         path, side = write_test(result, args.out, args.format, seed=args.seed, truth=args.truth,
-                                noise=not args.noise_free)
+                                noise=not args.noise_free, suite=load_vehicle(args.vehicle).suite)
     except (ManoeuvreError, SimulationError, OutputError) as exc:
         print(f"dynid: error: {exc}", file=sys.stderr)
         return 2

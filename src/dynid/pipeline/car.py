@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -26,6 +26,7 @@ def car_system(
     min_speed: Mapping[int, float] | None = None,
     instruments: Mapping[str, float] | None = None,
     keep: np.ndarray | None = None,
+    equations: Sequence[int] | None = None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
@@ -43,6 +44,8 @@ def car_system(
     trajectory whose clearances are the suspensions' simulated response to the measured loads
     (`vehicle.instruments`), conditioned exactly as W; min_speed then applies to the simulated rates.
     keep: the rows to keep (the `kept` mask of another system of the same samples) instead of min_speed's.
+    equations: the joints whose equations are kept (default: all 14); e.g. without height lasers the tire
+    equations are identities (the deflections come from the loads) and are left out.
     """
     decimate = tuple(decimate or ())
     # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
@@ -71,6 +74,8 @@ def car_system(
     labels = eq.groups.reshape(rows, -1)[:, 0]
     if keep is None:
         keep = np.ones((rows, n), dtype=bool)
+        if equations is not None:
+            keep[[i for i, j in enumerate(eq.rows) if j not in equations]] = False
         for j, v in (min_speed or {}).items():
             if j in eq.rows:
                 # rows chosen on the instruments' clearance rate when there are instruments: chosen on the measured

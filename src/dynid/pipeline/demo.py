@@ -96,17 +96,17 @@ def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fm
     """The logger files of the simulated tests (sensor noise seeded by seed + the test's index, or none) and
     the identification config in `out` (for `vehicle`: a shipped name, or a vehicle file, written as an absolute
     path); returns the config's path."""
-    from ..vehicle.sensors import paper_suite
+    from ..vehicle.description import load_vehicle
     from ..vehicle.sim.recording import write_test
 
+    suite = load_vehicle(vehicle).suite  # the sensors the vehicle file says are fitted
     data = out / "data"
     data.mkdir(parents=True, exist_ok=True)
     files = {}
     for i, (key, result) in enumerate(results.items()):
-        path, _ = write_test(result, data / f"{key}.{fmt}", seed=seed + i, noise=noise)
+        path, _ = write_test(result, data / f"{key}.{fmt}", seed=seed + i, noise=noise, suite=suite)
         files[key] = path.relative_to(out).as_posix()
-    sim = next(iter(results.values())).sim
-    offsets = {c.name: c.bias for c in paper_suite(sim.geometry) if c.bias} if noise else {}
+    offsets = {c.name: c.bias for c in suite if c.bias} if noise else {}
     where = Path(vehicle).resolve().as_posix() if vehicle.endswith(".toml") else vehicle
     return write_atomic(out / "identify.toml", demo_config(files, where, offsets))
 

@@ -106,10 +106,11 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np
     """The sensor suite's channels of one logger file on the file's common clock, in the file's units (views,
     no copy of a long record), with the factor of each to SI; and the sample rate."""
     from ..io import read_recording, unit_factor
+    from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import required_channels
 
     path = spec.files["channels"]
-    wanted = required_channels(spin=False)
+    wanted = required_channels(spin=False, suite=load_vehicle(cfg.vehicle or "peugeot406").suite)
     renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
     in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
     rec = read_recording(path, fs=spec.fs, channels=list(in_file.values()))
@@ -152,7 +153,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     from ..estimation import StreamingLS
     from ..signals import border_samples
     from ..symbolic.generated import GeneratedRegressor
-    from ..vehicle import car_base_parameters, car_template
+    from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import CarConditioning, estimate_joints
     from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint
@@ -188,6 +189,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     aero = vehicle.aero if settings.aero else None
     fast = GeneratedRegressor(tree)
     suite = vehicle.suite
+    # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
+    equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
 
     def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None, instruments=None,
                      keep=None):
@@ -196,7 +199,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
             si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
         traj = estimate_joints(si, fs, model, vehicle.geometry, vehicle.tables, cond, suite)
         return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
-                          cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep)[0]
+                          cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep,
+                          equations=equations)[0]
 
     def segments_of(spec: TestSpec):
         channels, factors, fs = load_car_channels(cfg, spec)
@@ -309,7 +313,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
                                  flag_percent=cfg.flag_percent)
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=offsets_note(result) + "Physical consistency of the estimates: " + consistency_text(result, base, tree))
+        notes=sensors_note(vehicle) + offsets_note(result) + "Physical consistency of the estimates: "
+        + consistency_text(result, base, tree))
     run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
     run.errors["direct"] = ident.relative_errors(result)
     if streams["validate"].n_rows:
@@ -323,6 +328,19 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def sensors_note(vehicle) -> str:
+    """What the sensors not fitted change (empty for the paper's suite)."""
+    out = ""
+    if not vehicle.cameras:
+        out += ("No cameras: the damper clearances come from potentiometers, the steering and camber joints from the "
+                "kinematic tables at the measured clearance and steering-wheel angle.\n")
+    if not vehicle.lasers:
+        out += ("No height lasers: the chassis height and the tire deflections come from the wheel loads through the "
+                "known tire stiffness (kt15, kt24, kt33, kt42 from the vehicle file's [known]); the tire equations "
+                "are then identities and are left out, so the tire stiffness cannot be identified from these tests.\n")
+    return out
 
 
 def offsets_note(result) -> str:

@@ -22,6 +22,9 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     [wheels]
     radius_m = 0.317                        # unloaded
     centre_height_m = 0.0                   # x6 of the wheel centres at design (0: O6 at their height)
+    [sensors]                               # optional: what is not fitted (default: the paper's suite)
+    cameras = false                         # clearances from damper potentiometers, steer and camber from tables
+    lasers = false                          # heights from the loads: kt must be [known]
     [imu]                                   # optional: where the inertial unit is
     position_m = [0.0, 0.0, 0.0]            # in frame 6
     axes = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]   # rows: the unit's x, y, z in frame 6 (ISO 8855)
@@ -59,15 +62,15 @@ from ..model.tree import ModelError
 from .aero import Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
-from .sensors import SensorSuite, paper_suite
+from .sensors import SensorSuite, fitted_suite
 from .tables import CORNER_KEYS, TABLE_NAMES, KinematicTableError, KinematicTables, default_tables, load_table_csv
 from .tables import load_tables as load_table_file
 from .template import CORNERS, DAMPERS, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
-SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "imu": dict, "tables": dict,
-            "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
+SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "imu": dict, "sensors": dict,
+            "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
 REQUIRED = ("name", "axles", "wheels", "a_priori")
 # plausible passenger-car ranges: outside them the number is a unit slip or a typo, not a car
 RANGES = {"wheelbase_m": (1.5, 4.5), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
@@ -93,11 +96,14 @@ class Vehicle:
     truth: ParameterSet | None
     known: dict[str, float] = field(default_factory=dict)
     source: str = ""
+    cameras: bool = True
+    lasers: bool = True
 
     @property
     def suite(self) -> SensorSuite:
-        """The sensors fitted: the paper's suite (Table 1) at this car's positions."""
-        return paper_suite(self.geometry)
+        """The sensors fitted: the paper's suite (Table 1) at this car's positions, less what the file says is
+        not fitted (`sensors.fitted_suite`)."""
+        return fitted_suite(self.geometry, cameras=self.cameras, lasers=self.lasers)
 
 
 def shipped_vehicles() -> list[str]:
@@ -148,6 +154,13 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
                 raise VehicleError(f"{where}: [axles.{axle}] anti_roll_bar = false but [known] {bar} = {known[bar]}")
             known[bar] = 0.0
             a_priori[bar] = 0.0
+    fitted = _sensors(data.get("sensors", {}), where)
+    if not fitted["lasers"]:
+        missing = [n for n in ("K15", "K24", "K33", "K42") if n not in known]
+        if missing:
+            raise VehicleError(f"{where}: [sensors] lasers = false: the tire deflections then come from the wheel "
+                               f"loads through the tires' stiffness, so the tire equations identify nothing: give "
+                               f"{', '.join(missing)} (kt15 ...) in [known] (a tire bench)")
     truth = None
     if "truth" in data:
         truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False), a_priori, known, geometry,
@@ -156,7 +169,20 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where)
+                   truth, known, where, **fitted)
+
+
+def _sensors(t: dict, where: str) -> dict[str, bool]:
+    """[sensors]: cameras, lasers (true: fitted, the default). The inertial unit, the Correvit, the dynamometric
+    wheels and the steering-wheel encoder are always fitted."""
+    _keys(t, {"cameras", "lasers"}, where, "[sensors]")
+    out = {}
+    for k in ("cameras", "lasers"):
+        v = t.get(k, True)
+        if not isinstance(v, bool):
+            raise VehicleError(f"{where}: [sensors] {k} = {v!r} must be true or false")
+        out[k] = v
+    return out
 
 
 def _keys(table: dict, valid: set[str], where: str, section: str) -> None:

@@ -119,7 +119,8 @@ class CarTrajectory:
                              None if self.spin_torques is None else self.spin_torques[sl], self.steering_wheel[sl])
 
 
-def required_channels(spin: bool = False) -> list[str]:
+def required_channels(spin: bool = False, suite: SensorSuite | None = None) -> list[str]:
+    """The channels the estimator reads: the suite's (default: the paper's), the spin torques only if asked."""
     names = ["imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_ax", "imu_ay", "imu_az", "imu_roll",
              "imu_pitch", "correvit_vx", "correvit_vy", "steering_wheel"]
     for c in CORNER_TAGS:
@@ -127,7 +128,7 @@ def required_channels(spin: bool = False) -> list[str]:
         names += [f"wft_{c}_{k}" for k in WFT_COMPONENTS]
         if spin:
             names.append(f"spin_torque_{c}")
-    return names
+    return names if suite is None else [n for n in names if n in suite.names]
 
 
 def _zyx(yaw: Array, pitch: Array, roll: Array) -> Array:
@@ -208,11 +209,13 @@ def estimate_joints(
     g = geometry or CarGeometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
-    missing = [n for n in required_channels() if n not in channels]
+    suite = suite or paper_suite(g)
+    missing = [n for n in required_channels(suite=suite) if n not in channels]
     if missing:
         raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
     ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
-    suite = suite or paper_suite(g)
+    cameras = all(f"steer_{t}" in suite.names and f"camber_{t}" in suite.names for t in CORNER_TAGS)
+    lasers = all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS)
     clipped = _saturated_cameras(ch, suite)
     if c.compensate_delays:
         ch = {k: advance(v, sensor_delay(suite[k], fs), fs) if k in suite.names else v for k, v in ch.items()}
@@ -253,37 +256,17 @@ def estimate_joints(
     q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * lp(np.stack([psi, theta, phi], axis=1)), sign * rf, sign * rdf
     R6 = chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])
 
-    # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground)
-    # each laser's own estimate (N, 4), used again for the tire deflections below
-    z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
-        - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
-    q[:, 2], qd[:, 2], _ = smooth(z_laser.mean(axis=1))
-    # --- translational accelerations of O6 from the IMU (specific force at its mounting point)
-    dw6 = derivative(lp(w6), fs, axis=0)
-    r_imu = np.asarray(g.imu_position, dtype=float)
-    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    a_imu6 = f6 + np.einsum("nji,j->ni", R6, np.asarray(model.tree.gravity))
-    a_o6 = a_imu6 - np.cross(dw6, r_imu) - np.cross(w6, np.cross(w6, r_imu))
-    a0 = np.einsum("nij,nj->ni", R6, a_o6)
-    # --- velocity of O6: the Correvit gives the horizontal components (chassis x, y), the lasers the vertical
-    pc = np.asarray(correvit_point(g))
-    v_c = np.stack([ch["correvit_vx"], ch["correvit_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
-    ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
-    v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
-    s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
-    v0 = v_known + s[:, None] * (R6 @ ez6)
-    v = lp(v0[:, :2])
-    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
-
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
     # with the loads (24 wheel-wrench components, the 4 spin torques when measured): one pass of the filter
+    # without cameras the steering and camber columns are placeholders: the tables fill them below
     names = [f"{n}_{t}" for n in ("clearance", "steer", "camber", "wheel_speed") for t in CORNER_TAGS]
     names += ["steering_wheel"] + [f"wft_{t}_{k}" for t in CORNER_TAGS for k in WFT_COMPONENTS]
     has_spin = all(f"spin_torque_{t}" in ch for t in CORNER_TAGS)
     names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
-    raw = np.empty((N, len(names)))
+    raw = np.zeros((N, len(names)))
     for i, n in enumerate(names):
-        raw[:, i] = ch[n]
+        if n in ch:
+            raw[:, i] = ch[n]
     filtered = lp(raw)
     x = filtered[:, :17]
     xd = derivative(x, fs)
@@ -294,7 +277,8 @@ def estimate_joints(
     spin = [7 + 9 * k + 6 for k in range(4)]
     q[:, spin], qd[:, spin], qdd[:, spin] = integrate(x[:, 12:16], fs), x[:, 12:16], xd[:, 12:16]
     h = x[:, 16], xd[:, 16], xdd[:, 16]
-    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber"), copy=False)
+    q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
+                               copy=False)
 
     # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
     # corner takes the chassis height its own laser implies: attitude errors then act over the 0.35 m between
@@ -313,6 +297,38 @@ def estimate_joints(
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     pz_zz = CubicSpline(sub, np.stack([st.P[f][2] for f in tires] + [st.Rc[f][2][2] for f in tires], axis=1))(
         np.arange(N))
+    # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground),
+    # each laser's own estimate (N, 4), used again for the tire deflections below. Without lasers, each corner's
+    # contact point on the ground with the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz)
+    if lasers:
+        z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
+            - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
+    else:
+        kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in tires])
+        if not (kt > 0).all():
+            raise ModelError("without height lasers the tire deflections come from the wheel loads: the tires' "
+                             "vertical stiffness kt15, kt24, kt33, kt42 must be known (a tire bench), > 0; got "
+                             f"{kt.tolist()}")
+        load = filtered[:, [17 + 6 * k + WFT_COMPONENTS.index("Fz") for k in range(4)]] / kt
+        z_laser = -(pz_zz[:, :4] + load * pz_zz[:, 4:])
+    q[:, 2], qd[:, 2], _ = smooth(z_laser.mean(axis=1))
+    # --- translational accelerations of O6 from the IMU (specific force at its mounting point)
+    dw6 = derivative(lp(w6), fs, axis=0)
+    r_imu = np.asarray(g.imu_position, dtype=float)
+    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
+    a_imu6 = f6 + np.einsum("nji,j->ni", R6, np.asarray(model.tree.gravity))
+    a_o6 = a_imu6 - np.cross(dw6, r_imu) - np.cross(w6, np.cross(w6, r_imu))
+    a0 = np.einsum("nij,nj->ni", R6, a_o6)
+    # --- velocity of O6: the Correvit gives the horizontal components (chassis x, y), the lasers the vertical
+    pc = np.asarray(correvit_point(g))
+    v_c = np.stack([ch["correvit_vx"], ch["correvit_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
+    ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
+    v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
+    s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
+    v0 = v_known + s[:, None] * (R6 @ ez6)
+    v = lp(v0[:, :2])
+    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
+
     deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
     cols = [f - 1 for f in tires]
     q[:, cols], qd[:, cols], qdd[:, cols] = smooth(deflection)

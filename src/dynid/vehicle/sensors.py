@@ -400,6 +400,29 @@ def paper_suite(geometry: CarGeometry | None = None) -> SensorSuite:
     return SensorSuite(tuple(_imu(g) + _correvit(g) + _corners(g) + _driver()))
 
 
+def fitted_suite(geometry: CarGeometry | None = None, cameras: bool = True, lasers: bool = True) -> SensorSuite:
+    """The paper's suite with fewer sensors, as many test cars are equipped.
+
+    cameras=False: no video cameras at the corners; the damper clearances come from linear potentiometers on
+    the dampers (`clearance_*`: 0.2 mm, 100 Hz, a 0.2 mm zero offset) and the steering and camber joints from
+    the kinematic tables at the measured clearance and steering-wheel angle. lasers=False: no height lasers;
+    the chassis height and the tire deflections then come from the wheel loads through the tires' stiffness,
+    which has to be known (a tire bench) and cannot be identified."""
+    g = CarGeometry() if geometry is None else geometry
+    out = []
+    for c in paper_suite(g):
+        prefix = c.name.split("_")[0]
+        if not cameras and prefix in ("steer", "camber"):
+            continue
+        if not lasers and c.name.startswith("laser_height_"):
+            continue
+        if not cameras and prefix == "clearance":
+            c = replace(c, sensor="damper potentiometer", accuracy=0.2, bandwidth=100.0, resolution=0.01, bias=0.2,
+                        source=CHOSEN + ": a linear potentiometer on the damper")
+        out.append(c)
+    return SensorSuite(tuple(out))
+
+
 def channel_names(truth: bool = False) -> tuple[str, ...]:
     """All logged channel names (without `time`), with the truth channels when asked."""
     names = paper_suite().names

@@ -110,13 +110,14 @@ def sidecar(result, seed: int | None, noise: bool, truth: bool, names: list[str]
 
 
 def write_test(result, path: str | os.PathLike[str], format: str | None = None, seed: int | None = 0,
-               truth: bool = False, noise: bool = True) -> tuple[Path, Path]:
-    """Write the test's file and its sidecar (both atomic); returns (file, sidecar)."""
+               truth: bool = False, noise: bool = True, suite: SensorSuite | None = None) -> tuple[Path, Path]:
+    """Write the test's file and its sidecar (both atomic); returns (file, sidecar). suite: the sensors fitted
+    (default: the paper's suite on the car's geometry)."""
     path, fmt = check_output(path, format)
-    ch = channels(result, seed, noise, truth)
+    ch = channels(result, seed, noise, truth, suite)
     _write_channels(ch, path, fmt, {"manoeuvre": result.manoeuvre.name, "seed": str(seed)})
     side = path.with_suffix(".json")
-    write_atomic(side, json.dumps(sidecar(result, seed, noise, truth, list(ch)), indent=1))
+    write_atomic(side, json.dumps(sidecar(result, seed, noise, truth, list(ch), suite), indent=1))
     return path, side
 
 
