@@ -270,7 +270,7 @@ file = "sine.csv"
      ['[[tests]] #1 ("sine")', "unknown key 'files'", 'file = "test.csv"']),
     ('template = "peugeot406"', 'rol = "validate"', "",
      ['[[tests]] #1 ("sine")', "unknown key 'rol'", "did you mean 'role'?"]),
-    ('template = "peugeot406"', "start = 1.0", "", ['[[tests]] #1 ("sine")', "start, end and max_gap"]),
+    ('template = "peugeot406"', "start = 5.0\nend = 2.0", "", ['[[tests]] #1 ("sine")', "not before end"]),
     ('template = "peugeot406"', "", "[identification]\nknow = { M14 = 35 }",
      ["[identification] unknown key 'know'; did you mean 'known'?", "aero, base, flag_percent, iv_passes, known, "
       "method, poor_factor"]),

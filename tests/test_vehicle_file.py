@@ -149,8 +149,11 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("wheelbase_m = 2.7", "wheelbase_m = 2.7\nwheelbase_m = 2.8"), ["not valid TOML"]),
     (lambda s: s.replace("[imu]", "[sensors]\nlasers = false\n[imu]"), ["lasers = false", "K15", "[known]",
                                                                        "tire bench"]),
-    (lambda s: s.replace("[imu]", "[sensors]\nradar = true\n[imu]"), ["[sensors]", "'radar'", "cameras, lasers"]),
+    (lambda s: s.replace("[imu]", "[sensors]\nradar = true\n[imu]"),
+     ["[sensors]", "'radar'", "cameras, correvit, gnss_position_m, lasers"]),
     (lambda s: s.replace("[imu]", "[sensors]\ncameras = 0\n[imu]"), ["[sensors] cameras", "true or false"]),
+    (lambda s: s.replace("[imu]", "[sensors]\ngnss_position_m = [1.0, 0.0, 1.3]\n[imu]"),
+     ["gnss_position_m", "correvit = false"]),
 ]
 
 

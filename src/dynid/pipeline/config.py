@@ -47,9 +47,11 @@
 A car ([model] template = "peugeot406", or vehicle = "name" or "my_car.toml": the template with that
 vehicle file's geometry, tables and values) reads one logger file per test with the channels of
 `dynid.vehicle.sensors`, estimates the 42 joints from them and assembles the paper's 14 equations.
-Its [[tests]] take name, role, fs (optional, as above), `file = "sine.csv"` and optionally
-`truth = "sine.json"` (the simulator's sidecar with the true parameters); [transmission] and
-[reference] are the robot's only, [uncertainty] the car's only:
+Its [[tests]] take name, role, fs (optional, as above), `file = "sine.csv"` (CSV, Parquet, MATLAB or
+MDF4; channels at several rates are interpolated onto the fastest one's clock), optionally start, end
+and max_gap (as a robot's: the part of the test used, s in the file's time base; the longest hole in its
+time stamps, sample periods) and `truth = "sine.json"` (the simulator's sidecar with the true
+parameters); [transmission] and [reference] are the robot's only, [uncertainty] the car's only:
 
     [channels]                       # only where the file's names differ from the suite's
     imu_yaw_rate = { channel = "GyroZ", unit = "deg/s" }
@@ -163,7 +165,7 @@ Err = Callable[[str, str], ConfigError]  # (where, e.g. "[model]", message) -> t
 _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
 _ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
-_CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth")
+_CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
 _ROBOT_QUANTITIES = ("q", "tau")
 _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
@@ -320,8 +322,6 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
         where = _test_label(i, t)
         if not isinstance(t, dict):
             raise err(where, f"= {t!r}; each test is a table of keys under its own [[tests]] header")
-        if is_car and {"start", "end", "max_gap"} & set(t):
-            raise err(where, "start, end and max_gap are for robot tests; cut the car's logger file instead")
         _keys(t, valid, where, err, notes)
         name = t.get("name", f"test {i}")
         if not isinstance(name, str) or not name.strip():

@@ -102,20 +102,83 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
     return JointTest(spec.name, float(fs), q, tau)
 
 
-def load_car_channels(cfg: IdentifyConfig, spec: TestSpec) -> tuple[dict[str, np.ndarray], dict[str, float], float]:
-    """The sensor suite's channels of one logger file on the file's common clock, in the file's units (views,
-    no copy of a long record), with the factor of each to SI; and the sample rate."""
-    from ..io import read_recording, unit_factor
+def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None
+                      ) -> tuple[dict[str, np.ndarray], dict[str, float], float]:
+    """The sensor suite's channels of one logger file on one uniform clock, in the file's units (views, no copy
+    of a long record, when the file's own clock is uniform), with the factor of each to SI; and the sample rate.
+
+    Real loggers, as for a robot test's files (`timebase`): per time base (a logging rate), rows with one stamp
+    are averaged, stamps going back or a hole over the test's `max_gap` sample periods are refused with the file,
+    line, sample and time, and jitter or holes are resampled onto a uniform clock, the check reported through
+    `progress`. Channels at several rates (an MDF4 file's channel groups, a CSV's sparse columns) are
+    interpolated (cubic) onto the clock of the fastest, over the span every channel covers and the test's
+    start..end; the rate chosen is reported."""
+    from ..io import DataError, align, format_of, unit_factor
+    from ..io.align import InterpSpec
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import required_channels
+    from .timebase import RATE_TOLERANCE, read_test_file, stream
 
+    say = progress or (lambda _m: None)
     path = spec.files["channels"]
     wanted = required_channels(spin=False, suite=load_vehicle(cfg.vehicle or "peugeot406").suite)
     renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
     in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
-    rec = read_recording(path, fs=spec.fs, channels=list(in_file.values()))
-    rec.require(list(in_file.values()))
-    al = rec.aligned(list(in_file.values()))
+    names = list(dict.fromkeys(in_file.values()))
+    given = None if format_of(path) == "mdf" else spec.fs  # an MDF file's channels always carry their time stamps
+    rec, timed = read_test_file(path, given, spec.name, cfg.path, names)
+    rec.require(names)
+    bases: list[list] = []  # the channels on one time base (one logging rate)
+    for name in names:
+        ch = rec.channel(name)
+        base = next((b for b in bases if b[0].time is ch.time or np.array_equal(b[0].time, ch.time)), None)
+        if base is None:
+            bases.append([ch])
+        else:
+            base.append(ch)
+    streams = [stream(b, rec.label, timed, spec.max_gap, (spec.start, spec.end)) for b in bases]
+    if timed:
+        for s in streams:
+            listed = ", ".join(list(s.channels)[:3]) + (", ..." if len(s.channels) > 3 else "")
+            say(f"{spec.name}: {s.report()}" + (f" ({len(s.channels)} channels: {listed})" if len(streams) > 1
+                                                 else ""))
+    fastest = min(s.h for s in streams)  # the clock: the fastest channels' (the most of them at one rate)
+    ref = max((s for s in streams if s.h <= fastest * (1 + 1e-6)), key=lambda s: len(s.channels))
+    h = ref.h
+    if timed and spec.fs is not None and abs(1 / h - spec.fs) > RATE_TOLERANCE * spec.fs:
+        raise DataError(
+            f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time stamps of {rec.label} say "
+            f"{1 / h:.6g} Hz (step {h * 1e3:.6g} ms): remove fs from the test (the time stamps are used), or correct "
+            "it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=rec.label)
+    lo, hi = max(s.t[0] for s in streams), min(s.t[-1] for s in streams)
+    if lo > hi:
+        spans = "; ".join(f"{', '.join(list(s.channels)[:2])}, ... cover {s.t[0]:.6g}..{s.t[-1]:.6g} s"
+                          for s in streams)
+        raise DataError(f"{rec.label}: the channels do not overlap in time: {spans}", source=rec.label)
+    first, last = max(float(b[0].time[0]) for b in bases), min(float(b[0].time[-1]) for b in bases)
+    tol = 1e-9 * max(abs(last), h)
+    for key, v in (("start", spec.start), ("end", spec.end)):
+        if v is not None and not first - tol <= v <= last + tol:
+            raise DataError(f"{cfg.path}: test {spec.name!r}: {key} = {v:g} s is outside the record {rec.label}, "
+                            f"which covers {first:.6g}..{last:.6g} s (every channel); give a time inside it",
+                            source=rec.label)
+    a = lo if spec.start is None else max(lo, spec.start)
+    b = hi if spec.end is None else min(hi, spec.end)
+    clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
+                                                             np.floor((ref.t[-1] - ref.t0) / h) + 1)
+    clock = clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
+    if clock.size < 2:
+        raise DataError(f"{cfg.path}: test {spec.name!r}: no two samples of {rec.label} between start and end "
+                        f"({a:.6g}..{b:.6g} s at {1 / h:.6g} Hz): widen the window", source=rec.label)
+    if len(streams) > 1:
+        rates = ", ".join(f"{1 / s.h:.6g} Hz ({len(s.channels)})" for s in sorted(streams, key=lambda s: s.h))
+        say(f"{spec.name}: channels at several rates in {rec.label}: {rates}; every channel interpolated onto the "
+            f"{1 / h:.6g} Hz clock of the fastest, {clock.size} samples ({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    elif not ref.uniform:
+        say(f"{spec.name}: every channel on one uniform {1 / h:.6g} Hz clock, {clock.size} samples "
+            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    al = align([InterpSpec(n, s.channels[n]) for s in streams for n in s.channels], t=clock, source=rec.label,
+               gap_factor=None)
     values, factors = {}, {}
     for q, name in in_file.items():
         unit = renamed.get(q, (None, None))[1] or rec.channel(name).unit
@@ -202,8 +265,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
                           cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep,
                           equations=equations)[0]
 
-    def segments_of(spec: TestSpec):
-        channels, factors, fs = load_car_channels(cfg, spec)
+    def segments_of(spec: TestSpec, report: bool = True):
+        channels, factors, fs = load_car_channels(cfg, spec, say if report else None)
         N = len(next(iter(channels.values())))
         b = border_samples(fs, cond.cutoff, cond.order)
         step = max(int(settings.segment * fs), 4 * b)
@@ -245,7 +308,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
         sums = ident.instrument_sums()
         acc = ident.bias_accumulator() if settings.offsets and final else None
         for spec in (t for t in cfg.tests if t.role == "identify"):
-            channels, factors, fs, segments = segments_of(spec)
+            channels, factors, fs, segments = segments_of(spec, report=False)  # the file's checks said once
             picks = picked(len(segments)) if acc is not None else {}
             jobs: deque = deque()
             for i, seg in enumerate(segments):
@@ -332,6 +395,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
 
 def sensors_note(vehicle) -> str:
     """What the sensors not fitted change (empty for the paper's suite)."""
+    from ..vehicle.sensors import gnss_point
+
     out = ""
     if not vehicle.cameras:
         out += ("No cameras: the damper clearances come from potentiometers, the steering and camber joints from the "
@@ -340,6 +405,9 @@ def sensors_note(vehicle) -> str:
         out += ("No height lasers: the chassis height and the tire deflections come from the wheel loads through the "
                 "known tire stiffness (kt15, kt24, kt33, kt42 from the vehicle file's [known]); the tire equations "
                 "are then identities and are left out, so the tire stiffness cannot be identified from these tests.\n")
+    if not vehicle.correvit:
+        out += ("No Correvit: the horizontal velocity over ground comes from the GNSS/INS at its antenna point "
+                f"{list(gnss_point(vehicle.geometry))} m in frame 6.\n")
     return out
 
 

@@ -25,6 +25,8 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     [sensors]                               # optional: what is not fitted (default: the paper's suite)
     cameras = false                         # clearances from damper potentiometers, steer and camber from tables
     lasers = false                          # heights from the loads: kt must be [known]
+    correvit = false                        # horizontal velocity from a GNSS/INS instead (gnss_vx, gnss_vy)
+    gnss_position_m = [1.1, 0.0, 1.35]      # its point in frame 6 (default: roof, centreline, mid-wheelbase)
     [imu]                                   # optional: where the inertial unit is
     position_m = [0.0, 0.0, 0.0]            # in frame 6
     axes = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]   # rows: the unit's x, y, z in frame 6 (ISO 8855)
@@ -48,6 +50,7 @@ valid one.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import os
@@ -98,12 +101,13 @@ class Vehicle:
     source: str = ""
     cameras: bool = True
     lasers: bool = True
+    correvit: bool = True
 
     @property
     def suite(self) -> SensorSuite:
         """The sensors fitted: the paper's suite (Table 1) at this car's positions, less what the file says is
         not fitted (`sensors.fitted_suite`)."""
-        return fitted_suite(self.geometry, cameras=self.cameras, lasers=self.lasers)
+        return fitted_suite(self.geometry, cameras=self.cameras, lasers=self.lasers, correvit=self.correvit)
 
 
 def shipped_vehicles() -> list[str]:
@@ -155,6 +159,9 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
             known[bar] = 0.0
             a_priori[bar] = 0.0
     fitted = _sensors(data.get("sensors", {}), where)
+    gnss = fitted.pop("gnss_position")
+    if gnss is not None:
+        geometry = dataclasses.replace(geometry, gnss_position=gnss)
     if not fitted["lasers"]:
         missing = [n for n in ("K15", "K24", "K33", "K42") if n not in known]
         if missing:
@@ -172,16 +179,23 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
                    truth, known, where, **fitted)
 
 
-def _sensors(t: dict, where: str) -> dict[str, bool]:
-    """[sensors]: cameras, lasers (true: fitted, the default). The inertial unit, the Correvit, the dynamometric
-    wheels and the steering-wheel encoder are always fitted."""
-    _keys(t, {"cameras", "lasers"}, where, "[sensors]")
-    out = {}
-    for k in ("cameras", "lasers"):
+def _sensors(t: dict, where: str) -> dict:
+    """[sensors]: cameras, lasers, correvit (true: fitted, the default) and gnss_position_m (where the GNSS/INS
+    velocity is measured when there is no Correvit). The inertial unit, the dynamometric wheels and the
+    steering-wheel encoder are always fitted."""
+    _keys(t, {"cameras", "lasers", "correvit", "gnss_position_m"}, where, "[sensors]")
+    out: dict = {}
+    for k in ("cameras", "lasers", "correvit"):
         v = t.get(k, True)
         if not isinstance(v, bool):
             raise VehicleError(f"{where}: [sensors] {k} = {v!r} must be true or false")
         out[k] = v
+    gnss = t.get("gnss_position_m")
+    if gnss is not None and out["correvit"]:
+        raise VehicleError(f"{where}: [sensors] gnss_position_m is for a car without a Correvit: add correvit = false "
+                           "(the horizontal velocity then comes from the GNSS/INS), or remove it")
+    out["gnss_position"] = None if gnss is None else tuple(float(x) for x in _vector(gnss, (3,), where,
+                                                                                     "[sensors] gnss_position_m"))
     return out
 
 

@@ -40,6 +40,7 @@ from .sensors import (
     SensorChannel,
     SensorSuite,
     correvit_point,
+    gnss_point,
     laser_point,
     paper_suite,
 )
@@ -122,13 +123,12 @@ class CarTrajectory:
 def required_channels(spin: bool = False, suite: SensorSuite | None = None) -> list[str]:
     """The channels the estimator reads: the suite's (default: the paper's), the spin torques only if asked."""
     names = ["imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_ax", "imu_ay", "imu_az", "imu_roll",
-             "imu_pitch", "correvit_vx", "correvit_vy", "steering_wheel"]
+             "imu_pitch", "correvit_vx", "correvit_vy", "gnss_vx", "gnss_vy", "steering_wheel"]
     for c in CORNER_TAGS:
         names += [f"laser_height_{c}", f"clearance_{c}", f"steer_{c}", f"camber_{c}", f"wheel_speed_{c}"]
         names += [f"wft_{c}_{k}" for k in WFT_COMPONENTS]
-        if spin:
-            names.append(f"spin_torque_{c}")
-    return names if suite is None else [n for n in names if n in suite.names]
+    fitted = set((suite or paper_suite()).names)
+    return [n for n in names if n in fitted] + ([f"spin_torque_{c}" for c in CORNER_TAGS] if spin else [])
 
 
 def _zyx(yaw: Array, pitch: Array, roll: Array) -> Array:
@@ -319,9 +319,11 @@ def estimate_joints(
     a_imu6 = f6 + np.einsum("nji,j->ni", R6, np.asarray(model.tree.gravity))
     a_o6 = a_imu6 - np.cross(dw6, r_imu) - np.cross(w6, np.cross(w6, r_imu))
     a0 = np.einsum("nij,nj->ni", R6, a_o6)
-    # --- velocity of O6: the Correvit gives the horizontal components (chassis x, y), the lasers the vertical
-    pc = np.asarray(correvit_point(g))
-    v_c = np.stack([ch["correvit_vx"], ch["correvit_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
+    # --- velocity of O6: the Correvit (or a GNSS/INS) gives the horizontal components (chassis x, y), the
+    # height the vertical
+    tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in suite.names else ("gnss", gnss_point(g))
+    v_c = np.stack([ch[f"{tag}_vx"], ch[f"{tag}_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
+    pc = np.asarray(pc)
     ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
     v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)

@@ -73,7 +73,8 @@ class CarGeometry:
     imu_position: inertial unit's position in frame 6, m (at O6 by default: the paper's
       accelerations are those of the rear axle). imu_axes: rotation from frame 6 to the
       unit's axes, rows = the unit's x, y, z in frame 6 (default ISO 8855: x forward,
-      y left, z up). Used by sensor models, not by the dynamics.
+      y left, z up). gnss_position: the GNSS/INS velocity's point in frame 6, m (None: the roof
+      point `sensors.gnss_point` chooses). Used by sensor models, not by the dynamics.
     """
 
     front: AxleGeometry = field(default_factory=_peugeot406_front)
@@ -82,6 +83,7 @@ class CarGeometry:
     wheel_centre_height: float = 0.0
     imu_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
+    gnss_position: tuple[float, float, float] | None = None  # a GNSS/INS antenna's point in frame 6 (sensors)
 
     def __post_init__(self) -> None:
         validate(self)

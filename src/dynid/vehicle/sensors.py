@@ -150,6 +150,23 @@ def correvit_point(g: CarGeometry) -> tuple[float, float, float]:
     return (g.wheel_centre_height + 0.1, g.rear.half_track + 0.25, 0.5 * (g.front.position + g.rear.position))
 
 
+def gnss_point(g: CarGeometry) -> tuple[float, float, float]:
+    """The GNSS/INS velocity's point in frame 6: `geometry.gnss_position`, or by default the roof antenna on the
+    centreline at mid-wheelbase, 1.1 m above the wheel centres (chosen)."""
+    if g.gnss_position is not None:
+        return tuple(float(x) for x in g.gnss_position)
+    return (g.wheel_centre_height + 1.1, 0.0, 0.5 * (g.front.position + g.rear.position))
+
+
+def _gnss(g: CarGeometry) -> list[SensorChannel]:
+    p = gnss_point(g)
+    dev = "GNSS/INS (dual-antenna receiver with an inertial unit)"
+    return [SensorChannel(f"gnss_v{a}", "m/s", f"velocity over ground of the antenna point along vehicle {a}", dev,
+                          f"vehicle {a} ({'forward' if a == 'x' else 'left'})", accuracy=0.03, bandwidth=10.0,
+                          resolution=0.001, range=(-70.0, 70.0), rate=100.0, mounting=p,
+                          source=CHOSEN + ": a survey-grade GNSS/INS velocity (0.03 m/s, 100 Hz)") for a in "xy"]
+
+
 def laser_point(g: CarGeometry, corner: int) -> tuple[float, float, float]:
     """A laser height sensor's point in frame 6: 0.35 m inboard of the wheel centre, on the
     axle line, at wheel-centre height (chosen: on the body beside the damper, seeing flat
@@ -400,17 +417,21 @@ def paper_suite(geometry: CarGeometry | None = None) -> SensorSuite:
     return SensorSuite(tuple(_imu(g) + _correvit(g) + _corners(g) + _driver()))
 
 
-def fitted_suite(geometry: CarGeometry | None = None, cameras: bool = True, lasers: bool = True) -> SensorSuite:
+def fitted_suite(geometry: CarGeometry | None = None, cameras: bool = True, lasers: bool = True,
+                 correvit: bool = True) -> SensorSuite:
     """The paper's suite with fewer sensors, as many test cars are equipped.
 
     cameras=False: no video cameras at the corners; the damper clearances come from linear potentiometers on
     the dampers (`clearance_*`: 0.2 mm, 100 Hz, a 0.2 mm zero offset) and the steering and camber joints from
     the kinematic tables at the measured clearance and steering-wheel angle. lasers=False: no height lasers;
     the chassis height and the tire deflections then come from the wheel loads through the tires' stiffness,
-    which has to be known (a tire bench) and cannot be identified."""
+    which has to be known (a tire bench) and cannot be identified. correvit=False: no Correvit; the horizontal
+    velocity over ground comes from a GNSS/INS (`gnss_vx`, `gnss_vy` at `gnss_point`)."""
     g = CarGeometry() if geometry is None else geometry
-    out = []
+    out = [] if correvit else _gnss(g)
     for c in paper_suite(g):
+        if not correvit and c.name.startswith("correvit_"):
+            continue
         prefix = c.name.split("_")[0]
         if not cameras and prefix in ("steer", "camber"):
             continue
@@ -495,6 +516,8 @@ def ideal_channels(
     p = np.asarray(correvit_point(g))
     v_iso = (tw[:, :3] + np.cross(tw[:, 3:], p - imu)) @ ISO_AXES.T  # the chassis' twist moved to the point
     out["correvit_vx"], out["correvit_vy"] = v_iso[:, 0] * 3.6, v_iso[:, 1]
+    v_iso = (tw[:, :3] + np.cross(tw[:, 3:], np.asarray(gnss_point(g)) - imu)) @ ISO_AXES.T
+    out["gnss_vx"], out["gnss_vy"] = v_iso[:, 0], v_iso[:, 1]
     for k, c in enumerate(CORNER_TAGS):
         b = 7 + 9 * k
         P0 = np.einsum("nij,j->ni", R6, np.asarray(laser_point(g, k))) + O6
@@ -511,5 +534,6 @@ def ideal_channels(
 
 
 __all__ = ["ACQUISITION_RATE", "CORNER_TAGS", "ISO_AXES", "SAMPLE_TIME", "WFT_COMPONENTS", "SensorChannel",
-           "SensorError", "SensorSuite", "channel_names", "correvit_point", "corrupt", "ideal_channels",
+           "SensorError", "SensorSuite", "channel_names", "correvit_point", "corrupt", "fitted_suite", "gnss_point",
+           "ideal_channels",
            "laser_point", "lowpass", "paper_suite", "sample_and_hold", "truth_channel_names", "truth_channel_units"]
