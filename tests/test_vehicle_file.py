@@ -150,8 +150,15 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("[imu]", "[sensors]\nlasers = false\n[imu]"), ["lasers = false", "K15", "[known]",
                                                                        "tire bench"]),
     (lambda s: s.replace("[imu]", "[sensors]\nradar = true\n[imu]"),
-     ["[sensors]", "'radar'", "cameras, correvit, gnss_position_m, lasers"]),
+     ["[sensors]", "'radar'", "cameras, correvit, correvit_position_m, gnss_position_m, laser_positions_m"]),
     (lambda s: s.replace("[imu]", "[sensors]\ncameras = 0\n[imu]"), ["[sensors] cameras", "true or false"]),
+    (lambda s: s.replace("[imu]", "[sensors]\nlaser_positions_m = [[-0.5, -0.4, 0.0], [0.0, 0.4, 0.0], "
+                                  "[0.0, -0.4, 2.7], [0.0, 0.4, 2.7]]\n[imu]"),
+     ["laser_positions_m[0]", "not on the car"]),
+    (lambda s: s.replace("[imu]", "[sensors]\ncorrevit_position_m = [0.1, 1.0]\n[imu]"),
+     ["correvit_position_m", "3 finite numbers"]),
+    (lambda s: s.replace("# [tables]", '[aero]\nfile = "aero_bad.csv"\n# [tables]'), ["aero_bad.csv", "line 1", "cm"]),
+    (lambda s: s.replace("# [tables]", '[aero]\nfile = "aero_text.csv"\n# [tables]'), ["aero_text.csv", "line 3"]),
     (lambda s: s.replace("[imu]", "[sensors]\ngnss_position_m = [1.0, 0.0, 1.3]\n[imu]"),
      ["gnss_position_m", "correvit = false"]),
 ]
@@ -160,6 +167,8 @@ BAD = [  # (change, words in the one-line error)
 @pytest.mark.parametrize("change, words", BAD)
 def test_bad_vehicle_files_give_one_line(tmp_path, change, words):
     (tmp_path / "bad.csv").write_text("travel,camber\n0.0,1.0\n-0.1,0.5\n0.1,2.0\n0.2,3.0\n")  # travel not increasing
+    (tmp_path / "aero_bad.csv").write_text("beta_deg,cx,cy,cz,cl,cn\n0,0.3,0,0.1,0,0\n")
+    (tmp_path / "aero_text.csv").write_text("beta_deg,cx,cy,cz,cl,cm,cn\n-10,0.3,0,0.1,0,0,0\n0,0.3,x,0.1,0,0,0\n")
     path = write(tmp_path, change(SHIPPED))
     if words is None:
         load_vehicle(path)
@@ -188,3 +197,20 @@ def test_cli_vehicle_commands(tmp_path, capsys):
     assert main(["demo", "--vehicle", str(bad), "--out", str(tmp_path / "demo")]) == 2
     assert "did you mean 'wheels'" in capsys.readouterr().err
     assert not (tmp_path / "demo").exists()  # nothing written
+
+
+def test_aero_tables_from_a_csv(tmp_path):
+    """The file's coefficient tables replace the default ones, sideslip in degrees; the reference point is the
+    car's (mid-wheelbase, centreline, ground)."""
+    from dynid.vehicle.aero import COEFFICIENTS, Aerodynamics, reference_point
+
+    d = Aerodynamics()
+    rows = ["beta_deg," + ",".join(COEFFICIENTS)]
+    rows += [",".join(repr(float(x)) for x in (math.degrees(b), *(1.5 * getattr(d, n)[i] for n in COEFFICIENTS)))
+             for i, b in enumerate(d.beta)]
+    (tmp_path / "aero.csv").write_text("\n".join(rows) + "\n")
+    v = load_vehicle(write(tmp_path, SUV.replace("# [tables]", '[aero]\nfile = "aero.csv"\n# [tables]')))
+    np.testing.assert_allclose(v.aero.beta, d.beta, rtol=1e-15)
+    for n in COEFFICIENTS:
+        np.testing.assert_allclose(getattr(v.aero, n), 1.5 * getattr(d, n), rtol=1e-15)
+    np.testing.assert_allclose(v.aero.point, reference_point(v.geometry))

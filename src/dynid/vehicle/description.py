@@ -27,6 +27,8 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     lasers = false                          # heights from the loads: kt must be [known]
     correvit = false                        # horizontal velocity from a GNSS/INS instead (gnss_vx, gnss_vy)
     gnss_position_m = [1.1, 0.0, 1.35]      # its point in frame 6 (default: roof, centreline, mid-wheelbase)
+    correvit_position_m = [0.1, 1.0, 1.35]  # the Correvit's point (default: right flank, mid-wheelbase)
+    laser_positions_m = [[0, -0.4, 0], [0, 0.4, 0], [0, -0.4, 2.7], [0, 0.4, 2.7]]  # rl rr fl fr
     [imu]                                   # optional: where the inertial unit is
     position_m = [0.0, 0.0, 0.0]            # in frame 6
     axes = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]   # rows: the unit's x, y, z in frame 6 (ISO 8855)
@@ -34,6 +36,7 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     file = "kc.toml"                        # vehicle.tables' TOML format, and/or one CSV per table:
     front_left.camber = { csv = "fl_camber.csv", units = "deg" }
     [aero]                                  # optional
+    file = "aero.csv"                       # beta_deg, cx, cy, cz, cl, cm, cn (default: a saloon's)
     rho_kg_m3 = 1.225
     area_m2 = 2.0
     length_m = 2.70
@@ -62,7 +65,7 @@ import numpy as np
 
 from ..model.files import read_toml
 from ..model.tree import ModelError
-from .aero import Aerodynamics, AeroError, reference_point
+from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
 from .sensors import SensorSuite, fitted_suite
@@ -148,7 +151,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
             raise VehicleError(f"{where}: {k!r} must be {what}; got {data[k]!r}")
     geometry = _geometry(data, where)
     tables = _tables(data.get("tables", {}), geometry, path)
-    aero = _aero(data.get("aero", {}), geometry, where)
+    aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
     a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True)
     known = _parameters(data.get("known", {}), names, where, "known", complete=False)
@@ -159,9 +162,9 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
             known[bar] = 0.0
             a_priori[bar] = 0.0
     fitted = _sensors(data.get("sensors", {}), where)
-    gnss = fitted.pop("gnss_position")
-    if gnss is not None:
-        geometry = dataclasses.replace(geometry, gnss_position=gnss)
+    points = {k: fitted.pop(k) for k in ("gnss_position", "correvit_position", "laser_positions")}
+    geometry = dataclasses.replace(geometry, **{k: v for k, v in points.items() if v is not None})
+    _check_points(geometry, where)
     if not fitted["lasers"]:
         missing = [n for n in ("K15", "K24", "K33", "K42") if n not in known]
         if missing:
@@ -183,7 +186,8 @@ def _sensors(t: dict, where: str) -> dict:
     """[sensors]: cameras, lasers, correvit (true: fitted, the default) and gnss_position_m (where the GNSS/INS
     velocity is measured when there is no Correvit). The inertial unit, the dynamometric wheels and the
     steering-wheel encoder are always fitted."""
-    _keys(t, {"cameras", "lasers", "correvit", "gnss_position_m"}, where, "[sensors]")
+    _keys(t, {"cameras", "lasers", "correvit", "gnss_position_m", "correvit_position_m", "laser_positions_m"}, where,
+          "[sensors]")
     out: dict = {}
     for k in ("cameras", "lasers", "correvit"):
         v = t.get(k, True)
@@ -196,7 +200,30 @@ def _sensors(t: dict, where: str) -> dict:
                            "(the horizontal velocity then comes from the GNSS/INS), or remove it")
     out["gnss_position"] = None if gnss is None else tuple(float(x) for x in _vector(gnss, (3,), where,
                                                                                      "[sensors] gnss_position_m"))
+    c = t.get("correvit_position_m")
+    out["correvit_position"] = None if c is None else tuple(
+        float(x) for x in _vector(c, (3,), where, "[sensors] correvit_position_m"))
+    lasers = t.get("laser_positions_m")
+    out["laser_positions"] = None if lasers is None else tuple(
+        tuple(float(x) for x in row) for row in _vector(lasers, (4, 3), where,
+                                                        "[sensors] laser_positions_m (rear left, rear right, front "
+                                                        "left, front right)"))
     return out
+
+
+def _check_points(g: CarGeometry, where: str) -> None:
+    """Sensor points a car can carry: above the ground (x6 above the wheel centres' height minus the radius) and
+    within 3 m of O6."""
+    from .sensors import correvit_point, gnss_point, laser_point
+
+    ground = g.wheel_centre_height - g.wheel_radius
+    named = [("correvit_position_m", correvit_point(g)), ("gnss_position_m", gnss_point(g))]
+    named += [(f"laser_positions_m[{k}]", laser_point(g, k)) for k in range(4)]
+    for key, p in named:
+        if p[0] <= ground + 0.05 or float(np.linalg.norm(p)) > 3.0 + g.wheelbase:
+            raise VehicleError(f"{where}: [sensors] {key} = {list(p)} m is not on the car (x6 must be above the "
+                               f"ground, {ground + 0.05:.3g} m, and the point near the body); frame 6: x6 up, y6 "
+                               "right, z6 forward, origin on the rear axle")
 
 
 def _keys(table: dict, valid: set[str], where: str, section: str) -> None:
@@ -297,18 +324,48 @@ def _tables(t: dict, g: CarGeometry, path: Path) -> KinematicTables:
     return tables
 
 
-def _aero(t: dict, g: CarGeometry, where: str) -> Aerodynamics:
-    """The default coefficient tables (a saloon's) with the file's density, area and length, applied at this car's
-    reference point (mid-wheelbase, centreline, ground)."""
-    _keys(t, {"rho_kg_m3", "area_m2", "length_m"}, where, "[aero]")
+def _aero(t: dict, g: CarGeometry, path: Path) -> Aerodynamics:
+    """The file's density, area, length and coefficient tables (`file`: a CSV with columns beta_deg, cx, cy, cz,
+    cl, cm, cn; default: a saloon's), applied at this car's reference point (mid-wheelbase, centreline, ground)."""
+    where = str(path)
+    _keys(t, {"rho_kg_m3", "area_m2", "length_m", "file"}, where, "[aero]")
     d = Aerodynamics()
+    tables = _aero_tables(path.parent / str(t["file"]), where) if "file" in t else {}
     try:
         return Aerodynamics(rho=_number(t, "rho_kg_m3", where, "[aero]", d.rho),
                             area=_number(t, "area_m2", where, "[aero]", d.area),
                             length=_number(t, "length_m", where, "[aero]", d.length),
-                            point=tuple(float(x) for x in reference_point(g)))
+                            point=tuple(float(x) for x in reference_point(g)), **tables)
     except AeroError as exc:
         raise VehicleError(f"{where}: [aero]: {exc}") from None
+
+
+def _aero_tables(csv_path: Path, where: str) -> dict[str, np.ndarray]:
+    """beta (rad) and the six coefficients from a CSV: a header naming beta_deg, cx, cy, cz, cl, cm, cn (any order),
+    then one row per sideslip angle."""
+    import csv
+
+    names = ("beta_deg", *COEFFICIENTS)
+    try:
+        with csv_path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    except OSError as exc:
+        raise VehicleError(f"{where}: [aero] file {csv_path}: cannot read it ({exc.strerror})") from None
+    head = [c.strip() for c in rows[0]] if rows else []
+    missing = [n for n in names if n not in head]
+    if missing:
+        raise VehicleError(f"{where}: [aero] file {csv_path}, line 1: the header lacks {', '.join(missing)} (columns: "
+                           f"{', '.join(names)})")
+    cols = [head.index(n) for n in names]
+    data = []
+    for line, r in enumerate(rows[1:], start=2):
+        try:
+            data.append([float(r[i]) for i in cols])
+        except (ValueError, IndexError):
+            raise VehicleError(f"{where}: [aero] file {csv_path}, line {line}: expected numbers in every column, got "
+                               f"{r}") from None
+    a = np.asarray(data, dtype=float).reshape(-1, len(names))
+    return {"beta": np.radians(a[:, 0]), **{n: a[:, i + 1] for i, n in enumerate(COEFFICIENTS)}}
 
 
 def _parameter_names() -> dict[str, str]:

@@ -74,7 +74,9 @@ class CarGeometry:
       accelerations are those of the rear axle). imu_axes: rotation from frame 6 to the
       unit's axes, rows = the unit's x, y, z in frame 6 (default ISO 8855: x forward,
       y left, z up). gnss_position: the GNSS/INS velocity's point in frame 6, m (None: the roof
-      point `sensors.gnss_point` chooses). Used by sensor models, not by the dynamics.
+      point `sensors.gnss_point` chooses); correvit_position, laser_positions (rear left, rear right, front
+      left, front right): the Correvit's and the height lasers' points (None: `sensors.correvit_point` and
+      `sensors.laser_point` choose). Used by sensor models, not by the dynamics.
     """
 
     front: AxleGeometry = field(default_factory=_peugeot406_front)
@@ -84,6 +86,8 @@ class CarGeometry:
     imu_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
     gnss_position: tuple[float, float, float] | None = None  # a GNSS/INS antenna's point in frame 6 (sensors)
+    correvit_position: tuple[float, float, float] | None = None  # the Correvit's point in frame 6 (sensors)
+    laser_positions: tuple[tuple[float, float, float], ...] | None = None  # the four lasers' points, corner order
 
     def __post_init__(self) -> None:
         validate(self)

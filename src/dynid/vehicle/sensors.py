@@ -145,8 +145,11 @@ def _imu(g: CarGeometry) -> list[SensorChannel]:
 
 
 def correvit_point(g: CarGeometry) -> tuple[float, float, float]:
-    """The Correvit's mounting point in frame 6: right flank, mid-wheelbase, 0.1 m above the
-    wheel centres (chosen: an optical speed sensor on a bracket over the right doors)."""
+    """The Correvit's mounting point in frame 6: `geometry.correvit_position`, or by default right flank,
+    mid-wheelbase, 0.1 m above the wheel centres (chosen: an optical speed sensor on a bracket over the right
+    doors)."""
+    if g.correvit_position is not None:
+        return tuple(float(x) for x in g.correvit_position)
     return (g.wheel_centre_height + 0.1, g.rear.half_track + 0.25, 0.5 * (g.front.position + g.rear.position))
 
 
@@ -168,9 +171,11 @@ def _gnss(g: CarGeometry) -> list[SensorChannel]:
 
 
 def laser_point(g: CarGeometry, corner: int) -> tuple[float, float, float]:
-    """A laser height sensor's point in frame 6: 0.35 m inboard of the wheel centre, on the
-    axle line, at wheel-centre height (chosen: on the body beside the damper, seeing flat
-    ground inside the wheel track)."""
+    """A laser height sensor's point in frame 6: `geometry.laser_positions[corner]`, or by default 0.35 m
+    inboard of the wheel centre, on the axle line, at wheel-centre height (chosen: on the body beside the
+    damper, seeing flat ground inside the wheel track)."""
+    if g.laser_positions is not None:
+        return tuple(float(x) for x in g.laser_positions[corner])
     ax = g.axle(corner)
     return (g.wheel_centre_height, side(corner) * (ax.half_track - 0.35), ax.position)
 
@@ -444,6 +449,19 @@ def fitted_suite(geometry: CarGeometry | None = None, cameras: bool = True, lase
     return SensorSuite(tuple(out))
 
 
+def mounted(geometry: CarGeometry, suite: SensorSuite) -> CarGeometry:
+    """The geometry with the suite's own mounting points for the Correvit, the GNSS/INS and the height lasers
+    (a suite built for another geometry, or with points of its own, is measured where it is)."""
+    points: dict = {}
+    if "correvit_vx" in suite.names:
+        points["correvit_position"] = suite["correvit_vx"].mounting
+    if "gnss_vx" in suite.names:
+        points["gnss_position"] = suite["gnss_vx"].mounting
+    if all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS):
+        points["laser_positions"] = tuple(suite[f"laser_height_{t}"].mounting for t in CORNER_TAGS)
+    return replace(geometry, **points)
+
+
 def channel_names(truth: bool = False) -> tuple[str, ...]:
     """All logged channel names (without `time`), with the truth channels when asked."""
     names = paper_suite().names
@@ -535,5 +553,5 @@ def ideal_channels(
 
 __all__ = ["ACQUISITION_RATE", "CORNER_TAGS", "ISO_AXES", "SAMPLE_TIME", "WFT_COMPONENTS", "SensorChannel",
            "SensorError", "SensorSuite", "channel_names", "correvit_point", "corrupt", "fitted_suite", "gnss_point",
-           "ideal_channels",
-           "laser_point", "lowpass", "paper_suite", "sample_and_hold", "truth_channel_names", "truth_channel_units"]
+           "ideal_channels", "laser_point", "lowpass", "mounted", "paper_suite", "sample_and_hold",
+           "truth_channel_names", "truth_channel_units"]

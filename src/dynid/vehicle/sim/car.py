@@ -388,12 +388,14 @@ class SimulationResult:
         return car_identification(model, self.q, self.qd, self.qdd, self.wheel_wrenches, self.aero_wrench(),
                                   spin_torques, base=base)
 
-    def ideal_channels(self) -> dict[str, np.ndarray]:
+    def ideal_channels(self, suite=None) -> dict[str, np.ndarray]:
+        """The noise-free value of every channel, at the suite's mounting points (default: the car's)."""
         from ...dynamics import Model
-        from ..sensors import ideal_channels
+        from ..sensors import ideal_channels, mounted
 
+        g = self.sim.geometry if suite is None else mounted(self.sim.geometry, suite)
         return ideal_channels(Model(self.tree), self.q, self.qd, self.qdd, self.wheel_wrenches,
-                              self.steering_wheel[:, 0], self.spin_torques, self.sim.geometry)
+                              self.steering_wheel[:, 0], self.spin_torques, g)
 
     @property
     def dampers(self) -> np.ndarray:

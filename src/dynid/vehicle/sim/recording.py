@@ -33,7 +33,7 @@ def channels(result, seed: int | None = 0, noise: bool = True, truth: bool = Fal
              suite: SensorSuite | None = None) -> dict[str, tuple[str, np.ndarray]]:
     """name -> (unit, values (N,)) of the logged channels, `time` first (s)."""
     suite = paper_suite(result.sim.geometry) if suite is None else suite
-    ideal = result.ideal_channels()
+    ideal = result.ideal_channels(suite)
     meas = suite.measure(ideal, np.random.default_rng(seed), noise=noise)
     out: dict[str, tuple[str, np.ndarray]] = {"time": ("s", result.time)}
     out.update({c.name: (c.unit, meas[c.name]) for c in suite})
