@@ -65,8 +65,9 @@ def car_system(
     Z, sim = None, traj
     if instruments is not None:
         sim = _simulated_suspensions(model.tree, traj, coarse, eq, instruments)
-        sim_eq = car_identification(model, _every(sim, k).q, _every(sim, k).qd, _every(sim, k).qdd,
-                                    coarse.wheel_wrenches, aw, base=base, regressor=regressor)
+        sc = _every(sim, k)
+        sim_eq = car_identification(model, sc.q, sc.qd, sc.qdd, coarse.wheel_wrenches, aw, base=base,
+                                    regressor=regressor)
         Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate)
     rows, n = len(eq.rows), W.shape[0]
     step = k * (int(np.prod(rest)) if rest else 1)

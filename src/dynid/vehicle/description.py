@@ -22,6 +22,8 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     [wheels]
     radius_m = 0.317                        # unloaded
     centre_height_m = 0.0                   # x6 of the wheel centres at design (0: O6 at their height)
+    [steering]                              # optional
+    ratio = 16.0                            # steering-wheel angle / front-wheel steer (the default tables')
     [sensors]                               # optional: what is not fitted (default: the paper's suite)
     cameras = false                         # clearances from damper potentiometers, steer and camber from tables
     lasers = false                          # heights from the loads: kt must be [known]
@@ -69,17 +71,25 @@ from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
 from .sensors import SensorSuite, fitted_suite
-from .tables import CORNER_KEYS, TABLE_NAMES, KinematicTableError, KinematicTables, default_tables, load_table_csv
+from .tables import (
+    CORNER_KEYS,
+    STEERING_RATIO,
+    TABLE_NAMES,
+    KinematicTableError,
+    KinematicTables,
+    default_tables,
+    load_table_csv,
+)
 from .tables import load_tables as load_table_file
 from .template import CORNERS, DAMPERS, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
-SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "imu": dict, "sensors": dict,
-            "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
+SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "steering": dict, "imu": dict,
+            "sensors": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
 REQUIRED = ("name", "axles", "wheels", "a_priori")
 # plausible passenger-car ranges: outside them the number is a unit slip or a typo, not a car
-RANGES = {"wheelbase_m": (1.5, 4.5), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
+RANGES = {"wheelbase_m": (1.5, 4.5), "ratio": (8.0, 30.0), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
           "centre_height_m": (-0.3, 0.3), "kingpin_offset_m": (0.0, 0.2), "rho_kg_m3": (0.5, 1.5),
           "area_m2": (0.5, 10.0), "length_m": (1.0, 6.0)}
 ANGLE_LIMIT_DEG = 45.0  # a damper or kingpin axis tilted further is no longer a suspension axis
@@ -102,6 +112,7 @@ class Vehicle:
     truth: ParameterSet | None
     known: dict[str, float] = field(default_factory=dict)
     source: str = ""
+    steering_ratio: float = STEERING_RATIO
     cameras: bool = True
     lasers: bool = True
     correvit: bool = True
@@ -150,7 +161,10 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
             what = "a table [" + k + "]" if kind is dict else "a string"
             raise VehicleError(f"{where}: {k!r} must be {what}; got {data[k]!r}")
     geometry = _geometry(data, where)
-    tables = _tables(data.get("tables", {}), geometry, path)
+    steering = data.get("steering", {})
+    _keys(steering, {"ratio"}, where, "[steering]")
+    ratio = _number(steering, "ratio", where, "[steering]", STEERING_RATIO)
+    tables = _tables(data.get("tables", {}), geometry, ratio, path)
     aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
     a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True)
@@ -179,7 +193,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, **fitted)
+                   truth, known, where, ratio, **fitted)
 
 
 def _sensors(t: dict, where: str) -> dict:
@@ -299,10 +313,10 @@ def _vector(v, shape: tuple[int, ...], where: str, what: str) -> np.ndarray:
     return a
 
 
-def _tables(t: dict, g: CarGeometry, path: Path) -> KinematicTables:
+def _tables(t: dict, g: CarGeometry, ratio: float, path: Path) -> KinematicTables:
     where = str(path)
     _keys(t, {"file", *CORNER_KEYS}, where, "[tables]")
-    tables = default_tables(g)
+    tables = default_tables(g, ratio)
     try:
         if "file" in t:
             tables = load_table_file(path.parent / str(t["file"]), defaults=tables)

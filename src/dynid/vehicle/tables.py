@@ -209,10 +209,11 @@ ACKERMANN = 0.25  # rad^-1: the inner front wheel steers by delta + 0.25 delta^2
 
 
 @functools.lru_cache(maxsize=8)  # immutable, and every segment of a test asks for them
-def default_tables(geometry: CarGeometry | None = None) -> KinematicTables:
+def default_tables(geometry: CarGeometry | None = None, ratio: float = STEERING_RATIO) -> KinematicTables:
     """Tables of a 406-class saloon (MacPherson front, multi-link rear), smooth in both inputs.
 
-    Front: rack ratio 16 with Ackermann, 0.1° toe-in, bump steer -0.3°/100 mm, camber -0.5°
+    Front: steering ratio `ratio` (steering-wheel angle / mean front-wheel steer, 16) with Ackermann,
+    0.1° toe-in, bump steer -0.3°/100 mm, camber -0.5°
     and -1.3°/100 mm, plus the camber a steered wheel takes from the kingpin inclination and
     caster of `geometry`; anti-dive caster +1°/100 mm. Rear: 0.15° toe-in, +0.2°/100 mm
     toe-in in bump, camber -1° and -1.6°/100 mm, wind-up -0.5°/100 mm. Kingpin: zero.
@@ -224,7 +225,7 @@ def default_tables(geometry: CarGeometry | None = None) -> KinematicTables:
     for k in range(4):
         s, front = side(k), k >= 2
         if front:
-            z = H / STEERING_RATIO
+            z = H / ratio
             steer = z - s * ACKERMANN * z**2 + s * (d(0.1) - d(3.0) * U)
             sig, tau = g.front.kingpin_inclination, g.front.caster
             camber = d(-0.5) + d(-13.0) * U - 2.0 * U**2 - s * np.sin(tau) * np.sin(steer) \

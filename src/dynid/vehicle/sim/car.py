@@ -200,9 +200,11 @@ class CarSimulator:
         aero: Aerodynamics | None = None,
         tires: MagicFormula | tuple[MagicFormula, ...] | None = None,
         settings: SimSettings | None = None,
+        steering_ratio: float = STEERING_RATIO,
     ) -> None:
         self.geometry = CarGeometry() if geometry is None else geometry
-        self.tables = default_tables(self.geometry) if tables is None else tables
+        self.steering_ratio = float(steering_ratio)  # the driver robot's: steering-wheel angle per wheel angle
+        self.tables = default_tables(self.geometry, self.steering_ratio) if tables is None else tables
         self.aero = Aerodynamics() if aero is None else aero
         tires = MagicFormula() if tires is None else tires
         self.tires = tuple(tires) if isinstance(tires, tuple) else (tires,) * 4
@@ -245,7 +247,7 @@ class CarSimulator:
 
     # ----- packing ------------------------------------------------------------------------
     def car_constants(self) -> dict[str, float]:
-        return {"mass": self.mass, "radius": self.radius, "ratio": STEERING_RATIO,
+        return {"mass": self.mass, "radius": self.radius, "ratio": self.steering_ratio,
                 "wheelbase": self.geometry.wheelbase, "understeer": self.bicycle.understeer, "mu": self.mu,
                 "bicycle": self.bicycle}
 
@@ -253,7 +255,7 @@ class CarSimulator:
         s, a = self.settings, self.aero
         p = np.zeros(K.NPAR)
         p[K.P_R0], p[K.P_G], p[K.P_MASS] = self.radius, -self.tree.gravity[2], self.mass
-        p[K.P_RATIO], p[K.P_WB], p[K.P_US] = STEERING_RATIO, self.geometry.wheelbase, self.bicycle.understeer
+        p[K.P_RATIO], p[K.P_WB], p[K.P_US] = self.steering_ratio, self.geometry.wheelbase, self.bicycle.understeer
         p[K.P_KP], p[K.P_KI], p[K.P_TDMAX], p[K.P_TDMIN] = s.kp, s.ki, s.drive_max, s.drive_min
         p[K.P_WS], p[K.P_ZS] = 2 * np.pi * s.steering_frequency, s.steering_damping
         p[K.P_RHO], p[K.P_AREA], p[K.P_LEN], p[K.P_VMIN] = a.rho, a.area, a.length, a.min_speed
