@@ -102,7 +102,7 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
     return JointTest(spec.name, float(fs), q, tau)
 
 
-def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None
+def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
                       ) -> tuple[dict[str, np.ndarray], dict[str, float], float]:
     """The sensor suite's channels of one logger file on one uniform clock, in the file's units (views, no copy
     of a long record, when the file's own clock is uniform), with the factor of each to SI; and the sample rate.
@@ -112,7 +112,7 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     line, sample and time, and jitter or holes are resampled onto a uniform clock, the check reported through
     `progress`. Channels at several rates (an MDF4 file's channel groups, a CSV's sparse columns) are
     interpolated (cubic) onto the clock of the fastest, over the span every channel covers and the test's
-    start..end; the rate chosen is reported."""
+    start..end; the rate chosen is reported. suite: the sensors fitted (default: the config's vehicle's)."""
     from ..io import DataError, align, format_of, unit_factor
     from ..io.align import InterpSpec
     from ..vehicle.description import load_vehicle
@@ -121,7 +121,8 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
 
     say = progress or (lambda _m: None)
     path = spec.files["channels"]
-    wanted = required_channels(spin=False, suite=load_vehicle(cfg.vehicle or "peugeot406").suite)
+    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite  # the sensors fitted
+    wanted = required_channels(spin=False, suite=suite)
     renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
     in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
     names = list(dict.fromkeys(in_file.values()))
@@ -266,7 +267,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
                           equations=equations)[0]
 
     def segments_of(spec: TestSpec, report: bool = True):
-        channels, factors, fs = load_car_channels(cfg, spec, say if report else None)
+        channels, factors, fs = load_car_channels(cfg, spec, say if report else None, suite)
         N = len(next(iter(channels.values())))
         b = border_samples(fs, cond.cutoff, cond.order)
         step = max(int(settings.segment * fs), 4 * b)
