@@ -27,10 +27,12 @@ Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
 from __future__ import annotations
 
 import ast
+import difflib
 import math
 import operator
 import os
 import tomllib
+from collections.abc import Sequence
 from pathlib import Path
 
 from ..atomic import write_atomic
@@ -50,6 +52,27 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception] = 
         raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
+
+
+def did_you_mean(name: object, valid: Sequence[str]) -> str:
+    """The hint " did you mean 'x'?" for the nearest of `valid` (difflib), or "" when none is close."""
+    close = difflib.get_close_matches(str(name), list(valid), n=1)
+    return f" did you mean {close[0]!r}?" if close else ""
+
+
+def unknown_keys(keys: Sequence[object], valid: Sequence[str], what: str = "key",
+                 notes: dict[str, str] | None = None) -> str:
+    """The message for keys that are not among `valid`: "unknown key 'know'; did you mean 'known'? valid keys:
+    ...". `notes` explain keys valid elsewhere (a robot's key in a car's section) instead of a guess."""
+    notes = notes or {}
+    whats = {"quantity": "quantities"}.get(what, what + "s")
+    listing = f"valid {whats}: {', '.join(sorted(valid))}"
+    hints = [(k, f" ({notes[k]})" if k in notes else did_you_mean(k, valid)) for k in keys]
+    if len(hints) == 1:
+        k, hint = hints[0]
+        return f"unknown {what} {k!r}{';' + hint if hint.startswith(' did') else hint + ';'} {listing}"
+    items = ", ".join(f"{k!r}{' (' + hint.strip() + ')' if hint.startswith(' did') else hint}" for k, hint in hints)
+    return f"unknown {whats} {items}; {listing}"
 
 
 def load_tree(path: str | os.PathLike[str]) -> Tree:

@@ -93,7 +93,7 @@ from typing import Any
 import numpy as np
 
 from ..model import ModelError
-from ..model.files import parse_number, read_toml
+from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
 from .robot import Conditioning
 
 
@@ -175,27 +175,6 @@ _CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_p
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
 _FOR_A_CAR = "a car's key: [model] template or vehicle"
-
-
-def did_you_mean(name: object, valid: Sequence[str]) -> str:
-    """The hint " did you mean 'x'?" for the nearest of `valid` (difflib), or "" when none is close."""
-    close = difflib.get_close_matches(str(name), list(valid), n=1)
-    return f" did you mean {close[0]!r}?" if close else ""
-
-
-def unknown_keys(keys: Sequence[object], valid: Sequence[str], what: str = "key",
-                 notes: dict[str, str] | None = None) -> str:
-    """The message for keys that are not among `valid`: "unknown key 'know'; did you mean 'known'? valid keys:
-    ...". `notes` explain keys valid elsewhere (a robot's key in a car's section) instead of a guess."""
-    notes = notes or {}
-    whats = {"quantity": "quantities"}.get(what, what + "s")
-    listing = f"valid {whats}: {', '.join(sorted(valid))}"
-    hints = [(k, f" ({notes[k]})" if k in notes else did_you_mean(k, valid)) for k in keys]
-    if len(hints) == 1:
-        k, hint = hints[0]
-        return f"unknown {what} {k!r}{';' + hint if hint.startswith(' did') else hint + ';'} {listing}"
-    items = ", ".join(f"{k!r}{' (' + hint.strip() + ')' if hint.startswith(' did') else hint}" for k, hint in hints)
-    return f"unknown {whats} {items}; {listing}"
 
 
 def _keys(table: dict, valid: Sequence[str], where: str, err: Err, notes: dict[str, str] | None = None) -> None:

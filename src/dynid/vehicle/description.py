@@ -56,7 +56,6 @@ valid one.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import os
 from dataclasses import dataclass, field
@@ -65,7 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model.files import read_toml
+from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import ModelError
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
@@ -241,11 +240,9 @@ def _check_points(g: CarGeometry, where: str) -> None:
 
 
 def _keys(table: dict, valid: set[str], where: str, section: str) -> None:
-    for k in table:
-        if k not in valid:
-            near = difflib.get_close_matches(k, sorted(valid), n=1)
-            hint = f"; did you mean {near[0]!r}?" if near else ""
-            raise VehicleError(f"{where}: {section}: unknown key {k!r}{hint} valid keys: {', '.join(sorted(valid))}")
+    unknown = [k for k in table if k not in valid]
+    if unknown:
+        raise VehicleError(f"{where}: {section}: {unknown_keys(unknown, sorted(valid))}")
 
 
 def _number(table: dict, key: str, where: str, section: str, default: float | None = None) -> float:
@@ -394,9 +391,9 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
     out: dict[str, float] = {}
     for k, v in t.items():
         if k not in names:
-            near = difflib.get_close_matches(k, sorted(names), n=1)
-            hint = f"; did you mean {near[0]!r}?" if near else ""
-            raise VehicleError(f"{where}: [{section}] unknown parameter {k!r}{hint} (the paper's 48: XX6..M6, ks9 h9 "
+            hint = did_you_mean(k, sorted(names))
+            raise VehicleError(f"{where}: [{section}] unknown parameter {k!r}{';' + hint if hint else ''} (the paper's "
+                               "48: XX6..M6, ks9 h9 "
                                "fs9 off9 (K9 FV9 FS9 OFF9), XX14 YY14 ZZ14 M14, kt15 (K15), ..., karf, karr)")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise VehicleError(f"{where}: [{section}] {k} = {v!r} must be a finite number (SI units)")
