@@ -44,7 +44,7 @@ def write_hour(folder: Path, minutes: float, fmt: str) -> Path:
     reps = int(np.ceil(minutes * 60 / 12))
     t = np.arange(len(t0) * reps) / 625.0
     units = paper_suite().units
-    rec = Recording.from_channels([Channel(k, units[k], np.tile(v, reps), t) for k, v in ch.items()])
+    rec = Recording.from_channels([Channel(k, units[k], np.tile(v, reps), t) for k, v in ch.items() if k in units])
     return write_recording(rec, folder / f"hour.{fmt}")
 
 
