@@ -193,6 +193,10 @@ def test_cli_vehicle_commands(tmp_path, capsys):
     assert main(["vehicle", "show", str(out)]) == 0
     text = capsys.readouterr().out
     assert "Estate 2.0" in text and "physically realisable" in text and "32 identified" in text
+    assert "height lasers, cameras" in text
+    assert main(["vehicle", "show", "compact_suv"]) == 0  # its tire stiffness known: no lasers to identify it
+    text = capsys.readouterr().out
+    assert "no height lasers" in text and "28 identified of 28 not known" in text
     bad = write(tmp_path, SHIPPED.replace("[wheels]", "[wheel]"), "bad.toml")
     assert main(["demo", "--vehicle", str(bad), "--out", str(tmp_path / "demo")]) == 2
     assert "did you mean 'wheels'" in capsys.readouterr().err

@@ -166,7 +166,12 @@ def show_vehicle(v) -> str:
            "Frame 6 (chassis): x6 up, y6 right, z6 forward; origin on the rear axle, midway between the rear wheel "
            "centres, at their height.",
            f"Wheelbase {g.wheelbase:.4g} m; half tracks {g.front.half_track:.4g} m front, {g.rear.half_track:.4g} m "
-           f"rear; wheel radius {g.wheel_radius:.4g} m; inertial unit at {list(g.imu_position)} m in frame 6.", ""]
+           f"rear; wheel radius {g.wheel_radius:.4g} m; inertial unit at {list(g.imu_position)} m in frame 6.",
+           "Sensors: inertial unit, dynamometric wheels, steering-wheel angle, "
+           + ("Correvit" if v.correvit else "GNSS/INS velocity (no Correvit)") + ", "
+           + ("height lasers" if v.lasers else "no height lasers (heights from the wheel loads through the known kt)")
+           + ", " + ("cameras" if v.cameras else "damper potentiometers (no cameras: steering and camber from the "
+                     "tables)") + ".", ""]
     lines = format_table(tree).splitlines()
     out.append(f"{lines[0]}  role")
     for fr, line in zip(tree.frames, lines[1:], strict=True):
