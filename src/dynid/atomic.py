@@ -46,3 +46,23 @@ def write_atomic(path: str | os.PathLike[str], data: str | bytes) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
     return Path(path)
+
+
+class OutputError(OSError):
+    """An output that cannot be written where asked (the message says where and why)."""
+
+
+def output_folder(path: str | os.PathLike[str]) -> Path:
+    """The output folder, created if needed and checked writable BEFORE a run computes anything: a folder
+    that cannot take the results must not cost the user the whole run first."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a folder; give --out a folder (new or existing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write there ({exc.strerror or exc}); give --out a folder you can "
+                          "write") from None
+    return out

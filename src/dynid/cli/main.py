@@ -90,10 +90,13 @@ def _print_run(run, validation_title: str) -> None:
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from ..atomic import output_folder
     from ..pipeline.config import load_config
     from ..pipeline.run import identify, write_outputs
 
-    run = identify(load_config(args.config), progress=_say)
+    cfg = load_config(args.config)
+    output_folder(args.out)
+    run = identify(cfg, progress=_say)
     _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
     files = write_outputs(run, Path(args.out), f"Identification of {run.model.name}", progress=_say)
     print(f"\nwrote {', '.join(str(f) for f in files)}")
@@ -104,6 +107,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
+    from ..atomic import output_folder
     from ..pipeline.demo import run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
@@ -111,6 +115,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     out = Path(args.out)
+    if args.vehicle:  # a bad vehicle file is refused before the output folder is made
+        from ..vehicle.description import load_vehicle
+
+        load_vehicle(args.vehicle)
+    output_folder(out)
     run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar,
                    vehicle=args.vehicle)
     _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| "
@@ -130,6 +139,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dynid", description=__doc__)
     parser.add_argument("--version", action="version", version=f"dynid {__version__}")
+    parser.add_argument("--debug", action="store_true", help="on an unexpected error, show the whole traceback")
     sub = parser.add_subparsers(dest="command", required=True)
     model = sub.add_parser("model", help="describe and generate models of a tree")
     msub = model.add_subparsers(dest="model_command", required=True)
@@ -151,9 +161,10 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("config", help="identification config (TOML)")
     ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
     ident.set_defaults(func=cmd_identify)
-    from . import simulate_cmds, symbolic_cmds, vehicle_cmds
+    from . import model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
 
     symbolic_cmds.register(msub)
+    model_io_cmds.register(msub)
     simulate_cmds.register(sub)
     vehicle_cmds.register(sub)
     return parser
@@ -161,12 +172,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _user_errors() -> tuple[type[Exception], ...]:
     """The errors that report bad input (files, configs, data) rather than a bug: one line, no traceback."""
+    from ..atomic import OutputError
     from ..estimation.errors import IdentificationError
     from ..io.errors import DataError
     from ..signals.errors import SignalError
     from ..symbolic.expr import SymbolicError
+    from ..vehicle.sim.recording import OutputError as SimulationOutputError
 
-    return ModelError, DataError, SignalError, IdentificationError, SymbolicError
+    return ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationOutputError
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -183,6 +196,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("dynid: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        if args.debug:
+            raise
+        print("dynid: error: out of memory; shorten the test (start, end), decimate more, or use a machine with more "
+              "memory (--debug shows where)", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file system refusal (full disk, read-only, a folder where a file is wanted)
+        if args.debug:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"dynid: error: {where}{exc.strerror or exc} (--debug shows where)", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug of dynid's: one line and the way to the traceback, never a raw one
+        if args.debug:
+            raise
+        print(f"dynid: internal error: {type(exc).__name__}: {str(exc)[:300]}; rerun with --debug for the "
+              "traceback and report it with the command you ran", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover

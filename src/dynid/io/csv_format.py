@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..atomic import atomic_path
+from ..textfiles import encoding_problem
 from ._table import TIME_NAMES, Column, Grid, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording
@@ -105,6 +106,16 @@ def read_csv(
     label = str(path)
     if decimal not in (".", ","):
         raise FileFormatError(f"{label}: decimal must be '.' or ',', not {decimal!r}", source=label)
+    try:
+        return _read_csv(path, label, fs, time, delimiter, decimal, units_row, units_in_header, encoding)
+    except UnicodeDecodeError as exc:
+        utf8 = encoding.lower().replace("_", "-") in ("utf-8", "utf-8-sig", "utf8")
+        why = encoding_problem(path) if utf8 else f"not {encoding} text ({exc.reason})"
+        raise FileFormatError(f"{label}: {why}", source=label) from None
+
+
+def _read_csv(path: Path, label: str, fs: float | None, time: str | None, delimiter: str | None, decimal: str,
+              units_row: bool | None, units_in_header: bool, encoding: str) -> Recording:
     with open(path, encoding=encoding, newline="") as fh:
         lines = _numbered_lines(fh, 1)
         metadata: dict[str, str] = {"format": "csv"}

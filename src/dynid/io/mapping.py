@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..textfiles import TextEncodingError, read_utf8
 from .align import KINDS, Aligned, InterpSpec, align
 from .checks import check_channel, locate
 from .errors import DataError, MappingError, UnitOverrideWarning, UnknownUnitError
@@ -101,9 +102,11 @@ class ChannelMap:
         """From a TOML file, its `[channels]` table (or the whole file when `table` is None)."""
         path = Path(path)
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
+            data = tomllib.loads(read_utf8(path))
         except OSError as exc:
             raise MappingError(f"{path}: cannot read the channel map ({exc.strerror})", source=str(path)) from None
+        except TextEncodingError as exc:
+            raise MappingError(f"{path}: the channel map is {exc}", source=str(path)) from None
         except tomllib.TOMLDecodeError as exc:
             raise MappingError(f"{path}: not valid TOML: {exc}", source=str(path)) from None
         if table is not None:

@@ -127,18 +127,42 @@ def _known_text() -> str:
     return "; ".join(parts)
 
 
-def unit_factor(unit: str, *, channel: str | None = None, source: str | None = None) -> tuple[float, str]:
+# what a quantity's SI unit is called in an error message
+_KIND = {"rad": "an angle", "rad/s": "an angular rate", "rad/s^2": "an angular acceleration", "m": "a length",
+         "m/s": "a speed", "m/s^2": "an acceleration", "N": "a force", "N*m": "a torque", "kg": "a mass",
+         "s": "a time", "Hz": "a frequency", "Pa": "a pressure", "1": "a pure number"}
+
+
+def unit_factor(
+    unit: str | None, *, channel: str | None = None, source: str | None = None, expect: tuple[str, ...] | None = None
+) -> tuple[float, str]:
     """(factor, SI unit) such that value_SI = factor * value for a value in `unit`.
+
+    expect: the SI units the quantity may have (e.g. ("rad", "m") for a joint position); a unit of another
+    dimension, or no unit at all (None or ""), is then an error: taking degrees for radians, or a speed for
+    a position, would give a wrong answer without a word.
 
     Raises `UnknownUnitError` naming the channel, the unit, close spellings and every
     known unit.
     """
+    if expect is not None and (unit is None or (isinstance(unit, str) and not unit.strip())) and "1" not in expect:
+        kinds = " or ".join(f"{_KIND.get(e, e)} ({e})" for e in expect)
+        raise UnknownUnitError(
+            f"{_where(source, channel)}no unit: the file gives none and the config sets none; this channel is "
+            f"{kinds}: give its unit in the file's header (name [unit]) or in the config's [channels] "
+            "(unit = \"deg\", ...)", unit=None, source=source, channel=channel)
     if not isinstance(unit, str):
         raise UnknownUnitError(
             f"{_where(source, channel)}unit must be a string, not {unit!r}", unit=None, source=source, channel=channel
         )
     found = _lookup(unit)
     if found is not None:
+        if expect is not None and found[1] not in expect:
+            kinds = " or ".join(f"{_KIND.get(e, e)} ({e})" for e in expect)
+            raise UnknownUnitError(
+                f"{_where(source, channel)}unit {unit!r} is {_KIND.get(found[1], found[1])} ({found[1]}), but this "
+                f"channel is {kinds}: fix the unit in the file's header or the config's [channels]",
+                unit=unit, source=source, channel=channel)
         return found
     close = difflib.get_close_matches(normalize_unit(unit), list(_TABLE), n=3, cutoff=0.6)
     hint = f" Did you mean {', '.join(repr(c) for c in close)}?" if close else ""
@@ -152,7 +176,8 @@ def unit_factor(unit: str, *, channel: str | None = None, source: str | None = N
 
 
 def to_si(
-    values: ArrayLike, unit: str, *, channel: str | None = None, source: str | None = None
+    values: ArrayLike, unit: str | None, *, channel: str | None = None, source: str | None = None,
+    expect: tuple[str, ...] | None = None,
 ) -> tuple[NDArray[np.float64], str]:
     """Convert values in `unit` to SI.
 
@@ -161,6 +186,7 @@ def to_si(
     values : array (...), in `unit`.
     unit : a unit string as written in a file ("deg", "km/h", "N·m", "g", ...).
     channel, source : names used in the error message only.
+    expect : the SI units the quantity may have (`unit_factor`).
 
     Returns
     -------
@@ -171,7 +197,7 @@ def to_si(
     UnknownUnitError
         the unit is not in the table (the message lists the known ones).
     """
-    factor, si = unit_factor(unit, channel=channel, source=source)
+    factor, si = unit_factor(unit, channel=channel, source=source, expect=expect)
     out = np.array(values, dtype=np.float64)  # a copy: the caller's array is never scaled in place
     if factor != 1.0:
         out *= factor

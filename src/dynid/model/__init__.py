@@ -17,6 +17,7 @@ from .tree import (
     ModelError,
     Tree,
 )
+from .urdf import UrdfError, export_urdf, import_urdf, read_urdf
 
 EXAMPLES = ("puma560", "tx40", "floating_tree")
 
@@ -30,6 +31,6 @@ def example_path(name: str) -> Path:
 
 __all__ = [
     "COUPLING_KINDS", "EXAMPLES", "FIXED", "INERTIAL", "JOINT_TERMS", "PRISMATIC", "REVOLUTE",
-    "Coupling", "Frame", "ModelError", "Tree", "Violation", "check_physical", "example_path", "load_tree", "save_tree",
-    "tree_from_dict", "tree_to_toml",
+    "Coupling", "Frame", "ModelError", "Tree", "UrdfError", "Violation", "check_physical", "example_path",
+    "export_urdf", "import_urdf", "load_tree", "read_urdf", "save_tree", "tree_from_dict", "tree_to_toml",
 ]

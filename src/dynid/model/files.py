@@ -21,6 +21,9 @@
     [labels]
     K9 = "ks9"
 
+    [joints]                        # frame number -> joint name (a URDF's), for data and exports
+    1 = "shoulder_pan_joint"
+
 Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
 """
 
@@ -36,10 +39,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..atomic import write_atomic
+from ..textfiles import TextEncodingError, read_utf8
 from .tree import COUPLING_KINDS, INERTIAL, JOINT_TERMS, Coupling, Frame, ModelError, Tree
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
-_TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels"}
+_TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints"}
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
 
 
@@ -47,9 +51,11 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception] = 
     """The table of a TOML file; a missing file or bad TOML raises `error` naming the file (and the line)."""
     path = Path(path)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(read_utf8(path))
     except OSError as exc:
         raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    except TextEncodingError as exc:
+        raise error(f"{path}: the {what} is {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
 
@@ -86,6 +92,19 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         raise ModelError(f"{source}: unknown top-level key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
     if "frames" not in data:
         raise ModelError(f"{source}: no 'frames' table (rows [j, ant, sigma, gamma, b, alpha, d, theta, r])")
+    for key, kind, example in (("frames", list, "frames = [[1, 0, 0, 0, 0, 0, 0, 0, 0]]"),
+                               ("parameters", dict, "[parameters.1] with ZZ = 0.3"),
+                               ("couplings", list, "[[couplings]] tables"), ("labels", dict, "[labels] K9 = \"ks9\""),
+                               ("known", list, "known = [\"IA1\"]"), ("gravity", list, "gravity = [0, 0, -9.81]"),
+                               ("name", str, "name = \"my robot\"")):
+        if key in data and not isinstance(data[key], kind):
+            raise ModelError(f"{source}: {key} = {_short(data[key])}; expected {example}")
+    if not all(isinstance(c, dict) for c in data.get("couplings", [])):
+        raise ModelError(f"{source}: couplings: each is a [[couplings]] table with name, kind, coeffs")
+    if not all(isinstance(k, str) for k in data.get("known", [])):
+        raise ModelError(f"{source}: known = {_short(data['known'])}; expected names: known = [\"IA1\"]")
+    if not all(isinstance(v, str) for v in data.get("labels", {}).values()):
+        raise ModelError(f"{source}: [labels] values are names, like K9 = \"ks9\"")
     frames = []
     for i, row in enumerate(data["frames"], start=1):
         if not isinstance(row, list) or len(row) != len(COLUMNS):
@@ -134,6 +153,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             raise ModelError(f"{where}: unknown key(s) {sorted(extra)}")
         if c["kind"] not in COUPLING_KINDS:
             raise ModelError(f"{where}: kind {c['kind']!r} must be one of {COUPLING_KINDS}")
+        if not isinstance(c["coeffs"], dict) or not isinstance(c["name"], str):
+            raise ModelError(f"{where}: name is a string and coeffs a table of joint = coefficient, like "
+                             "coeffs = { 27 = 1.0, 36 = -1.0 }")
         coeffs = {}
         for k, v in c["coeffs"].items():
             if not k.isdigit():
@@ -143,6 +165,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         if "value" in c:
             values[c["name"]] = parse_number(c["value"], f"{where} value")
 
+    joint_names = _joint_names(data.get("joints", {}), len(frames), source)
     gravity = data.get("gravity", [0.0, 0.0, -9.81])
     if not isinstance(gravity, list) or len(gravity) != 3:
         raise ModelError(f"{source}: gravity must be a list of 3 numbers")
@@ -156,9 +179,33 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             known=frozenset(data.get("known", [])),
             labels=dict(data.get("labels", {})),
             gravity=tuple(parse_number(g, f"{source}: gravity") for g in gravity),
+            joint_names=joint_names,
         )
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
+
+
+def _joint_names(table: object, n: int, source: str) -> dict[int, str]:
+    """The [joints] table: frame number -> joint name, each frame and each name at most once."""
+    if not isinstance(table, dict):
+        raise ModelError(f"{source}: [joints] must be a table of frame number = \"joint name\", like 1 = \"joint1\"")
+    out: dict[int, str] = {}
+    seen: dict[str, int] = {}
+    for key, name in table.items():
+        where = f"{source}: [joints] {key}"
+        if not key.strip().isdigit():
+            raise ModelError(f"{where}: keys are frame numbers (1..{n}), like 1 = \"joint1\"")
+        j = int(key)
+        if not 1 <= j <= n:
+            raise ModelError(f"{where}: frame {j} does not exist (the table has frames 1..{n})")
+        if not isinstance(name, str) or not name:
+            raise ModelError(f"{where}: the joint name must be a non-empty string, got {name!r}")
+        if name in seen:
+            raise ModelError(f"{where}: {name!r} already names frame {seen[name]}")
+        if j in out:
+            raise ModelError(f"{where}: frame {j} is named twice")
+        out[j], seen[name] = name, j
+    return out
 
 
 def save_tree(tree: Tree, path: str | os.PathLike[str]) -> None:
@@ -187,6 +234,8 @@ def tree_to_toml(tree: Tree) -> str:
                   f"coeffs = {{ {coeffs} }}", f"value = {_fmt(tree.values.get(c.name, 0.0))}"]
     if tree.labels:
         lines += ["", "[labels]"] + [f"{k} = {_q(v)}" for k, v in tree.labels.items()]
+    if tree.joint_names:
+        lines += ["", "[joints]"] + [f"{j} = {_q(v)}" for j, v in sorted(tree.joint_names.items())]
     return "\n".join(lines) + "\n"
 
 
@@ -209,14 +258,29 @@ def _fmt(v: float) -> str:
 def parse_number(v: object, where: str) -> float:
     if isinstance(v, bool):
         raise ModelError(f"{where}: expected a number, got {v!r}")
-    if isinstance(v, int | float):
-        return float(v)
-    if isinstance(v, str):
-        try:
-            return float(_eval(ast.parse(v.strip(), mode="eval").body))
-        except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError):
-            pass
-    raise ModelError(f"{where}: expected a number or arithmetic on numbers and pi, got {v!r}")
+    x = None
+    try:
+        if isinstance(v, int | float):
+            x = float(v)
+        elif isinstance(v, str) and len(v) <= _MAX_EXPRESSION:  # a bound: ast recursion and huge literals
+            x = float(_eval(ast.parse(v.strip(), mode="eval").body))
+    except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError, OverflowError, RecursionError,
+            MemoryError):
+        x = None
+    if x is not None and not math.isfinite(x):
+        raise ModelError(f"{where}: {_short(v)} is not a finite number")
+    if x is None:
+        raise ModelError(f"{where}: expected a number or arithmetic on numbers and pi (at most {_MAX_EXPRESSION} "
+                         f"characters), got {_short(v)}")
+    return x
+
+
+_MAX_EXPRESSION = 200
+
+
+def _short(v: object) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else f"{text[:40]}... ({len(text)} characters)"
 
 
 def _eval(node: ast.AST) -> float:

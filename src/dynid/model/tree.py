@@ -74,7 +74,9 @@ class Tree:
     frames: rows for j = 1..n in order; joint_terms[j]: the joint terms declared for
     frame j (subset of JOINT_TERMS); values: parameter name -> value (missing = 0);
     known: names whose value is taken as known rather than identified;
-    labels: name -> the template's own label (e.g. K9 -> ks9) for reports.
+    labels: name -> the template's own label (e.g. K9 -> ks9) for reports;
+    joint_names: frame number -> the name of its joint in another description (a URDF's
+    joint names, kept so that data columns and exports can be matched by name).
     """
 
     name: str
@@ -85,6 +87,7 @@ class Tree:
     known: frozenset[str] = frozenset()
     labels: dict[str, str] = field(default_factory=dict)
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    joint_names: dict[int, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -192,6 +195,20 @@ class Tree:
             f"parameters are named like {', '.join(self.parameter_names[:12])}, ..."
         )
 
+    def frame_of(self, joint: str | int) -> int:
+        """Frame number of a joint given by its name (the `[joints]` table) or by its number."""
+        if isinstance(joint, int) and not isinstance(joint, bool) and 1 <= joint <= self.n:
+            return joint
+        for j, name in self.joint_names.items():
+            if name == joint:
+                return j
+        from difflib import get_close_matches
+
+        close = get_close_matches(str(joint), list(self.joint_names.values()), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        named = ", ".join(list(self.joint_names.values())[:8]) or "none"
+        raise ModelError(f"model {self.name!r} has no joint {joint!r}{hint} (named joints: {named})")
+
     def inertial_block(self, X: np.ndarray | None = None) -> np.ndarray:
         """The 10 inertial parameters of every frame, (n+1, 10); row 0 is the base (zero)."""
         X = self.parameters if X is None else np.asarray(X, dtype=float)
@@ -278,3 +295,12 @@ def _validate(tree: Tree) -> None:
             raise ModelError(f"{where}: parameter {k} = {v} is not a finite number")
     if len(tree.gravity) != 3:
         raise ModelError(f"{where}: gravity must have 3 components")
+    seen_names: dict[str, int] = {}
+    for j, name in tree.joint_names.items():
+        if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n:
+            raise ModelError(f"{where}: joint name {name!r} given for frame {j!r}, which does not exist (1..{n})")
+        if not isinstance(name, str) or not name:
+            raise ModelError(f"{where}, frame {j}: the joint name must be a non-empty string, got {name!r}")
+        if name in seen_names:
+            raise ModelError(f"{where}: frames {seen_names[name]} and {j} are both named {name!r}")
+        seen_names[name] = j

@@ -387,10 +387,20 @@ def _channels(raw: dict, is_car: bool, err: Err) -> dict[str, ChannelSpec]:
             names = [names] if isinstance(names, str) else None
         if not isinstance(names, list) or not names or not all(isinstance(c, str) for c in names):
             raise err(where, f"{inner[0]} = {spec[inner[0]]!r}; expected {expected}")
+        twice = sorted({c for c in names if names.count(c) > 1})
+        if twice:
+            raise err(where, f"channel {twice[0]!r} is listed twice; each joint reads its own channel")
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
         channels[q] = ChannelSpec(tuple(names), unit)
+    if is_car:  # two sensors read from one logger channel: a copy-paste slip, never a car's wiring
+        seen: dict[str, str] = {}
+        for q, c in channels.items():
+            if c.channels[0] in seen:
+                raise err(f"[channels.{q}]", f"channel = {c.channels[0]!r} is also [channels.{seen[c.channels[0]]}]'s;"
+                          " each sensor has its own channel")
+            seen[c.channels[0]] = q
     return channels
 
 

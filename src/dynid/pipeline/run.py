@@ -88,8 +88,17 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
     arrays = {}
     for quantity, chans in channels.items():
         unit = cfg.channels[quantity].unit
-        arrays[quantity] = np.stack([to_si(c.values, unit or c.unit, channel=c.name)[0] for c in chans], axis=1)
+        expect = ("rad", "m") if quantity == "q" else ("N*m", "N")  # a revolute or a prismatic joint's
+        arrays[quantity] = np.stack([to_si(c.values, unit or c.unit, channel=c.name, source=str(spec.files[quantity]),
+                                           expect=expect)[0] for c in chans], axis=1)
     q, tau = arrays["q"], arrays["tau"]
+    shapes = {"q": (n, q.shape[1]), "q_offset": (n,), "tau": (n, tau.shape[1])}
+    for key, m in cfg.transmission.items():  # q = Nq q_file + q_offset, tau = Nt tau_file: n joints
+        if m.shape != shapes[key]:
+            raise ConfigError(f"{cfg.path}: [transmission] {key} is {' x '.join(map(str, m.shape))}; it must be "
+                              f"{' x '.join(map(str, shapes[key]))} ({n} joints of the model"
+                              + ("" if key == "q_offset" else f", {shapes[key][1]} channels of {key} in [channels]")
+                              + ")")
     if "q" in cfg.transmission:
         q = q @ cfg.transmission["q"].T
     if "q_offset" in cfg.transmission:
@@ -181,9 +190,11 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     al = align([InterpSpec(n, s.channels[n]) for s in streams for n in s.channels], t=clock, source=rec.label,
                gap_factor=None)
     values, factors = {}, {}
+    expected = suite.units  # the sensor's own unit: its dimension is what the channel must have
     for q, name in in_file.items():
         unit = renamed.get(q, (None, None))[1] or rec.channel(name).unit
-        values[q], factors[q] = al[name], unit_factor(unit, channel=name, source=str(path))[0]
+        expect = (unit_factor(expected[q])[1],) if q in expected else None
+        values[q], factors[q] = al[name], unit_factor(unit, channel=name, source=str(path), expect=expect)[0]
     fs = 1.0 / float(np.median(np.diff(al.t)))
     return values, factors, fs
 

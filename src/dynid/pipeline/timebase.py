@@ -61,7 +61,7 @@ def read_test_file(path: Path, fs: float | None, test: str, config: Path,
     """The file (only `channels`, when given), and whether its samples carry their own time stamps (a time
     column)."""
     try:
-        return read_recording(path, fs=fs, channels=channels), fs is None
+        rec, timed = read_recording(path, fs=fs, channels=channels), fs is None
     except FileFormatError as exc:
         if fs is None:
             if "no time column" in str(exc):
@@ -69,9 +69,14 @@ def read_test_file(path: Path, fs: float | None, test: str, config: Path,
                                       f"{config}", source=str(path)) from None
             raise
         try:  # a time column: used, and fs checked against it by the caller
-            return read_recording(path, channels=channels), True
+            rec, timed = read_recording(path, channels=channels), True
         except DataError:
             raise exc from None
+    for ch in rec.channels.values():
+        if ch.values.size < 2:  # a header and no data: nothing to filter or differentiate
+            raise FileFormatError(f"{path}: channel {ch.name!r} has {ch.values.size} sample(s); test {test!r} needs "
+                                  "a record (is the file empty or cut short?)", source=str(path))
+    return rec, timed
 
 
 def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,

@@ -66,6 +66,7 @@ import numpy as np
 
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import ModelError
+from ..textfiles import encoding_problem
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
@@ -362,6 +363,8 @@ def _aero_tables(csv_path: Path, where: str) -> dict[str, np.ndarray]:
             rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
     except OSError as exc:
         raise VehicleError(f"{where}: [aero] file {csv_path}: cannot read it ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise VehicleError(f"{where}: [aero] file {csv_path}: {encoding_problem(csv_path)}") from None
     head = [c.strip() for c in rows[0]] if rows else []
     missing = [n for n in names if n not in head]
     if missing:

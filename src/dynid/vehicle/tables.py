@@ -40,6 +40,7 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 
 from ..model.files import read_toml
 from ..model.tree import ModelError
+from ..textfiles import encoding_problem
 from .geometry import CarGeometry, side
 from .table_poly import pack, table_joints
 from .template import CORNERS, base
@@ -251,10 +252,12 @@ def load_table_csv(path: str | os.PathLike[str], name: str, corner: str, units: 
     """One table from a CSV (two columns travel,value, or a grid: see the module doc)."""
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
             rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
     except OSError as exc:
         raise KinematicTableError(f"{path}: cannot read the table ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise KinematicTableError(f"{path}: {encoding_problem(path)}") from None
     if len(rows) < 5:
         raise KinematicTableError(f"{path}: a table needs a header and at least 4 rows")
     body = rows[1:]

@@ -58,6 +58,10 @@ def check_output(path: str | os.PathLike[str], format: str | None = None) -> tup
     if fmt not in FORMATS:
         raise OutputError(f"{path}: cannot tell the file format; use --format one of {', '.join(FORMATS)} "
                           f"or an extension {', '.join(FORMATS.values())}")
+    implied = {v: k for k, v in FORMATS.items()}.get(path.suffix.lower())
+    if implied is not None and implied != fmt:  # Parquet bytes in a .csv file would fool every reader
+        raise OutputError(f"{path}: --format {fmt} but the extension says {implied}; give the file the extension "
+                          f"{FORMATS[fmt]} or drop --format")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise OutputError(f"{path}: the folder {folder} does not exist; create it or choose another --out")

@@ -1,0 +1,42 @@
+"""Text files (configs, model and vehicle files, CSV): UTF-8, with a byte-order mark accepted; any other
+encoding is named in a one-line error with the line and the fix, never a UnicodeDecodeError from inside."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+
+
+class TextEncodingError(ValueError):
+    """A text file that is not UTF-8: the message says where and what to do (the caller adds the file)."""
+
+
+def read_utf8(path: str | os.PathLike[str]) -> str:
+    """The text of a small file (a config, a model, a table). OSError passes through; a file that is not
+    UTF-8 raises TextEncodingError."""
+    raw = Path(path).read_bytes()
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise TextEncodingError(encoding_problem(path)) from None
+
+
+def encoding_problem(path: str | os.PathLike[str]) -> str:
+    """Why a file failed to decode as UTF-8, and the fix (read again in binary: only on the error path)."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+        if head.startswith(_UTF16_BOMS):
+            return "UTF-16 text (it starts with a UTF-16 byte-order mark); save it as UTF-8"
+        if b"\x00" in head:
+            return "binary data, not text (a NUL byte in its first 4 kB); is it the right file, or another format?"
+        fh.seek(0)
+        for number, line in enumerate(fh, start=1):
+            try:
+                line.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                byte = line[exc.start]
+                return (f"line {number}: byte 0x{byte:02x} is not UTF-8 (Latin-1 or Windows-1252 text, e.g. a '°' "
+                        "or 'µ'?); save the file as UTF-8 (iconv -f latin1 -t utf-8 IN > OUT)")
+    return "not UTF-8 text; save it as UTF-8"
