@@ -270,6 +270,9 @@ MODEL_CASES = [
     ("coupling on a missing joint", lambda t: t + '\n[[couplings]]\nname = "c"\nkind = "FV"\ncoeffs = { 9 = 1.0 }\n',
      ["9"]),
     ("UTF-16 model", "utf16", ["model.toml", "UTF-16"]),
+    ("a tree too large to analyse", lambda t: 'name = "chain"\nframes = [' + ", ".join(
+        f"[{j}, {j - 1}, 0, 0, 0, {j % 2 * 1.5707963}, 0.1, 0, 0.05]" for j in range(1, 10001)) + "]\n",
+     ["10000 equations", "GiB", "smaller tree"]),
 ]
 
 
@@ -321,7 +324,8 @@ def test_output_in_a_read_only_folder_is_refused_before_computing(base, tmp_path
     (["--out", "x.xlsx"], ["x.xlsx", "format"]),
     (["--out", "missing/x.csv"], ["missing", "does not exist"]),
     (["--format", "csv", "--out", "."], ["is a folder", "file name"]),
-], ids=["format against extension", "unknown extension", "folder missing", "a folder for a file"])
+    (["--duration", "1e6", "--out", "x.csv"], ["1e+06 s", "GiB", "at most"]),
+], ids=["format against extension", "unknown extension", "folder missing", "a folder for a file", "too long"])
 def test_bad_simulate_output(tmp_path, capsys, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
     code, err = run(capsys, "simulate", "static", "--duration", "1", *args)

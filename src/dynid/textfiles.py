@@ -4,6 +4,7 @@ encoding is named in a one-line error with the line and the fix, never a Unicode
 from __future__ import annotations
 
 import os
+import tomllib
 from pathlib import Path
 
 _UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
@@ -40,3 +41,16 @@ def encoding_problem(path: str | os.PathLike[str]) -> str:
                 return (f"line {number}: byte 0x{byte:02x} is not UTF-8 (Latin-1 or Windows-1252 text, e.g. a '°' "
                         "or 'µ'?); save the file as UTF-8 (iconv -f latin1 -t utf-8 IN > OUT)")
     return "not UTF-8 text; save it as UTF-8"
+
+
+def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -> dict:
+    """The table of a TOML file; a missing file or bad TOML raises `error` naming the file (and the line)."""
+    path = Path(path)
+    try:
+        return tomllib.loads(read_utf8(path))
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    except TextEncodingError as exc:
+        raise error(f"{path}: the {what} is {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML: {exc}") from None

@@ -161,11 +161,12 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("config", help="identification config (TOML)")
     ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
     ident.set_defaults(func=cmd_identify)
-    from . import model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
+    from . import excite_cmds, model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
 
     symbolic_cmds.register(msub)
     model_io_cmds.register(msub)
     simulate_cmds.register(sub)
+    excite_cmds.register(sub)
     vehicle_cmds.register(sub)
     return parser
 

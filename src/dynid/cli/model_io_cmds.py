@@ -100,7 +100,7 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
         return _standard(table, tree, str(p))
     from ..model.files import parse_number, read_toml
 
-    data = read_toml(p, "parameter file")
+    data = read_toml(p, "parameter file", ModelError)
     if "frames" in data:  # a whole model file: its values
         from ..model.files import tree_from_dict
 

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..model.tree import PRISMATIC, REVOLUTE, Tree
+from ..model.tree import PRISMATIC, REVOLUTE, ModelError, Tree
+from ..resources import memory_budget
 from .regressor import regressor, resolve_cols, resolve_rows
 
 Array = np.ndarray
@@ -87,6 +88,12 @@ def base_parameters(
     R, C = resolve_rows(tree, rows), resolve_cols(tree, cols)
     if samples is None:
         samples = max(40, 3 * len(C) // max(1, len(R)) + 20)
+    need = 2 * samples * len(R) * len(C) * 8  # W and its scaled copy; the QR works in place on the copy
+    if need > memory_budget():
+        raise ModelError(
+            f"the base-parameter analysis of {tree.name!r} ({len(R)} equations x {len(C)} parameters, {samples} "
+            f"random states) needs {need / 2**30:.1f} GiB, more than half this machine's memory; analyse it by "
+            "parts (rows=, cols=) or describe a smaller tree")
     q, qd, qdd = random_states(tree, samples, seed)
     W = np.asarray(regressor(tree, q, qd, qdd, rows=R, cols=C)).reshape(-1, len(C))
     norms = np.linalg.norm(W, axis=0)

@@ -34,30 +34,16 @@ import difflib
 import math
 import operator
 import os
-import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 
 from ..atomic import write_atomic
-from ..textfiles import TextEncodingError, read_utf8
+from ..textfiles import read_toml
 from .tree import COUPLING_KINDS, INERTIAL, JOINT_TERMS, Coupling, Frame, ModelError, Tree
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
 _TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints"}
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
-
-
-def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception] = ModelError) -> dict:
-    """The table of a TOML file; a missing file or bad TOML raises `error` naming the file (and the line)."""
-    path = Path(path)
-    try:
-        return tomllib.loads(read_utf8(path))
-    except OSError as exc:
-        raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
-    except TextEncodingError as exc:
-        raise error(f"{path}: the {what} is {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{path}: not valid TOML: {exc}") from None
 
 
 def did_you_mean(name: object, valid: Sequence[str]) -> str:
@@ -83,7 +69,7 @@ def unknown_keys(keys: Sequence[object], valid: Sequence[str], what: str = "key"
 
 def load_tree(path: str | os.PathLike[str]) -> Tree:
     """Read a model file; errors name the file, the frame and the field."""
-    return tree_from_dict(read_toml(path, "model file"), source=str(path))
+    return tree_from_dict(read_toml(path, "model file", ModelError), source=str(path))
 
 
 def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:

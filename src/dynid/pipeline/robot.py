@@ -75,21 +75,56 @@ def condition(test: JointTest, c: Conditioning) -> tuple[Array, Array, Array, Ar
     return q[keep], qd[keep], qdd[keep], test.tau[keep], keep
 
 
+# the full-rate regressor of one segment: W is built and decimated a segment at a time, so that memory
+# does not grow with the record (a 445 MB log once asked for one 12 GiB W)
+SEGMENT_BYTES = 128 * 2**20
+DECIMATION_ORDER = 8  # decimate_parallel's default, whose transient sets the segments' overlap
+
+
 def joint_system(
-    model: Model, test: JointTest, base: BaseParameters, c: Conditioning, rows: Sequence[int] | None = None
+    model: Model, test: JointTest, base: BaseParameters, c: Conditioning, rows: Sequence[int] | None = None,
+    segment_bytes: int = SEGMENT_BYTES,
 ) -> GroupedSystem:
-    """The decimated, per-joint identification rows of one test on the base parameters."""
+    """The decimated, per-joint identification rows of one test on the base parameters.
+
+    A record whose full-rate W would exceed `segment_bytes` is done in segments that overlap by the decimation
+    filter's transient: each segment's decimated rows are those a whole-record decimation gives, to the
+    filter's tail beyond the overlap (1e-9 of the signal), so the result does not depend on the segmenting."""
     rows = list(range(1, model.n + 1)) if rows is None else list(rows)
     q, qd, qdd, tau, keep = condition(test, c)
-    W = np.ascontiguousarray(model.regressor(q, qd, qdd, rows=rows, cols=list(base.columns)))
     Y = tau[:, np.array(rows) - 1]
     t = (np.arange(test.q.shape[0])[keep] / test.fs)
-    # decimate W, Y and the speeds with the same filter, so that the speed test sees the decimated samples
-    Wd, Yd = decimate_parallel(W, Y, c.decimate, test.fs)
-    speed, _ = decimate_parallel(qd, qd[:, 0], c.decimate, test.fs)  # the speeds as the columns of one row
-    td = t[:: int(np.prod(c.decimate))][: Wd.shape[0]]
+    D = int(np.prod(c.decimate))
+    n = q.shape[0]
+    length = max(D, segment_bytes // (8 * len(rows) * len(base.columns)) // D * D)  # samples, a multiple of D
+    pad = 0 if n <= length else _decimation_transient(test.fs, c.decimate)
+    Wd_parts, Yd_parts, speed_parts = [], [], []
+    for start in range(0, n, length):
+        end = min(n, start + length)
+        lo, hi = max(0, start - pad), min(n, end + pad)  # lo = start - pad stays on the decimation grid (pad % D == 0)
+        W = np.ascontiguousarray(model.regressor(q[lo:hi], qd[lo:hi], qdd[lo:hi], rows=rows, cols=list(base.columns)))
+        # decimate W, Y and the speeds with the same filter, so that the speed test sees the decimated samples
+        Wd, Yd = decimate_parallel(W, Y[lo:hi], c.decimate, test.fs)
+        del W
+        speed, _ = decimate_parallel(qd[lo:hi], qd[lo:hi, 0], c.decimate, test.fs)  # speeds as one row's columns
+        kept = slice((start - lo) // D, -(-(end - lo) // D))  # output k is input lo + k D
+        Wd_parts.append(Wd[kept])
+        Yd_parts.append(Yd[kept])
+        speed_parts.append(speed[kept])
+    Wd, Yd, speed = (np.concatenate(p) for p in (Wd_parts, Yd_parts, speed_parts))
+    td = t[::D][: Wd.shape[0]]
     parts = []
     for i, j in enumerate(rows):
         ok = np.abs(speed[:, j - 1]) >= c.min_speed.get(j, 0.0)
         parts.append(GroupedSystem(Wd[ok, i], Yd[ok, i], np.full(int(ok.sum()), f"joint{j}"), td[ok]))
     return GroupedSystem.stack(parts)
+
+
+def _decimation_transient(fs: float, factors: Sequence[int]) -> int:
+    """Input samples over which a decimation's zero-phase filters still weigh the record's end (1e-9 of the
+    weight), each stage's transient at its own rate, rounded up to a multiple of the total factor."""
+    D, pad, rate, before = int(np.prod(factors)), 0, fs, 1
+    for f in factors:
+        pad += border_samples(rate, 0.8 * rate / (2.0 * f), DECIMATION_ORDER, tol=1e-9) * before + f * before
+        rate, before = rate / f, before * f
+    return -(-pad // D) * D

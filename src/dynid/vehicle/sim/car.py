@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ...model.tree import PRISMATIC, Tree
+from ...resources import memory_budget
 from ...symbolic import numba_backend as nb
 from ...symbolic.expr import ZERO, add, cross
 from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
@@ -300,6 +301,11 @@ class CarSimulator:
         man = pack(m, self.car_constants())
         s = self.settings
         N = round(dur / s.dt) + 1
+        need = 3 * N * (3 * 42 + 4 * 6 + K.NREC) * 8  # the record, then the sensor channels and the file's copy
+        if need > memory_budget():
+            raise SimulationError(f"{m.name}: {dur:g} s at {1 / s.dt:g} Hz needs {need / 2**30:.1f} GiB, more than "
+                                  f"half this machine's memory; simulate at most "
+                                  f"{dur * memory_budget() / need:.0f} s per file")
         y = self.initial_state(m.speed) if y0 is None else np.array(y0, dtype=float)
         RQ, RQD, RQDD = np.zeros((N, 42)), np.zeros((N, 42)), np.zeros((N, 42))
         RW, RR = np.zeros((N, 4, 6)), np.zeros((N, K.NREC))
