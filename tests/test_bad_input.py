@@ -270,6 +270,10 @@ MODEL_CASES = [
     ("coupling on a missing joint", lambda t: t + '\n[[couplings]]\nname = "c"\nkind = "FV"\ncoeffs = { 9 = 1.0 }\n',
      ["9"]),
     ("UTF-16 model", "utf16", ["model.toml", "UTF-16"]),
+    ("negative mass", R("M = 2.0", "M = -2.0"), ["[parameters.2]", "M = -2", "a mass"]),
+    ("negative moment of inertia", R("M = 2.0", "M = 2.0\nZZ = -0.1"), ["ZZ = -0.1", "moment of inertia"]),
+    ("negative viscous friction", R("M = 2.0", "M = 2.0\nFV = -1.0"), ["FV = -1", "friction"]),
+    ("a length in the wrong unit", R('"pi/2", 0.3', '"pi/2", 1e8'), ["frame 2", "column d", "metres"]),
     ("a tree too large to analyse", lambda t: 'name = "chain"\nframes = [' + ", ".join(
         f"[{j}, {j - 1}, 0, 0, 0, {j % 2 * 1.5707963}, 0.1, 0, 0.05]" for j in range(1, 10001)) + "]\n",
      ["10000 equations", "GiB", "smaller tree"]),

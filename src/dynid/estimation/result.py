@@ -110,6 +110,15 @@ class IdentificationResult:
         return float(self.values[self.index(name)])
 
     @property
+    def full_covariance(self) -> np.ndarray:
+        """(p, p) covariance over every parameter in ``names`` order (zero rows and columns for known ones)."""
+        names = list(self.names)
+        cov = np.zeros((len(names), len(names)))
+        idx = [names.index(n) for n in self.estimated_names]
+        cov[np.ix_(idx, idx)] = self.covariance
+        return cov
+
+    @property
     def estimates(self) -> dict[str, float]:
         """``{name: value}`` of every parameter."""
         return {n: float(v) for n, v in zip(self.names, self.values, strict=True)}

@@ -12,6 +12,12 @@ belongs to a physical body if and only if
 
 (1)-(3) together are equivalent to a positive definite pseudo-inertia matrix. The
 estimation layer uses this check on identified values, the vehicle layer on its sets.
+
+A robot's joint terms add: rotor inertia IA, viscous FV and Coulomb FS friction are >= 0
+(`check_joint_terms`; couplings of those kinds too). On a regrouped (base) set only some
+conditions can be read directly (`check_base_singletons`): those on a base parameter that is a
+standard one alone; the rest needs a standard set reproducing the base values
+(`estimation.physical.feasible_standard`).
 """
 
 from __future__ import annotations
@@ -119,4 +125,50 @@ def check_physical(
     return out
 
 
-__all__ = ["Violation", "check_body", "check_physical", "inertia_at_com"]
+NONNEGATIVE_TERMS = {"IA": "rotor inertia", "FV": "viscous friction", "FS": "Coulomb friction"}
+"""Joint terms that a real drive cannot have negative (OFF and K may take either sign)."""
+
+_TERM = re.compile(r"^(IA|FV|FS)(\d+)$")
+
+
+def check_joint_terms(values: Mapping[str, float], couplings: Mapping[str, str] | None = None) -> list[Violation]:
+    """Violations of IAj, FVj, FSj >= 0 in a set of named values, and of the couplings named in
+    ``couplings`` ({name: kind}, kind IA, FV or FS; e.g. a motor's rotor inertia on two joints).
+    A coupling's body is reported as 0 (it belongs to no single body)."""
+    out = []
+    kinds = {n: k for n, k in (couplings or {}).items() if k in NONNEGATIVE_TERMS}
+    for name, v in values.items():
+        m = _TERM.match(name)
+        kind, body = (m.group(1), int(m.group(2))) if m else (kinds.get(name), 0)
+        if kind is None or float(v) >= 0.0:
+            continue
+        what = NONNEGATIVE_TERMS[kind]
+        out.append(Violation(body, what, f"{what} {name} = {float(v):.6g} is negative (a drive's {what} is >= 0)",
+                             {name: float(v)}))
+    return out
+
+
+def check_base_singletons(values: Mapping[str, float], couplings: Mapping[str, str] | None = None) -> list[Violation]:
+    """The necessary conditions readable on base parameters that are one standard parameter each (no
+    regrouping): Mj > 0; XXj, YYj, ZZj (moments about the axes of frame j, ∫(y²+z²)dm...) >= 0; the joint
+    terms of `check_joint_terms`. ``values``: only such base parameters."""
+    out = []
+    for name, v in values.items():
+        m = _NAME.match(name)
+        if m is None:
+            continue
+        kind, body = m.group(1), int(m.group(2))
+        if kind == "M" and not float(v) > 0.0:
+            out.append(Violation(body, "mass", f"body {body}: mass {name} = {float(v):.6g} kg is not positive",
+                                 {"M": float(v)}))
+        elif kind in ("XX", "YY", "ZZ") and float(v) < 0.0:
+            axis = kind[0].lower()
+            out.append(Violation(body, "positive definite",
+                                 f"body {body}: moment of inertia {name} = {float(v):.6g} kg·m² about the {axis} axis "
+                                 f"of frame {body} is negative (a moment about any axis is ∫ r² dm >= 0)",
+                                 {name: float(v)}))
+    return out + check_joint_terms(values, couplings)
+
+
+__all__ = ["NONNEGATIVE_TERMS", "Violation", "check_base_singletons", "check_body", "check_joint_terms",
+           "check_physical", "inertia_at_com"]

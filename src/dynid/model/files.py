@@ -72,6 +72,15 @@ def load_tree(path: str | os.PathLike[str]) -> Tree:
     return tree_from_dict(read_toml(path, "model file", ModelError), source=str(path))
 
 
+# a priori values that no physical body or joint can have below zero (moments of inertia about any axis,
+# mass, rotor inertia, friction); products of inertia, first moments and offsets take either sign
+_NONNEGATIVE = {"XX": "a moment of inertia", "YY": "a moment of inertia", "ZZ": "a moment of inertia",
+                "M": "a mass", "IA": "a rotor inertia", "FV": "viscous friction", "FS": "Coulomb friction"}
+# lengths beyond this are a unit slip, and they wreck the base-parameter analysis's precision (1e8 m once gave
+# 4 base parameters instead of 17)
+MAX_LENGTH_M = 1e4
+
+
 def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
     unknown = set(data) - _TOP_KEYS
     if unknown:
@@ -106,6 +115,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
                 vals[col] = v
             else:
                 vals[col] = parse_number(v, where)
+                if col in ("b", "d", "r") and abs(vals[col]) > MAX_LENGTH_M:
+                    raise ModelError(f"{where}: {vals[col]:g} m; lengths are in metres and a tree spans less than "
+                                     f"{MAX_LENGTH_M:g} m (a unit slip?)")
         frames.append(Frame(**vals))
 
     joint_terms: dict[int, tuple[str, ...]] = {}
@@ -127,6 +139,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             joint_terms[j] = terms
         for k, v in table.items():
             values[f"{k}{j}"] = parse_number(v, f"{where} {k}")
+            if k in _NONNEGATIVE and values[f"{k}{j}"] < 0:  # no body or joint has these below zero
+                raise ModelError(f"{where}: {k} = {values[f'{k}{j}']:g} < 0; {_NONNEGATIVE[k]} cannot be negative "
+                                 "(a sign or unit slip?)")
 
     couplings = []
     for i, c in enumerate(data.get("couplings", []), start=1):

@@ -171,6 +171,19 @@ def car_sections(names: list[str], tree) -> list[tuple[str, list[str]]]:
     return [(title, group) for title, group in sections if group]
 
 
+def masses_note(result, tree) -> str:
+    """What M6 is and how it makes the car's total mass (the demo prints a total beside a table that shows M6)."""
+    if "M6" not in result.names:
+        return ""
+    wheels = [f"M{w}" for w in WHEELS]
+    m_w = sum(result.value(n) if n in result.names else tree.values.get(n, 0.0) for n in wheels)
+    known = all(n not in result.estimated_names for n in wheels)
+    m6 = result.value("M6")
+    return (f"M6 = {m6:.1f} kg is the sprung mass: the chassis body alone, what the chassis equations weigh above the "
+            f"suspensions. The car's total mass adds the four wheels (unsprung, {m_w:.1f} kg, "
+            f"{'known from the bench' if known else 'estimated'}): {m6 + m_w:.1f} kg.\n")
+
+
 def consistency_text(result, base: BaseParameters, tree=None) -> str:
     """Whether the estimated chassis and wheels are physically realisable (only meaningful without regrouping);
     parameters fixed as known take the tree's values."""

@@ -34,7 +34,8 @@
     min_speed = { 1 = 0.05 }         # rows of joint 1 dropped where |qd1| < 0.05
 
     [identification]
-    method = "wls"                   # or "ols"
+    method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
+                                     # (needs pip install 'dynid[pc]'; docs/robot.md)
     known = { IA1 = 0.36 }           # fixed parameters: their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
@@ -219,9 +220,13 @@ def load_config(path: str | Path) -> IdentifyConfig:
     cond = Conditioning() if is_car else _robot_conditioning(data.get("conditioning", {}), err)
 
     method = ident.get("method", "wls")
-    if not isinstance(method, str) or method.lower() not in ("ols", "wls", "iv"):
-        raise err("[identification]", f"method = {method!r}; use \"ols\", \"wls\" or \"iv\" (a car)")
+    if not isinstance(method, str) or method.lower() not in ("ols", "wls", "iv", "wls-pc"):
+        raise err("[identification]", f"method = {method!r}; use \"ols\", \"wls\", \"iv\" (a car) or \"wls-pc\" "
+                  "(a robot)")
     method = method.lower()
+    if method == "wls-pc" and car is not None:
+        raise err("[identification]", "method = \"wls-pc\" (physically consistent WLS) is for a robot; a car's "
+                  "identification runs \"wls\", \"ols\" or \"iv\"")
     if method == "iv" and car is None:
         raise err("[identification]", "method = \"iv\" takes its instruments from a simulation of the car's "
                   "suspensions driven by the measured loads; a robot has none here: use \"wls\"")

@@ -14,6 +14,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -21,8 +22,9 @@ from threadpoolctl import threadpool_limits
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
 from ..estimation import IdentificationError, IdentificationResult, ols, propagate, relative_errors, wls
+from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
 from ..model import ModelError
-from ..report import Section, parameter_table, render_html, residual_histograms, validation_figure, validation_table
+from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, joint_system
@@ -44,6 +46,10 @@ class IdentificationRun:
     sections: list[tuple[str, list[str]]] | None = None  # how the parameter tables are grouped
     notes: str = ""  # printed under the tables (e.g. the physical-consistency verdict)
     not_excited: dict[str, list[str]] = field(default_factory=dict)  # kind -> groups whose Y is mostly noise
+    systems: dict[str, GroupedSystem] = field(default_factory=dict)  # test name -> its rows (the report's plots)
+    config: IdentifyConfig | None = None  # what was run (the report's traceability)
+    vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
+    consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -53,9 +59,7 @@ class IdentificationRun:
         """Our estimate of each published quantity beside the published value (same method), and the gap in σ."""
         r = self.result
         names = list(r.names)
-        cov = np.zeros((len(names), len(names)))
-        idx = [names.index(n) for n in r.estimated_names]
-        cov[np.ix_(idx, idx)] = r.covariance
+        cov = r.full_covariance
         use_wls = r.method == "WLS"
         lines = [f"{'published':>10} {'ours':>12} {'ours %σ':>8} {'published':>12} {'pub. %σ':>8} {'gap/σ_pub':>9}  as"]
         for m in self.reference:
@@ -231,7 +235,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import CarConditioning, estimate_joints
-    from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint
+    from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint, masses_note
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
@@ -388,9 +392,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
                                  flag_percent=cfg.flag_percent)
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result) + "Physical consistency of the estimates: "
+        notes=sensors_note(vehicle) + offsets_note(result) + masses_note(result, tree)
+        + "Physical consistency of the estimates: "
         + consistency_text(result, base, tree))
     run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
+    run.systems, run.config, run.vehicle = {t.name: shown[t.name] for t in cfg.tests}, cfg, vehicle
     run.errors["direct"] = ident.relative_errors(result)
     if streams["validate"].n_rows:
         run.errors["cross"] = streams["validate"].relative_errors(result)
@@ -471,13 +477,22 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
     kw = dict(a_priori=a_priori, known=cfg.known or None, poor_factor=cfg.poor_factor)
+    structure = consistency_structure(model.tree, base)
+    fit = None
     try:
-        result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
-                  else ols(ident.W, ident.Y, names, **kw))
+        if cfg.method == "wls-pc":
+            fit = wls_pc(ident.W, ident.Y, ident.groups, names, structure, **kw)
+            result = fit.result
+        else:
+            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+                      else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
-    run = _validate(cfg, IdentificationRun(model, base, result, ident), systems)
+    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg), systems)
+    run.consistency = robot_consistency(result, structure, model.tree, fit)
+    run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
+        + run.consistency["text"]
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])
         run.reference, unmatched = match_reference(rows, base, cfg.reference.get("names", {}),
@@ -488,37 +503,129 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     return run
 
 
+def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
+    """What a robot's physical-consistency constraints need: K (base = K @ standard), each moving body's ten
+    parameters, the joint terms that must be >= 0. A body none of whose inertial parameters has any effect (all
+    eliminated) is left out: nothing the data say can make it inconsistent."""
+    from ..model.consistency import NONNEGATIVE_TERMS
+    from ..model.tree import FIXED, INERTIAL
+
+    names = tree.parameter_names
+    K = np.zeros((base.rank, len(names)))
+    K[np.arange(base.rank), list(base.columns)] = 1.0
+    if base.regrouped_columns:
+        K[:, list(base.regrouped_columns)] += base.beta
+    used = np.any(K != 0, axis=0)
+    bodies = {}
+    for f in tree.frames:
+        idx = tuple(tree.index[f"{p}{f.j}"] for p in INERTIAL)
+        if f.sigma != FIXED and used[list(idx)].any():
+            bodies[f.j] = idx
+    kinds = {c.name: c.kind for c in tree.couplings}
+    nonneg = tuple(i for i, n in enumerate(names) if kinds.get(n, n.rstrip("0123456789")) in NONNEGATIVE_TERMS)
+    return ConsistencyStructure(tuple(names), tuple(base.names), K, bodies, nonneg)
+
+
+def robot_consistency(result: IdentificationResult, structure: ConsistencyStructure, tree,
+                      fit: PhysicalFit | None = None) -> dict:
+    """A robot estimate's physical-consistency verdict, by the car's check (`check_physical`):
+    {"realisable": True, False or None (undecided), "checked_on", "violations": [{body, condition, message}],
+    "unchecked", "text"} (and "wls_pc": the constrained fit's summary).
+
+    With wls-pc: the standard set it found (its base values are the estimate). Otherwise the base estimate:
+    the conditions readable on base parameters that are one standard parameter each, then, with the pc extra
+    installed, the standard set of largest pseudo-inertia margin reproducing every base value (a witness when
+    realisable); without the extra, the bodies whose parameters regroup are named as not checked."""
+    from ..model.consistency import Violation, check_base_singletons, check_joint_terms, check_physical
+
+    couplings = {c.name: c.kind for c in tree.couplings}
+    bodies = sorted(structure.bodies)
+    unchecked: list[str] = []
+    if fit is not None:
+        checked_on = "the standard parameters found by wls-pc (their base values are the estimate)"
+        violations = check_physical(fit.standard, frames=bodies) + check_joint_terms(fit.standard, couplings)
+    else:
+        K, std = structure.base_map, structure.standard_names
+        single = {n: float(v) for n, v, row in zip(structure.base_names, result.values, K, strict=True)
+                  if np.count_nonzero(row) == 1 and n in std and row[std.index(n)] == 1.0}
+        violations = check_base_singletons(single, couplings)
+        checked_on = "the base parameters that are one standard parameter each"
+        try:
+            feas = feasible_standard(structure, dict(zip(result.names, (float(v) for v in result.values),
+                                                         strict=True)))
+        except IdentificationError:  # no pc extra: say what is left unchecked
+            unchecked = [f"body {j}: mass, inertia at the centre of mass, triangle inequalities (its parameters "
+                         "regroup)" for j in bodies if any(std[i] not in single for i in structure.bodies[j])]
+        else:
+            checked_on = "a standard set reproducing every base value (largest pseudo-inertia margin) and " \
+                + checked_on
+            if feas.realisable:
+                violations += check_physical(feas.standard, frames=bodies) + check_joint_terms(feas.standard,
+                                                                                                couplings)
+            elif not violations:
+                # what fails in the standard set closest to realisable (the binding bodies' own conditions)
+                worst = check_physical(feas.standard, frames=list(feas.tightest)) if feas.standard else []
+                violations.append(Violation(
+                    feas.tightest[0] if feas.tightest else 0, "pseudo-inertia",
+                    "no standard parameter set with these base values is physically realisable (largest "
+                    f"pseudo-inertia margin {feas.t:.3g}, bodies {', '.join(map(str, feas.tightest)) or '-'} "
+                    "binding): a mass, an inertia at a centre of mass or a triangle inequality fails whatever the "
+                    "regrouped parameters are" + (f"; in the set closest to realisable: {worst[0]}" if worst else "")
+                    + "; method = \"wls-pc\" gives the closest consistent estimate"))
+    realisable = None if unchecked and not violations else not violations
+    if violations:
+        text = "NOT physically realisable:\n" + "\n".join(f"  {v}" for v in violations)
+    elif realisable:
+        text = ("physically realisable (every body: mass > 0, inertia at the centre of mass positive definite, "
+                f"triangle inequalities hold; IA, FV, FS >= 0), checked on {checked_on}.")
+    else:
+        text = ("IA, FV, FS >= 0 and the moments readable on the base set hold; not checked on the regrouped "
+                "set (pip install 'dynid[pc]' for the check, or method = \"wls-pc\"):\n"
+                + "\n".join(f"  {u}" for u in unchecked))
+    return {"realisable": realisable, "checked_on": checked_on,
+            "violations": [{"body": v.body, "condition": v.condition, "message": v.message} for v in violations],
+            "unchecked": unchecked, "text": text, **({"wls_pc": fit.to_dict()} if fit is not None else {})}
+
+
 def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progress | None = None) -> list[Path]:
-    """results.json, the figures and report.html in `out`, each written atomically."""
+    """results.json, parameters.csv, validation.csv (the measured and predicted signals per test and equation),
+    engineering.csv (a car), the figures (PNG) and report.html (self-contained: the figures embedded) in `out`,
+    each written atomically; report.html last, so a report on disk always has its data beside it."""
+    from ..report.build import build_report
+
     say = progress or (lambda _msg: None)
     out.mkdir(parents=True, exist_ok=True)
     r = run.result
-    tables = run.summary()
-    say("drawing figures")
-    figs = []
-    for kind, sys in [("direct", run.identify)] + [("cross", s) for s in run.validate.values()]:
-        WX = sys.W @ r.values
-        figs.append((f"{kind} validation: Y and W X per equation", validation_figure(sys.Y, WX, sys.groups, kind)))
-    figs.append(("residuals of the identification tests",
-                 residual_histograms(run.identify.Y, run.identify.W @ r.values, run.identify.groups, "residuals")))
+    say("drawing figures and writing the report")
+    report = build_report(run, title)
     data = r.to_dict()
+    for p in data["parameters"]:  # the schema kept; each parameter gains its unit and 95 % interval
+        p.update(report.per_parameter.get(p["name"], {}))
     data["base_parameters"] = dict(zip(run.base.names, run.base.expressions, strict=True))
     if run.reference:
         data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value": m.row.wls
                               if r.method == "WLS" else m.row.ols, "ours": m.value(list(r.names), r.values)}
                              for m in run.reference]
-    written = [write_atomic(out / "results.json", json.dumps(data, indent=2, allow_nan=False, default=_json))]
-    for i, (_, png) in enumerate(figs, start=1):
-        written.append(write_atomic(out / f"figure{i}.png", png))
-    sections = [Section("Estimated base parameters", tables)]
-    if run.reference:
-        sections.append(Section("Comparison with the published identification", run.reference_table()))
-    sections += [
-                Section("Regrouping relations", str(run.base)),
-                Section("Validation: relative error ||Y - W X|| / ||Y||",
-                        validation_table(run.errors, run.not_excited), figs)]
-    written.append(write_atomic(out / "report.html", render_html(title, sections)))
+    if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
+        data["consistency"] = run.consistency
+    data.update(report.data)
+    text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)
+    written = [write_atomic(out / "results.json", text)]
+    for name, content in report.files.items():
+        written.append(write_atomic(out / name, content))
+    written.append(write_atomic(out / "report.html", report.html))
     return written
+
+
+def _finite(o: object) -> object:
+    """NaN and infinities as null (JSON has neither)."""
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_finite(v) for v in o]
+    if isinstance(o, float | np.floating) and not np.isfinite(o):
+        return None
+    return o
 
 
 def _json(o: object) -> object:
@@ -527,4 +634,5 @@ def _json(o: object) -> object:
     raise TypeError(f"cannot write {type(o).__name__} to JSON")
 
 
-__all__ = ["IdentificationRun", "ModelError", "identify", "load_joint_test", "write_outputs"]
+__all__ = ["IdentificationRun", "ModelError", "consistency_structure", "identify", "load_joint_test",
+           "robot_consistency", "write_outputs"]

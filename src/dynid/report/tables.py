@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -71,4 +72,18 @@ def validation_table(errors: Mapping[str, Mapping[str, float]],
     if any(marked.values()):
         lines.append("* the test barely moves this equation (RMS of Y below twice the identification's residual "
                      "RMS there): its relative error mostly compares noise with a small signal")
+    return "\n".join(lines)
+
+
+def consistency_section(verdict: Mapping[str, Any]) -> str:
+    """A robot's physical-consistency verdict for the report (as the car's, under the tables): the verdict,
+    then with wls-pc how much the fit worsened against plain WLS and which constraints are active."""
+    lines = [f"Physical consistency of the estimates: {verdict['text']}"]
+    pc = verdict.get("wls_pc")
+    if isinstance(pc, Mapping):
+        lines.append(
+            f"wls-pc: ||Y - W X||/||Y|| = {100 * pc['relative_residual']:.4g} % against plain WLS's "
+            f"{100 * pc['relative_residual_wls']:.4g} % ({pc['fit_worsening_percent']:+.3g} %), chi-square increase "
+            f"{pc['chi2_increase']:.4g}; active constraints: {', '.join(pc['active_constraints']) or 'none'}; "
+            f"standard deviations: {pc['std']}")
     return "\n".join(lines)

@@ -1,0 +1,372 @@
+"""Physically consistent weighted least squares (method "wls-pc") and the feasibility of a base estimate.
+
+The data identify base parameters b (q of them); whether a body is physically realisable is a property of
+its standard parameters s (p >= q), with ``b = K s`` (the regrouping of `dynamics.base`). So the decision
+variables are the standard parameters, and the estimate is the semidefinite program
+
+    min_s  (K s - b_w)ᵀ C_w⁻¹ (K s - b_w)
+    s.t.   J_j(s) - margin · I4  positive semidefinite      (each body j)
+           s_i >= 0                                         (rotor inertia IA, viscous FV, Coulomb FS)
+           (K s)_k = x_k                                    (base parameters declared known)
+
+with b_w, C_w = s_w² (W_pᵀ W_p)⁻¹ the WLS estimate and covariance (paper eq. (8)-(10), W_p the rows weighted
+by 1/σ_j). Up to a constant the objective is the WLS objective ||P (Y - W K s)||² / s_w²: the weights are
+WLS's, and the objective reads as a chi-square in the WLS's own metric (its increase over WLS is how many
+"σ²" the constraints cost). J_j is the 4x4 pseudo-inertia (Wensing, Kim, Slotine, "Linear matrix
+inequalities for physically consistent inertial parameter identification", IEEE RA-L 2017):
+
+    J = [[Σ, h], [hᵀ, m]],   Σ = tr(I)/2 · I3 - I,   h = (MX, MY, MZ),   m = M,
+
+I the inertia matrix about O_j in frame j (XX XY XZ; XY YY YZ; XZ YZ ZZ). J ⪰ 0 if and only if some
+non-negative mass distribution has these moments; J ≻ 0 is exactly `model.consistency.check_body`'s three
+conditions (M > 0, inertia at the centre of mass positive definite, strict triangle inequalities).
+
+Solved with cvxpy and Clarabel (interior point), an optional extra: ``pip install 'dynid[pc]'``.
+This module works on arrays and names (K, the positions of each body's ten parameters, the non-negative
+ones); `pipeline.run` builds them from a tree and its base parameters.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._checks import as_groups, group_rows, norm_ratio, prepare
+from .errors import IdentificationError
+from .lsq import LSQSolution
+from .quality import POOR_FACTOR
+from .result import IdentificationResult, build_result
+from .wls import SIGMA_FLOOR, wls
+
+MARGIN = 1e-6
+"""J_j ⪰ MARGIN · I4 (SI units: kg, kg·m, kg·m²) rather than J_j ⪰ 0.
+
+Why a margin: a solution on the boundary J ⪰ 0 is a degenerate body (a point, a rod, a plate) that
+`check_body` rightly calls not positive definite, and the solver meets its constraints only to its
+feasibility tolerance (Clarabel: 1e-8 on data equilibrated to O(1), i.e. about 1e-8 of the largest entry
+of J). Why this size: 1e-6 is two orders above that tolerance for a body of order 1 (kg, kg·m²), so the
+returned J is strictly positive definite and passes the check; and it means at least 1 mg of mass and
+∫ r_a² dm >= 1e-6 kg·m² about each principal axis at the centre of mass, well below what an identification
+resolves on an industrial arm (the TX40's smallest inertial base parameter, its wrist's, is 4e-4 kg·m² known
+to ~1e-5). It changes the estimate only where a constraint is active, by a relative 1e-6. A tiny robot
+(links of grams and millimetres) needs a smaller margin: `margin=`.
+"""
+
+ACTIVE_PRICE = 1e-4
+"""A constraint is reported active when its shadow price over one natural unit exceeds this fraction of
+max(1, chi-square increase): the dual of J_j ⪰ margin·I4 (d chi²/d margin, trace of the dual matrix) times
+the body's largest pseudo-inertia eigenvalue; the dual of s_i >= 0 times the standard deviation of the base
+parameter s_i enters (divided by its coefficient). Why: a constraint whose release lowers the chi-square by
+less than 1e-4 moves the estimate by less than 1e-2 σ (||L Δb||² <= Δchi² for a quadratic objective on a
+convex set), so it does not matter; and the interior-point solution's duals of inactive constraints are
+complementary-slackness noise, about its gap (1e-8 relative) over the slack, far below."""
+
+_SOLVER_ERROR = ("method \"wls-pc\" needs the optional extra with cvxpy and the Clarabel solver: "
+                 "pip install 'dynid[pc]'")
+
+
+def require_cvxpy() -> Any:
+    """The cvxpy module, or a one-line IdentificationError saying which extra to install."""
+    try:
+        import clarabel  # noqa: F401  (the solver cvxpy calls)
+        import cvxpy
+    except ImportError:
+        raise IdentificationError(_SOLVER_ERROR) from None
+    return cvxpy
+
+
+@dataclass(frozen=True)
+class ConsistencyStructure:
+    """What the constraints need, as arrays.
+
+    standard_names : the p standard parameters (the SDP's variables).
+    base_names : the q' base parameters, rows of K (every base parameter, estimated or known).
+    base_map : (q', p) K with ``base = K @ standard``.
+    bodies : ``{j: (10 positions of XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj in standard_names)}`` for the
+    bodies to constrain. nonnegative : positions of the terms that must be >= 0 (IA, FV, FS and couplings
+    of those kinds).
+    """
+
+    standard_names: tuple[str, ...]
+    base_names: tuple[str, ...]
+    base_map: np.ndarray
+    bodies: dict[int, tuple[int, ...]]
+    nonnegative: tuple[int, ...] = ()
+
+    def base_values(self, standard: ArrayLike) -> np.ndarray:
+        """K @ standard."""
+        return self.base_map @ np.asarray(standard, dtype=float)
+
+
+# J = T @ (XX XY XZ YY YZ ZZ MX MY MZ M), row-major 4x4: the pseudo-inertia is linear in the parameters
+_T = np.zeros((16, 10))
+for _r, _c, _coef in (
+    (0, 0, -0.5), (0, 3, 0.5), (0, 5, 0.5),          # Σxx = (-XX + YY + ZZ) / 2
+    (5, 0, 0.5), (5, 3, -0.5), (5, 5, 0.5),          # Σyy
+    (10, 0, 0.5), (10, 3, 0.5), (10, 5, -0.5),       # Σzz
+    (1, 1, -1.0), (4, 1, -1.0),                      # Σxy = -XY
+    (2, 2, -1.0), (8, 2, -1.0),                      # Σxz
+    (6, 4, -1.0), (9, 4, -1.0),                      # Σyz
+    (3, 6, 1.0), (12, 6, 1.0), (7, 7, 1.0), (13, 7, 1.0), (11, 8, 1.0), (14, 8, 1.0),  # h
+    (15, 9, 1.0),                                    # m
+):
+    _T[_r, _c] = _coef
+
+
+def pseudo_inertia(p: ArrayLike) -> np.ndarray:
+    """The 4x4 pseudo-inertia of one body's 10 parameters (XX XY XZ YY YZ ZZ MX MY MZ M, about O_j)."""
+    return (_T @ np.asarray(p, dtype=float)).reshape(4, 4)
+
+
+@dataclass(frozen=True)
+class PhysicalFit:
+    """A physically consistent estimate.
+
+    result : the base parameters (`IdentificationResult`, method "WLS-PC"): values K s*, standard
+    deviations from the WLS covariance evaluated at the constrained solution (see `note`).
+    wls : the plain WLS result of the same data and weights.
+    standard : ``{name: value}`` the standard set s* found (consistent with result's values: K s*).
+    active : the constraints at their bound, e.g. "body 3 pseudo-inertia", "FV2 >= 0".
+    chi2_increase : (b* - b_w)ᵀ C_w⁻¹ (b* - b_w), the objective's rise over WLS in σ² units.
+    relative_residual_wls, relative_residual : ||Y - W X|| / ||Y|| of WLS and of the constrained estimate.
+    weighted_residual_wls, weighted_residual : ||P (Y - W X)|| of both.
+    solver, status, seconds : which solver, its status, and the solve's wall time.
+    """
+
+    result: IdentificationResult
+    wls: IdentificationResult
+    standard: dict[str, float]
+    active: tuple[str, ...]
+    chi2_increase: float
+    relative_residual_wls: float
+    relative_residual: float
+    weighted_residual_wls: float
+    weighted_residual: float
+    solver: str
+    status: str
+    seconds: float
+    margin: float = MARGIN
+    min_eigenvalues: dict[int, float] = field(default_factory=dict)
+
+    @property
+    def fit_worsening_percent(self) -> float:
+        """How much larger the relative residual is than WLS's, in %."""
+        return 100.0 * (self.relative_residual / self.relative_residual_wls - 1.0) if self.relative_residual_wls \
+            else 0.0
+
+    def note(self) -> str:
+        """What the terminal and the report print under the table."""
+        act = ", ".join(self.active) if self.active else "none"
+        std = ("the standard deviations are WLS's (paper eq. (10)) at the constrained solution; no constraint is "
+               "active, so they are the estimate's own" if not self.active else
+               "the standard deviations are WLS's (paper eq. (10)) at the constrained solution, ignoring the "
+               "constraints: along an active constraint the estimate is held at its bound, so they overstate its "
+               "spread there and the value is biased towards the bound by design")
+        return (f"Physically consistent WLS (wls-pc, {self.solver}, {self.seconds:.2f} s, status {self.status}): "
+                f"||Y - W X||/||Y|| = {100 * self.relative_residual:.4g} % against WLS's "
+                f"{100 * self.relative_residual_wls:.4g} % (fit {self.fit_worsening_percent:+.3g} %); "
+                f"chi-square increase over WLS {self.chi2_increase:.4g} (σ² units); margin J_j >= "
+                f"{self.margin:g} I4; active constraints: {act}; {std}.\n")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON summary (for results.json)."""
+        return {
+            "solver": self.solver, "status": self.status, "seconds": self.seconds, "margin": self.margin,
+            "active_constraints": list(self.active), "chi2_increase": self.chi2_increase,
+            "relative_residual": self.relative_residual, "relative_residual_wls": self.relative_residual_wls,
+            "fit_worsening_percent": self.fit_worsening_percent,
+            "weighted_residual": self.weighted_residual, "weighted_residual_wls": self.weighted_residual_wls,
+            "standard_parameters": dict(self.standard),
+            "pseudo_inertia_min_eigenvalue": {str(j): v for j, v in self.min_eigenvalues.items()},
+            "std": "WLS covariance at the constrained solution" + (" (constraints active: it ignores them)"
+                                                                   if self.active else ""),
+        }
+
+
+def _problem(cp: Any, structure: ConsistencyStructure, margin: float):
+    """The variables and the constraints common to the estimate and the feasibility check."""
+    s = cp.Variable(len(structure.standard_names))
+    psd = {j: cp.reshape(_T @ s[list(idx)], (4, 4), order="C") for j, idx in structure.bodies.items()}
+    # J is symmetric by construction (_T); the symmetrisation only makes that visible to cvxpy
+    cons = {j: (0.5 * (J + J.T) - margin * np.eye(4) >> 0) for j, J in psd.items()}
+    nonneg = s[list(structure.nonnegative)] >= 0 if structure.nonnegative else None
+    return s, cons, nonneg
+
+
+def _solve(prob: Any, solver: str, solver_options: Mapping[str, Any] | None) -> None:
+    try:
+        prob.solve(solver=solver, **(solver_options or {}))
+    except Exception as exc:  # cvxpy's SolverError and the solvers' own
+        raise IdentificationError(f"the physically consistent estimate failed in {solver}: {exc}") from None
+
+
+def _min_eigs(structure: ConsistencyStructure, s: np.ndarray) -> dict[int, float]:
+    return {j: float(np.linalg.eigvalsh(pseudo_inertia(s[list(idx)]))[0]) for j, idx in structure.bodies.items()}
+
+
+def _active(structure: ConsistencyStructure, s: np.ndarray, body_duals: Mapping[int, np.ndarray],
+            nonneg_duals: np.ndarray | None, unit: np.ndarray, chi2: float) -> list[str]:
+    """The constraints whose shadow price matters (see ACTIVE_PRICE); unit : (p,) natural unit per parameter."""
+    thresh = ACTIVE_PRICE * max(1.0, chi2)
+    out = []
+    for j, idx in structure.bodies.items():
+        lam_max = float(np.linalg.eigvalsh(pseudo_inertia(s[list(idx)]))[-1])
+        if float(np.trace(body_duals[j])) * abs(lam_max) > thresh:
+            out.append(f"body {j} pseudo-inertia")
+    if nonneg_duals is not None:
+        out += [f"{structure.standard_names[i]} >= 0" for i, y in zip(structure.nonnegative, nonneg_duals, strict=True)
+                if float(y) * unit[i] > thresh]
+    return out
+
+
+def wls_pc(
+    W: ArrayLike,
+    Y: ArrayLike,
+    groups: ArrayLike,
+    names: Sequence[str],
+    structure: ConsistencyStructure,
+    *,
+    labels: Mapping[str, str] | None = None,
+    a_priori: Mapping[str, float] | None = None,
+    truth: Mapping[str, float] | None = None,
+    known: Mapping[str, float] | None = None,
+    group_sigmas: Mapping[str, float] | None = None,
+    rank_tol: float | None = None,
+    sigma_floor: float = SIGMA_FLOOR,
+    poor_factor: float = POOR_FACTOR,
+    margin: float = MARGIN,
+    solver: str = "CLARABEL",
+    solver_options: Mapping[str, Any] | None = None,
+) -> PhysicalFit:
+    """Weighted least squares subject to physical consistency (see the module doc).
+
+    W (m, q) : the base regressor, columns in ``names`` order (every base parameter, known ones too);
+    Y, groups, labels, a_priori, truth, known, group_sigmas, rank_tol, sigma_floor, poor_factor : as in
+    ``wls`` (the weights are WLS's: σ_j from eq. (8) on the unconstrained per-group fits); structure :
+    the map to the standard parameters and the constraints (its base_names must be ``names``); margin :
+    see `MARGIN`; solver : a cvxpy solver name (CLARABEL; SCS for an independent check).
+    """
+    cp = require_cvxpy()
+    if tuple(names) != structure.base_names:
+        raise IdentificationError("wls_pc: names must be the structure's base parameters, in its order")
+    w = wls(W, Y, groups, names, labels=labels, a_priori=a_priori, truth=truth, known=known,
+            group_sigmas=group_sigmas, rank_tol=rank_tol, sigma_floor=sigma_floor, poor_factor=poor_factor)
+    pb = prepare(W, Y, names, known=known)
+    A, y, est = pb.split.W_est, pb.split.Y_est, pb.split.est_names
+    g = as_groups(groups, A.shape[0])
+    row_sigma = np.empty(A.shape[0])
+    for k, idx in group_rows(g).items():
+        row_sigma[idx] = w.weights[k]
+    # the weighted system compressed to the triangular factor of [W_p | Y_p]: ||P(Y - W b)|| = ||R [b; -1]||
+    R = np.linalg.qr(np.column_stack([A / row_sigma[:, None], y / row_sigma]), mode="r")
+    q = len(est)
+    pos = {n: i for i, n in enumerate(names)}
+    K_est = structure.base_map[[pos[n] for n in est]]
+    b_w = np.array([w.value(n) for n in est])
+    s_w = float(w.residual.sigma)
+    L = R[:q, :q] / s_w  # C_w⁻¹ = Lᵀ L
+
+    s, cons, nonneg = _problem(cp, structure, margin)
+    constraints = list(cons.values()) + ([nonneg] if nonneg is not None else [])
+    if pb.split.known:
+        K_known = structure.base_map[[pos[n] for n in pb.split.known]]
+        constraints.append(K_known @ s == np.array(list(pb.split.known.values())))
+    # the objective as L (K s - b_w): zero at WLS, so its value is the chi-square increase itself
+    prob = cp.Problem(cp.Minimize(cp.sum_squares((L @ K_est) @ s - L @ b_w)), constraints)
+    t0 = time.perf_counter()
+    _solve(prob, solver, solver_options)
+    seconds = time.perf_counter() - t0
+    if s.value is None or prob.status not in ("optimal", "optimal_inaccurate"):
+        raise IdentificationError(f"the physically consistent estimate failed: {solver} says {prob.status}"
+                                  + (" (the known parameters may contradict the constraints)"
+                                     if prob.status.startswith("infeasible") else ""))
+    sv = np.asarray(s.value, dtype=float)
+    x_std = sv.copy()
+    if structure.nonnegative:  # an interior-point solution sits ~1e-9 inside or outside a bound: put it on it
+        nn = list(structure.nonnegative)
+        x_std[nn] = np.maximum(x_std[nn], 0.0)
+    b_all = structure.base_values(x_std)
+    x = b_all[[pos[n] for n in est]]
+    if pb.split.known:  # the known ones exactly as given (the solver meets equalities to its tolerance)
+        b_all[[pos[n] for n in pb.split.known]] = list(pb.split.known.values())
+    rss = float(np.linalg.norm(R[:, :q] @ x - R[:, q]) ** 2)
+    rss_w = float(w.residual.rss)
+    n = A.shape[0]
+    dof = n - q
+    Rinv = np.linalg.inv(R[:q, :q])
+    inv_gram = Rinv @ Rinv.T
+    sol = LSQSolution(x, inv_gram, rss, n, dof, rss / dof, rss / dof * inv_gram, w.condition_number)
+    res = build_result(sol, names=pb.names, estimated_names=est, known=pb.split.known, labels=w.labels,
+                       a_priori=w.a_priori, truth=w.truth, method="WLS-PC", weights=w.weights,
+                       relative_residual=norm_ratio(np.linalg.norm(y - A @ x), np.linalg.norm(pb.Y)),
+                       poor_factor=poor_factor)
+    chi2 = float(np.sum((L @ (x - b_w)) ** 2))
+    # a standard parameter's natural unit: the σ of the estimated base parameter it enters, over its coefficient
+    sig = np.array([w.std[w.index(n)] for n in est])
+    with np.errstate(divide="ignore"):
+        ratio = np.where(K_est != 0, sig[:, None] / np.abs(K_est), np.inf)
+    unit = np.where(np.isfinite(ratio.min(axis=0)), ratio.min(axis=0), 0.0)
+    act = _active(structure, x_std, {j: np.asarray(c.dual_value) for j, c in cons.items()},
+                  None if nonneg is None else np.asarray(nonneg.dual_value), unit, chi2)
+    return PhysicalFit(
+        result=res, wls=w, standard=dict(zip(structure.standard_names, x_std.tolist(), strict=True)),
+        active=tuple(act), chi2_increase=chi2, relative_residual_wls=w.residual.relative_residual,
+        relative_residual=res.residual.relative_residual, weighted_residual_wls=float(np.sqrt(rss_w)),
+        weighted_residual=float(np.sqrt(rss)), solver=solver, status=str(prob.status), seconds=seconds,
+        margin=margin, min_eigenvalues=_min_eigs(structure, x_std))
+
+
+@dataclass(frozen=True)
+class Feasibility:
+    """Whether some standard set reproduces given base values and is physically realisable.
+
+    realisable : True when the largest common margin t (J_j ⪰ t I4 for every body, the non-negative terms
+    >= 0) reaching those base values is >= `margin`. t : that margin. standard : the standard set attaining
+    it (a witness when realisable). tightest : the bodies whose pseudo-inertia sets t.
+    """
+
+    realisable: bool
+    t: float
+    standard: dict[str, float]
+    tightest: tuple[int, ...]
+    status: str
+
+
+def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str, float], *,
+                      margin: float = MARGIN, solver: str = "CLARABEL") -> Feasibility:
+    """The standard set of largest pseudo-inertia margin whose base values are `base_values` (every base
+    parameter): the check of a regrouped estimate (WLS, OLS) for physical consistency.
+
+    max t  s.t.  K s = b,  J_j(s) ⪰ t I4,  s_i >= 0 (IA, FV, FS),  t <= 1 (a body whose parameters are all
+    free would make t unbounded; 1 is far above any margin of interest)."""
+    cp = require_cvxpy()
+    b = np.array([float(base_values[n]) for n in structure.base_names])
+    s = cp.Variable(len(structure.standard_names))
+    t = cp.Variable()
+    cons = [structure.base_map @ s == b, t <= 1.0]
+    for idx in structure.bodies.values():
+        J = cp.reshape(_T @ s[list(idx)], (4, 4), order="C")
+        cons.append(0.5 * (J + J.T) - t * np.eye(4) >> 0)
+    if structure.nonnegative:
+        cons.append(s[list(structure.nonnegative)] >= 0)
+    prob = cp.Problem(cp.Maximize(t), cons)
+    _solve(prob, solver, None)
+    if prob.status in ("infeasible", "infeasible_inaccurate"):  # a non-negative term's base value is negative
+        return Feasibility(False, float("-inf"), {}, (), str(prob.status))
+    if s.value is None or t.value is None:
+        raise IdentificationError(f"the physical-consistency check failed: {solver} says {prob.status}")
+    sv = np.asarray(s.value, dtype=float)
+    tv = float(t.value)
+    eig = _min_eigs(structure, sv)
+    tight = tuple(j for j, v in eig.items() if v <= tv + 1e-6 * max(abs(tv), margin))
+    return Feasibility(tv >= margin, tv, dict(zip(structure.standard_names, sv.tolist(), strict=True)), tight,
+                       str(prob.status))
+
+
+__all__ = ["ACTIVE_PRICE", "MARGIN", "ConsistencyStructure", "Feasibility", "PhysicalFit", "feasible_standard",
+           "pseudo_inertia", "require_cvxpy", "wls_pc"]

@@ -1,0 +1,619 @@
+"""The report of an identification run: what an engineer shares.
+
+`build_report(run, title)` turns an `IdentificationRun` into the HTML page (tables with units, values rounded
+to their uncertainty, flags with a legend, the car's engineering figures, the figures, the regrouping, the
+physical-consistency verdict, traceability), the CSV files (parameters, validation signals, engineering
+figures) and the additions to results.json. Writing is the caller's (`pipeline.run.write_outputs`).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import platform
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..estimation.result import FLAG_KNOWN, FLAG_UNCERTAIN
+from .figures import CogPoint, ParameterRow, centre_of_gravity_figure, parameter_figure, validation_grid
+from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
+from .html import Cell, Section, Table, esc, render_html
+
+Z95 = 1.959964  # two-sided 95 % of a normal distribution
+CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
+
+
+@dataclass
+class Report:
+    """The page, the extra files (name -> text or bytes) and what results.json gains."""
+
+    html: str
+    files: dict[str, str | bytes] = field(default_factory=dict)
+    data: dict[str, Any] = field(default_factory=dict)
+    per_parameter: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------ parameters
+
+
+def _sections(run) -> list[tuple[str, list[str]]]:
+    r = run.result
+    return run.sections or [(f"{r.method} estimates of the base parameters", list(r.names))]
+
+
+def interval95(value: float, std_total: float) -> tuple[float, float]:
+    """The 95 % interval value ± 1.96 σ (normal, first order); NaNs for a known parameter."""
+    if not np.isfinite(std_total):
+        return float("nan"), float("nan")
+    return value - Z95 * std_total, value + Z95 * std_total
+
+
+def _num(x: float | None, d: int | None) -> Cell:
+    ok = x is not None and np.isfinite(x)
+    return Cell(fixed(float(x), d) if ok else "", float(x) if ok else None)
+
+
+def parameter_tables(run) -> list[Table]:
+    """One table per section of the run (the paper's tables): unit, a priori, truth, estimate and σ total
+    rounded to σ total, σ, %σ, %σ total, 95 % interval, flag and the paper's rule."""
+    r, tree = run.result, run.model.tree
+    has_truth, has_sys = bool(r.truth), r.systematic is not None
+    total, flags, rel_total = r.std_total, r.uncertainty_flags, r.rel_std_total_percent
+    head = ["parameter", "unit", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "σ total", "σ"]
+    head += ["%σ"] + (["%σ total"] if has_sys else []) + ["95 % interval", "flag", "paper rule"]
+    tips = ["the parameter (paper's label)", "SI unit", "the a priori value (vehicle file or model)"]
+    tips += ["the simulator's value"] if has_truth else []
+    tips += ["estimate, rounded to two significant digits of σ total",
+             "total standard uncertainty: statistical and the declared sensor offsets" if has_sys
+             else "standard uncertainty (statistical)", "the paper's statistical standard deviation (eq. 9)",
+             "100 σ / |estimate| (the paper's)"]
+    tips += ["100 σ total / |estimate|"] if has_sys else []
+    tips += ["estimate ± 1.96 σ total", "uncertain: act on it (see the legend)", "the paper's 20× rule"]
+    tables = []
+    for title, names in _sections(run):
+        rows = []
+        for n in names:
+            i = r.index(n)
+            v, s, st = float(r.values[i]), float(r.std[i]), float(total[i])
+            d = decimals(st)
+            lo, hi = interval95(v, st)
+            label = r.labels.get(n, n)
+            row = [Cell(label, title=n if label != n else "", cls="t"), Cell(parameter_unit(n, tree), cls="t nowrap"),
+                   _num(r.a_priori.get(n), d)]
+            if has_truth:
+                row.append(_num(r.truth.get(n), d))
+            vs, ss = round_to_uncertainty(v, st)
+            row += [Cell(vs, v), Cell(ss, st if np.isfinite(st) else None),
+                    Cell(round_to_uncertainty(0.0, s)[1] if np.isfinite(s) else "", s if np.isfinite(s) else None),
+                    _num(float(r.rel_std_percent[i]), 2)]
+            if has_sys:
+                row.append(_num(float(rel_total[i]), 2))
+            row.append(Cell(f"[{fixed(lo, d)}, {fixed(hi, d)}]" if np.isfinite(lo) else "", lo if np.isfinite(lo)
+                            else None, cls="nowrap"))
+            f = flags[i]
+            row += [Cell(f, {FLAG_UNCERTAIN: 2, FLAG_KNOWN: 0}.get(f, 1), cls=f"t flag-{f}" if f else "t"),
+                    Cell(r.flags[i] if r.flags[i] != FLAG_KNOWN else "", cls="t")]
+            rows.append(row)
+        tables.append(Table(head, rows, caption=title, tips=tips, cls="params"))
+    return tables
+
+
+def flag_legend(run) -> str:
+    """What each flag means and what to do about it; for the car, which test would excite the flagged ones."""
+    r = run.result
+    uncertain = r.uncertain
+    labels = ", ".join(r.labels.get(n, n) for n in uncertain)
+    items = [
+        (FLAG_UNCERTAIN, f"the total standard uncertainty exceeds {r.flag_percent:g} % of the parameter's "
+         "engineering scale (its value" + ("; the smallest principal moment for a product of inertia, M6 × 0.2 m "
+                                           "for a first moment" if r.scales else "")
+         + f"): its 95 % interval is wider than ±{2 * r.flag_percent:g} %. "
+         "What to do: do not use the value as is; add a test that excites it, fix it from a bench measurement "
+         "(declare it known), or carry its interval into what you use it for."
+         + (f" Flagged here: {labels}." if uncertain else " None flagged here.")),
+        (FLAG_KNOWN, "fixed from a bench or the config, not identified (no σ)."),
+        ("paper rule: poor", f"the paper's rule (§7.2): %σ above {r.poor_factor:g} × the smallest %σ. Shown for "
+         "comparison; it depends on the best-identified parameter and ignores the sensors' offsets, so act on "
+         "the flag instead."),
+        ("rounding", "estimates, intervals, a priori and truth are rounded to two significant digits of σ total; "
+         "the unrounded numbers are in results.json and parameters.csv."),
+    ]
+    out = '<dl class="legend">' + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in items) + "</dl>"
+    if uncertain and getattr(run.config, "kind", None) == "car":
+        from ..pipeline.car import excitation_hint
+
+        hint = excitation_hint(list(uncertain))
+        if hint:
+            out += "<p>" + "<br>".join(esc(line.strip()) for line in hint.split("\n")) + "</p>"
+    return out
+
+
+def _parameter_rows(run) -> list[tuple[str, list[ParameterRow]]]:
+    r = run.result
+    total, scale = r.std_total, r.scale
+    groups = []
+    for title, names in _sections(run):
+        rows = []
+        for n in names:
+            i = r.index(n)
+            if not np.isfinite(total[i]):
+                continue  # known: nothing estimated
+            rows.append(ParameterRow(r.labels.get(n, n), float(r.values[i]), Z95 * float(total[i]),
+                                     r.a_priori.get(n), r.truth.get(n) if r.truth else None,
+                                     float(scale[i]) or 1.0))
+        groups.append((title, rows))
+    return groups
+
+
+# ------------------------------------------------------------------ the car in engineering terms
+
+
+def _covariance(r) -> tuple[np.ndarray, str]:
+    """The estimate's covariance over estimated_names: statistical + sensor offsets when declared."""
+    C = np.array(r.covariance, dtype=float)
+    if r.systematic is not None:
+        order = [r.systematic.names.index(n) for n in r.estimated_names]
+        return C + np.asarray(r.systematic.covariance)[np.ix_(order, order)], "total"
+    return C, "statistical"
+
+
+def _vehicle(run):
+    from ..vehicle.description import load_vehicle
+
+    if getattr(run, "vehicle", None) is not None:
+        return run.vehicle
+    cfg = run.config
+    return load_vehicle((getattr(cfg, "vehicle", None) or "peugeot406") if cfg is not None else "peugeot406")
+
+
+def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
+    """The engineering figures of the estimate (with σ), which covariance they used, the vehicle, and all the
+    parameter values (estimates and the tree's known ones)."""
+    from ..vehicle.engineering import engineering_figures
+
+    r, tree = run.result, run.model.tree
+    vehicle = _vehicle(run)
+    values = {**tree.values, **r.estimates}
+    C, kind = _covariance(r)
+    return engineering_figures(values, vehicle.geometry, list(r.estimated_names), C), kind, vehicle, values
+
+
+def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
+    from ..vehicle.engineering import car_quantities
+
+    r = run.result
+    truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
+    prior = car_quantities({**values, **r.a_priori}, vehicle.geometry) if r.a_priori else None
+    head = ["quantity", "unit", "estimate", "σ", "95 % interval"] + (["a priori"] if prior else [])
+    head += (["truth"] if truth else []) + ["note"]
+    tables, rows, group = [], [], None
+    for q in quantities:
+        if q.group != group and rows:
+            tables.append(Table(head, rows, caption=group, sortable=False, cls="eng"))
+            rows = []
+        group = q.group
+        d = decimals(q.std)
+        vs, ss = round_to_uncertainty(q.value, q.std)
+        lo, hi = interval95(q.value, q.std)
+        row = [Cell(q.label, cls="t"), Cell(q.unit, cls="t nowrap"), Cell(vs, q.value), Cell(ss, q.std),
+               Cell(f"[{fixed(lo, d)}, {fixed(hi, d)}]" if np.isfinite(lo) else "", cls="nowrap")]
+        row += [_num(prior[q.key], d)] if prior else []
+        row += [_num(truth[q.key], d)] if truth else []
+        rows.append([*row, Cell(q.note, cls="t")])
+    if rows:
+        tables.append(Table(head, rows, caption=group, sortable=False, cls="eng"))
+    by = {q.key: q for q in quantities}
+    wheels_known = all(f"M{w}" not in r.estimated_names for w in (14, 23, 32, 41))
+    m6, mu, mt = by["mass_sprung"], by["mass_unsprung"], by["mass_total"]
+    text = (
+        f"M6 in the chassis table is the SPRUNG mass, {fixed(m6.value, decimals(m6.std))} kg: the chassis body "
+        "alone, what the chassis equations weigh above the suspensions. The car's total mass adds the four "
+        f"wheels (the unsprung corners), {fixed(mu.value, 1)} kg "
+        f"{'known from the bench (the vehicle file or config, not identified)' if wheels_known else 'estimated'}: "
+        f"{fixed(mt.value, decimals(mt.std))} kg in all.\n\n"
+        "Each figure is computed from the estimated parameters and the vehicle geometry; σ is propagated to first "
+        "order with the estimate's full covariance, "
+        + ("statistical and the declared sensor offsets (σ total)" if kind == "total"
+           else "statistical only (no sensor offsets declared)")
+        + "; bench-known parameters count as exact. Heights are above flat ground at design ride height (wheel "
+        f"centres at the unloaded tire radius, {vehicle.geometry.wheel_radius:g} m). Inertia is about the centre "
+        "of gravity in ISO 8855 vehicle axes (x forward, y left, z up), products as the inertia matrix's entries "
+        "(Ixz = −∫xz dm). Roll stiffness: springs and anti-roll bar at the wheels, K = (ks_l + ks_r + 4 k_ar) t²/c² "
+        "(t the half track, c the vertical component of the damper axis), tires in series not counted.")
+    return Section("The car in engineering terms", text, tables=tables, anchor="engineering")
+
+
+def cog_figure(run, quantities, vehicle, values) -> bytes:
+    from ..vehicle.engineering import car_quantities, jacobian
+
+    r, g = run.result, vehicle.geometry
+    by = {q.key: q for q in quantities}
+    C, _ = _covariance(r)
+    names = list(r.estimated_names)
+
+    def f(x):
+        return car_quantities(x, g)
+
+    covs = {}
+    for prefix in ("cgs", "cg"):
+        keys = [f"{prefix}_ahead_rear", f"{prefix}_height", f"{prefix}_lateral"]
+        J = jacobian(f, values, names, keys, np.sqrt(np.clip(np.diag(C), 0, None)))
+        S = J @ C @ J.T
+        covs[prefix] = (S[np.ix_([0, 1], [0, 1])], S[np.ix_([0, 2], [0, 2])])
+    points = [CogPoint("sprung mass (estimate)", by["cgs_ahead_rear"].value, by["cgs_height"].value,
+                       by["cgs_lateral"].value, *covs["cgs"]),
+              CogPoint("whole car (estimate)", by["cg_ahead_rear"].value, by["cg_height"].value,
+                       by["cg_lateral"].value, *covs["cg"], color="#2ca02c", marker="s")]
+    for label, src, color, marker in (("sprung, a priori", r.a_priori, "#888888", "^"),
+                                      ("sprung, truth", r.truth, "#d62728", "D")):
+        if src:
+            q = car_quantities({**values, **src}, g)
+            points.append(CogPoint(label, q["cgs_ahead_rear"], q["cgs_height"], q["cgs_lateral"], color=color,
+                                   marker=marker))
+    return centre_of_gravity_figure(g.front.position, g.rear.position, g.front.half_track, g.rear.half_track,
+                                    g.wheel_radius, points)
+
+
+# ------------------------------------------------------------------ validation
+
+
+def group_unit(group: str, tree) -> str:
+    """The unit of an equation group's force: N for a prismatic joint's, N·m for a revolute one's."""
+    if group in CHASSIS_GROUPS:
+        j = CHASSIS_GROUPS.index(group) + 1
+    else:
+        digits = group[len(group.rstrip("0123456789")):]
+        if not digits:
+            return ""
+        j = int(digits)
+    frame = next((f for f in tree.frames if f.j == j), None)
+    return force_unit(frame is not None and frame.sigma == 1)
+
+
+def _equation_sections(groups: list[str]) -> list[tuple[str, list[str]]]:
+    """The paper's figure split for the car (chassis, suspensions, tires); one figure otherwise."""
+    if any(g in CHASSIS_GROUPS for g in groups):
+        out = [("chassis", [g for g in CHASSIS_GROUPS if g in groups]),
+               ("suspensions", [g for g in groups if g.startswith("susp")]),
+               ("tires", [g for g in groups if g.startswith("tire")])]
+        rest = [g for g in groups if not any(g in s for _, s in out)]
+        return [(t, s) for t, s in [*out, ("other", rest)] if s]
+    return [("joints", groups)]
+
+
+def validation_signals(run) -> dict[str, dict[str, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]]]:
+    """kind ("direct", "cross") -> test -> group -> (t, measured Y, predicted W X)."""
+    x = run.result.values
+    cfg = run.config
+    if run.systems and cfg is not None:
+        kinds = {"direct": [t.name for t in cfg.tests if t.role == "identify"],
+                 "cross": [t.name for t in cfg.tests if t.role == "validate"]}
+        systems = run.systems
+    else:
+        kinds = {"direct": ["identification tests"], "cross": list(run.validate)}
+        systems = {"identification tests": run.identify, **run.validate}
+    out: dict = {}
+    for kind, tests in kinds.items():
+        for name in tests:
+            s = systems.get(name)
+            if s is None or not len(s.Y):
+                continue
+            WX = s.W @ x
+            per = {}
+            for g in dict.fromkeys(s.groups.tolist()):
+                m = s.groups == g
+                per[g] = (s.t[m], s.Y[m], WX[m])
+            out.setdefault(kind, {})[name] = per
+    return out
+
+
+def validation_csv(signals, tree) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["validation", "test", "equation", "unit", "t_s", "measured", "predicted"])
+    for kind, tests in signals.items():
+        for test, groups in tests.items():
+            for g, (t, Y, WX) in groups.items():
+                unit = group_unit(g, tree)
+                for row in zip(t, Y, WX, strict=True):
+                    w.writerow([kind, test, g, unit, *(f"{v:.9g}" for v in row)])
+    return buf.getvalue()
+
+
+def validation_figures(signals, tree) -> list[tuple[str, bytes]]:
+    """One figure per equation section (the car: chassis, suspensions, tires; a robot: its joints), the direct
+    and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each."""
+    tests = [(kind, test, per) for kind, by_test in signals.items() for test, per in by_test.items()]
+    groups = list(dict.fromkeys(g for _, _, per in tests for g in per))
+    paper = {"chassis": "4 and 7", "suspensions": "5 and 8", "tires": "6"}
+    # each test's time axis from all its equations, the same in every figure
+    spans = {test: (min(float(v[0][0]) for v in per.values() if len(v[0])),
+                    max(float(v[0][-1]) for v in per.values() if len(v[0])))
+             for _, test, per in tests if any(len(v[0]) for v in per.values())}
+    figs = []
+    for section, gs in _equation_sections(groups):
+        data = {(g, test): per[g] for _, test, per in tests for g in per}
+        caption = (f"Validation, {section}: measured Y and model W X per equation and test, direct (identification "
+                   "tests) then cross (tests not used for the estimate)"
+                   + (f"; the paper's Figures {paper[section]}" if section in paper else ""))
+        figs.append((caption, validation_grid(f"{section}: measured and predicted forces",
+                                              [(g, group_unit(g, tree)) for g in gs], [t for _, t, _ in tests],
+                                              data, kinds=[k for k, _, _ in tests], spans=spans)))
+    return figs
+
+
+def validation_table(run) -> Table | None:
+    errors = {k: v for k, v in run.errors.items() if v}
+    if not errors:
+        return None
+    kinds = list(errors)
+    marked = {k: set(run.not_excited.get(k, ())) for k in kinds}
+    groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
+    rows = []
+    for g in groups:
+        row = [Cell(g, cls="t"), Cell(group_unit(g, run.model.tree), cls="t")]
+        for k in kinds:
+            e = errors[k].get(g)
+            text = "" if e is None else f"{100 * e:.2f} %" + (" *" if g in marked[k] else "")
+            row.append(Cell(text, None if e is None else 100 * e))
+        rows.append(row)
+    return Table(["equation", "force unit"] + [f"{k} ‖Y − W X‖/‖Y‖" for k in kinds], rows,
+                 caption="Relative error per equation group", cls="valid")
+
+
+# ------------------------------------------------------------------ reference, regrouping, consistency, provenance
+
+
+def reference_table(run) -> Table:
+    r = run.result
+    names = list(r.names)
+    cov = r.full_covariance
+    use_wls = r.method == "WLS"
+    rows = []
+    for m in run.reference:
+        pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+        ours = m.value(names, r.values)
+        sd = m.std(names, cov)
+        gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
+        how = " + ".join(f"{w:g}·{n}" if w != 1 else n for n, w in m.weights.items())
+        vs, ss = round_to_uncertainty(ours, sd)
+        rows.append([Cell(m.label, cls="t"), Cell(vs, ours), Cell(ss, sd),
+                     _num(100 * sd / abs(ours) if ours else float("nan"), 2), Cell(f"{pub:.6g}", pub),
+                     _num(pub_rel, 2), _num(gap, 2), Cell(how, cls="t")])
+    return Table(["published", "ours", "σ", "ours %σ", "published value", "published %σ", "gap / σ published",
+                  "as"], rows, caption="Our estimate of each published quantity", cls="ref")
+
+
+def regrouping_text(run) -> str:
+    base = run.base
+    regrouped = [(n, e) for n, e in zip(base.names, base.expressions, strict=True) if e.replace(" ", "") != n]
+    known = sorted(run.model.tree.known)
+    tail = (f" Fixed as known (moved to the right-hand side, not identified): {', '.join(known)}."
+            if known else "")
+    if not regrouped:
+        return (f"The {len(base.names)} identified parameters form a base set as they stand: none is regrouped, "
+                "each base parameter is the standard parameter of its name." + tail)
+    return (f"{len(regrouped)} of the {len(base.names)} base parameters regroup standard ones (the standard "
+            f"parameters {', '.join(base.regrouped)} are not identifiable alone and appear only inside these "
+            "sums); the others are the standard parameters of their names." + tail)
+
+
+def regrouping_table(run) -> Table | None:
+    base = run.base
+    rows = [[Cell(n, cls="t"), Cell(e, cls="t")] for n, e in zip(base.names, base.expressions, strict=True)
+            if e.replace(" ", "") != n]
+    return Table(["base parameter", "= standard parameters"], rows, cls="regroup") if rows else None
+
+
+_CONSISTENCY = "Physical consistency"
+
+
+def split_notes(notes: str) -> tuple[list[str], list[str]]:
+    """The run's notes as (physical-consistency lines, the other paragraphs): the verdict gets its own section.
+    A verdict is a line starting "Physical consistency" and the indented lines after it (its violations)."""
+    verdict, other = [], []
+    inside = False
+    for line in notes.split("\n"):
+        if not line.strip():
+            inside = False
+            continue
+        if line.startswith(_CONSISTENCY):
+            inside = True
+        elif not line.startswith(" "):
+            inside = False
+        (verdict if inside else other).append(line.strip())
+    return verdict, other
+
+
+def consistency_section(run) -> Section:
+    verdict, _ = split_notes(run.notes)
+    text = "\n".join(verdict)
+    if getattr(run, "consistency", None):  # a robot's verdict (and its wls-pc fit), as the terminal prints it
+        from .tables import consistency_section as robot_verdict
+
+        text = robot_verdict(run.consistency)
+    if not text:
+        text = ("Not checked for this model: its base parameters regroup inertial parameters, so no rigid body "
+                "can be rebuilt from them alone.")
+    bad = "NOT physically realisable" in text
+    good = "physically realisable" in text and not bad
+    word = ("Realisable: rigid bodies with these masses and inertias exist (positive mass, inertia about the "
+            "centre of mass positive definite, triangle inequalities): the estimate can drive a simulator."
+            if good else
+            "NOT realisable: no rigid body has these values; do not put them in a simulator as they are: look at "
+            "the flagged parameters and the excitation, or identify with a physically-constrained method."
+            if bad else "")
+    cls = "verdict-ok" if good else "verdict-bad" if bad else ""
+    html = f'<p class="{cls}">{esc(word)}</p>' if word else ""
+    return Section("Physical consistency", text, html=html, anchor="consistency")
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def input_files(cfg) -> list[tuple[str, Path]]:
+    """(role, path) of every file the run read: the config, the model or vehicle file, the tests' files and
+    truth sidecars, the reference."""
+    if cfg is None:
+        return []
+    out = [("config", Path(cfg.path))]
+    for what in ("model", "vehicle"):
+        p = getattr(cfg, what, None)
+        if isinstance(p, Path) or (isinstance(p, str) and p.endswith(".toml")):
+            out.append((what, Path(p)))
+    if cfg.kind == "car" and not isinstance(cfg.vehicle, Path):  # a shipped vehicle: its file, as installed
+        from ..vehicle.description import vehicle_path
+
+        out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or "peugeot406")))
+    for t in cfg.tests:
+        for q, p in t.files.items():
+            out.append((f"{t.name}: {q}", Path(p)))
+        if t.truth is not None:
+            out.append((f"{t.name}: truth", Path(t.truth)))
+    if cfg.reference and cfg.reference.get("file"):
+        out.append(("reference", Path(cfg.reference["file"])))
+    return out
+
+
+def provenance(run) -> dict[str, Any]:
+    from .. import __version__
+    from ..atomic import final_path
+
+    files = []
+    # hashed where read, named where they will be: a demo reads its files from a staging folder renamed at the end
+    for role, p in input_files(run.config):
+        files.append({"role": role, "path": str(final_path(p)), "sha256": _sha256(p) if p.is_file() else None})
+    return {"dynid": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "written_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), "files": files}
+
+
+def provenance_section(run, prov: dict[str, Any]) -> Section:
+    rows = [[Cell(f["role"], cls="t"), Cell(f["path"], cls="t"), Cell(f["sha256"] or "(missing)", cls="t")]
+            for f in prov["files"]]
+    html = ""
+    cfg = run.config
+    if cfg is not None and Path(cfg.path).is_file():
+        html = (f"<details><summary>the config, {esc(Path(cfg.path).name)}</summary>"
+                f'<pre class="config">{esc(Path(cfg.path).read_text(errors="replace"))}</pre></details>')
+    text = (f"dynid {prov['dynid']}, Python {prov['python']}, NumPy {prov['numpy']}; written "
+            f"{prov['written_utc']}.")
+    tables = [Table(["input", "path", "SHA-256"], rows, sortable=False, cls="files")] if rows else []
+    return Section("Traceability", text, html=html, tables=tables, anchor="trace")
+
+
+# ------------------------------------------------------------------ the whole
+
+
+def parameters_csv(run, sections) -> str:
+    r = run.result
+    tree = run.model.tree
+    where = {n: t for t, names in sections for n in names}
+    total, rel_total, uflags = r.std_total, r.rel_std_total_percent, r.uncertainty_flags
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["name", "label", "table", "unit", "a_priori", "truth", "value", "std", "std_total",
+                "rel_std_percent", "rel_std_total_percent", "ci95_low", "ci95_high", "flag", "paper_rule"])
+
+    def g(x):
+        return "" if x is None or not np.isfinite(x) else f"{float(x):.10g}"
+
+    for i, n in enumerate(r.names):
+        lo, hi = interval95(float(r.values[i]), float(total[i]))
+        w.writerow([n, r.labels.get(n, n), where.get(n, ""), parameter_unit(n, tree), g(r.a_priori.get(n)),
+                    g(r.truth.get(n)) if r.truth else "", g(r.values[i]), g(r.std[i]), g(total[i]),
+                    g(r.rel_std_percent[i]), g(rel_total[i]), g(lo), g(hi), uflags[i], r.flags[i]])
+    return buf.getvalue()
+
+
+def build_report(run, title: str) -> Report:
+    """Everything but the writing: the page, the CSV files and figures (file name -> content), the additions
+    to results.json."""
+    r, tree = run.result, run.model.tree
+    is_car = getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+    sections_list = _sections(run)
+    files: dict[str, str | bytes] = {}
+    data: dict[str, Any] = {}
+    per: dict[str, dict[str, Any]] = {}
+    total = r.std_total
+    for i, n in enumerate(r.names):
+        lo, hi = interval95(float(r.values[i]), float(total[i]))
+        per[n] = {"unit": parameter_unit(n, tree), "interval_95": [lo, hi]}
+    res = r.residual
+    n_known = len(r.names) - len(r.estimated_names)
+    summary = (f"{r.method}: {len(r.estimated_names)} parameters estimated from {res.n_rows} rows"
+               f"{f', {n_known} known' if n_known else ''}; "
+               f"condition number {r.condition_number:.3g}; ‖Y − W X‖/‖Y‖ = {100 * res.relative_residual:.3g} %; "
+               f"{len(r.uncertain)} flagged uncertain.")
+    out_sections: list[Section] = []
+    figs_written: list[tuple[str, str, bytes]] = []  # (file, caption, png)
+    if is_car:
+        quantities, kind, vehicle, values = car_engineering(run)
+        out_sections.append(engineering_section(run, quantities, kind, vehicle, values))
+        cog = cog_figure(run, quantities, vehicle, values)
+        figs_written.append(("figure_centre_of_gravity.png", "The centres of gravity on the car (side and top "
+                             "views from the vehicle geometry) and their 95 % uncertainty ellipses", cog))
+        out_sections[-1] = Section(out_sections[-1].heading, out_sections[-1].text,
+                                   figures=[figs_written[-1][1:]], tables=out_sections[-1].tables,
+                                   anchor="engineering")
+        data["engineering"] = {"uncertainty": kind, "quantities": [
+            {"key": q.key, "group": q.group, "label": q.label, "unit": q.unit, "value": q.value, "std": q.std}
+            for q in quantities]}
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["key", "group", "quantity", "unit", "value", "std", "ci95_low", "ci95_high"])
+        for q in quantities:
+            lo, hi = interval95(q.value, q.std)
+            w.writerow([q.key, q.group, q.label, q.unit, f"{q.value:.10g}", f"{q.std:.6g}", f"{lo:.10g}",
+                        f"{hi:.10g}"])
+        files["engineering.csv"] = buf.getvalue()
+    pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
+    figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
+                         "truth, as a difference from the estimate in % of the parameter's scale", pfig))
+    out_sections.append(Section("Estimated parameters", "", tables=parameter_tables(run),
+                                html=flag_legend(run), figures=[figs_written[-1][1:]], anchor="parameters"))
+    if run.reference:
+        out_sections.append(Section("Comparison with the published identification", tables=[reference_table(run)],
+                                    anchor="reference"))
+    out_sections.append(consistency_section(run))
+    signals = validation_signals(run)
+    vt = validation_table(run)
+    vfigs = validation_figures(signals, tree)
+    for k, (caption, png) in enumerate(vfigs, start=1):
+        figs_written.append((f"figure_validation{k}.png", caption, png))
+    vtext = ("Y is the measured side of each equation (forces from the sensors), W X the model's prediction with "
+             "the estimate. Direct: the identification tests; cross: tests the estimate never saw.")
+    if any(run.not_excited.values()):
+        vtext += ("\n* the test barely moves this equation (RMS of Y below twice the identification's residual RMS "
+                  "there): its relative error mostly compares noise with a small signal.")
+    if is_car:
+        vtext += "\nThe plots show the first segment of each test (the CSV has the same rows)."
+    out_sections.append(Section("Validation", vtext, tables=[vt] if vt else [], figures=vfigs, anchor="validation"))
+    _, other = split_notes(run.notes)
+    if other:
+        out_sections.append(Section("Notes", "\n\n".join(other), anchor="notes"))
+    rt = regrouping_table(run)
+    out_sections.append(Section("Regrouping relations", regrouping_text(run), tables=[rt] if rt else [],
+                                anchor="regrouping"))
+    prov = provenance(run)
+    out_sections.append(provenance_section(run, prov))
+    data["provenance"] = prov
+    files["parameters.csv"] = parameters_csv(run, sections_list)
+    files["validation.csv"] = validation_csv(signals, tree)
+    for name, _, png in figs_written:
+        files[name] = png
+    page = render_html(title, out_sections, subtitle=summary)
+    return Report(page, files, data, per)
+
+
+__all__ = ["Report", "build_report", "group_unit", "interval95", "parameter_tables", "split_notes",
+           "validation_signals"]
