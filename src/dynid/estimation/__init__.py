@@ -13,17 +13,38 @@ from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_p
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .ols import ols
-from .quality import POOR_FACTOR, poorly_identified, relative_errors, relative_std_percent
+from .quality import POOR_FACTOR, nrmse, poorly_identified, relative_errors, relative_std_percent
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
 from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
 
 __all__ = [
-    "POOR_FACTOR", "RESIDUAL_TOL", "SIGMA_FLOOR", "BiasAccumulator", "EssentialResult", "EssentialStep",
+    "POOR_FACTOR",
+    "RESIDUAL_TOL",
+    "SIGMA_FLOOR",
+    "BiasAccumulator",
+    "EssentialResult",
+    "EssentialStep",
     "EstimationWarning",
-    "GroupFit", "IdentificationError", "IdentificationResult", "InstrumentSums", "LSQSolution", "ResidualStats",
-    "StreamingLS", "SystematicUncertainty",
-    "check_rank", "essential_parameters", "group_noise", "iv", "ols", "poorly_identified", "propagate",
-    "relative_errors", "relative_std_percent", "solve_lsq", "wls",
+    "GroupFit",
+    "IdentificationError",
+    "IdentificationResult",
+    "InstrumentSums",
+    "LSQSolution",
+    "ResidualStats",
+    "StreamingLS",
+    "SystematicUncertainty",
+    "check_rank",
+    "essential_parameters",
+    "group_noise",
+    "iv",
+    "nrmse",
+    "ols",
+    "poorly_identified",
+    "propagate",
+    "relative_errors",
+    "relative_std_percent",
+    "solve_lsq",
+    "wls",
 ]

@@ -52,6 +52,32 @@ def relative_errors(
     A group with ``||Y_g|| = 0`` gets 0 if its residual is 0 too, else inf. Direct validation passes
     the identification data, cross validation data from a test not used for estimation (paper §7.2).
     """
+    res, y, rows = _residuals(W, Y, X, groups, names)
+    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(y[idx])) for name, idx in rows.items()}
+    out["overall"] = norm_ratio(np.linalg.norm(res), np.linalg.norm(y))
+    return out
+
+
+def nrmse(
+    W: ArrayLike,
+    Y: ArrayLike,
+    X: ArrayLike | Mapping[str, float],
+    groups: ArrayLike,
+    names: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """Normalised RMS error ``RMS(Y_g - W_g X) / std(Y_g)`` per equation group, plus ``"overall"`` (the
+    residuals' and the spreads' sums of squares pooled over groups). Unlike the relative error it does not
+    count the part of Y that never changes (a robot's static gravity load): 1 is no better than predicting
+    each group's mean. Arguments as for `relative_errors`."""
+    res, y, rows = _residuals(W, Y, X, groups, names)
+    spread = {name: y[idx] - y[idx].mean() for name, idx in rows.items()}
+    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(spread[name])) for name, idx in rows.items()}
+    out["overall"] = norm_ratio(np.linalg.norm(res), np.sqrt(sum(float(s @ s) for s in spread.values())))
+    return out
+
+
+def _residuals(W, Y, X, groups, names) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """Y - W X, Y and the rows of each group, the arguments checked."""
     A = as_matrix(W, names)
     m, p = A.shape
     y = as_vector(Y, m)
@@ -70,7 +96,4 @@ def relative_errors(
     rows = group_rows(g)
     if "overall" in rows:
         raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
-    res = y - A @ x
-    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(y[idx])) for name, idx in rows.items()}
-    out["overall"] = norm_ratio(np.linalg.norm(res), np.linalg.norm(y))
-    return out
+    return y - A @ x, y, rows

@@ -21,7 +21,7 @@ from threadpoolctl import threadpool_limits
 
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
-from ..estimation import IdentificationError, IdentificationResult, ols, propagate, relative_errors, wls
+from ..estimation import IdentificationError, IdentificationResult, nrmse, ols, propagate, relative_errors, wls
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
 from ..model import ModelError
 from ..report import parameter_table
@@ -445,12 +445,18 @@ def offsets_note(result) -> str:
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
     result = run.result
-    run.errors["direct"] = relative_errors(run.identify.W, run.identify.Y, result.values, run.identify.groups)
+    ident = run.identify
+    run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
     cross = [t for t in cfg.tests if t.role == "validate"]
     if cross:
         val = GroupedSystem.stack([systems[t.name] for t in cross])
         run.validate = {t.name: systems[t.name] for t in cross}
         run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+    # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
+    # ||Y|| makes the relative error look small whatever the dynamics
+    run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
+    if cross:
+        run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
     result.validation.update(run.errors)
     return run
 

@@ -362,8 +362,12 @@ def validation_table(run) -> Table | None:
             text = "" if e is None else f"{100 * e:.2f} %" + (" *" if g in marked[k] else "")
             row.append(Cell(text, None if e is None else 100 * e))
         rows.append(row)
-    return Table(["equation", "force unit"] + [f"{k} ‖Y − W X‖/‖Y‖" for k in kinds], rows,
-                 caption="Relative error per equation group", cls="valid")
+    heads = [k.replace("NRMSE", "RMS(Y − W X)/std(Y)") if k.endswith("NRMSE") else f"{k} ‖Y − W X‖/‖Y‖"
+             for k in kinds]
+    return Table(["equation", "force unit", *heads], rows,
+                 caption="Relative error per equation group" + (" and NRMSE (1: no better than the mean)"
+                                                                if any(k.endswith("NRMSE") for k in kinds) else ""),
+                 cls="valid")
 
 
 # ------------------------------------------------------------------ reference, regrouping, consistency, provenance
@@ -487,12 +491,10 @@ def input_files(cfg) -> list[tuple[str, Path]]:
 
 def provenance(run) -> dict[str, Any]:
     from .. import __version__
-    from ..atomic import final_path
 
     files = []
-    # hashed where read, named where they will be: a demo reads its files from a staging folder renamed at the end
     for role, p in input_files(run.config):
-        files.append({"role": role, "path": str(final_path(p)), "sha256": _sha256(p) if p.is_file() else None})
+        files.append({"role": role, "path": str(p), "sha256": _sha256(p) if p.is_file() else None})
     return {"dynid": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "written_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), "files": files}
 
