@@ -314,8 +314,10 @@ def test_the_robot_report_has_units_and_per_joint_plots(robot):
     rows = {r[0]: r for r in t["rows"]}
     assert t["head"][:2] == ["parameter", "unit"]
     assert rows["FV1"][1] == "N·m·s/rad" and rows["ZZ1"][1] == "kg·m²" and rows["MX2"][1] == "kg·m"
-    valid = _table(page, "Relative error per equation group")
+    valid = _table(page, "Relative error per equation group and NRMSE (1: no better than the mean)")
     assert {r[1] for r in valid["rows"] if r[0].startswith("joint")} == {"N·m"}
+    assert valid["head"][2:] == ["direct ‖Y − W X‖/‖Y‖", "cross ‖Y − W X‖/‖Y‖", "direct RMS(Y − W X)/std(Y)",
+                                 "cross RMS(Y − W X)/std(Y)"]
     assert len(page.images) >= 2
     sig = list(csv.DictReader(io.StringIO((out / "validation.csv").read_text())))
     assert {(r["validation"], r["test"]) for r in sig} == {("direct", "t"), ("cross", "v")}
