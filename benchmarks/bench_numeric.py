@@ -171,6 +171,31 @@ def print_table(results: list[dict], compile_s: dict) -> None:
           f"empty Numba cache (compilation), {compile_s['warm']:.1f} s with the cache filled")
 
 
+def roofline(results: list[dict], car: Model) -> dict:
+    """Each kernel's distance to this core's measured peak (benchmarks/roofline.py), printed and returned."""
+    from roofline import operations, peak_flops, roofline_line
+
+    peak = peak_flops()
+    print(f"\nroofline: this core's measured peak {peak / 1e9:.1f} Gop/s (FMA loop, an FMA = 2 ops); operations "
+          "counted on the customised symbolic model of the same tree")
+    out: dict = {"peak_gops": peak / 1e9, "kernels": {}}
+    puma = dynid.load_model("puma560")
+    cases = [
+        ("PUMA 560 inverse dynamics", puma.tree, "idm", {}, results[0]["dynid_idm_us"]),
+        ("PUMA 560 regressor", puma.tree, "regressor", {}, results[0]["dynid_regressor_us"]),
+        ("car 42 frames inverse dynamics", car.tree, "idm", {}, results[1]["dynid_idm_us"]),
+        (f"car regressor {len(EQUATION_ROWS)} x {len(paper_parameter_names())}", car.tree, "regressor",
+         {"rows": list(EQUATION_ROWS), "cols": paper_parameter_names()},
+         results[1]["dynid_regressor_restricted_us"]),
+    ]
+    for name, tree, kind, opts, us in cases:
+        ops, funcs = operations(tree, kind, **opts)
+        print(roofline_line(name, ops, funcs, us, peak))
+        out["kernels"][name] = {"ops": ops, "functions": funcs, "us_per_sample": us,
+                                "gops": ops / us / 1e3, "fraction_of_peak": ops / (us * 1e-6) / peak}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=10_000)
@@ -183,11 +208,12 @@ def main() -> None:
         bench("Peugeot 406 (42 frames)", car, args.samples, list(EQUATION_ROWS), paper_parameter_names()),
     ]
     print_table(results, compile_s)
+    roof = roofline(results, car)
     out = HERE / "results" / "numeric.json"
     out.parent.mkdir(exist_ok=True)
     tmp = out.with_suffix(".tmp")
     tmp.write_text(json.dumps({"machine": os.uname().machine, "cpus": os.cpu_count(), "engine": "numba",
-                               "first_call_s": compile_s, "results": results}, indent=2))
+                               "first_call_s": compile_s, "results": results, "roofline": roof}, indent=2))
     tmp.replace(out)
     print(f"\nwrote {out.relative_to(HERE.parent)}")
 

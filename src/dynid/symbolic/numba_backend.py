@@ -24,10 +24,13 @@ across them and cache the whole).
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
+import linecache
 import sys
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -149,18 +152,50 @@ def _sign(x):
 '''
 
 
-def _footer(names: list[str], key: str) -> str:
+def _footer(names: list[str], key: str, mod_name: str, straight: dict[str, list[str]]) -> str:
+    """jit every name; those in `straight` (name -> its arguments) through their LLVM IR (llvm_code):
+    a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher."""
     lines = ["", f"KEY = {key!r}", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
              "    _sign = njit(cache=True)(_sign)"]
-    lines += [f"    {n} = njit(cache=True)({n})" for n in names]
+    lines += [f"    {n} = njit(cache=True)({n})" for n in names if n not in straight]
+    if straight:
+        lines.append("    from dynid.symbolic.llvm_code import straight_line")
+    for n, args in straight.items():
+        a = ", ".join(args)
+        lines += ["", f"    _ir_{n} = straight_line({n}, {f'{mod_name}.{n}'!r})", "",
+                  "    @njit(cache=True)", f"    def {n}({a}):  # noqa: F811 - replaces the Python version",
+                  f"        return _ir_{n}(({a},))"]
     return "\n".join(lines) + "\n"
 
 
-def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb") -> ModuleType | None:
+def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
+    """name -> arguments of the functions of `body` among `names` that llvm_code can translate (numba is
+    importable and the source is in its language); the others are compiled by numba from Python."""
+    if not names or not have_numba():
+        return {}
+    from .llvm_code import UnsupportedSourceError, function_ir
+
+    out: dict[str, list[str]] = {}
+    for node in ast.parse(body).body:
+        if isinstance(node, ast.FunctionDef) and node.name in names:
+            try:
+                function_ir(ast.get_source_segment(body, node) or "", node.name)
+            except UnsupportedSourceError as e:
+                warnings.warn(f"{node.name}: compiled by numba from Python ({e})", RuntimeWarning, stacklevel=3)
+                continue
+            out[node.name] = [a.arg for a in node.args.args]
+    return out
+
+
+def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb",
+                   straight: Sequence[str] = ()) -> ModuleType | None:
     """Import (from the disk cache, or after writing it) a module HEADER + body whose functions
     `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
     (NOT of the text: the generator's factoring order may vary between processes), naming the module.
+    `straight`: those of `names` that are generated straight-line code (scalar_source), compiled
+    from their LLVM IR (llvm_code: seconds less each than numba's typing of every statement, the
+    same numbers).
 
     Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
@@ -181,13 +216,16 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     if mod is None and body is None:  # load only
         return None
     if mod is None:
-        src = HEADER + body + _footer(names, key)
+        src = HEADER + body + _footer(names, key, mod_name, _straight_arguments(body, [n for n in straight
+                                                                                      if n in names]))
         try:
             write_atomic(path, src)
             mod = import_file(path, mod_name)
         except OSError:  # read-only cache: an in-memory module (numba then cannot cache: compiles every run)
             mod = ModuleType(mod_name)
-            exec(compile(src, f"<dynid numba {mod_name}>", "exec"), mod.__dict__)
+            fname = f"<dynid numba {mod_name}>"
+            linecache.cache[fname] = (len(src), None, src.splitlines(True), fname)  # llvm_code reads the source
+            exec(compile(src, fname, "exec"), mod.__dict__)
     if not getattr(mod, "NUMBA", False):
         _warn_missing()
     sys.modules.setdefault(mod_name, mod)

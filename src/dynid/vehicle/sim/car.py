@@ -53,6 +53,7 @@ from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre, pack
 from .tires import MagicFormula
 
 SAMPLE_TIME = 1.6e-3
+GENERATED = ("car_kin", "car_idm", "car_inertia")  # the generated models the kernel calls
 
 
 class SimulationError(RuntimeError):
@@ -179,7 +180,7 @@ def _module_source(tree: Tree, aero_point) -> tuple[str, list[str]]:
                       "# ----- generated models -----",
                       nb.scalar_source(kin, "car_kin"), nb.scalar_source(dyn, "car_idm"),
                       nb.scalar_source(mass, "car_inertia")])
-    return body, [*K.JITTED, "car_kin", "car_idm", "car_inertia"]
+    return body, [*K.JITTED, *GENERATED]
 
 
 @dataclass
@@ -229,7 +230,9 @@ class CarSimulator:
         module = nb.compile_source(None, [], key, prefix="dynid_car")
         if module is None:
             body, names = _module_source(self.tree, self.aero_point)
-            module = nb.compile_source(body, names, key, prefix="dynid_car")
+            # the generated models through LLVM IR: numba's own compile of their thousands of statements was
+            # most of a new vehicle's first run (numba_backend, llvm_code)
+            module = nb.compile_source(body, names, key, prefix="dynid_car", straight=GENERATED)
         self.compile_info.generate_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         self.module = module

@@ -303,12 +303,11 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         V2 = fwd * fwd + left * left
         beta = 0.0 if par[P_VMIN] * par[P_VMIN] > V2 else math.atan2(left, fwd)
         qS = 0.5 * par[P_RHO] * V2 * par[P_AREA]
-        cx = eval_ppoly(ax, aC, 0, beta)
-        cy = eval_ppoly(ax, aC, 1, beta)
-        cz = eval_ppoly(ax, aC, 2, beta)
-        cl = eval_ppoly(ax, aC, 3, beta)
-        cm = eval_ppoly(ax, aC, 4, beta)
-        cn = eval_ppoly(ax, aC, 5, beta)
+        # a loop index, not six literal indices: numba would compile eval_ppoly once per literal (six times on a
+        # cold start); tab (the tables' scratch, read above only) holds the coefficients
+        for j in range(6):
+            tab[j] = eval_ppoly(ax, aC, j, beta)
+        cx, cy, cz, cl, cm, cn = tab[0], tab[1], tab[2], tab[3], tab[4], tab[5]
         L = par[P_LEN]
         # ISO (x fwd, y left, z up) -> frame 6 (up, right, fwd)
         wr[4, 0] = qS * cz
@@ -395,6 +394,9 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     k4 = np.zeros(NY)
     yt = np.zeros(NY)
     hs = dt / nsub
+    # the stages that do not record: bool(0), not the literal False, which numba would type Literal[bool] and
+    # compile derivative a second time for (seconds of a new vehicle's first run)
+    no_record = bool(0)
     for n in range(nsteps):
         for s in range(nsub):
             t = t0 + n * dt + s * hs
@@ -409,15 +411,15 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
             for i in range(NY):
                 yt[i] = y[i] + 0.5 * hs * k1[i]
             derivative(t + 0.5 * hs, yt, k2, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
-                       M, x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+                       M, x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 yt[i] = y[i] + 0.5 * hs * k2[i]
             derivative(t + 0.5 * hs, yt, k3, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
-                       M, x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+                       M, x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 yt[i] = y[i] + hs * k3[i]
             derivative(t + hs, yt, k4, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af, M,
-                       x, F, rhs, tab, ctl, tf, False, n, RQ, RQD, RQDD, RW, RR)
+                       x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
             for i in range(NY):
                 y[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     status[0] = S_OK

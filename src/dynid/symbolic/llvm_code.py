@@ -1,0 +1,214 @@
+"""LLVM IR for the generated straight-line functions, so that Numba compiles them in a fraction of the time.
+
+Why: Numba types and lowers every Python statement through its generic machinery, about 1 to 3 ms
+of CPU per operation. The simulator's generated models (numba_backend.scalar_source) have 2,000 to
+4,000 operations each, which made them most of a new vehicle's first run (measured on the compact
+SUV: car_kin 2.5 s, car_idm 3.4 s, car_inertia 5.5 s of CPU; three times as much on the
+Peugeot 406, whose models are larger). Their source is a tiny language:
+
+    x = <expr>                 expr: names, numbers, + - * (binary), unary -, math.sin, math.cos,
+    out[k] = <expr>                  _sign, reads a[i] and a[i, j] of the array arguments
+    out[:] = 0.0
+    return 0
+
+`function_ir` translates it into LLVM IR, operation by operation in Python's evaluation order, with
+no fast-math flags and Numba's own forms (unary minus as -0.0 - x, llvm.sin.f64 / llvm.cos.f64):
+the same IEEE operations in the same order as Numba's compile of that source, hence the same
+numbers. LLVM builds that IR in well under a second. `straight_line(fn, symbol)` returns the Numba
+intrinsic that calls it, taking the function's array arguments as one tuple; anything outside the
+language raises `UnsupportedSourceError` (numba_backend then compiles the Python function as before).
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import math
+import struct
+import textwrap
+from collections.abc import Callable
+
+_BINARY = {ast.Add: "fadd", ast.Sub: "fsub", ast.Mult: "fmul"}
+_MATH = {"sin": "llvm.sin.f64", "cos": "llvm.cos.f64"}
+_DECLARATIONS = ("declare double @llvm.sin.f64(double)", "declare double @llvm.cos.f64(double)",
+                 "declare void @llvm.memset.p0.i64(ptr, i8, i64, i1)")
+
+
+class UnsupportedSourceError(ValueError):
+    """The source is not a straight-line function of the generated language (see the module doc)."""
+
+
+def _double(x: float) -> str:
+    """An exact LLVM double constant (the bits in hex: no decimal round trip)."""
+    return f"0x{struct.unpack('<Q', struct.pack('<d', x))[0]:016X}"
+
+
+class _Emitter:
+    """One function's instructions: SSA values %vN for the Python names and temporaries."""
+
+    def __init__(self, args: list[str]) -> None:
+        self.args = set(args)
+        self.env: dict[str, str] = {}
+        self.lines: list[str] = []
+        self.count = 0
+
+    def _new(self, text: str) -> str:
+        self.count += 1
+        name = f"%v{self.count}"
+        self.lines.append(f"  {name} = {text}")
+        return name
+
+    def _address(self, node: ast.Subscript) -> str:
+        """Pointer to the element `a[i]` or `a[i, j]` of an array argument (C order: i * ncols + j)."""
+        if not (isinstance(node.value, ast.Name) and node.value.id in self.args):
+            raise UnsupportedSourceError(f"subscript of {ast.unparse(node.value)}: only array arguments are indexed")
+        arr = node.value.id
+        idx = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+        if not all(isinstance(i, ast.Constant) and type(i.value) is int and i.value >= 0 for i in idx):
+            raise UnsupportedSourceError(f"index {ast.unparse(node.slice)}: constant non-negative integers only")
+        if len(idx) == 1:
+            flat = str(idx[0].value)
+        elif len(idx) == 2:
+            row = self._new(f"mul i64 {idx[0].value}, %c_{arr}")
+            flat = self._new(f"add i64 {row}, {idx[1].value}")
+        else:
+            raise UnsupportedSourceError(f"index {ast.unparse(node.slice)}: one or two dimensions only")
+        return self._new(f"getelementptr inbounds double, ptr %a_{arr}, i64 {flat}")
+
+    def expr(self, node: ast.expr) -> str:
+        if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+            if isinstance(node.value, int) and abs(node.value) > 2**53:
+                raise UnsupportedSourceError(f"integer {node.value} not exact as a double")
+            return _double(float(node.value))
+        if isinstance(node, ast.Name):
+            if node.id not in self.env:
+                raise UnsupportedSourceError(f"name {node.id} read before assignment (or an array used as a number)")
+            return self.env[node.id]
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            a, b = self.expr(node.left), self.expr(node.right)  # Python's order (pure operations anyway)
+            return self._new(f"{_BINARY[type(node.op)]} double {a}, {b}")
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+            return self._new(f"fsub double -0.0, {self.expr(node.operand)}")  # Numba's negation
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.UAdd):
+            return self.expr(node.operand)
+        if isinstance(node, ast.Subscript):
+            return self._new(f"load double, ptr {self._address(node)}")
+        if isinstance(node, ast.Call) and len(node.args) == 1 and not node.keywords:
+            f = node.func
+            if (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math"
+                    and f.attr in _MATH):
+                return self._new(f"call double @{_MATH[f.attr]}(double {self.expr(node.args[0])})")
+            if isinstance(f, ast.Name) and f.id == "_sign":  # 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+                x = self.expr(node.args[0])
+                pos, neg = self._new(f"fcmp ogt double {x}, 0.0"), self._new(f"fcmp olt double {x}, 0.0")
+                low = self._new(f"select i1 {neg}, double {_double(-1.0)}, double 0.0")
+                return self._new(f"select i1 {pos}, double {_double(1.0)}, double {low}")
+        raise UnsupportedSourceError(f"expression {ast.unparse(node)}")
+
+    def statement(self, node: ast.stmt) -> bool:
+        """Emit one statement; False after the return."""
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str):
+            return True  # the docstring
+        if isinstance(node, ast.Return):
+            if not (isinstance(node.value, ast.Constant) and node.value.value == 0):
+                raise UnsupportedSourceError("return: only `return 0`")
+            self.lines.append("  ret void")
+            return False
+        if not (isinstance(node, ast.Assign) and len(node.targets) == 1):
+            raise UnsupportedSourceError(f"statement {ast.unparse(node)}")
+        target = node.targets[0]
+        if isinstance(target, ast.Name):
+            if target.id in self.args:
+                raise UnsupportedSourceError(f"assignment to the argument {target.id}")
+            self.env[target.id] = self.expr(node.value)
+            return True
+        if not isinstance(target, ast.Subscript):
+            raise UnsupportedSourceError(f"statement {ast.unparse(node)}")
+        s = target.slice
+        if isinstance(s, ast.Slice) and s.lower is s.upper is s.step is None:  # out[:] = 0.0: every element
+            arr = target.value.id if isinstance(target.value, ast.Name) else ""
+            if not (arr in self.args and isinstance(node.value, ast.Constant)
+                    and type(node.value.value) in (int, float) and math.copysign(1.0, node.value.value) > 0
+                    and node.value.value == 0):
+                raise UnsupportedSourceError(f"statement {ast.unparse(node)}: a whole-array store of +0.0 only")
+            size = self._new(f"mul i64 %n_{arr}, 8")
+            self.lines.append(f"  call void @llvm.memset.p0.i64(ptr %a_{arr}, i8 0, i64 {size}, i1 false)")
+            return True
+        value = self.expr(node.value)
+        self.lines.append(f"  store double {value}, ptr {self._address(target)}")
+        return True
+
+
+def parse_function(source: str) -> ast.FunctionDef:
+    tree = ast.parse(textwrap.dedent(source))
+    if len(tree.body) != 1 or not isinstance(tree.body[0], ast.FunctionDef):
+        raise UnsupportedSourceError("the source of exactly one function is expected")
+    fn = tree.body[0]
+    a = fn.args
+    if a.vararg or a.kwarg or a.kwonlyargs or a.posonlyargs or a.defaults or fn.decorator_list:
+        raise UnsupportedSourceError(f"{fn.name}: plain positional arguments only, no decorators")
+    return fn
+
+
+def function_ir(source: str, symbol: str) -> str:
+    """LLVM IR (a module) defining `void @symbol(ptr a, i64 n, i64 c, ...)`: per array argument of the
+    function in `source`, its data, its number of elements and its last dimension (C order)."""
+    fn = parse_function(source)
+    args = [a.arg for a in fn.args.args]
+    em = _Emitter(args)
+    for st in fn.body:
+        if not em.statement(st):
+            break
+    else:
+        raise UnsupportedSourceError(f"{fn.name}: no `return 0`")
+    params = ", ".join(f"ptr %a_{a}, i64 %n_{a}, i64 %c_{a}" for a in args)
+    # weak_odr: each library that compiles a call carries a copy, one of which is kept (the symbol is unique per
+    # generated module, see numba_backend); not linkonce_odr, which LLVM's linker drops when the caller's module
+    # is linked after it; nounwind: no exception leaves it
+    return "\n".join([f'define weak_odr void @"{symbol}"({params}) nounwind {{', "entry:", *em.lines, "}",
+                      *_DECLARATIONS]) + "\n"
+
+
+def straight_line(fn: Callable, symbol: str):
+    """A Numba intrinsic `call(arrays)` running `fn`'s source compiled from LLVM IR (see the module doc):
+    arrays is the tuple of fn's arguments (C-contiguous float64 arrays); returns 0, as fn does.
+    The IR is built when Numba first compiles a call (not when a cached caller is loaded); a source
+    outside the language raises UnsupportedSourceError then (numba_backend checks it before choosing this path)."""
+    import llvmlite.binding as ll
+    from llvmlite import ir
+    from numba.core import cgutils, types
+    from numba.core.errors import TypingError
+    from numba.extending import intrinsic
+
+    nargs = fn.__code__.co_argcount
+    texts: list[str] = []  # the IR, built once
+
+    def ir_text() -> str:
+        if not texts:
+            texts.append(function_ir(inspect.getsource(fn), symbol))
+        return texts[0]
+
+    @intrinsic
+    def call(typingctx, arrays):
+        if not (isinstance(arrays, types.BaseTuple) and len(arrays) == nargs and all(
+                isinstance(t, types.Array) and t.dtype == types.float64 and t.layout == "C" for t in arrays)):
+            raise TypingError(f"{symbol}: expects a tuple of {nargs} C-contiguous float64 arrays, got {arrays}")
+
+        def codegen(context, builder, sig, llargs):
+            values = []
+            for k, aty in enumerate(sig.args[0]):
+                ary = context.make_array(aty)(context, builder, builder.extract_value(llargs[0], k))
+                shape = cgutils.unpack_tuple(builder, ary.shape, aty.ndim)
+                values += [ary.data, ary.nitems, shape[-1]]
+            # the definition goes into the library being compiled (parsed again for each: a module is consumed)
+            context.active_code_library.add_llvm_module(ll.parse_assembly(ir_text()))
+            fnty = ir.FunctionType(ir.VoidType(), [v.type for v in values])
+            builder.call(cgutils.get_or_insert_function(builder.module, fnty, symbol), values)
+            return context.get_constant(types.int64, 0)
+
+        return types.int64(arrays), codegen
+
+    return call
+
+
+__all__ = ["UnsupportedSourceError", "function_ir", "parse_function", "straight_line"]

@@ -1,0 +1,103 @@
+"""Generated straight-line code compiled from LLVM IR (dynid.symbolic.llvm_code): the same numbers, to the
+bit, as Numba's compile of the same source and as the source run by Python; what it cannot translate
+is compiled by Numba from Python, with a warning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynid.symbolic import numba_backend as nb
+from dynid.symbolic.llvm_code import UnsupportedSourceError, function_ir
+
+pytest.importorskip("numba")
+
+BODY = '''
+def {name}(q, wrench, out, extra):
+    """A model in the generated language: reads, constants, + - *, unary -, sin, cos, _sign, writes."""
+    c1 = 0.1
+    a = q[0]
+    b = q[1]
+    w = wrench[1, 4]
+    s = math.sin(a)
+    c = math.cos(b)
+    e = -(a * s - b * c) * c1 + 3 * w
+    out[0] = e * e - a
+    out[2] = _sign(a) + _sign(b) * 2.0 + _sign(w - w)
+    out[3] = -e
+    extra[:] = 0.0
+    extra[5] = wrench[0, 0] * q[2] + 1.0000000000000002
+    return 0
+'''
+
+
+def _python(name: str, body: str):
+    ns: dict = {}
+    exec(compile(nb.HEADER + body, "<test>", "exec"), ns)
+    return ns[name]
+
+
+def test_straight_line_code_is_numbas_to_the_bit(tmp_path, monkeypatch):
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    body = BODY.format(name="f") + BODY.format(name="g")
+    mod = nb.compile_source(body, ["f", "g"], nb.source_key("test straight line", body), prefix="dynid_test",
+                            straight=["f"])
+    text = nb.cached_module_path(mod.KEY, "dynid_test").read_text()
+    assert "_ir_f = straight_line(f," in text and "straight_line(g," not in text  # f from IR, g by numba
+    plain = _python("f", BODY.format(name="f"))
+    rng = np.random.default_rng(3)
+    for k in range(20):
+        q = rng.normal(size=3) * 10.0 ** rng.integers(-3, 4)
+        if k == 0:
+            q[:] = [0.0, -0.0, 1.0]  # _sign of zeros
+        wrench = rng.normal(size=(2, 6))
+        outs = []
+        for fn in (mod.f, mod.g, plain):
+            out, extra = np.full(4, 7.0), np.full(6, 7.0)
+            assert fn(q, wrench, out, extra) == 0
+            outs.append(np.concatenate([out, extra]))
+        assert np.array_equal(outs[0], outs[1]) and np.array_equal(outs[0], outs[2]), k
+        assert outs[0][1] == 7.0 and not np.any(outs[0][4:9])  # unwritten entry kept; extra[:] cleared
+
+
+@pytest.mark.parametrize("line", ["out[0] = q[0] / q[1]", "out[0] = q[0] ** 2", "out[int(q[0])] = 1.0",
+                                  "out[:] = 1.0", "x = np.sin(q[0])", "out[0] = y"])
+def test_what_it_cannot_translate_is_refused(line):
+    src = f"def f(q, out):\n    {line}\n    return 0\n"
+    with pytest.raises(UnsupportedSourceError):
+        function_ir(src, "f")
+
+
+def test_unsupported_source_falls_back_to_numba(tmp_path, monkeypatch):
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    body = "def h(q, out):\n    out[0] = q[0] / q[1]\n    return 0\n"
+    with pytest.warns(RuntimeWarning, match="compiled by numba from Python"):
+        mod = nb.compile_source(body, ["h"], nb.source_key("test fallback", body), prefix="dynid_test",
+                                straight=["h"])
+    out = np.zeros(1)
+    mod.h(np.array([1.0, 4.0]), out)
+    assert out[0] == 0.25
+
+
+def test_simulator_models_are_their_python_source_to_the_bit():
+    """car_kin, car_idm and car_inertia (from LLVM IR) equal their generated Python run by Python."""
+    from dynid.vehicle.sim import CarSimulator, kernel
+    from dynid.vehicle.sim.car import _module_source
+
+    sim = CarSimulator()
+    body, _ = _module_source(sim.tree, sim.aero_point)
+    ns: dict = {}
+    exec(compile(nb.HEADER + body, "<simulator models>", "exec"), ns)
+    rng = np.random.default_rng(5)
+    rest = sim.initial_state(20.0)
+    for _ in range(3):
+        q = np.zeros(42)
+        q[np.array(kernel.FREE) - 1] = rest[:kernel.NF] + 0.01 * rng.normal(size=kernel.NF)
+        qd, qdd = rng.normal(size=42), rng.normal(size=42)
+        wrench = rng.normal(size=(5, 6)) * 1e3
+        for name, args, size in (("car_kin", (q, qd), kernel.NKIN), ("car_idm", (q, qd, qdd, wrench), 42),
+                                 ("car_inertia", (q,), kernel.NF * kernel.NF_ROW)):
+            a, b = np.full(size, np.nan), np.full(size, np.nan)
+            getattr(sim.module, name)(*args, a)
+            ns[name](*args, b)
+            assert np.array_equal(a, b), name
