@@ -34,3 +34,48 @@ def test_model_show_template_prints_the_paper_car():
     assert "42 frames" in out.stdout and "paper estimates: NOT realisable" in out.stdout
     assert "YY6" in out.stdout.split("NOT realisable")[1].splitlines()[1]
     assert "48 of 48" in out.stdout
+
+
+def _commands(parser, path=("dynid",)):
+    """(command path, its parser) for every command and sub-command, depth first."""
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*path, name), sub
+                yield from _commands(sub, (*path, name))
+
+
+def test_every_command_says_what_it_is_for_with_an_example_and_every_option_has_help():
+    import argparse
+
+    from dynid.cli.main import build_parser
+
+    parser = build_parser()
+    commands = dict(_commands(parser))
+    assert {"demo", "identify", "simulate", "excite", "model", "vehicle"} <= {p[1] for p in commands}
+    assert ("dynid", "model", "codegen") in commands and ("dynid", "vehicle", "new") in commands
+    for path, p in [(("dynid",), parser), *commands.items()]:
+        name = " ".join(path)
+        assert p.description and len(p.description) > 40, f"{name}: no description"
+        if len(path) > 1:  # an example that runs this very command, in the epilog, kept as written
+            assert p.formatter_class is argparse.RawDescriptionHelpFormatter, name
+            examples = [ln.strip() for ln in p.epilog.split("example")[1].splitlines()[1:] if ln.strip()]
+            assert any(e.startswith(name + " ") or e == name for e in examples), f"{name}: no example"
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for c in a._choices_actions:
+                    assert c.help, f"{name} {c.dest}: no help line"
+            elif not isinstance(a, argparse._HelpAction):
+                assert a.help and a.help != argparse.SUPPRESS, f"{name} {'/'.join(a.option_strings) or a.dest}: no help"
+
+
+def test_top_level_help_lists_each_command_with_its_purpose_and_an_example():
+    out = run("--help")
+    assert out.returncode == 0
+    for command in ("demo", "identify", "simulate", "excite", "model", "vehicle"):
+        line = next(ln for ln in out.stdout.splitlines() if ln.strip().startswith(command + " "))
+        assert len(line.split()) > 3, line  # the command and what it is for
+        assert f"e.g. dynid {command} " in out.stdout
+    assert "Traceback" not in out.stderr

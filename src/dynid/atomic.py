@@ -1,17 +1,38 @@
-"""Atomic file writes: a crash or an error never leaves a half-written result.
+"""Atomic writes: a crash or an error never leaves a half-written result.
 
-The data go to a temporary file beside the target (same file system, so the final
+A file: the data go to a temporary file beside the target (same file system, so the final
 `os.replace` is an atomic rename), flushed to disk, given the mode a new file would have
 (or the mode of the file it replaces), then renamed over the target.
+
+An output folder (`staged_folder`): the run writes into a hidden sibling `.NAME.partial-XXXX`
+which is swapped in as a whole at the end, under a lock `.NAME.lock`, so the folder is always
+either the complete old set of results or the complete new one, whatever stops the run.
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
+import hashlib
+import itertools
+import json
 import os
+import re
+import shutil
+import signal
+import sys
 import tempfile
-from collections.abc import Iterator
+import threading
+import uuid
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
+from datetime import UTC, datetime
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # Windows: lock files created with O_EXCL instead
+    fcntl = None  # type: ignore[assignment]
 
 
 def _new_file_mode(target: Path) -> int:
@@ -66,3 +87,358 @@ def output_folder(path: str | os.PathLike[str]) -> Path:
         raise OutputError(f"{out}: cannot write there ({exc.strerror or exc}); give --out a folder you can "
                           "write") from None
     return out
+
+
+# ------------------------------------------------------------------ a whole output folder
+
+MARKER = ".dynid-output.json"  # written last in every output folder: run id and the files with their SHA-256
+_JUNK = {".DS_Store", "Thumbs.db", "desktop.ini"}  # written by file browsers, not by a user: replaced freely
+_TMP = re.compile(r"^\..+\.tmp(\.[^.]*)?$")  # atomic_path's temporaries, left by a killed pre-staging run
+_LEGACY = {".json", ".html", ".csv", ".png", ".svg", ".toml"}  # what dynid wrote before the marker existed
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP during a staged run, raised so that `finally` blocks clean up; a BaseException, like
+    KeyboardInterrupt, so that no `except Exception` swallows it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(f"terminated by {signal.Signals(signum).name}")
+        self.signum = signum
+
+
+class _Signals:
+    """SIGTERM/SIGHUP raise Terminated, SIGINT KeyboardInterrupt, while installed; inside `deferred()` (lock,
+    swap, cleanup) a signal is held and raised when the guard is left. Signals that were ignored (nohup) or
+    given a handler by someone else are left alone; outside the main thread nothing is installed."""
+
+    def __init__(self) -> None:
+        self.saved: dict[int, object] = {}
+        self.critical = 0
+        self.pending: int | None = None
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        wanted = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+        if hasattr(signal, "SIGHUP"):
+            wanted[signal.SIGHUP] = signal.SIG_DFL
+        for sig, default in wanted.items():
+            if signal.getsignal(sig) is default:
+                self.saved[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        for sig, old in self.saved.items():
+            signal.signal(sig, old)  # type: ignore[arg-type]
+        if self.pending is not None and kind is None:
+            _raise_for(self.pending)
+
+    def _handle(self, signum: int, _frame) -> None:
+        if self.critical:
+            self.pending = signum
+            return
+        _raise_for(signum)
+
+    @contextmanager
+    def deferred(self) -> Iterator[None]:
+        self.critical += 1
+        try:
+            yield
+        finally:
+            self.critical -= 1
+
+
+def _raise_for(signum: int) -> None:
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+# staging folder -> the output folder it becomes: kept after the run, so that an error raised inside it can
+# still be shown with the final names
+_SEEN: dict[str, str] = {}
+
+
+def final_path(path: str | os.PathLike[str]) -> Path:
+    """`path` with a staging folder (`staged_folder`) replaced by the output folder it becomes: what a report,
+    results.json or a message should name, since the staging folder is gone after the swap."""
+    return Path(final_text(os.fspath(path)))
+
+
+def final_text(text: str) -> str:
+    """`text` with every staging folder's path replaced by its output folder's."""
+    for stage, final in _SEEN.items():
+        if stage in text:
+            text = text.replace(stage, final)
+    return text
+
+
+def _names(folder: Path) -> Iterator[str]:
+    """Files (and symlinks) under `folder`, as POSIX paths relative to it."""
+    for root, dirs, files in os.walk(folder):
+        dirs.sort()
+        for name in sorted(files) + sorted(d for d in dirs if os.path.islink(os.path.join(root, d))):
+            yield Path(root, name).relative_to(folder).as_posix()
+
+
+def _ours(rel: str) -> bool:
+    """Left by file browsers or by a killed atomic write: not a user's file."""
+    name = rel.rsplit("/", 1)[-1]
+    return name in _JUNK or bool(_TMP.match(name))
+
+
+def _check_replaceable(real: Path, shown: Path) -> None:
+    """Refuse to replace a folder that holds anything dynid did not write: the user's files are never deleted."""
+    if not real.exists():
+        return
+    if not real.is_dir():
+        raise OutputError(f"{shown}: exists and is not a folder; give --out a folder (new or existing)")
+    if os.path.ismount(real):
+        raise OutputError(f"{shown}: is a mount point, and an output folder is replaced as a whole; give --out "
+                          "a folder inside it")
+    if not os.access(real, os.W_OK | os.X_OK):
+        raise OutputError(f"{shown}: cannot write there (permission denied); give --out a folder you can write")
+    known: set[str] = set()
+    try:  # the files the last run wrote, listed by it
+        known = set(json.loads((real / MARKER).read_text(encoding="utf-8"))["files"]) | {MARKER}
+    except (OSError, ValueError, KeyError, TypeError):  # no marker (or damaged): written by an older dynid?
+        if (real / "results.json").is_file():  # then its file types, and a demo's data/
+            demo = (real / "identify.toml").is_file()
+            known = {r for r in _names(real) if ("/" not in r and Path(r).suffix in _LEGACY)
+                     or (demo and r.startswith("data/"))}
+    extra = list(itertools.islice((r for r in _names(real) if r not in known and not _ours(r)), 4))
+    if extra:
+        listed = ", ".join(extra[:3]) + (", ..." if len(extra) > 3 else "")
+        raise OutputError(f"{shown}: holds files dynid did not write ({listed}); an output folder is replaced "
+                          "as a whole, so give --out a new or empty folder, or move those files out")
+
+
+def _check_inputs(real: Path, shown: Path, inputs: Iterable[str | os.PathLike[str]]) -> None:
+    try:
+        cwd: Path | None = Path.cwd().resolve()
+    except OSError:  # the current folder was deleted: it cannot be the output folder
+        cwd = None
+    if cwd is not None and (cwd == real or real in cwd.parents):
+        raise OutputError(f"{shown}: is the current folder or holds it, and an output folder is replaced as a "
+                          "whole; give --out another folder")
+    for p in inputs:
+        q = Path(p).resolve()
+        if real in q.parents:
+            raise OutputError(f"{shown}: holds this run's input {p}, and an output folder is replaced as a whole; "
+                              f"give --out another folder (e.g. --out {shown.name}-2)")
+
+
+def _pid_alive(pid: int) -> bool:
+    if os.name == "nt":  # os.kill(pid, 0) would send CTRL_C_EVENT there
+        k32 = ctypes.windll.kernel32  # type: ignore[attr-defined]
+        handle = k32.OpenProcess(0x1000, False, pid)  # PROCESS_QUERY_LIMITED_INFORMATION
+        if not handle:
+            return False
+        code = ctypes.c_ulong()
+        ok = k32.GetExitCodeProcess(handle, ctypes.byref(code))
+        k32.CloseHandle(handle)
+        return bool(ok) and code.value == 259  # STILL_ACTIVE
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: alive
+        return True
+    return True
+
+
+def _holder(lock: Path) -> str:
+    try:
+        return lock.read_text().strip() or "?"
+    except OSError:
+        return "?"
+
+
+def _busy(shown: Path, pid: str) -> OutputError:
+    return OutputError(f"{shown}: another dynid run (pid {pid}) is writing this folder; wait for it to end, or "
+                       "give another --out")
+
+
+def _lock(lock: Path, shown: Path):
+    """Take the folder's lock (non-blocking); returns its release. flock where there is one: the kernel drops it
+    when its holder dies, however it dies; elsewhere an O_EXCL file with the holder's pid, taken over when that
+    process is gone."""
+    if fcntl is not None:
+        while True:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise _busy(shown, _holder(lock)) from None
+            try:  # the holder before us may have unlinked the file we opened: lock the one on disk
+                same = os.path.samestat(os.fstat(fd), os.stat(lock))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+
+        def release() -> None:
+            lock.unlink(missing_ok=True)  # while still held: a waiter then sees a new file, not ours
+            os.close(fd)
+        return release
+    for _ in range(3):
+        try:
+            fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            pid = _holder(lock)
+            if pid.isdigit() and _pid_alive(int(pid)):
+                raise _busy(shown, pid) from None
+            lock.unlink(missing_ok=True)  # its run was killed: stale
+            continue
+        os.write(fd, f"{os.getpid()}\n".encode())
+        os.close(fd)
+        return lambda: lock.unlink(missing_ok=True)
+    raise _busy(shown, _holder(lock))
+
+
+def _siblings(real: Path, kind: str) -> list[Path]:
+    prefix = f".{real.name}.{kind}-"
+    return sorted((p for p in real.parent.iterdir() if p.name.startswith(prefix)), key=lambda p: p.stat().st_mtime)
+
+
+def _recover(real: Path) -> None:
+    """Under the lock, what killed runs left: an old set moved aside by a run killed between its two renames
+    goes back in place; staging folders and moved-aside old sets are removed."""
+    olds = _siblings(real, "old")
+    if olds and not os.path.lexists(real):
+        os.rename(olds.pop(), real)
+    for p in _siblings(real, "partial") + olds:
+        shutil.rmtree(p, ignore_errors=True)
+
+
+def _folder_mode(real: Path) -> int:
+    if real.is_dir():
+        return real.stat().st_mode & 0o7777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o777 & ~umask
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths in one step (Linux renameat2 RENAME_EXCHANGE, glibc >= 2.28); False where that is not
+    available (another system, an older libc, a file system without it)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    fn.restype = ctypes.c_int
+    at_fdcwd, rename_exchange = -100, 2
+    if fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), os.fspath(b))
+
+
+def _swap_in(stage: Path, real: Path) -> Path | None:
+    """Put `stage` at `real`; returns where the old set now is (to delete), None if there was none."""
+    if not os.path.lexists(real):
+        os.rename(stage, real)
+        return None
+    if _exchange(stage, real):
+        return stage  # at every instant `real` was the old set or the new one
+    old = real.with_name(f".{real.name}.old-{uuid.uuid4().hex[:8]}")
+    os.rename(real, old)  # from here to the next rename `real` is absent; a kill here is undone by _recover
+    try:
+        os.rename(stage, real)
+    except BaseException:
+        os.rename(old, real)
+        raise
+    return old
+
+
+def _fsync_dir(path: Path) -> None:
+    if os.name != "posix":
+        return
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # some file systems refuse fsync on a folder: durability is best effort there
+        pass
+    finally:
+        os.close(fd)
+
+
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of a file's bytes, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _write_marker(stage: Path) -> None:
+    from . import __version__
+
+    files = {}
+    for rel in _names(stage):
+        if rel != MARKER and (stage / rel).is_file():
+            files[rel] = file_sha256(stage / rel)
+    for root, _dirs, _files in os.walk(stage):
+        _fsync_dir(Path(root))
+    marker = {"dynid": __version__, "run_id": uuid.uuid4().hex[:16],
+              "written_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), "files": files}
+    write_atomic(stage / MARKER, json.dumps(marker, indent=1) + "\n")
+
+
+@contextmanager
+def staged_folder(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]] = ()) -> Iterator[Path]:
+    """An output folder replaced as a whole: yields a hidden staging folder beside `path` to write the results
+    in; on success it is swapped in (the old set deleted after), on any error, Ctrl-C or SIGTERM it is removed
+    and `path` keeps the old set. Checked before the caller computes anything: `path` is not a file, is not
+    locked by another run, holds only a previous run's outputs (or nothing) and none of `inputs`, and its
+    parent can be written. Leftovers of a killed run are cleaned up first. Raises OutputError (one line)."""
+    shown = Path(path)
+    real = shown.resolve()
+    if real.parent == real:
+        raise OutputError(f"{shown}: is the root of the file system; give --out a folder below it")
+    guard = _Signals()
+    with guard:
+        if real.exists() and not real.is_dir():
+            raise OutputError(f"{shown}: exists and is not a folder; give --out a folder (new or existing)")
+        try:
+            real.parent.mkdir(parents=True, exist_ok=True)
+            with guard.deferred():
+                release = _lock(real.with_name(f".{real.name}.lock"), shown)
+        except OSError as exc:
+            if isinstance(exc, OutputError):
+                raise
+            raise OutputError(f"{shown}: cannot write there ({exc.strerror or exc}: the results are written "
+                              "beside the folder, then swapped in); give --out a folder you can write") from None
+        trash: Path | None = None
+        try:
+            _recover(real)
+            _check_replaceable(real, shown)
+            _check_inputs(real, shown, inputs)
+            with guard.deferred():
+                trash = Path(tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=real.parent))
+            os.chmod(trash, _folder_mode(real))
+            stage = trash
+            _SEEN[os.fspath(stage)] = os.path.abspath(shown)  # as the user named it (a symlink stays one)
+            yield stage
+            with guard.deferred():
+                _write_marker(stage)
+                trash = _swap_in(stage, real)
+                _fsync_dir(real.parent)
+        finally:
+            with guard.deferred():
+                if trash is not None:
+                    shutil.rmtree(trash, ignore_errors=True)
+                release()

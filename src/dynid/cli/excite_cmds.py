@@ -26,12 +26,15 @@ from pathlib import Path
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `excite` to the top-level `dynid` sub-commands."""
-    p = subparsers.add_parser(
-        "excite", help="optimise a periodic excitation trajectory (Fourier series) for identification",
+    from .usage import command
+
+    p = command(
+        subparsers, "excite", help="optimise a periodic excitation trajectory (Fourier series) for identification",
         description="Optimise a finite Fourier series trajectory that minimises the condition number of the "
                     "base-parameter regressor within the joint limits (Swevers et al. 1997), write it as CSV "
-                    "with its coefficients as TOML, and print the expected %σ of each base parameter. "
-                    "Example: dynid excite tx40 --limits limits.toml --out traj.csv")
+                    "with its coefficients as TOML, and print the expected %σ of each base parameter.",
+        examples=["dynid excite tx40 --limits limits.toml --out traj.csv",
+                  "dynid excite robot.toml --limits limits.toml --period 10 --harmonics 5 --fs 200 --out traj.csv"])
     p.add_argument("model", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     p.add_argument("--out", required=True, help="output CSV file; the coefficients go to <stem>.toml beside it")
     p.add_argument("--period", type=float, default=10.0, help="period T of the trajectory, s (default 10)")

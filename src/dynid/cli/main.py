@@ -13,6 +13,11 @@ from ..model import ModelError, Tree
 
 SIGMA = {0: "R", 1: "P", 2: "F"}
 
+DESCRIPTION = """\
+dynid identifies the dynamic parameters of robots and cars (masses, inertias, friction,
+springs) from measurements with the inverse dynamic identification model and least squares,
+and reports them with their uncertainty, validation and physical consistency."""
+
 
 def format_table(tree: Tree) -> str:
     """The geometric table in SYMORO's layout (angles in degrees where that reads better)."""
@@ -72,7 +77,9 @@ def cmd_model_show(args: argparse.Namespace) -> int:
 
 
 def _say(msg: str) -> None:
-    print(f"· {msg}", file=sys.stderr)
+    from ..atomic import final_text
+
+    print(f"· {final_text(msg)}", file=sys.stderr)  # the output folder's name, never its staging folder's
 
 
 def _print_run(run, validation_title: str) -> None:
@@ -90,16 +97,19 @@ def _print_run(run, validation_title: str) -> None:
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..atomic import output_folder
+    from ..atomic import staged_folder
     from ..pipeline.config import load_config
     from ..pipeline.run import identify, write_outputs
+    from ..report.build import input_files
 
     cfg = load_config(args.config)
-    output_folder(args.out)
-    run = identify(cfg, progress=_say)
-    _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
-    files = write_outputs(run, Path(args.out), f"Identification of {run.model.name}", progress=_say)
-    print(f"\nwrote {', '.join(str(f) for f in files)}")
+    out = Path(args.out)
+    # the folder is checked and locked before computing; the results replace it as a whole at the end
+    with staged_folder(out, inputs=[p for _, p in input_files(cfg)]) as stage:
+        run = identify(cfg, progress=_say)
+        _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
+        files = write_outputs(run, stage, f"Identification of {run.model.name}", progress=_say)
+    print(f"\nwrote {', '.join(str(out / f.relative_to(stage)) for f in files)}")
     return 0
 
 
@@ -107,67 +117,105 @@ def cmd_demo(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from ..atomic import output_folder
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    _say(f"the demo: simulate the tests, write their files, identify, report into {out}")
+    from ..atomic import staged_folder
     from ..pipeline.demo import run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
     from .simulate_cmds import progress_bar
 
-    t0 = time.perf_counter()
-    out = Path(args.out)
     if args.vehicle:  # a bad vehicle file is refused before the output folder is made
         from ..vehicle.description import load_vehicle
 
         load_vehicle(args.vehicle)
-    output_folder(out)
-    run = run_demo(out, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar,
-                   vehicle=args.vehicle)
-    _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| "
-                    "(direct: sine, spiral, braking, lane change; cross: step steer, gentler braking):")
-    r, tree = run.result, run.model.tree
-    wheels = sum(tree.values.get(f"M{w}", 0.0) for w in WHEELS)
-    m6, true_m6 = r.value("M6"), r.truth.get("M6")
-    if true_m6:
-        err = 100 * (m6 - true_m6) / (true_m6 + wheels)
-        print(f"\nTotal mass: {m6 + wheels:.1f} kg estimated, {true_m6 + wheels:.1f} kg true ({err:+.2f} %)")
-    write_outputs(run, out, f"dynid demo: the simulated {tree.name}", progress=_say)
+    # everything (the logger files, the config, the results) is written into a staging folder swapped in at the end
+    with staged_folder(out) as stage:
+        run = run_demo(stage, quick=args.quick, seed=args.seed, progress=_say, simulation_progress=progress_bar,
+                       vehicle=args.vehicle)
+        _print_run(run, "Validation, relative error ||Y - W X|| / ||Y|| "
+                        "(direct: sine, spiral, braking, lane change; cross: step steer, gentler braking):")
+        r, tree = run.result, run.model.tree
+        wheels = sum(tree.values.get(f"M{w}", 0.0) for w in WHEELS)
+        m6, true_m6 = r.value("M6"), r.truth.get("M6")
+        if true_m6:
+            err = 100 * (m6 - true_m6) / (true_m6 + wheels)
+            print(f"\nTotal mass: {m6 + wheels:.1f} kg estimated, {true_m6 + wheels:.1f} kg true ({err:+.2f} %)")
+        write_outputs(run, stage, f"dynid demo: the simulated {tree.name}", progress=_say)
     print(f"\nwrote {out / 'report.html'}, {out / 'results.json'}, the figures, and the test files and "
           f"config in {out} (dynid identify {out / 'identify.toml'} reruns it) in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dynid", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"dynid {__version__}")
+    from . import excite_cmds, model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
+    from .usage import command, overview
+
+    parser = argparse.ArgumentParser(prog="dynid", description=DESCRIPTION,
+                                     usage="dynid [-h] [--version] [--debug] COMMAND ...",
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"dynid {__version__}",
+                        help="print dynid's version and exit")
     parser.add_argument("--debug", action="store_true", help="on an unexpected error, show the whole traceback")
-    sub = parser.add_subparsers(dest="command", required=True)
-    model = sub.add_parser("model", help="describe and generate models of a tree")
-    msub = model.add_subparsers(dest="model_command", required=True)
-    show = msub.add_parser("show", help="print the MDH table, the parameters and the base parameters")
+    # the commands are listed by the epilog (purpose and example side by side), not by argparse
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", help=argparse.SUPPRESS,
+                                prog="dynid")
+    model = command(
+        sub, "model", help="robot models: show one, count or generate its symbolic models, import/export a URDF",
+        description="A robot is a model file (TOML: the modified Denavit-Hartenberg table, the parameters and "
+                    "the known values) or a shipped example: puma560, tx40, floating_tree. These commands print "
+                    "it, count or generate its symbolic models, and read or write a URDF.",
+        examples=["dynid model show tx40", "dynid model codegen tx40 --lang c --model idm --out gen",
+                  "dynid model import panda.urdf --out panda.toml"])
+    msub = model.add_subparsers(dest="model_command", required=True, metavar="SUBCOMMAND")
+    show = command(
+        msub, "show", help="print the MDH table, the parameters and the base parameters",
+        description="Print a model's geometric table (MDH), its parameters (the file's values; * marks the known "
+                    "ones) and its base parameters: the combinations an identification can estimate. With "
+                    "--template, a vehicle template's instead.",
+        examples=["dynid model show tx40", "dynid model show robot.toml", "dynid model show --template peugeot406"])
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
     show.set_defaults(func=cmd_model_show)
-    demo = sub.add_parser("demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
-                          description="Simulate the paper's tests with a vehicle's sensor suite, write the files "
-                                      "and the config, identify and report. Example: dynid demo --out demo")
-    demo.add_argument("--out", default="dynid-demo", help="output folder (default: dynid-demo)")
+    demo = command(
+        sub, "demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
+        description="Simulate the paper's tests with a vehicle's sensor suite (seeded noise), write the logger "
+                    "files and the identification config, identify the parameters and write the report, "
+                    "results.json, the figures and CSV files. The output folder is replaced as a whole when the "
+                    "run ends: an interrupted or failed run leaves the previous results as they were.",
+        examples=["dynid demo --quick --out demo", "dynid demo --out demo --seed 7",
+                  "dynid identify demo/identify.toml --out demo-rerun"],
+        notes="The first run compiles the simulator's models (up to a minute); later runs load them from the "
+              "cache (DYNID_CACHE, default ~/.cache/dynid).")
+    demo.add_argument("--out", default="dynid-demo", help="output folder, replaced as a whole at the end "
+                                                          "(default: dynid-demo)")
     demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")
     demo.add_argument("--seed", type=int, default=406, help="seed of the sensor noise (default 406)")
     demo.add_argument("--vehicle", default="peugeot406",
                       help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
                            "(default: peugeot406)")
     demo.set_defaults(func=cmd_demo)
-    ident = sub.add_parser("identify", help="identify the parameters of a model from measurement files")
+    ident = command(
+        sub, "identify", help="identify a model's parameters from measurement files, as a config describes them",
+        description="Identify the parameters of a robot or a car from measurement files. The config (TOML) "
+                    "names the model or vehicle, the tests (to identify on, or to validate with), the channels, "
+                    "the conditioning and the method. Prints the estimates with their %σ and the validation "
+                    "errors, and writes results.json, report.html, the figures and CSV files into the output "
+                    "folder, which is replaced as a whole when the run ends: an interrupted or failed run leaves "
+                    "the previous results as they were, and a second run into the same folder is refused.",
+        examples=["dynid identify demo/identify.toml --out results", "dynid identify robot.toml --out robot-out"],
+        notes="docs/tutorial.md describes the config; `dynid demo` writes one to start from.")
     ident.add_argument("config", help="identification config (TOML)")
-    ident.add_argument("--out", default="dynid-out", help="output folder (default: dynid-out)")
+    ident.add_argument("--out", default="dynid-out", help="output folder, replaced as a whole at the end "
+                                                          "(default: dynid-out)")
     ident.set_defaults(func=cmd_identify)
-    from . import excite_cmds, model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
-
     symbolic_cmds.register(msub)
     model_io_cmds.register(msub)
     simulate_cmds.register(sub)
     excite_cmds.register(sub)
     vehicle_cmds.register(sub)
+    parser.epilog = overview(sub, order=("demo", "identify", "simulate", "excite", "model", "vehicle"))
     return parser
 
 
@@ -184,13 +232,18 @@ def _user_errors() -> tuple[type[Exception], ...]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from ..atomic import Terminated, final_text
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except _user_errors() as exc:
-        print(f"dynid: error: {exc}", file=sys.stderr)
+        print(f"dynid: error: {final_text(str(exc))}", file=sys.stderr)
         return 2
+    except Terminated as exc:  # SIGTERM: the output folder kept its previous results, the temporaries removed
+        print(f"dynid: {exc}", file=sys.stderr)
+        return 128 + exc.signum
     except BrokenPipeError:  # output piped into `head` and closed early: not an error
         sys.stderr.close()
         return 0
@@ -207,12 +260,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"dynid: error: {where}{exc.strerror or exc} (--debug shows where)", file=sys.stderr)
+        print(f"dynid: error: {final_text(where)}{exc.strerror or exc} (--debug shows where)", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug of dynid's: one line and the way to the traceback, never a raw one
         if args.debug:
             raise
-        print(f"dynid: internal error: {type(exc).__name__}: {str(exc)[:300]}; rerun with --debug for the "
+        print(f"dynid: internal error: {type(exc).__name__}: {final_text(str(exc))[:300]}; rerun with --debug for the "
               "traceback and report it with the command you ran", file=sys.stderr)
         return 3
 

@@ -14,23 +14,25 @@ _STANDARD = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FV|FS|OFF|K)(\d+)$")
 
 def register(model_subparsers: argparse._SubParsersAction) -> None:
     """Add `import` and `export` to the `dynid model ...` sub-commands."""
-    imp = model_subparsers.add_parser(
-        "import", help="read a URDF into a model file (one MDH frame per moving joint)",
+    from .usage import command
+
+    imp = command(
+        model_subparsers, "import", help="read a URDF into a model file (one MDH frame per moving joint)",
         description="Read a URDF (revolute, continuous, prismatic and fixed joints) into a model file: one MDH "
                     "frame per moving joint, named after it in [joints]; fixed joints' links are merged into "
-                    "the body they are fixed to. Meshes are not read. "
-                    "Example: dynid model import panda.urdf --out panda.toml")
+                    "the body they are fixed to. Meshes are not read.",
+        examples="dynid model import panda.urdf --out panda.toml")
     imp.add_argument("urdf", help="the URDF file (expanded, not .xacro), e.g. robot.urdf")
     imp.add_argument("--out", required=True, help="model file to write (TOML), e.g. --out robot.toml")
     imp.add_argument("--name", default=None, help="model name (default: the URDF's robot name), e.g. --name panda")
     imp.set_defaults(func=cmd_import)
-    exp = model_subparsers.add_parser(
-        "export", help="write a parameter set into a URDF's inertials (mass, CoM, inertia)",
+    exp = command(
+        model_subparsers, "export", help="write a parameter set into a URDF's inertials (mass, CoM, inertia)",
         description="Write the standard inertial parameters of a model (or of an identification) into a copy of "
                     "the URDF it was imported from; only <inertial> elements change. A set that no real body has "
-                    "(mass <= 0, inertia at the CoM not positive definite, triangle inequality broken) is refused. "
-                    "Example: dynid model export robot.toml --params out/results.json --urdf robot.urdf "
-                    "--out robot_identified.urdf")
+                    "(mass <= 0, inertia at the CoM not positive definite, triangle inequality broken) is refused.",
+        examples="dynid model export robot.toml --params out/results.json --urdf robot.urdf "
+                 "--out robot_identified.urdf")
     exp.add_argument("model", help="the model file made by `dynid model import`, e.g. robot.toml")
     exp.add_argument("--params", default=None,
                      help="parameters to write (default: the model file's): an identification's results.json "

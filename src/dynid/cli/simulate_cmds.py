@@ -19,8 +19,18 @@ import time
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `simulate` to the top-level `dynid` sub-commands."""
     from ..vehicle.sim.manoeuvres import DEFAULTS
+    from .usage import command
 
-    p = subparsers.add_parser("simulate", help="simulate a test-track manoeuvre and write the sensor file")
+    p = command(subparsers, "simulate", help="simulate a test-track manoeuvre and write the sensor file",
+                description="Drive the simulated car (a vehicle file's [truth] set) through a test-track "
+                            "manoeuvre and write what its sensor suite records, with seeded noise, as a logger "
+                            "file (CSV, Parquet or MDF4) and <stem>.json beside it (the manoeuvre, seed, "
+                            "settings, true parameters and sensors).",
+                examples=["dynid simulate sine --out sine.csv",
+                          "dynid simulate braking --speed 100 --seed 3 --format parquet --out braking.parquet",
+                          "dynid simulate spiral --duration 30 --truth --out spiral.mf4"],
+                notes="The first run compiles the car's models (up to a minute); later runs load them from the "
+                      "cache.")
     p.add_argument("manoeuvre", help=f"one of {', '.join(DEFAULTS)}")
     p.add_argument("--speed", type=float, default=None, help="speed, km/h (default: the manoeuvre's)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the manoeuvre's)")
@@ -68,7 +78,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         m = manoeuvre(args.manoeuvre, speed=args.speed, duration=args.duration)
         check_output(args.out, args.format)
         t0 = time.perf_counter()
-        print("dynid: building the car (first run: compiling its models, about 30 s)", file=sys.stderr)
+        print("dynid: building the car (a first run compiles its models: up to a minute)", file=sys.stderr)
         sim = simulated_car(args.vehicle)
         report, close = progress_bar(m.duration)
         t1 = time.perf_counter()

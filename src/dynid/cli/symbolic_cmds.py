@@ -13,14 +13,28 @@ HELP_FILE = "model file (TOML) or a shipped example: puma560, tx40, floating_tre
 
 def register(model_subparsers: argparse._SubParsersAction) -> None:
     """Add `ops` and `codegen` to the `dynid model ...` sub-commands."""
-    ops = model_subparsers.add_parser("ops", help="operation counts of the symbolic models (mult, add, functions)")
+    from .usage import command
+
+    ops = command(model_subparsers, "ops", help="operation counts of the symbolic models (mult, add, functions)",
+                  description="Build the symbolic models of a tree (geometric dgm, inverse dynamic idm, "
+                              "identification regressor, inertia matrix) and print their operation counts "
+                              "(multiplications, additions, functions), equations and build times.",
+                  examples=["dynid model ops tx40", "dynid model ops robot.toml --geometry symbolic"])
     ops.add_argument("file", help=HELP_FILE)
     _common(ops)
     ops.set_defaults(func=cmd_ops)
-    gen = model_subparsers.add_parser("codegen", help="generate a model as NumPy, C or readable equations")
+    gen = command(model_subparsers, "codegen", help="generate a model as NumPy, C or readable equations",
+                  description="Generate one symbolic model of a tree as code: a NumPy module, C (a header and a "
+                              "source file) or readable equations, written into a folder.",
+                  examples=["dynid model codegen tx40 --lang c --model idm --out gen",
+                            "dynid model codegen robot.toml --lang numpy --model regressor --out gen"])
     gen.add_argument("file", help=HELP_FILE)
-    gen.add_argument("--lang", choices=("numpy", "c", "text"), required=True)
-    gen.add_argument("--model", choices=("idm", "regressor", "inertia", "dgm"), required=True)
+    gen.add_argument("--lang", choices=("numpy", "c", "text"), required=True,
+                     help="numpy (a Python module), c (a .h and a .c file) or text (readable equations)")
+    gen.add_argument("--model", choices=("idm", "regressor", "inertia", "dgm"), required=True,
+                     help="idm (inverse dynamics: joint torques), regressor (the identification model: torques "
+                          "linear in the parameters), inertia (the inertia matrix) or dgm (the geometric model: "
+                          "frame poses)")
     gen.add_argument("--out", required=True, help="output directory (created if missing)")
     gen.add_argument("--prefix", default=None, help="C function prefix / file stem (default: from the model name)")
     _common(gen)

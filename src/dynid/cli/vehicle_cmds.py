@@ -99,17 +99,33 @@ def show_template(name: str) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `vehicle` to the top-level `dynid` sub-commands."""
-    p = subparsers.add_parser("vehicle", help="vehicle files: the shipped ones, a starting file, what a file describes",
-                              description="A car is a vehicle file (TOML: geometry, sensors, tables, a priori and "
-                                          "known values; docs/vehicle.md). Example: dynid vehicle show peugeot406")
-    sub = p.add_subparsers(dest="vehicle_command", required=True)
-    lst = sub.add_parser("list", help="the shipped vehicles")
+    from .usage import command
+
+    p = command(subparsers, "vehicle", help="vehicle files: the shipped ones, a starting file, what a file describes",
+                description="A car is a vehicle file (TOML: geometry, sensors, tables, a priori and known values; "
+                            "docs/vehicle.md). These commands list the shipped ones, write a file to start from, "
+                            "and show what a file describes.",
+                examples=["dynid vehicle show peugeot406", "dynid vehicle list",
+                          'dynid vehicle new "My car" --out mycar.toml'])
+    sub = p.add_subparsers(dest="vehicle_command", required=True, metavar="SUBCOMMAND")
+    lst = command(sub, "list", help="the shipped vehicles",
+                  description="List the vehicles shipped with dynid, with their descriptions: their names can be "
+                              "given wherever a vehicle is asked for (demo --vehicle, a config's [model] vehicle).",
+                  examples="dynid vehicle list")
     lst.set_defaults(func=cmd_list)
-    new = sub.add_parser("new", help="write a commented starting vehicle file (the 406's values, to edit)")
+    new = command(sub, "new", help="write a commented starting vehicle file (the 406's values, to edit)",
+                  description="Write a commented vehicle file to start from: the shipped Peugeot 406's geometry, "
+                              "sensors, tables and values, under your car's name, each to replace with your "
+                              "car's. An existing file is not replaced.",
+                  examples='dynid vehicle new "My car" --out mycar.toml')
     new.add_argument("name", help="the car's name, as the reports will show it")
     new.add_argument("--out", required=True, help="the file to write (.toml); an existing file is not replaced")
     new.set_defaults(func=cmd_new)
-    show = sub.add_parser("show", help="frames, parameters, base parameters and the a priori set's consistency")
+    show = command(sub, "show", help="frames, parameters, base parameters and the a priori set's consistency",
+                   description="Show what a vehicle file describes: its frames, its parameters (a priori, known "
+                               "and truth values), its base parameters, and whether its a priori set is physically "
+                               "consistent.",
+                   examples=["dynid vehicle show peugeot406", "dynid vehicle show mycar.toml"])
     show.add_argument("vehicle", help="a shipped vehicle's name or a vehicle file")
     show.set_defaults(func=cmd_show)
 

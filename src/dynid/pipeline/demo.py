@@ -73,16 +73,30 @@ def simulated_car(vehicle: str = "peugeot406"):
     return CarSimulator(v.truth, v.geometry, v.tables, v.aero, steering_ratio=v.steering_ratio)
 
 
+def compile_pending(sim) -> bool | None:
+    """Whether the simulator's first call will compile its kernel: numba has no cache index for it yet (True),
+    has one (False), or cannot tell (None: numba absent, or its internals changed)."""
+    try:
+        return not Path(sim.module.simulate._cache._cache_file._index_path).exists()
+    except Exception:  # a guess for a message: never a reason to fail
+        return None
+
+
 def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None,
                    vehicle: str = "peugeot406") -> dict:
     """The demo's tests driven by the simulated car: file key -> SimulationResult (noise-free motion)."""
     say = progress or (lambda _m: None)
-    say("building the simulated car (the first run compiles its models: about 30 s)")
+    say("building the simulated car (a first run generates its models: up to 30 s)")
     sim = simulated_car(vehicle)
+    pending = compile_pending(sim)
+    if pending is not False:  # numba compiles at the first call: a silent minute unless announced
+        say("compiling the simulator's models (first run only, up to a minute; cached for later runs)"
+            if pending else "loading the simulator's compiled models (up to a minute if they are not cached)")
+    sim.run(TESTS[0][2], duration=2 * sim.settings.dt, **TESTS[0][3])  # two samples: compiles, or loads the cache
     results = {}
     for name, key, man, params, _, full, short in TESTS:
         duration = short if quick else full
-        say(f"simulating {name} ({duration:g} s)")
+        say(f"simulating {name} ({duration:g} s of driving)")
         report, close = simulation_progress(duration) if simulation_progress else (None, lambda: None)
         try:
             results[key] = sim.run(man, duration=duration, progress=report, **params)
@@ -116,6 +130,7 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
     results = simulate_tests(quick, say, simulation_progress, vehicle)
+    say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
     run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)
     run.notes = TEST_PLAN + run.notes
     return run

@@ -9,7 +9,6 @@ figures) and the additions to results.json. Writing is the caller's (`pipeline.r
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import platform
 from dataclasses import dataclass, field
@@ -457,14 +456,6 @@ def consistency_section(run) -> Section:
     return Section("Physical consistency", text, html=html, anchor="consistency")
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def input_files(cfg) -> list[tuple[str, Path]]:
     """(role, path) of every file the run read: the config, the model or vehicle file, the tests' files and
     truth sidecars, the reference."""
@@ -491,10 +482,12 @@ def input_files(cfg) -> list[tuple[str, Path]]:
 
 def provenance(run) -> dict[str, Any]:
     from .. import __version__
+    from ..atomic import file_sha256, final_path
 
     files = []
+    # hashed where read, named where they will be: a demo reads its files from a staging folder renamed at the end
     for role, p in input_files(run.config):
-        files.append({"role": role, "path": str(p), "sha256": _sha256(p) if p.is_file() else None})
+        files.append({"role": role, "path": str(final_path(p)), "sha256": file_sha256(p) if p.is_file() else None})
     return {"dynid": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "written_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), "files": files}
 
