@@ -47,6 +47,7 @@ except ImportError:  # pragma: no cover - exercised only without numba
 
 Array = np.ndarray
 _TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4}
+_SMOOTH_FS = 5  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
 _COUPLING_CODE = {"K": 0, "IA": 1, "FV": 2, "FS": 3}
 # fused multiply-add only: no reassociation (the sincos reduction relies on the order of operations)
 _FASTMATH = {"contract"}
@@ -141,12 +142,14 @@ def _local_rotation(R, E, j, revolute, th):
 
 
 @_inline
-def _joint_terms(tau_row, q, qd, qdd, jt, has_jt):
-    """IA qdd + FV qd + FS sign(qd) + OFF + K q added to tau_row (one sample)."""
+def _joint_terms(tau_row, q, qd, qdd, jt, has_jt, fs_w):
+    """IA qdd + FV qd + FS s(qd) + OFF + K q added to tau_row (one sample); s = sign where fs_w[j] is 0,
+    else tanh(qd / fs_w[j]) (fs_w: vs for tanh, 2 vs for sigmoid, see _friction_widths)."""
     for j in range(1, jt.shape[0]):
         if has_jt[j]:
             x, v, a = q[j - 1], qd[j - 1], qdd[j - 1]
-            tau_row[j - 1] += jt[j, 0] * a + jt[j, 1] * v + jt[j, 2] * _sign(v) + jt[j, 3] + jt[j, 4] * x
+            c = _sign(v) if fs_w[j] == 0.0 else math.tanh(v / fs_w[j])
+            tau_row[j - 1] += jt[j, 0] * a + jt[j, 1] * v + jt[j, 2] * c + jt[j, 3] + jt[j, 4] * x
 
 
 @_inline
@@ -178,7 +181,7 @@ def _world_rotations(R, Rw, ant, world, n):
 
 @_jit
 def _idm_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, inert, todo, massive, world,
-                jt, has_jt, cp_ptr, cp_joint, cp_coef, cp_kind, cp_val,
+                jt, has_jt, fs_w, cp_ptr, cp_joint, cp_coef, cp_kind, cp_val,
                 w_link, w_frame, w_point, w_vals, tau):
     """Newton-Euler per sample into tau (N, n); joint terms and couplings included.
 
@@ -282,7 +285,7 @@ def _idm_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, inert, todo, massive, 
                 m[a, 0] += ma0 + c0
                 m[a, 1] += ma1 + c1
                 m[a, 2] += ma2 + c2
-        _joint_terms(tau[s], q[s], qd[s], qdd[s], jt, has_jt)
+        _joint_terms(tau[s], q[s], qd[s], qdd[s], jt, has_jt, fs_w)
         for c in range(cp_kind.shape[0]):
             x = cp_val[c] * _coupling_value(cp_kind[c], cp_ptr[c], cp_ptr[c + 1], cp_joint, cp_coef,
                                             q[s], qd[s], qdd[s])
@@ -355,7 +358,7 @@ def _moment_column(B, c, x0, x1, x2, ox0, ox1, ox2, W0, W1, W2, D0, D1, D2, A0, 
 @_jit
 def _reg_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, todo, motion, axis, ref,
                 links, colmap, r_joint, r_rpos, r_ptr, run_lo, run_hi,
-                t_joint, t_kind, t_rpos, t_cpos,
+                t_joint, t_kind, t_rpos, t_cpos, t_w,
                 c_kind, c_cpos, c_ptr, c_joint, c_coef, c_rpos,
                 w_link, w_frame, w_point, w_vals, wq_ptr, wq_joint, wq_rpos, W, Q):
     """Identification model per sample into W (N, R, C) (see the module doc for what is written) and Q (N, R).
@@ -442,7 +445,7 @@ def _reg_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, todo, motion, axis, re
                 for c in range(run_lo[run], run_hi[run]):
                     W[s, rp, c] = (s0 * BB[0, c] + s1 * BB[1, c] + s2 * BB[2, c]
                                    + s3 * BB[3, c] + s4 * BB[4, c] + s5 * BB[5, c])
-        # joint terms: IA qdd, FV qd, FS sign(qd), OFF 1, K q on their own row; couplings
+        # joint terms: IA qdd, FV qd, FS sign(qd) or tanh(qd / w), OFF 1, K q on their own row; couplings
         for t in range(t_joint.shape[0]):
             j, kind = t_joint[t] - 1, t_kind[t]
             if kind == 0:
@@ -453,8 +456,10 @@ def _reg_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, todo, motion, axis, re
                 x = _sign(qd[s, j])
             elif kind == 3:
                 x = 1.0
-            else:
+            elif kind == 4:
                 x = q[s, j]
+            else:  # _SMOOTH_FS
+                x = math.tanh(qd[s, j] / t_w[t])
             W[s, t_rpos[t], t_cpos[t]] = x
         for c in range(c_kind.shape[0]):
             x = _coupling_value(c_kind[c], c_ptr[c], c_ptr[c + 1], c_joint, c_coef, q[s], qd[s], qdd[s])
@@ -518,9 +523,17 @@ def geometry(tree: Tree) -> dict:
         xx = np.array([tree.index[f"XX{j}"] for j in range(1, tree.n + 1)], dtype=np.intp)
         geo = {"ant": _i64(np.maximum(tree.ant, 0)), "sigma": _i64(tree.sigma), "E": _f64(E), "u": _f64(u),
                "th0": _f64(th0), "r0": _f64(tree.r0), "g": _f64(tree.gravity), "anc": anc,
-               "inertial": xx[:, None] + np.arange(10)}
+               "inertial": xx[:, None] + np.arange(10), "fs_w": _friction_widths(tree)}
         tree.__dict__["_compiled_geometry"] = geo
     return geo
+
+
+def _friction_widths(tree: Tree) -> Array:
+    """(n+1,) per frame: 0 for the sign law, else w with s(qd) = tanh(qd / w): vs (tanh) or 2 vs (sigmoid)."""
+    w = np.zeros(tree.n + 1)
+    for j, (shape, vs) in tree.friction_shape.items():
+        w[j] = vs if shape == "tanh" else 2.0 * vs
+    return w
 
 
 def _wrench_arrays(checked: list, N: int) -> tuple[Array, Array, Array, Array]:
@@ -565,7 +578,7 @@ def inverse_dynamics(tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, chec
     tau = np.empty((N, n))
     _idm_kernel(q, qd, qdd, geo["ant"], geo["sigma"], geo["E"], geo["u"], geo["th0"], geo["r0"],
                 geo["g"] if gravity else np.zeros(3), xa["inert"], todo, xa["massive"], world,
-                xa["jt"], xa["has_jt"], *xa["couplings"], wl, we, wp, wv, tau)
+                xa["jt"], xa["has_jt"], geo["fs_w"], *xa["couplings"], wl, we, wp, wv, tau)
     return tau
 
 
@@ -635,6 +648,7 @@ def regressor_plan(tree: Tree, R: Sequence[int], Cols: Sequence[int]) -> dict:
 
 def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
     names = tree.parameter_names
+    widths = _friction_widths(tree)
     row_pos = {j: i for i, j in enumerate(R)}
     by_name = {c.name: c for c in tree.couplings}
     entries: dict[int, list[tuple[int, int]]] = {}  # link -> [(parameter offset, output column)]
@@ -649,7 +663,8 @@ def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
         else:
             j = int(name[len(kind):])
             if j in row_pos:
-                terms.append((j, _TERM_CODE[kind], row_pos[j], pos))
+                code = _SMOOTH_FS if kind == "FS" and widths[j] != 0.0 else _TERM_CODE[kind]
+                terms.append((j, code, row_pos[j], pos, widths[j]))
     C = len(Cols)
     links = [k for k in sorted(entries) if any(j in row_pos and tree.sigma[j] != FIXED for j in tree.ancestors[k])]
     colmap = np.full((len(links), 10), C, dtype=np.int64)  # unasked parameters go to the spare column C
@@ -678,7 +693,7 @@ def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
     kernel = (  # the arguments of _reg_kernel that depend only on the rows and columns, in its order
         _i64(links), colmap, _i64(r_joint), _i64(r_rpos), _i64(r_ptr), _u64(run_lo), _u64(run_hi),
         _i64([t[0] for t in terms]), _i64([t[1] for t in terms]), _i64([t[2] for t in terms]),
-        _i64([t[3] for t in terms]),
+        _i64([t[3] for t in terms]), _f64([t[4] for t in terms], (len(terms),)),
         _i64([_COUPLING_CODE[c.kind] for _, c in couplings]), _i64([pos for pos, _ in couplings]), _i64(c_ptr),
         _i64([j for _, c in couplings for j in c.coeffs]),
         _f64([x for _, c in couplings for x in c.coeffs.values()], (int(c_ptr[-1]),)),

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..kinematics.forward import forward_kinematics, joint_array, to_local, to_world
 from ..kinematics.motion import Motion, Vec, local_motion, matvec, scale, umul, vadd, vcross
-from ..model.tree import FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
+from ..model.tree import FIXED, PRISMATIC, REVOLUTE, SIGN_LAW, ModelError, Tree
 
 Array = np.ndarray
 CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache (1-2k measured best)
@@ -154,14 +154,14 @@ def backward_recursion(tree: Tree, mo: Motion, F: list, M: list) -> Array:
 
 
 def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inertia_only: bool = False) -> Array:
-    """IA qdd + FV qd + FS sign(qd) + OFF + K q per joint, plus the couplings, (n, N)."""
+    """IA qdd + FV qd + FS s(qd) + OFF + K q per joint (s: the joint's Coulomb law), plus the couplings, (n, N)."""
     tau = np.zeros_like(q)
     idx = tree.index
     for j, terms in tree.joint_terms.items():
         for t in terms:
             x = X[idx[f"{t}{j}"]]
             if x != 0.0 and (t == "IA" or not inertia_only):
-                tau[j - 1] += x * joint_term_column(t, q[j - 1], qd[j - 1], qdd[j - 1])
+                tau[j - 1] += x * joint_term_column(t, q[j - 1], qd[j - 1], qdd[j - 1], tree.friction_law(j))
     for c in tree.couplings:
         x = X[idx[c.name]]
         if x == 0.0 or (inertia_only and c.kind != "IA"):
@@ -170,20 +170,31 @@ def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inerti
     return tau
 
 
-def joint_term_column(term: str, q: Array, qd: Array, qdd: Array) -> Array:
-    """Generalized force of joint j per unit of its term IA, FV, FS, OFF or K, (N,)."""
+def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
+                      law: tuple[str, float] = SIGN_LAW) -> Array:
+    """Generalized force of joint j per unit of its term IA, FV, FS, OFF or K, (N,); law: the (shape, vs)
+    of its FS term (Tree.friction_law)."""
     match term:
         case "IA":
             return qdd
         case "FV":
             return qd
         case "FS":
-            return np.sign(qd)
+            return coulomb(qd, law)
         case "OFF":
             return np.ones_like(q)
         case "K":
             return q
     raise ModelError(f"unknown joint term {term!r}")
+
+
+def coulomb(qd: Array, law: tuple[str, float]) -> Array:
+    """The Coulomb column s(qd): sign(qd), tanh(qd / vs), or 2 / (1 + exp(-qd / vs)) - 1 computed as
+    tanh(qd / (2 vs)) (the same function, without exp's overflow and the cancellation near 0)."""
+    shape, vs = law
+    if shape == "sign":
+        return np.sign(qd)
+    return np.tanh(qd / (vs if shape == "tanh" else 2.0 * vs))
 
 
 def coupling_column(c, q: Array, qd: Array, qdd: Array, n: int) -> Array:

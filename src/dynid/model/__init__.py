@@ -8,6 +8,7 @@ from .files import load_tree, save_tree, tree_from_dict, tree_to_toml
 from .tree import (
     COUPLING_KINDS,
     FIXED,
+    FRICTION_SHAPES,
     INERTIAL,
     JOINT_TERMS,
     PRISMATIC,
@@ -30,7 +31,7 @@ def example_path(name: str) -> Path:
 
 
 __all__ = [
-    "COUPLING_KINDS", "EXAMPLES", "FIXED", "INERTIAL", "JOINT_TERMS", "PRISMATIC", "REVOLUTE",
+    "COUPLING_KINDS", "EXAMPLES", "FIXED", "FRICTION_SHAPES", "INERTIAL", "JOINT_TERMS", "PRISMATIC", "REVOLUTE",
     "Coupling", "Frame", "ModelError", "Tree", "UrdfError", "Violation", "check_physical", "example_path",
     "export_urdf", "import_urdf", "load_tree", "read_urdf", "save_tree", "tree_from_dict", "tree_to_toml",
 ]

@@ -24,6 +24,19 @@
     [joints]                        # frame number -> joint name (a URDF's), for data and exports
     1 = "shoulder_pan_joint"
 
+    [friction]                      # optional: joint terms on every joint, and the Coulomb law
+    all = ["FV", "FS"]              # among IA FV FS OFF, declared on every moving joint (value 0
+                                    # unless [parameters.j] gives one; merged with its terms)
+    shape = "tanh"                  # law of every FS term: "sign" (default), "tanh", "sigmoid"
+    vs = 0.01                       # velocity scale (rad/s or m/s), > 0; tanh and sigmoid only
+    joints = { 6 = { vs = 0.02 }, 1 = { shape = "sign" } }   # per frame: shape and/or vs
+
+(or on one line: friction = { all = ["FV", "FS"], shape = "tanh", vs = 0.01 }). The laws:
+sign: FS sign(qd); tanh: FS tanh(qd / vs); sigmoid: FS (2 / (1 + exp(-qd / vs)) - 1), which
+equals FS tanh(qd / (2 vs)): choose by the convention of the vs you have. A per-joint entry
+takes the top-level shape when it names none, and the top-level vs when it names none and
+its shape is not sign; a shape other than sign applies only to joints with an FS term.
+
 Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
 """
 
@@ -39,10 +52,23 @@ from pathlib import Path
 
 from ..atomic import write_atomic
 from ..textfiles import read_toml
-from .tree import COUPLING_KINDS, INERTIAL, JOINT_TERMS, Coupling, Frame, ModelError, Tree
+from .tree import (
+    COUPLING_KINDS,
+    FIXED,
+    FRICTION_SHAPES,
+    INERTIAL,
+    JOINT_TERMS,
+    SIGN_LAW,
+    Coupling,
+    Frame,
+    ModelError,
+    Tree,
+)
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
-_TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints"}
+_TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints", "friction"}
+_FRICTION_KEYS = ("all", "shape", "vs", "joints")
+_FRICTION_ALL = ("IA", "FV", "FS", "OFF")  # K (stiffness) on every joint is rare: per joint only
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
 
 
@@ -166,6 +192,17 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         if "value" in c:
             values[c["name"]] = parse_number(c["value"], f"{where} value")
 
+    friction = data.get("friction", {})
+    if not isinstance(friction, dict):
+        raise ModelError(f"{source}: friction = {_short(friction)}; expected a table, like "
+                         "friction = { all = [\"FV\", \"FS\"], shape = \"tanh\", vs = 0.01 }")
+    everywhere = _friction_all(friction, source)
+    for j in (f.j for f in frames if f.sigma != FIXED):  # `all`: the same terms on every moving joint
+        merged = set(joint_terms.get(j, ())) | set(everywhere)
+        if merged:
+            joint_terms[j] = tuple(t for t in JOINT_TERMS if t in merged)
+    friction_shape = _friction_shapes(friction, joint_terms, frames, source)
+
     joint_names = _joint_names(data.get("joints", {}), len(frames), source)
     gravity = data.get("gravity", [0.0, 0.0, -9.81])
     if not isinstance(gravity, list) or len(gravity) != 3:
@@ -181,9 +218,80 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             labels=dict(data.get("labels", {})),
             gravity=tuple(parse_number(g, f"{source}: gravity") for g in gravity),
             joint_names=joint_names,
+            friction_shape=friction_shape,
         )
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
+
+
+def _friction_all(friction: dict, source: str) -> tuple[str, ...]:
+    """The terms of friction.all, checked."""
+    unknown = [k for k in friction if k not in _FRICTION_KEYS]
+    if unknown:
+        raise ModelError(f"{source}: friction: {unknown_keys(unknown, _FRICTION_KEYS)}")
+    terms = friction.get("all", [])
+    if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+        raise ModelError(f"{source}: friction.all = {_short(terms)}; expected term names, like all = [\"FV\", \"FS\"]")
+    for t in terms:
+        if t not in _FRICTION_ALL:
+            note = {"K": "a stiffness: declare it per joint in [parameters.j]"}
+            if t.upper() in _FRICTION_ALL:  # difflib finds no match for a case slip of two letters
+                note[t] = f"did you mean {t.upper()!r}?"
+            raise ModelError(f"{source}: friction.all: {unknown_keys([t], _FRICTION_ALL, 'term', note)}")
+    return tuple(terms)
+
+
+def _friction_law(table: dict, default: tuple[str, object], where: str) -> tuple[str, float]:
+    """(shape, vs) from a table with optional shape and vs. `default`: the (shape, vs) that what the table
+    leaves out is taken from (vs None: none given); the sign law takes no vs."""
+    shape = table.get("shape", default[0])
+    if not isinstance(shape, str) or shape not in FRICTION_SHAPES:
+        hint = did_you_mean(shape, FRICTION_SHAPES)
+        raise ModelError(f"{where}: shape = {_short(shape)} is not a friction law;{hint} "
+                         f"use one of {', '.join(FRICTION_SHAPES)}")
+    if "vs" in table:
+        if shape == "sign":
+            raise ModelError(f"{where}: vs = {_short(table['vs'])} given for shape \"sign\", which has no velocity "
+                             "scale (remove vs, or choose shape = \"tanh\" or \"sigmoid\")")
+        vs = parse_number(table["vs"], f"{where}: vs")
+    elif shape == "sign":
+        return SIGN_LAW
+    elif default[1] is None:
+        raise ModelError(f"{where}: shape = \"{shape}\" needs vs, its velocity scale (> 0, rad/s or m/s), "
+                         "like vs = 0.01")
+    else:
+        vs = float(default[1])  # type: ignore[arg-type]
+    if not vs > 0.0:
+        raise ModelError(f"{where}: vs = {vs:g}; the velocity scale of a {shape} law must be > 0 (rad/s or m/s)")
+    return shape, vs
+
+
+def _friction_shapes(friction: dict, joint_terms: dict[int, tuple[str, ...]], frames: list[Frame],
+                     source: str) -> dict[int, tuple[str, float]]:
+    """Frame -> (shape, vs) for the FS terms whose law is not sign."""
+    where = f"{source}: friction"
+    top = _friction_law({k: v for k, v in friction.items() if k in ("shape", "vs")}, ("sign", None), where)
+    default = (top[0], top[1] if top[0] != "sign" else None)
+    laws = {j: top for j, terms in joint_terms.items() if "FS" in terms}
+    overrides = friction.get("joints", {})
+    if not isinstance(overrides, dict) or not all(isinstance(v, dict) for v in overrides.values()):
+        raise ModelError(f"{where}.joints must be a table of frame number = {{ shape, vs }}, like "
+                         "joints = { 6 = { shape = \"tanh\", vs = 0.02 } }")
+    for key, table in overrides.items():
+        w = f"{where}.joints.{key}"
+        if not key.strip().isdigit():
+            raise ModelError(f"{w}: keys are frame numbers (1..{len(frames)}), like 6 = {{ vs = 0.02 }}")
+        j = int(key)
+        if not 1 <= j <= len(frames):
+            raise ModelError(f"{w}: frame {j} does not exist (the table has frames 1..{len(frames)})")
+        unknown = [k for k in table if k not in ("shape", "vs")]
+        if unknown:
+            raise ModelError(f"{w}: {unknown_keys(unknown, ('shape', 'vs'))}")
+        if "FS" not in joint_terms.get(j, ()):
+            raise ModelError(f"{w}: frame {j} has no Coulomb term FS for the law to apply to (declare FS in "
+                             f"friction.all or [parameters.{j}])")
+        laws[j] = _friction_law(table, default, w)
+    return {j: law for j, law in sorted(laws.items()) if law[0] != "sign"}
 
 
 def _joint_names(table: object, n: int, source: str) -> dict[int, str]:
@@ -223,6 +331,7 @@ def tree_to_toml(tree: Tree) -> str:
         cells = [str(f.j), str(f.ant), str(f.sigma)] + [_fmt(getattr(f, c)) for c in COLUMNS[3:]]
         lines.append("  [" + ", ".join(cells) + "],")
     lines.append("]")
+    lines += _friction_lines(tree)
     for f in tree.frames:
         entries = [(k, tree.values.get(f"{k}{f.j}", 0.0)) for k in INERTIAL]
         entries = [(k, v) for k, v in entries if v != 0.0]
@@ -238,6 +347,21 @@ def tree_to_toml(tree: Tree) -> str:
     if tree.joint_names:
         lines += ["", "[joints]"] + [f"{j} = {_q(v)}" for j, v in sorted(tree.joint_names.items())]
     return "\n".join(lines) + "\n"
+
+
+def _friction_lines(tree: Tree) -> list[str]:
+    """The [friction] section of the laws that are not sign: one shape and vs when every FS term shares
+    them, else one entry per joint (the terms themselves are written in [parameters.j])."""
+    fs = [j for j, terms in sorted(tree.joint_terms.items()) if "FS" in terms]
+    laws = {j: tree.friction_law(j) for j in fs}
+    shared = set(laws.values())
+    if not tree.friction_shape:
+        return []
+    if len(shared) == 1:
+        shape, vs = shared.pop()
+        return ["", "[friction]", f"shape = {_q(shape)}", f"vs = {vs!r}"]
+    entries = [f"{j} = {{ shape = {_q(s)}, vs = {vs!r} }}" for j, (s, vs) in sorted(tree.friction_shape.items())]
+    return ["", "[friction.joints]", *entries]
 
 
 def _q(s: str) -> str:

@@ -17,8 +17,13 @@ Parameters, in a stable order that every result carries by name:
 
 The generalized force of joint j (what an actuator must supply) is
 
-    tau_j = (rigid-body terms) + IA qdd + FV qd + FS sign(qd) + OFF + K q
+    tau_j = (rigid-body terms) + IA qdd + FV qd + FS s_j(qd) + OFF + K q
             + sum over couplings c of  c_j * value_c * f_kind(c . q)
+
+where s_j is joint j's Coulomb law (`friction_shape`, still linear in FS): sign(qd) by
+default, tanh(qd / vs) ("tanh") or 2 / (1 + exp(-qd / vs)) - 1 = tanh(qd / (2 vs))
+("sigmoid"), vs > 0 in the joint's velocity unit (rad/s or m/s). Couplings of kind FS
+always use sign.
 
 where a coupling is a linear combination c . q of joint variables with a kind:
 K (spring: c.q), IA (inertia: c.qdd), FV (viscous: c.qd) or FS (Coulomb: sign(c.qd)).
@@ -35,6 +40,8 @@ import numpy as np
 
 INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
 JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K")
+FRICTION_SHAPES = ("sign", "tanh", "sigmoid")
+SIGN_LAW: tuple[str, float] = ("sign", 0.0)
 COUPLING_KINDS = ("K", "IA", "FV", "FS")
 REVOLUTE, PRISMATIC, FIXED = 0, 1, 2
 
@@ -76,7 +83,9 @@ class Tree:
     known: names whose value is taken as known rather than identified;
     labels: name -> the template's own label (e.g. K9 -> ks9) for reports;
     joint_names: frame number -> the name of its joint in another description (a URDF's
-    joint names, kept so that data columns and exports can be matched by name).
+    joint names, kept so that data columns and exports can be matched by name);
+    friction_shape: frame number -> (shape, vs) of its FS term when not sign, shape
+    "tanh" or "sigmoid" (see the module doc); joints not listed use sign.
     """
 
     name: str
@@ -88,6 +97,7 @@ class Tree:
     labels: dict[str, str] = field(default_factory=dict)
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     joint_names: dict[int, str] = field(default_factory=dict)
+    friction_shape: dict[int, tuple[str, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -179,6 +189,10 @@ class Tree:
     @cached_property
     def known_mask(self) -> np.ndarray:
         return np.array([name in self.known for name in self.parameter_names], dtype=bool)
+
+    def friction_law(self, j: int) -> tuple[str, float]:
+        """(shape, vs) of joint j's Coulomb term: ("sign", 0.0) unless `friction_shape` says otherwise."""
+        return self.friction_shape.get(j, SIGN_LAW)
 
     def label(self, name: str) -> str:
         return self.labels.get(name, name)
@@ -304,3 +318,18 @@ def _validate(tree: Tree) -> None:
         if name in seen_names:
             raise ModelError(f"{where}: frames {seen_names[name]} and {j} are both named {name!r}")
         seen_names[name] = j
+    for j, law in tree.friction_shape.items():
+        if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n:
+            raise ModelError(f"{where}: friction shape given for frame {j!r}, which does not exist (1..{n})")
+        if "FS" not in tree.joint_terms.get(j, ()):
+            raise ModelError(f"{where}, frame {j}: a friction shape needs the joint's Coulomb term FS")
+        if not isinstance(law, tuple) or len(law) != 2:
+            raise ModelError(f"{where}, frame {j}: friction shape must be (shape, vs), got {law!r}")
+        shape, vs = law
+        if shape not in FRICTION_SHAPES:
+            raise ModelError(f"{where}, frame {j}: friction shape {shape!r} not in {FRICTION_SHAPES}")
+        if shape == "sign":
+            if vs != 0.0:
+                raise ModelError(f"{where}, frame {j}: vs = {vs!r} has no meaning for the sign law (0.0 or omit)")
+        elif isinstance(vs, bool) or not isinstance(vs, int | float) or not (np.isfinite(vs) and vs > 0.0):
+            raise ModelError(f"{where}, frame {j}: {shape} friction needs vs > 0 (m/s or rad/s), got {vs!r}")

@@ -27,7 +27,9 @@ def format_poly(p: Poly, lang: str = "numpy") -> str:
 
 def _fn(kind: str, lang: str) -> str:
     if lang == "c":
-        return {"sin": "sin", "cos": "cos", "sign": "dynid_sign"}[kind]
+        return {"sin": "sin", "cos": "cos", "sign": "dynid_sign", "tanh": "tanh"}[kind]
+    if lang == "numpy" and kind == "tanh":  # scalar Python (numba_backend) prefixes only sin and cos with math.
+        return "math.tanh"
     return kind
 
 

@@ -23,7 +23,7 @@ Poly = dict[tuple[str, ...], float]
 
 ZERO: Poly = {}
 ONE: Poly = {(): 1.0}
-FUNCTIONS = ("sin", "cos", "sign")
+FUNCTIONS = ("sin", "cos", "sign", "tanh")  # tanh: smooth Coulomb friction (Tree.friction_shape)
 
 
 class SymbolicError(ValueError):
@@ -251,7 +251,7 @@ def _join(pieces: list[tuple[bool, str, int, int, bool]]) -> tuple[str, int, int
 # ----- the symbol manager ------------------------------------------------------------------
 @dataclass
 class Equation:
-    """name = rhs (kind 'poly') or name = kind(rhs) for kind in sin, cos, sign."""
+    """name = rhs (kind 'poly') or name = kind(rhs) for kind in sin, cos, sign, tanh."""
 
     name: str
     rhs: Poly
@@ -322,7 +322,8 @@ class Program:
             import math
 
             x = const_value(arg)
-            return const({"sin": math.sin, "cos": math.cos, "sign": lambda v: (v > 0) - (v < 0)}[kind](x))
+            return const({"sin": math.sin, "cos": math.cos, "sign": lambda v: (v > 0) - (v < 0),
+                          "tanh": math.tanh}[kind](x))
         key = (kind, _key(arg))
         found = self._by_value.get(key)
         if found is not None:
@@ -392,6 +393,6 @@ class Program:
                 terms.append(t)
             return sympy.Add(*terms)
 
-        fn = {"sin": sympy.sin, "cos": sympy.cos, "sign": sympy.sign}
+        fn = {"sin": sympy.sin, "cos": sympy.cos, "sign": sympy.sign, "tanh": sympy.tanh}
         eqs = [(s(e.name), conv(e.rhs) if e.kind == "poly" else fn[e.kind](conv(e.rhs))) for e in self.equations]
         return eqs, [(idx, conv(p)) for idx, p in self.outputs]

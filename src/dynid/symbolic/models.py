@@ -233,7 +233,11 @@ class Builder:
             case "FV":
                 return g.qd(j)
             case "FS":
-                return self.prog.function(f"SGN{j}", "sign", g.qd(j))
+                shape, vs = self.tree.friction_law(j)
+                if shape == "sign":
+                    return self.prog.function(f"SGN{j}", "sign", g.qd(j))
+                # tanh(qd / w), w = vs (tanh) or 2 vs (sigmoid): the numeric engines' form
+                return self.prog.function(f"TNH{j}", "tanh", scale(g.qd(j), 1.0 / (vs if shape == "tanh" else 2 * vs)))
             case "OFF":
                 return ONE
             case "K":

@@ -505,7 +505,7 @@ def _np_body(prog: Program, outs, loads: dict[str, str]) -> tuple[list[str], _Ke
     for i, eq in enumerate(prog.equations):
         k.load(uses[i], loads)
         if eq.name not in done:
-            k.lines.append(f"# {eq.name} = {_eq_text(eq, 'numpy')}")
+            k.lines.append(f"# {eq.name} = {_eq_text(eq, 'text')}")
             if eq.kind == "poly":
                 k.equation(eq.name, format_poly(eq.rhs))
             else:
