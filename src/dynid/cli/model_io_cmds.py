@@ -96,6 +96,10 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
             raise ModelError(f"{p}: cannot read the parameters ({exc.strerror})") from None
         except json.JSONDecodeError as exc:
             raise ModelError(f"{p}: not valid JSON: {exc}") from None
+        consistent = data.get("consistency", {}).get("wls_pc", {}) if isinstance(data, dict) else {}
+        if isinstance(consistent, dict) and isinstance(consistent.get("standard_parameters"), dict):
+            # a wls-pc run: the physically consistent standard set it found (its base values are the estimate)
+            return _standard(consistent["standard_parameters"], tree, str(p))
         table = _json_table(data, p)
         if isinstance(data, dict) and "base_parameters" in data:
             return standard_from_base(tree, table, str(p))

@@ -242,6 +242,7 @@ def wls_pc(
     margin: float = MARGIN,
     solver: str = "CLARABEL",
     solver_options: Mapping[str, Any] | None = None,
+    standard_prior: Mapping[str, float] | None = None,
 ) -> PhysicalFit:
     """Weighted least squares subject to physical consistency (see the module doc).
 
@@ -249,7 +250,10 @@ def wls_pc(
     Y, groups, labels, a_priori, truth, known, group_sigmas, rank_tol, sigma_floor, poor_factor : as in
     ``wls`` (the weights are WLS's: σ_j from eq. (8) on the unconstrained per-group fits); structure :
     the map to the standard parameters and the constraints (its base_names must be ``names``); margin :
-    see `MARGIN`; solver : a cvxpy solver name (CLARABEL; SCS for an independent check).
+    see `MARGIN`; solver : a cvxpy solver name (CLARABEL; SCS for an independent check); standard_prior :
+    the standard parameters' a priori values (the model file's), by name: the data fix only the base values,
+    so of the consistent standard sets giving the estimate, `standard` is the one closest to these (a second
+    solve with the base values held); without it, whichever set the solver met first.
     """
     cp = require_cvxpy()
     if tuple(names) != structure.base_names:
@@ -292,6 +296,8 @@ def wls_pc(
         x_std[nn] = np.maximum(x_std[nn], 0.0)
     b_all = structure.base_values(x_std)
     x = b_all[[pos[n] for n in est]]
+    if standard_prior is not None:
+        x_std = _closest_to_prior(cp, structure, margin, x_std, standard_prior, solver, solver_options)
     if pb.split.known:  # the known ones exactly as given (the solver meets equalities to its tolerance)
         b_all[[pos[n] for n in pb.split.known]] = list(pb.split.known.values())
     rss = float(np.linalg.norm(R[:, :q] @ x - R[:, q]) ** 2)
@@ -319,6 +325,57 @@ def wls_pc(
         relative_residual=res.residual.relative_residual, weighted_residual_wls=float(np.sqrt(rss_w)),
         weighted_residual=float(np.sqrt(rss)), solver=solver, status=str(prob.status), seconds=seconds,
         margin=margin, min_eigenvalues=_min_eigs(structure, x_std))
+
+
+def _closest_to_prior(cp: Any, structure: ConsistencyStructure, margin: float, first: np.ndarray,
+                      prior: Mapping[str, float], solver: str, solver_options: Mapping[str, Any] | None
+                      ) -> np.ndarray:
+    """Of the consistent standard sets with the first solve's base values, the closest to the prior (each
+    parameter's distance relative to its prior size, with a floor of its kind's small size, so that a 1 kg mass
+    and a 1e-3 kg.m2 inertia weigh alike). The estimate is unchanged: only what the data cannot see is chosen,
+    as a URDF export needs (the first solve once left a UR5 shoulder at 17 kg for 3.7). The sets are
+    first + N z with N a basis of K's null space, so the base values hold to round-off whatever the solver's
+    tolerance; the first solve's set is kept if this one fails."""
+    import scipy.linalg
+
+    names = structure.standard_names
+    s0 = np.array([float(prior.get(n, 0.0)) for n in names])
+    floor = np.array([_PRIOR_FLOOR.get(n.rstrip("0123456789"), 1e-3) for n in names])
+    scale = np.maximum(np.abs(s0), floor)
+    N = scipy.linalg.null_space(structure.base_map)
+    if N.shape[1] == 0:
+        return first
+    z = cp.Variable(N.shape[1])
+    s = first + N @ z
+    # the first solve's margin: where it is active the base values allow no more (the blend below keeps what
+    # the solver's tolerance would lose)
+    cons = [0.5 * (J + J.T) - margin * np.eye(4) >> 0
+            for J in (cp.reshape(_T @ s[list(idx)], (4, 4), order="C") for idx in structure.bodies.values())]
+    if structure.nonnegative:
+        cons.append(s[list(structure.nonnegative)] >= 0)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(cp.multiply(1.0 / scale, s - s0))), cons)
+    try:
+        _solve(prob, solver, solver_options)
+    except IdentificationError:
+        return first
+    if z.value is None or prob.status not in ("optimal", "optimal_inaccurate"):
+        return first
+    out = first + N @ np.asarray(z.value, dtype=float)
+    if structure.nonnegative:
+        nn = list(structure.nonnegative)
+        out[nn] = np.maximum(out[nn], 0.0)
+    # the realisable sets with these base values are convex: blend towards the first solve's until every
+    # body keeps half the margin (the first solve meets the margin to its tolerance, ~1e-12 below at times)
+    for alpha in (1.0, 0.9, 0.5, 0.1):
+        mixed = alpha * out + (1 - alpha) * first
+        if min(_min_eigs(structure, mixed).values(), default=margin) >= 0.5 * margin:
+            return mixed
+    return first
+
+
+# a parameter kind's small size (SI), below which its prior's own size no longer scales the distance
+_PRIOR_FLOOR = {"M": 0.1, "MX": 0.01, "MY": 0.01, "MZ": 0.01, "XX": 1e-3, "YY": 1e-3, "ZZ": 1e-3, "XY": 1e-3,
+                "XZ": 1e-3, "YZ": 1e-3, "IA": 1e-3, "FV": 1e-2, "FS": 1e-2, "OFF": 1e-2, "K": 1.0}
 
 
 @dataclass(frozen=True)

@@ -487,7 +487,8 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> Identific
     fit = None
     try:
         if cfg.method == "wls-pc":
-            fit = wls_pc(ident.W, ident.Y, ident.groups, names, structure, **kw)
+            fit = wls_pc(ident.W, ident.Y, ident.groups, names, structure,
+                         standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)), **kw)
             result = fit.result
         else:
             result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
