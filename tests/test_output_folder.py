@@ -130,6 +130,9 @@ def test_an_error_keeps_the_old_set_and_removes_the_staging_folder(old, stop):
 @pytest.mark.parametrize("sig, raised", [(signal.SIGTERM, Terminated), (signal.SIGINT, KeyboardInterrupt)])
 def test_a_signal_while_writing_keeps_the_old_set(old, sig, raised):
     out, before = old
+    ignored = signal.getsignal(sig) == signal.SIG_IGN
+    if ignored:  # a shell's background job (CI started with &) ignores Ctrl-C: make it live, as at a terminal
+        signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
     handler = signal.getsignal(sig)
     with pytest.raises(raised), staged_folder(out) as stage:
         (stage / "results.json").write_text("{}")
@@ -137,6 +140,8 @@ def test_a_signal_while_writing_keeps_the_old_set(old, sig, raised):
         time.sleep(5)  # interrupted by the handler
     assert snapshot(out) == before and leftovers(out) == []
     assert signal.getsignal(sig) is handler  # the handler lives only as long as the staging
+    if ignored:
+        signal.signal(sig, signal.SIG_IGN)
 
 
 @posix_only
@@ -337,9 +342,10 @@ def work(robot_done, tmp_path) -> Path:
 
 
 def start(work: Path, point: str) -> subprocess.Popen:
+    # Ctrl-C live in the child, as at a terminal: a shell's background job (CI started with &) inherits it ignored
     return subprocess.Popen([sys.executable, "-u", "-c", CHILD, point, "identify", "robot.toml", "--out", "out"],
                             cwd=work, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def wait_for(proc: subprocess.Popen, text: str) -> None:
