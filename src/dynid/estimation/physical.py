@@ -29,6 +29,7 @@ ones); `pipeline.run` builds them from a tree and its base parameters.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -200,7 +201,9 @@ def _problem(cp: Any, structure: ConsistencyStructure, margin: float):
 
 def _solve(prob: Any, solver: str, solver_options: Mapping[str, Any] | None) -> None:
     try:
-        prob.solve(solver=solver, **(solver_options or {}))
+        with warnings.catch_warnings():  # "may be inaccurate": the status says it, and the callers read the status
+            warnings.simplefilter("ignore", UserWarning)
+            prob.solve(solver=solver, **(solver_options or {}))
     except Exception as exc:  # cvxpy's SolverError and the solvers' own
         raise IdentificationError(f"the physically consistent estimate failed in {solver}: {exc}") from None
 
