@@ -328,6 +328,10 @@ def test_cli_import_export_with_results_json(tmp_path, capsys):
     assert main(["model", "import", str(src), "--out", str(tmp_path / "robot.toml")]) == 0
     tree = load_tree(tmp_path / "robot.toml")
     assert tree.joint_names == {1: "j1", 2: "j2"}
+    capsys.readouterr()
+    assert main(["model", "show", str(tmp_path / "robot.toml")]) == 0  # each frame's URDF joint, in the table
+    rows = [ln.split() for ln in capsys.readouterr().out.splitlines() if ln.split()[:1] in (["1"], ["2"])]
+    assert [r[-1] for r in rows[:2]] == ["j1", "j2"]
     true = tree.with_values({k: v * 1.05 for k, v in tree.values.items()})
     base = Model(tree).base_parameters()
     XB = base.values(true.parameters)

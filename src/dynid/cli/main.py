@@ -62,8 +62,14 @@ def cmd_model_show(args: argparse.Namespace) -> int:
         raise ModelError("give a model file (or a shipped example: puma560, tx40, floating_tree) or --template NAME")
     model = load_model(args.file)
     tree = model.tree
+    base = model.base_parameters()  # first: a tree too large to analyse is refused before anything is printed
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters, gravity {list(tree.gravity)} m/s²\n")
-    print(format_table(tree))
+    table = format_table(tree)
+    if tree.joint_names:  # a model imported from a URDF: each moving frame's joint
+        lines = table.splitlines()
+        table = "\n".join([f"{lines[0]}  joint"] + [f"{line}  {tree.joint_names.get(f.j, '')}".rstrip()
+                                                    for f, line in zip(tree.frames, lines[1:], strict=True)])
+    print(table)
     print(f"\nParameters ({'* = known' if tree.known else 'values from the file'}):")
     print(format_parameters(tree))
     if tree.couplings:
@@ -72,7 +78,7 @@ def cmd_model_show(args: argparse.Namespace) -> int:
             combo = " + ".join(f"{v:g}·q{j}" for j, v in c.coeffs.items())
             print(f"  {c.name}: {c.kind} on {combo}")
     print()
-    print(model.base_parameters())
+    print(base)
     return 0
 
 
