@@ -145,6 +145,35 @@ def test_a_signal_while_writing_keeps_the_old_set(old, sig, raised):
 
 
 @posix_only
+def test_ctrl_c_while_locking_stops_the_run_before_it_computes(old, monkeypatch):
+    """A signal held while the folder is locked (a critical section) is raised as soon as that ends, before the
+    body runs: the user's Ctrl-C must not wait for the whole computation."""
+    out, before = old
+    ignored = signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    if ignored:  # a shell's background job ignores Ctrl-C: make it live, as at a terminal
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    real_lock = atomic._lock
+
+    def lock_then_ctrl_c(*args):
+        release = real_lock(*args)
+        os.kill(os.getpid(), signal.SIGINT)  # arrives while the lock's section holds signals
+        return release
+
+    monkeypatch.setattr(atomic, "_lock", lock_then_ctrl_c)
+    ran = []
+    try:
+        with pytest.raises(KeyboardInterrupt), staged_folder(out):
+            ran.append(True)
+    finally:
+        if ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+    assert not ran and snapshot(out) == before and leftovers(out) == []
+    monkeypatch.undo()
+    with staged_folder(out) as stage:  # and the lock was released
+        write_set(stage, "new")
+
+
+@posix_only
 def test_sigterm_during_the_swap_lets_it_finish_then_stops(old, monkeypatch):
     out, _ = old
     old_id = complete(out)

@@ -172,6 +172,7 @@ def test_what_the_data_cannot_see_stays_near_the_model_files_values():
 
     assert distance(fit.standard) < distance(first.standard)
     np.testing.assert_allclose(fit.result.values, first.result.values, rtol=0, atol=0)  # the estimate itself
+    assert fit.active == first.active  # the constraints' prices are the estimate's, not the chosen set's
     b = structure.base_values(np.array([fit.standard[n] for n in names]))
     b1 = structure.base_values(np.array([first.standard[n] for n in names]))
     # round-off of first + N z: |z| up to the standard values' size (~1e2 here) x 1e-16 x sqrt(p)

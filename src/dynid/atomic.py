@@ -73,22 +73,6 @@ class OutputError(OSError):
     """An output that cannot be written where asked (the message says where and why)."""
 
 
-def output_folder(path: str | os.PathLike[str]) -> Path:
-    """The output folder, created if needed and checked writable BEFORE a run computes anything: a folder
-    that cannot take the results must not cost the user the whole run first."""
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"{out}: exists and is not a folder; give --out a folder (new or existing)")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot write there ({exc.strerror or exc}); give --out a folder you can "
-                          "write") from None
-    return out
-
-
 # ------------------------------------------------------------------ a whole output folder
 
 MARKER = ".dynid-output.json"  # written last in every output folder: run id and the files with their SHA-256
@@ -146,6 +130,12 @@ class _Signals:
             yield
         finally:
             self.critical -= 1
+
+    def raise_pending(self) -> None:
+        """Raise a signal held by `deferred()` now (the run must not go on computing until its end)."""
+        if self.pending is not None and not self.critical:
+            signum, self.pending = self.pending, None
+            _raise_for(signum)
 
 
 def _raise_for(signum: int) -> None:
@@ -429,6 +419,7 @@ def staged_folder(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLi
             _check_inputs(real, shown, inputs)
             with guard.deferred():
                 trash = Path(tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=real.parent))
+            guard.raise_pending()  # a Ctrl-C held while locking or making the folder stops the run before it computes
             os.chmod(trash, _folder_mode(real))
             stage = trash
             _SEEN[os.fspath(stage)] = os.path.abspath(shown)  # as the user named it (a symlink stays one)

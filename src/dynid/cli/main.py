@@ -229,12 +229,17 @@ def _user_errors() -> tuple[type[Exception], ...]:
     """The errors that report bad input (files, configs, data) rather than a bug: one line, no traceback."""
     from ..atomic import OutputError
     from ..estimation.errors import IdentificationError
-    from ..io.errors import DataError
+    from ..io.errors import DataError, MissingDependencyError
     from ..signals.errors import SignalError
     from ..symbolic.expr import SymbolicError
+    from ..textfiles import TextEncodingError
+    from ..vehicle.sensors import SensorError
+    from ..vehicle.sim.car import SimulationError
+    from ..vehicle.sim.manoeuvres import ManoeuvreError
     from ..vehicle.sim.recording import OutputError as SimulationOutputError
 
-    return ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationOutputError
+    return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationOutputError,
+            SimulationError, ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

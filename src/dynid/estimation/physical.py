@@ -297,12 +297,10 @@ def wls_pc(
     if structure.nonnegative:  # an interior-point solution sits ~1e-9 inside or outside a bound: put it on it
         nn = list(structure.nonnegative)
         x_std[nn] = np.maximum(x_std[nn], 0.0)
-    b_all = structure.base_values(x_std)
-    x = b_all[[pos[n] for n in est]]
+    x = structure.base_values(x_std)[[pos[n] for n in est]]
+    first = x_std  # the constraints' shadow prices belong to this solve's set
     if standard_prior is not None:
         x_std = _closest_to_prior(cp, structure, margin, x_std, standard_prior, solver, solver_options)
-    if pb.split.known:  # the known ones exactly as given (the solver meets equalities to its tolerance)
-        b_all[[pos[n] for n in pb.split.known]] = list(pb.split.known.values())
     rss = float(np.linalg.norm(R[:, :q] @ x - R[:, q]) ** 2)
     rss_w = float(w.residual.rss)
     n = A.shape[0]
@@ -320,7 +318,7 @@ def wls_pc(
     with np.errstate(divide="ignore"):
         ratio = np.where(K_est != 0, sig[:, None] / np.abs(K_est), np.inf)
     unit = np.where(np.isfinite(ratio.min(axis=0)), ratio.min(axis=0), 0.0)
-    act = _active(structure, x_std, {j: np.asarray(c.dual_value) for j, c in cons.items()},
+    act = _active(structure, first, {j: np.asarray(c.dual_value) for j, c in cons.items()},
                   None if nonneg is None else np.asarray(nonneg.dual_value), unit, chi2)
     return PhysicalFit(
         result=res, wls=w, standard=dict(zip(structure.standard_names, x_std.tolist(), strict=True)),
@@ -337,8 +335,9 @@ def _closest_to_prior(cp: Any, structure: ConsistencyStructure, margin: float, f
     parameter's distance relative to its prior size, with a floor of its kind's small size, so that a 1 kg mass
     and a 1e-3 kg.m2 inertia weigh alike). The estimate is unchanged: only what the data cannot see is chosen,
     as a URDF export needs (the first solve once left a UR5 shoulder at 17 kg for 3.7). The sets are
-    first + N z with N a basis of K's null space, so the base values hold to round-off whatever the solver's
-    tolerance; the first solve's set is kept if this one fails."""
+    first + N z with N a basis of K's null space, so the base values hold whatever the solver's tolerance (to
+    round-off, and to that tolerance where a non-negative term is put back on its bound); the first solve's set
+    is kept if this one fails."""
     import scipy.linalg
 
     names = structure.standard_names

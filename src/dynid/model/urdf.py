@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import write_atomic
+from ..textfiles import TextEncodingError, read_utf8
 from .consistency import check_body
 from .tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, Frame, ModelError, Tree, _rotx, _rotz
 
@@ -93,11 +94,11 @@ def _parse(path_or_text: str | os.PathLike[str], source: str | None = None) -> t
     else:
         src = source or str(path_or_text)
         try:
-            text = Path(path_or_text).read_text(encoding="utf-8")
+            text = read_utf8(path_or_text)
         except OSError as exc:
             raise UrdfError(f"{src}: cannot read the URDF ({exc.strerror})") from None
-        except UnicodeDecodeError:
-            raise UrdfError(f"{src}: not a text (UTF-8) file") from None
+        except TextEncodingError as exc:
+            raise UrdfError(f"{src}: the URDF is {exc}") from None
     if "<!ENTITY" in text:
         raise UrdfError(f"{src}: declares XML entities (<!ENTITY>); a URDF needs none, expand them first")
     if tuple(int(x) for x in pyexpat.version_info) < (2, 4, 1):  # pragma: no cover - old expat only

@@ -104,9 +104,9 @@ def joint_system(
         lo, hi = max(0, start - pad), min(n, end + pad)  # lo = start - pad stays on the decimation grid (pad % D == 0)
         W = np.ascontiguousarray(model.regressor(q[lo:hi], qd[lo:hi], qdd[lo:hi], rows=rows, cols=list(base.columns)))
         # decimate W, Y and the speeds with the same filter, so that the speed test sees the decimated samples
-        Wd, Yd = decimate_parallel(W, Y[lo:hi], c.decimate, test.fs)
+        Wd, Yd = decimate_parallel(W, Y[lo:hi], c.decimate, test.fs, order=DECIMATION_ORDER)
         del W
-        speed, _ = decimate_parallel(qd[lo:hi], qd[lo:hi, 0], c.decimate, test.fs)  # speeds as one row's columns
+        speed, _ = decimate_parallel(qd[lo:hi], None, c.decimate, test.fs, order=DECIMATION_ORDER)  # as W's columns
         kept = slice((start - lo) // D, -(-(end - lo) // D))  # output k is input lo + k D
         Wd_parts.append(Wd[kept])
         Yd_parts.append(Yd[kept])

@@ -235,7 +235,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
     from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import CarConditioning, estimate_joints
-    from .car import car_scales, car_sections, car_system, consistency_text, excitation_hint, masses_note
+    from ..vehicle.excitation import excitation_hint
+    from .car import car_scales, car_sections, car_system, consistency_text, masses_note
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")

@@ -124,7 +124,7 @@ def flag_legend(run) -> str:
     ]
     out = '<dl class="legend">' + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in items) + "</dl>"
     if uncertain and getattr(run.config, "kind", None) == "car":
-        from ..pipeline.car import excitation_hint
+        from ..vehicle.excitation import excitation_hint
 
         hint = excitation_hint(list(uncertain))
         if hint:
