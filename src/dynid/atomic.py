@@ -35,12 +35,19 @@ except ImportError:  # Windows: lock files created with O_EXCL instead
     fcntl = None  # type: ignore[assignment]
 
 
+def _umask() -> int:
+    """The process's umask, read now (a program may change it); os.umask can only be read by setting it, so
+    it is set to the strictest value for that instant: a file another thread creates then is private, never
+    world-writable."""
+    umask = os.umask(0o077)
+    os.umask(umask)
+    return umask
+
+
 def _new_file_mode(target: Path) -> int:
     if target.exists():
         return target.stat().st_mode & 0o7777
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
+    return 0o666 & ~_umask()
 
 
 @contextmanager
@@ -268,8 +275,11 @@ def _lock(lock: Path, shown: Path):
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except OSError:  # a full disk: the lock is held all the same, the pid is only for messages
+            pass
 
         def release() -> None:
             lock.unlink(missing_ok=True)  # while still held: a waiter then sees a new file, not ours
@@ -308,9 +318,7 @@ def _recover(real: Path) -> None:
 def _folder_mode(real: Path) -> int:
     if real.is_dir():
         return real.stat().st_mode & 0o7777
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o777 & ~umask
+    return 0o777 & ~_umask()
 
 
 def _exchange(a: Path, b: Path) -> bool:
