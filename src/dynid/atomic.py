@@ -4,7 +4,7 @@ A file: the data go to a temporary file beside the target (same file system, so 
 `os.replace` is an atomic rename), flushed to disk, given the mode a new file would have
 (or the mode of the file it replaces), then renamed over the target.
 
-An output folder (`staged_folder`): the run writes into a hidden sibling `.NAME.partial-XXXX`
+An output folder (`staged_folder`): the run writes into a hidden sibling `.NAME.partial-<random>`
 which is swapped in as a whole at the end, under a lock `.NAME.lock`, so the folder is always
 either the complete old set of results or the complete new one, whatever stops the run.
 """
