@@ -3,6 +3,8 @@ encoding is named in a one-line error with the line and the fix, never a Unicode
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 import tomllib
 from pathlib import Path
@@ -54,3 +56,9 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -
         raise error(f"{path}: the {what} is {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
+
+
+def read_csv_rows(path: str | os.PathLike[str]) -> list[list[str]]:
+    """The non-blank rows of a small CSV (a table, a coefficient file), cells as text. OSError passes through;
+    a file that is not UTF-8 raises TextEncodingError."""
+    return [r for r in csv.reader(io.StringIO(read_utf8(path), newline="")) if r and any(c.strip() for c in r)]

@@ -66,7 +66,7 @@ import numpy as np
 
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import ModelError
-from ..textfiles import encoding_problem
+from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
@@ -355,16 +355,13 @@ def _aero(t: dict, g: CarGeometry, path: Path) -> Aerodynamics:
 def _aero_tables(csv_path: Path, where: str) -> dict[str, np.ndarray]:
     """beta (rad) and the six coefficients from a CSV: a header naming beta_deg, cx, cy, cz, cl, cm, cn (any order),
     then one row per sideslip angle."""
-    import csv
-
     names = ("beta_deg", *COEFFICIENTS)
     try:
-        with csv_path.open(newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+        rows = read_csv_rows(csv_path)
     except OSError as exc:
         raise VehicleError(f"{where}: [aero] file {csv_path}: cannot read it ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise VehicleError(f"{where}: [aero] file {csv_path}: {encoding_problem(csv_path)}") from None
+    except TextEncodingError as exc:
+        raise VehicleError(f"{where}: [aero] file {csv_path}: {exc}") from None
     head = [c.strip() for c in rows[0]] if rows else []
     missing = [n for n in names if n not in head]
     if missing:

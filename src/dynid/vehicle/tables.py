@@ -27,7 +27,6 @@ front_left, front_right; name among the four above) with arrays `travel`, option
 
 from __future__ import annotations
 
-import csv
 import functools
 import math
 import os
@@ -40,7 +39,7 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 
 from ..model.files import read_toml
 from ..model.tree import ModelError
-from ..textfiles import encoding_problem
+from ..textfiles import TextEncodingError, read_csv_rows
 from .geometry import CarGeometry, side
 from .table_poly import pack, table_joints
 from .template import CORNERS, base
@@ -254,12 +253,11 @@ def load_table_csv(path: str | os.PathLike[str], name: str, corner: str, units: 
     """One table from a CSV (two columns travel,value, or a grid: see the module doc)."""
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+        rows = read_csv_rows(path)
     except OSError as exc:
         raise KinematicTableError(f"{path}: cannot read the table ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise KinematicTableError(f"{path}: {encoding_problem(path)}") from None
+    except TextEncodingError as exc:
+        raise KinematicTableError(f"{path}: {exc}") from None
     if len(rows) < 5:
         raise KinematicTableError(f"{path}: a table needs a header and at least 4 rows")
     body = rows[1:]
