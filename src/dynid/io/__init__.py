@@ -8,6 +8,9 @@ The file boundary of the pipeline (DESIGN §2: SI inside, converted once here).
   (source, channels, metadata): `.channel(name)`, `.aligned(names, fs=... | t=...)`,
   `.check()`, `.saturation()`.
 - `to_si(values, unit) -> (values, si_unit)`, `unit_factor`, `known_units`.
+- Windows of a file read without reading it whole (`windows`): `index_file(path, ...) ->
+  FileIndex` (one streaming pass), `read_window(index, channels, t0, t1)`,
+  `iter_blocks(index, channels)`, bit for bit the whole-file reader's samples.
 - `ChannelMap`: model quantity -> channel, unit, scale, offset, sign; `.apply(recording)`
   gives SI values on each channel's time base, `.aligned(recording, fs=...)` on one clock.
 - Checks (`check_*`) and errors: every error is a `DataError` (a `ValueError`) naming the
@@ -47,15 +50,18 @@ from .files import format_of, read_recording, write_recording
 from .mapping import ChannelMap, QuantitySpec
 from .recording import Channel, Recording
 from .units import STANDARD_GRAVITY, known_units, normalize_unit, to_si, unit_factor
+from .windows import Block, FileIndex, index_file, iter_blocks, read_window
 
 __all__ = [
     "STANDARD_GRAVITY",
     "Aligned",
+    "Block",
     "Channel",
     "ChannelMap",
     "DataError",
     "DataWarning",
     "FileFormatError",
+    "FileIndex",
     "GapError",
     "MappingError",
     "MissingChannelError",
@@ -77,9 +83,12 @@ __all__ = [
     "check_saturation",
     "check_time",
     "format_of",
+    "index_file",
+    "iter_blocks",
     "known_units",
     "normalize_unit",
     "read_recording",
+    "read_window",
     "to_si",
     "unit_factor",
     "write_recording",

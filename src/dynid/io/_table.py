@@ -82,15 +82,19 @@ def time_in_seconds(values: NDArray[np.float64], unit: str, name: str, source: s
     return values * factor if factor != 1.0 else values
 
 
-def uniform_time(n: int, fs: float, source: str) -> NDArray[np.float64]:
-    """0, 1/fs, ..., (n-1)/fs."""
+def uniform_time(n: int, fs: float, source: str, row0: int = 0) -> NDArray[np.float64]:
+    """row0/fs, (row0+1)/fs, ..., (row0+n-1)/fs: the times of n rows starting at file row row0.
+
+    Each stamp is (row index as an exact float64) / fs, so the stamps of rows read in
+    pieces are bit for bit those of the whole file.
+    """
     try:
         rate = float(fs)
     except (TypeError, ValueError):
         raise FileFormatError(f"{source}: fs must be a sample rate in Hz, not {fs!r}", source=source) from None
     if not np.isfinite(rate) or rate <= 0.0:
         raise FileFormatError(f"{source}: fs must be a positive sample rate in Hz, not {fs!r}", source=source)
-    return np.arange(n, dtype=np.float64) / rate
+    return np.arange(row0, row0 + n, dtype=np.int64).astype(np.float64) / rate
 
 
 def recording_from_columns(
@@ -102,31 +106,20 @@ def recording_from_columns(
     lines: NDArray[np.int64] | None = None,
     metadata: Mapping[str, str] | None = None,
     skipped: Mapping[str, str] | None = None,
+    row0: int = 0,
 ) -> Recording:
     """Channels from table columns: each channel keeps the rows where it has a sample.
 
     `lines` (R,) are the file lines of the rows (text formats), for messages. A time
-    column with a missing cell is an error naming the row.
+    column with a missing cell is an error naming the row. `row0` is the file row of
+    the first row given (a part of the file read on its own; without a time column
+    the stamps are row / fs).
     """
     label = str(source)
     names = [c.name for c in columns]
     time_name = find_time_column(names, time, fs, label)
-    rows = (columns[0].values.size if columns[0].present is None else columns[0].present.size) if columns else 0
     skipped = dict(skipped or {})
-    if time_name is not None:
-        tcol = columns[names.index(time_name)]
-        if tcol.present is not None and not tcol.present.all():
-            r = int(np.flatnonzero(~tcol.present)[0])
-            where = f"line {int(lines[r])}" if lines is not None else f"row {r}"
-            raise FileFormatError(
-                f"{label}, {where}: the time column {time_name!r} is empty there; every row needs a time stamp",
-                source=label,
-                channel=time_name,
-                line=None if lines is None else int(lines[r]),
-            )
-        t = time_in_seconds(tcol.values, tcol.unit, time_name, label)
-    else:
-        t = uniform_time(rows, fs, label)  # type: ignore[arg-type]
+    t = table_time(columns, time_name, fs, label, lines, row0)
     channels: dict[str, Channel] = {}
     # Channels present on the same rows share one index, time base and line array (one
     # per logging rate), which saves memory and lets alignment group them at once.
@@ -151,6 +144,34 @@ def recording_from_columns(
     if time_name is None:
         meta.setdefault("fs", repr(float(fs)))  # type: ignore[arg-type]
     return Recording(source, channels, meta, skipped)
+
+
+def table_time(
+    columns: Sequence[Column],
+    time_name: str | None,
+    fs: float | None,
+    label: str,
+    lines: NDArray[np.int64] | None = None,
+    row0: int = 0,
+) -> NDArray[np.float64]:
+    """The time stamps (R,) in s of the rows of a table: its time column, or row / fs without one.
+
+    A time column with a missing cell is an error naming the line (text) or the file row.
+    """
+    if time_name is None:
+        rows = (columns[0].values.size if columns[0].present is None else columns[0].present.size) if columns else 0
+        return uniform_time(rows, fs, label, row0)  # type: ignore[arg-type]
+    tcol = next(c for c in columns if c.name == time_name)
+    if tcol.present is not None and not tcol.present.all():
+        r = int(np.flatnonzero(~tcol.present)[0])
+        where = f"line {int(lines[r])}" if lines is not None else f"row {row0 + r}"
+        raise FileFormatError(
+            f"{label}, {where}: the time column {time_name!r} is empty there; every row needs a time stamp",
+            source=label,
+            channel=time_name,
+            line=None if lines is None else int(lines[r]),
+        )
+    return time_in_seconds(tcol.values, tcol.unit, time_name, label)
 
 
 @dataclass

@@ -23,6 +23,7 @@ import io
 import os
 import re
 from collections.abc import Iterator
+from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
 
@@ -114,83 +115,117 @@ def read_csv(
         raise FileFormatError(f"{label}: {why}", source=label) from None
 
 
+@dataclass
+class CsvHeader:
+    """What the lines before the data say: columns, units, delimiter, metadata, where the data start."""
+
+    names: list[str]
+    units: list[str]
+    delimiter: str
+    metadata: dict[str, str]
+    data_line: int  # the number (1-based) of the first line after the header and the unit row
+    pending: list[tuple[int, str]]  # lines read while looking for a unit row that are data
+
+
 def _read_csv(path: Path, label: str, fs: float | None, time: str | None, delimiter: str | None, decimal: str,
               units_row: bool | None, units_in_header: bool, encoding: str) -> Recording:
     with open(path, encoding=encoding, newline="") as fh:
         lines = _numbered_lines(fh, 1)
-        metadata: dict[str, str] = {"format": "csv"}
-        header_no, header = 0, None
-        for number, text in lines:
-            stripped = text.strip()
-            if not stripped:
-                continue
-            if stripped.startswith("#"):
-                key, sep, value = stripped.lstrip("#").partition(":")
-                if sep and key.strip():
-                    metadata[key.strip()] = value.strip()
-                continue
-            header_no, header = number, text
-            break
-        if header is None:
-            raise FileFormatError(f"{label}: no header line (the file is empty or has only comments)", source=label)
-        delim = delimiter or _guess_delimiter(header, path)
-        if decimal == "," and delim == ",":
-            raise FileFormatError(f"{label}: decimal ',' needs another delimiter (';' or tab)", source=label)
-        cells = next(csv.reader([header], delimiter=delim))
-        names, units = [], []
-        for j, cell in enumerate(cells):
-            name, unit = split_header_cell(cell) if units_in_header else (cell.strip(), "")
-            if not name:
-                raise FileFormatError(
-                    f"{label}, line {header_no}, column {j + 1}: empty column name in the header",
-                    source=label,
-                    line=header_no,
-                )
-            if name in names:
-                raise FileFormatError(
-                    f"{label}, line {header_no}: columns {names.index(name) + 1} and {j + 1} are both named {name!r}",
-                    source=label,
-                    line=header_no,
-                )
-            names.append(name)
-            units.append(unit)
-        ncol = len(names)
-        time_col = time if time is not None else next((n for n in TIME_NAMES if n in names), None)
-        first = next(lines, None)
-        pending: list[tuple[int, str]] = []
-        if first is not None:
-            number, text = first
-            row = next(csv.reader([text], delimiter=delim)) if text.strip() else []
-            is_units = units_row
-            if is_units is None and row:
-                if time_col is not None and time_col in names and names.index(time_col) < len(row):
-                    is_units = not _is_number(row[names.index(time_col)], decimal)
-                else:
-                    is_units = any(c.strip() and not _is_number(c, decimal) for c in row)
-            if is_units:
-                for j, cell in enumerate(row[:ncol]):
-                    unit = cell.strip().strip("[]()").strip()
-                    if unit and units[j] and unit != units[j]:
-                        raise FileFormatError(
-                            f"{label}, line {number}, column {j + 1} ({names[j]!r}): the unit row says {unit!r} "
-                            f"but the header says {units[j]!r}",
-                            source=label,
-                            channel=names[j],
-                            line=number,
-                        )
-                    units[j] = units[j] or unit
-                metadata["units_row"] = str(number)
+        head = read_header(lines, path, label, time, delimiter, decimal, units_row, units_in_header)
+        data, present, line_numbers = parse_rows(
+            _chain(head.pending, lines), len(head.names), head.names, head.delimiter, decimal, label
+        )
+    columns = columns_of(data, present, head)
+    del data
+    return recording_from_columns(path, columns, time=time, fs=fs, lines=line_numbers, metadata=head.metadata)
+
+
+def read_header(lines: Iterator[tuple[int, str]], path: Path, label: str, time: str | None, delimiter: str | None,
+                decimal: str, units_row: bool | None, units_in_header: bool) -> CsvHeader:
+    """Read the comment lines, the header and the unit row (if any) from numbered lines; errors name the line.
+
+    Shared by `read_csv` and the window reader (`dynid.io.windows`), so that both see the
+    same columns and units. Consumes the first line after the header.
+    """
+    metadata: dict[str, str] = {"format": "csv"}
+    header_no, header = 0, None
+    for number, text in lines:
+        stripped = text.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            key, sep, value = stripped.lstrip("#").partition(":")
+            if sep and key.strip():
+                metadata[key.strip()] = value.strip()
+            continue
+        header_no, header = number, text
+        break
+    if header is None:
+        raise FileFormatError(f"{label}: no header line (the file is empty or has only comments)", source=label)
+    delim = delimiter or _guess_delimiter(header, path)
+    if decimal == "," and delim == ",":
+        raise FileFormatError(f"{label}: decimal ',' needs another delimiter (';' or tab)", source=label)
+    cells = next(csv.reader([header], delimiter=delim))
+    names: list[str] = []
+    units: list[str] = []
+    for j, cell in enumerate(cells):
+        name, unit = split_header_cell(cell) if units_in_header else (cell.strip(), "")
+        if not name:
+            raise FileFormatError(
+                f"{label}, line {header_no}, column {j + 1}: empty column name in the header",
+                source=label,
+                line=header_no,
+            )
+        if name in names:
+            raise FileFormatError(
+                f"{label}, line {header_no}: columns {names.index(name) + 1} and {j + 1} are both named {name!r}",
+                source=label,
+                line=header_no,
+            )
+        names.append(name)
+        units.append(unit)
+    ncol = len(names)
+    time_col = time if time is not None else next((n for n in TIME_NAMES if n in names), None)
+    first = next(lines, None)
+    pending: list[tuple[int, str]] = []
+    data_line = header_no + 1
+    if first is not None:
+        number, text = first
+        row = next(csv.reader([text], delimiter=delim)) if text.strip() else []
+        is_units = units_row
+        if is_units is None and row:
+            if time_col is not None and time_col in names and names.index(time_col) < len(row):
+                is_units = not _is_number(row[names.index(time_col)], decimal)
             else:
-                pending.append(first)
-        data, present, line_numbers = _parse_rows(_chain(pending, lines), ncol, names, delim, decimal, label)
+                is_units = any(c.strip() and not _is_number(c, decimal) for c in row)
+        if is_units:
+            for j, cell in enumerate(row[:ncol]):
+                unit = cell.strip().strip("[]()").strip()
+                if unit and units[j] and unit != units[j]:
+                    raise FileFormatError(
+                        f"{label}, line {number}, column {j + 1} ({names[j]!r}): the unit row says {unit!r} "
+                        f"but the header says {units[j]!r}",
+                        source=label,
+                        channel=names[j],
+                        line=number,
+                    )
+                units[j] = units[j] or unit
+            metadata["units_row"] = str(number)
+            data_line = number + 1
+        else:
+            pending.append(first)
+    return CsvHeader(names, units, delim, metadata, data_line, pending)
+
+
+def columns_of(data: NDArray[np.float64], present: NDArray[np.bool_] | None, head: CsvHeader) -> list[Column]:
+    """Parsed rows (R, C) and their presence as one `Column` per header column (samples compacted)."""
     data = np.ascontiguousarray(data.T)  # one contiguous row per channel
     present = None if present is None else np.ascontiguousarray(present.T)
     columns = []
-    for j in range(ncol):
+    for j in range(len(head.names)):
         mask = None if present is None or present[j].all() else present[j]
-        columns.append(Column(names[j], units[j], data[j] if mask is None else data[j][mask], mask))
-    del data
-    return recording_from_columns(path, columns, time=time, fs=fs, lines=line_numbers, metadata=metadata)
+        columns.append(Column(head.names[j], head.units[j], data[j] if mask is None else data[j][mask], mask))
+    return columns
 
 
 def _chain(first: list[tuple[int, str]], rest: Iterator[tuple[int, str]]) -> Iterator[tuple[int, str]]:
@@ -198,10 +233,14 @@ def _chain(first: list[tuple[int, str]], rest: Iterator[tuple[int, str]]) -> Ite
     yield from rest
 
 
-def _parse_rows(
+def parse_rows(
     lines: Iterator[tuple[int, str]], ncol: int, names: list[str], delim: str, decimal: str, label: str
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None, NDArray[np.int64]]:
-    """All data rows: values (R, C) (NaN where empty), presence (R, C) or None if no cell is empty, line numbers."""
+    """All data rows: values (R, C) (NaN where empty), presence (R, C) or None if no cell is empty, line numbers.
+
+    Blank lines are skipped. A cell's number does not depend on which lines are parsed
+    with it, so a file parsed in pieces gives the whole file's values bit for bit.
+    """
     blocks, masks, numbers = [], [], []
     any_missing = False
     while True:

@@ -16,6 +16,7 @@ import json
 import os
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,48 +30,83 @@ _TIME_SYNC = 1  # MDF4 sync type of a time master
 
 def read_mdf(path: str | os.PathLike[str]) -> Recording:
     """Read an MDF file into a `Recording`, each channel on its own group's time base."""
-    asammdf = require("asammdf", "Reading MDF files")
     path = Path(path)
     label = str(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{label}: no such file")
-    try:
-        mdf = asammdf.MDF(path)
-    except Exception as exc:  # asammdf raises many kinds for a file that is not MDF
-        raise FileFormatError(f"{label}: not a readable MDF file ({type(exc).__name__}: {exc})", source=label) from None
+    mdf = open_mdf(path, label)
     with mdf:
         metadata = {"format": "mdf", "mdf_version": str(mdf.version)}
         _header_metadata(mdf, metadata)
-        masters = dict(mdf.masters_db)
-        wanted, skipped = [], {}
-        for name, places in mdf.channels_db.items():
-            for group, index in places:
-                if masters.get(group) == index:
-                    continue
-                key = name if len(places) == 1 else f"{name}@{group}"
-                if not _time_master(mdf, group, masters):
-                    skipped[key] = "its group's master channel is not time (angle or distance based)"
-                    continue
-                wanted.append((key, name, group, index))
+        wanted, skipped = channel_places(mdf)
         channels = {}
         # Group by group (less memory at once), one time array per group shared by its channels.
         for group in sorted({g for _, _, g, _ in wanted}):
-            members = [w for w in wanted if w[2] == group]
-            signals = mdf.select([(name, g, index) for _, name, g, index in members], copy_master=False)
-            base = None
-            for (key, _, _, _), sig in zip(members, signals, strict=True):
-                samples = np.asarray(sig.samples)
-                if samples.ndim != 1 or samples.dtype.kind not in "fiub":
-                    skipped[key] = f"samples of type {samples.dtype} and shape {samples.shape}, not numbers"
-                    continue
-                stamps = np.asarray(sig.timestamps, dtype=np.float64)
-                if base is None or (stamps is not base and not np.array_equal(base, stamps)):
-                    base = stamps
-                channels[key] = Channel(key, str(sig.unit or ""), samples.astype(np.float64, copy=False), base)
-            del signals
+            channels.update(group_channels(mdf, [w for w in wanted if w[2] == group], skipped))
     if not channels:
         raise FileFormatError(f"{label}: no numeric channel in the file; not read: {skipped}", source=label)
     return Recording(path, channels, metadata, skipped)
+
+
+def open_mdf(path: Path, label: str) -> Any:
+    """An open `asammdf.MDF` (use it as a context manager); a file that is not MDF is a one-line error."""
+    asammdf = require("asammdf", "Reading MDF files")
+    if not path.exists():
+        raise FileNotFoundError(f"{label}: no such file")
+    try:
+        return asammdf.MDF(path)
+    except Exception as exc:  # asammdf raises many kinds for a file that is not MDF
+        raise FileFormatError(f"{label}: not a readable MDF file ({type(exc).__name__}: {exc})", source=label) from None
+
+
+def channel_places(mdf: Any) -> tuple[list[tuple[str, str, int, int]], dict[str, str]]:
+    """The channels read: (key, name, group, index) each, key "name@group" for a name in several groups.
+
+    Also the channels not read with the reason (groups whose master is not time).
+    """
+    masters = dict(mdf.masters_db)
+    wanted, skipped = [], {}
+    for name, places in mdf.channels_db.items():
+        for group, index in places:
+            if masters.get(group) == index:
+                continue
+            key = name if len(places) == 1 else f"{name}@{group}"
+            if not _time_master(mdf, group, masters):
+                skipped[key] = "its group's master channel is not time (angle or distance based)"
+                continue
+            wanted.append((key, name, group, index))
+    return wanted, skipped
+
+
+def group_channels(
+    mdf: Any,
+    members: list[tuple[str, str, int, int]],
+    skipped: dict[str, str],
+    record_offset: int = 0,
+    record_count: int | None = None,
+) -> dict[str, Channel]:
+    """The channels `members` (all of one group) as `Channel`s, on the group's master as time base.
+
+    `record_offset` / `record_count` read a run of the group's records only (asammdf
+    decodes each record the same way whatever the run, so pieces equal the whole).
+    Channels whose samples are not numeric vectors go to `skipped`.
+    """
+    channels = {}
+    signals = mdf.select(
+        [(name, g, index) for _, name, g, index in members],
+        copy_master=False,
+        record_offset=record_offset,
+        record_count=record_count,
+    )
+    base = None
+    for (key, _, _, _), sig in zip(members, signals, strict=True):
+        samples = np.asarray(sig.samples)
+        if samples.ndim != 1 or samples.dtype.kind not in "fiub":
+            skipped[key] = f"samples of type {samples.dtype} and shape {samples.shape}, not numbers"
+            continue
+        stamps = np.asarray(sig.timestamps, dtype=np.float64)
+        if base is None or (stamps is not base and not np.array_equal(base, stamps)):
+            base = stamps
+        channels[key] = Channel(key, str(sig.unit or ""), samples.astype(np.float64, copy=False), base)
+    return channels
 
 
 def _time_master(mdf, group: int, masters: dict[int, int]) -> bool:

@@ -55,16 +55,47 @@ def read_parquet(
         an identification needs: this saves their memory and reading time.
     """
     pa = require("pyarrow", "Reading Parquet files")
-    pq = require("pyarrow.parquet", "Reading Parquet files")
     path = Path(path)
     label = str(path)
+    pfile = open_parquet(path, label)
+    schema = pfile.schema_arrow
+    metadata = schema_metadata(schema)
+    columns, skipped = [], {}
+    wanted = None if channels is None else set(channels) | {time, *TIME_NAMES} - {None}
+    for field in schema:
+        if wanted is not None and field.name not in wanted:
+            skipped[field.name] = "not among the channels asked for"
+            continue
+        if not is_numeric(pa, field.type):
+            skipped[field.name] = f"column of type {field.type}, not numeric"
+            continue
+        # One column at a time: the memory peak is the data plus one column, not twice the file.
+        col = pfile.read(columns=[field.name], use_pandas_metadata=False).column(0)
+        if pa.types.is_timestamp(field.type):
+            start = col[0].as_py() if len(col) else None
+            if start is not None:
+                metadata.setdefault(f"{field.name}.start", start.isoformat())
+        columns.append(convert_column(pa, field, col, first_tick(pa, col)))
+        del col
+    if not columns:
+        raise FileFormatError(f"{label}: no numeric column in the file", source=label)
+    return recording_from_columns(path, columns, time=time, fs=fs, metadata=metadata, skipped=skipped)
+
+
+def open_parquet(path: Any, label: str, filesystem: Any = None) -> Any:
+    """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet is a one-line `FileFormatError`."""
+    pa = require("pyarrow", "Reading Parquet files")
+    pq = require("pyarrow.parquet", "Reading Parquet files")
     try:
-        pfile = pq.ParquetFile(path)
-        schema = pfile.schema_arrow
+        return pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
     except (pa.ArrowInvalid, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         raise FileFormatError(f"{label}: not a readable Parquet file ({exc})", source=label) from None
+
+
+def schema_metadata(schema: Any) -> dict[str, str]:
+    """The recording's metadata stored in the schema (b"dynid.metadata"), with format = parquet."""
     metadata = {"format": "parquet"}
     schema_meta = schema.metadata or {}
     if META_KEY in schema_meta:
@@ -73,37 +104,45 @@ def read_parquet(
             metadata.update({str(k): str(v) for k, v in stored.items()})
         except (ValueError, AttributeError):
             metadata["metadata_error"] = "dynid.metadata is not a JSON object"
-    columns, skipped = [], {}
-    wanted = None if channels is None else set(channels) | {time, *TIME_NAMES} - {None}
-    for field in schema:
-        if wanted is not None and field.name not in wanted:
-            skipped[field.name] = "not among the channels asked for"
-            continue
-        # One column at a time: the memory peak is the data plus one column, not twice the file.
-        col = pfile.read(columns=[field.name], use_pandas_metadata=False).column(0)
-        unit = _unit_of(field)
-        kind = field.type
-        if pa.types.is_timestamp(kind):
-            # Integer ticks since the first row (exact), then to s: epoch ns do not fit a float64.
-            ticks = np.asarray(col.cast(pa.int64()).fill_null(0).to_numpy(), dtype=np.int64)
-            nulls = col.null_count
-            start = col[0].as_py() if len(col) else None
-            values = (ticks - ticks[0]) / _TICKS_PER_SECOND[kind.unit] if ticks.size else ticks.astype(np.float64)
-            if start is not None:
-                metadata.setdefault(f"{field.name}.start", start.isoformat())
-            unit = "s"
-        elif pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind):
-            values = np.asarray(col.cast(pa.float64()).to_numpy(), dtype=np.float64)
-            nulls = col.null_count
+    return metadata
+
+
+def is_numeric(pa: Any, kind: Any) -> bool:
+    """Whether a column of this Arrow type is read as a channel (timestamps, floats, integers, booleans)."""
+    return bool(
+        pa.types.is_timestamp(kind) or pa.types.is_floating(kind) or pa.types.is_integer(kind)
+        or pa.types.is_boolean(kind)
+    )
+
+
+def first_tick(pa: Any, col: Any) -> int | None:
+    """The integer tick of a timestamp column's first row (0 if that row is null), None for other columns."""
+    if not pa.types.is_timestamp(col.type) or len(col) == 0:
+        return None
+    return int(col.slice(0, 1).cast(pa.int64()).fill_null(0).to_numpy()[0])
+
+
+def convert_column(pa: Any, field: Any, col: Any, tick0: int | None) -> Column:
+    """One numeric Arrow column (or a run of its rows) as a `Column` of float64 samples.
+
+    A timestamp column becomes seconds since `tick0`, the integer tick of the FILE's
+    first row (exact integer difference, then one division: epoch ns do not fit a
+    float64), so rows converted in pieces equal the whole column bit for bit. Integers
+    and booleans are cast to float64; nulls are rows without a sample.
+    """
+    unit = _unit_of(field)
+    kind = field.type
+    if pa.types.is_timestamp(kind):
+        ticks = np.asarray(col.cast(pa.int64()).fill_null(0).to_numpy(), dtype=np.int64)
+        if ticks.size:
+            values = (ticks - np.int64(tick0 if tick0 is not None else ticks[0])) / _TICKS_PER_SECOND[kind.unit]
         else:
-            skipped[field.name] = f"column of type {kind}, not numeric"
-            continue
-        present = ~np.asarray(col.is_null().to_numpy(), dtype=bool) if nulls else None
-        del col
-        columns.append(Column(field.name, unit, values if present is None else values[present], present))
-    if not columns:
-        raise FileFormatError(f"{label}: no numeric column in the file", source=label)
-    return recording_from_columns(path, columns, time=time, fs=fs, metadata=metadata, skipped=skipped)
+            values = ticks.astype(np.float64)
+        unit = "s"
+    else:
+        values = np.asarray(col.cast(pa.float64()).to_numpy(), dtype=np.float64)
+    present = ~np.asarray(col.is_null().to_numpy(), dtype=bool) if col.null_count else None
+    return Column(field.name, unit, values if present is None else values[present], present)
 
 
 def write_parquet(recording: Recording, path: str | os.PathLike[str], *, compression: str = "snappy") -> Path:

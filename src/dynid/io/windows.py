@@ -1,0 +1,757 @@
+"""Time windows of a measurement file, read without reading the file whole.
+
+A long test (an hour of 55 channels at 625 Hz) is processed as overlapping time
+segments, each read on its own, possibly on another machine, so that the memory needed
+does not grow with the file's length. This module is that reading layer:
+
+- `index_file(path, ...) -> FileIndex`: one streaming pass over the file (bounded memory)
+  that records where its rows lie in time, block by block. The index is small
+  (O(rows / block) entries), picklable, and holds everything a reader needs, so that a
+  worker given (index, channels, t0, t1) opens the file and reads only what the window needs.
+- `read_window(index, channels, t0, t1) -> Recording`: the samples with t0 <= t <= t1.
+- `iter_blocks(index, channels) -> Iterator[Recording]`: the file as consecutive blocks,
+  one in memory at a time (a planning pass reads the time bases and checks them).
+
+Both give, bit for bit, what `read_recording(path, channels=...)` gives restricted to the
+window (or cut into the blocks): the numbers are parsed and converted by the same
+functions as the whole-file readers (`csv_format.parse_rows`, `parquet_format.convert_column`,
+`mdf_format.group_channels`, `_table.recording_from_columns`).
+
+What a block is, per format:
+
+| format  | block                                                 | a window reads                     |
+| ------- | ----------------------------------------------------- | ---------------------------------- |
+| csv     | `block_rows` consecutive lines of data (byte range)   | the blocks its time span overlaps  |
+| parquet | one row group (the writer's `row_group_size`)         | the row groups it overlaps         |
+| mdf     | `block_rows` consecutive records of one channel group | each group's records it overlaps   |
+| mat     | the whole file (scipy cannot read a v5 file in parts) | the whole file, then sliced        |
+
+Each block records its first and last time stamp (min and max: NaN stamps left out) and
+whether its stamps never go back. A window reads every block whose [min, max] meets
+[t0, t1] and keeps the rows inside, so stamps that go back (a bad logger) never make a
+window drop rows; `FileIndex.monotonic` tells whether the file's stamps never go back,
+which a planner should check (a window of a file whose stamps go back may read many blocks).
+
+Channels: every channel asked for is in the window's `Recording`, with 0 samples when it
+has none in the window (or none at all in the file: `read_recording` lists those in
+`Recording.skipped` instead). The time column is not a channel. MDF channels are named as
+`read_mdf` names them ("name@group" for a name in several groups); in MDF files a block
+holds the channels of one group only, the others come out with 0 samples in that block.
+
+Recently decoded blocks are kept in a small per-process cache (`CACHE_BYTES`, least
+recently used first out), so that overlapping windows read in time order decode each
+CSV block or Parquet row group about once: a Parquet row group is the smallest unit
+pyarrow decodes, and writers often make them a million rows long, far longer than a window.
+
+A file changed on disk (size or modification time) since it was indexed is refused:
+the index would point at the wrong bytes.
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, replace
+from itertools import islice
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..textfiles import encoding_problem
+from . import csv_format, mdf_format, parquet_format
+from ._optional import require
+from ._table import Column, find_time_column, recording_from_columns, table_time, uniform_time
+from .checks import missing_error
+from .errors import DataError, FileFormatError
+from .files import READERS, _check_options, format_of
+from .mat_format import read_mat
+from .recording import Channel, Recording
+
+CACHE_BYTES = 512 * 2**20  # decoded blocks kept per process (least recently used dropped first)
+
+_EMPTY_F = np.empty(0, dtype=np.float64)
+_EMPTY_I = np.empty(0, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class Block:
+    """One block of a file's rows and where it lies in time.
+
+    row0 : index of the block's first row in the file (MDF: first record in its group).
+    rows : number of rows (CSV: of data rows, blank lines not counted; MDF: records).
+    t_min, t_max : s, smallest and largest time stamp in the block, NaN stamps left out
+        (+inf and -inf when the block has none: no window meets it).
+    increasing : the block's stamps never go back (non-decreasing, no NaN).
+    group : Parquet row group; MDF channel group; 0 otherwise.
+    offset, end : CSV only, the byte range [offset, end) of the block's lines.
+    line : CSV only, the number (1-based) of the block's first line.
+    """
+
+    row0: int
+    rows: int
+    t_min: float
+    t_max: float
+    increasing: bool
+    group: int = 0
+    offset: int = 0
+    end: int = 0
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class FileIndex:
+    """Where a file's rows lie in time: small, picklable, enough to read any time window without scanning the file.
+
+    Built once (`index_file`) and shipped to the workers with each task.
+
+    path : the file, as given.
+    format : "csv", "parquet", "mdf" or "mat".
+    size, mtime_ns : the file's size and modification time when indexed (a changed file is refused).
+    options : the reader options given (fs, time, and the CSV options), as (name, value) pairs.
+    channels : (name, unit) of every channel a window may ask for, in file order.
+    blocks : the blocks in file order (MDF: group by group, each in record order).
+    metadata, skipped : what the whole-file reader puts in `Recording.metadata` / `.skipped`.
+    time_column : table formats: the time column's name, or None when t = row / fs.
+    extra : what the format's reader needs, as (name, value) pairs: the CSV header (names,
+        units, delimiter, decimal, encoding), the first tick of each Parquet timestamp
+        column, each MDF channel's (name, group, index) place.
+    """
+
+    path: str
+    format: str
+    size: int
+    mtime_ns: int
+    options: tuple[tuple[str, Any], ...]
+    channels: tuple[tuple[str, str], ...]
+    blocks: tuple[Block, ...]
+    metadata: tuple[tuple[str, str], ...] = ()
+    skipped: tuple[tuple[str, str], ...] = ()
+    time_column: str | None = None
+    extra: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Channel name -> unit as written in the file."""
+        return dict(self.channels)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.channels)
+
+    @property
+    def rows(self) -> int:
+        """Rows of the file (MDF: records of every group)."""
+        return sum(b.rows for b in self.blocks)
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """(first, last) time stamp of the file, s: the min and max over the blocks (+inf, -inf if none)."""
+        return min((b.t_min for b in self.blocks), default=np.inf), max((b.t_max for b in self.blocks), default=-np.inf)
+
+    @property
+    def monotonic(self) -> bool:
+        """The stamps never go back: within each block, and from a block to the next (MDF: within each group)."""
+        last: dict[int, float] = {}
+        for b in self.blocks:
+            if b.rows == 0:
+                continue
+            key = b.group if self.format == "mdf" else 0
+            if not b.increasing or b.t_min < last.get(key, -np.inf):
+                return False
+            last[key] = b.t_max
+        return True
+
+    def option(self, name: str, default: Any = None) -> Any:
+        return dict(self.options).get(name, default)
+
+    def info(self, name: str, default: Any = None) -> Any:
+        return dict(self.extra).get(name, default)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# public entry points
+
+
+def index_file(
+    path: str | os.PathLike[str],
+    *,
+    channels: Sequence[str] | None = None,
+    fs: float | None = None,
+    time: str | None = None,
+    format: str | None = None,
+    block_rows: int = 65536,
+    **csv_options: Any,
+) -> FileIndex:
+    """One streaming pass over the file (memory bounded by a block, whatever the file's length) to build its index.
+
+    Parameters
+    ----------
+    path : the file (a local path).
+    channels : the channels windows will ask for (an error now if one is missing); None: all.
+        For MDF files only the groups holding them are indexed.
+    fs : Hz, sample rate of a table without time column (CSV, Parquet, MAT).
+    time : the time column's name if it is not time/t/Time/TIME.
+    format : "csv", "parquet", "mdf" or "mat"; None: from the extension.
+    block_rows : rows per block for CSV (lines of data) and MDF (records); Parquet blocks
+        are the file's row groups, MAT files one block.
+    csv_options : delimiter, decimal, units_row, units_in_header, encoding, as `read_csv`.
+
+    The index holds the reader options: read the windows with the same index.
+    """
+    label = str(path)
+    fmt = format_of(path, format)
+    options = {"fs": fs, "time": time, **csv_options}
+    _check_options(READERS[fmt], fmt, options, "reading")
+    options = {k: v for k, v in options.items() if v is not None}
+    if int(block_rows) < 1:
+        raise DataError(f"{label}: block_rows must be a positive number of rows, not {block_rows!r}", source=label)
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{label}: no such file")
+    stat = p.stat()
+    builder = {"csv": _index_csv, "parquet": _index_parquet, "mdf": _index_mdf, "mat": _index_mat}[fmt]
+    index = builder(p, label, options, int(block_rows), stat)
+    if channels is not None:
+        asked = list(channels)
+        units = index.units
+        if any(n not in units for n in asked):
+            raise missing_error(asked, units, source=label, skipped=dict(index.skipped))
+        index = _restricted(index, asked)
+    after = p.stat()
+    if (after.st_size, after.st_mtime_ns) != (stat.st_size, stat.st_mtime_ns):
+        raise FileFormatError(f"{label}: the file changed while it was indexed; index it again when complete")
+    return index
+
+
+def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float) -> Recording:
+    """The samples of `channels` whose time stamp t satisfies t0 <= t <= t1, read from the blocks that overlap.
+
+    Bit for bit what `read_recording(index.path, channels=channels, **options)` gives
+    restricted to the window (values, time, units, and `lines` for CSV). Every channel
+    asked for is in the result, with 0 samples when it has none in the window. An empty
+    window (t1 < t0) gives 0 samples everywhere. MAT files are read whole (and cached).
+    """
+    names = _asked(index, channels)
+    lo, hi = _window(index, t0, t1)
+    _check_unchanged(index)
+    pieces: dict[str, list[Channel]] = {n: [] for n in names}
+    hit = [i for i, b in enumerate(index.blocks) if b.rows and b.t_min <= hi and b.t_max >= lo] if lo <= hi else []
+    tables = (_block_recording(index, i, names) for i in hit)
+    for rec in _mdf_runs(index, hit, names) if index.format == "mdf" else tables:
+        for n in names:
+            ch = rec.channels.get(n)
+            if ch is not None and len(ch):
+                pieces[n].append(_inside(ch, lo, hi))
+    return _assembled(index, names, pieces)
+
+
+def iter_blocks(index: FileIndex, channels: Sequence[str]) -> Iterator[Recording]:
+    """The file as consecutive disjoint blocks of rows, one `Recording` each, one block in memory at a time.
+
+    Per channel, the concatenation of the blocks' samples is bit for bit
+    `read_recording(index.path, channels=channels, ...)`. Blocks are those of the index
+    (module docstring): CSV runs of `block_rows` lines, Parquet row groups, MDF runs of
+    `block_rows` records of one group (yielded merged in time order by first stamp, each
+    group's in record order; a block's other groups' channels have 0 samples), MAT the
+    whole file. Every channel asked for is in every block, with 0 samples if it has none there.
+    """
+    names = _asked(index, channels)
+    _check_unchanged(index)
+    if index.format == "mdf":
+        yield from _iter_mdf(index, names)
+        return
+    for i, b in enumerate(index.blocks):
+        if b.rows == 0 and index.format != "mat":
+            continue
+        rec = _block_recording(index, i, names)
+        yield _assembled(index, names, {n: [rec.channels[n]] if n in rec.channels else [] for n in names})
+
+
+def clear_cache() -> None:
+    """Forget the decoded blocks kept by this process."""
+    with _lock:
+        _cache.clear()
+        _used[0] = 0
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _asked(index: FileIndex, channels: Sequence[str]) -> list[str]:
+    if isinstance(channels, str):
+        channels = [channels]
+    names = list(dict.fromkeys(channels))
+    units = index.units
+    if any(n not in units for n in names):
+        raise missing_error(names, units, source=index.path, skipped=dict(index.skipped))
+    return names
+
+
+def _window(index: FileIndex, t0: float, t1: float) -> tuple[float, float]:
+    try:
+        lo, hi = float(t0), float(t1)
+    except (TypeError, ValueError):
+        raise DataError(f"{index.path}: a window is two times in s, not {t0!r}, {t1!r}", source=index.path) from None
+    if np.isnan(lo) or np.isnan(hi):
+        raise DataError(f"{index.path}: window [{t0}, {t1}] s: a bound is NaN", source=index.path)
+    return lo, hi
+
+
+def _check_unchanged(index: FileIndex) -> None:
+    try:
+        st = os.stat(index.path)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{index.path}: no such file (it was indexed, then moved or deleted)") from None
+    if (st.st_size, st.st_mtime_ns) != (index.size, index.mtime_ns):
+        raise FileFormatError(
+            f"{index.path}: the file changed since it was indexed (size {index.size} -> {st.st_size} bytes, or its "
+            "modification time); index it again (index_file) before reading windows",
+            source=index.path,
+        )
+
+
+def _inside(ch: Channel, lo: float, hi: float) -> Channel:
+    keep = (ch.time >= lo) & (ch.time <= hi)
+    if keep.all():
+        return ch
+    return Channel(ch.name, ch.unit, ch.values[keep], ch.time[keep], None if ch.lines is None else ch.lines[keep])
+
+
+def _assembled(index: FileIndex, names: list[str], pieces: dict[str, list[Channel]]) -> Recording:
+    """One recording of the pieces of each channel, in order; 0-sample channels for those without any."""
+    units = index.units
+    text = index.format == "csv"
+    out = {}
+    for n in names:
+        got = pieces[n]
+        if len(got) == 1:
+            out[n] = got[0]
+        elif not got:
+            out[n] = Channel(n, units[n], _EMPTY_F, _EMPTY_F, _EMPTY_I if text else None)
+        else:
+            lines = np.concatenate([c.lines for c in got]) if text else None
+            values = np.concatenate([c.values for c in got])
+            out[n] = Channel(n, got[0].unit, values, np.concatenate([c.time for c in got]), lines)
+    return Recording(Path(index.path), out, dict(index.metadata), dict(index.skipped))
+
+
+def _stamp_summary(t: NDArray[np.float64]) -> tuple[float, float, bool]:
+    """(min, max, never goes back) of a block's stamps, NaN left out of min and max (+inf, -inf if none)."""
+    finite = t[~np.isnan(t)]
+    if finite.size == 0:
+        return float("inf"), float("-inf"), t.size == 0
+    increasing = finite.size == t.size and bool(np.all(t[1:] >= t[:-1]))
+    return float(finite.min()), float(finite.max()), increasing
+
+
+def _restricted(index: FileIndex, names: list[str]) -> FileIndex:
+    keep = set(names)
+    chans = tuple((n, u) for n, u in index.channels if n in keep)
+    if index.format != "mdf":
+        return replace(index, channels=chans)
+    places = {k: v for k, v in index.info("places").items() if k in keep}
+    groups = {g for _, g, _ in places.values()}
+    extra = tuple((k, places if k == "places" else v) for k, v in index.extra)
+    blocks = tuple(b for b in index.blocks if b.group in groups)
+    return replace(index, channels=chans, blocks=blocks, extra=extra)
+
+
+# a small LRU cache of decoded blocks, shared by the threads of a process --------------------------------------------
+
+_cache: OrderedDict[tuple, tuple[Any, int]] = OrderedDict()
+_used = [0]
+_lock = threading.Lock()
+
+
+def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int]) -> Any:
+    with _lock:
+        hit = _cache.get(key)
+        if hit is not None:
+            _cache.move_to_end(key)
+            return hit[0]
+    value = make()
+    nbytes = size(value)
+    with _lock:
+        if nbytes <= CACHE_BYTES and key not in _cache:
+            _cache[key] = (value, nbytes)
+            _used[0] += nbytes
+            while _used[0] > CACHE_BYTES and _cache:
+                _, (_, gone) = _cache.popitem(last=False)
+                _used[0] -= gone
+    return value
+
+
+def _key(index: FileIndex, *rest: Any) -> tuple:
+    return (index.path, index.size, index.mtime_ns, index.options, *rest)
+
+
+def _columns_nbytes(cols: Any) -> int:
+    columns, lines = cols if isinstance(cols, tuple) else (cols, None)
+    total = 0 if lines is None else lines.nbytes
+    for c in columns if isinstance(columns, list) else [columns]:
+        total += c.values.nbytes + (0 if c.present is None else c.present.nbytes)
+    return total
+
+
+# tables (CSV, Parquet) -----------------------------------------------------------------------------------------------
+
+
+def _block_recording(index: FileIndex, i: int, names: list[str]) -> Recording:
+    """Block i as a recording of `names` (CSV and Parquet: through `recording_from_columns`, as the whole file)."""
+    if index.format == "mat":
+        rec = _cached(_key(index, "mat"), lambda: _read_mat(index), _recording_nbytes)
+        return Recording(rec.source, {n: rec.channels[n] for n in names if n in rec.channels}, rec.metadata)
+    block = index.blocks[i]
+    time_name = index.time_column
+    wanted = ([time_name] if time_name is not None else []) + [n for n in names if n != time_name]
+    if index.format == "csv":
+        columns, lines = _cached(_key(index, i), lambda: _csv_block(index, block), _columns_nbytes)
+        by_name = {c.name: c for c in columns}
+        cols = [by_name[n] for n in wanted]
+        if time_name is None and not cols:
+            cols = columns[:1]  # the row count of a table without time column
+    else:
+        lines = None
+        opened: list[Any] = []  # the ParquetFile, opened on the first block not in the cache
+        cols = [_parquet_column(index, block, n, opened) for n in wanted]
+    label = Path(index.path)
+    return recording_from_columns(
+        label, cols, time=index.option("time"), fs=index.option("fs"), lines=lines, row0=block.row0
+    )
+
+
+# CSV -----------------------------------------------------------------------------------------------------------------
+
+
+def _csv_encodings(encoding: str, label: str) -> tuple[str, str]:
+    """(encoding of the first line, of the others): a UTF-8 byte-order mark only at the start of the file."""
+    utf8 = encoding.lower().replace("_", "-") in ("utf-8", "utf-8-sig", "utf8")
+    rest = "utf-8" if utf8 else encoding
+    try:
+        one_byte = "\n".encode(rest) == b"\n" and "\r".encode(rest) == b"\r"
+    except LookupError:
+        raise FileFormatError(f"{label}: unknown text encoding {encoding!r}", source=label) from None
+    if not one_byte:
+        raise FileFormatError(
+            f"{label}: encoding {encoding} does not write a line end as one byte; windows of this file cannot be "
+            "read: convert it to UTF-8, or read it whole (read_recording)",
+            source=label,
+        )
+    return encoding, rest
+
+
+def _decode_error(label: str, p: Path, encoding: str, exc: UnicodeDecodeError) -> FileFormatError:
+    utf8 = encoding.lower().replace("_", "-") in ("utf-8", "utf-8-sig", "utf8")
+    why = encoding_problem(p) if utf8 else f"not {encoding} text ({exc.reason})"
+    return FileFormatError(f"{label}: {why}", source=label)
+
+
+def _lines_of(raw: bytes, first_line: int, encoding: str, label: str) -> list[tuple[int, str]]:
+    """Numbered lines of a byte range, as `read_csv`'s text reading (newline="") gives them."""
+    if raw.count(b"\r") != raw.count(b"\r\n"):
+        raise FileFormatError(
+            f"{label}: a line ends with a lone carriage return (old Mac line ends); windows of this file cannot be "
+            "read: convert its line ends to \\n, or read it whole (read_recording)",
+            source=label,
+        )
+    parts = raw.decode(encoding).split("\n")
+    if parts and parts[-1] == "":
+        parts.pop()
+    return [(first_line + k, text.rstrip("\r\n")) for k, text in enumerate(parts)]
+
+
+def _csv_head(index: FileIndex) -> csv_format.CsvHeader:
+    h = index.info("header")
+    return csv_format.CsvHeader(list(h["names"]), list(h["units"]), h["delimiter"], {}, 0, [])
+
+
+def _csv_columns(
+    numbered: list[tuple[int, str]], head: csv_format.CsvHeader, decimal: str, label: str
+) -> tuple[list[Column], NDArray[np.int64]]:
+    data, present, lines = csv_format.parse_rows(
+        iter(numbered), len(head.names), head.names, head.delimiter, decimal, label
+    )
+    return csv_format.columns_of(data, present, head), lines
+
+
+def _csv_block(index: FileIndex, block: Block) -> tuple[list[Column], NDArray[np.int64]]:
+    label = index.path
+    encoding = index.option("encoding", "utf-8-sig")
+    _, rest = _csv_encodings(encoding, label)
+    with open(index.path, "rb") as fh:
+        fh.seek(block.offset)
+        raw = fh.read(block.end - block.offset)
+    try:
+        numbered = _lines_of(raw, block.line, rest if block.offset else encoding, label)
+    except UnicodeDecodeError as exc:
+        raise _decode_error(label, Path(index.path), encoding, exc) from None
+    return _csv_columns(numbered, _csv_head(index), index.option("decimal", "."), label)
+
+
+def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+    encoding = options.get("encoding", "utf-8-sig")
+    decimal = options.get("decimal", ".")
+    if decimal not in (".", ","):
+        raise FileFormatError(f"{label}: decimal must be '.' or ',', not {decimal!r}", source=label)
+    first_enc, rest_enc = _csv_encodings(encoding, label)
+    offsets: dict[int, int] = {}
+    blocks: list[Block] = []
+    try:
+        with open(p, "rb") as fh:
+
+            def header_lines() -> Iterator[tuple[int, str]]:
+                number = 0
+                while True:
+                    pos = fh.tell()
+                    raw = fh.readline()
+                    if not raw:
+                        return
+                    number += 1
+                    offsets[number] = pos
+                    yield number, _lines_of(raw, number, first_enc if pos == 0 else rest_enc, label)[0][1]
+
+            head = csv_format.read_header(
+                header_lines(), p, label, options.get("time"), options.get("delimiter"), decimal,
+                options.get("units_row"), options.get("units_in_header", True),
+            )
+            offset = offsets.get(head.data_line, fh.tell())
+            fh.seek(offset)
+            line, row0 = head.data_line, 0
+            time_name = find_time_column(head.names, options.get("time"), options.get("fs"), label)
+            while True:
+                raw_lines = list(islice(fh, block_rows))
+                if not raw_lines:
+                    break
+                raw = b"".join(raw_lines)
+                numbered = _lines_of(raw, line, first_enc if offset == 0 else rest_enc, label)
+                columns, lines = _csv_columns(numbered, head, decimal, label)
+                rows = lines.size
+                t = table_time(columns, time_name, options.get("fs"), label, lines, row0)
+                lo, hi, inc = _stamp_summary(t)
+                blocks.append(Block(row0, rows, lo, hi, inc, offset=offset, end=offset + len(raw), line=line))
+                offset += len(raw)
+                line += len(raw_lines)
+                row0 += rows
+    except UnicodeDecodeError as exc:
+        raise _decode_error(label, p, encoding, exc) from None
+    # The channels as the whole-file reader makes them (units from the header / unit row).
+    channels = tuple((n, u) for n, u in zip(head.names, head.units, strict=True) if n != time_name)
+    header = {"names": tuple(head.names), "units": tuple(head.units), "delimiter": head.delimiter}
+    metadata = dict(head.metadata)
+    if time_name is None:
+        metadata.setdefault("fs", repr(float(options["fs"])))
+    return FileIndex(
+        str(p), "csv", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())), channels, tuple(blocks),
+        tuple(metadata.items()), (), time_name, (("header", header),),
+    )
+
+
+# Parquet -------------------------------------------------------------------------------------------------------------
+
+
+def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+    pa = require("pyarrow", "Reading Parquet files")
+    pfile = parquet_format.open_parquet(p, label)
+    schema = pfile.schema_arrow
+    metadata = parquet_format.schema_metadata(schema)
+    fields = [f for f in schema if parquet_format.is_numeric(pa, f.type)]
+    skipped = {f.name: f"column of type {f.type}, not numeric" for f in schema if f not in fields}
+    if not fields:
+        raise FileFormatError(f"{label}: no numeric column in the file", source=label)
+    time_name = find_time_column([f.name for f in fields], options.get("time"), options.get("fs"), label)
+    meta = pfile.metadata
+    groups = range(meta.num_row_groups)
+    first = next((g for g in groups if meta.row_group(g).num_rows), None)
+    ticks: dict[str, int] = {}
+    stamps = [f for f in fields if pa.types.is_timestamp(f.type)]
+    if stamps and first is not None:
+        table = pfile.read_row_group(first, columns=[f.name for f in stamps], use_pandas_metadata=False)
+        for f in stamps:
+            col = table.column(f.name)
+            ticks[f.name] = parquet_format.first_tick(pa, col)
+            start = col[0].as_py()
+            if start is not None:
+                metadata.setdefault(f"{f.name}.start", start.isoformat())
+    blocks, row0 = [], 0
+    tfield = next((f for f in fields if f.name == time_name), None)
+    for g in groups:
+        rows = meta.row_group(g).num_rows
+        if tfield is not None:
+            col = pfile.read_row_group(g, columns=[time_name], use_pandas_metadata=False).column(0)
+            column = parquet_format.convert_column(pa, tfield, col, ticks.get(time_name))
+            t = table_time([column], time_name, None, label, None, row0)
+        else:
+            t = uniform_time(rows, options.get("fs"), label, row0)
+        lo, hi, inc = _stamp_summary(t)
+        blocks.append(Block(row0, rows, lo, hi, inc, group=g))
+        row0 += rows
+    if time_name is None:
+        metadata.setdefault("fs", repr(float(options["fs"])))
+    channels = tuple((f.name, "s" if pa.types.is_timestamp(f.type) else parquet_format._unit_of(f))
+                     for f in fields if f.name != time_name)
+    return FileIndex(
+        str(p), "parquet", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())), channels, tuple(blocks),
+        tuple(metadata.items()), tuple(skipped.items()), time_name, (("first_ticks", ticks),),
+    )
+
+
+def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]) -> Column:
+    def make() -> Column:
+        pa = require("pyarrow", "Reading Parquet files")
+        if not opened:
+            opened.append(parquet_format.open_parquet(index.path, index.path))
+        pfile = opened[0]
+        field = pfile.schema_arrow.field(name)
+        col = pfile.read_row_group(block.group, columns=[name], use_pandas_metadata=False).column(0)
+        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(name))
+
+    return _cached(_key(index, block.group, name), make, _columns_nbytes)
+
+
+# MDF -----------------------------------------------------------------------------------------------------------------
+
+
+def _open_mdf_stream(index_path: str) -> tuple[Any, Any]:
+    """The MDF opened from a file object: asammdf then reads a record range by seeking to it.
+
+    (Opened by path, asammdf 8.8's `select` reads every record of the group and slices.)
+    """
+    asammdf = require("asammdf", "Reading MDF files")
+    fh = open(index_path, "rb")  # noqa: SIM115 - closed by the caller with the MDF
+    try:
+        return fh, asammdf.MDF(fh)
+    except Exception as exc:  # asammdf raises many kinds for a file that is not MDF
+        fh.close()
+        raise FileFormatError(
+            f"{index_path}: not a readable MDF file ({type(exc).__name__}: {exc})", source=index_path
+        ) from None
+
+
+def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+    fh, mdf = _open_mdf_stream(str(p))
+    try:
+        with mdf:
+            metadata = {"format": "mdf", "mdf_version": str(mdf.version)}
+            mdf_format._header_metadata(mdf, metadata)
+            wanted, skipped = mdf_format.channel_places(mdf)
+            channels: list[tuple[str, str]] = []
+            places: dict[str, tuple[str, int, int]] = {}
+            blocks: list[Block] = []
+            for group in sorted({g for _, _, g, _ in wanted}):
+                members = [w for w in wanted if w[2] == group]
+                cycles = int(mdf.groups[group].channel_group.cycles_nr)
+                # The channels' kinds and units from one record (or none): what read_mdf would keep.
+                probe = mdf_format.group_channels(mdf, members, skipped, 0, min(cycles, 1))
+                for key, name, g, idx in members:
+                    if key in probe:
+                        channels.append((key, probe[key].unit))
+                        places[key] = (name, g, idx)
+                for row0 in range(0, cycles, block_rows):
+                    count = min(block_rows, cycles - row0)
+                    t = np.asarray(mdf.get_master(group, record_offset=row0, record_count=count), dtype=np.float64)
+                    lo, hi, inc = _stamp_summary(t)
+                    blocks.append(Block(row0, count, lo, hi, inc, group=group))
+    finally:
+        fh.close()
+    if not channels:
+        raise FileFormatError(f"{label}: no numeric channel in the file; not read: {skipped}", source=label)
+    return FileIndex(
+        str(p), "mdf", stat.st_size, stat.st_mtime_ns, (), tuple(channels), tuple(blocks), tuple(metadata.items()),
+        tuple(skipped.items()), None, (("places", places),),
+    )
+
+
+def _mdf_read(mdf: Any, index: FileIndex, group: int, names: list[str], row0: int, count: int) -> dict[str, Channel]:
+    places = index.info("places")
+    members = [(n, *places[n]) for n in names if places[n][1] == group]
+    if not members:
+        return {}
+    return mdf_format.group_channels(mdf, members, {}, row0, count)
+
+
+def _mdf_runs(index: FileIndex, hit: list[int], names: list[str]) -> Iterator[Recording]:
+    """The hit blocks, contiguous runs of a group read in one call, as recordings (in group order)."""
+    runs: list[list[Block]] = []
+    for i in hit:
+        b = index.blocks[i]
+        if runs and runs[-1][-1].group == b.group and runs[-1][-1].row0 + runs[-1][-1].rows == b.row0:
+            runs[-1].append(b)
+        else:
+            runs.append([b])
+    if not runs:
+        return
+    fh, mdf = _open_mdf_stream(index.path)
+    try:
+        with mdf:
+            for run in runs:
+                count = sum(b.rows for b in run)
+                yield Recording(None, _mdf_read(mdf, index, run[0].group, names, run[0].row0, count))
+    finally:
+        fh.close()
+
+
+def _iter_mdf(index: FileIndex, names: list[str]) -> Iterator[Recording]:
+    places = index.info("places")
+    groups = sorted({places[n][1] for n in names})
+    queues = {g: [b for b in index.blocks if b.group == g and b.rows] for g in groups}
+    # Merge the groups' blocks by first stamp, each group's kept in record order.
+    heap = [(_sort_time(q[0]), g, 0) for g, q in queues.items() if q]
+    heapq.heapify(heap)
+    fh, mdf = _open_mdf_stream(index.path)
+    try:
+        with mdf:
+            while heap:
+                _, g, k = heapq.heappop(heap)
+                b = queues[g][k]
+                got = _mdf_read(mdf, index, g, names, b.row0, b.rows)
+                if k + 1 < len(queues[g]):
+                    heapq.heappush(heap, (_sort_time(queues[g][k + 1]), g, k + 1))
+                yield _assembled(index, names, {n: [got[n]] if n in got else [] for n in names})
+    finally:
+        fh.close()
+
+
+def _sort_time(b: Block) -> float:
+    return -np.inf if b.t_min > b.t_max else b.t_min  # a block without a finite stamp: as soon as its turn comes
+
+
+# MAT -----------------------------------------------------------------------------------------------------------------
+
+
+def _read_mat(index: FileIndex) -> Recording:
+    opts = {k: index.option(k) for k in ("fs", "time") if index.option(k) is not None}
+    return read_mat(index.path, **opts)
+
+
+def _recording_nbytes(rec: Recording) -> int:
+    seen: set[int] = set()
+    total = 0
+    for ch in rec.channels.values():
+        for a in (ch.values, ch.time):
+            if id(a) not in seen:
+                seen.add(id(a))
+                total += a.nbytes
+    return total
+
+
+def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+    rec = read_mat(p, **options)
+    lows, highs, inc, rows = [], [], True, 0
+    for ch in rec.channels.values():
+        lo, hi, up = _stamp_summary(ch.time)
+        lows.append(lo)
+        highs.append(hi)
+        inc = inc and up
+        rows = max(rows, len(ch))
+    block = Block(0, rows, min(lows, default=np.inf), max(highs, default=-np.inf), inc)
+    return FileIndex(
+        str(p), "mat", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())),
+        tuple((n, c.unit) for n, c in rec.channels.items()), (block,), tuple(rec.metadata.items()),
+        tuple(rec.skipped.items()), None, (),
+    )

@@ -1,0 +1,446 @@
+"""Tests of dynid.io.windows: time windows and blocks of a file, read without reading it whole.
+
+Oracle: the whole-file reader `read_recording(path, channels=..., **options)`, whose own
+tests (test_io.py) check it against what was written. A window must equal its samples
+with t0 <= t <= t1, and the blocks of `iter_blocks` must concatenate to them, bit for bit
+(values and stamps compared as int64 views, so -0.0 / 0.0 and NaN payloads count). The
+files are random (hypothesis): CSV with or without time column, units in the header or in
+a unit row, decimal commas, a sparse multi-rate column, repeated stamps and stamps that go
+back; Parquet with several row groups, a timestamp time column, integer, boolean and
+null-sparse columns; MDF4 with two groups at different rates; MATLAB files.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import pickle
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dynid.io import (
+    Channel,
+    FileFormatError,
+    FileIndex,
+    MissingChannelError,
+    Recording,
+    index_file,
+    iter_blocks,
+    read_recording,
+    read_window,
+    windows,
+    write_recording,
+)
+
+HAVE_PYARROW = importlib.util.find_spec("pyarrow") is not None
+HAVE_ASAMMDF = importlib.util.find_spec("asammdf") is not None
+needs_pyarrow = pytest.mark.skipif(not HAVE_PYARROW, reason="pyarrow not installed")
+needs_asammdf = pytest.mark.skipif(not HAVE_ASAMMDF, reason="asammdf not installed")
+
+SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.int64)
+
+
+def assert_same_channel(got: Channel, want: Channel | None, mask: np.ndarray | None = None) -> None:
+    """`got` holds exactly want's samples where mask is True (all of them without a mask), bit for bit."""
+    if want is None:  # a channel the whole-file reader found no sample of
+        assert len(got) == 0
+        return
+    m = np.ones(len(want), dtype=bool) if mask is None else mask
+    assert got.unit == want.unit
+    np.testing.assert_array_equal(bits(got.values), bits(want.values[m]))
+    np.testing.assert_array_equal(bits(got.time), bits(want.time[m]))
+    if want.lines is None:
+        assert got.lines is None
+    else:
+        np.testing.assert_array_equal(got.lines, want.lines[m])
+
+
+def check_windows_and_blocks(path: Path, names: list[str], windows_: list[tuple[float, float]], **options) -> FileIndex:
+    """The oracle check: every window and the blocks against the whole-file read."""
+    windows.clear_cache()
+    block_rows = options.pop("block_rows", 7)
+    index = index_file(path, block_rows=block_rows, **options)
+    whole = read_recording(path, channels=names, **options)
+    for t0, t1 in windows_:
+        got = read_window(index, names, t0, t1)
+        assert list(got.channels) == names
+        for n in names:
+            want = whole.channels.get(n)
+            mask = None if want is None else (want.time >= t0) & (want.time <= t1)
+            assert_same_channel(got.channels[n], want, mask)
+    parts = list(iter_blocks(index, names))
+    for n in names:
+        want = whole.channels.get(n)
+        got = [p.channels[n] for p in parts]
+        if want is None:
+            assert all(len(g) == 0 for g in got)
+            continue
+        joined = Channel(
+            n,
+            want.unit,
+            np.concatenate([g.values for g in got]),
+            np.concatenate([g.time for g in got]),
+            None if want.lines is None else np.concatenate([g.lines for g in got]),
+        )
+        assert_same_channel(joined, want)
+    assert pickle.loads(pickle.dumps(index)) == index
+    return index
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# random data
+
+
+@st.composite
+def stamps(draw: st.DrawFn, *, back: bool = True, repeats: bool = True) -> np.ndarray:
+    """Time stamps, s: steady steps with repeated stamps and (optionally) a few going back."""
+    n = draw(st.integers(1, 60))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    steps = rng.choice([0.01, 0.0016, 0.1, 0.25], size=n) * rng.uniform(0.5, 1.5, size=n)
+    if repeats and draw(st.booleans()):
+        steps[rng.random(n) < 0.2] = 0.0
+    if back and draw(st.booleans()):
+        steps[rng.random(n) < 0.1] *= -3.0
+    t = draw(st.sampled_from([0.0, -1.5, 1e3])) + np.cumsum(steps) - steps[0]
+    return t
+
+
+@st.composite
+def window_list(draw: st.DrawFn, t: np.ndarray) -> list[tuple[float, float]]:
+    """Windows on stamps, between them, around the record and empty (t1 < t0)."""
+    lo, hi = float(np.min(t)), float(np.max(t))
+    candidates = [*t.tolist(), lo - 1.0, hi + 1.0, lo - 1e-9, hi + 1e-9]
+    if t.size > 1:
+        candidates += ((t[1:] + t[:-1]) / 2).tolist()
+    pick = st.sampled_from(candidates)
+    out = [(lo - 2.0, hi + 2.0), (hi + 1.0, hi + 2.0), (lo - 2.0, lo - 1.0)]
+    for _ in range(draw(st.integers(1, 6))):
+        out.append((draw(pick), draw(pick)))  # in either order: t1 < t0 is an empty window
+    return out
+
+
+def values_for(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=n) * 10.0 ** rng.integers(-6, 6, size=n)
+
+
+def write_csv_text(
+    path: Path,
+    t: np.ndarray | None,
+    columns: list[tuple[str, str, np.ndarray, np.ndarray | None]],
+    *,
+    units: str,
+    decimal: str,
+    blank_every: int = 0,
+) -> None:
+    """A CSV file written by hand (the test's own writer): units in the header, in a unit row, or none."""
+    delim = ";" if decimal == "," else ","
+    names = ([("time", "s")] if t is not None else []) + [(c[0], c[1]) for c in columns]
+
+    def cell(v: float) -> str:
+        s = repr(float(v))
+        return s.replace(".", ",") if decimal == "," else s
+
+    out = ["# test: windows\n"]
+    if units == "header":
+        out.append(delim.join(f"{n} [{u}]" if u else n for n, u in names) + "\n")
+    else:
+        out.append(delim.join(n for n, _ in names) + "\n")
+        if units == "row":
+            out.append(delim.join(u or "-" for _, u in names) + "\n")
+    rows = len(columns[0][2]) if t is None else t.size
+    for i in range(rows):
+        cells = [] if t is None else [cell(t[i])]
+        for _, _, v, present in columns:
+            cells.append(cell(v[i]) if present is None or present[i] else "")
+        out.append(delim.join(cells) + "\n")
+        if blank_every and i % blank_every == blank_every - 1:
+            out.append("\n")
+    path.write_text("".join(out), encoding="utf-8")
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# CSV
+
+
+@SETTINGS
+@given(data=st.data(), t=stamps(), units=st.sampled_from(["header", "row"]), decimal=st.sampled_from([".", ","]))
+def test_csv_windows_and_blocks_equal_the_whole_file(data: st.DataObject, t: np.ndarray, units: str, decimal: str):
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    sparse = rng.random(t.size) < 0.4
+    cols = [
+        ("roll", "deg", values_for(t.size, seed), None),
+        ("Fz", "N", values_for(t.size, seed + 1), sparse),  # a slower channel: empty cells between its samples
+        ("never", "m", values_for(t.size, seed + 2), np.zeros(t.size, dtype=bool)),
+    ]
+    wins = data.draw(window_list(t))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.csv"
+        write_csv_text(path, t, cols, units=units, decimal=decimal, blank_every=data.draw(st.sampled_from([0, 5])))
+        options = {"decimal": decimal} if decimal == "," else {}
+        index = check_windows_and_blocks(path, ["roll", "Fz", "never"], wins, **options)
+        assert index.monotonic == bool(np.all(np.diff(t) >= 0))
+
+
+@SETTINGS
+@given(n=st.integers(1, 80), fs=st.sampled_from([625.0, 1000.0 / 3.0, 7.3]), seed=st.integers(0, 2**32 - 1),
+       data=st.data())
+def test_csv_without_time_column_uses_the_file_row_over_fs(n: int, fs: float, seed: int, data: st.DataObject):
+    # The stamps of a window are row / fs with row the FILE's row: np.arange(lo, hi) / fs equals
+    # (np.arange(n) / fs)[lo:hi] bit for bit, which the oracle (whole file) checks here.
+    rng = np.random.default_rng(seed)
+    cols = [("a", "m", values_for(n, seed), None), ("b", "", values_for(n, seed + 1), rng.random(n) < 0.5)]
+    wins = data.draw(window_list(np.arange(n) / fs))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.csv"
+        write_csv_text(path, None, cols, units=data.draw(st.sampled_from(["header", "none"])), decimal=".")
+        check_windows_and_blocks(path, ["a", "b"], wins, fs=fs, block_rows=data.draw(st.sampled_from([1, 4, 1000])))
+
+
+def test_uniform_stamps_of_a_part_are_those_of_the_whole() -> None:
+    for fs in (625.0, 1000.0 / 3.0, 0.7, 7.3, 1e-3):
+        whole = np.arange(100_000, dtype=np.float64) / fs
+        for lo, hi in ((0, 10), (1234, 5678), (99_990, 100_000)):
+            part = np.arange(lo, hi, dtype=np.int64).astype(np.float64) / fs
+            np.testing.assert_array_equal(bits(part), bits(whole[lo:hi]))
+            np.testing.assert_array_equal(bits(windows.uniform_time(hi - lo, fs, "x", lo)), bits(whole[lo:hi]))
+
+
+def test_csv_with_crlf_line_ends_a_bom_and_a_units_row(tmp_path: Path) -> None:
+    path = tmp_path / "log.csv"
+    lines = ["# car: 406", "t;ax;ay", "s;m/s^2;g"] + [f"{i / 100};{i * 0.5};{'' if i % 3 else i}" for i in range(50)]
+    path.write_bytes(("\ufeff" + "\r\n".join(lines) + "\r\n").encode("utf-8"))
+    index = check_windows_and_blocks(path, ["ax", "ay"], [(0.1, 0.2), (0.105, 0.33), (-1, 9)], block_rows=6)
+    assert index.units == {"ax": "m/s^2", "ay": "g"}
+    assert dict(index.metadata)["car"] == "406"
+
+
+def test_csv_stamps_going_back_do_not_lose_rows(tmp_path: Path) -> None:
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.15, 0.25, 0.4, 0.5, 0.05, 0.6, 0.7, 0.7, 0.8])
+    path = tmp_path / "log.csv"
+    write_csv_text(path, t, [("a", "m", np.arange(t.size) * 1.5, None)], units="header", decimal=".")
+    index = check_windows_and_blocks(path, ["a"], [(0.1, 0.2), (0.0, 0.06), (0.7, 0.7)], block_rows=3)
+    assert not index.monotonic
+    assert [b.increasing for b in index.blocks] == [True, False, False, True, True]
+    got = read_window(index, ["a"], 0.04, 0.16)  # rows 1, 4 and 8, in three blocks
+    np.testing.assert_array_equal(got.channels["a"].values, [1.5, 6.0, 12.0])
+    np.testing.assert_array_equal(got.channels["a"].lines, [4, 7, 11])
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Parquet
+
+
+@needs_pyarrow
+@SETTINGS
+@given(t=stamps(), data=st.data())
+def test_parquet_windows_and_blocks_equal_the_whole_file(t: np.ndarray, data: st.DataObject):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    n = t.size
+    stamp = data.draw(st.sampled_from(["float", "us", "ns"]))
+    if stamp == "float":
+        time_col = pa.array(t, type=pa.float64())
+    else:
+        ticks = np.round(t * (1e6 if stamp == "us" else 1e9)).astype(np.int64) + 1_700_000_000 * 10**6
+        time_col = pa.array(ticks, type=pa.timestamp(stamp))
+    sparse = rng.random(n) < 0.5
+    table = pa.table(
+        {
+            "time": time_col,
+            "roll": pa.array(values_for(n, seed)),
+            "gear": pa.array(rng.integers(-3, 7, size=n), type=pa.int32()),
+            "brake": pa.array(rng.random(n) < 0.5),
+            "Fz": pa.array(values_for(n, seed + 1), mask=~sparse),  # nulls: no sample at those rows
+            "driver": pa.array(["x"] * n),  # not numeric: not a channel
+        }
+    )
+    wins = data.draw(window_list(t))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.parquet"
+        pq.write_table(table, path, row_group_size=data.draw(st.integers(1, 25)))
+        check_windows_and_blocks(path, ["roll", "gear", "brake", "Fz"], wins)
+
+
+@needs_pyarrow
+def test_parquet_without_time_column_and_timestamp_channel(tmp_path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 103
+    start = np.datetime64("2024-05-01T10:00:00", "ns").astype(np.int64)
+    table = pa.table(
+        {
+            "a": pa.array(np.arange(n) * 0.25),
+            "gps_time": pa.array(start + np.arange(n) * 1_600_000 + 7, type=pa.timestamp("ns")),
+        }
+    )
+    path = tmp_path / "log.parquet"
+    pq.write_table(table, path, row_group_size=10)
+    check_windows_and_blocks(path, ["a", "gps_time"], [(0.0, 0.01), (0.05, 0.0721), (0.1, 9.0)], fs=625.0)
+
+
+@needs_pyarrow
+def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import pyarrow.parquet as pq
+
+    n, fs = 200_000, 625.0
+    t = np.arange(n) / fs
+    rec = Recording.from_channels([Channel(f"c{k}", "m", np.sin(t * (k + 1)), t) for k in range(3)])
+    path = tmp_path / "big.parquet"
+    write_recording(rec, path)
+    table = pq.read_table(path)
+    pq.write_table(table, path, row_group_size=10_000)  # 20 row groups of 16 s
+    index = index_file(path)
+    assert len(index.blocks) == 20 and index.monotonic
+    read: list[int] = []
+    original = pq.ParquetFile.read_row_group
+
+    def counting(self, i, *args, **kwargs):
+        read.append(i)
+        return original(self, i, *args, **kwargs)
+
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
+    windows.clear_cache()
+    got = read_window(index, ["c0", "c2"], 100.0, 130.0)  # rows 62500..81250: row groups 6, 7, 8
+    assert sorted(set(read)) == [6, 7, 8]
+    assert len(read) == 3 * 3  # time, c0, c2 of each
+    np.testing.assert_array_equal(got.channels["c2"].values, rec.channels["c2"].values[62500:81251])
+    read.clear()
+    read_window(index, ["c0", "c2"], 125.0, 140.0)  # row groups 7 and 8, decoded by the last window: cached
+    assert read == []
+    windows.clear_cache()
+    read_window(index, ["c0"], 125.0, 140.0)
+    assert sorted(read) == [7, 7, 8, 8]
+
+
+@needs_pyarrow
+def test_changed_file_is_refused(tmp_path: Path) -> None:
+    t = np.arange(100) / 10.0
+    rec = Recording.from_channels([Channel("a", "m", t * 2, t)])
+    path = tmp_path / "log.parquet"
+    write_recording(rec, path)
+    index = index_file(path)
+    rec2 = Recording.from_channels([Channel("a", "m", t * 3, t)])
+    write_recording(rec2, path)  # same size, most likely; another modification time
+    st_ = path.stat()
+    os.utime(path, ns=(st_.st_atime_ns, index.mtime_ns + 1_000_000))
+    with pytest.raises(FileFormatError, match=r"changed since it was indexed.*index it again"):
+        read_window(index, ["a"], 0.0, 1.0)
+    with pytest.raises(FileFormatError, match="changed since it was indexed"):
+        next(iter_blocks(index, ["a"]))
+
+
+def test_errors_name_the_file_and_what_to_do(tmp_path: Path) -> None:
+    path = tmp_path / "log.csv"
+    write_csv_text(path, np.arange(10) / 10, [("a", "m", np.arange(10.0), None)], units="header", decimal=".")
+    index = index_file(path, block_rows=4)
+    with pytest.raises(MissingChannelError, match=r"log\.csv.*'b'"):
+        read_window(index, ["b"], 0, 1)
+    with pytest.raises(MissingChannelError):
+        index_file(path, channels=["a", "zz"])
+    with pytest.raises(TypeError, match="unknown option"):
+        index_file(path, sheet=2)
+    with pytest.raises(ValueError, match="NaN"):
+        read_window(index, ["a"], float("nan"), 1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,a\n0,1\n0.1,x\n", encoding="utf-8")
+    with pytest.raises(FileFormatError, match=r"bad.csv, line 3, column 2 \('a'\)"):
+        index_file(bad)
+    old_mac = tmp_path / "mac.csv"
+    old_mac.write_bytes(b"time,a\r0,1\r0.1,2\r")
+    with pytest.raises(FileFormatError, match="carriage return"):
+        index_file(old_mac)
+    path.unlink()
+    with pytest.raises(FileNotFoundError, match=r"log\.csv"):
+        read_window(index, ["a"], 0, 1)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# MDF and MAT
+
+
+@needs_asammdf
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(1, 120), k=st.integers(1, 5), seed=st.integers(0, 2**32 - 1), data=st.data())
+def test_mdf_two_groups_windows_and_blocks_equal_the_whole_file(n: int, k: int, seed: int, data: st.DataObject):
+    rng = np.random.default_rng(seed)
+    fast = np.cumsum(rng.uniform(0.5, 1.5, size=n)) * 0.01
+    slow = fast[::k] + 0.003
+    rec = Recording.from_channels(
+        [
+            Channel("ax", "m/s^2", values_for(n, seed), fast),
+            Channel("gear", "", rng.integers(0, 6, size=n).astype(np.float64), fast),
+            Channel("h", "mm", values_for(slow.size, seed + 1), slow),
+        ]
+    )
+    wins = data.draw(window_list(np.concatenate([fast, slow])))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.mf4"
+        write_recording(rec, path)
+        index = check_windows_and_blocks(path, ["ax", "gear", "h"], wins, block_rows=data.draw(st.integers(1, 40)))
+        assert {b.group for b in index.blocks} == {0, 1}
+
+
+@needs_asammdf
+def test_mdf_names_in_several_groups_and_one_group_indexed(tmp_path: Path) -> None:
+    t1, t2 = np.arange(50) / 100.0, np.arange(20) / 40.0
+    rec = Recording.from_channels([Channel("v", "m/s", t1 * 3, t1), Channel("w", "", t2 + 1, t2)])
+    path = tmp_path / "log.mf4"
+    write_recording(rec, path)
+    index = index_file(path, channels=["w"], block_rows=8)
+    assert index.names == ("w",) and {b.group for b in index.blocks} == {1}
+    check_windows_and_blocks(path, ["v", "w"], [(0.1, 0.3), (0.0, 0.0)], block_rows=8)
+
+
+def test_mat_is_read_whole_and_sliced(tmp_path: Path) -> None:
+    t1, t2 = np.arange(60) / 100.0, np.arange(13) / 20.0
+    rec = Recording.from_channels([Channel("v", "m/s", np.cos(t1), t1), Channel("w", "deg", t2 * 3, t2)])
+    path = tmp_path / "log.mat"
+    write_recording(rec, path)
+    index = check_windows_and_blocks(path, ["v", "w"], [(0.1, 0.3), (0.05, 0.05), (0.7, 0.9), (-1, 0)])
+    assert len(index.blocks) == 1
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# speed
+
+
+@needs_pyarrow
+def test_windows_of_a_parquet_file_cost_about_one_whole_read(tmp_path: Path) -> None:
+    """60 s windows overlapping by 5 s over 20 min of 20 channels at 625 Hz: at most 2x the whole read (target 1.5x)."""
+    n, fs = 750_000, 625.0
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(0)
+    rec = Recording.from_channels([Channel(f"c{k}", "m", rng.normal(size=n), t) for k in range(20)])
+    path = tmp_path / "long.parquet"
+    write_recording(rec, path)
+    names = list(rec.channels)
+    del rec
+    start = time.perf_counter()
+    read_recording(path, channels=names)
+    whole = time.perf_counter() - start
+    windows.clear_cache()
+    start = time.perf_counter()
+    index = index_file(path)
+    t0 = 0.0
+    while t0 < n / fs:
+        read_window(index, names, t0, t0 + 60.0)
+        t0 += 55.0
+    windowed = time.perf_counter() - start
+    assert windowed < 2.0 * whole + 0.5, (windowed, whole)
