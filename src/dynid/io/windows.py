@@ -241,7 +241,7 @@ def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float)
     _check_unchanged(index)
     pieces: dict[str, list[Channel]] = {n: [] for n in names}
     hit = [i for i, b in enumerate(index.blocks) if b.rows and b.t_min <= hi and b.t_max >= lo] if lo <= hi else []
-    tables = (_block_recording(index, i, names) for i in hit)
+    tables = (_block_recording(index, i, names, (lo, hi)) for i in hit)
     for rec in _mdf_runs(index, hit, names) if index.format == "mdf" else tables:
         for n in names:
             ch = rec.channels.get(n)
@@ -268,7 +268,7 @@ def iter_blocks(index: FileIndex, channels: Sequence[str]) -> Iterator[Recording
     for i, b in enumerate(index.blocks):
         if b.rows == 0 and index.format != "mat":
             continue
-        rec = _block_recording(index, i, names)
+        rec = _block_recording(index, i, names, store=False)
         yield _assembled(index, names, {n: [rec.channels[n]] if n in rec.channels else [] for n in names})
 
 
@@ -369,13 +369,16 @@ _used = [0]
 _lock = threading.Lock()
 
 
-def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int]) -> Any:
+def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int], store: bool = True) -> Any:
+    """The value of `key` from the cache, or made (and kept if `store` and it fits)."""
     with _lock:
         hit = _cache.get(key)
         if hit is not None:
             _cache.move_to_end(key)
             return hit[0]
     value = make()
+    if not store:
+        return value
     nbytes = size(value)
     with _lock:
         if nbytes <= CACHE_BYTES and key not in _cache:
@@ -402,16 +405,23 @@ def _columns_nbytes(cols: Any) -> int:
 # tables (CSV, Parquet) -----------------------------------------------------------------------------------------------
 
 
-def _block_recording(index: FileIndex, i: int, names: list[str]) -> Recording:
-    """Block i as a recording of `names` (CSV and Parquet: through `recording_from_columns`, as the whole file)."""
+def _block_recording(
+    index: FileIndex, i: int, names: list[str], window: tuple[float, float] | None = None, store: bool = True
+) -> Recording:
+    """Block i as a recording of `names` (CSV and Parquet: through `recording_from_columns`, as the whole file).
+
+    With a `window` (t0, t1), only its rows (a block is often much longer than a window:
+    a Parquet row group of a million rows), so that a window costs its rows, not the block's.
+    `store`: keep the decoded block in the cache (not when iterating over the blocks, each read once).
+    """
     if index.format == "mat":
-        rec = _cached(_key(index, "mat"), lambda: _read_mat(index), _recording_nbytes)
+        rec = _cached(_key(index, "mat"), lambda: _read_mat(index), _recording_nbytes, store)
         return Recording(rec.source, {n: rec.channels[n] for n in names if n in rec.channels}, rec.metadata)
     block = index.blocks[i]
     time_name = index.time_column
     wanted = ([time_name] if time_name is not None else []) + [n for n in names if n != time_name]
     if index.format == "csv":
-        columns, lines = _cached(_key(index, i), lambda: _csv_block(index, block), _columns_nbytes)
+        columns, lines = _cached(_key(index, i), lambda: _csv_block(index, block), _columns_nbytes, store)
         by_name = {c.name: c for c in columns}
         cols = [by_name[n] for n in wanted]
         if time_name is None and not cols:
@@ -419,11 +429,39 @@ def _block_recording(index: FileIndex, i: int, names: list[str]) -> Recording:
     else:
         lines = None
         opened: list[Any] = []  # the ParquetFile, opened on the first block not in the cache
-        cols = [_parquet_column(index, block, n, opened) for n in wanted]
+        cols = [_parquet_column(index, block, n, opened, store) for n in wanted]
     label = Path(index.path)
+    row0 = block.row0
+    if window is not None:
+        t = table_time(cols, time_name, index.option("fs"), index.path, lines, row0)
+        lo, hi = window
+        if block.increasing:  # the stamps are sorted: the window is a run of rows
+            a, b = int(np.searchsorted(t, lo, "left")), int(np.searchsorted(t, hi, "right"))
+            if (a, b) != (0, t.size):
+                cols, lines, row0 = [_rows_of(c, slice(a, b)) for c in cols], _rows(lines, slice(a, b)), row0 + a
+        elif time_name is not None:  # (without time column, t = row / fs always increases)
+            keep = (t >= lo) & (t <= hi)
+            cols, lines = [_rows_of(c, keep) for c in cols], _rows(lines, keep)
     return recording_from_columns(
-        label, cols, time=index.option("time"), fs=index.option("fs"), lines=lines, row0=block.row0
+        label, cols, time=index.option("time"), fs=index.option("fs"), lines=lines, row0=row0
     )
+
+
+def _rows(lines: NDArray[np.int64] | None, sel: slice | NDArray[np.bool_]) -> NDArray[np.int64] | None:
+    return None if lines is None else lines[sel]
+
+
+def _rows_of(col: Column, sel: slice | NDArray[np.bool_]) -> Column:
+    """The rows `sel` (a run of rows, or a mask over them) of a column whose samples are compacted."""
+    if col.present is None:
+        return Column(col.name, col.unit, col.values[sel], None)
+    present = col.present[sel]
+    if isinstance(sel, slice):  # the samples of rows [a, b): those after the samples of rows [0, a)
+        first = int(np.count_nonzero(col.present[: sel.start]))
+        values = col.values[first : first + int(np.count_nonzero(present))]
+    else:
+        values = col.values[sel[col.present]]
+    return Column(col.name, col.unit, values, present)
 
 
 # CSV -----------------------------------------------------------------------------------------------------------------
@@ -494,6 +532,40 @@ def _csv_block(index: FileIndex, block: Block) -> tuple[list[Column], NDArray[np
     return _csv_columns(numbered, _csv_head(index), index.option("decimal", "."), label)
 
 
+def _csv_stamps(
+    numbered: list[tuple[int, str]],
+    head: csv_format.CsvHeader,
+    time_name: str | None,
+    decimal: str,
+    fs: float | None,
+    label: str,
+    row0: int,
+) -> NDArray[np.float64]:
+    """The time stamps of a block's data rows, parsing only the time column's cells when the rows are plain.
+
+    Python's float() and NumPy's loadtxt both round correctly, so the stamps are the
+    ones `parse_rows` gives; any irregular row (quotes, an empty or bad time cell, too few
+    cells) sends the block through the full parse, which raises `read_csv`'s error for it.
+    The other columns' cells are checked when a window reads them.
+    """
+    rows = [text for _, text in numbered if text.strip()]
+    if time_name is None:
+        return uniform_time(len(rows), fs, label, row0)  # type: ignore[arg-type]
+    k = head.names.index(time_name)
+    delim = head.delimiter
+    try:
+        if any('"' in r for r in rows):
+            raise ValueError
+        cells = [r.split(delim, k + 1)[k] for r in rows]
+        if decimal == ",":
+            cells = [c.replace(",", ".") for c in cells]
+        values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
+    except (ValueError, IndexError):
+        columns, lines = _csv_columns(numbered, head, decimal, label)
+        return table_time(columns, time_name, fs, label, lines, row0)
+    return table_time([Column(time_name, head.units[k], values)], time_name, fs, label, None, row0)
+
+
 def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
     encoding = options.get("encoding", "utf-8-sig")
     decimal = options.get("decimal", ".")
@@ -530,9 +602,8 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
                     break
                 raw = b"".join(raw_lines)
                 numbered = _lines_of(raw, line, first_enc if offset == 0 else rest_enc, label)
-                columns, lines = _csv_columns(numbered, head, decimal, label)
-                rows = lines.size
-                t = table_time(columns, time_name, options.get("fs"), label, lines, row0)
+                t = _csv_stamps(numbered, head, time_name, decimal, options.get("fs"), label, row0)
+                rows = t.size
                 lo, hi, inc = _stamp_summary(t)
                 blocks.append(Block(row0, rows, lo, hi, inc, offset=offset, end=offset + len(raw), line=line))
                 offset += len(raw)
@@ -601,7 +672,7 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     )
 
 
-def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]) -> Column:
+def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any], store: bool) -> Column:
     def make() -> Column:
         pa = require("pyarrow", "Reading Parquet files")
         if not opened:
@@ -611,7 +682,7 @@ def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]
         col = pfile.read_row_group(block.group, columns=[name], use_pandas_metadata=False).column(0)
         return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(name))
 
-    return _cached(_key(index, block.group, name), make, _columns_nbytes)
+    return _cached(_key(index, block.group, name), make, _columns_nbytes, store)
 
 
 # MDF -----------------------------------------------------------------------------------------------------------------
