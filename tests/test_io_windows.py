@@ -227,6 +227,16 @@ def test_csv_with_crlf_line_ends_a_bom_and_a_units_row(tmp_path: Path) -> None:
     assert dict(index.metadata)["car"] == "406"
 
 
+def test_csv_in_latin1_with_tabs_and_time_in_ms(tmp_path: Path) -> None:
+    path = tmp_path / "log.tsv"
+    lines = ["t [ms]\troll [°]\tv [km/h]"] + [f"{i * 1.6}\t{i * 0.01}\t{90 + i % 7}" for i in range(40)]
+    path.write_bytes(("\n".join(lines) + "\n").encode("latin-1"))
+    index = check_windows_and_blocks(
+        path, ["roll", "v"], [(0.0016, 0.0096), (0.01, 0.02), (0.0, 0.0)], encoding="latin-1", block_rows=9
+    )
+    assert index.units == {"roll": "°", "v": "km/h"}
+
+
 def test_csv_stamps_going_back_do_not_lose_rows(tmp_path: Path) -> None:
     t = np.array([0.0, 0.1, 0.2, 0.3, 0.15, 0.25, 0.4, 0.5, 0.05, 0.6, 0.7, 0.7, 0.8])
     path = tmp_path / "log.csv"

@@ -197,8 +197,8 @@ def index_file(
     fs : Hz, sample rate of a table without time column (CSV, Parquet, MAT).
     time : the time column's name if it is not time/t/Time/TIME.
     format : "csv", "parquet", "mdf" or "mat"; None: from the extension.
-    block_rows : rows per block for CSV (lines of data) and MDF (records); Parquet blocks
-        are the file's row groups, MAT files one block.
+    block_rows : rows per block: CSV lines after the header (blank lines count), MDF records
+        of a group; Parquet blocks are the file's row groups, a MAT file is one block.
     csv_options : delimiter, decimal, units_row, units_in_header, encoding, as `read_csv`.
 
     The index holds the reader options: read the windows with the same index.
@@ -224,7 +224,11 @@ def index_file(
         index = _restricted(index, asked)
     after = p.stat()
     if (after.st_size, after.st_mtime_ns) != (stat.st_size, stat.st_mtime_ns):
-        raise FileFormatError(f"{label}: the file changed while it was indexed; index it again when complete")
+        raise FileFormatError(
+            f"{label}: the file changed while it was indexed (is it still being written?); index it again when "
+            "it is complete",
+            source=label,
+        )
     return index
 
 
@@ -241,6 +245,9 @@ def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float)
     _check_unchanged(index)
     pieces: dict[str, list[Channel]] = {n: [] for n in names}
     hit = [i for i, b in enumerate(index.blocks) if b.rows and b.t_min <= hi and b.t_max >= lo] if lo <= hi else []
+    if index.format == "mdf":  # the groups of the channels asked for
+        groups = {index.info("places")[n][1] for n in names}
+        hit = [i for i in hit if index.blocks[i].group in groups]
     tables = (_block_recording(index, i, names, (lo, hi)) for i in hit)
     for rec in _mdf_runs(index, hit, names) if index.format == "mdf" else tables:
         for n in names:
@@ -268,6 +275,7 @@ def iter_blocks(index: FileIndex, channels: Sequence[str]) -> Iterator[Recording
     for i, b in enumerate(index.blocks):
         if b.rows == 0 and index.format != "mat":
             continue
+        _check_unchanged(index)  # a file rewritten while a long pass reads it: not a mix of two files
         rec = _block_recording(index, i, names, store=False)
         yield _assembled(index, names, {n: [rec.channels[n]] if n in rec.channels else [] for n in names})
 
@@ -780,6 +788,7 @@ def _iter_mdf(index: FileIndex, names: list[str]) -> Iterator[Recording]:
             while heap:
                 _, g, k = heapq.heappop(heap)
                 b = queues[g][k]
+                _check_unchanged(index)
                 got = _mdf_read(mdf, index, g, names, b.row0, b.rows)
                 if k + 1 < len(queues[g]):
                     heapq.heappush(heap, (_sort_time(queues[g][k + 1]), g, k + 1))
