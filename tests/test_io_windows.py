@@ -40,6 +40,7 @@ from dynid.io import (
 
 HAVE_PYARROW = importlib.util.find_spec("pyarrow") is not None
 HAVE_ASAMMDF = importlib.util.find_spec("asammdf") is not None
+HAVE_H5PY = importlib.util.find_spec("h5py") is not None
 needs_pyarrow = pytest.mark.skipif(not HAVE_PYARROW, reason="pyarrow not installed")
 needs_asammdf = pytest.mark.skipif(not HAVE_ASAMMDF, reason="asammdf not installed")
 
@@ -454,6 +455,55 @@ def test_mat_is_read_whole_and_sliced(tmp_path: Path) -> None:
     write_recording(rec, path)
     index = check_windows_and_blocks(path, ["v", "w"], [(0.1, 0.3), (0.05, 0.05), (0.7, 0.9), (-1, 0)])
     assert len(index.blocks) == 1
+
+
+def write_v73(path: Path, t: np.ndarray, roll: np.ndarray, brake: np.ndarray, wheel_t_ms: np.ndarray) -> None:
+    """A MATLAB v7.3 file as MATLAB lays it out (HDF5, dimensions reversed, MATLAB_class attributes)."""
+    import h5py
+
+    def put(where, name, data, cls):
+        where[name] = data
+        where[name].attrs["MATLAB_class"] = np.bytes_(cls)
+
+    def text(where, name, value):
+        put(where, name, np.array([[ord(c)] for c in value], dtype=np.uint16), "char")
+
+    with h5py.File(path, "w", userblock_size=512) as fh:
+        put(fh, "time", t[None, :], "double")  # a column vector, n x 1 in MATLAB
+        put(fh, "roll", roll[None, :], "double")
+        put(fh, "brake", brake.astype(np.uint8)[:, None], "logical")  # a row vector
+        wheel = fh.create_group("wheel")
+        wheel.attrs["MATLAB_class"] = np.bytes_("struct")
+        put(wheel, "time", wheel_t_ms[None, :], "double")
+        put(wheel, "values", np.cos(wheel_t_ms)[None, :], "double")
+        text(wheel, "unit", "kN")
+        text(wheel, "time_unit", "ms")
+        units = fh.create_group("units")
+        units.attrs["MATLAB_class"] = np.bytes_("struct")
+        text(units, "roll", "deg")
+        text(units, "time", "s")
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116, b" ")
+    with open(path, "r+b") as fh:
+        fh.write(header + b"\0" * 8 + b"\x00\x02" + b"IM")
+
+
+@pytest.mark.skipif(not HAVE_H5PY, reason="h5py not installed")
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(t=stamps(), data=st.data())
+def test_mat_v73_windows_read_slices_equal_the_whole_file(t: np.ndarray, data: st.DataObject) -> None:
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    wheel_ms = np.sort(rng.uniform(-500, 4000, size=data.draw(st.integers(2, 40))))
+    wins = data.draw(window_list(np.concatenate([t, wheel_ms / 1e3])))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.mat"
+        write_v73(path, t, values_for(t.size, seed), rng.random(t.size) < 0.5, wheel_ms)
+        if t.size < 2:  # a 1-sample vector is a scalar to MATLAB (metadata): not a channel
+            return
+        rows = data.draw(st.integers(1, 9))
+        index = check_windows_and_blocks(path, ["roll", "brake", "wheel"], wins, block_rows=rows)
+        assert index.info("h5") is not None  # read in slices, not whole
+        assert {b.group for b in index.blocks} == {0, 1}
 
 
 # --------------------------------------------------------------------------------------------------------------------

@@ -64,6 +64,11 @@ def _is_hdf5(path: Path) -> bool:
     return head.startswith(b"MATLAB 7.3") or (len(head) >= 128 and head[124:126] in (b"\x00\x02", b"\x02\x00"))
 
 
+def is_v73(path: Path) -> bool:
+    """Whether the file is a MATLAB v7.3 file (HDF5 based: its vectors can be read in slices)."""
+    return _is_hdf5(path)
+
+
 def _load(path: Path) -> dict[str, Any]:
     label = str(path)
     try:

@@ -54,6 +54,7 @@ import os
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from itertools import islice
 from pathlib import Path
@@ -63,9 +64,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..textfiles import encoding_problem
-from . import csv_format, mdf_format, parquet_format
+from . import csv_format, mat_format, mdf_format, parquet_format
 from ._optional import require
-from ._table import Column, find_time_column, recording_from_columns, table_time, uniform_time
+from ._table import (
+    TIME_NAMES,
+    Column,
+    find_time_column,
+    recording_from_columns,
+    table_time,
+    time_in_seconds,
+    uniform_time,
+)
 from .checks import missing_error
 from .errors import DataError, FileFormatError
 from .files import READERS, _check_options, format_of
@@ -245,11 +254,12 @@ def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float)
     _check_unchanged(index)
     pieces: dict[str, list[Channel]] = {n: [] for n in names}
     hit = [i for i, b in enumerate(index.blocks) if b.rows and b.t_min <= hi and b.t_max >= lo] if lo <= hi else []
-    if index.format == "mdf":  # the groups of the channels asked for
-        groups = {index.info("places")[n][1] for n in names}
+    grouped = _grouped(index)
+    if grouped:  # the groups of the channels asked for
+        groups = {_group_of(index, n) for n in names}
         hit = [i for i in hit if index.blocks[i].group in groups]
     tables = (_block_recording(index, i, names, (lo, hi)) for i in hit)
-    for rec in _mdf_runs(index, hit, names) if index.format == "mdf" else tables:
+    for rec in _runs(index, hit, names) if grouped else tables:
         for n in names:
             ch = rec.channels.get(n)
             if ch is not None and len(ch):
@@ -269,8 +279,8 @@ def iter_blocks(index: FileIndex, channels: Sequence[str]) -> Iterator[Recording
     """
     names = _asked(index, channels)
     _check_unchanged(index)
-    if index.format == "mdf":
-        yield from _iter_mdf(index, names)
+    if _grouped(index):
+        yield from _iter_grouped(index, names)
         return
     for i, b in enumerate(index.blocks):
         if b.rows == 0 and index.format != "mat":
@@ -754,7 +764,32 @@ def _mdf_read(mdf: Any, index: FileIndex, group: int, names: list[str], row0: in
     return mdf_format.group_channels(mdf, members, {}, row0, count)
 
 
-def _mdf_runs(index: FileIndex, hit: list[int], names: list[str]) -> Iterator[Recording]:
+def _grouped(index: FileIndex) -> bool:
+    """Files read as groups of rows on their own time bases: MDF channel groups, MATLAB v7.3 time vectors."""
+    return index.format == "mdf" or (index.format == "mat" and index.info("h5") is not None)
+
+
+def _group_of(index: FileIndex, name: str) -> int:
+    return index.info("places")[name][1] if index.format == "mdf" else index.info("h5")[name][2]
+
+
+@contextmanager
+def _group_reader(index: FileIndex) -> Iterator[Callable[[int, list[str], int, int], dict[str, Channel]]]:
+    """A function (group, names, row0, count) -> the channels of `names` in that group, rows [row0, row0 + count)."""
+    if index.format == "mdf":
+        fh, mdf = _open_mdf_stream(index.path)
+        try:
+            with mdf:
+                yield lambda g, names, row0, count: _mdf_read(mdf, index, g, names, row0, count)
+        finally:
+            fh.close()
+        return
+    h5py = require("h5py", f"{index.path} is a MATLAB v7.3 (HDF5) file; reading it")
+    with h5py.File(index.path, "r") as fh:
+        yield lambda g, names, row0, count: _h5_read(fh, index, g, names, row0, count)
+
+
+def _runs(index: FileIndex, hit: list[int], names: list[str]) -> Iterator[Recording]:
     """The hit blocks, contiguous runs of a group read in one call, as recordings (in group order)."""
     runs: list[list[Block]] = []
     for i in hit:
@@ -765,36 +800,26 @@ def _mdf_runs(index: FileIndex, hit: list[int], names: list[str]) -> Iterator[Re
             runs.append([b])
     if not runs:
         return
-    fh, mdf = _open_mdf_stream(index.path)
-    try:
-        with mdf:
-            for run in runs:
-                count = sum(b.rows for b in run)
-                yield Recording(None, _mdf_read(mdf, index, run[0].group, names, run[0].row0, count))
-    finally:
-        fh.close()
+    with _group_reader(index) as read:
+        for run in runs:
+            yield Recording(None, read(run[0].group, names, run[0].row0, sum(b.rows for b in run)))
 
 
-def _iter_mdf(index: FileIndex, names: list[str]) -> Iterator[Recording]:
-    places = index.info("places")
-    groups = sorted({places[n][1] for n in names})
+def _iter_grouped(index: FileIndex, names: list[str]) -> Iterator[Recording]:
+    groups = sorted({_group_of(index, n) for n in names})
     queues = {g: [b for b in index.blocks if b.group == g and b.rows] for g in groups}
     # Merge the groups' blocks by first stamp, each group's kept in record order.
     heap = [(_sort_time(q[0]), g, 0) for g, q in queues.items() if q]
     heapq.heapify(heap)
-    fh, mdf = _open_mdf_stream(index.path)
-    try:
-        with mdf:
-            while heap:
-                _, g, k = heapq.heappop(heap)
-                b = queues[g][k]
-                _check_unchanged(index)
-                got = _mdf_read(mdf, index, g, names, b.row0, b.rows)
-                if k + 1 < len(queues[g]):
-                    heapq.heappush(heap, (_sort_time(queues[g][k + 1]), g, k + 1))
-                yield _assembled(index, names, {n: [got[n]] if n in got else [] for n in names})
-    finally:
-        fh.close()
+    with _group_reader(index) as read:
+        while heap:
+            _, g, k = heapq.heappop(heap)
+            b = queues[g][k]
+            _check_unchanged(index)
+            got = read(g, names, b.row0, b.rows)
+            if k + 1 < len(queues[g]):
+                heapq.heappush(heap, (_sort_time(queues[g][k + 1]), g, k + 1))
+            yield _assembled(index, names, {n: [got[n]] if n in got else [] for n in names})
 
 
 def _sort_time(b: Block) -> float:
@@ -822,6 +847,10 @@ def _recording_nbytes(rec: Recording) -> int:
 
 def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
     rec = read_mat(p, **options)
+    if mat_format.is_v73(p):
+        index = _index_h5(p, label, options, block_rows, stat, rec)
+        if index is not None:
+            return index
     lows, highs, inc, rows = [], [], True, 0
     for ch in rec.channels.values():
         lo, hi, up = _stamp_summary(ch.time)
@@ -835,3 +864,102 @@ def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, st
         tuple((n, c.unit) for n, c in rec.channels.items()), (block,), tuple(rec.metadata.items()),
         tuple(rec.skipped.items()), None, (),
     )
+
+
+# MATLAB v7.3 (HDF5): each vector a dataset, read in slices ------------------------------------------------------------
+
+
+def _h5_slice(ds: Any, a: int, b: int) -> NDArray[Any]:
+    """Elements [a, b) of a MATLAB vector dataset (stored (1, n) or (n, 1): MATLAB's dimensions reversed)."""
+    if ds.ndim == 1:
+        return np.asarray(ds[a:b])
+    if ds.ndim == 2 and ds.shape[0] == 1:
+        return np.asarray(ds[0, a:b])
+    if ds.ndim == 2 and ds.shape[1] == 1:
+        return np.asarray(ds[a:b, 0])
+    raise FileFormatError(f"dataset {ds.name} of shape {ds.shape} is not a vector")
+
+
+def _h5_read(fh: Any, index: FileIndex, group: int, names: list[str], row0: int, count: int) -> dict[str, Channel]:
+    """Rows [row0, row0 + count) of the channels of `names` on time base `group`, converted as `read_mat` does."""
+    sources = index.info("h5")
+    units = index.units
+    label = index.path
+    out: dict[str, Channel] = {}
+    t = None
+    for n in names:
+        data_path, time_path, g, time_unit, time_label = sources[n]
+        if g != group:
+            continue
+        if t is None:
+            if time_path is None:
+                t = uniform_time(count, index.option("fs"), label, row0)
+            else:
+                raw = _h5_slice(fh[time_path], row0, row0 + count).astype(np.float64)
+                t = time_in_seconds(raw, time_unit, time_label, label)
+        values = _h5_slice(fh[data_path], row0, row0 + count).astype(np.float64)
+        out[n] = Channel(n, units[n], values, t)
+    return out
+
+
+def _index_h5(
+    p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result, rec: Recording
+) -> FileIndex | None:
+    """The index of a v7.3 file whose channels can be read in slices; None to read it whole (a layout not foreseen).
+
+    `rec` is the file read whole (once, here): where each channel's samples and stamps lie
+    is taken from the file's datasets, then checked against `rec` on the first block of
+    each time base, so that slices are only used where they give what `read_mat` gives.
+    """
+    h5py = require("h5py", f"{label} is a MATLAB v7.3 (HDF5) file; reading it")
+    with h5py.File(p, "r") as fh:
+        variables = [k for k in fh if not k.startswith("#")]
+        units: dict[str, str] = {}
+        if "units" in fh and isinstance(fh["units"], h5py.Group):
+            for k, v in (mat_format._hdf5_value(h5py, fh["units"]) or {}).items():
+                text = mat_format._text(v)
+                if text is not None:
+                    units[k] = text.strip()
+        rest = [k for k in variables if k not in ("units", "metadata")]
+        time = options.get("time")
+        time_name = time if time is not None else next((n for n in TIME_NAMES if n in rest), None)
+        sources: dict[str, tuple[str, str | None, int, str, str]] = {}
+        bases: dict[str | None, int] = {}
+        for n in rec.channels:
+            obj = fh.get(n)
+            if obj is None:
+                return None
+            if isinstance(obj, h5py.Group):
+                data_path = f"{n}/values" if "values" in obj else f"{n}/data"
+                time_path: str | None = f"{n}/time"
+                unit_text = mat_format._hdf5_value(h5py, obj["time_unit"]) if "time_unit" in obj else ""
+                time_unit, time_label = mat_format._text(unit_text) or "", f"{n}.time"
+            else:
+                data_path, time_path = n, time_name
+                time_unit, time_label = units.get(time_name, "") if time_name else "", time_name or ""
+            g = bases.setdefault(time_path, len(bases))
+            sources[n] = (data_path, time_path, g, time_unit, time_label)
+        index = FileIndex(
+            str(p), "mat", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())),
+            tuple((n, c.unit) for n, c in rec.channels.items()), (), tuple(rec.metadata.items()),
+            tuple(rec.skipped.items()), time_name, (("h5", sources),),
+        )
+        blocks: list[Block] = []
+        try:
+            for g in range(len(bases)):
+                members = [n for n in rec.channels if sources[n][2] == g]
+                t = rec.channels[members[0]].time
+                first = _h5_read(fh, index, g, members, 0, min(block_rows, t.size))
+                for n in members:
+                    want = rec.channels[n]
+                    got = first[n]
+                    k = len(got)
+                    if not (np.array_equal(got.values.view(np.int64), want.values[:k].view(np.int64))
+                            and np.array_equal(got.time.view(np.int64), want.time[:k].view(np.int64))):
+                        return None
+                for row0 in range(0, t.size, block_rows):
+                    lo, hi, inc = _stamp_summary(t[row0 : row0 + block_rows])
+                    blocks.append(Block(row0, min(block_rows, t.size - row0), lo, hi, inc, group=g))
+        except (FileFormatError, KeyError, TypeError, ValueError):
+            return None
+    return replace(index, blocks=tuple(blocks))
