@@ -95,6 +95,7 @@ def check_windows_and_blocks(path: Path, names: list[str], windows_: list[tuple[
         )
         assert_same_channel(joined, want)
     assert pickle.loads(pickle.dumps(index)) == index
+    assert hash(pickle.loads(pickle.dumps(index))) == hash(index)
     return index
 
 

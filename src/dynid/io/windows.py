@@ -24,7 +24,11 @@ What a block is, per format:
 | csv     | `block_rows` consecutive lines of data (byte range)   | the blocks its time span overlaps  |
 | parquet | one row group (the writer's `row_group_size`)         | the row groups it overlaps         |
 | mdf     | `block_rows` consecutive records of one channel group | each group's records it overlaps   |
-| mat     | the whole file (scipy cannot read a v5 file in parts) | the whole file, then sliced        |
+| mat 7.3 | `block_rows` consecutive rows of one time vector      | slices of each vector it overlaps  |
+| mat v5  | the whole file (scipy cannot read a v5 file in parts) | the whole file (cached), sliced    |
+
+The index of a MAT file is built from the file read whole, once (v7.3 files are then
+read in slices: HDF5 datasets; v5 files, MATLAB's default below 2 GB, are not streamed).
 
 Each block records its first and last time stamp (min and max: NaN stamps left out) and
 whether its stamps never go back. A window reads every block whose [min, max] meets
@@ -35,13 +39,20 @@ which a planner should check (a window of a file whose stamps go back may read m
 Channels: every channel asked for is in the window's `Recording`, with 0 samples when it
 has none in the window (or none at all in the file: `read_recording` lists those in
 `Recording.skipped` instead). The time column is not a channel. MDF channels are named as
-`read_mdf` names them ("name@group" for a name in several groups); in MDF files a block
-holds the channels of one group only, the others come out with 0 samples in that block.
+`read_mdf` names them ("name@group" for a name in several groups). In MDF and MAT v7.3
+files a block holds the channels of one group (time base) only, the others come out with
+0 samples in that block; `iter_blocks` yields the groups' blocks merged by first stamp.
 
-Recently decoded blocks are kept in a small per-process cache (`CACHE_BYTES`, least
-recently used first out), so that overlapping windows read in time order decode each
-CSV block or Parquet row group about once: a Parquet row group is the smallest unit
-pyarrow decodes, and writers often make them a million rows long, far longer than a window.
+Recently decoded blocks are kept in a per-process cache of at most `CACHE_BYTES` (512 MiB;
+least recently used out first; 0 turns it off), so that windows read in time order decode
+each CSV block or Parquet row group about once: a Parquet row group is the smallest unit
+pyarrow decodes, and writers often make them a million rows long (pyarrow's default), far
+longer than a window. The memory a window needs is therefore bounded by the cache and the
+row-group size, not by the file's length; a Parquet file written with row groups of about
+65536 rows (`pyarrow.parquet.write_table(..., row_group_size=65536)`) needs far less.
+
+The CSV index parses only the time column (and checks every row has a stamp); the other
+cells are parsed, and a bad one reported as `read_csv` reports it, when a window reads them.
 
 A file changed on disk (size or modification time) since it was indexed is refused:
 the index would point at the wrong bytes.
@@ -174,6 +185,9 @@ class FileIndex:
                 return False
             last[key] = b.t_max
         return True
+
+    def __hash__(self) -> int:  # `extra` holds dicts; what identifies an index is the file and its blocks
+        return hash((self.path, self.format, self.size, self.mtime_ns, self.options, self.channels, self.blocks))
 
     def option(self, name: str, default: Any = None) -> Any:
         return dict(self.options).get(name, default)
