@@ -41,6 +41,7 @@ from dynid.io import (
 HAVE_PYARROW = importlib.util.find_spec("pyarrow") is not None
 HAVE_ASAMMDF = importlib.util.find_spec("asammdf") is not None
 HAVE_H5PY = importlib.util.find_spec("h5py") is not None
+HAVE_FSSPEC = importlib.util.find_spec("fsspec") is not None
 needs_pyarrow = pytest.mark.skipif(not HAVE_PYARROW, reason="pyarrow not installed")
 needs_asammdf = pytest.mark.skipif(not HAVE_ASAMMDF, reason="asammdf not installed")
 
@@ -505,6 +506,48 @@ def test_mat_v73_windows_read_slices_equal_the_whole_file(t: np.ndarray, data: s
         index = check_windows_and_blocks(path, ["roll", "brake", "wheel"], wins, block_rows=rows)
         assert index.info("h5") is not None  # read in slices, not whole
         assert {b.group for b in index.blocks} == {0, 1}
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# URLs through fsspec (optional)
+
+
+@pytest.mark.skipif(not (HAVE_FSSPEC and HAVE_PYARROW and HAVE_ASAMMDF), reason="fsspec, pyarrow or asammdf missing")
+@pytest.mark.parametrize("ext", ["csv", "parquet", "mf4"])
+def test_urls_read_through_fsspec_as_local_files(tmp_path: Path, ext: str) -> None:
+    import fsspec
+
+    t1, t2 = np.arange(300) / 100.0, np.arange(40) / 13.0
+    rec = Recording.from_channels([Channel("v", "m/s", np.sin(t1), t1), Channel("w", "deg", t2 * 3, t2)])
+    local = tmp_path / f"log.{ext}"
+    write_recording(rec, local)
+    memory = f"memory://windows-test/{tmp_path.name}/log.{ext}"
+    fs = fsspec.filesystem("memory")
+    fs.pipe(memory.removeprefix("memory://"), local.read_bytes())
+    for url in (memory, local.as_uri()):
+        windows.clear_cache()
+        want_index = index_file(local, block_rows=32)
+        index = index_file(url, block_rows=32)
+        assert index.path == url and index.blocks == want_index.blocks
+        for t0, t1 in ((0.5, 1.2), (2.0, 9.0), (-1.0, 0.0)):
+            got, want = read_window(index, ["v", "w"], t0, t1), read_window(want_index, ["v", "w"], t0, t1)
+            for n in ("v", "w"):
+                assert_same_channel(got.channels[n], want.channels[n])
+        for got, want in zip(iter_blocks(index, ["w"]), iter_blocks(want_index, ["w"]), strict=True):
+            assert_same_channel(got.channels["w"], want.channels["w"])
+    index = index_file(memory)
+    fs.pipe(memory.removeprefix("memory://"), local.read_bytes() + b"\n")  # rewritten, one byte longer
+    with pytest.raises(FileFormatError, match="changed since it was indexed"):
+        read_window(index, ["v"], 0.0, 1.0)
+
+
+@pytest.mark.skipif(not HAVE_FSSPEC, reason="fsspec not installed")
+def test_mat_url_is_refused_with_what_to_do(tmp_path: Path) -> None:
+    t = np.arange(5) / 10
+    local = tmp_path / "log.mat"
+    write_recording(Recording.from_channels([Channel("v", "m/s", t, t)]), local)
+    with pytest.raises(FileFormatError, match=r"local path only.*copy the file"):
+        index_file(local.as_uri())
 
 
 # --------------------------------------------------------------------------------------------------------------------

@@ -56,6 +56,10 @@ cells are parsed, and a bad one reported as `read_csv` reports it, when a window
 
 A file changed on disk (size or modification time) since it was indexed is refused:
 the index would point at the wrong bytes.
+
+Paths may be URLs (s3://, file://, memory://...) when fsspec is installed (with the
+package of the scheme, e.g. s3fs): CSV, Parquet and MDF files are then read through it,
+ranges only; MATLAB files need a local path. fsspec is not a dependency of dynid.
 """
 
 from __future__ import annotations
@@ -63,13 +67,15 @@ from __future__ import annotations
 import heapq
 import os
 import threading
+import zlib
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from datetime import datetime
 from itertools import islice
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -214,7 +220,7 @@ def index_file(
 
     Parameters
     ----------
-    path : the file (a local path).
+    path : the file: a local path, or a URL when fsspec is installed (not for MATLAB files).
     channels : the channels windows will ask for (an error now if one is missing); None: all.
         For MDF files only the groups holding them are indexed.
     fs : Hz, sample rate of a table without time column (CSV, Parquet, MAT).
@@ -226,7 +232,7 @@ def index_file(
 
     The index holds the reader options: read the windows with the same index.
     """
-    label = str(path)
+    label = os.fspath(path)
     fmt = format_of(path, format)
     options = {"fs": fs, "time": time, **csv_options}
     _check_options(READERS[fmt], fmt, options, "reading")
@@ -234,9 +240,7 @@ def index_file(
     if int(block_rows) < 1:
         raise DataError(f"{label}: block_rows must be a positive number of rows, not {block_rows!r}", source=label)
     p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{label}: no such file")
-    stat = p.stat()
+    stat = _stat(label)
     builder = {"csv": _index_csv, "parquet": _index_parquet, "mdf": _index_mdf, "mat": _index_mat}[fmt]
     index = builder(p, label, options, int(block_rows), stat)
     if channels is not None:
@@ -245,8 +249,7 @@ def index_file(
         if any(n not in units for n in asked):
             raise missing_error(asked, units, source=label, skipped=dict(index.skipped))
         index = _restricted(index, asked)
-    after = p.stat()
-    if (after.st_size, after.st_mtime_ns) != (stat.st_size, stat.st_mtime_ns):
+    if _stat(label) != stat:
         raise FileFormatError(
             f"{label}: the file changed while it was indexed (is it still being written?); index it again when "
             "it is complete",
@@ -312,6 +315,75 @@ def clear_cache() -> None:
 
 
 # --------------------------------------------------------------------------------------------------------------------
+# where the file is: a local path, or a URL opened through fsspec (if installed)
+
+
+def _where(path: str) -> tuple[Any, str] | None:
+    """(fsspec filesystem, path in it) for a URL with a scheme (s3://, file://, memory://...); None for a local path."""
+    if "://" not in path:
+        return None
+    try:
+        import fsspec
+    except ImportError:
+        raise FileFormatError(
+            f"{path}: reading a URL needs the package fsspec (pip install fsspec, and the one for its scheme, "
+            "e.g. s3fs); or give a local path",
+            source=path,
+        ) from None
+    return fsspec.core.url_to_fs(path)
+
+
+def _stat(path: str) -> tuple[int, int]:
+    """(size in bytes, modification time in ns) of the file; FileNotFoundError if there is none.
+
+    Through fsspec, the time is the one the store reports (mtime, LastModified, created...;
+    0 when it reports none: then only a change of size is seen).
+    """
+    where = _where(path)
+    if where is None:
+        try:
+            st = os.stat(path)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{path}: no such file") from None
+        return st.st_size, st.st_mtime_ns
+    fs, inner = where
+    try:
+        info = fs.info(inner)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such file") from None
+    stamp = next(
+        (info[k] for k in ("mtime", "LastModified", "last_modified", "updated", "created") if info.get(k) is not None),
+        0,
+    )
+    if isinstance(stamp, datetime):
+        ns = round(stamp.timestamp() * 1e9)
+    else:
+        try:
+            ns = round(float(stamp) * 1e9)
+        except (TypeError, ValueError):
+            ns = zlib.crc32(str(stamp).encode())  # an opaque version tag: compared for equality only
+    return int(info.get("size") or 0), ns
+
+
+def _open_binary(path: str) -> BinaryIO:
+    where = _where(path)
+    if where is None:
+        return open(path, "rb")  # the caller closes it
+    fs, inner = where
+    if "file" in ((fs.protocol,) if isinstance(fs.protocol, str) else tuple(fs.protocol)):
+        return open(inner, "rb")  # a plain file object for a local file (asammdf accepts no fsspec local opener)
+    return fs.open(inner, "rb")
+
+
+def _open_parquet(path: str) -> Any:
+    where = _where(path)
+    if where is None:
+        return parquet_format.open_parquet(path, path)
+    fs, inner = where
+    return parquet_format.open_parquet(inner, path, filesystem=fs)
+
+
+# --------------------------------------------------------------------------------------------------------------------
 # shared helpers
 
 
@@ -337,12 +409,12 @@ def _window(index: FileIndex, t0: float, t1: float) -> tuple[float, float]:
 
 def _check_unchanged(index: FileIndex) -> None:
     try:
-        st = os.stat(index.path)
+        size, mtime_ns = _stat(index.path)
     except FileNotFoundError:
         raise FileNotFoundError(f"{index.path}: no such file (it was indexed, then moved or deleted)") from None
-    if (st.st_size, st.st_mtime_ns) != (index.size, index.mtime_ns):
+    if (size, mtime_ns) != (index.size, index.mtime_ns):
         raise FileFormatError(
-            f"{index.path}: the file changed since it was indexed (size {index.size} -> {st.st_size} bytes, or its "
+            f"{index.path}: the file changed since it was indexed (size {index.size} -> {size} bytes, or its "
             "modification time); index it again (index_file) before reading windows",
             source=index.path,
         )
@@ -518,7 +590,7 @@ def _csv_encodings(encoding: str, label: str) -> tuple[str, str]:
 
 def _decode_error(label: str, p: Path, encoding: str, exc: UnicodeDecodeError) -> FileFormatError:
     utf8 = encoding.lower().replace("_", "-") in ("utf-8", "utf-8-sig", "utf8")
-    why = encoding_problem(p) if utf8 else f"not {encoding} text ({exc.reason})"
+    why = encoding_problem(p) if utf8 and _where(label) is None else f"not {encoding} text ({exc.reason})"
     return FileFormatError(f"{label}: {why}", source=label)
 
 
@@ -554,7 +626,7 @@ def _csv_block(index: FileIndex, block: Block) -> tuple[list[Column], NDArray[np
     label = index.path
     encoding = index.option("encoding", "utf-8-sig")
     _, rest = _csv_encodings(encoding, label)
-    with open(index.path, "rb") as fh:
+    with _open_binary(index.path) as fh:
         fh.seek(block.offset)
         raw = fh.read(block.end - block.offset)
     try:
@@ -598,7 +670,7 @@ def _csv_stamps(
     return table_time([Column(time_name, head.units[k], values)], time_name, fs, label, None, row0)
 
 
-def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
     encoding = options.get("encoding", "utf-8-sig")
     decimal = options.get("decimal", ".")
     if decimal not in (".", ","):
@@ -607,7 +679,7 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
     offsets: dict[int, int] = {}
     blocks: list[Block] = []
     try:
-        with open(p, "rb") as fh:
+        with _open_binary(label) as fh:
 
             def header_lines() -> Iterator[tuple[int, str]]:
                 number = 0
@@ -650,7 +722,7 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
     if time_name is None:
         metadata.setdefault("fs", repr(float(options["fs"])))
     return FileIndex(
-        str(p), "csv", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())), channels, tuple(blocks),
+        label, "csv", *stat, tuple(sorted(options.items())), channels, tuple(blocks),
         tuple(metadata.items()), (), time_name, (("header", header),),
     )
 
@@ -658,9 +730,9 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
 # Parquet -------------------------------------------------------------------------------------------------------------
 
 
-def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
     pa = require("pyarrow", "Reading Parquet files")
-    pfile = parquet_format.open_parquet(p, label)
+    pfile = _open_parquet(label)
     schema = pfile.schema_arrow
     metadata = parquet_format.schema_metadata(schema)
     fields = [f for f in schema if parquet_format.is_numeric(pa, f.type)]
@@ -699,7 +771,7 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     channels = tuple((f.name, "s" if pa.types.is_timestamp(f.type) else parquet_format._unit_of(f))
                      for f in fields if f.name != time_name)
     return FileIndex(
-        str(p), "parquet", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())), channels, tuple(blocks),
+        label, "parquet", *stat, tuple(sorted(options.items())), channels, tuple(blocks),
         tuple(metadata.items()), tuple(skipped.items()), time_name, (("first_ticks", ticks),),
     )
 
@@ -708,7 +780,7 @@ def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]
     def make() -> Column:
         pa = require("pyarrow", "Reading Parquet files")
         if not opened:
-            opened.append(parquet_format.open_parquet(index.path, index.path))
+            opened.append(_open_parquet(index.path))
         pfile = opened[0]
         field = pfile.schema_arrow.field(name)
         col = pfile.read_row_group(block.group, columns=[name], use_pandas_metadata=False).column(0)
@@ -726,7 +798,7 @@ def _open_mdf_stream(index_path: str) -> tuple[Any, Any]:
     (Opened by path, asammdf 8.8's `select` reads every record of the group and slices.)
     """
     asammdf = require("asammdf", "Reading MDF files")
-    fh = open(index_path, "rb")  # noqa: SIM115 - closed by the caller with the MDF
+    fh = _open_binary(index_path)
     try:
         return fh, asammdf.MDF(fh)
     except Exception as exc:  # asammdf raises many kinds for a file that is not MDF
@@ -736,8 +808,8 @@ def _open_mdf_stream(index_path: str) -> tuple[Any, Any]:
         ) from None
 
 
-def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
-    fh, mdf = _open_mdf_stream(str(p))
+def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
+    fh, mdf = _open_mdf_stream(label)
     try:
         with mdf:
             metadata = {"format": "mdf", "mdf_version": str(mdf.version)}
@@ -765,7 +837,7 @@ def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, st
     if not channels:
         raise FileFormatError(f"{label}: no numeric channel in the file; not read: {skipped}", source=label)
     return FileIndex(
-        str(p), "mdf", stat.st_size, stat.st_mtime_ns, (), tuple(channels), tuple(blocks), tuple(metadata.items()),
+        label, "mdf", *stat, (), tuple(channels), tuple(blocks), tuple(metadata.items()),
         tuple(skipped.items()), None, (("places", places),),
     )
 
@@ -859,7 +931,13 @@ def _recording_nbytes(rec: Recording) -> int:
     return total
 
 
-def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result) -> FileIndex:
+def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
+    if _where(label) is not None:
+        raise FileFormatError(
+            f"{label}: MATLAB files are read from a local path only (scipy and h5py open files by name); "
+            "copy the file to a local disk",
+            source=label,
+        )
     rec = read_mat(p, **options)
     if mat_format.is_v73(p):
         index = _index_h5(p, label, options, block_rows, stat, rec)
@@ -874,7 +952,7 @@ def _index_mat(p: Path, label: str, options: dict[str, Any], block_rows: int, st
         rows = max(rows, len(ch))
     block = Block(0, rows, min(lows, default=np.inf), max(highs, default=-np.inf), inc)
     return FileIndex(
-        str(p), "mat", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())),
+        label, "mat", *stat, tuple(sorted(options.items())),
         tuple((n, c.unit) for n, c in rec.channels.items()), (block,), tuple(rec.metadata.items()),
         tuple(rec.skipped.items()), None, (),
     )
@@ -917,7 +995,7 @@ def _h5_read(fh: Any, index: FileIndex, group: int, names: list[str], row0: int,
 
 
 def _index_h5(
-    p: Path, label: str, options: dict[str, Any], block_rows: int, stat: os.stat_result, rec: Recording
+    p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int], rec: Recording
 ) -> FileIndex | None:
     """The index of a v7.3 file whose channels can be read in slices; None to read it whole (a layout not foreseen).
 
@@ -954,7 +1032,7 @@ def _index_h5(
             g = bases.setdefault(time_path, len(bases))
             sources[n] = (data_path, time_path, g, time_unit, time_label)
         index = FileIndex(
-            str(p), "mat", stat.st_size, stat.st_mtime_ns, tuple(sorted(options.items())),
+            label, "mat", *stat, tuple(sorted(options.items())),
             tuple((n, c.unit) for n, c in rec.channels.items()), (), tuple(rec.metadata.items()),
             tuple(rec.skipped.items()), time_name, (("h5", sources),),
         )
