@@ -43,13 +43,14 @@ has none in the window (or none at all in the file: `read_recording` lists those
 files a block holds the channels of one group (time base) only, the others come out with
 0 samples in that block; `iter_blocks` yields the groups' blocks merged by first stamp.
 
-Recently decoded blocks are kept in a per-process cache of at most `CACHE_BYTES` (512 MiB;
-least recently used out first; 0 turns it off), so that windows read in time order decode
-each CSV block or Parquet row group about once: a Parquet row group is the smallest unit
-pyarrow decodes, and writers often make them a million rows long (pyarrow's default), far
-longer than a window. The memory a window needs is therefore bounded by the cache and the
-row-group size, not by the file's length; a Parquet file written with row groups of about
-65536 rows (`pyarrow.parquet.write_table(..., row_group_size=65536)`) needs far less.
+Recently decoded blocks are kept in a per-process cache, at most `CACHE_BLOCKS` (3) blocks
+of a file and `CACHE_BYTES` (512 MiB) in all, least recently used out first (0 turns it
+off), so that windows read in time order decode each CSV block or Parquet row group about
+once: a Parquet row group is the smallest unit pyarrow decodes, and writers often make them
+a million rows long (pyarrow's default, so dynid's `write_parquet`), far longer than a
+window. The memory a window needs is therefore bounded by the cache and the row-group
+size, not by the file's length; a Parquet file written with row groups of about 65536 rows
+(`pyarrow.parquet.write_table(..., row_group_size=65536)`) needs far less.
 
 The CSV index parses only the time column (and checks every row has a stamp); the other
 cells are parsed, and a bad one reported as `read_csv` reports it, when a window reads them.
@@ -113,7 +114,7 @@ class Block:
     t_min, t_max : s, smallest and largest time stamp in the block, NaN stamps left out
         (+inf and -inf when the block has none: no window meets it).
     increasing : the block's stamps never go back (non-decreasing, no NaN).
-    group : Parquet row group; MDF channel group; 0 otherwise.
+    group : Parquet row group; MDF channel group; MATLAB v7.3 time vector (0, 1, ...); 0 otherwise.
     offset, end : CSV only, the byte range [offset, end) of the block's lines.
     line : CSV only, the number (1-based) of the block's first line.
     """
@@ -311,6 +312,7 @@ def clear_cache() -> None:
     """Forget the decoded blocks kept by this process."""
     with _lock:
         _cache.clear()
+        _recent.clear()
         _used[0] = 0
 
 
@@ -466,19 +468,30 @@ def _restricted(index: FileIndex, names: list[str]) -> FileIndex:
     return replace(index, channels=chans, blocks=blocks, extra=extra)
 
 
-# a small LRU cache of decoded blocks, shared by the threads of a process --------------------------------------------
+# a bounded LRU cache of decoded blocks, shared by the threads of a process ------------------------------------------
 
 _cache: OrderedDict[tuple, tuple[Any, int]] = OrderedDict()
+_recent: dict[tuple, OrderedDict[Any, list[tuple]]] = {}  # per file: its cached blocks, most recent last -> keys
 _used = [0]
 _lock = threading.Lock()
+CACHE_BLOCKS = 3  # blocks kept per file: a window's last ones, which the next (overlapping) window reads again
 
 
 def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int], store: bool = True) -> Any:
-    """The value of `key` from the cache, or made (and kept if `store` and it fits)."""
+    """The value of `key` from the cache, or made (and kept if `store` and it fits).
+
+    Keys are `_key(index, block, ...)`. Windows read in time order need again only the
+    blocks at the end of the last window, so a file keeps at most `CACHE_BLOCKS` blocks
+    (its least recently used go first), and all files at most `CACHE_BYTES`.
+    """
+    file, block = key[:4], key[4]
     with _lock:
         hit = _cache.get(key)
         if hit is not None:
             _cache.move_to_end(key)
+            blocks = _recent.get(file)
+            if blocks is not None and block in blocks:
+                blocks.move_to_end(block)
             return hit[0]
     value = make()
     if not store:
@@ -488,10 +501,21 @@ def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int], sto
         if nbytes <= CACHE_BYTES and key not in _cache:
             _cache[key] = (value, nbytes)
             _used[0] += nbytes
+            blocks = _recent.setdefault(file, OrderedDict())
+            blocks.setdefault(block, []).append(key)
+            blocks.move_to_end(block)
+            while len(blocks) > CACHE_BLOCKS:
+                for old in blocks.popitem(last=False)[1]:
+                    _drop(old)
             while _used[0] > CACHE_BYTES and _cache:
-                _, (_, gone) = _cache.popitem(last=False)
-                _used[0] -= gone
+                _drop(next(iter(_cache)))
     return value
+
+
+def _drop(key: tuple) -> None:
+    gone = _cache.pop(key, None)
+    if gone is not None:
+        _used[0] -= gone[1]
 
 
 def _key(index: FileIndex, *rest: Any) -> tuple:
