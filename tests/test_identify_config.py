@@ -332,7 +332,7 @@ def test_a_vehicle_makes_a_car_config(tmp_path, value, in_folder):
 
 
 def test_the_documented_keys_are_accepted(tmp_path):
-    """The module doc's two examples (a robot's whole config; a car's sections) are read as written."""
+    """The module doc's three examples (a robot's whole config; a car's sections; [compute]) are read as written."""
     import textwrap
 
     from dynid.pipeline import config
@@ -344,12 +344,13 @@ def test_the_documented_keys_are_accepted(tmp_path):
         elif current:
             blocks.append(textwrap.dedent("\n".join(current)))
             current = None
-    robot, car = blocks
+    robot, car, compute = blocks
     for name in ("pos.csv", "torques.csv", "published.csv", "sine.csv"):
         (tmp_path / name).write_text("t\n0\n")
     cfg = tmp_path / "identify.toml"
-    cfg.write_text(robot)
+    cfg.write_text(robot + "\n" + compute)
     c = config.load_config(cfg)
+    assert c.scheduler == "local" and c.workers == 2
     assert c.kind == "robot" and c.model == "tx40" and c.vehicle is None and c.conditioning.min_speed == {1: 0.05}
     assert c.tests[0].start == 2.0 and set(c.transmission) == {"q", "q_offset", "tau"} and c.known == {"IA1": 0.36}
     cfg.write_text('[model]\nvehicle = "peugeot406"\n\n[[tests]]\nfile = "sine.csv"\n\n' + car)

@@ -103,18 +103,37 @@ def _print_run(run, validation_title: str) -> None:
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..atomic import staged_folder
+    from ..atomic import staged_folder, write_atomic
+    from ..pipeline.campaign import campaign_names, identify_campaign, summary, summary_csv, summary_text
     from ..pipeline.config import load_config
-    from ..pipeline.run import identify, write_outputs
+    from ..pipeline.run import write_outputs
+    from ..pipeline.schedulers import scheduler_for
     from ..report.build import input_files
 
-    cfg = load_config(args.config)
+    cfgs = [load_config(c) for c in args.config]
     out = Path(args.out)
+    address = args.scheduler or cfgs[0].scheduler
+    workers = args.workers or cfgs[0].workers
+    inputs = [p for cfg in cfgs for _, p in input_files(cfg)]
     # the folder is checked and locked before computing; the results replace it as a whole at the end
-    with staged_folder(out, inputs=[p for _, p in input_files(cfg)]) as stage:
-        run = identify(cfg, progress=_say)
-        _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
-        files = write_outputs(run, stage, f"Identification of {run.model.name}", progress=_say)
+    with staged_folder(out, inputs=inputs) as stage:
+        scheduler = scheduler_for(address, workers)
+        try:
+            runs = identify_campaign(cfgs, scheduler, progress=_say)
+        finally:
+            getattr(scheduler, "close", lambda: None)()
+        names = campaign_names([c.path for c in cfgs])
+        files = []
+        for name, run in zip(names, runs, strict=True):
+            if len(runs) > 1:
+                print(f"\n=== {name} ({run.config.path}) ===")
+            _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
+            folder = stage if len(runs) == 1 else stage / name
+            files += write_outputs(run, folder, f"Identification of {run.model.name}", progress=_say)
+        if len(runs) > 1:
+            head, rows = summary(names, runs)
+            print(f"\nThe campaign ({len(runs)} identifications):\n{summary_text(head, rows)}")
+            files.append(write_atomic(stage / "campaign.csv", summary_csv(head, rows)))
     print(f"\nwrote {', '.join(str(out / f.relative_to(stage)) for f in files)}")
     return 0
 
@@ -210,11 +229,21 @@ def build_parser() -> argparse.ArgumentParser:
                     "errors, and writes results.json, report.html, the figures and CSV files into the output "
                     "folder, which is replaced as a whole when the run ends: an interrupted or failed run leaves "
                     "the previous results as they were, and a second run into the same folder is refused.",
-        examples=["dynid identify demo/identify.toml --out results", "dynid identify robot.toml --out robot-out"],
-        notes="docs/tutorial.md describes the config; `dynid demo` writes one to start from.")
-    ident.add_argument("config", help="identification config (TOML)")
+        examples=["dynid identify demo/identify.toml --out results", "dynid identify robot.toml --out robot-out",
+                  "dynid identify empty.toml laden.toml --out campaign --scheduler local",
+                  "dynid identify fleet/*.toml --out fleet-out --scheduler tcp://10.0.0.5:8786"],
+        notes="docs/tutorial.md describes the config; `dynid demo` writes one to start from. docs/cluster.md: "
+              "running on a laptop, a workstation's cores or a Dask cluster.")
+    ident.add_argument("config", nargs="+", help="identification config (TOML); several make a campaign: one "
+                                                 "output folder each inside --out, and campaign.csv across them")
     ident.add_argument("--out", default="dynid-out", help="output folder, replaced as a whole at the end "
                                                           "(default: dynid-out)")
+    ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
+                            "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
+                            "config's [compute] scheduler, else this machine's threads")
+    ident.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="threads, or a LocalCluster's worker processes (default: the config's, else 2)")
     ident.set_defaults(func=cmd_identify)
     symbolic_cmds.register(msub)
     model_io_cmds.register(msub)

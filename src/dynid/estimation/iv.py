@@ -64,6 +64,14 @@ class InstrumentSums:
             self.terms[name] = (zw, zy, zz)
             self.rows[name] = self.rows.get(name, 0) + int(r.sum())
 
+    def merge(self, other: InstrumentSums) -> InstrumentSums:
+        """A new accumulator with both one's sums (same columns): segments reduced apart, combined."""
+        terms = dict(self.terms)
+        for g, (zw, zy, zz) in other.terms.items():
+            terms[g] = (zw + terms[g][0], zy + terms[g][1], zz + terms[g][2]) if g in terms else (zw, zy, zz)
+        rows = {g: self.rows.get(g, 0) + other.rows.get(g, 0) for g in dict.fromkeys([*self.rows, *other.rows])}
+        return InstrumentSums(self.columns, self.known_columns, self.known_values, terms, rows)
+
     def normal(self, sigmas: dict[str, float]) -> np.ndarray:
         """A = Σ_g Z_gᵀ W_g / σ_g² (the matrix the estimate and the offsets' propagation solve with)."""
         return sum((zw / sigmas[g] ** 2 for g, (zw, _, _) in self.terms.items()),

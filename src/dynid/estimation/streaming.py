@@ -12,6 +12,10 @@ norm ``||Y_g - W_g X|| = ||R_g [X; -1]||``. So:
   weighted system (eq. (10)) is the QR of the stacked ``R_g / sigma_j``.
 
 Memory: (q+1)^2 floats per group, whatever the number of rows.
+
+Accumulators combine exactly: the factor of two row sets stacked is the QR of their two factors
+stacked (`merge`), so segments of a long record can be reduced anywhere (threads, a cluster's
+workers) and combined by a tree of reductions; the answer is the one-pass answer to round-off.
 """
 
 from __future__ import annotations
@@ -108,6 +112,26 @@ class StreamingLS:
             self._R[name] = np.linalg.qr(np.vstack([R, block]), mode="r")
             self._rows[name] = self._rows.get(name, 0) + idx.size
             self._y2[name] = self._y2.get(name, 0.0) + float(y[idx] @ y[idx])
+
+    def empty(self) -> StreamingLS:
+        """An accumulator of the same columns (names, known values, settings) with no rows: a segment's own."""
+        out = object.__new__(StreamingLS)
+        out.__dict__.update(self.__dict__)
+        out._R, out._rows, out._y2 = {}, {}, {}
+        return out
+
+    def merge(self, other: StreamingLS) -> StreamingLS:
+        """A new accumulator holding this one's rows and then `other`'s (same columns and known values): per
+        group, the QR of the two factors stacked. Neither input changes; the groups keep their first order."""
+        if other.names != self.names or other.known != self.known:
+            raise IdentificationError("cannot merge accumulators of other parameters or other known values")
+        out = self.empty()
+        for name in dict.fromkeys([*self._R, *other._R]):  # every factor is square: (q+1, q+1)
+            parts = [s._R[name] for s in (self, other) if name in s._R]
+            out._R[name] = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
+            out._rows[name] = self._rows.get(name, 0) + other._rows.get(name, 0)
+            out._y2[name] = self._y2.get(name, 0.0) + other._y2.get(name, 0.0)
+        return out
 
     # ----------------------------------------------------------------- solving
     def _require_rows(self) -> None:

@@ -92,6 +92,15 @@ class BiasAccumulator:
                 a, B = a + per[g][0], B + per[g][1]
             per[g] = (a, B)
 
+    def merge(self, other: BiasAccumulator) -> BiasAccumulator:
+        """A new accumulator with both one's sums (same columns): segments reduced apart, combined."""
+        terms = {s: dict(per) for s, per in self.terms.items()}
+        for source, per in other.terms.items():
+            mine = terms.setdefault(source, {})
+            for g, (a, B) in per.items():
+                mine[g] = (a + mine[g][0], B + mine[g][1]) if g in mine else (a, B)
+        return BiasAccumulator(self.columns, self.known_columns, self.known_values, terms)
+
 
 def propagate(
     normal: np.ndarray,

@@ -78,6 +78,15 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # propagated to the estimates (%σ total)
     segments = 2                     # segments per test on which their effect is evaluated
 
+Either kind may say where its work runs (the command line's --scheduler and --workers override it):
+
+    [compute]
+    scheduler = "local"              # a Dask LocalCluster on this machine, or a Dask scheduler's address
+                                     # ("tcp://10.0.0.5:8786"; needs pip install 'dynid[dask]'); default: this
+                                     # machine's threads. The workers read the files themselves: give paths
+                                     # every worker reaches (a shared file system)
+    workers = 2                      # threads, or a LocalCluster's single-threaded worker processes
+
 Every section is strict: an unknown section or key (in every [[tests]] entry too) is an error naming
 the file, the section, the key and the nearest valid key; so is a value of the wrong type. Every
 error names the config file and the key, and says what is expected.
@@ -154,6 +163,8 @@ class IdentifyConfig:
     car: CarSettings | None = None
     # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
     vehicle: str | Path | None = None
+    scheduler: str | None = None  # [compute]: None (this machine's threads), "local" or a Dask scheduler's address
+    workers: int | None = None
 
     @property
     def kind(self) -> str:
@@ -163,7 +174,9 @@ class IdentifyConfig:
 Err = Callable[[str, str], ConfigError]  # (where, e.g. "[model]", message) -> the error naming the file
 
 # the keys each section reads; a car and a robot read different ones (see the module doc)
-_TOP = ("model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty")
+_TOP = ("model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty",
+        "compute")
+_COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
 _ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
@@ -235,7 +248,21 @@ def load_config(path: str | Path) -> IdentifyConfig:
         conditioning=cond, method=method, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
         reference=_reference(data.get("reference"), here, err), car=car, vehicle=vehicle,
+        **_compute(data.get("compute", {}), err),
     )
+
+
+def _compute(c: dict, err: Err) -> dict[str, Any]:
+    """[compute]: where the segments run."""
+    _keys(c, _COMPUTE_KEYS, "[compute]", err)
+    scheduler = c.get("scheduler")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise err("[compute]", f"scheduler = {scheduler!r}; give \"local\" (a Dask cluster on this machine) or a "
+                               "Dask scheduler's address such as \"tcp://10.0.0.5:8786\"")
+    workers = c.get("workers")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise err("[compute]", f"workers = {workers!r}; give a whole number >= 1 (threads, or worker processes)")
+    return {"scheduler": scheduler.strip() if scheduler else None, "workers": workers}
 
 
 def _sections(data: dict, path: Path) -> None:

@@ -9,25 +9,34 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..atomic import write_atomic
 from ..dynamics import BaseParameters, Model
-from ..estimation import IdentificationError, IdentificationResult, nrmse, ols, propagate, relative_errors, wls
+from ..estimation import (
+    IdentificationError,
+    IdentificationResult,
+    StreamingLS,
+    nrmse,
+    ols,
+    propagate,
+    relative_errors,
+    wls,
+)
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .reduce import CarJob, car_setup, combine, reduce_car_segment
 from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, joint_system
+from .schedulers import LocalScheduler, Scheduler
+from .sources import plan_car_test, read_segment, segment_window
 
 Progress = Callable[[str], None]
 
@@ -117,90 +126,17 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
                       ) -> tuple[dict[str, np.ndarray], dict[str, float], float]:
-    """The sensor suite's channels of one logger file on one uniform clock, in the file's units (views, no copy
-    of a long record, when the file's own clock is uniform), with the factor of each to SI; and the sample rate.
-
-    Real loggers, as for a robot test's files (`timebase`): per time base (a logging rate), rows with one stamp
-    are averaged, stamps going back or a hole over the test's `max_gap` sample periods are refused with the file,
-    line, sample and time, and jitter or holes are resampled onto a uniform clock, the check reported through
-    `progress`. Channels at several rates (an MDF4 file's channel groups, a CSV's sparse columns) are
-    interpolated (cubic) onto the clock of the fastest, over the span every channel covers and the test's
-    start..end; the rate chosen is reported. suite: the sensors fitted (default: the config's vehicle's)."""
-    from ..io import DataError, align, format_of, unit_factor
-    from ..io.align import InterpSpec
+    """The sensor suite's channels of one whole test on its uniform clock, in the file's units, with the factor of
+    each to SI, and the sample rate: the plan of `sources.plan_car_test` (time stamps checked, the rates and the
+    resampling reported through `progress`) read as one window. The identification reads a segment at a time
+    instead; this is for looking at a test. suite: the sensors fitted (default: the config's vehicle's)."""
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import required_channels
-    from .timebase import RATE_TOLERANCE, read_test_file, stream
 
-    say = progress or (lambda _m: None)
-    path = spec.files["channels"]
-    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite  # the sensors fitted
-    wanted = required_channels(spin=False, suite=suite)
-    renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
-    in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
-    names = list(dict.fromkeys(in_file.values()))
-    given = None if format_of(path) == "mdf" else spec.fs  # an MDF file's channels always carry their time stamps
-    rec, timed = read_test_file(path, given, spec.name, cfg.path, names)
-    rec.require(names)
-    bases: list[list] = []  # the channels on one time base (one logging rate)
-    for name in names:
-        ch = rec.channel(name)
-        base = next((b for b in bases if b[0].time is ch.time or np.array_equal(b[0].time, ch.time)), None)
-        if base is None:
-            bases.append([ch])
-        else:
-            base.append(ch)
-    streams = [stream(b, rec.label, timed, spec.max_gap, (spec.start, spec.end)) for b in bases]
-    if timed:
-        for s in streams:
-            listed = ", ".join(list(s.channels)[:3]) + (", ..." if len(s.channels) > 3 else "")
-            say(f"{spec.name}: {s.report()}" + (f" ({len(s.channels)} channels: {listed})" if len(streams) > 1
-                                                 else ""))
-    fastest = min(s.h for s in streams)  # the clock: the fastest channels' (the most of them at one rate)
-    ref = max((s for s in streams if s.h <= fastest * (1 + 1e-6)), key=lambda s: len(s.channels))
-    h = ref.h
-    if timed and spec.fs is not None and abs(1 / h - spec.fs) > RATE_TOLERANCE * spec.fs:
-        raise DataError(
-            f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time stamps of {rec.label} say "
-            f"{1 / h:.6g} Hz (step {h * 1e3:.6g} ms): remove fs from the test (the time stamps are used), or correct "
-            "it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=rec.label)
-    lo, hi = max(s.t[0] for s in streams), min(s.t[-1] for s in streams)
-    if lo > hi:
-        spans = "; ".join(f"{', '.join(list(s.channels)[:2])}, ... cover {s.t[0]:.6g}..{s.t[-1]:.6g} s"
-                          for s in streams)
-        raise DataError(f"{rec.label}: the channels do not overlap in time: {spans}", source=rec.label)
-    first, last = max(float(b[0].time[0]) for b in bases), min(float(b[0].time[-1]) for b in bases)
-    tol = 1e-9 * max(abs(last), h)
-    for key, v in (("start", spec.start), ("end", spec.end)):
-        if v is not None and not first - tol <= v <= last + tol:
-            raise DataError(f"{cfg.path}: test {spec.name!r}: {key} = {v:g} s is outside the record {rec.label}, "
-                            f"which covers {first:.6g}..{last:.6g} s (every channel); give a time inside it",
-                            source=rec.label)
-    a = lo if spec.start is None else max(lo, spec.start)
-    b = hi if spec.end is None else min(hi, spec.end)
-    clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
-                                                             np.floor((ref.t[-1] - ref.t0) / h) + 1)
-    clock = clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
-    if clock.size < 2:
-        raise DataError(f"{cfg.path}: test {spec.name!r}: no two samples of {rec.label} between start and end "
-                        f"({a:.6g}..{b:.6g} s at {1 / h:.6g} Hz): widen the window", source=rec.label)
-    if len(streams) > 1:
-        rates = ", ".join(f"{1 / s.h:.6g} Hz ({len(s.channels)})" for s in sorted(streams, key=lambda s: s.h))
-        say(f"{spec.name}: channels at several rates in {rec.label}: {rates}; every channel interpolated onto the "
-            f"{1 / h:.6g} Hz clock of the fastest, {clock.size} samples ({clock[0]:.6g}..{clock[-1]:.6g} s)")
-    elif not ref.uniform:
-        say(f"{spec.name}: every channel on one uniform {1 / h:.6g} Hz clock, {clock.size} samples "
-            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
-    al = align([InterpSpec(n, s.channels[n]) for s in streams for n in s.channels], t=clock, source=rec.label,
-               gap_factor=None)
-    values, factors = {}, {}
-    expected = suite.units  # the sensor's own unit: its dimension is what the channel must have
-    for q, name in in_file.items():
-        unit = renamed.get(q, (None, None))[1] or rec.channel(name).unit
-        expect = (unit_factor(expected[q])[1],) if q in expected else None
-        values[q], factors[q] = al[name], unit_factor(unit, channel=name, source=str(path), expect=expect)[0]
-    fs = 1.0 / float(np.median(np.diff(al.t)))
-    return values, factors, fs
+    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite
+    plan = plan_car_test(cfg, spec, required_channels(spin=False, suite=suite), suite.units, None, lambda fs: 0,
+                         progress)
+    return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
 
 
 def read_truth(path: Path, tree) -> dict[str, float]:
@@ -226,185 +162,114 @@ def read_truth(path: Path, tree) -> dict[str, float]:
     return out
 
 
-def _identify_car(cfg: IdentifyConfig, say: Progress) -> IdentificationRun:
-    """The car: per test, overlapping segments -> joints -> 14 equations -> decimated rows, accumulated
-    into an incremental QR per equation group (W is never held whole, whatever the test's length)."""
-    from ..estimation import StreamingLS
+def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | None = None) -> IdentificationRun:
+    """The car, as DESIGN.md's data flow: plan each test's file (its clock and overlapping segments), reduce every
+    segment to per-group factors (`reduce.reduce_car_segment`: joints, 14 equations, parallel decimation) on the
+    scheduler's workers, fold them (`reduce.combine`), solve; IDIM-IV passes map again with the last estimate.
+    W is never held whole, whatever the tests' length."""
     from ..signals import border_samples
-    from ..symbolic.generated import GeneratedRegressor
-    from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.estimate import CarConditioning, estimate_joints
+    from ..vehicle.estimate import required_channels
     from ..vehicle.excitation import excitation_hint
-    from .car import car_scales, car_sections, car_system, consistency_text, masses_note
+    from .car import car_scales, car_sections, consistency_text, masses_note
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
+    scheduler = scheduler or LocalScheduler()
     settings = cfg.car
-    vehicle = load_vehicle(cfg.vehicle or "peugeot406")
-    tree = car_template(vehicle.geometry, vehicle.a_priori.values, name=vehicle.name)
-    # the bench values of the vehicle file, then the config's (a config may fix more, or other values)
-    known = {**vehicle.known, **{tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}}
-    if known:
-        tree = tree.with_values(known).with_known(set(known))
-    model = Model(tree)
-    base = car_base_parameters(tree, settings.base)
-    names = list(base.names)
-    truth: dict[str, float] = {}
-    for spec in cfg.tests:
-        if spec.truth is not None:
-            truth = read_truth(spec.truth, tree)
-            break
+    setup = car_setup(cfg)
+    vehicle, tree, names = setup.vehicle, setup.tree, setup.names
+    truth = next((read_truth(t.truth, tree) for t in cfg.tests if t.truth is not None), {})
 
     def base_values(values: dict[str, float]) -> dict[str, float]:
         X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
-        return dict(zip(names, base.values(X), strict=True))
+        return dict(zip(names, setup.base.values(X), strict=True))
 
     kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
               truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
-    streams = {"identify": StreamingLS(names, **kw), "validate": StreamingLS(names, **kw)}
-    shown: dict[str, GroupedSystem] = {}
-    cond = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
-                            compensate_delays=settings.compensate_delays)
-    aero = vehicle.aero if settings.aero else None
-    fast = GeneratedRegressor(tree)
-    suite = vehicle.suite
-    # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
-    equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
 
-    def segment_rows(channels, factors, fs, lo, hi, offset: tuple[str, float] | None = None, instruments=None,
-                     keep=None):
-        si = {k: v[lo:hi] * factors[k] for k, v in channels.items()}  # units converted segment by segment
-        if offset is not None:  # one sensor's zero moved by its standard deviation (file unit)
-            si[offset[0]] = si[offset[0]] + offset[1] * factors[offset[0]]
-        traj = estimate_joints(si, fs, model, vehicle.geometry, vehicle.tables, cond, suite)
-        return car_system(model, traj, fs, settings.decimate, base=base, aero=aero, regressor=fast,
-                          cutoff=cond.cutoff, min_speed=settings.min_speed, instruments=instruments, keep=keep,
-                          equations=equations)[0]
+    # 1. plan: each test's file indexed, its clock and segments (a pass over the time stamps only)
+    wanted = required_channels(spin=False, suite=vehicle.suite)
+    cond = setup.conditioning
+    plans = []
+    for spec in cfg.tests:
+        plan = plan_car_test(cfg, spec, wanted, vehicle.suite.units, settings.segment,
+                             lambda fs: border_samples(fs, cond.cutoff, cond.order), say)
+        say(f"{spec.name}: read {plan.samples} samples of {len(plan.file_names)} channels at {plan.fs:g} Hz "
+            f"({len(plan.segments)} segment(s))")
+        plans.append(plan)
 
-    def segments_of(spec: TestSpec, report: bool = True):
-        channels, factors, fs = load_car_channels(cfg, spec, say if report else None, suite)
-        N = len(next(iter(channels.values())))
-        b = border_samples(fs, cond.cutoff, cond.order)
-        step = max(int(settings.segment * fs), 4 * b)
-        return channels, factors, fs, [(lo, min(N, lo + step + 2 * b)) for lo in range(0, max(N - 2 * b, 1), step)]
-
-    ident_offsets = streams["identify"].bias_accumulator() if settings.offsets else None
+    # 2. map every segment to its factors (the declared offsets' effect on a few of each identification test's),
+    #    fold per role
+    def jobs(instruments: dict[str, float] | None = None, offsets: bool = True) -> list[CarJob]:
+        out = []
+        for plan in plans:
+            if instruments is not None and plan.role != "identify":
+                continue
+            picks = picked(len(plan.segments)) if offsets and settings.offsets and plan.role == "identify" else {}
+            for i, (lo, hi) in enumerate(plan.segments):
+                out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
+                                  tuple(settings.offsets.items()) if i in picks else (), picks.get(i, 1.0),
+                                  instruments, keep_rows=i == 0))
+        return out
 
     def picked(n_segments: int) -> dict[int, float]:
-        """The segments (index -> weight) on which the declared offsets' effect is evaluated: a few spread
-        over the test, each standing for len / picked of them."""
+        """The segments (index -> weight) on which the declared offsets' effect is evaluated: a few spread over
+        the test, each standing for len / picked of them."""
         pick = np.unique(np.linspace(0, n_segments - 1, min(settings.offset_segments, n_segments)).round())
         return {int(i): n_segments / len(pick) for i in pick}
 
-    def offset_jobs(pool, spec: TestSpec, channels, factors, fs, segment, base_job, scale) -> list:
-        """Each declared offset applied alone to one segment, paired with that segment's own rows."""
-        return [(f"{spec.name}: {q}", scale, base_job, pool.submit(segment_rows, channels, factors, fs, *segment,
-                                                                   (q, b)))
-                for q, b in settings.offsets.items()]
+    say(f"joints and equations on {scheduler}")
+    parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: j.role, combine, say)
+    ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
+    validate = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
+    rows.update(parts["validate"].rows if "validate" in parts else {})
 
-    def use_offsets(jobs: list) -> None:
-        for source, scale, base_job, job in jobs:
-            b, p = base_job.result(), job.result()
-            ident_offsets.add(source, b.W, b.Y, p.W - b.W, p.Y - b.Y, b.groups, scale)
-
-    from concurrent.futures import ThreadPoolExecutor
-
-    def use(spec: TestSpec, job, k: int, n_seg: int) -> None:
-        sys = job.result()
-        say(f"{spec.name}: joints and equations, segment {k}/{n_seg}")
-        streams[spec.role].add(sys.W, sys.Y, sys.groups)
-        shown.setdefault(spec.name, sys)
-
-    def iv_pass(pool, last, final: bool):
-        """Instruments from the last estimate on every identification segment (and, on the final pass, on the
-        offsets' segments), then the IV estimate on the same rows (their own: min_speed applies to the simulated
-        rates)."""
-        values = dict(zip(last.names, (float(v) for v in last.values), strict=True))
-        ident = StreamingLS(names, **kw)
-        sums = ident.instrument_sums()
-        acc = ident.bias_accumulator() if settings.offsets and final else None
-        for spec in (t for t in cfg.tests if t.role == "identify"):
-            channels, factors, fs, segments = segments_of(spec, report=False)  # the file's checks said once
-            picks = picked(len(segments)) if acc is not None else {}
-            jobs: deque = deque()
-            for i, seg in enumerate(segments):
-                jobs.append((i, seg, pool.submit(segment_rows, channels, factors, fs, *seg, None, values)))
-                while len(jobs) > (0 if i == len(segments) - 1 else 2):
-                    j, (lo, hi), job = jobs.popleft()
-                    sys = job.result()
-                    ident.add(sys.W, sys.Y, sys.groups)
-                    sums.add(sys.W, sys.Y, sys.Z, sys.groups)
-                    # each offset's rows on the same samples as the segment's (its own simulation, same rows)
-                    moved = {q: pool.submit(segment_rows, channels, factors, fs, lo, hi, (q, b), values, sys.kept)
-                             for q, b in settings.offsets.items()} if j in picks else {}
-                    for q, m in moved.items():
-                        p = m.result()
-                        acc.add(f"{spec.name}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, picks[j],
-                                Z=sys.Z, dZ=p.Z - sys.Z)
+    # 3. solve
+    say(f"estimating {len(names)} parameters from {ident.n_rows} rows "
+        f"({'WLS' if cfg.method == 'iv' else cfg.method.upper()})")
+    try:
+        result = ident.solve() if cfg.method == "ols" else ident.solve_weighted()
+    except IdentificationError as exc:
+        hint = excitation_hint(list(exc.parameters))
+        raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
+    if parts["identify"].bias is not None:
+        result = ident.with_systematic(result, parts["identify"].bias)
+    for k in range(settings.iv_passes if cfg.method == "iv" else 0):
+        # instruments from the last estimate on every identification segment (and, on the final pass, on the
+        # offsets' segments), then the IV estimate on the same rows (min_speed applies to the simulated rates)
+        say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
+        final = k == settings.iv_passes - 1
+        values = dict(zip(result.names, (float(v) for v in result.values), strict=True))
+        part = scheduler.map_reduce(reduce_car_segment, jobs(values, offsets=final), lambda j: j.role, combine,
+                                    say)["identify"]
+        ident = StreamingLS(names, **kw).merge(part.ls)
         try:
             # the paper's weights (eq. (8), as WLS): the two estimates then differ by their instruments alone
-            result = ident.solve_iv(sums, last.weights or None, iterations=0)
+            result = ident.solve_iv(part.iv, result.weights or None, iterations=0)
         except IdentificationError as exc:
             raise ConfigError(f"{cfg.path}: method = \"iv\": {exc}") from None
-        if acc is not None:
+        if part.bias is not None:
             x = np.array([result.value(n) for n in ident.estimated_names])
-            result = result.with_systematic(propagate(sums.normal(result.weights), acc, x, ident.estimated_names,
-                                                      result.weights))
-        return result, ident
+            result = result.with_systematic(propagate(part.iv.normal(result.weights), part.bias, x,
+                                                      ident.estimated_names, result.weights))
 
-    # segments on both cores: NumPy and SciPy release the GIL in their loops, and threads share the record.
-    # BLAS keeps to one thread inside each: its own threads would only compete with the segments' (and spin)
-    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, \
-            threadpool_limits(limits=1, user_api="blas"):
-        for spec in cfg.tests:
-            channels, factors, fs, segments = segments_of(spec)
-            say(f"{spec.name}: read {len(next(iter(channels.values())))} samples of {len(channels)} channels at "
-                f"{fs:g} Hz")
-            with_offsets = picked(len(segments)) if ident_offsets is not None and spec.role == "identify" else {}
-            jobs: deque = deque()
-            pending: list = []  # the offsets' jobs, used once the test's segments are accumulated
-            for i, (lo, hi) in enumerate(segments):  # consecutive segments overlap by the two borders
-                jobs.append(pool.submit(segment_rows, channels, factors, fs, lo, hi))
-                if i in with_offsets:
-                    pending += offset_jobs(pool, spec, channels, factors, fs, (lo, hi), jobs[-1], with_offsets[i])
-                if len(jobs) == 3:  # at most three segments in flight; a result is dropped once used
-                    use(spec, jobs.popleft(), i - 1, len(segments))
-            while jobs:  # segment numbers are 1-based: the job popped is number len(segments) - len(jobs) after it
-                use(spec, jobs.popleft(), len(segments) - len(jobs), len(segments))
-            if pending:
-                say(f"{spec.name}: the effect of {len(settings.offsets)} sensor offsets")
-                use_offsets(pending)
-        ident = streams["identify"]
-        say(f"estimating {len(names)} parameters from {ident.n_rows} rows "
-            f"({'WLS' if cfg.method == 'iv' else cfg.method.upper()})")
-        try:
-            result = ident.solve() if cfg.method == "ols" else ident.solve_weighted()
-        except IdentificationError as exc:
-            hint = excitation_hint(list(exc.parameters))
-            raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
-        if ident_offsets is not None:
-            result = ident.with_systematic(result, ident_offsets)
-        for k in range(settings.iv_passes if cfg.method == "iv" else 0):
-            say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
-            result, ident = iv_pass(pool, result, final=k == settings.iv_passes - 1)
-
+    # 4. results, direct and cross validation
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
                                  flag_percent=cfg.flag_percent)
-    run = IdentificationRun(model, base, result, GroupedSystem.stack(
-        [shown[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
+    run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
+        [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
         notes=sensors_note(vehicle) + offsets_note(result) + masses_note(result, tree)
         + "Physical consistency of the estimates: "
-        + consistency_text(result, base, tree))
-    run.validate = {t.name: shown[t.name] for t in cfg.tests if t.role == "validate"}
-    run.systems, run.config, run.vehicle = {t.name: shown[t.name] for t in cfg.tests}, cfg, vehicle
+        + consistency_text(result, setup.base, tree))
+    run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
+    run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.errors["direct"] = ident.relative_errors(result)
-    if streams["validate"].n_rows:
-        run.errors["cross"] = streams["validate"].relative_errors(result)
+    if validate is not None:
+        run.errors["cross"] = validate.relative_errors(result)
         # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
         # relative error of noise over noise: marked, not hidden
         noise = ident.group_rms(result)
-        moved = streams["validate"].group_rms()
+        moved = validate.group_rms()
         run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
     result.validation.update(run.errors)
     if run.not_excited:
@@ -462,11 +327,13 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
     return run
 
 
-def identify(cfg: IdentifyConfig, progress: Progress | None = None) -> IdentificationRun:
-    """Run the identification a config describes (a robot from joint files, or a car from its sensors)."""
+def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: Scheduler | None = None
+             ) -> IdentificationRun:
+    """Run the identification a config describes (a robot from joint files, or a car from its sensors), its
+    segments on `scheduler` (default: this machine's cores; see `schedulers`)."""
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
-        return _identify_car(cfg, say)
+        return _identify_car(cfg, say, scheduler)
     from .. import load_model
 
     model = load_model(cfg.model)

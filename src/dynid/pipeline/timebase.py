@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +23,7 @@ from ..io import Channel, DataError, FileFormatError, GapError, Recording, TimeB
 from ..io.align import InterpSpec
 from ..io.checks import locate
 
+T = TypeVar("T")
 RATE_TOLERANCE = 0.01  # relative: a config fs and a time column further apart than this disagree
 UNIFORM = 1e-3  # stamps within this fraction of a step of a uniform clock are used as they are
 
@@ -56,22 +58,29 @@ def _where(source: str, lines: NDArray[np.int64] | None, k: int, t: float, offse
     return text if lines is None else text.replace(", sample", f", line {int(lines[k])}, sample", 1)
 
 
-def read_test_file(path: Path, fs: float | None, test: str, config: Path,
-                   channels: list[str] | None = None) -> tuple[Recording, bool]:
-    """The file (only `channels`, when given), and whether its samples carry their own time stamps (a time
-    column)."""
+def opened(open_file: Callable[..., T], path: Path, fs: float | None, test: str, config: Path) -> tuple[T, bool]:
+    """open_file(fs=...) of a test's file (read whole, or indexed), and whether its samples carry their own time
+    stamps: a file without a time column needs the config's fs; with one, the stamps are used (and fs, if given,
+    is checked against them by the caller)."""
     try:
-        rec, timed = read_recording(path, fs=fs, channels=channels), fs is None
+        return open_file(fs=fs), fs is None
     except FileFormatError as exc:
         if fs is None:
             if "no time column" in str(exc):
                 raise FileFormatError(f"{exc}. Or give the rate in the config: fs = ... (Hz) in test {test!r} of "
                                       f"{config}", source=str(path)) from None
             raise
-        try:  # a time column: used, and fs checked against it by the caller
-            rec, timed = read_recording(path, channels=channels), True
+        try:
+            return open_file(fs=None), True
         except DataError:
             raise exc from None
+
+
+def read_test_file(path: Path, fs: float | None, test: str, config: Path,
+                   channels: list[str] | None = None) -> tuple[Recording, bool]:
+    """The file (only `channels`, when given), and whether its samples carry their own time stamps (a time
+    column)."""
+    rec, timed = opened(lambda fs: read_recording(path, fs=fs, channels=channels), path, fs, test, config)
     for ch in rec.channels.values():
         if ch.values.size < 2:  # a header and no data: nothing to filter or differentiate
             raise FileFormatError(f"{path}: channel {ch.name!r} has {ch.values.size} sample(s); test {test!r} needs "

@@ -1,0 +1,150 @@
+"""The car identification's unit of work: one segment of one test to its reduced factors, and their combination.
+
+`reduce_car_segment(job)` is a pure function of a small picklable job (the config, the segment's
+time window of its file, and what to evaluate on it): it reads the window, estimates the joints,
+builds the 14 equations' decimated rows and reduces them to a `Partial` (per equation group the
+triangular factor of [W | Y]; for some segments the sensor offsets' sensitivities, or an IDIM-IV
+pass's instrument sums). `combine` is pure and associative to round-off: Partials of any split of
+the data combine into the whole data's. A scheduler (`schedulers`) maps the first over every
+segment, on this machine's cores or a cluster's workers, and folds with the second.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import pickle
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..dynamics import BaseParameters, Model
+from ..estimation import StreamingLS
+from ..estimation.iv import InstrumentSums
+from ..estimation.systematic import BiasAccumulator
+from .config import IdentifyConfig
+from .robot import GroupedSystem
+from .sources import SegmentWindow
+
+
+@dataclass(frozen=True)
+class CarJob:
+    """One segment and what to evaluate on it.
+
+    offsets: (quantity, one-σ zero offset in the file's unit) whose effect is evaluated on this segment,
+    standing for `weight` segments of the test; instruments: the last estimate, for an IDIM-IV pass;
+    keep_rows: return the rows themselves (each test's first segment: the report's plots)."""
+
+    cfg: IdentifyConfig
+    window: SegmentWindow
+    role: str
+    number: int  # 1-based, within its test
+    offsets: tuple[tuple[str, float], ...] = ()
+    weight: float = 1.0
+    instruments: dict[str, float] | None = None
+    keep_rows: bool = False
+
+    @property
+    def test(self) -> str:
+        return self.window.test
+
+
+@dataclass
+class Partial:
+    """Reduced rows of some segments: least squares' factors, and where evaluated the offsets' sums and the
+    instruments' sums; rows: {test: its first segment's rows}; segments: how many segments went in."""
+
+    ls: StreamingLS
+    bias: BiasAccumulator | None = None
+    iv: InstrumentSums | None = None
+    rows: dict[str, GroupedSystem] = field(default_factory=dict)
+    segments: int = 1
+
+
+def combine(a: Partial, b: Partial) -> Partial:
+    """a's rows then b's (pure: neither changes)."""
+    def both(x, y):
+        return y if x is None else x if y is None else x.merge(y)
+
+    return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
+                   a.segments + b.segments)
+
+
+class CarSetup:
+    """What every segment of one config needs, built once per process: the vehicle, its tree with the known values,
+    the base parameters, the conditioning, the generated identification model."""
+
+    def __init__(self, cfg: IdentifyConfig) -> None:
+        from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
+        from ..vehicle.description import load_vehicle
+        from ..vehicle.estimate import CarConditioning
+
+        settings = self.settings = cfg.car
+        vehicle = self.vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+        tree = car_template(vehicle.geometry, vehicle.a_priori.values, name=vehicle.name)
+        # the bench values of the vehicle file, then the config's (a config may fix more, or other values)
+        known = {**vehicle.known, **{tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}}
+        if known:
+            tree = tree.with_values(known).with_known(set(known))
+        self.tree, self.model = tree, Model(tree)
+        self.base: BaseParameters = car_base_parameters(tree, settings.base)
+        self.names = list(self.base.names)
+        self.conditioning = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
+                                            compensate_delays=settings.compensate_delays)
+        self.aero = vehicle.aero if settings.aero else None
+        # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
+        self.equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
+
+    @cached_property
+    def regressor(self):
+        from ..symbolic.generated import GeneratedRegressor
+
+        return GeneratedRegressor(self.tree)
+
+    def rows(self, channels: dict[str, np.ndarray], fs: float, instruments: dict[str, float] | None = None,
+             keep: np.ndarray | None = None) -> GroupedSystem:
+        """The decimated rows of one segment's channels (SI)."""
+        from ..vehicle.estimate import estimate_joints
+        from .car import car_system
+
+        s = self.settings
+        traj = estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
+                               self.conditioning, self.vehicle.suite)
+        return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
+                          cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
+                          equations=self.equations)[0]
+
+
+_SETUPS: dict[str, CarSetup] = {}
+
+
+def car_setup(cfg: IdentifyConfig) -> CarSetup:
+    """The config's setup, built once per process (a worker receives the config with every job)."""
+    key = hashlib.sha256(pickle.dumps((cfg.path, cfg.model, cfg.vehicle, cfg.known, cfg.car))).hexdigest()
+    if key not in _SETUPS:
+        _SETUPS.clear()  # one config at a time per process is the rule; a campaign's configs take turns
+        _SETUPS[key] = CarSetup(cfg)
+    return _SETUPS[key]
+
+
+def reduce_car_segment(job: CarJob) -> Partial:
+    """The job's segment read, turned into rows and reduced (module doc)."""
+    setup = car_setup(job.cfg)
+    w = job.window
+    channels = w.read()
+    sys = setup.rows(channels, w.fs, job.instruments)
+    ls = StreamingLS(setup.names)
+    ls.add(sys.W, sys.Y, sys.groups)
+    part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    if job.instruments is not None:
+        part.iv = ls.instrument_sums()
+        part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
+    if job.offsets:
+        part.bias = ls.bias_accumulator()
+        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (file unit), rows unchanged
+            moved = dict(channels)
+            moved[q] = channels[q] + b * w.factors[q]
+            p = setup.rows(moved, w.fs, job.instruments, keep=sys.kept)
+            iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
+            part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
+    return part

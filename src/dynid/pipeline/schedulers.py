@@ -1,0 +1,136 @@
+"""Two schedulers of one graph: map a pure function over jobs, fold each key's results by a tree of `combine`.
+
+The fold's shape depends only on the jobs' order (pairs of neighbours, level by level), never on
+which job finished first or where it ran, so this machine's threads and a Dask cluster give the
+same answer to the last bit on the same CPU (and to round-off across CPUs).
+
+- `LocalScheduler(workers)`: threads on this machine (NumPy, SciPy and the compiled kernels release
+  the GIL; BLAS kept to one thread inside each); at most 2 x workers jobs in flight, so memory
+  follows the segments being worked on, not the file.
+- `DaskScheduler(address)`: a dask.distributed cluster ("local" starts a LocalCluster on this
+  machine); the jobs are small (a segment's time window of a file the workers can reach), the
+  workers read their data themselves, and the fold runs on the workers too. A worker lost
+  mid-run has its tasks recomputed by Dask from the same jobs: the result does not change.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Hashable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from typing import Any, Protocol, TypeVar
+
+from threadpoolctl import threadpool_limits
+
+J = TypeVar("J")
+R = TypeVar("R")
+Progress = Callable[[str], None]
+
+
+class Scheduler(Protocol):
+    def map_reduce(self, fn: Callable[[J], R], jobs: Sequence[J], key: Callable[[J], Hashable],
+                   combine: Callable[[R, R], R], progress: Progress | None = None) -> dict[Hashable, R]: ...
+
+
+def tree_fold(items: list, combine: Callable[[Any, Any], Any]) -> Any:
+    """((a b) (c d)) (e ...): neighbours combined level by level (a depth of log2 n, a fixed shape)."""
+    while len(items) > 1:
+        items = [combine(items[i], items[i + 1]) if i + 1 < len(items) else items[i] for i in range(0, len(items), 2)]
+    return items[0]
+
+
+def _by_key(jobs: Sequence, key: Callable) -> dict[Hashable, list[int]]:
+    groups: dict[Hashable, list[int]] = {}
+    for i, j in enumerate(jobs):
+        groups.setdefault(key(j), []).append(i)
+    return groups
+
+
+class LocalScheduler:
+    """This machine's cores (module doc)."""
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, workers or min(2, os.cpu_count() or 1))
+
+    def __repr__(self) -> str:
+        return f"{self.workers} local thread(s)"
+
+    def map_reduce(self, fn, jobs, key, combine, progress=None):
+        say = progress or (lambda _m: None)
+        results: list = [None] * len(jobs)
+        done = 0
+        with ThreadPoolExecutor(self.workers) as pool, threadpool_limits(limits=1, user_api="blas"):
+            running: dict = {}
+            todo = iter(range(len(jobs)))
+            for i in todo:
+                running[pool.submit(fn, jobs[i])] = i
+                if len(running) < 2 * self.workers:
+                    continue
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    results[running.pop(f)] = f.result()
+                    done += 1
+                    say(f"segments done {done}/{len(jobs)}")
+            for f in list(running):
+                results[running.pop(f)] = f.result()
+                done += 1
+                say(f"segments done {done}/{len(jobs)}")
+        return {k: tree_fold([results[i] for i in idx], combine) for k, idx in _by_key(jobs, key).items()}
+
+
+class DaskScheduler:
+    """A dask.distributed cluster (module doc): address "local" (a LocalCluster of `workers` single-threaded
+    processes on this machine) or a scheduler's address ("tcp://host:8786")."""
+
+    def __init__(self, address: str = "local", workers: int | None = None) -> None:
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            from ..io.errors import MissingDependencyError
+
+            raise MissingDependencyError("Running on a Dask cluster needs dask.distributed: "
+                                         "pip install 'dynid[dask]'") from None
+        self.address = address
+        if address == "local":
+            self._cluster = LocalCluster(n_workers=workers or min(2, os.cpu_count() or 1), threads_per_worker=1,
+                                         processes=True, dashboard_address=None, host="127.0.0.1")
+            self.client = Client(self._cluster)
+        else:
+            self._cluster = None
+            self.client = Client(address, timeout="30s")
+
+    def __repr__(self) -> str:
+        n = len(self.client.scheduler_info().get("workers", {}))
+        return f"Dask cluster {self.address} ({n} worker(s))"
+
+    def close(self) -> None:
+        self.client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+    def __enter__(self) -> DaskScheduler:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def map_reduce(self, fn, jobs, key, combine, progress=None):
+        from dask.distributed import as_completed
+
+        say = progress or (lambda _m: None)
+        futures = self.client.map(fn, list(jobs), pure=False, retries=2)
+        for done, _ in enumerate(as_completed(futures), 1):
+            say(f"segments done {done}/{len(jobs)} on {self}")
+        out = {}
+        for k, idx in _by_key(jobs, key).items():
+            level = [futures[i] for i in idx]
+            while len(level) > 1:  # the same fixed shape as tree_fold, run where the parts are
+                level = [self.client.submit(combine, level[i], level[i + 1], pure=False, retries=2)
+                         if i + 1 < len(level) else level[i] for i in range(0, len(level), 2)]
+            out[k] = level[0]
+        return dict(zip(out, self.client.gather(list(out.values())), strict=True))
+
+
+def scheduler_for(address: str | None, workers: int | None = None) -> LocalScheduler | DaskScheduler:
+    """None: this machine's threads; "local" or an address: Dask."""
+    return LocalScheduler(workers) if address in (None, "", "threads") else DaskScheduler(address, workers)

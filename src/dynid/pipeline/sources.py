@@ -1,0 +1,223 @@
+"""What a car test reads, planned once and read a segment at a time.
+
+`plan_car_test` makes one pass over a logger file that keeps only its time stamps (a few bytes
+per sample whatever the number of channels): per time base (a logging rate) the stamps are
+checked as `timebase.stream` checks them (stamps going back, holes over `max_gap`, repeated
+stamps, jitter), the clock of the fastest channels is chosen and cut to the span every channel
+covers and the test's start..end, and the clock is split into overlapping segments. The plan is
+small and picklable: with a file index (`dynid.io.windows`), any process that can reach the
+file reads one segment's time window itself (`read_segment`), so peak memory follows the
+segment's length, not the file's.
+
+On a file whose channels share one uniform clock (a logger's usual export) a segment's samples
+are the file's own, bit for bit; on jittered or multi-rate files each segment is resampled onto
+its slice of the uniform clock from the samples around it (a margin of several steps each side).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
+from ..io.align import InterpSpec
+from ..io.windows import FileIndex, index_file, iter_blocks, read_window
+from .config import IdentifyConfig, TestSpec
+from .timebase import RATE_TOLERANCE, opened, stream
+
+Progress = Callable[[str], None]
+MARGIN_STEPS = 8  # samples of the slowest base read beyond a segment's ends: the interpolation's support
+
+
+@dataclass(frozen=True)
+class CarTestPlan:
+    """One test's file, channels and clock, and its segments (clock sample ranges, overlapping by the filter's
+    borders). `clock` stays with the client; a segment's job carries its own slice."""
+
+    test: str
+    role: str
+    index: FileIndex
+    file_names: tuple[str, ...]  # the channels read from the file
+    quantity_names: dict[str, str]  # quantity (the suite's channel) -> file channel
+    factors: dict[str, float]  # quantity -> factor to SI
+    clock: NDArray[np.float64]
+    fs: float
+    timed: bool
+    max_gap: float
+    base_steps: tuple[float, ...]  # each time base's step, s (their number tells a multi-rate file)
+    segments: tuple[tuple[int, int], ...]
+
+    @property
+    def samples(self) -> int:
+        return int(self.clock.size)
+
+
+@dataclass(frozen=True)
+class SegmentWindow:
+    """What one segment reads: the file, its channels, and its slice of the clock."""
+
+    test: str
+    index: FileIndex
+    file_names: tuple[str, ...]
+    quantity_names: dict[str, str]
+    factors: dict[str, float]
+    clock: NDArray[np.float64]
+    fs: float  # the test's rate (the same for every segment)
+    timed: bool
+    max_gap: float
+    margin: float  # s
+
+    def read(self) -> dict[str, NDArray[np.float64]]:
+        """{quantity: values on the clock slice, SI}."""
+        return read_segment(self)
+
+
+def _time_bases(index: FileIndex, names: Sequence[str]
+                ) -> tuple[list[tuple[list[str], NDArray, NDArray | None]], dict[str, str]]:
+    """[(channel names, time stamps, file lines or None)] per time base, from one pass over the file's blocks, and
+    each channel's unit. A channel joins the channels whose stamps it shares in the first block where it has
+    samples (a block may hold one time base only: an MDF channel group's records); from then on, a member whose
+    stamps leave its base's is refused."""
+    bases: list[tuple[list[str], list, list]] = []
+    counts = dict.fromkeys(names, 0)
+    units: dict[str, str] = {}
+    for block in iter_blocks(index, names):
+        chans = {n: block.channel(n) for n in names}
+        born: list[int] = []  # the bases first seen in this block: a newcomer may join only those
+        for n, ch in chans.items():
+            counts[n] += ch.values.size
+            units.setdefault(n, ch.unit)
+            if ch.time.size == 0 or any(n in b[0] for b in bases):
+                continue
+            k = next((k for k in born if np.array_equal(chans[bases[k][0][0]].time, ch.time)), None)
+            if k is None:
+                born.append(len(bases))
+                bases.append(([n], [], []))
+            else:
+                bases[k][0].append(n)
+        for members, times, lines in bases:
+            t = chans[members[0]].time
+            odd = next((m for m in members[1:] if not np.array_equal(chans[m].time, t)), None)
+            if odd is not None:
+                raise DataError(f"{index.path}: channel {odd!r} leaves the time base of {members[0]!r} part-way "
+                                "through the file; export each logging rate as its own channels", source=index.path)
+            if t.size:
+                times.append(t)
+                lines.append(chans[members[0]].lines)
+    for name, n in counts.items():
+        if n < 2:  # a header and no data: nothing to filter or differentiate
+            raise FileFormatError(f"{index.path}: channel {name!r} has {n} sample(s); a test needs a record (is the "
+                                  "file empty or cut short?)", source=index.path)
+    return [(m, np.concatenate(t), None if any(x is None for x in ln) else np.concatenate(ln))
+            for m, t, ln in bases], units
+
+
+def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], units: dict[str, str],
+                  segment_s: float | None, border: Callable[[float], int], progress: Progress | None = None
+                  ) -> CarTestPlan:
+    """The test's file indexed and its clock planned (module doc). wanted: the sensor suite's quantities;
+    units: each quantity's own unit (its dimension is what the file's channel must have); segment_s: the
+    segments' length, s (None: one segment); border(fs): the filter's border in samples, by which consecutive
+    segments overlap at each end."""
+    say = progress or (lambda _m: None)
+    path = spec.files["channels"]
+    renamed = {q: (c.channels[0], c.unit) for q, c in cfg.channels.items()}
+    in_file = {q: renamed.get(q, (q, None))[0] for q in wanted}
+    names = list(dict.fromkeys(in_file.values()))
+    given = None if format_of(path) == "mdf" else spec.fs  # an MDF file's channels always carry their time stamps
+    index, timed = opened(lambda fs: index_file(path, channels=names, fs=fs), path, given, spec.name, cfg.path)
+    label = str(path)
+    streams = []
+    bases, file_units = _time_bases(index, names)
+    for members, t, lines in bases:
+        clock_only = Channel("time", "s", t, t, lines)  # the stamps stand for the base's channels in the checks
+        s = stream([clock_only], label, timed, spec.max_gap, (spec.start, spec.end))
+        streams.append((members, s))
+    if timed:
+        for members, s in streams:
+            listed = ", ".join(members[:3]) + (", ..." if len(members) > 3 else "")
+            say(f"{spec.name}: {s.report()}" + (f" ({len(members)} channels: {listed})" if len(streams) > 1 else ""))
+    fastest = min(s.h for _, s in streams)  # the clock: the fastest channels' (the most of them at one rate)
+    ref = max((s for m, s in streams if s.h <= fastest * (1 + 1e-6)),
+              key=lambda s: len(next(m for m, x in streams if x is s)))
+    h = ref.h
+    if timed and spec.fs is not None and abs(1 / h - spec.fs) > RATE_TOLERANCE * spec.fs:
+        raise DataError(
+            f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time stamps of {label} say "
+            f"{1 / h:.6g} Hz (step {h * 1e3:.6g} ms): remove fs from the test (the time stamps are used), or correct "
+            "it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=label)
+    lo, hi = max(s.t[0] for _, s in streams), min(s.t[-1] for _, s in streams)
+    if lo > hi:
+        spans = "; ".join(f"{', '.join(m[:2])}, ... cover {s.t[0]:.6g}..{s.t[-1]:.6g} s" for m, s in streams)
+        raise DataError(f"{label}: the channels do not overlap in time: {spans}", source=label)
+    first, last = lo, hi
+    tol = 1e-9 * max(abs(last), h)
+    for key, v in (("start", spec.start), ("end", spec.end)):
+        if v is not None and not first - tol <= v <= last + tol:
+            raise DataError(f"{cfg.path}: test {spec.name!r}: {key} = {v:g} s is outside the record {label}, "
+                            f"which covers {first:.6g}..{last:.6g} s (every channel); give a time inside it",
+                            source=label)
+    a = lo if spec.start is None else max(lo, spec.start)
+    b = hi if spec.end is None else min(hi, spec.end)
+    clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
+                                                             np.floor((ref.t[-1] - ref.t0) / h) + 1)
+    clock = clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
+    if clock.size < 2:
+        raise DataError(f"{cfg.path}: test {spec.name!r}: no two samples of {label} between start and end "
+                        f"({a:.6g}..{b:.6g} s at {1 / h:.6g} Hz): widen the window", source=label)
+    if len(streams) > 1:
+        rates = ", ".join(f"{1 / s.h:.6g} Hz ({len(m)})" for m, s in sorted(streams, key=lambda ms: ms[1].h))
+        say(f"{spec.name}: channels at several rates in {label}: {rates}; every channel interpolated onto the "
+            f"{1 / h:.6g} Hz clock of the fastest, {clock.size} samples ({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    elif not ref.uniform:
+        say(f"{spec.name}: every channel on one uniform {1 / h:.6g} Hz clock, {clock.size} samples "
+            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    factors = {}
+    for q, name in in_file.items():
+        unit = renamed.get(q, (None, None))[1] or file_units.get(name, "")
+        expect = (unit_factor(units[q])[1],) if q in units else None
+        factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
+    fs = 1.0 / float(np.median(np.diff(clock)))
+    N = clock.size
+    bd = border(fs)
+    step = N if segment_s is None else max(int(segment_s * fs), 4 * bd)
+    segments = tuple((s, min(N, s + step + 2 * bd)) for s in range(0, max(N - 2 * bd, 1), step))
+    return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock, fs, timed, spec.max_gap,
+                       tuple(s.h for _, s in streams), segments)
+
+
+def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
+    """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice and the index)."""
+    margin = MARGIN_STEPS * max(plan.base_steps)
+    return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
+                         np.array(plan.clock[lo:hi]), plan.fs, plan.timed, plan.max_gap, margin)
+
+
+def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.float64]]:
+    """{quantity: values on the window's clock slice, SI (or the file's unit)}: the file's samples around the slice,
+    repeated stamps merged, each channel not already on the clock interpolated onto it (cubic)."""
+    clock = w.clock
+    rec = read_window(w.index, list(w.file_names), float(clock[0]) - w.margin, float(clock[-1]) + w.margin)
+    bases: list[list[Channel]] = []
+    for name in w.file_names:
+        ch = rec.channel(name)
+        base = next((b for b in bases if b[0].time is ch.time or np.array_equal(b[0].time, ch.time)), None)
+        if base is None:
+            bases.append([ch])
+        else:
+            base.append(ch)
+    specs = []
+    for members in bases:
+        s = stream(members, rec.label, w.timed, w.max_gap)
+        t = s.t
+        k = np.searchsorted(t, clock)
+        if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):  # on the clock: used as they are
+            rows = slice(int(k[0]), int(k[-1]) + 1)
+            specs += [InterpSpec(n, Channel(n, c.unit, c.values[rows], t[rows])) for n, c in s.channels.items()]
+        else:
+            specs += [InterpSpec(n, c) for n, c in s.channels.items()]
+    al = align(specs, t=clock, source=rec.label, gap_factor=None)
+    return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
