@@ -265,7 +265,9 @@ def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float)
     Bit for bit what `read_recording(index.path, channels=channels, **options)` gives
     restricted to the window (values, time, units, and `lines` for CSV). Every channel
     asked for is in the result, with 0 samples when it has none in the window. An empty
-    window (t1 < t0) gives 0 samples everywhere. MAT files are read whole (and cached).
+    window (t1 < t0) gives 0 samples everywhere. MATLAB v5 files are read whole (and
+    cached), v7.3 files in slices. A window of a file whose stamps go back reads every
+    block whose [min, max] meets it, and keeps the rows inside, in file order.
     """
     names = _asked(index, channels)
     lo, hi = _window(index, t0, t1)
