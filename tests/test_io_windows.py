@@ -34,6 +34,7 @@ from dynid.io import (
     iter_blocks,
     read_recording,
     read_window,
+    time_bases,
     windows,
     write_recording,
 )
@@ -95,6 +96,18 @@ def check_windows_and_blocks(path: Path, names: list[str], windows_: list[tuple[
             None if want.lines is None else np.concatenate([g.lines for g in got]),
         )
         assert_same_channel(joined, want)
+    # the time bases: every channel with samples in exactly one, whose stamps (and lines) are the channel's own
+    bases = time_bases(index, names)
+    for n in names:
+        want = whole.channels.get(n)
+        home = [b for b in bases if n in b[0]]
+        if want is None or len(want) == 0:
+            assert not home, n
+            continue
+        assert len(home) == 1, (n, [b[0] for b in bases])
+        _, t, lines = home[0]
+        np.testing.assert_array_equal(bits(t), bits(want.time))
+        assert (lines is None) == (want.lines is None) and (lines is None or np.array_equal(lines, want.lines))
     assert pickle.loads(pickle.dumps(index)) == index
     assert hash(pickle.loads(pickle.dumps(index))) == hash(index)
     return index

@@ -50,7 +50,7 @@ from .files import format_of, read_recording, write_recording
 from .mapping import ChannelMap, QuantitySpec
 from .recording import Channel, Recording
 from .units import STANDARD_GRAVITY, known_units, normalize_unit, to_si, unit_factor
-from .windows import Block, FileIndex, index_file, iter_blocks, read_window
+from .windows import Block, FileIndex, index_file, iter_blocks, read_window, time_bases
 
 __all__ = [
     "STANDARD_GRAVITY",
@@ -89,6 +89,7 @@ __all__ = [
     "normalize_unit",
     "read_recording",
     "read_window",
+    "time_bases",
     "to_si",
     "unit_factor",
     "write_recording",

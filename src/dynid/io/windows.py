@@ -310,6 +310,73 @@ def iter_blocks(index: FileIndex, channels: Sequence[str]) -> Iterator[Recording
         yield _assembled(index, names, {n: [rec.channels[n]] if n in rec.channels else [] for n in names})
 
 
+TimeBase = tuple[list[str], NDArray[np.float64], "NDArray[np.int64] | None"]
+
+
+def time_bases(index: FileIndex, channels: Sequence[str]) -> list[TimeBase]:
+    """The channels' time bases over the whole file: [(channel names, time stamps, file lines or None)], each
+    base's stamps as `read_recording` gives them to its channels, from a pass that keeps only stamps (8 bytes per
+    sample per base, whatever the number of channels).
+
+    A Parquet file whose columns have no null (its row groups' statistics say so) is one base on its time column,
+    and only that column is decoded. Otherwise the blocks are read one at a time, and a base is the channels
+    whose stamps are its own in every block (a channel with no sample at all is in none)."""
+    names = _asked(index, channels)
+    if index.format == "parquet" and _parquet_dense(index, names):
+        return [(names, _parquet_stamps(index), None)]
+    # partition refinement: the channels start as one base, split in each block by their stamps there (a channel
+    # without samples in a block has the empty stamps), so a base is the channels sharing their stamps everywhere
+    bases: list[tuple[list[str], list, list]] = [(list(names), [], [])]
+    for block in iter_blocks(index, names):
+        refined = []
+        for members, times, lines in bases:
+            classes: list[tuple[Channel, list[str]]] = []
+            for n in members:
+                ch = block.channels[n]
+                home = next((c for c in classes if np.array_equal(c[0].time, ch.time)), None)
+                if home is None:
+                    classes.append((ch, [n]))
+                else:
+                    home[1].append(n)
+            for ch, ms in classes:  # a base that splits leaves each part a copy of its stamps so far
+                t, ln = (times, lines) if len(classes) == 1 else (list(times), list(lines))
+                if ch.time.size:
+                    t.append(ch.time)
+                    ln.append(ch.lines)
+                refined.append((ms, t, ln))
+        bases = refined
+    return [(m, np.concatenate(t), None if any(x is None for x in ln) else np.concatenate(ln))
+            for m, t, ln in bases if t]
+
+
+def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
+    """Every row of every column asked for holds a sample (statistics of every row group say no null)."""
+    pfile = _open_parquet(index.path)
+    meta = pfile.metadata
+    where = {pfile.schema_arrow.names[i]: i for i in range(meta.num_columns)}
+    for g in range(meta.num_row_groups):
+        rg = meta.row_group(g)
+        for n in names:
+            st = rg.column(where[n]).statistics
+            if st is None or not st.has_null_count or st.null_count:
+                return False
+    return True
+
+
+def _parquet_stamps(index: FileIndex) -> NDArray[np.float64]:
+    """The file's time column (or row / fs), decoded block by block as the whole-file reader decodes it."""
+    _check_unchanged(index)
+    opened: list[Any] = []
+    parts = []
+    for b in index.blocks:
+        if index.time_column is None:
+            parts.append(uniform_time(b.rows, index.option("fs"), index.path, b.row0))
+        elif b.rows:
+            col = _parquet_column(index, b, index.time_column, opened, store=False)
+            parts.append(table_time([col], index.time_column, None, index.path, None, b.row0))
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 def clear_cache() -> None:
     """Forget the decoded blocks kept by this process."""
     with _lock:

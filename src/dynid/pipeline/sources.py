@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
 from ..io.align import InterpSpec
-from ..io.windows import FileIndex, index_file, iter_blocks, read_window
+from ..io.windows import FileIndex, index_file, read_window, time_bases
 from .config import IdentifyConfig, TestSpec
 from .timebase import RATE_TOLERANCE, opened, stream
 
@@ -77,42 +77,17 @@ class SegmentWindow:
 
 def _time_bases(index: FileIndex, names: Sequence[str]
                 ) -> tuple[list[tuple[list[str], NDArray, NDArray | None]], dict[str, str]]:
-    """[(channel names, time stamps, file lines or None)] per time base, from one pass over the file's blocks, and
-    each channel's unit. A channel joins the channels whose stamps it shares in the first block where it has
-    samples (a block may hold one time base only: an MDF channel group's records); from then on, a member whose
-    stamps leave its base's is refused."""
-    bases: list[tuple[list[str], list, list]] = []
+    """`time_bases` of the file, each channel's unit, and a channel without two samples refused."""
+    bases = time_bases(index, names)
     counts = dict.fromkeys(names, 0)
-    units: dict[str, str] = {}
-    for block in iter_blocks(index, names):
-        chans = {n: block.channel(n) for n in names}
-        born: list[int] = []  # the bases first seen in this block: a newcomer may join only those
-        for n, ch in chans.items():
-            counts[n] += ch.values.size
-            units.setdefault(n, ch.unit)
-            if ch.time.size == 0 or any(n in b[0] for b in bases):
-                continue
-            k = next((k for k in born if np.array_equal(chans[bases[k][0][0]].time, ch.time)), None)
-            if k is None:
-                born.append(len(bases))
-                bases.append(([n], [], []))
-            else:
-                bases[k][0].append(n)
-        for members, times, lines in bases:
-            t = chans[members[0]].time
-            odd = next((m for m in members[1:] if not np.array_equal(chans[m].time, t)), None)
-            if odd is not None:
-                raise DataError(f"{index.path}: channel {odd!r} leaves the time base of {members[0]!r} part-way "
-                                "through the file; export each logging rate as its own channels", source=index.path)
-            if t.size:
-                times.append(t)
-                lines.append(chans[members[0]].lines)
+    for members, t, _ in bases:
+        for n in members:
+            counts[n] = t.size
     for name, n in counts.items():
         if n < 2:  # a header and no data: nothing to filter or differentiate
             raise FileFormatError(f"{index.path}: channel {name!r} has {n} sample(s); a test needs a record (is the "
                                   "file empty or cut short?)", source=index.path)
-    return [(m, np.concatenate(t), None if any(x is None for x in ln) else np.concatenate(ln))
-            for m, t, ln in bases], units
+    return bases, {n: index.units.get(n, "") for n in names}
 
 
 def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], units: dict[str, str],

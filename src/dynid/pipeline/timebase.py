@@ -124,20 +124,24 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
             f"to {float(t[k]):.6g} s ({back.size} such step(s) in all): the time stamps must not decrease. Sort the "
             "rows by time or fix the logger's clock, or keep to a part before or after it (start, end in the test)",
             source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
-    first = np.flatnonzero(np.concatenate(([True], step > 0.0)))
-    repeated = t.size - first.size
+    # lean on memory: an hour's stamps are millions of samples, and the planning pass of a long file holds only them
+    up = step > 0.0
+    repeated = t.size - 1 - int(np.count_nonzero(up))
+    first = None  # the first row of each stamp, where rows repeat one
     if repeated:  # rows with one stamp: one sample, their mean
+        first = np.flatnonzero(np.concatenate(([True], up)))
         counts = np.diff(np.append(first, t.size))[:, None]
         merged = np.add.reduceat(np.column_stack([c.values for c in chans]), first, axis=0) / counts
         t_lines = None if lines is None else lines[first]
         chans = [Channel(c.name, c.unit, merged[:, i], t[first], t_lines) for i, c in enumerate(chans)]
+    del up
     tu = chans[0].time
-    su = np.diff(tu)
+    su = np.diff(tu) if repeated else step
     h = float(np.median(su))
     big = np.flatnonzero(su > max_gap * h)
     if big.size:
         i = int(big[0])
-        k = int(first[i + 1])
+        k = int(first[i + 1]) if first is not None else i + 1
         raise GapError(
             f"{_where(source, lines, k, float(t[k]), offset)}: no sample for {su[i] * 1e3:.4g} ms before it (from "
             f"t = {float(tu[i]):.6g} s), {su[i] / h:.3g} sample periods at {1 / h:.6g} Hz, over max_gap = {max_gap:g} "
@@ -146,13 +150,25 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
             source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
     # each step rounded to whole periods on its own: the count over the whole record (span / median step) is off
     # by several under a realistic jitter (10 % of the step over thousands of samples), which skews the rate
-    slots = np.concatenate(([0.0], np.cumsum(np.rint(su / h))))
-    h, t0 = np.polyfit(slots, tu, 1)  # the logger's clock: the stamps' least-squares line
-    h, t0 = float(h), float(t0)
-    jitter = tu - t0 - slots * h
-    uniform = bool(np.max(np.abs(jitter)) <= UNIFORM * h and np.all(np.diff(slots) == 1))
+    periods = np.rint(su / h)
+    consecutive = bool(np.all(periods == 1.0))
+    slots = np.empty(tu.size)
+    slots[0] = 0.0
+    np.cumsum(periods, out=slots[1:])
+    del periods
+    # the logger's clock: the stamps' least-squares line t = t0 + h slot, in closed form about the means
+    s_mean, t_mean = float(slots.mean()), float(tu.mean())
+    centred = slots - s_mean
+    h = float(centred @ (tu - t_mean) / (centred @ centred))
+    del centred
+    t0 = t_mean - h * s_mean
+    jitter = slots * h  # then tu - t0 - slots h, in place
+    np.subtract(tu, jitter, out=jitter)
+    jitter -= t0
+    worst = float(max(jitter.max(), -jitter.min()))
+    uniform = bool(worst <= UNIFORM * h and consecutive)
     return Stream(source, timed, tu, {c.name: c for c in chans}, h, uniform, t0, repeated,
-                  float(np.sqrt(np.mean(jitter**2))), float(np.max(np.abs(jitter))), float(np.max(su)))
+                  float(np.sqrt(jitter @ jitter / jitter.size)), worst, float(np.max(su)))
 
 
 def on_one_clock(

@@ -1,0 +1,124 @@
+"""Fleet scale: bounded memory for any file length, throughput, and the cost of a Dask cluster.
+
+Run:  python benchmarks/bench_fleet.py [--hours 1 3] [--workers 1 2] [--format parquet]
+
+Writes car logger files of each length (the sensor suite's 55 channels at 625 Hz: a 12 s
+manoeuvre of the estimator test's trajectory, repeated; throughput and memory, not accuracy,
+are measured here), once, not timed. Then, each in a fresh child process (imports and the
+compiled engine loaded from its cache before the clock starts):
+
+- `identify` on this machine's threads (2): wall time, hours of data per second, and the
+  child's peak resident memory, for every length (the memory must not grow with it);
+- the same on a Dask LocalCluster of N single-threaded worker processes for each N of
+  --workers (the cluster's start is not timed), twice: cold (each worker process imports
+  dynid and loads the engine on its first job) and warm (a running cluster, as a fleet's
+  is): wall times, the warm one's ratio to the threads' run, and the scaling from 1 to 2
+  workers.
+
+Targets (issue 15): peak <= 1 GB for 3 h and for 1 h; >= 1 h of data per 8 s of wall time
+on 2 cores, reading included; a LocalCluster of 2 workers within 1.3 x the threads' time.
+Writes benchmarks/results/fleet.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from bench_pipeline import CONFIG, write_hour  # noqa: E402
+
+CHILD = """
+import json, resource, sys, time
+from dynid.pipeline.config import load_config
+from dynid.pipeline.run import identify
+from dynid.pipeline.schedulers import scheduler_for
+from dynid.pipeline.reduce import car_setup
+cfg = load_config(sys.argv[1])
+address = None if sys.argv[2] == "threads" else "local"
+scheduler = scheduler_for(address, int(sys.argv[3]))
+car_setup(cfg).regressor  # imports, the vehicle and the engine's cache loaded before the clock starts
+walls = []
+for _ in range(1 if address is None else 2):  # a cluster: its workers cold (first run), then warm
+    t0 = time.perf_counter()
+    run = identify(cfg, scheduler=scheduler)
+    walls.append(time.perf_counter() - t0)
+getattr(scheduler, "close", lambda: None)()
+print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.identify.W.shape[0]),
+                  "M6": float(run.result.value("M6")),
+                  "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))
+"""
+
+
+def child(config: Path, where: str, workers: int) -> dict:
+    proc = subprocess.run([sys.executable, "-c", CHILD, str(config), where, str(workers)], capture_output=True,
+                          text=True)
+    if proc.returncode:
+        sys.exit(f"the identification failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 3.0])
+    ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="LocalCluster sizes to time (none: skip)")
+    ap.add_argument("--format", default="parquet", choices=["parquet", "csv", "mf4"])
+    args = ap.parse_args()
+    res: dict = {"format": args.format, "cpus": os.cpu_count(), "machine": os.uname().machine, "runs": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        configs = {}
+        for hours in args.hours:
+            folder = Path(tmp) / f"h{hours:g}"
+            folder.mkdir()
+            t = time.perf_counter()
+            data = write_hour(folder, hours * 60, args.format)
+            print(f"wrote {hours:g} h of 625 Hz channels ({data.stat().st_size / 1e6:.0f} MB {args.format}) in "
+                  f"{time.perf_counter() - t:.0f} s (not timed)", flush=True)
+            configs[hours] = folder / "identify.toml"
+            configs[hours].write_text(CONFIG.format(file=data.name))
+        print(f"\n{'file':>6} {'where':>22} {'wall s':>8} {'h per 8 s':>10} {'peak GB':>8}")
+        threads = {}
+        for hours, cfg in configs.items():
+            r = child(cfg, "threads", 2)
+            threads[hours] = r
+            res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r})
+            print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
+                  f"{r['peak_gb']:8.2f}", flush=True)
+        hours = min(configs)
+        cluster = {}
+        for n in args.workers:
+            r = child(configs[hours], "local", n)
+            cluster[n] = r
+            res["runs"].append({"hours": hours, "where": "LocalCluster", "workers": n, **r})
+            print(f"{hours:>5g}h {f'LocalCluster {n} worker(s)':>22} {r['wall_s']:8.2f} "
+                  f"{8 * hours / r['wall_s']:10.2f} {r['peak_gb']:8.2f}  (client)   warm: "
+                  f"{r['wall_s'] / threads[hours]['wall_s']:.2f} x the threads; cold {r['cold_s']:.2f} s", flush=True)
+            if abs(r["M6"] / threads[hours]["M6"] - 1) > 1e-9:
+                sys.exit(f"the cluster's M6 {r['M6']} differs from the threads' {threads[hours]['M6']}")
+    peak = max(r["peak_gb"] for r in res["runs"] if r["where"] == "threads")
+    rate = min(8 * r["hours"] / r["wall_s"] for r in res["runs"] if r["where"] == "threads")
+    print(f"\npeak resident memory, threads, any length   {peak:6.2f} GB   target <= 1 GB")
+    print(f"throughput (slowest length)                  {rate:6.2f} h of data per 8 s   target >= 1")
+    if 2 in cluster:
+        print(f"LocalCluster of 2 (warm) against the threads  {cluster[2]['wall_s'] / threads[hours]['wall_s']:6.2f} x"
+              f"   target <= 1.3   (cold: {cluster[2]['cold_s'] / threads[hours]['wall_s']:.2f} x)")
+    if 1 in cluster and 2 in cluster:
+        print(f"scaling, 1 -> 2 workers (warm)                {cluster[1]['wall_s'] / cluster[2]['wall_s']:6.2f} x")
+    dest = HERE / "results" / "fleet.json"
+    dest.parent.mkdir(exist_ok=True)
+    tmpf = dest.with_suffix(".tmp")
+    tmpf.write_text(json.dumps(res, indent=2))
+    tmpf.replace(dest)
+    print(f"wrote {dest.relative_to(HERE.parent)}")
+
+
+if __name__ == "__main__":
+    main()
