@@ -175,3 +175,18 @@ def test_a_campaign_gives_each_config_its_own_result(car_config, threads_run, cl
     for run, row in zip(runs, rows, strict=True):
         value = float(row[mass].split(" ± ")[0])
         assert value == pytest.approx(run.result.value("M6") + 140.0, rel=1e-5)  # the wheels: 4 x 35 kg, known
+
+
+def test_a_robot_on_the_cluster_gives_the_threads_result(cluster, tmp_path, monkeypatch):
+    """A robot's chunks (read from its file by the workers) stack into the same rows, hence the same estimate."""
+    from test_robot_memory import robot_log
+
+    from dynid.pipeline import robot
+
+    monkeypatch.setattr(robot, "SEGMENT_BYTES", 8 * 2**20)  # several chunks (the client cuts them)
+    cfg = load_config(robot_log(tmp_path))
+    threads = identify(cfg, scheduler=LocalScheduler(2))
+    other = identify(cfg, scheduler=cluster)
+    np.testing.assert_allclose(other.result.values, threads.result.values, rtol=REL, atol=0)
+    np.testing.assert_allclose(other.result.std, threads.result.std, rtol=REL, atol=0)
+    assert other.errors["direct"] == pytest.approx(threads.errors["direct"], rel=REL)

@@ -58,3 +58,60 @@ def test_memory_does_not_grow_with_the_full_rate_regressor():
     finally:
         tracemalloc.stop()
     assert peak < full_w / 2, (peak / 2**20, full_w / 2**20)
+
+
+ROBOT_CONFIG = """
+[model]
+example = "tx40"
+
+[[tests]]
+name = "sines"
+files = {{ q = "{file}", tau = "{file}" }}
+
+[channels]
+q = {{ channels = ["q1", "q2", "q3", "q4", "q5", "q6"], unit = "rad" }}
+tau = {{ channels = ["tau1", "tau2", "tau3", "tau4", "tau5", "tau6"], unit = "N*m" }}
+
+[conditioning]
+cutoff = 20.0
+decimate = [10, 10]
+"""
+
+
+def robot_log(folder, n: int = 30000):
+    """The sines test as a logger file (Parquet, a time column) and its config."""
+    from dynid.io import Channel, Recording, write_recording
+
+    test = _test(n)
+    t = np.arange(n) / FS
+    chans = [Channel(f"q{j + 1}", "rad", test.q[:, j], t) for j in range(6)]
+    chans += [Channel(f"tau{j + 1}", "N*m", test.tau[:, j], t) for j in range(6)]
+    write_recording(Recording.from_channels(chans), folder / "sines.parquet")
+    cfg = folder / "robot.toml"
+    cfg.write_text(ROBOT_CONFIG.format(file="sines.parquet"))
+    return cfg
+
+
+def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_path, monkeypatch):
+    """The identification reads a robot's file a chunk at a time (each chunk's window with the filter's and the
+    decimation's transients around it): its rows equal those of the whole record read at once, to the filters'
+    tails (1e-9, as above)."""
+    from dynid.pipeline import robot
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.run import load_joint_test, robot_systems
+    from dynid.pipeline.schedulers import LocalScheduler
+
+    cfg = load_config(robot_log(tmp_path))
+    model = load_model("tx40")
+    base = model.base_parameters()
+    whole = joint_system(model, load_joint_test(cfg, cfg.tests[0], model.n), base, cfg.conditioning,
+                         segment_bytes=2**40)
+    monkeypatch.setattr(robot, "SEGMENT_BYTES", 2**20)  # 300-sample chunks
+    said: list[str] = []
+    parts = robot_systems(cfg, model, base, LocalScheduler(2), said.append)["sines"]
+    chunks = robot.robot_chunks(30000, FS, model, base, cfg.conditioning)
+    assert len(chunks) > 50 and any(m == f"segments done {len(chunks)}/{len(chunks)}" for m in said), said
+    assert parts.W.shape == whole.W.shape and np.array_equal(parts.groups, whole.groups)
+    assert np.array_equal(parts.t, whole.t)
+    assert np.max(np.abs(parts.W - whole.W)) <= 1e-9 * np.max(np.abs(whole.W))
+    assert np.max(np.abs(parts.Y - whole.Y)) <= 1e-9 * np.max(np.abs(whole.Y))

@@ -1,4 +1,4 @@
-"""The car identification's unit of work: one segment of one test to its reduced factors, and their combination.
+"""The identification's unit of work: one segment of one test to its reduced form, and their combination.
 
 `reduce_car_segment(job)` is a pure function of a small picklable job (the config, the segment's
 time window of its file, and what to evaluate on it): it reads the window, estimates the joints,
@@ -7,6 +7,9 @@ triangular factor of [W | Y]; for some segments the sensor offsets' sensitivitie
 pass's instrument sums). `combine` is pure and associative to round-off: Partials of any split of
 the data combine into the whole data's. A scheduler (`schedulers`) maps the first over every
 segment, on this machine's cores or a cluster's workers, and folds with the second.
+
+A robot's chunk (`reduce_robot_chunk`) reduces to its decimated rows (a robot's estimators, wls-pc
+among them, and its validation files read rows), which `stack_rows` folds.
 """
 
 from __future__ import annotations
@@ -23,8 +26,8 @@ from ..estimation import StreamingLS
 from ..estimation.iv import InstrumentSums
 from ..estimation.systematic import BiasAccumulator
 from .config import IdentifyConfig
-from .robot import GroupedSystem
-from .sources import SegmentWindow
+from .robot import GroupedSystem, chunk_rows
+from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
 
 
 @dataclass(frozen=True)
@@ -148,3 +151,52 @@ def reduce_car_segment(job: CarJob) -> Partial:
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
     return part
+
+
+# ------------------------------------------------------------------------------------------------------- a robot
+@dataclass(frozen=True)
+class RobotJob:
+    """One chunk (kept samples s..e) of a robot test: the test's plan cut to the samples read around it."""
+
+    cfg: IdentifyConfig
+    window: RobotTestPlan  # the plan, its clock cut to the samples read: first..first + len
+    first: int
+    chunk: tuple[int, int]
+    n_samples: int
+
+    @property
+    def test(self) -> str:
+        return self.window.test
+
+
+class RobotSetup:
+    """A robot config's model and base parameters, built once per process."""
+
+    def __init__(self, cfg: IdentifyConfig) -> None:
+        from .. import load_model
+
+        self.model = load_model(cfg.model)
+        self.base: BaseParameters = self.model.base_parameters()
+
+
+def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
+    key = hashlib.sha256(pickle.dumps(("robot", cfg.path, cfg.model))).hexdigest()
+    if key not in _SETUPS:
+        _SETUPS.clear()
+        _SETUPS[key] = RobotSetup(cfg)
+    return _SETUPS[key]
+
+
+def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
+    """The chunk's samples read, through the channel map and transmission, to its decimated rows."""
+    setup = robot_setup(job.cfg)
+    w = job.window
+    arrays = read_robot_window(w, 0, w.samples)
+    q, tau = transmitted(job.cfg, arrays["q"], arrays["tau"], setup.model.n)
+    return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, job.first, job.chunk,
+                      job.n_samples)
+
+
+def stack_rows(a: GroupedSystem, b: GroupedSystem) -> GroupedSystem:
+    """a's rows then b's."""
+    return GroupedSystem.stack([a, b])

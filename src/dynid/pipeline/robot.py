@@ -120,6 +120,59 @@ def joint_system(
     return GroupedSystem.stack(parts)
 
 
+def robot_chunks(n_samples: int, fs: float, model: Model, base: BaseParameters, c: Conditioning,
+                 segment_bytes: int | None = None) -> tuple[tuple[int, int], ...]:
+    """The kept samples of a test of n_samples (its filter borders trimmed) cut into chunks, each a multiple of the
+    whole decimation factor long and its full-rate W under `segment_bytes`: one job each (`chunk_rows`)."""
+    b = _border(fs, c)
+    D = int(np.prod(c.decimate))
+    length = max(D, (segment_bytes or SEGMENT_BYTES) // (8 * model.n * len(base.columns)) // D * D)
+    return tuple((s, min(n_samples - b, s + length)) for s in range(b, n_samples - b, length))
+
+
+def chunk_pad(fs: float, c: Conditioning) -> int:
+    """Samples read beyond a chunk's ends: the decimation's transient, and the zero-phase filter's (to 1e-12 of
+    its weight) with the central differences' stencil, so that a chunk's rows are the whole record's."""
+    return _decimation_transient(fs, c.decimate) + border_samples(fs, c.cutoff, c.order, tol=1e-12) + 4
+
+
+def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
+               chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None) -> GroupedSystem:
+    """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
+    first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
+    and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
+    own outputs kept (on the whole record's decimation grid), the slow rows dropped."""
+    rows = list(range(1, model.n + 1)) if rows is None else list(rows)
+    s, e = chunk
+    qf, qdf, qddf = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=2)
+    b, D = _border(fs, c), int(np.prod(c.decimate))
+    pad = _decimation_transient(fs, c.decimate)
+    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
+    w = slice(lo - first, hi - first)
+    W = np.ascontiguousarray(model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=list(base.columns)))
+    Wd, Yd = decimate_parallel(W, tau[w][:, np.array(rows) - 1], c.decimate, fs, order=DECIMATION_ORDER)
+    del W
+    speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
+    k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
+    Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
+    parts = []
+    for i, j in enumerate(rows):
+        ok = np.abs(speed[:, j - 1]) >= c.min_speed.get(j, 0.0)
+        parts.append(GroupedSystem(Wd[ok, i], Yd[ok, i], np.full(int(ok.sum()), f"joint{j}"), td[ok]))
+    return GroupedSystem.stack(parts)
+
+
+def in_joint_order(parts: Sequence[GroupedSystem]) -> GroupedSystem:
+    """Chunks' rows (each stacked joint by joint) as one test's: joint by joint, in time within each."""
+    sys = GroupedSystem.stack(parts)
+    order = np.argsort(np.array([int(g[5:]) for g in sys.groups]), kind="stable")
+    return GroupedSystem(sys.W[order], sys.Y[order], sys.groups[order], sys.t[order])
+
+
+def _border(fs: float, c: Conditioning) -> int:
+    return border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
+
+
 def _decimation_transient(fs: float, factors: Sequence[int]) -> int:
     """Input samples over which a decimation's zero-phase filters still weigh the record's end (1e-9 of the
     weight), each stage's transient at its own rate, rounded up to a multiple of the total factor."""

@@ -32,11 +32,27 @@ from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_st
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
-from .reduce import CarJob, car_setup, combine, reduce_car_segment
+from .reduce import (
+    CarJob,
+    RobotJob,
+    car_setup,
+    combine,
+    reduce_car_segment,
+    reduce_robot_chunk,
+    robot_setup,
+    stack_rows,
+)
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, joint_system
+from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
 from .schedulers import LocalScheduler, Scheduler
-from .sources import plan_car_test, read_segment, segment_window
+from .sources import (
+    plan_car_test,
+    plan_robot_test,
+    read_robot_window,
+    read_segment,
+    segment_window,
+    transmitted,
+)
 
 Progress = Callable[[str], None]
 
@@ -83,45 +99,44 @@ class IdentificationRun:
 
 
 def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progress | None = None) -> JointTest:
-    """Joint positions and forces of one test from its files, on one uniform clock (`timebase`: time columns,
-    repeated rows, jitter, gaps, two files' clocks, the start..end window), through the channel map and
-    transmission."""
-    from ..io import to_si
-    from .timebase import on_one_clock
+    """Joint positions and forces of one whole test from its files, on one uniform clock (`sources.plan_robot_test`:
+    time columns, repeated rows, jitter, gaps, two files' clocks, the start..end window), through the channel map
+    and transmission. The identification reads a chunk at a time instead; this is for looking at a test."""
+    plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), progress)
+    arrays = read_robot_window(plan, 0, plan.samples)
+    q, tau = transmitted(cfg, arrays["q"], arrays["tau"], n)
+    return JointTest(spec.name, float(plan.fs), q, tau)
 
-    wanted = {}
+
+def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     for quantity in ("q", "tau"):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
         if quantity not in cfg.channels:
             raise ConfigError(f"{cfg.path}: [channels] has no {quantity!r} = {{ channels = [...], unit = ... }}")
-        wanted[quantity] = (spec.files[quantity], list(cfg.channels[quantity].channels))
-    fs, channels = on_one_clock(wanted, spec.fs, test=spec.name, config=cfg.path, start=spec.start, end=spec.end,
-                                max_gap=spec.max_gap, say=progress or (lambda _m: None))
-    arrays = {}
-    for quantity, chans in channels.items():
-        unit = cfg.channels[quantity].unit
-        expect = ("rad", "m") if quantity == "q" else ("N*m", "N")  # a revolute or a prismatic joint's
-        arrays[quantity] = np.stack([to_si(c.values, unit or c.unit, channel=c.name, source=str(spec.files[quantity]),
-                                           expect=expect)[0] for c in chans], axis=1)
-    q, tau = arrays["q"], arrays["tau"]
-    shapes = {"q": (n, q.shape[1]), "q_offset": (n,), "tau": (n, tau.shape[1])}
-    for key, m in cfg.transmission.items():  # q = Nq q_file + q_offset, tau = Nt tau_file: n joints
-        if m.shape != shapes[key]:
-            raise ConfigError(f"{cfg.path}: [transmission] {key} is {' x '.join(map(str, m.shape))}; it must be "
-                              f"{' x '.join(map(str, shapes[key]))} ({n} joints of the model"
-                              + ("" if key == "q_offset" else f", {shapes[key][1]} channels of {key} in [channels]")
-                              + ")")
-    if "q" in cfg.transmission:
-        q = q @ cfg.transmission["q"].T
-    if "q_offset" in cfg.transmission:
-        q = q + cfg.transmission["q_offset"]
-    if "tau" in cfg.transmission:
-        tau = tau @ cfg.transmission["tau"].T
-    for name, a in (("q", q), ("tau", tau)):
-        if a.shape[1] != n:
-            raise ConfigError(f"{cfg.path}: {name} has {a.shape[1]} columns after the transmission; the model has {n}")
-    return JointTest(spec.name, float(fs), q, tau)
+    return spec
+
+
+def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress
+                  ) -> dict[str, GroupedSystem]:
+    """Each test's decimated rows: its files planned from their stamps, cut into chunks read and reduced on the
+    scheduler's workers (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
+    jobs = []
+    for spec in cfg.tests:
+        say(f"reading and conditioning {spec.name!r}")
+        plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
+        N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
+        if 2 * _border(plan.fs, cfg.conditioning) >= N:
+            raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
+                              f"({cfg.conditioning.cutoff:g} Hz, order {cfg.conditioning.order}): record longer or "
+                              "raise the cut-off")
+        for s, e in robot_chunks(N, plan.fs, model, base, cfg.conditioning):
+            lo, hi = max(0, s - pad), min(N, e + pad)
+            window = dataclasses.replace(plan, clock=np.array(plan.clock[lo:hi]), chunks=())
+            jobs.append(RobotJob(cfg, window, lo, (s, e), N))
+    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, stack_rows, say)
+    return {spec.name: in_joint_order([parts[spec.name]]) for spec in cfg.tests}
 
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
@@ -334,19 +349,14 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: S
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
         return _identify_car(cfg, say, scheduler)
-    from .. import load_model
-
-    model = load_model(cfg.model)
-    base = model.base_parameters()
+    setup = robot_setup(cfg)
+    model, base = setup.model, setup.base
     names = list(base.names)
     bad = [k for k in cfg.known if k not in names]
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
-    systems: dict[str, GroupedSystem] = {}
-    for spec in cfg.tests:
-        say(f"reading and conditioning {spec.name!r}")
-        systems[spec.name] = joint_system(model, load_joint_test(cfg, spec, model.n, say), base, cfg.conditioning)
+    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")

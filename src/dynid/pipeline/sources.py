@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,8 +26,8 @@ from numpy.typing import NDArray
 from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
 from ..io.align import InterpSpec
 from ..io.windows import FileIndex, index_file, read_window, time_bases
-from .config import IdentifyConfig, TestSpec
-from .timebase import RATE_TOLERANCE, opened, stream
+from .config import ConfigError, IdentifyConfig, TestSpec
+from .timebase import RATE_TOLERANCE, _rate, opened, stream
 
 Progress = Callable[[str], None]
 MARGIN_STEPS = 8  # samples of the slowest base read beyond a segment's ends: the interpolation's support
@@ -176,23 +177,165 @@ def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.floa
     repeated stamps merged, each channel not already on the clock interpolated onto it (cubic)."""
     clock = w.clock
     rec = read_window(w.index, list(w.file_names), float(clock[0]) - w.margin, float(clock[-1]) + w.margin)
+    specs = []
+    for members in _shared_bases(rec, w.file_names):
+        s = stream(members, rec.label, w.timed, w.max_gap)
+        specs += [InterpSpec(n, c) for n, c in _on_clock(s, clock).items()]
+    al = align(specs, t=clock, source=rec.label, gap_factor=None)
+    return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
+
+
+def _shared_bases(rec, names: Sequence[str]) -> list[list[Channel]]:
+    """The recording's channels `names`, grouped by their time stamps."""
     bases: list[list[Channel]] = []
-    for name in w.file_names:
+    for name in names:
         ch = rec.channel(name)
         base = next((b for b in bases if b[0].time is ch.time or np.array_equal(b[0].time, ch.time)), None)
         if base is None:
             bases.append([ch])
         else:
             base.append(ch)
-    specs = []
-    for members in bases:
-        s = stream(members, rec.label, w.timed, w.max_gap)
-        t = s.t
-        k = np.searchsorted(t, clock)
-        if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):  # on the clock: used as they are
-            rows = slice(int(k[0]), int(k[-1]) + 1)
-            specs += [InterpSpec(n, Channel(n, c.unit, c.values[rows], t[rows])) for n, c in s.channels.items()]
-        else:
-            specs += [InterpSpec(n, c) for n, c in s.channels.items()]
-    al = align(specs, t=clock, source=rec.label, gap_factor=None)
-    return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
+    return bases
+
+
+def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel]:
+    """A stream's channels cut to the clock's samples when every clock instant is one of its stamps (used as they
+    are, bit for bit), else whole (to be interpolated)."""
+    t = s.t
+    k = np.searchsorted(t, clock)
+    if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):
+        rows = slice(int(k[0]), int(k[-1]) + 1)
+        return {n: Channel(n, c.unit, c.values[rows], t[rows]) for n, c in s.channels.items()}
+    return dict(s.channels)
+
+
+# -------------------------------------------------------------------------------------------------- a robot's test
+@dataclass(frozen=True)
+class RobotTestPlan:
+    """One robot test's files (q and tau, one file or two), their clock (q's), and its row chunks: ranges of the
+    kept samples (the filter's borders trimmed), each a multiple of the decimation factor long."""
+
+    test: str
+    role: str
+    indexes: dict[str, FileIndex]  # quantity -> its file's index
+    channels: dict[str, tuple[str, ...]]  # quantity -> its channels, one per joint
+    units: dict[str, tuple[str, ...]]  # quantity -> each channel's unit (the config's, else the file's)
+    clock: NDArray[np.float64]
+    fs: float
+    timed: bool
+    max_gap: float
+    margin: float  # s, read beyond a window's ends for the interpolation (several steps of the slowest base)
+    chunks: tuple[tuple[int, int], ...]
+
+    @property
+    def samples(self) -> int:
+        return int(self.clock.size)
+
+
+def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None) -> RobotTestPlan:
+    """The robot test's files indexed and its clock planned (`timebase`'s rules: q's stamps set the clock, cut to
+    the span every file covers and to start..end), from a pass over the time stamps only. The chunks are set later
+    (`with_chunks`), by the conditioning."""
+    say = progress or (lambda _m: None)
+    indexes: dict[str, FileIndex] = {}
+    by_file: dict[Path, FileIndex] = {}
+    streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
+    timed = True
+    reported: set[tuple[Path, tuple[str, ...]]] = set()
+    for quantity in ("q", "tau"):
+        path = spec.files[quantity]
+        names = list(cfg.channels[quantity].channels)
+        if path not in by_file:
+            wanted = [n for q in ("q", "tau") if spec.files[q] == path for n in cfg.channels[q].channels]
+            by_file[path], timed = opened(lambda fs, p=path, w=wanted: index_file(p, channels=list(dict.fromkeys(w)),
+                                                                                 fs=fs),
+                                          path, spec.fs, spec.name, cfg.path)
+        index = indexes[quantity] = by_file[path]
+        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in ("q", "tau") if spec.files[q] == path
+                                                         for n in cfg.channels[q].channels)))
+        streams[quantity] = []
+        for members, t, lines in bases:
+            if not set(members) & set(names):
+                continue
+            s = stream([Channel("time", "s", t, t, lines)], str(path), timed, spec.max_gap, (spec.start, spec.end))
+            streams[quantity].append((members, s))
+            if timed and (path, tuple(members)) not in reported:
+                reported.add((path, tuple(members)))
+                say(f"{spec.name}: {s.report()}")
+    every = [s for q in streams for _, s in streams[q]]
+    for s in every:
+        if s.timed and spec.fs is not None and abs(1 / s.h - spec.fs) > RATE_TOLERANCE * spec.fs:
+            raise DataError(
+                f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time column of {s.source} says "
+                f"{1 / s.h:.6g} Hz (step {s.h * 1e3:.6g} ms): remove fs from the test (the time column is used), or "
+                "correct it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=s.source)
+    first_q = cfg.channels["q"].channels[0]
+    ref = next(s for m, s in streams["q"] if first_q in m)
+    clock = ref.t if ref.uniform else ref.t0 + ref.h * np.arange(np.ceil((ref.t[0] - ref.t0) / ref.h),
+                                                                 np.floor((ref.t[-1] - ref.t0) / ref.h) + 1)
+    lo, hi = max(s.t[0] for s in every), min(s.t[-1] for s in every)
+    if lo > hi:
+        spans = "; ".join(f"{q} ({spec.files[q]}) covers {s.t[0]:.6g}..{s.t[-1]:.6g} s" for q in streams
+                          for _, s in streams[q][:1])
+        raise DataError(f"{cfg.path}: test {spec.name!r}: the files do not overlap in time: {spans}. Are they from the "
+                        "same test, and stamped by the same clock?")
+    tol = 1e-9 * max(abs(hi), ref.h)
+    for k, v in (("start", spec.start), ("end", spec.end)):
+        if v is not None and not lo - tol <= v <= hi + tol:
+            raise DataError(f"{cfg.path}: test {spec.name!r}: {k} = {v:g} s is outside the record, which covers "
+                            f"{lo:.6g}..{hi:.6g} s (in every file); give a time inside it")
+    a = lo if spec.start is None else max(lo, spec.start)
+    b = hi if spec.end is None else min(hi, spec.end)
+    clock = clock[(clock >= a - tol) & (clock <= b + tol)]
+    clock = clock[(clock >= lo) & (clock <= hi)]
+    if len(by_file) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
+        say(f"{spec.name}: the files overlap over {lo:.6g}..{hi:.6g} s: that span is used")
+    if any(not s.uniform or not np.array_equal(s.t, ref.t) for s in every):
+        say(f"{spec.name}: every channel on one uniform {1 / ref.h:.6g} Hz clock, {clock.size} samples "
+            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    fs = _rate(ref.h) if ref.timed or spec.fs is None else spec.fs
+    units = {q: tuple(cfg.channels[q].unit or indexes[q].units.get(n, "") for n in cfg.channels[q].channels)
+             for q in ("q", "tau")}
+    return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in ("q", "tau")},
+                         units, clock, fs, timed, spec.max_gap, MARGIN_STEPS * max(s.h for s in every), ())
+
+
+def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' q and tau from the channels' (SI): q = Nq q_file + q_offset, tau = Nt tau_file."""
+    shapes = {"q": (n, q.shape[1]), "q_offset": (n,), "tau": (n, tau.shape[1])}
+    for key, m in cfg.transmission.items():
+        if m.shape != shapes[key]:
+            raise ConfigError(f"{cfg.path}: [transmission] {key} is {' x '.join(map(str, m.shape))}; it must be "
+                              f"{' x '.join(map(str, shapes[key]))} ({n} joints of the model"
+                              + ("" if key == "q_offset" else f", {shapes[key][1]} channels of {key} in [channels]")
+                              + ")")
+    if "q" in cfg.transmission:
+        q = q @ cfg.transmission["q"].T
+    if "q_offset" in cfg.transmission:
+        q = q + cfg.transmission["q_offset"]
+    if "tau" in cfg.transmission:
+        tau = tau @ cfg.transmission["tau"].T
+    for name, a in (("q", q), ("tau", tau)):
+        if a.shape[1] != n:
+            raise ConfigError(f"{cfg.path}: {name} has {a.shape[1]} columns after the transmission; the model has {n}")
+    return q, tau
+
+
+def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArray[np.float64]]:
+    """{"q": (hi - lo, channels), "tau": ...} in SI: the clock samples lo..hi of the test, each channel from its
+    file's samples around them, interpolated where not on the clock (cubic for q, linear for tau)."""
+    from ..io import to_si
+
+    clock = plan.clock[lo:hi]
+    out = {}
+    for quantity, kind, expect in (("q", "cubic", ("rad", "m")), ("tau", "linear", ("N*m", "N"))):
+        index, names = plan.indexes[quantity], list(plan.channels[quantity])
+        rec = read_window(index, names, float(clock[0]) - plan.margin, float(clock[-1]) + plan.margin)
+        specs = []
+        for members in _shared_bases(rec, names):
+            s = stream(members, rec.label, plan.timed, plan.max_gap)
+            specs += [InterpSpec(n, c, kind) for n, c in _on_clock(s, clock).items()]
+        al = align(specs, t=clock, source=rec.label, gap_factor=None)
+        out[quantity] = np.stack([to_si(al[n], u, channel=n, source=str(index.path), expect=expect)[0]
+                                  for n, u in zip(names, plan.units[quantity], strict=True)], axis=1)
+    return out
