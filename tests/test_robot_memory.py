@@ -115,3 +115,23 @@ def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_p
     assert np.array_equal(parts.t, whole.t)
     assert np.max(np.abs(parts.W - whole.W)) <= 1e-9 * np.max(np.abs(whole.W))
     assert np.max(np.abs(parts.Y - whole.Y)) <= 1e-9 * np.max(np.abs(whole.Y))
+
+
+def test_a_bad_sample_deep_in_a_chunked_file_is_named_by_the_tests_sample(tmp_path, monkeypatch):
+    """A chunk counts its samples from 0; the error names the test's sample (and its time), as the whole read did."""
+    from dynid.io import Channel, DataError, Recording, read_recording, write_recording
+    from dynid.pipeline import robot
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.run import identify
+
+    cfg = robot_log(tmp_path)
+    chans = dict(read_recording(tmp_path / "sines.parquet").channels)
+    bad = chans["q3"].values.copy()
+    bad[25000] = np.nan
+    chans["q3"] = Channel("q3", "rad", bad, chans["q3"].time)
+    write_recording(Recording.from_channels(list(chans.values())), tmp_path / "sines.parquet")
+    monkeypatch.setattr(robot, "SEGMENT_BYTES", 2**20)  # sample 25000 is in one of the last chunks
+    with pytest.raises(DataError) as exc:
+        identify(load_config(cfg))
+    assert "channel 'q3', sample 25000 (t = 25 s): value is nan" in str(exc.value), str(exc.value)
+    assert exc.value.sample == 25000

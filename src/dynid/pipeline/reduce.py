@@ -16,8 +16,12 @@ from __future__ import annotations
 
 import hashlib
 import pickle
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -118,16 +122,29 @@ class CarSetup:
                           equations=self.equations)[0]
 
 
-_SETUPS: dict[str, CarSetup] = {}
+_SETUPS: OrderedDict[str, Any] = OrderedDict()
+_SETUPS_KEPT = 4  # a campaign's configs take turns on every worker
+_SETUPS_LOCK = threading.Lock()
+
+
+def _setup(key: tuple, make: Callable[[], Any]) -> Any:
+    """One setup per config and process (a worker receives the config with every job), the last few kept."""
+    h = hashlib.sha256(pickle.dumps(key)).hexdigest()
+    with _SETUPS_LOCK:
+        if h in _SETUPS:
+            _SETUPS.move_to_end(h)
+            return _SETUPS[h]
+    made = make()  # outside the lock: a slow build does not hold the other threads' segments
+    with _SETUPS_LOCK:
+        made = _SETUPS.setdefault(h, made)
+        while len(_SETUPS) > _SETUPS_KEPT:
+            _SETUPS.popitem(last=False)
+    return made
 
 
 def car_setup(cfg: IdentifyConfig) -> CarSetup:
-    """The config's setup, built once per process (a worker receives the config with every job)."""
-    key = hashlib.sha256(pickle.dumps((cfg.path, cfg.model, cfg.vehicle, cfg.known, cfg.car))).hexdigest()
-    if key not in _SETUPS:
-        _SETUPS.clear()  # one config at a time per process is the rule; a campaign's configs take turns
-        _SETUPS[key] = CarSetup(cfg)
-    return _SETUPS[key]
+    """The config's car setup (see `_setup`)."""
+    return _setup(("car", cfg.path, cfg.model, cfg.vehicle, cfg.known, cfg.car), lambda: CarSetup(cfg))
 
 
 def reduce_car_segment(job: CarJob) -> Partial:
@@ -180,11 +197,8 @@ class RobotSetup:
 
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
-    key = hashlib.sha256(pickle.dumps(("robot", cfg.path, cfg.model))).hexdigest()
-    if key not in _SETUPS:
-        _SETUPS.clear()
-        _SETUPS[key] = RobotSetup(cfg)
-    return _SETUPS[key]
+    """The config's robot setup (see `_setup`)."""
+    return _setup(("robot", cfg.path, cfg.model), lambda: RobotSetup(cfg))
 
 
 def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:

@@ -133,7 +133,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
                               "raise the cut-off")
         for s, e in robot_chunks(N, plan.fs, model, base, cfg.conditioning):
             lo, hi = max(0, s - pad), min(N, e + pad)
-            window = dataclasses.replace(plan, clock=np.array(plan.clock[lo:hi]), chunks=())
+            window = dataclasses.replace(plan, clock=np.array(plan.clock[lo:hi]), chunks=(), first=lo)
             jobs.append(RobotJob(cfg, window, lo, (s, e), N))
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, stack_rows, say)
     return {spec.name: in_joint_order([parts[spec.name]]) for spec in cfg.tests}

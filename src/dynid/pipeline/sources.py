@@ -16,7 +16,9 @@ its slice of the uniform clock from the samples around it (a margin of several s
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import re
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +72,7 @@ class SegmentWindow:
     timed: bool
     max_gap: float
     margin: float  # s
+    first: int = 0  # the clock slice's first sample in the test (messages name the test's samples)
 
     def read(self) -> dict[str, NDArray[np.float64]]:
         """{quantity: values on the clock slice, SI}."""
@@ -169,7 +172,7 @@ def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
     """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice and the index)."""
     margin = MARGIN_STEPS * max(plan.base_steps)
     return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
-                         np.array(plan.clock[lo:hi]), plan.fs, plan.timed, plan.max_gap, margin)
+                         np.array(plan.clock[lo:hi]), plan.fs, plan.timed, plan.max_gap, margin, lo)
 
 
 def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.float64]]:
@@ -181,8 +184,22 @@ def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.floa
     for members in _shared_bases(rec, w.file_names):
         s = stream(members, rec.label, w.timed, w.max_gap)
         specs += [InterpSpec(n, c) for n, c in _on_clock(s, clock).items()]
-    al = align(specs, t=clock, source=rec.label, gap_factor=None)
+    with _samples_of_the_test(w.first):
+        al = align(specs, t=clock, source=rec.label, gap_factor=None)
     return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
+
+
+@contextmanager
+def _samples_of_the_test(first: int) -> Iterator[None]:
+    """A bad sample found in a window named by its sample in the whole test (the window's count starts at 0)."""
+    try:
+        yield
+    except DataError as exc:
+        if not first or exc.sample is None:
+            raise
+        exc.args = (re.sub(r"\bsample (\d+)", lambda m: f"sample {int(m.group(1)) + first}", str(exc)),)
+        exc.sample += first
+        raise
 
 
 def _shared_bases(rec, names: Sequence[str]) -> list[list[Channel]]:
@@ -205,7 +222,8 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel]:
     k = np.searchsorted(t, clock)
     if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):
         rows = slice(int(k[0]), int(k[-1]) + 1)
-        return {n: Channel(n, c.unit, c.values[rows], t[rows]) for n, c in s.channels.items()}
+        return {n: Channel(n, c.unit, c.values[rows], t[rows], None if c.lines is None else c.lines[rows])
+                for n, c in s.channels.items()}
     return dict(s.channels)
 
 
@@ -226,6 +244,7 @@ class RobotTestPlan:
     max_gap: float
     margin: float  # s, read beyond a window's ends for the interpolation (several steps of the slowest base)
     chunks: tuple[tuple[int, int], ...]
+    first: int = 0  # a window's: its clock's first sample in the test
 
     @property
     def samples(self) -> int:
@@ -335,7 +354,8 @@ def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArra
         for members in _shared_bases(rec, names):
             s = stream(members, rec.label, plan.timed, plan.max_gap)
             specs += [InterpSpec(n, c, kind) for n, c in _on_clock(s, clock).items()]
-        al = align(specs, t=clock, source=rec.label, gap_factor=None)
+        with _samples_of_the_test(plan.first):
+            al = align(specs, t=clock, source=rec.label, gap_factor=None)
         out[quantity] = np.stack([to_si(al[n], u, channel=n, source=str(index.path), expect=expect)[0]
                                   for n, u in zip(names, plan.units[quantity], strict=True)], axis=1)
     return out
