@@ -37,11 +37,14 @@ sys.path[:0] = [str(HERE)]
 from bench_pipeline import CONFIG, write_hour  # noqa: E402
 
 CHILD = """
-import json, resource, sys, time
+import json, sys, time
 from dynid.pipeline.config import load_config
 from dynid.pipeline.run import identify
 from dynid.pipeline.schedulers import scheduler_for
 from dynid.pipeline.reduce import car_setup
+def peak_gb():  # this process's own high-water mark (ru_maxrss starts at the parent's at fork)
+    line = next(ln for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
+    return int(line.split()[1]) / 1e6
 cfg = load_config(sys.argv[1])
 address = None if sys.argv[2] == "threads" else "local"
 scheduler = scheduler_for(address, int(sys.argv[3]))
@@ -54,7 +57,7 @@ for _ in range(1 if address is None else 2):  # a cluster: its workers cold (fir
 getattr(scheduler, "close", lambda: None)()
 print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.identify.W.shape[0]),
                   "M6": float(run.result.value("M6")),
-                  "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))
+                  "peak_gb": peak_gb()}))
 """
 
 

@@ -32,6 +32,7 @@ from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_st
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .heap import trim_heap
 from .reduce import (
     CarJob,
     RobotJob,
@@ -212,6 +213,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         say(f"{spec.name}: read {plan.samples} samples of {len(plan.file_names)} channels at {plan.fs:g} Hz "
             f"({len(plan.segments)} segment(s))")
         plans.append(plan)
+        trim_heap()  # the pass over the stamps' temporaries
 
     # 2. map every segment to its factors (the declared offsets' effect on a few of each identification test's),
     #    fold per role

@@ -22,6 +22,8 @@ from typing import Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
+from .heap import trim_heap
+
 J = TypeVar("J")
 R = TypeVar("R")
 Progress = Callable[[str], None]
@@ -46,6 +48,21 @@ def _by_key(jobs: Sequence, key: Callable) -> dict[Hashable, list[int]]:
     return groups
 
 
+TRIM_EVERY = 8  # jobs: a trim each job costs 15 % of the time in page faults; every 8th keeps the heap as small
+
+
+def _plain(fn, job):
+    return fn(job)
+
+
+def _trimmed(fn, job):
+    """fn(job), then the heap's free blocks handed back (`heap`): resident memory stays the segments' own."""
+    try:
+        return fn(job)
+    finally:
+        trim_heap()
+
+
 class LocalScheduler:
     """This machine's cores (module doc)."""
 
@@ -63,7 +80,7 @@ class LocalScheduler:
             running: dict = {}
             todo = iter(range(len(jobs)))
             for i in todo:
-                running[pool.submit(fn, jobs[i])] = i
+                running[pool.submit(_trimmed if i % TRIM_EVERY == TRIM_EVERY - 1 else _plain, fn, jobs[i])] = i
                 if len(running) < 2 * self.workers:
                     continue
                 finished, _ = wait(running, return_when=FIRST_COMPLETED)
@@ -91,6 +108,8 @@ class DaskScheduler:
             raise MissingDependencyError("Running on a Dask cluster needs dask.distributed: "
                                          "pip install 'dynid[dask]'") from None
         self.address = address
+        from .dask_worker import MallocTuning
+
         if address == "local":
             self._cluster = LocalCluster(n_workers=workers or min(2, os.cpu_count() or 1), threads_per_worker=1,
                                          processes=True, dashboard_address=None, host="127.0.0.1")
@@ -98,6 +117,7 @@ class DaskScheduler:
         else:
             self._cluster = None
             self.client = Client(address, timeout="30s")
+        self.client.register_plugin(MallocTuning())
 
     def __repr__(self) -> str:
         n = len(self.client.scheduler_info().get("workers", {}))

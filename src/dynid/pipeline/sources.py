@@ -172,7 +172,7 @@ def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
     """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice and the index)."""
     margin = MARGIN_STEPS * max(plan.base_steps)
     return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
-                         np.array(plan.clock[lo:hi]), plan.fs, plan.timed, plan.max_gap, margin, lo)
+                         plan.clock[lo:hi], plan.fs, plan.timed, plan.max_gap, margin, lo)
 
 
 def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.float64]]:
