@@ -294,7 +294,8 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
                  f"  %row{lane} = select i1 %c{lane}, i64 %last, i64 %r{lane}"]
     for a in args:
         if a in outputs:
-            body += [f"  %o_{a}.at = mul i64 %i0, 8", f"  %o_{a} = getelementptr inbounds i8, ptr %p_{a}, i64 %o_{a}.at",
+            body += [f"  %o_{a}.at = mul i64 %i0, 8",
+                     f"  %o_{a} = getelementptr inbounds i8, ptr %p_{a}, i64 %o_{a}.at",
                      f"  %ob_{a} = select i1 %direct, ptr %o_{a}, ptr %scr_{a}",
                      f"  %rs_{a} = select i1 %direct, i64 %rs_{a}.full, i64 {8 * L}"]
         elif a not in em.shared:
@@ -332,7 +333,7 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
 
 
 def _first(args: list[str], outputs: set[str]) -> str:
-    return [a for a in args if a in outputs][0]
+    return next(a for a in args if a in outputs)
 
 
 def _prev(args: list[str], outputs: set[str], a: str) -> str:
