@@ -102,13 +102,20 @@ class _VectorEmitter:
         if arr in self.shared:  # the same for every sample: one load, broadcast
             ptr = self._new(f"getelementptr inbounds i8, ptr %p_{arr}, i64 {off}")
             return self._splat(self._new(f"load double, ptr {ptr}, align 8"))
-        vec = f"{self.V} poison"
-        for lane in range(self.L):
-            at = self._new(f"add i64 %row{lane}_{arr}, {off}")
-            ptr = self._new(f"getelementptr inbounds i8, ptr %p_{arr}, i64 {at}")
-            x = self._new(f"load double, ptr {ptr}, align 8")
-            vec = f"{self.V} " + self._new(f"insertelement {vec}, double {x}, i64 {lane}")
-        return vec.split(" ")[-1]
+        # one gather of the lanes' elements (a vgatherqpd with AVX2 or AVX-512, scalar loads on SSE2)
+        L = self.L
+        at = self._new(f"add <{L} x i64> %rows_{arr}, {self._splat_i64(off)}")
+        ptrs = self._new(f"getelementptr inbounds i8, ptr %p_{arr}, <{L} x i64> {at}")
+        true = "<" + ", ".join(["i1 true"] * L) + ">"
+        return self._new(f"call {self.V} @llvm.masked.gather.v{L}f64.v{L}p0(<{L} x ptr> {ptrs}, i32 8, "
+                         f"<{L} x i1> {true}, {self.V} poison)")
+
+    def _splat_i64(self, x: str) -> str:
+        if x == "0":
+            return "zeroinitializer"
+        one = self._new(f"insertelement <{self.L} x i64> poison, i64 {x}, i64 0")
+        return self._new(f"shufflevector <{self.L} x i64> {one}, <{self.L} x i64> poison, "
+                         f"<{self.L} x i32> zeroinitializer")
 
     def store(self, arr: str, k: int, value: str) -> None:
         at = self._new(f"mul i64 {k}, %rs_{arr}")
@@ -258,6 +265,7 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
     outputs = {t.value.id for st in fn.body if isinstance(st, ast.Assign) for t in st.targets
                if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)}
     em = _VectorEmitter(args, outputs, set(shared) & set(args), lanes)
+    em.block = "compute"
     for st in fn.body:
         if not em.statement(st):
             break
@@ -300,6 +308,30 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
                      f"  %rs_{a} = select i1 %direct, i64 %rs_{a}.full, i64 {8 * L}"]
         elif a not in em.shared:
             body += [f"  %row{lane}_{a} = mul i64 %row{lane}, %d1_{a}" for lane in range(L)]
+            prev = "poison"
+            for lane in range(L):
+                name = f"%rows{lane}_{a}" if lane < L - 1 else f"%rows_{a}"
+                body.append(f"  {name} = insertelement <{L} x i64> {prev}, i64 %row{lane}_{a}, i64 {lane}")
+                prev = name
+    # prefetch the rows of the block after next (the loads of a block come in one burst at its start, and
+    # a block's arithmetic is longer than what the out-of-order window can hide a miss behind)
+    ins = [a for a in args if a not in outputs and a not in em.shared]
+    prev = "body"
+    for a in ins:
+        body += [f"  %pfr0_{a} = add i64 %i0, {2 * L}", f"  %pfc_{a} = icmp sgt i64 %pfr0_{a}, %last",
+                 f"  %pfr_{a} = select i1 %pfc_{a}, i64 %last, i64 %pfr0_{a}",
+                 f"  %pfo_{a} = mul i64 %pfr_{a}, %d1_{a}",
+                 f"  %pfb_{a} = getelementptr i8, ptr %p_{a}, i64 %pfo_{a}",
+                 f"  %pfn0_{a} = mul i64 %d1_{a}, {L}", f"  %pfn1_{a} = icmp slt i64 %pfn0_{a}, 4096",
+                 f"  %pfn_{a} = select i1 %pfn1_{a}, i64 %pfn0_{a}, i64 4096",
+                 f"  br label %pf_{a}", f"pf_{a}:",
+                 f"  %pfi_{a} = phi i64 [0, %{prev}], [%pfi1_{a}, %pf_{a}]",
+                 f"  %pfp_{a} = getelementptr i8, ptr %pfb_{a}, i64 %pfi_{a}",
+                 f"  call void @llvm.prefetch.p0(ptr %pfp_{a}, i32 0, i32 3, i32 1)",
+                 f"  %pfi1_{a} = add i64 %pfi_{a}, 64", f"  %pfm_{a} = icmp slt i64 %pfi1_{a}, %pfn_{a}",
+                 f"  br i1 %pfm_{a}, label %pf_{a}, label %pfx_{a}", f"pfx_{a}:"]
+        prev = f"pfx_{a}"
+    body += ["  br label %compute", "compute:"]
     end = ["  br i1 %direct, label %latch, label %tail", "latch:", f"  %i1 = add i64 %i0, {L}",
            "  %more = icmp slt i64 %i1, %N", "  br i1 %more, label %body, label %exit", "tail:"]
     for a in args:  # the valid lanes of the scratch to the buffer (all of its rows: the zero ones are zero)
@@ -326,6 +358,8 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
         end.append("  br label %latch")
     end += ["exit:", "  ret void"]
     decl = [f"declare <{L} x double> @llvm.fabs.v{L}f64(<{L} x double>)", "declare double @llvm.sin.f64(double)",
+            "declare void @llvm.prefetch.p0(ptr, i32, i32, i32)",
+            f"declare <{L} x double> @llvm.masked.gather.v{L}f64.v{L}p0(<{L} x ptr>, i32, <{L} x i1>, <{L} x double>)",
             "declare double @llvm.cos.f64(double)"]
     # weak_odr and nounwind: see llvm_code.function_ir
     return "\n".join([f'define weak_odr void @"{symbol}"(i64 %N, ptr %desc) nounwind {{', *head, *body,
