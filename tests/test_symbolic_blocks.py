@@ -254,3 +254,23 @@ def test_c_block_idm_with_parameters_and_wrench(tmp_path):
     lib = _compile(tmp_path, build(tree, "idm", wrenches=[WrenchSite(6, (0.0, 0.0, 0.1), 0)]), "pumaw")
     (tau,) = _call(lib.pumaw_idm_block, N, q, qd, qdd, tree.parameters, vals, out_shapes=[(6,)])
     close(tau, Model(tree).inverse_dynamics(q, qd, qdd, [Wrench(6, vals[:, 0], (0.0, 0.0, 0.1), 0)]))
+
+
+def test_smooth_friction_laws_lane_by_lane():
+    """tanh and sigmoid friction (tanh from libm, lane by lane) through GeneratedRegressor's kernel."""
+    from test_friction_shapes import states as friction_states
+    from test_friction_shapes import tx40_shaped
+
+    tree = tx40_shaped()
+    q, qd, qdd = friction_states(tree.n, 2 * LANES + 1)
+    kernel = block_model(tree, "regressor")
+    assert kernel.available
+    close(as_samples(kernel(q, qd, qdd)["out"], kernel.shape), Model(tree).regressor(q, qd, qdd))
+
+
+def test_source_outside_the_block_language_is_refused():
+    from dynid.symbolic.blocks import block_ir
+    from dynid.symbolic.llvm_code import UnsupportedSourceError
+
+    with pytest.raises(UnsupportedSourceError, match="exp"):
+        block_ir("def f(q, out):\n    out[0] = math.exp(q[0])\n    return 0\n", "f")

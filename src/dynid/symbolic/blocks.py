@@ -153,6 +153,14 @@ class _VectorEmitter:
                 if key not in self.trig:
                     self.trig[key] = self.sincos(self.expr(node.args[0]))
                 return self.trig[key][0 if f.attr == "sin" else 1]
+            if (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math"
+                    and f.attr == "tanh"):  # smooth friction laws: rare, libm lane by lane (the engine's numbers)
+                x, v = self.expr(node.args[0]), f"{self.V} poison"
+                for lane in range(self.L):
+                    xl = self._new(f"extractelement {self.V} {x}, i64 {lane}")
+                    t = self._new(f"call double @tanh(double {xl})")
+                    v = f"{self.V} " + self._new(f"insertelement {v}, double {t}, i64 {lane}")
+                return v.split(" ")[-1]
             if isinstance(f, ast.Name) and f.id == "_sign":  # 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
                 x = self.expr(node.args[0])
                 pos = self._new(f"fcmp ogt {self.V} {x}, zeroinitializer")
@@ -358,7 +366,7 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
         end.append("  br label %latch")
     end += ["exit:", "  ret void"]
     decl = [f"declare <{L} x double> @llvm.fabs.v{L}f64(<{L} x double>)", "declare double @llvm.sin.f64(double)",
-            "declare void @llvm.prefetch.p0(ptr, i32, i32, i32)",
+            "declare void @llvm.prefetch.p0(ptr, i32, i32, i32)", "declare double @tanh(double)",
             f"declare <{L} x double> @llvm.masked.gather.v{L}f64.v{L}p0(<{L} x ptr>, i32, <{L} x i1>, <{L} x double>)",
             "declare double @llvm.cos.f64(double)"]
     # weak_odr and nounwind: see llvm_code.function_ir
@@ -465,8 +473,8 @@ class BlockKernel:
 
     @property
     def available(self) -> bool:
-        """False without numba (the caller then uses the NumPy code)."""
-        return getattr(self.module, "run", None) is not None
+        """False without numba, or for a model outside the block language (the caller then uses the NumPy code)."""
+        return getattr(self.module, "run", None) is not None and not hasattr(self.module, "UNSUPPORTED")
 
     def __call__(self, q: np.ndarray, qd: np.ndarray | None = None, qdd: np.ndarray | None = None,
                  X: np.ndarray | None = None, wrench: np.ndarray | None = None,
@@ -529,7 +537,7 @@ def block_model(tree: Tree, model: str, **options) -> BlockKernel:
     Generated once, then loaded from the disk cache (source and Numba's machine code)."""
     from .cache import model_hash
     from .models import build
-    from .numba_backend import arguments, compile_source, source_key
+    from .numba_backend import arguments, compile_source, scalar_source, source_key
 
     key = source_key(model_hash(tree, model, options), "blocks", str(LANES))
     name = f"{model}_{key}"
@@ -542,7 +550,12 @@ def block_model(tree: Tree, model: str, **options) -> BlockKernel:
                 "OUTPUTS": {o: int(np.prod(s)) for o, s, _ in outs},
                 "ZERO_ROWS": {o: _zero_runs(s, e) for o, s, e in outs},
                 "N": tree.n, "N_SITES": len(prog.meta.get("sites", [])), "SHAPE": tuple(prog.shape)}
-        text = kernel_source(prog, name) + "".join(f"{k} = {v!r}\n" for k, v in meta.items())
+        text = kernel_source(prog, name)
+        try:  # checked now: inside Numba's compilation an error would surface far from its cause
+            block_ir(scalar_source(prog, name), "check")
+        except UnsupportedSourceError as e:
+            meta["UNSUPPORTED"] = str(e)
+        text += "".join(f"{k} = {v!r}\n" for k, v in meta.items())
         mod = compile_source(text, [], key, prefix="dynid_blk")
     return BlockKernel(mod)
 

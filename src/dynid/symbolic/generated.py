@@ -76,6 +76,7 @@ class GeneratedRegressor:
     def __init__(self, tree: Tree) -> None:
         self.tree = tree
         self._pool = _Pool()
+        self._kernels: dict[tuple, BlockKernel] = {}  # by rows, columns and sites: no hash of the tree per call
 
     def __call__(
         self,
@@ -93,9 +94,12 @@ class GeneratedRegressor:
         N = q.shape[0]
         values = (np.stack([np.broadcast_to(np.asarray(w.values, dtype=float), (N, 6)) for w in wrenches], axis=1)
                   if wrenches else np.zeros((N, 0, 6)))
-        if not have_numba():
+        key = (tuple(rows), tuple(names), tuple(sites))
+        kernel = self._kernels.get(key)
+        if kernel is None and have_numba():
+            kernel = self._kernels[key] = block_model(self.tree, "regressor", **options)
+        if kernel is None or not kernel.available:
             return numpy_module(self.tree, "regressor", **options).evaluate(q, qd, qdd, values)
-        kernel = block_model(self.tree, "regressor", **options)
         return self.evaluate(kernel, q, qd, qdd, values)
 
     def evaluate(self, kernel: BlockKernel, q, qd, qdd, values) -> tuple[np.ndarray, ...]:
