@@ -274,3 +274,25 @@ def test_source_outside_the_block_language_is_refused():
 
     with pytest.raises(UnsupportedSourceError, match="exp"):
         block_ir("def f(q, out):\n    out[0] = math.exp(q[0])\n    return 0\n", "f")
+
+
+def test_generated_regressor_from_two_threads():
+    """The car pipeline's two threads: each call gets its own buffers (none handed out twice)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    tree = car_template()
+    g = GeneratedRegressor(tree)
+    rows, cols = list(EQUATION_ROWS), paper_parameter_names()
+    N = 4 * LANES + 3
+    wrench = [Wrench(24, np.ones((N, 6)), (0.0, 0.0, 0.0), frame=24)]
+    states = [random_states(tree, N, seed=40 + i) for i in range(8)]
+    expected = [Model(tree).regressor(*s, wrench, rows=rows, cols=cols)[0] for s in states]
+
+    def run(i):
+        W, _ = g(*states[i], wrench, rows, cols)
+        return W.copy()
+
+    with ThreadPoolExecutor(2) as pool:
+        for _ in range(3):
+            for W, ref in zip(pool.map(run, range(len(states))), expected, strict=True):
+                close(W, ref)

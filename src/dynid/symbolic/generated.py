@@ -33,7 +33,8 @@ class _Pool:
     (four fifths of the car's W) need no clearing unless someone made its memory writeable since.
 
     A buffer is an `aligned_zeros` view; the views made from it refer to the array that owns the memory
-    (NumPy collapses bases), so that owner's reference count tells whether a result is still alive."""
+    (NumPy collapses bases): it is free when neither it (being filled) nor its owner (a result alive) has
+    a reference from outside the pool."""
 
     def __init__(self, keep: int = 8) -> None:
         self.keep = keep  # buffers kept (per output and thread of the car pipeline, a few shapes)
@@ -42,11 +43,12 @@ class _Pool:
         probe = aligned_zeros(1, 1)
         items = [(probe.base, probe)]
         del probe
-        self.free_count = sys.getrefcount(items[0][0])  # an owner only the pool refers to
+        self.free_counts = (sys.getrefcount(items[0][0]), sys.getrefcount(items[0][1]))  # only the pool refers
 
     def get(self, size: int, N: int, zero_rows: Sequence[tuple[int, int]]) -> np.ndarray:
         with self.lock:
-            free = [i for i in range(len(self.items)) if sys.getrefcount(self.items[i][0]) == self.free_count]
+            free = [i for i in range(len(self.items))
+                    if (sys.getrefcount(self.items[i][0]), sys.getrefcount(self.items[i][1])) == self.free_counts]
             for i in free:
                 owner, buf = self.items[i]
                 if buf.shape == (size, N):
