@@ -296,3 +296,11 @@ def test_generated_regressor_from_two_threads():
         for _ in range(3):
             for W, ref in zip(pool.map(run, range(len(states))), expected, strict=True):
                 close(W, ref)
+
+
+def test_cli_codegen_block(tmp_path):
+    from dynid.cli.main import main
+
+    assert main(["model", "codegen", "puma560", "--lang", "c", "--model", "regressor", "--block", "--out",
+                 str(tmp_path)]) == 0
+    assert "puma_560_regressor_block(long N" in (tmp_path / "puma_560_regressor.h").read_text()
