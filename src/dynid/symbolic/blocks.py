@@ -37,7 +37,7 @@ import numpy as np
 from ..model.tree import Tree
 from .llvm_code import UnsupportedSourceError, _double, parse_function
 
-LANES = 8  # samples per vector: a zmm register, or two ymm (measured on the car's models: 4 is slower, 16 no faster)
+LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16 measured slower on both models
 _SLOTS = 4  # int64 per argument in the descriptor: address, then up to three strides (bytes)
 
 # fdlibm's constants, as in dynamics.compiled._sincos
