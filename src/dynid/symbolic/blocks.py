@@ -446,6 +446,23 @@ else:
 '''
 
 
+def _data_address(a):
+    return a.ctypes.data
+
+
+_ADDRESS: list = []
+
+
+def _address():
+    """The address of an array's first element, jitted (a tenth of `a.ctypes.data`'s time: a block kernel's
+    call reads five to ten of them)."""
+    if not _ADDRESS:
+        from numba import njit
+
+        _ADDRESS.append(njit(cache=True, nogil=True)(_data_address))
+    return _ADDRESS[0]
+
+
 def aligned_zeros(size: int, N: int, align: int = 64) -> np.ndarray:
     """A zeroed (size, N) float64 array whose address and row stride are multiples of `align` bytes (rows
     padded), which the kernels need for their full-line stores (others work, through a scratch, slowly)."""
@@ -495,13 +512,17 @@ class BlockKernel:
                 raise ValueError(f"{name}: a ({size}, {N}) float64 buffer with unit sample stride is expected")
         desc = np.zeros(len(self.args) * _SLOTS, dtype=np.int64)
         keep = []  # the arrays whose addresses desc holds, alive until the call returns
+        address = _address()
+        direct = N % LANES == 0 and all(address(o) % (8 * LANES) == 0 and o.strides[0] % (8 * LANES) == 0
+                                        for o in out.values())
         for i, a in enumerate(self.args):
             d = desc[i * _SLOTS:(i + 1) * _SLOTS]
             if a in self.outputs:
                 o = out[a]
-                scratch = aligned_zeros(o.shape[0], LANES, 8 * LANES)
+                # the scratch: for a last partial block, or every block of a buffer off the cache lines
+                scratch = None if direct else aligned_zeros(o.shape[0], LANES, 8 * LANES)
                 keep += [o, scratch]
-                d[:] = (o.ctypes.data, o.strides[0], scratch.ctypes.data, o.shape[0])
+                d[:] = (address(o), o.strides[0], 0 if scratch is None else address(scratch), o.shape[0])
                 continue
             arr = given[a]
             if arr is None:
@@ -510,14 +531,14 @@ class BlockKernel:
             if a == "X":
                 if arr.shape != (arr.size,):
                     raise ValueError(f"X: one parameter vector (p,) expected, got shape {arr.shape}")
-                d[:3] = (arr.ctypes.data, 0, arr.strides[0])
+                d[:3] = (address(arr), 0, arr.strides[0])
             else:
                 want = (N, self.n) if a != "wrench" else (N, self.n_sites, 6)
                 if a == "wrench":
                     arr = np.broadcast_to(arr.reshape(-1, self.n_sites, 6) if arr.ndim < 3 else arr, want)
                 if arr.shape != want:
                     raise ValueError(f"{a} has shape {arr.shape}; expected {want}")
-                d[:1 + arr.ndim] = (arr.ctypes.data, *arr.strides)
+                d[:1 + arr.ndim] = (address(arr), *arr.strides)
             keep.append(arr)
         self.module.run(N, desc)
         del keep
