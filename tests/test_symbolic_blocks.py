@@ -305,3 +305,18 @@ def test_cli_codegen_block(tmp_path):
     assert main(["model", "codegen", "puma560", "--lang", "c", "--model", "regressor", "--block", "--out",
                  str(tmp_path)]) == 0
     assert "puma_560_regressor_block(long N" in (tmp_path / "puma_560_regressor.h").read_text()
+
+
+def test_generated_regressor_without_numba_uses_the_numpy_code(monkeypatch):
+    import dynid.symbolic.generated as generated
+
+    monkeypatch.setattr(generated, "have_numba", lambda: False)
+    tree = car_template()
+    N = LANES + 2
+    q, qd, qdd = random_states(tree, N, seed=50)
+    wrench = [Wrench(33, np.ones((N, 6)), (0.0, 0.0, 0.0), frame=33)]
+    rows, cols = list(EQUATION_ROWS), paper_parameter_names()
+    W, Q = generated.GeneratedRegressor(tree)(q, qd, qdd, wrench, rows, cols)
+    We, Qe = Model(tree).regressor(q, qd, qdd, wrench, rows=rows, cols=cols)
+    close(W, We)
+    close(Q, Qe)
