@@ -11,11 +11,15 @@ the vector units' width with no trip through memory (issue 16).
 
     void symbol(i64 N, ptr desc)     desc: int64 per argument [data address, strides in bytes]
 
-looping over the N samples LANES at a time: inputs gathered lane by lane with any strides
-(a column of q, a Fortran-ordered or sliced array), outputs stored as vectors into
-entry-major (size, N) buffers, whose rows no equation writes are left alone (zero); a last
-partial block repeats its last sample in the missing lanes and goes through a zeroed scratch
-(size, LANES) before its valid lanes are copied. Arithmetic is the source's, operation by
+looping over the N samples LANES at a time: each input read by one gather of its lanes, with
+any strides (a column of q, a Fortran-ordered or sliced array), the block after next
+prefetched; outputs stored as vectors into entry-major (size, N) buffers, whose rows no
+equation writes are left alone (zero). When a buffer's address and row stride are multiples
+of 64 bytes (`aligned_zeros`), each store is one whole cache line, written non-temporally
+(no read for ownership: the PUMA regressor at N = 20 000 went from 0.25 to 0.07 us per
+sample); otherwise, and for a last partial block (whose missing lanes repeat its last
+sample), the block goes through a zeroed (size, LANES) scratch whose valid lanes are then
+copied. Arithmetic is the source's, operation by
 operation, with no fast-math flag (no contraction into FMA, no reassociation), so that the
 numbers do not depend on the CPU's instruction set: they are the per-sample code's except
 sine and cosine, fdlibm's reduction by pi/2 and polynomials in vector form (the same as the
