@@ -42,6 +42,7 @@ from ..model.tree import Tree
 from .llvm_code import UnsupportedSourceError, _double, parse_function
 
 LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16 measured slower on both models
+_PREFETCHES = 48  # per input array and block: its rows' cache lines (8 rows of 42 doubles: 42 lines)
 _SLOTS = 4  # int64 per argument in the descriptor: address, then up to three strides (bytes)
 
 # fdlibm's constants, as in dynamics.compiled._sincos
@@ -278,9 +279,21 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
                if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)}
     em = _VectorEmitter(args, outputs, set(shared) & set(args), lanes)
     em.block = "compute"
-    for st in fn.body:
+    # prefetches of the block after next, spread over the block's statements (issued in one burst, most
+    # were dropped: the core tracks a few dozen misses at a time)
+    ins = [a for a in args if a not in outputs and a not in em.shared]
+    total = _PREFETCHES * len(ins)
+    due = [(i * len(fn.body)) // max(total, 1) for i in range(total)]
+    done = 0
+    for t, st in enumerate(fn.body):
         if not em.statement(st):
             break
+        while done < total and due[done] <= t:
+            a, c = ins[done % len(ins)], done // len(ins)
+            off = em._new(f"mul i64 {c}, %pfs_{a}")
+            ptr = em._new(f"getelementptr i8, ptr %pfb_{a}, i64 {off}")
+            em.lines.append(f"  call void @llvm.prefetch.p0(ptr {ptr}, i32 0, i32 3, i32 1)")
+            done += 1
     else:
         raise UnsupportedSourceError(f"{fn.name}: no `return 0`")
     L = lanes
@@ -325,24 +338,14 @@ def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str]
                 name = f"%rows{lane}_{a}" if lane < L - 1 else f"%rows_{a}"
                 body.append(f"  {name} = insertelement <{L} x i64> {prev}, i64 %row{lane}_{a}, i64 {lane}")
                 prev = name
-    # prefetch the rows of the block after next (the loads of a block come in one burst at its start, and
-    # a block's arithmetic is longer than what the out-of-order window can hide a miss behind)
-    ins = [a for a in args if a not in outputs and a not in em.shared]
-    prev = "body"
-    for a in ins:
+    for a in ins:  # where the block after next starts, and the bytes between two of its prefetches
         body += [f"  %pfr0_{a} = add i64 %i0, {2 * L}", f"  %pfc_{a} = icmp sgt i64 %pfr0_{a}, %last",
                  f"  %pfr_{a} = select i1 %pfc_{a}, i64 %last, i64 %pfr0_{a}",
                  f"  %pfo_{a} = mul i64 %pfr_{a}, %d1_{a}",
                  f"  %pfb_{a} = getelementptr i8, ptr %p_{a}, i64 %pfo_{a}",
                  f"  %pfn0_{a} = mul i64 %d1_{a}, {L}", f"  %pfn1_{a} = icmp slt i64 %pfn0_{a}, 4096",
                  f"  %pfn_{a} = select i1 %pfn1_{a}, i64 %pfn0_{a}, i64 4096",
-                 f"  br label %pf_{a}", f"pf_{a}:",
-                 f"  %pfi_{a} = phi i64 [0, %{prev}], [%pfi1_{a}, %pf_{a}]",
-                 f"  %pfp_{a} = getelementptr i8, ptr %pfb_{a}, i64 %pfi_{a}",
-                 f"  call void @llvm.prefetch.p0(ptr %pfp_{a}, i32 0, i32 3, i32 1)",
-                 f"  %pfi1_{a} = add i64 %pfi_{a}, 64", f"  %pfm_{a} = icmp slt i64 %pfi1_{a}, %pfn_{a}",
-                 f"  br i1 %pfm_{a}, label %pf_{a}, label %pfx_{a}", f"pfx_{a}:"]
-        prev = f"pfx_{a}"
+                 f"  %pfs_{a} = sdiv i64 %pfn_{a}, {_PREFETCHES}"]
     body += ["  br label %compute", "compute:"]
     end = ["  br i1 %direct, label %latch, label %tail", "latch:", f"  %i1 = add i64 %i0, {L}",
            "  %more = icmp slt i64 %i1, %N", "  br i1 %more, label %body, label %exit", "tail:"]
