@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import ast
 import inspect
+import threading
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -42,6 +43,10 @@ from ..model.tree import Tree
 from .llvm_code import UnsupportedSourceError, _double, parse_function
 
 LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16 measured slower on both models
+# one generation (and one parse of a generated source) at a time: CPython 3.11's ast.parse is not safe
+# from two threads at once (SystemError "AST constructor recursion depth mismatch"), and the car
+# pipeline's two threads ask for the same kernel at their first segment
+_GENERATION_LOCK = threading.RLock()
 _PREFETCHES = 48  # per input array and block: its rows' cache lines (8 rows of 42 doubles: 42 lines)
 _SLOTS = 4  # int64 per argument in the descriptor: address, then up to three strides (bytes)
 
@@ -408,8 +413,9 @@ def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Seque
     texts: list[str] = []
 
     def ir_text() -> str:
-        if not texts:
-            texts.append(block_ir(inspect.getsource(fn), symbol, lanes, shared))
+        with _GENERATION_LOCK:
+            if not texts:
+                texts.append(block_ir(inspect.getsource(fn), symbol, lanes, shared))
         return texts[0]
 
     @intrinsic
@@ -564,28 +570,36 @@ def block_model(tree: Tree, model: str, **options) -> BlockKernel:
 
     Generated once, then loaded from the disk cache (source and Numba's machine code)."""
     from .cache import model_hash
-    from .models import build
-    from .numba_backend import arguments, compile_source, scalar_source, source_key
+    from .numba_backend import compile_source, source_key
 
     key = source_key(model_hash(tree, model, options), "blocks", str(LANES))
     name = f"{model}_{key}"
-    mod = compile_source(None, [], key, prefix="dynid_blk")
-    if mod is None or not hasattr(mod, "ARGS"):
-        prog = build(tree, model, **options)
-        outs = [("out", tuple(prog.shape), prog.outputs)] + [(k, tuple(s), e) for k, (s, e) in
-                                                              prog.extra_outputs.items()]
-        meta = {"ARGS": arguments(prog) + [o for o, _, _ in outs],
-                "OUTPUTS": {o: int(np.prod(s)) for o, s, _ in outs},
-                "ZERO_ROWS": {o: _zero_runs(s, e) for o, s, e in outs},
-                "N": tree.n, "N_SITES": len(prog.meta.get("sites", [])), "SHAPE": tuple(prog.shape)}
-        text = kernel_source(prog, name)
-        try:  # checked now: inside Numba's compilation an error would surface far from its cause
-            block_ir(scalar_source(prog, name), "check")
-        except UnsupportedSourceError as e:
-            meta["UNSUPPORTED"] = str(e)
-        text += "".join(f"{k} = {v!r}\n" for k, v in meta.items())
-        mod = compile_source(text, [], key, prefix="dynid_blk")
+    with _GENERATION_LOCK:
+        mod = compile_source(None, [], key, prefix="dynid_blk")
+        if mod is None or not hasattr(mod, "ARGS"):
+            mod = _generate(tree, model, options, key, name)
     return BlockKernel(mod)
+
+
+def _generate(tree: Tree, model: str, options: dict, key: str, name: str):
+    """Build the model, check that it translates, write and import its module (see block_model)."""
+    from .models import build
+    from .numba_backend import arguments, compile_source, scalar_source
+
+    prog = build(tree, model, **options)
+    outs = [("out", tuple(prog.shape), prog.outputs)] + [(k, tuple(s), e) for k, (s, e) in
+                                                          prog.extra_outputs.items()]
+    meta = {"ARGS": arguments(prog) + [o for o, _, _ in outs],
+            "OUTPUTS": {o: int(np.prod(s)) for o, s, _ in outs},
+            "ZERO_ROWS": {o: _zero_runs(s, e) for o, s, e in outs},
+            "N": tree.n, "N_SITES": len(prog.meta.get("sites", [])), "SHAPE": tuple(prog.shape)}
+    text = kernel_source(prog, name)
+    try:  # checked now: inside Numba's compilation an error would surface far from its cause
+        block_ir(scalar_source(prog, name), "check")
+    except UnsupportedSourceError as e:
+        meta["UNSUPPORTED"] = str(e)
+    text += "".join(f"{k} = {v!r}\n" for k, v in meta.items())
+    return compile_source(text, [], key, prefix="dynid_blk")
 
 
 def _zero_runs(shape: tuple[int, ...], entries) -> tuple[tuple[int, int], ...]:
