@@ -16,6 +16,10 @@ each speed-up is a ratio of figures measured in the same run. Lines:
   its pages by the OS costs more than the arithmetic.
 - 2 threads: the same call on the two halves of the samples in two threads (the kernels
   release the GIL), writing into halves of the reused W; reported apart from the targets.
+- block kernels (issue 16): the generated models evaluated 8 samples side by side in vector
+  registers (`dynid.symbolic.blocks`, what `GeneratedRegressor` runs for the car pipeline):
+  inverse dynamics with the parameter values built in (as Pinocchio's model has them), the
+  PUMA's full regressor and the car's 14 x 48 identification model, into reused buffers.
 
 Also measures the first call in a fresh process with an empty Numba cache (compilation)
 and with the cache filled. Prints a table and writes benchmarks/results/numeric.json.
@@ -102,6 +106,24 @@ def bench_regressor(model: Model, q, qd, qdd, rows=None, cols=None, *, fresh: bo
     return res
 
 
+def bench_blocks(model: Model, q, qd, qdd, rows=None, cols=None) -> dict:
+    """Per-sample µs of the generated block kernels (dynid.symbolic.blocks: samples side by side in vector
+    registers): inverse dynamics with the tree's parameter values built in, and the regressor (of the rows
+    and columns given, else the whole one), each writing into a reused output buffer."""
+    from dynid.symbolic.blocks import aligned_zeros, block_model
+
+    N = q.shape[0]
+    res = {}
+    opts = {} if rows is None else {"rows": list(rows), "cols": list(cols)}
+    for key, kernel in (("block_idm_us", block_model(model.tree, "idm", parameters="numeric")),
+                        ("block_regressor_us", block_model(model.tree, "regressor", **opts))):
+        kernel(q[:2], qd[:2], qdd[:2])  # generate and compile, or load, outside the timing
+        out = {k: aligned_zeros(size, N) for k, size in kernel.outputs.items()}
+        kernel(q, qd, qdd, out=out)  # touch the pages once
+        res[key] = 1e6 * best_of(lambda k=kernel, o=out: k(q, qd, qdd, out=o), repeat=7) / N
+    return res
+
+
 def bench(name: str, model: Model, N: int, rows=None, cols=None) -> dict:
     pm = PinModel(model.tree)
     q, qd, qdd = random_states(model.tree, N, seed=0)
@@ -127,6 +149,10 @@ def bench(name: str, model: Model, N: int, rows=None, cols=None) -> dict:
         res["restricted_shape"] = [len(rows), len(cols)]
         res["restricted_speedup"] = res["pin_regressor_us"] / res["dynid_regressor_restricted_us"]
         res["restricted_fresh_speedup"] = res["pin_regressor_us"] / res["dynid_regressor_restricted_fresh_us"]
+    res.update(bench_blocks(model, q, qd, qdd, rows, cols))
+    res["block_regressor_shape"] = [model.n, model.tree.p] if rows is None else [len(rows), len(cols)]
+    res["block_idm_speedup"] = res["pin_rnea_us"] / res["block_idm_us"]
+    res["block_regressor_speedup"] = res["pin_regressor_us"] / res["block_regressor_us"]
     return res
 
 
@@ -159,6 +185,14 @@ def print_table(results: list[dict], compile_s: dict) -> None:
                  r["pin_regressor_us"], ">= 20x")
             line(r, f"regressor, {shape}, fresh array", r["dynid_regressor_restricted_fresh_us"],
                  r["pin_regressor_us"])
+    print("\ngenerated block kernels (issue 16: samples side by side in vector registers), same run:")
+    for r in results:
+        car = r["frames"] == 42
+        shape = f"{r['block_regressor_shape'][0]} x {r['block_regressor_shape'][1]}"
+        line(r, "inverse dynamics, block kernel (vs rnea)", r["block_idm_us"], r["pin_rnea_us"],
+             ">= 10x" if car else "")
+        line(r, f"regressor {shape}, block kernel (vs full)", r["block_regressor_us"], r["pin_regressor_us"],
+             ">= 140x and <= 0.5 µs" if car else "")
     print("\nfor reference, not targets:")
     for r in results:
         line(r, "inverse dynamics, NumPy engine", r["numpy_idm_us"], r["pin_rnea_us"])
@@ -187,6 +221,14 @@ def roofline(results: list[dict], car: Model) -> dict:
         (f"car regressor {len(EQUATION_ROWS)} x {len(paper_parameter_names())}", car.tree, "regressor",
          {"rows": list(EQUATION_ROWS), "cols": paper_parameter_names()},
          results[1]["dynid_regressor_restricted_us"]),
+        ("PUMA 560 inverse dynamics, block kernel", puma.tree, "idm", {"parameters": "numeric"},
+         results[0]["block_idm_us"]),
+        ("PUMA 560 regressor, block kernel", puma.tree, "regressor", {}, results[0]["block_regressor_us"]),
+        ("car 42 frames inverse dynamics, block kernel", car.tree, "idm", {"parameters": "numeric"},
+         results[1]["block_idm_us"]),
+        (f"car regressor {len(EQUATION_ROWS)} x {len(paper_parameter_names())}, block kernel", car.tree,
+         "regressor", {"rows": list(EQUATION_ROWS), "cols": paper_parameter_names()},
+         results[1]["block_regressor_us"]),
     ]
     for name, tree, kind, opts, us in cases:
         ops, funcs = operations(tree, kind, **opts)

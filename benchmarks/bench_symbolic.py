@@ -10,7 +10,11 @@ Run: python benchmarks/bench_symbolic.py   (writes benchmarks/results/symbolic.j
   pinocchio.computeJointTorqueRegressor called per sample on the same tree, also with the
   module's results writeable (READONLY = False: a reused buffer's zero rows cleared each
   call) and with no buffer reuse (POOL_MIN huge: fresh zeroed pages each call, as for a caller
-  keeping every result), and of the generated C compiled with -O2 (called through ctypes).
+  keeping every result), and of the generated C compiled with -O2 (called through ctypes);
+- samples side by side (issue 16): the generated C `_block` (8 samples per vectorised loop, -O2 and
+  -O3 -march=native), and the Numba block kernel (dynid.symbolic.blocks, vector IR, what
+  GeneratedRegressor runs), each with its ratio to Pinocchio and to the C `_batch` of this run,
+  and its fraction of this core's measured peak (benchmarks/roofline.py).
 """
 
 from __future__ import annotations
@@ -95,24 +99,46 @@ def pinocchio_per_sample(tree: Tree, q, qd, qdd) -> float | None:
     return per_sample(run, N, repeat=3)
 
 
-def c_per_sample(prog, stem: str, q, qd, qdd) -> float | None:
+def c_per_sample(prog, stem: str, q, qd, qdd, variant: str = "batch", flags: tuple[str, ...] = ("-O2",)
+                 ) -> float | None:
+    """Per-sample time of the generated C `<stem>_<model>_<variant>` (batch: per sample; block: 8 samples
+    side by side) compiled with `flags`, called once on all samples through ctypes."""
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         return None
     with tempfile.TemporaryDirectory() as tmp:
-        h, c = to_c(prog, prefix=stem)
+        h, c = to_c(prog, prefix=stem, block=variant == "block")
         name = f"{stem}_{prog.model}"
         Path(tmp, f"{name}.h").write_text(h)
         Path(tmp, f"{name}.c").write_text(c)
         lib = Path(tmp, f"{name}.so")
-        subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(lib), str(Path(tmp, f"{name}.c")), "-lm"], check=True)
-        fn = getattr(ctypes.CDLL(str(lib)), f"{name}_batch")
+        subprocess.run([cc, *flags, "-shared", "-fPIC", "-o", str(lib), str(Path(tmp, f"{name}.c")), "-lm"],
+                       check=True)
+        fn = getattr(ctypes.CDLL(str(lib)), f"{name}_{variant}")
         N = q.shape[0]
         P = ctypes.POINTER(ctypes.c_double)
         arrays = [np.ascontiguousarray(a) for a in (q, qd, qdd)]
         out = np.zeros((N, *prog.shape))
         ptrs = [a.ctypes.data_as(P) for a in arrays] + [out.ctypes.data_as(P)]
         return per_sample(lambda: fn(ctypes.c_long(N), *ptrs), N, repeat=20)
+
+
+# SymPyBotics' generated C regressor of the PUMA 560, as quoted in issue 16 (not measured here: a reference)
+SYMPYBOTICS_PUMA_C_US = 0.357
+
+
+def block_per_sample(tree: Tree, opts: dict, q, qd, qdd) -> float | None:
+    """Per-sample time of the generated block kernel (dynid.symbolic.blocks) into a reused buffer."""
+    try:
+        from dynid.symbolic.blocks import aligned_zeros, block_model
+
+        kernel = block_model(tree, "regressor", **opts)
+        if not kernel.available:
+            return None
+    except ImportError:
+        return None
+    out = {k: aligned_zeros(size, q.shape[0]) for k, size in kernel.outputs.items()}
+    return per_sample(lambda: kernel(q, qd, qdd, out=out), q.shape[0], repeat=7)
 
 
 def main() -> int:
@@ -161,7 +187,17 @@ def main() -> int:
         t_npf = per_sample(lambda f=ff, q=q, qd=qd, qdd=qdd: f(q, qd, qdd), Nn, repeat=7)
         t_pin = pinocchio_per_sample(tree, q[:Np], qd[:Np], qdd[:Np])
         t_c = c_per_sample(prog, key, q[:Nc], qd[:Nc], qdd[:Nc])
-        speed[key] = {"model": f"regressor {prog.shape[0]}x{prog.shape[1]}", "numpy_us": t_np * 1e6,
+        t_cb = c_per_sample(prog, key, q[:Nc], qd[:Nc], qdd[:Nc], "block")
+        t_cbn = c_per_sample(prog, key, q[:Nc], qd[:Nc], qdd[:Nc], "block", ("-O3", "-march=native"))
+        t_blk = block_per_sample(tree, opts, q, qd, qdd)
+        count = prog.ops()
+        speed[key] = {"ops": count.mult + count.add, "functions": count.func,
+                      "c_block_O2_us": None if t_cb is None else t_cb * 1e6,
+                      "c_block_O3_native_us": None if t_cbn is None else t_cbn * 1e6,
+                      "numba_block_us": None if t_blk is None else t_blk * 1e6,
+                      "numba_block_speedup_vs_pinocchio": None if None in (t_pin, t_blk) else t_pin / t_blk,
+                      "c_block_O2_vs_sympybotics_c": None if t_cb is None else SYMPYBOTICS_PUMA_C_US / (t_cb * 1e6),
+                      "model": f"regressor {prog.shape[0]}x{prog.shape[1]}", "numpy_us": t_np * 1e6,
                       "numpy_writeable_us": t_npw * 1e6, "numpy_fresh_buffers_us": t_npf * 1e6,
                       "pinocchio_us": None if t_pin is None else t_pin * 1e6,
                       "numpy_speedup_vs_pinocchio": None if t_pin is None else t_pin / t_np,
@@ -191,6 +227,37 @@ def main() -> int:
         print(f"  {key:<8} {d['model']}: numpy {d['numpy_us']:.3f}  pinocchio {pin_s}  ({sp})  "
               f"numpy writeable {d['numpy_writeable_us']:.3f} ({spw})  fresh buffers "
               f"{d['numpy_fresh_buffers_us']:.3f}  C -O2 {c_s}")
+    try:
+        sys.path.insert(0, str(HERE))
+        from roofline import peak_flops
+
+        peak = peak_flops()
+    except ImportError:
+        peak = None
+    print("samples side by side (issue 16), per sample (us) and ratios measured in this run:")
+    for key, d in speed.items():
+        def us(v):
+            return "n/a" if v is None else f"{v:.3f}"
+
+        pin_us = d["pinocchio_us"]
+        print(f"  {key:<8} {d['model']}: Numba block {us(d['numba_block_us'])}"
+              + ("" if d["numba_block_speedup_vs_pinocchio"] is None
+                 else f" ({d['numba_block_speedup_vs_pinocchio']:.0f}x Pinocchio {pin_us:.2f})")
+              + f"  C -O2: _batch {us(d['c_O2_us'])}, _block {us(d['c_block_O2_us'])}"
+              + ("" if d["c_O2_us"] is None or d["c_block_O2_us"] is None
+                 else f" ({d['c_O2_us'] / d['c_block_O2_us']:.2f}x _batch)")
+              + f"  C _block -O3 -march=native {us(d['c_block_O3_native_us'])}")
+        if key == "puma560" and d["c_block_O2_us"] is not None:
+            print(f"           C _block -O2 vs SymPyBotics' C ({SYMPYBOTICS_PUMA_C_US} us, quoted in issue 16, not "
+                  f"measured here): {d['c_block_O2_vs_sympybotics_c']:.2f}x  (target <= 0.30 us)")
+        if peak is not None:
+            for what in ("numba_block_us", "c_block_O2_us"):
+                if d[what] is not None:
+                    rate = d["ops"] / (d[what] * 1e-6)
+                    d[what.replace("_us", "_fraction_of_peak")] = rate / peak
+                    print(f"           roofline {what[:-3]}: {d['ops']} ops + {d['functions']} sin/cos, "
+                          f"{rate / 1e9:.2f} Gop/s, {100 * rate / peak:.1f} % of this core's {peak / 1e9:.1f} Gop/s")
+    out.write_text(json.dumps(res, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
 
