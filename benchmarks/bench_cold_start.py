@@ -20,7 +20,6 @@ The time is each child's wall time, imports included. Targets (issue 16): a cold
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -29,6 +28,10 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
+
 TARGETS = {"demo": (40.0, 15.0)}
 
 
@@ -70,12 +73,7 @@ def main() -> None:
             shown = {"demo": "dynid demo", "simulate": "dynid simulate sine",
                      "identify": "dynid identify demo/identify.toml"}[name]
             print(f"{shown:<40} {cold:8.1f} {warm:8.1f}   {text}", flush=True)
-    dest = HERE / "results" / "cold_start.json"
-    dest.parent.mkdir(exist_ok=True)
-    tmpf = dest.with_suffix(".tmp")
-    tmpf.write_text(json.dumps(res, indent=2))
-    tmpf.replace(dest)
-    print(f"wrote {dest.relative_to(HERE.parent)}")
+    write_results("cold_start", res)
 
 
 if __name__ == "__main__":

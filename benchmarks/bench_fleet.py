@@ -35,6 +35,7 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE)]
 
 from bench_pipeline import CONFIG, write_hour  # noqa: E402
+from results_file import write_results  # noqa: E402
 
 CHILD = """
 import json, sys, time
@@ -115,12 +116,7 @@ def main() -> None:
               f"   target <= 1.3   (cold: {cluster[2]['cold_s'] / threads[hours]['wall_s']:.2f} x)")
     if 1 in cluster and 2 in cluster:
         print(f"scaling, 1 -> 2 workers (warm)                {cluster[1]['wall_s'] / cluster[2]['wall_s']:6.2f} x")
-    dest = HERE / "results" / "fleet.json"
-    dest.parent.mkdir(exist_ok=True)
-    tmpf = dest.with_suffix(".tmp")
-    tmpf.write_text(json.dumps(res, indent=2))
-    tmpf.replace(dest)
-    print(f"wrote {dest.relative_to(HERE.parent)}")
+    write_results("fleet", res)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,6 @@ Writes benchmarks/results/pipeline.json.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -25,7 +24,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path[:0] = [str(HERE.parent / "tests")]
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
+
+from results_file import write_results  # noqa: E402
 
 
 def manoeuvre_channels() -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -107,12 +108,7 @@ def main() -> None:
     print(f"total: reading, conditioning, decimating, LS   {res['total_s']:7.2f} s   target <= 20 s"
           f"   (process with imports {total:.1f} s)")
     print(f"peak resident memory                           {peak:7.2f} GB   target <= 2 GB")
-    dest = HERE / "results" / "pipeline.json"
-    dest.parent.mkdir(exist_ok=True)
-    tmpf = dest.with_suffix(".tmp")
-    tmpf.write_text(json.dumps(res, indent=2))
-    tmpf.replace(dest)
-    print(f"wrote {dest.relative_to(HERE.parent)}")
+    write_results("pipeline", res)
 
 
 if __name__ == "__main__":

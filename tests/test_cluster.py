@@ -117,10 +117,16 @@ def threads_run(car_config):
 
 @pytest.fixture(scope="module")
 def cluster():
+    """2 single-threaded worker processes on the loopback interface, for this module's tests; bounded in time: a
+    cluster that hangs ends the test run (SIGALRM) instead of CI's whole budget."""
     from dynid.pipeline.schedulers import DaskScheduler
 
-    with DaskScheduler("local", workers=2) as s:
-        yield s
+    signal.alarm(900)  # the module takes ~100 s on 2 cores
+    try:
+        with DaskScheduler("local", workers=2) as s:
+            yield s
+    finally:
+        signal.alarm(0)
 
 
 def test_a_local_cluster_gives_the_threads_result(car_config, threads_run, cluster):
