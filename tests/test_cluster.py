@@ -196,3 +196,29 @@ def test_a_robot_on_the_cluster_gives_the_threads_result(cluster, tmp_path, monk
     np.testing.assert_allclose(other.result.values, threads.result.values, rtol=REL, atol=0)
     np.testing.assert_allclose(other.result.std, threads.result.std, rtol=REL, atol=0)
     assert other.errors["direct"] == pytest.approx(threads.errors["direct"], rel=REL)
+
+
+def test_a_broken_config_does_not_lose_the_campaign(car_config, threads_run, tmp_path, capsys):
+    """One config's file is cut short: the others' folders and campaign.csv are written, its error is in the table
+    and on stderr, and the command exits with 2."""
+    import shutil
+
+    from dynid.cli.main import main
+
+    broken_dir = tmp_path / "broken"
+    shutil.copytree(car_config.parent, broken_dir)
+    data = next(p for p in sorted((broken_dir / "data").glob("*.parquet")))
+    data.write_bytes(data.read_bytes()[: len(data.read_bytes()) // 3])  # a truncated Parquet file
+    broken = broken_dir / "broken.toml"
+    broken.write_text(car_config.read_text())
+    out = tmp_path / "campaign"
+    code = main(["identify", str(car_config), str(broken), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "dynid: error: broken: " in err and data.name in err, err
+    table = (out / "campaign.csv").read_text().splitlines()
+    assert table[0].endswith(",error") and table[1].startswith("identify,") and table[2].startswith("broken,")
+    assert (out / "identify" / "results.json").exists() and not (out / "broken").exists()
+    import json
+
+    values = {p["name"]: p["value"] for p in json.loads((out / "identify" / "results.json").read_text())["parameters"]}
+    assert values["M6"] == pytest.approx(threads_run[0].result.value("M6"), rel=REL)

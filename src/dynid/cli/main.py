@@ -100,18 +100,33 @@ def _print_run(run, validation_title: str) -> None:
     print(validation_table(run.errors, run.not_excited))
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number >= 1")
+    return value
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..atomic import staged_folder, write_atomic
+    from ..atomic import final_text, staged_folder, write_atomic
     from ..pipeline.campaign import campaign_names, identify_campaign, summary, summary_csv, summary_text
-    from ..pipeline.config import load_config
+    from ..pipeline.config import ConfigError, load_config
     from ..pipeline.run import write_outputs
     from ..pipeline.schedulers import scheduler_for
     from ..report.build import input_files
 
     cfgs = [load_config(c) for c in args.config]
     out = Path(args.out)
+    computes = {(c.scheduler, c.workers) for c in cfgs}
+    if len(computes) > 1 and args.scheduler is None:
+        raise ConfigError("the configs' [compute] sections differ (" + "; ".join(
+            f"{c.path}: scheduler = {c.scheduler!r}, workers = {c.workers!r}" for c in cfgs) + "): a campaign runs "
+            "on one scheduler; give --scheduler (and --workers), or the same [compute] in every config")
     address = args.scheduler or cfgs[0].scheduler
     workers = args.workers or cfgs[0].workers
     inputs = [p for cfg in cfgs for _, p in input_files(cfg)]
@@ -119,12 +134,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
     with staged_folder(out, inputs=inputs) as stage:
         scheduler = scheduler_for(address, workers)
         try:
-            runs = identify_campaign(cfgs, scheduler, progress=_say)
+            runs = identify_campaign(cfgs, scheduler, progress=_say, errors=_user_errors() if len(cfgs) > 1 else ())
         finally:
             getattr(scheduler, "close", lambda: None)()
         names = campaign_names([c.path for c in cfgs])
         files = []
         for name, run in zip(names, runs, strict=True):
+            if isinstance(run, Exception):
+                continue
             if len(runs) > 1:
                 print(f"\n=== {name} ({run.config.path}) ===")
             _print_run(run, "Validation, relative error ||Y - W X|| / ||Y||:")
@@ -135,7 +152,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
             print(f"\nThe campaign ({len(runs)} identifications):\n{summary_text(head, rows)}")
             files.append(write_atomic(stage / "campaign.csv", summary_csv(head, rows)))
     print(f"\nwrote {', '.join(str(out / f.relative_to(stage)) for f in files)}")
-    return 0
+    failed = [(n, r) for n, r in zip(names, runs, strict=True) if isinstance(r, Exception)]
+    for name, exc in failed:  # the others' results are written: a campaign is not lost to one broken file
+        print(f"dynid: error: {name}: {final_text(str(exc))}", file=sys.stderr)
+    return 2 if failed else 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -242,8 +262,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
                             "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
                             "config's [compute] scheduler, else this machine's threads")
-    ident.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="threads, or a LocalCluster's worker processes (default: the config's, else 2)")
+    ident.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                       help="threads, or a LocalCluster's worker processes (default: the config's, else 2); a remote "
+                            "cluster has the workers it was started with")
     ident.set_defaults(func=cmd_identify)
     symbolic_cmds.register(msub)
     model_io_cmds.register(msub)

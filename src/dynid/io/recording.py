@@ -68,10 +68,12 @@ class Channel:
 
     @property
     def rate(self) -> float:
-        """Nominal sample rate, Hz: 1 / the median step of the time stamps (nan below 2 samples)."""
+        """Nominal sample rate, Hz: 1 / the median step of the time stamps (nan below 2 samples, or when most
+        stamps repeat or go back: no rate to tell)."""
         if self.time.size < 2:
             return float("nan")
-        return 1.0 / float(np.median(np.diff(self.time)))
+        step = float(np.median(np.diff(self.time)))
+        return 1.0 / step if step > 0 else float("nan")
 
     def line(self, k: int) -> int | None:
         """File line of sample k, or None when the format has no lines."""

@@ -46,11 +46,10 @@ files a block holds the channels of one group (time base) only, the others come 
 Recently decoded blocks are kept in a per-process cache, at most `CACHE_BLOCKS` (3) blocks
 of a file and `CACHE_BYTES` (512 MiB) in all, least recently used out first (0 turns it
 off), so that windows read in time order decode each CSV block or Parquet row group about
-once: a Parquet row group is the smallest unit pyarrow decodes, and writers often make them
-a million rows long (pyarrow's default, so dynid's `write_parquet`), far longer than a
-window. The memory a window needs is therefore bounded by the cache and the row-group
-size, not by the file's length; a Parquet file written with row groups of about 65536 rows
-(`pyarrow.parquet.write_table(..., row_group_size=65536)`) needs far less.
+once: a Parquet row group is the smallest unit pyarrow decodes, and other writers often make
+them a million rows long (pyarrow's default), far longer than a window. The memory a window
+needs is therefore bounded by the cache and the row-group size, not by the file's length;
+dynid's `write_parquet` writes row groups of 65536 rows, which need far less.
 
 The CSV index parses only the time column (and checks every row has a stamp); the other
 cells are parsed, and a bad one reported as `read_csv` reports it, when a window reads them.

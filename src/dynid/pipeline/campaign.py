@@ -34,14 +34,21 @@ def campaign_names(paths: Sequence[Path]) -> list[str]:
 
 
 def identify_campaign(cfgs: Sequence[IdentifyConfig], scheduler: Scheduler | None = None,
-                      progress: Progress | None = None) -> list[IdentificationRun]:
-    """Every config's identification on one scheduler (module doc), in the configs' order."""
+                      progress: Progress | None = None, errors: tuple[type[Exception], ...] = ()
+                      ) -> list[IdentificationRun | Exception]:
+    """Every config's identification on one scheduler (module doc), in the configs' order. A config that fails with
+    one of `errors` (bad input: a file, a channel, a config) gives its exception in its place, and the others run
+    on: a campaign is not lost to one broken file."""
     say = progress or (lambda _m: None)
     scheduler = scheduler or LocalScheduler()
     names = campaign_names([c.path for c in cfgs])
 
-    def one(k: int) -> IdentificationRun:
-        return identify(cfgs[k], progress=lambda m: say(f"[{names[k]}] {m}"), scheduler=scheduler)
+    def one(k: int) -> IdentificationRun | Exception:
+        try:
+            return identify(cfgs[k], progress=lambda m: say(f"[{names[k]}] {m}"), scheduler=scheduler)
+        except errors as exc:
+            say(f"[{names[k]}] failed: {exc}")
+            return exc
 
     if isinstance(scheduler, LocalScheduler) or len(cfgs) == 1:
         return [one(k) for k in range(len(cfgs))]
@@ -49,9 +56,10 @@ def identify_campaign(cfgs: Sequence[IdentifyConfig], scheduler: Scheduler | Non
         return list(pool.map(one, range(len(cfgs))))
 
 
-def summary(names: Sequence[str], runs: Sequence[IdentificationRun]) -> tuple[list[str], list[list[str]]]:
-    """The campaign's table: a header and a row of text cells per config."""
-    cars = [r for r in runs if r.vehicle is not None]
+def summary(names: Sequence[str], runs: Sequence[IdentificationRun | Exception]) -> tuple[list[str], list[list[str]]]:
+    """The campaign's table: a header and a row of text cells per config (a failed one: its error, last column)."""
+    done = [r for r in runs if not isinstance(r, Exception)]
+    cars = [r for r in done if r.vehicle is not None]
     head = ["config", "model", "parameters", "direct error %", "cross error %"]
     figures: dict[str, tuple[str, str]] = {}
     if cars:
@@ -59,8 +67,14 @@ def summary(names: Sequence[str], runs: Sequence[IdentificationRun]) -> tuple[li
 
         figures = {k: (QUANTITIES[k][1], QUANTITIES[k][2]) for k in CAR_FIGURES}
         head += [f"{label} [{unit}]" for label, unit in figures.values()]
+    failed = len(done) < len(runs)
+    if failed:
+        head.append("error")
     rows = []
     for name, run in zip(names, runs, strict=True):
+        if isinstance(run, Exception):
+            rows.append([name] + ["-"] * (len(head) - 2) + [str(run).splitlines()[0]])
+            continue
         r = run.result
         errs = [run.errors.get(k, {}).get("overall") for k in ("direct", "cross")]
         row = [name, run.model.name, str(len(r.estimated_names))]
@@ -68,7 +82,7 @@ def summary(names: Sequence[str], runs: Sequence[IdentificationRun]) -> tuple[li
         if figures:
             q = {x.key: x for x in _car_figures(run)} if run.vehicle is not None else {}
             row += [f"{q[k].value:.6g} ± {q[k].std:.2g}" if k in q else "-" for k in figures]
-        rows.append(row)
+        rows.append(row + ([""] if failed else []))
     return head, rows
 
 

@@ -123,7 +123,7 @@ class CarSetup:
 
 
 _SETUPS: OrderedDict[str, Any] = OrderedDict()
-_SETUPS_KEPT = 4  # a campaign's configs take turns on every worker
+_SETUPS_KEPT = 64  # a campaign's configs take turns on every worker: keep them all (a setup is a few MB)
 _SETUPS_LOCK = threading.Lock()
 
 
@@ -176,8 +176,7 @@ class RobotJob:
     """One chunk (kept samples s..e) of a robot test: the test's plan cut to the samples read around it."""
 
     cfg: IdentifyConfig
-    window: RobotTestPlan  # the plan, its clock cut to the samples read: first..first + len
-    first: int
+    window: RobotTestPlan  # the plan, its clock cut to the samples read: window.first onwards
     chunk: tuple[int, int]
     n_samples: int
 
@@ -207,7 +206,7 @@ def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
     q, tau = transmitted(job.cfg, arrays["q"], arrays["tau"], setup.model.n)
-    return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, job.first, job.chunk,
+    return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                       job.n_samples)
 
 

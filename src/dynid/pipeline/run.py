@@ -7,6 +7,7 @@ report. Outputs are written atomically to the output folder.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from collections.abc import Callable
@@ -45,7 +46,7 @@ from .reduce import (
 )
 from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
-from .schedulers import LocalScheduler, Scheduler
+from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
     plan_car_test,
     plan_robot_test,
@@ -134,8 +135,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
                               "raise the cut-off")
         for s, e in robot_chunks(N, plan.fs, model, base, cfg.conditioning):
             lo, hi = max(0, s - pad), min(N, e + pad)
-            window = dataclasses.replace(plan, clock=np.array(plan.clock[lo:hi]), chunks=(), first=lo)
-            jobs.append(RobotJob(cfg, window, lo, (s, e), N))
+            window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
+            jobs.append(RobotJob(cfg, window, (s, e), N))
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, stack_rows, say)
     return {spec.name: in_joint_order([parts[spec.name]]) for spec in cfg.tests}
 
@@ -226,7 +227,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             for i, (lo, hi) in enumerate(plan.segments):
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   tuple(settings.offsets.items()) if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0))
+                                  instruments, keep_rows=i == 0 and instruments is None))
         return out
 
     def picked(n_segments: int) -> dict[int, float]:
@@ -347,7 +348,10 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
 def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: Scheduler | None = None
              ) -> IdentificationRun:
     """Run the identification a config describes (a robot from joint files, or a car from its sensors), its
-    segments on `scheduler` (default: this machine's cores; see `schedulers`)."""
+    segments on `scheduler` (default: the config's [compute], else this machine's cores; see `schedulers`)."""
+    if scheduler is None:
+        with contextlib.closing(scheduler_for(cfg.scheduler, cfg.workers)) as own:
+            return identify(cfg, progress, own)
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
         return _identify_car(cfg, say, scheduler)

@@ -72,6 +72,9 @@ class LocalScheduler:
     def __repr__(self) -> str:
         return f"{self.workers} local thread(s)"
 
+    def close(self) -> None:
+        """Nothing to release (the threads live for one map)."""
+
     def map_reduce(self, fn, jobs, key, combine, progress=None):
         say = progress or (lambda _m: None)
         results: list = [None] * len(jobs)
@@ -138,19 +141,22 @@ class DaskScheduler:
         from dask.distributed import as_completed
 
         say = progress or (lambda _m: None)
-        futures = self.client.map(fn, list(jobs), pure=False, retries=2)
-        for done, _ in enumerate(as_completed(futures), 1):
-            say(f"segments done {done}/{len(jobs)} on {self}")
+        # a lost worker's tasks are recomputed by the scheduler from the same jobs; an exception in a job (bad data)
+        # is the same on any worker, so it is not retried
+        futures = self.client.map(fn, list(jobs), pure=False)
         out = {}
-        for k, idx in _by_key(jobs, key).items():
+        for k, idx in _by_key(jobs, key).items():  # the fold, submitted at once: combines run as parts arrive
             level = [futures[i] for i in idx]
             while len(level) > 1:  # the same fixed shape as tree_fold, run where the parts are
-                level = [self.client.submit(combine, level[i], level[i + 1], pure=False, retries=2)
+                level = [self.client.submit(combine, level[i], level[i + 1], pure=False)
                          if i + 1 < len(level) else level[i] for i in range(0, len(level), 2)]
             out[k] = level[0]
+        where = repr(self)
+        for done, _ in enumerate(as_completed(futures), 1):
+            say(f"segments done {done}/{len(jobs)} on {where}")
         return dict(zip(out, self.client.gather(list(out.values())), strict=True))
 
 
 def scheduler_for(address: str | None, workers: int | None = None) -> LocalScheduler | DaskScheduler:
     """None: this machine's threads; "local" or an address: Dask."""
-    return LocalScheduler(workers) if address in (None, "", "threads") else DaskScheduler(address, workers)
+    return LocalScheduler(workers) if not address else DaskScheduler(address, workers)

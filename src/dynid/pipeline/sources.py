@@ -32,7 +32,14 @@ from .config import ConfigError, IdentifyConfig, TestSpec
 from .timebase import RATE_TOLERANCE, _rate, opened, stream
 
 Progress = Callable[[str], None]
-MARGIN_STEPS = 8  # samples of the slowest base read beyond a segment's ends: the interpolation's support
+# steps of the slowest base read beyond a window's ends, besides the longest hole the plan allows: a not-a-knot cubic's
+# end effect decays by ~0.27 a knot, so 20 knots leave 1e-11 of the local interpolation error (8 left 3e-5)
+MARGIN_STEPS = 20
+
+
+def window_margin(max_gap: float, steps: Sequence[float]) -> float:
+    """Seconds read beyond a window's ends: MARGIN_STEPS samples even across a hole of max_gap periods."""
+    return (MARGIN_STEPS + float(np.ceil(max_gap))) * max(steps)
 
 
 @dataclass(frozen=True)
@@ -79,7 +86,7 @@ class SegmentWindow:
         return read_segment(self)
 
 
-def _time_bases(index: FileIndex, names: Sequence[str]
+def _time_bases(index: FileIndex, names: Sequence[str], test: str
                 ) -> tuple[list[tuple[list[str], NDArray, NDArray | None]], dict[str, str]]:
     """`time_bases` of the file, each channel's unit, and a channel without two samples refused."""
     bases = time_bases(index, names)
@@ -89,8 +96,8 @@ def _time_bases(index: FileIndex, names: Sequence[str]
             counts[n] = t.size
     for name, n in counts.items():
         if n < 2:  # a header and no data: nothing to filter or differentiate
-            raise FileFormatError(f"{index.path}: channel {name!r} has {n} sample(s); a test needs a record (is the "
-                                  "file empty or cut short?)", source=index.path)
+            raise FileFormatError(f"{index.path}: channel {name!r} has {n} sample(s); test {test!r} needs a record "
+                                  "(is the file empty or cut short?)", source=index.path)
     return bases, {n: index.units.get(n, "") for n in names}
 
 
@@ -110,7 +117,7 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
     index, timed = opened(lambda fs: index_file(path, channels=names, fs=fs), path, given, spec.name, cfg.path)
     label = str(path)
     streams = []
-    bases, file_units = _time_bases(index, names)
+    bases, file_units = _time_bases(index, names, spec.name)
     for members, t, lines in bases:
         clock_only = Channel("time", "s", t, t, lines)  # the stamps stand for the base's channels in the checks
         s = stream([clock_only], label, timed, spec.max_gap, (spec.start, spec.end))
@@ -170,7 +177,7 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
 
 def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
     """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice and the index)."""
-    margin = MARGIN_STEPS * max(plan.base_steps)
+    margin = window_margin(plan.max_gap, plan.base_steps)
     return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
                          plan.clock[lo:hi], plan.fs, plan.timed, plan.max_gap, margin, lo)
 
@@ -178,27 +185,45 @@ def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
 def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.float64]]:
     """{quantity: values on the window's clock slice, SI (or the file's unit)}: the file's samples around the slice,
     repeated stamps merged, each channel not already on the clock interpolated onto it (cubic)."""
-    clock = w.clock
-    rec = read_window(w.index, list(w.file_names), float(clock[0]) - w.margin, float(clock[-1]) + w.margin)
-    specs = []
-    for members in _shared_bases(rec, w.file_names):
-        s = stream(members, rec.label, w.timed, w.max_gap)
-        specs += [InterpSpec(n, c) for n, c in _on_clock(s, clock).items()]
-    with _samples_of_the_test(w.first):
-        al = align(specs, t=clock, source=rec.label, gap_factor=None)
+    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic")
     return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
 
 
+def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64], margin: float, timed: bool,
+               first: int, kind: Callable[[str], str]):
+    """The channels on the clock slice (`dynid.io.align`), from the window of the file around it: per time base,
+    repeated stamps merged (the plan checked the stamps: no gap is refused here, where a window's own median step
+    could differ), the samples on the clock used as they are, the others interpolated (kind(name))."""
+    rec = read_window(index, list(names), float(clock[0]) - margin, float(clock[-1]) + margin)
+    specs, exact = [], True
+    with _samples_of_the_test(first, True):
+        for members in _shared_bases(rec, names):
+            s = stream(members, rec.label, timed, np.inf)
+            cut = _on_clock(s, clock)
+            exact = exact and cut is not None
+            specs += [InterpSpec(n, c, kind(n)) for n, c in (cut or s.channels).items()]
+    with _samples_of_the_test(first, exact):
+        return align(specs, t=clock, source=rec.label, gap_factor=None)
+
+
 @contextmanager
-def _samples_of_the_test(first: int) -> Iterator[None]:
-    """A bad sample found in a window named by its sample in the whole test (the window's count starts at 0)."""
+def _samples_of_the_test(first: int, exact: bool) -> Iterator[None]:
+    """A bad sample found in a window named by its sample in the whole test. The window counts from 0: on the
+    clock (exact) its count is shifted by the slice's first sample; a channel being interpolated counts its own
+    file rows from the window's margin, so the count is dropped and the time (and line) name the sample."""
     try:
         yield
     except DataError as exc:
-        if not first or exc.sample is None:
+        if exc.sample is None or (exact and not first):
             raise
-        exc.args = (re.sub(r"\bsample (\d+)", lambda m: f"sample {int(m.group(1)) + first}", str(exc)),)
-        exc.sample += first
+        if exact:
+            text = re.sub(r"\bsample (\d+)", lambda m: f"sample {int(m.group(1)) + first}", str(exc))
+            exc.sample += first
+        else:
+            text = re.sub(r"\bsample \d+ \(t = ([^)]*)\)", r"t = \1", str(exc))
+            text = re.sub(r"\bsample \d+", "a sample", text)
+            exc.sample = None
+        exc.args = (text,)
         raise
 
 
@@ -215,23 +240,23 @@ def _shared_bases(rec, names: Sequence[str]) -> list[list[Channel]]:
     return bases
 
 
-def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel]:
+def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
     """A stream's channels cut to the clock's samples when every clock instant is one of its stamps (used as they
-    are, bit for bit), else whole (to be interpolated)."""
+    are, bit for bit), else None (to be interpolated)."""
     t = s.t
     k = np.searchsorted(t, clock)
     if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):
         rows = slice(int(k[0]), int(k[-1]) + 1)
         return {n: Channel(n, c.unit, c.values[rows], t[rows], None if c.lines is None else c.lines[rows])
                 for n, c in s.channels.items()}
-    return dict(s.channels)
+    return None
 
 
 # -------------------------------------------------------------------------------------------------- a robot's test
 @dataclass(frozen=True)
 class RobotTestPlan:
-    """One robot test's files (q and tau, one file or two), their clock (q's), and its row chunks: ranges of the
-    kept samples (the filter's borders trimmed), each a multiple of the decimation factor long."""
+    """One robot test's files (q and tau, one file or two) and their clock (q's); cut to the samples a chunk reads
+    (`first` onwards), what a chunk's job carries."""
 
     test: str
     role: str
@@ -242,8 +267,7 @@ class RobotTestPlan:
     fs: float
     timed: bool
     max_gap: float
-    margin: float  # s, read beyond a window's ends for the interpolation (several steps of the slowest base)
-    chunks: tuple[tuple[int, int], ...]
+    margin: float  # s, read beyond a window's ends (`window_margin`)
     first: int = 0  # a window's: its clock's first sample in the test
 
     @property
@@ -253,8 +277,7 @@ class RobotTestPlan:
 
 def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None) -> RobotTestPlan:
     """The robot test's files indexed and its clock planned (`timebase`'s rules: q's stamps set the clock, cut to
-    the span every file covers and to start..end), from a pass over the time stamps only. The chunks are set later
-    (`with_chunks`), by the conditioning."""
+    the span every file covers and to start..end), from a pass over the time stamps only."""
     say = progress or (lambda _m: None)
     indexes: dict[str, FileIndex] = {}
     by_file: dict[Path, FileIndex] = {}
@@ -271,7 +294,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
                                           path, spec.fs, spec.name, cfg.path)
         index = indexes[quantity] = by_file[path]
         bases, _ = _time_bases(index, list(dict.fromkeys(n for q in ("q", "tau") if spec.files[q] == path
-                                                         for n in cfg.channels[q].channels)))
+                                                         for n in cfg.channels[q].channels)), spec.name)
         streams[quantity] = []
         for members, t, lines in bases:
             if not set(members) & set(names):
@@ -307,7 +330,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     b = hi if spec.end is None else min(hi, spec.end)
     clock = clock[(clock >= a - tol) & (clock <= b + tol)]
     clock = clock[(clock >= lo) & (clock <= hi)]
-    if len(by_file) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
+    if len(every) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
         say(f"{spec.name}: the files overlap over {lo:.6g}..{hi:.6g} s: that span is used")
     if any(not s.uniform or not np.array_equal(s.t, ref.t) for s in every):
         say(f"{spec.name}: every channel on one uniform {1 / ref.h:.6g} Hz clock, {clock.size} samples "
@@ -316,7 +339,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     units = {q: tuple(cfg.channels[q].unit or indexes[q].units.get(n, "") for n in cfg.channels[q].channels)
              for q in ("q", "tau")}
     return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in ("q", "tau")},
-                         units, clock, fs, timed, spec.max_gap, MARGIN_STEPS * max(s.h for s in every), ())
+                         units, clock, fs, timed, spec.max_gap, window_margin(spec.max_gap, [s.h for s in every]))
 
 
 def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -349,13 +372,7 @@ def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArra
     out = {}
     for quantity, kind, expect in (("q", "cubic", ("rad", "m")), ("tau", "linear", ("N*m", "N"))):
         index, names = plan.indexes[quantity], list(plan.channels[quantity])
-        rec = read_window(index, names, float(clock[0]) - plan.margin, float(clock[-1]) + plan.margin)
-        specs = []
-        for members in _shared_bases(rec, names):
-            s = stream(members, rec.label, plan.timed, plan.max_gap)
-            specs += [InterpSpec(n, c, kind) for n, c in _on_clock(s, clock).items()]
-        with _samples_of_the_test(plan.first):
-            al = align(specs, t=clock, source=rec.label, gap_factor=None)
+        al = _resampled(index, names, clock, plan.margin, plan.timed, plan.first + lo, lambda _n, k=kind: k)
         out[quantity] = np.stack([to_si(al[n], u, channel=n, source=str(index.path), expect=expect)[0]
                                   for n, u in zip(names, plan.units[quantity], strict=True)], axis=1)
     return out

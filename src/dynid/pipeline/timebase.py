@@ -1,12 +1,12 @@
-"""A robot test's files on one uniform clock: time columns, repeated rows, jitter, gaps, two clocks, a window.
+"""A logger's time base checked and its clock fitted (`stream`), and a test file opened with or without a time
+column (`opened`); `sources` plans every test with them.
 
-Each file is read once. A file with a time column is used on its own stamps (an `fs` in the
-test's config must then agree with them); a file without one needs the test's `fs`. Per time
-base (a file's rows): rows with identical stamps are averaged into one sample; stamps going
-back, or a hole longer than `max_gap` sample periods, are refused with the file, line, sample
-and time. The clock is q's own stamps when they are uniform, else a uniform clock at q's rate;
-it is cut to the span every file covers and to the test's `start`..`end`, and every channel
-not already on it is interpolated onto it (`dynid.io.align`: cubic for q, linear for tau).
+A file with a time column is used on its own stamps (an `fs` in the test's config must then agree
+with them); a file without one needs the test's `fs`. Per time base (channels logged together):
+rows with identical stamps are averaged into one sample; stamps going back, or a hole longer than
+`max_gap` sample periods, are refused with the file, line, sample and time; the stamps' least-
+squares line is the logger's clock, and the base is uniform when every stamp is within 1e-3 of a
+step of it (else `sources` resamples it onto that clock).
 """
 
 from __future__ import annotations
@@ -19,8 +19,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import Channel, DataError, FileFormatError, GapError, Recording, TimeBaseError, align, read_recording
-from ..io.align import InterpSpec
+from ..io import Channel, DataError, FileFormatError, GapError, TimeBaseError
 from ..io.checks import locate
 
 T = TypeVar("T")
@@ -74,18 +73,6 @@ def opened(open_file: Callable[..., T], path: Path, fs: float | None, test: str,
             return open_file(fs=None), True
         except DataError:
             raise exc from None
-
-
-def read_test_file(path: Path, fs: float | None, test: str, config: Path,
-                   channels: list[str] | None = None) -> tuple[Recording, bool]:
-    """The file (only `channels`, when given), and whether its samples carry their own time stamps (a time
-    column)."""
-    rec, timed = opened(lambda fs: read_recording(path, fs=fs, channels=channels), path, fs, test, config)
-    for ch in rec.channels.values():
-        if ch.values.size < 2:  # a header and no data: nothing to filter or differentiate
-            raise FileFormatError(f"{path}: channel {ch.name!r} has {ch.values.size} sample(s); test {test!r} needs "
-                                  "a record (is the file empty or cut short?)", source=str(path))
-    return rec, timed
 
 
 def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
@@ -169,75 +156,6 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
     uniform = bool(worst <= UNIFORM * h and consecutive)
     return Stream(source, timed, tu, {c.name: c for c in chans}, h, uniform, t0, repeated,
                   float(np.sqrt(jitter @ jitter / jitter.size)), worst, float(np.max(su)))
-
-
-def on_one_clock(
-    wanted: dict[str, tuple[Path, list[str]]],
-    fs: float | None,
-    *,
-    test: str,
-    config: Path,
-    start: float | None = None,
-    end: float | None = None,
-    max_gap: float = 10.0,
-    say: Callable[[str], None] = lambda _m: None,
-) -> tuple[float, dict[str, list[Channel]]]:
-    """{quantity: (file, channel names)} -> (rate, {quantity: channels on one uniform clock, file units}).
-
-    The first quantity sets the clock (module docstring)."""
-    records: dict[Path, tuple[Recording, bool]] = {}
-    streams: list[Stream] = []
-    home: dict[tuple[str, str], Stream] = {}
-    for quantity, (path, names) in wanted.items():
-        if path not in records:
-            records[path] = read_test_file(path, fs, test, config)
-        rec, timed = records[path]
-        for name in names:
-            ch = rec.channel(name)
-            s = next((s for s in streams if s.source == rec.label and name in s.channels), None)
-            if s is None:
-                same = [c for c in rec.channels.values() if c.time is ch.time or np.array_equal(c.time, ch.time)]
-                needed = {n for _, (p, ns) in wanted.items() if p == path for n in ns}
-                s = stream([c for c in same if c.name in needed], rec.label, timed, max_gap, (start, end))
-                streams.append(s)
-                if timed:
-                    say(f"{test}: {s.report()}")
-            home[quantity, name] = s
-    for s in streams:
-        if s.timed and fs is not None and abs(1 / s.h - fs) > RATE_TOLERANCE * fs:
-            raise DataError(
-                f"{config}: test {test!r} gives fs = {fs:g} Hz but the time column of {s.source} says "
-                f"{1 / s.h:.6g} Hz (step {s.h * 1e3:.6g} ms): remove fs from the test (the time column is used), or "
-                "correct it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=s.source)
-    ref = home[next(iter(wanted)), wanted[next(iter(wanted))][1][0]]
-    first = np.ceil((ref.t[0] - ref.t0) / ref.h)
-    clock = ref.t if ref.uniform else ref.t0 + ref.h * np.arange(first, np.floor((ref.t[-1] - ref.t0) / ref.h) + 1)
-    lo, hi = max(s.t[0] for s in streams), min(s.t[-1] for s in streams)
-    if lo > hi:
-        spans = "; ".join(f"{q} ({p}) covers {home[q, ns[0]].t[0]:.6g}..{home[q, ns[0]].t[-1]:.6g} s"
-                          for q, (p, ns) in wanted.items())
-        raise DataError(f"{config}: test {test!r}: the files do not overlap in time: {spans}. Are they from the "
-                        "same test, and stamped by the same clock?")
-    tol = 1e-9 * max(abs(hi), ref.h)
-    for k, v in (("start", start), ("end", end)):
-        if v is not None and not lo - tol <= v <= hi + tol:
-            raise DataError(f"{config}: test {test!r}: {k} = {v:g} s is outside the record, which covers "
-                            f"{lo:.6g}..{hi:.6g} s (in every file); give a time inside it")
-    a = lo if start is None else max(lo, start)
-    b = hi if end is None else min(hi, end)
-    clock = clock[(clock >= a - tol) & (clock <= b + tol)]
-    clock = clock[(clock >= lo) & (clock <= hi)]
-    if len(streams) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
-        say(f"{test}: the files overlap over {lo:.6g}..{hi:.6g} s: that span is used")
-    specs = [InterpSpec(f"{q}:{n}", home[q, n].channels[n], "cubic" if q == "q" else "linear")
-             for q, (_, ns) in wanted.items() for n in ns]
-    if any(not s.uniform or not (s.t is ref.t or np.array_equal(s.t, ref.t)) for s in streams):
-        say(f"{test}: every channel on one uniform {1 / ref.h:.6g} Hz clock, {clock.size} samples "
-            f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
-    al = align(specs, t=clock, source=ref.source, gap_factor=None)
-    out = {q: [Channel(n, home[q, n].channels[n].unit, al[f"{q}:{n}"], al.t) for n in ns]
-           for q, (_, ns) in wanted.items()}
-    return (_rate(ref.h) if ref.timed or fs is None else fs), out
 
 
 def _rate(h: float) -> float:
