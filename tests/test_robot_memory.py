@@ -135,3 +135,35 @@ def test_a_bad_sample_deep_in_a_chunked_file_is_named_by_the_tests_sample(tmp_pa
         identify(load_config(cfg))
     assert "channel 'q3', sample 25000 (t = 25 s): value is nan" in str(exc.value), str(exc.value)
     assert exc.value.sample == 25000
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.05], ids=["holes", "holes and jitter"])
+def test_windows_anywhere_in_a_file_with_holes_equal_the_whole_read(tmp_path, jitter):
+    """A window read for one chunk equals the whole file read at once (the old whole-file path: one window over
+    every sample) to 1e-9 of the signal, wherever it starts: inside, at or just after a hole as long as max_gap
+    allows (the window must reach a sample beyond it), on a uniform or a jittered clock (resampled: the cubic's
+    end effect must have died out within the window's margin)."""
+    from dynid.io import Channel, Recording, write_recording
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.sources import plan_robot_test, read_robot_window
+
+    n = 30000
+    test = _test(n)
+    rng = np.random.default_rng(7)
+    t = (np.arange(n) + jitter * rng.uniform(-1, 1, n)) / FS
+    keep = np.ones(n, bool)
+    keep[10001:10010 if not jitter else 10009] = False  # 10 periods (9 with jitter): max_gap = 10 refuses longer
+    keep[20001:20009] = False
+    t, q, tau = t[keep], test.q[keep], test.tau[keep]
+    chans = [Channel(f"q{j + 1}", "rad", q[:, j], t) for j in range(6)]
+    chans += [Channel(f"tau{j + 1}", "N*m", tau[:, j], t) for j in range(6)]
+    write_recording(Recording.from_channels(chans), tmp_path / "sines.parquet")
+    (tmp_path / "robot.toml").write_text(ROBOT_CONFIG.format(file="sines.parquet"))
+    cfg = load_config(tmp_path / "robot.toml")
+    plan = plan_robot_test(cfg, cfg.tests[0])
+    whole = read_robot_window(plan, 0, plan.samples)
+    for lo in (10000, 10001, 10005, 10009, 10010, 15000, 19990, 20001, 20009):
+        for quantity in ("q", "tau"):
+            part = read_robot_window(plan, lo, lo + 500)[quantity]
+            ref = whole[quantity][lo:lo + 500]
+            assert np.max(np.abs(part - ref)) <= 1e-9 * np.max(np.abs(ref)), (lo, quantity)
