@@ -16,7 +16,6 @@ import importlib.util
 import os
 import pickle
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -567,9 +566,12 @@ def test_mat_url_is_refused_with_what_to_do(tmp_path: Path) -> None:
 # speed
 
 
-@needs_pyarrow
-def test_windows_of_a_parquet_file_cost_about_one_whole_read(tmp_path: Path) -> None:
-    """60 s windows overlapping by 5 s over 20 min of 20 channels at 625 Hz: at most 2x the whole read (target 1.5x)."""
+def test_windows_of_a_parquet_file_decode_each_row_group_about_once(tmp_path: Path, monkeypatch) -> None:
+    """60 s windows overlapping by 5 s over 20 min of 20 channels at 625 Hz (12 row groups of dynid's 65536 rows):
+    the cache serves the overlaps, so each row group's column is decoded once, as by one whole read. (Counted,
+    not timed: a wall-clock bound fails on a busy machine; benchmarks/bench_fleet.py times the reading.)"""
+    import pyarrow.parquet as pq
+
     n, fs = 750_000, 625.0
     t = np.arange(n) / fs
     rng = np.random.default_rng(0)
@@ -578,15 +580,22 @@ def test_windows_of_a_parquet_file_cost_about_one_whole_read(tmp_path: Path) -> 
     write_recording(rec, path)
     names = list(rec.channels)
     del rec
-    start = time.perf_counter()
-    read_recording(path, channels=names)
-    whole = time.perf_counter() - start
+    groups = pq.ParquetFile(path).metadata.num_row_groups
+    assert groups == -(-n // 65536)
+    decoded: dict[tuple, int] = {}
+    real = pq.ParquetFile.read_row_group
+
+    def counting(self, i, columns=None, **kw):
+        for c in columns or ["*"]:
+            decoded[i, c] = decoded.get((i, c), 0) + 1
+        return real(self, i, columns=columns, **kw)
+
     windows.clear_cache()
-    start = time.perf_counter()
     index = index_file(path)
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
     t0 = 0.0
     while t0 < n / fs:
         read_window(index, names, t0, t0 + 60.0)
         t0 += 55.0
-    windowed = time.perf_counter() - start
-    assert windowed < 2.0 * whole + 0.5, (windowed, whole)
+    assert {c for _, c in decoded} == {"time", *names}
+    assert len(decoded) == groups * (len(names) + 1) and max(decoded.values()) == 1, decoded
