@@ -101,6 +101,27 @@ def _time_bases(index: FileIndex, names: Sequence[str], test: str
     return bases, {n: index.units.get(n, "") for n in names}
 
 
+def _test_clock(ref, streams: Sequence, cfg: IdentifyConfig, spec: TestSpec, record: str, covered: str,
+                apart: Callable[[], str]) -> NDArray[np.float64]:
+    """The test's clock: the reference base's stamps when uniform, else a uniform clock at its rate, cut to the
+    span every base covers and to the test's start..end. Bases that do not overlap (apart(): their spans), or a
+    start or end outside the record, are refused."""
+    lo, hi = max(s.t[0] for s in streams), min(s.t[-1] for s in streams)
+    if lo > hi:
+        raise DataError(f"{cfg.path}: test {spec.name!r}: {apart()}", source=ref.source)
+    tol = 1e-9 * max(abs(hi), ref.h)
+    for key, v in (("start", spec.start), ("end", spec.end)):
+        if v is not None and not lo - tol <= v <= hi + tol:
+            raise DataError(f"{cfg.path}: test {spec.name!r}: {key} = {v:g} s is outside {record}, which covers "
+                            f"{lo:.6g}..{hi:.6g} s ({covered}); give a time inside it", source=ref.source)
+    a = lo if spec.start is None else max(lo, spec.start)
+    b = hi if spec.end is None else min(hi, spec.end)
+    h = ref.h
+    clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
+                                                             np.floor((ref.t[-1] - ref.t0) / h) + 1)
+    return clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
+
+
 def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], units: dict[str, str],
                   segment_s: float | None, border: Callable[[float], int], progress: Progress | None = None
                   ) -> CarTestPlan:
@@ -127,33 +148,19 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
             listed = ", ".join(members[:3]) + (", ..." if len(members) > 3 else "")
             say(f"{spec.name}: {s.report()}" + (f" ({len(members)} channels: {listed})" if len(streams) > 1 else ""))
     fastest = min(s.h for _, s in streams)  # the clock: the fastest channels' (the most of them at one rate)
-    ref = max((s for m, s in streams if s.h <= fastest * (1 + 1e-6)),
-              key=lambda s: len(next(m for m, x in streams if x is s)))
+    ref = max(((m, s) for m, s in streams if s.h <= fastest * (1 + 1e-6)), key=lambda ms: len(ms[0]))[1]
     h = ref.h
     if timed and spec.fs is not None and abs(1 / h - spec.fs) > RATE_TOLERANCE * spec.fs:
         raise DataError(
             f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time stamps of {label} say "
             f"{1 / h:.6g} Hz (step {h * 1e3:.6g} ms): remove fs from the test (the time stamps are used), or correct "
             "it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=label)
-    lo, hi = max(s.t[0] for _, s in streams), min(s.t[-1] for _, s in streams)
-    if lo > hi:
-        spans = "; ".join(f"{', '.join(m[:2])}, ... cover {s.t[0]:.6g}..{s.t[-1]:.6g} s" for m, s in streams)
-        raise DataError(f"{label}: the channels do not overlap in time: {spans}", source=label)
-    first, last = lo, hi
-    tol = 1e-9 * max(abs(last), h)
-    for key, v in (("start", spec.start), ("end", spec.end)):
-        if v is not None and not first - tol <= v <= last + tol:
-            raise DataError(f"{cfg.path}: test {spec.name!r}: {key} = {v:g} s is outside the record {label}, "
-                            f"which covers {first:.6g}..{last:.6g} s (every channel); give a time inside it",
-                            source=label)
-    a = lo if spec.start is None else max(lo, spec.start)
-    b = hi if spec.end is None else min(hi, spec.end)
-    clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
-                                                             np.floor((ref.t[-1] - ref.t0) / h) + 1)
-    clock = clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
+    clock = _test_clock(ref, [s for _, s in streams], cfg, spec, f"the record {label}", "every channel",
+                        lambda: "the channels do not overlap in time: " + "; ".join(
+                            f"{', '.join(m[:2])}, ... cover {s.t[0]:.6g}..{s.t[-1]:.6g} s" for m, s in streams))
     if clock.size < 2:
         raise DataError(f"{cfg.path}: test {spec.name!r}: no two samples of {label} between start and end "
-                        f"({a:.6g}..{b:.6g} s at {1 / h:.6g} Hz): widen the window", source=label)
+                        f"({spec.start}..{spec.end} s at {1 / h:.6g} Hz): widen the window", source=label)
     if len(streams) > 1:
         rates = ", ".join(f"{1 / s.h:.6g} Hz ({len(m)})" for m, s in sorted(streams, key=lambda ms: ms[1].h))
         say(f"{spec.name}: channels at several rates in {label}: {rates}; every channel interpolated onto the "
@@ -313,23 +320,12 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
                 "correct it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=s.source)
     first_q = cfg.channels["q"].channels[0]
     ref = next(s for m, s in streams["q"] if first_q in m)
-    clock = ref.t if ref.uniform else ref.t0 + ref.h * np.arange(np.ceil((ref.t[0] - ref.t0) / ref.h),
-                                                                 np.floor((ref.t[-1] - ref.t0) / ref.h) + 1)
+    clock = _test_clock(ref, every, cfg, spec, "the record", "in every file", lambda: (
+        "the files do not overlap in time: " + "; ".join(f"{q} ({spec.files[q]}) covers {s.t[0]:.6g}..{s.t[-1]:.6g} s"
+                                                          for q in streams for _, s in streams[q][:1])
+        + ". Are they from the same test, and stamped by the same clock?"))
     lo, hi = max(s.t[0] for s in every), min(s.t[-1] for s in every)
-    if lo > hi:
-        spans = "; ".join(f"{q} ({spec.files[q]}) covers {s.t[0]:.6g}..{s.t[-1]:.6g} s" for q in streams
-                          for _, s in streams[q][:1])
-        raise DataError(f"{cfg.path}: test {spec.name!r}: the files do not overlap in time: {spans}. Are they from the "
-                        "same test, and stamped by the same clock?")
     tol = 1e-9 * max(abs(hi), ref.h)
-    for k, v in (("start", spec.start), ("end", spec.end)):
-        if v is not None and not lo - tol <= v <= hi + tol:
-            raise DataError(f"{cfg.path}: test {spec.name!r}: {k} = {v:g} s is outside the record, which covers "
-                            f"{lo:.6g}..{hi:.6g} s (in every file); give a time inside it")
-    a = lo if spec.start is None else max(lo, spec.start)
-    b = hi if spec.end is None else min(hi, spec.end)
-    clock = clock[(clock >= a - tol) & (clock <= b + tol)]
-    clock = clock[(clock >= lo) & (clock <= hi)]
     if len(every) > 1 and (ref.t[0] < lo - tol or ref.t[-1] > hi + tol):
         say(f"{spec.name}: the files overlap over {lo:.6g}..{hi:.6g} s: that span is used")
     if any(not s.uniform or not np.array_equal(s.t, ref.t) for s in every):
