@@ -134,3 +134,28 @@ def random_tree(
 def random_states(tree: Tree, N: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     return rng.uniform(-np.pi, np.pi, (N, tree.n)), rng.normal(size=(N, tree.n)), rng.normal(size=(N, tree.n))
+
+
+def compile_generated_c(tmp_path, prog, stem: str, block: bool = False):
+    """The generated C of `prog` (`to_c`, with the block functions when `block`) compiled with -O2 -Wall -Werror into
+    a shared library and loaded with ctypes; the test is skipped on a machine without a C compiler."""
+    import ctypes
+    import shutil
+    import subprocess
+
+    import pytest
+
+    from dynid.symbolic import to_c
+
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    h, c = to_c(prog, prefix=stem, block=block)
+    name = f"{stem}_{prog.model}"
+    (tmp_path / f"{name}.h").write_text(h)
+    (tmp_path / f"{name}.c").write_text(c)
+    lib = tmp_path / f"{name}.so"
+    res = subprocess.run([cc, "-O2", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(lib),
+                          str(tmp_path / f"{name}.c"), "-lm"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    return ctypes.CDLL(str(lib))

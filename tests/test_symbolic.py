@@ -11,13 +11,13 @@ from __future__ import annotations
 import ctypes
 import math
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from oracles import compile_generated_c
 
 import dynid
 from dynid.dynamics import Model
@@ -31,7 +31,6 @@ from dynid.symbolic import (
     inertia,
     numpy_module,
     regressor,
-    to_c,
     to_numpy,
     to_text,
 )
@@ -306,18 +305,8 @@ def test_generated_numpy_rejects_clashing_names():
 
 
 def _compile(tmp_path: Path, prog, stem: str):
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if cc is None:
-        pytest.skip("no C compiler on this machine")
-    h, c = to_c(prog, prefix=stem)
-    name = f"{stem}_{prog.model}"
-    (tmp_path / f"{name}.h").write_text(h)
-    (tmp_path / f"{name}.c").write_text(c)
-    lib = tmp_path / f"{name}.so"
-    res = subprocess.run([cc, "-O2", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(lib),
-                          str(tmp_path / f"{name}.c"), "-lm"], capture_output=True, text=True)
-    assert res.returncode == 0, res.stderr
-    return getattr(ctypes.CDLL(str(lib)), f"{name}_batch")
+    lib = compile_generated_c(tmp_path, prog, stem)
+    return getattr(lib, f"{stem}_{prog.model}_batch")
 
 
 def _call(fn, N, *arrays, out_shapes):

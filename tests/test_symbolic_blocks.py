@@ -13,18 +13,16 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
-from oracles import PinModel, random_states, random_tree
+from oracles import PinModel, compile_generated_c, random_states, random_tree
 
 import dynid
 from dynid import Model, Wrench
 from dynid.model import INERTIAL
-from dynid.symbolic import WrenchSite, build, to_c
+from dynid.symbolic import WrenchSite, build
 from dynid.symbolic.blocks import LANES, aligned_zeros, block_model
 from dynid.symbolic.generated import GeneratedRegressor
 from dynid.vehicle import car_template
@@ -192,18 +190,7 @@ def test_aligned_zeros():
 
 # ----- C ---------------------------------------------------------------------------------------------------
 def _compile(tmp_path: Path, prog, stem: str):
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if cc is None:
-        pytest.skip("no C compiler on this machine")
-    h, c = to_c(prog, prefix=stem, block=True)
-    name = f"{stem}_{prog.model}"
-    (tmp_path / f"{name}.h").write_text(h)
-    (tmp_path / f"{name}.c").write_text(c)
-    lib = tmp_path / f"{name}.so"
-    res = subprocess.run([cc, "-O2", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(lib),
-                          str(tmp_path / f"{name}.c"), "-lm"], capture_output=True, text=True)
-    assert res.returncode == 0, res.stderr
-    return ctypes.CDLL(str(lib))
+    return compile_generated_c(tmp_path, prog, stem, block=True)
 
 
 def _call(fn, N, *arrays, out_shapes):
