@@ -159,6 +159,8 @@ def cmd_new(args: argparse.Namespace) -> int:
             lines[i] = f"name = {json.dumps(args.name)}"
         elif line.startswith("description = "):
             lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
+        elif line.startswith("unloaded_radius_known = "):  # the 406 is simulated; a real tire's radius is not known
+            lines[i] = "unloaded_radius_known = false  # true only if radius_m is the unloaded radius to 0.1 mm"
     write_atomic(out, "\n".join(head + lines).rstrip() + "\n")
     print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")
     return 0
@@ -173,10 +175,10 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 def show_vehicle(v) -> str:
     """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
-    from ..vehicle.equations import car_base_parameters
-    from ..vehicle.template import CORNERS, WHEELS, car_template, paper_parameter_names, role
+    from ..vehicle.equations import car_base_parameters, identified
+    from ..vehicle.template import CORNERS, WHEELS, paper_parameter_names, role
 
-    tree = car_template(v.geometry, v.a_priori.values, name=v.name)
+    tree = v.template()
     g = v.geometry
     out = [f"{v.name} ({v.source}): {tree.n} frames, {len(paper_parameter_names())} parameters of the paper",
            "Frame 6 (chassis): x6 up, y6 right, z6 forward; origin on the rear axle, midway between the rear wheel "
@@ -201,7 +203,7 @@ def show_vehicle(v) -> str:
     known = tree.with_values(v.known).with_known(set(v.known)) if v.known else tree
     base = car_base_parameters(known, "car")
     out += ["", f"Base parameters with the car's own motion (constant and tabulated joints still): {base.rank} "
-            f"identified of {len(paper_parameter_names()) - len(v.known)} not known; regrouped: "
+            f"identified of {len(identified(known))} not known; regrouped: "
             f"{' '.join(tree.label(n) for n in base.regrouped) or 'none'}"]
     for n, e in zip(base.names, base.expressions, strict=True):
         if e != n:

@@ -82,13 +82,13 @@ class CarSetup:
     the base parameters, the conditioning, the generated identification model."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
+        from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters
         from ..vehicle.description import load_vehicle
         from ..vehicle.estimate import CarConditioning
 
         settings = self.settings = cfg.car
         vehicle = self.vehicle = load_vehicle(cfg.vehicle or "peugeot406")
-        tree = car_template(vehicle.geometry, vehicle.a_priori.values, name=vehicle.name)
+        tree = vehicle.template()
         # the bench values of the vehicle file, then the config's (a config may fix more, or other values)
         known = {**vehicle.known, **{tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}}
         if known:

@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.files import did_you_mean, read_toml, unknown_keys
-from ..model.tree import ModelError
+from ..model.tree import ModelError, Tree
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .geometry import AxleGeometry, CarGeometry, GeometryError
@@ -81,7 +81,7 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, DAMPERS, labels, paper_parameter_names
+from .template import CORNERS, DAMPERS, car_template, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
@@ -116,6 +116,12 @@ class Vehicle:
     cameras: bool = True
     lasers: bool = True
     correvit: bool = True
+    tire_offsets: bool = True
+
+    def template(self, values: dict[str, float] | None = None) -> Tree:
+        """The car's 42-frame tree with `values` (default: the a priori set)."""
+        return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
+                            tire_offsets=self.tire_offsets)
 
     @property
     def suite(self) -> SensorSuite:
@@ -185,6 +191,11 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
             raise VehicleError(f"{where}: [sensors] lasers = false: the tire deflections then come from the wheel "
                                f"loads through the tires' stiffness, so the tire equations identify nothing: give "
                                f"{', '.join(missing)} (kt15 ...) in [known] (a tire bench)")
+    known_radius = data["wheels"].get("unloaded_radius_known", False)
+    if not isinstance(known_radius, bool):
+        raise VehicleError(f"{where}: [wheels] unloaded_radius_known must be true or false; got {known_radius!r}")
+    # without lasers the deflections come from the loads through the bench's kt: there is no offset to identify
+    tire_offsets = fitted["lasers"] and not known_radius
     truth = None
     if "truth" in data:
         truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False), a_priori, known, geometry,
@@ -193,7 +204,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, **fitted)
+                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted)
 
 
 def _sensors(t: dict, where: str) -> dict:
@@ -285,7 +296,7 @@ def _geometry(data: dict, where: str) -> CarGeometry:
                             kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
 
     wheels = data["wheels"]
-    _keys(wheels, {"radius_m", "centre_height_m"}, where, "[wheels]")
+    _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known"}, where, "[wheels]")
     imu = data.get("imu", {})
     _keys(imu, {"position_m", "axes"}, where, "[imu]")
     position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
@@ -421,7 +432,7 @@ def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str,
     offset not given is the static preload that holds the damper at its design position."""
     from ..model.consistency import check_physical
     from .statics import design_preloads
-    from .template import WHEELS, car_template
+    from .template import WHEELS
 
     values = {**a_priori, **known, **given}
     sources = {n: f"{where} [truth]" if n in given else f"{where} [known]" if n in known else f"{where} [a_priori]"

@@ -93,8 +93,10 @@ def _cached(tree: Tree, key: tuple, make):
 
 
 def identified(tree: Tree) -> list[str]:
-    """The paper's parameters not listed as known, in the paper's order."""
-    return [n for n in paper_parameter_names() if n not in tree.known]
+    """The paper's parameters not listed as known, in the paper's order, then the tires' offsets where the tree
+    has them (`car_template(tire_offsets=True)`)."""
+    names = [*paper_parameter_names(), *(f"OFF{t}" for t in TIRES if f"OFF{t}" in tree.index)]
+    return [n for n in names if n not in tree.known]
 
 
 def _base(tree: Tree, rows: tuple[int, ...], motion: str) -> BaseParameters:

@@ -123,7 +123,7 @@ def labels() -> dict[str, str]:
     for d in DAMPERS:
         out.update({f"K{d}": f"ks{d}", f"FV{d}": f"h{d}", f"FS{d}": f"fs{d}", f"OFF{d}": f"off{d}"})
     for t in TIRES:
-        out[f"K{t}"] = f"kt{t}"
+        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}"})
     return out
 
 
@@ -256,6 +256,7 @@ def car_template(
     name: str = "Peugeot 406 (paper's car)",
     known: set[str] | frozenset[str] = frozenset(),
     check_rest: bool = True,
+    tire_offsets: bool = False,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -263,6 +264,10 @@ def car_template(
     parameters taken as known rather than identified (moved to Y by `car_identification`).
     check_rest: when the set has masses and tire stiffnesses, solve the rest state with the
     dampers at their design position and raise GeometryError if a wheel would float.
+    tire_offsets: each tire equation gets a constant, off15 ... off42: kt * q + off = Fz. A real tire's
+    unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
+    is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
+    equation (R is the unloaded radius).
     """
     from .parameters import a_priori
     from .statics import rest_state
@@ -270,7 +275,7 @@ def car_template(
 
     geometry = CarGeometry() if geometry is None else geometry
     terms = {d: ("FV", "FS", "OFF", "K") for d in DAMPERS}
-    terms.update({t: ("K",) for t in TIRES})
+    terms.update({t: ("OFF", "K") if tire_offsets else ("K",) for t in TIRES})
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
     tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81))
