@@ -10,6 +10,7 @@ parameter names. It imports nothing from the model, kinematics or dynamics layer
 
 from .errors import EstimationWarning, IdentificationError
 from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_parameters
+from .fit import FIT_RATIO, ModelFit, fit_note, misfit_parameters, model_fits
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .ols import ols
@@ -20,6 +21,7 @@ from .systematic import BiasAccumulator, SystematicUncertainty, propagate
 from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
 
 __all__ = [
+    "FIT_RATIO",
     "POOR_FACTOR",
     "RESIDUAL_TOL",
     "SIGMA_FLOOR",
@@ -32,13 +34,17 @@ __all__ = [
     "IdentificationResult",
     "InstrumentSums",
     "LSQSolution",
+    "ModelFit",
     "ResidualStats",
     "StreamingLS",
     "SystematicUncertainty",
     "check_rank",
     "essential_parameters",
+    "fit_note",
     "group_noise",
     "iv",
+    "misfit_parameters",
+    "model_fits",
     "nrmse",
     "ols",
     "poorly_identified",

@@ -19,6 +19,7 @@ from .systematic import SystematicUncertainty
 FLAG_POOR = "poor"
 FLAG_KNOWN = "known"
 FLAG_UNCERTAIN = "uncertain"
+FLAG_MISFIT = "misfit"  # the parameter's equation group does not fit the data (estimation/fit.py): not a result
 FLAG_PERCENT = 2.5
 """The flag a user acts on: a parameter whose total standard uncertainty exceeds 2.5 % of its engineering scale
 (so that its 95 % interval is wider than +-5 %) is "uncertain". Chosen on ten seeds of the demo (see the
@@ -96,6 +97,7 @@ class IdentificationResult:
     systematic: SystematicUncertainty | None = None
     scales: dict[str, float] = field(default_factory=dict)
     flag_percent: float = FLAG_PERCENT
+    misfit: dict[str, list[str]] = field(default_factory=dict)
 
     # ----------------------------------------------------------------- access by name
     def index(self, name: str) -> int:
@@ -159,11 +161,12 @@ class IdentificationResult:
 
     @property
     def uncertainty_flags(self) -> tuple[str, ...]:
-        """Per parameter "uncertain" (std_total above flag_percent of its scale), "known" or "": the flag to act
-        on. Unlike the paper's rule it does not depend on the best-identified parameter, and it counts the
-        sensors' declared offsets."""
+        """Per parameter "misfit" (an equation group it enters does not fit the data: `misfit`), "uncertain"
+        (std_total above flag_percent of its scale), "known" or "": the flag to act on. Unlike the paper's rule it
+        does not depend on the best-identified parameter, and it counts the sensors' declared offsets."""
         rel = self.rel_std_scale_percent
-        return tuple(FLAG_KNOWN if f == FLAG_KNOWN else FLAG_UNCERTAIN if not rel[i] <= self.flag_percent else ""
+        return tuple(FLAG_KNOWN if f == FLAG_KNOWN else FLAG_MISFIT if self.names[i] in self.misfit
+                     else FLAG_UNCERTAIN if not rel[i] <= self.flag_percent else ""
                      for i, f in enumerate(self.flags))
 
     @property

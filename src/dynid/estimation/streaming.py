@@ -147,6 +147,11 @@ class StreamingLS:
         return solve_lsq(R[:, :q], R[:, q], self.estimated_names, n_rows=self.n_rows, rank_tol=self.rank_tol,
                          context=context)
 
+    def group_factor(self, group: str) -> np.ndarray:
+        """The (q+1, q+1) triangular factor of the group's [W | Y] (column j is zero where the group's rows do not
+        carry estimated parameter j)."""
+        return self._R[group]
+
     def _residual_norm(self, x: np.ndarray, group: str) -> float:
         return float(np.linalg.norm(self._R[group] @ np.append(x, -1.0)))
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import pickle
 import threading
+import zlib
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,8 +28,10 @@ import numpy as np
 
 from ..dynamics import BaseParameters, Model
 from ..estimation import StreamingLS
+from ..estimation.fit import ErrorEffect
 from ..estimation.iv import InstrumentSums
 from ..estimation.systematic import BiasAccumulator
+from ..io.units import unit_factor
 from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
@@ -50,6 +53,7 @@ class CarJob:
     weight: float = 1.0
     instruments: dict[str, float] | None = None
     keep_rows: bool = False
+    errors: bool = False  # evaluate the sensors' errors' effect on the rows (the model-fit verdict)
 
     @property
     def test(self) -> str:
@@ -66,6 +70,7 @@ class Partial:
     iv: InstrumentSums | None = None
     rows: dict[str, GroupedSystem] = field(default_factory=dict)
     segments: int = 1
+    errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -74,7 +79,7 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments)
+                   a.segments + b.segments, both(a.errors, b.errors))
 
 
 class CarSetup:
@@ -167,7 +172,30 @@ def reduce_car_segment(job: CarJob) -> Partial:
             p = setup.rows(moved, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
+    if job.errors:
+        seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
+        noisy = []
+        for e in sensor_errors(channels, setup.vehicle.suite, seed):
+            p = setup.rows({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs, job.instruments,
+                           keep=sys.kept)
+            noisy.append(StreamingLS(setup.names))
+            noisy[-1].add(p.W, p.Y, sys.groups)
+        part.errors = ErrorEffect(ls, *noisy)
     return part
+
+
+def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int) -> tuple[dict[str, np.ndarray], ...]:
+    """One draw of the sensors' errors on the channels present (SI), and its opposite: white noise of each
+    channel's accuracy and its zero offset (bias) with a random sign (`vehicle.sensors.SensorChannel`, channel
+    units; estimation/fit.py says why)."""
+    rng = np.random.default_rng(seed)
+    e = {}
+    for c in suite:
+        if c.name in channels:
+            n = np.shape(channels[c.name])
+            factor = unit_factor(c.unit, channel=c.name)[0]
+            e[c.name] = factor * (c.accuracy * rng.standard_normal(n) + c.bias * rng.choice((-1.0, 1.0)))
+    return e, {k: -v for k, v in e.items()}
 
 
 # ------------------------------------------------------------------------------------------------------- a robot

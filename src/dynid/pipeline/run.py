@@ -23,6 +23,9 @@ from ..estimation import (
     IdentificationError,
     IdentificationResult,
     StreamingLS,
+    fit_note,
+    misfit_parameters,
+    model_fits,
     nrmse,
     ols,
     propagate,
@@ -224,10 +227,12 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             if instruments is not None and plan.role != "identify":
                 continue
             picks = picked(len(plan.segments)) if offsets and settings.offsets and plan.role == "identify" else {}
+            # the sensors' errors' effect on a few segments of each identification test: the model-fit verdict
+            errors = picked(len(plan.segments)) if instruments is None and plan.role == "identify" else {}
             for i, (lo, hi) in enumerate(plan.segments):
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   tuple(settings.offsets.items()) if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0 and instruments is None))
+                                  instruments, keep_rows=i == 0 and instruments is None, errors=i in errors))
         return out
 
     def picked(n_segments: int) -> dict[int, float]:
@@ -239,6 +244,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     say(f"joints and equations on {scheduler}")
     parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: j.role, combine, say)
     ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
+    errors = parts["identify"].errors
     validate = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
     rows.update(parts["validate"].rows if "validate" in parts else {})
 
@@ -271,12 +277,14 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             result = result.with_systematic(propagate(part.iv.normal(result.weights), part.bias, x,
                                                       ident.estimated_names, result.weights))
 
-    # 4. results, direct and cross validation
+    # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
+    #    and cross validation
+    fits = model_fits(ident, errors, result.estimates)
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
-                                 flag_percent=cfg.flag_percent)
+                                 flag_percent=cfg.flag_percent, misfit=misfit_parameters(fits))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result) + masses_note(result, tree)
+        notes=sensors_note(vehicle) + offsets_note(result) + fit_note(fits, result.labels) + masses_note(result, tree)
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree))
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
@@ -290,6 +298,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         moved = validate.group_rms()
         run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
     result.validation.update(run.errors)
+    result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
