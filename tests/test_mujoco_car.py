@@ -1,0 +1,112 @@
+"""A car dynid did not simulate: the MuJoCo test car of ../shared/data/mujoco-car/, through `dynid identify` with the
+example's vehicle file (examples/mujoco_car/, written from the data's README as a user would).
+
+Oracles: the data's truth.json (MuJoCo's model, in dynid's names) and its `tire_fit` (a straight line
+Fz = kt q + F0 fitted on the sine run's TRUE deflections and loads). The channels of `ideal/` are the true values,
+so with the sensors' delays not compensated (they have none) the joints are exact up to the filters: the chassis,
+suspension and bar parameters are held to the bounds of issue 24. The tire: its contact is nonlinear, so a line
+fits the sine's load range (16 N RMS in MuJoCo's own fit) and not the spiral's; the tire equation with its
+unloaded-radius offset must give the truth's line on the sine, and the model-fit verdict must call the tire groups
+misfits once the spiral is in (their parameters are then not results).
+"""
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from conftest import SHARED
+
+from dynid.cli.main import main
+
+DATA = SHARED / "data" / "mujoco-car"
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car"
+TESTS = {"sine": "sine steering 90 km/h", "spiral": "spiral 70 km/h", "braking": "straight-line braking from 100 km/h"}
+
+
+@pytest.fixture(scope="module")
+def truth() -> dict:
+    if not (DATA / "truth.json").exists():
+        pytest.skip(f"the MuJoCo car's data not found at {DATA} (shared/ is beside the repository in CI)")
+    return json.loads((DATA / "truth.json").read_text())
+
+
+def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool) -> tuple[dict, dict]:
+    """results.json's parameters by label and engineering.csv by key, of the example's vehicle on `tests`."""
+    lines = ['[model]', f'vehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"']
+    for t in tests:
+        lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
+                  f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
+    lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
+              f"compensate_delays = {'true' if compensate_delays else 'false'}",
+              "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
+    cfg = tmp / f"{folder}_{'_'.join(tests)}.toml"
+    cfg.write_text("\n".join(lines) + "\n")
+    out = tmp / cfg.stem
+    assert main(["identify", str(cfg), "--out", str(out)]) == 0
+    res = json.loads((out / "results.json").read_text())
+    with open(out / "engineering.csv", newline="") as f:
+        eng = {r["key"]: float(r["value"]) for r in csv.DictReader(f)}
+    return res, eng
+
+
+@pytest.fixture(scope="module")
+def ideal_all(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine", "spiral", "braking"], compensate_delays=False)
+
+
+@pytest.fixture(scope="module")
+def ideal_sine(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine"], compensate_delays=False)
+
+
+def test_ideal_channels_give_mass_centre_of_gravity_suspensions_and_bars(truth, ideal_all):
+    res, eng = ideal_all
+    values = {p["label"]: p["value"] for p in res["parameters"]}
+    true = {p["label"]: p["value"] for p in truth["true_parameters"]}
+    v = truth["vehicle"]
+    assert eng["mass_total"] == pytest.approx(v["total_mass"]["value"], rel=0.005)
+    x_g, _, z_g = v["chassis_com_frame6"]["value"]  # sprung CoG in frame 6: height above the wheel centres, ahead
+    assert eng["cgs_ahead_rear"] == pytest.approx(z_g, abs=2.5e-3)
+    assert eng["cgs_height"] == pytest.approx(x_g + v["geometry"]["wheel_radius"], abs=2.5e-3)
+    for corner in (9, 18, 27, 36):
+        assert values[f"ks{corner}"] == pytest.approx(true[f"ks{corner}"], rel=0.03)
+        assert values[f"h{corner}"] == pytest.approx(true[f"h{corner}"], rel=0.05)
+        assert values[f"fs{corner}"] == pytest.approx(true[f"fs{corner}"], rel=0.10)
+        assert values[f"off{corner}"] == pytest.approx(true[f"off{corner}"], rel=0.01)
+    for bar in ("karf", "karr"):
+        assert values[bar] == pytest.approx(true[bar], rel=0.05)
+    # roll and yaw about the CoG (the README's 450 and 2100 kg.m2)
+    assert eng["Ixx"] == pytest.approx(450.0, rel=0.02)
+    assert eng["Izz"] == pytest.approx(2100.0, rel=0.02)
+
+
+def test_tire_equation_with_its_offset_gives_the_true_line_on_the_sine(truth, ideal_sine):
+    """kt q + off = Fz on the sine: MuJoCo's line through its true deflections and loads (kt 169-178 kN/m, F0 2.6 and
+    3.6 kN, i.e. unloaded radii 0.325 and 0.330 m where the geometric one is 0.31 m). The estimate's deflections
+    come from the ideal lasers through the chassis attitude; 1 % of kt is 0.05 mm over the sine's 6 mm range."""
+    res, _ = ideal_sine
+    values = {p["label"]: p for p in res["parameters"]}
+    fit = truth["vehicle"]["tire_fit"]
+    for tire, corner in zip((15, 24, 33, 42), ("rl", "rr", "fl", "fr"), strict=True):
+        assert values[f"kt{tire}"]["value"] == pytest.approx(fit[corner]["kt"], rel=0.01)
+        assert values[f"off{tire}"]["value"] == pytest.approx(fit[corner]["F0"], abs=10.0)
+        assert res["validation"]["fit"][f"tire{tire}"]["fits"]
+        assert values[f"kt{tire}"]["flag"] != "misfit"
+
+
+def test_a_line_does_not_fit_the_spiral_s_load_range_and_says_so(ideal_all):
+    """Over the three runs the contact's nonlinearity leaves the tire groups' residual several times what the sensors
+    explain (MuJoCo's lines over the spiral differ by up to 2x): those groups are misfits and their kt and offsets
+    are flagged, not presented as results; the chassis and suspension groups still fit."""
+    res, _ = ideal_all
+    fit = res["validation"]["fit"]
+    flags = {p["label"]: p["flag"] for p in res["parameters"]}
+    misfits = [g for g, f in fit.items() if not f["fits"]]
+    assert misfits and all(g.startswith("tire") for g in misfits)
+    for g in misfits:
+        assert fit[g]["ratio"] > 3.0
+        tire = g[len("tire"):]
+        assert flags[f"kt{tire}"] == "misfit" and flags[f"off{tire}"] == "misfit"
+    for g in ("x", "y", "z", "yaw", "roll", "susp9", "susp18", "susp27", "susp36"):
+        assert fit[g]["fits"], (g, fit[g])
