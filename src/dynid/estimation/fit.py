@@ -89,18 +89,51 @@ def model_fits(rows: StreamingLS, errors: ErrorEffect, x: Mapping[str, float]) -
     return out
 
 
-def misfit_parameters(fits: Mapping[str, ModelFit]) -> dict[str, list[str]]:
-    """{parameter: the groups it enters whose model does not fit}, for the parameters of such groups."""
+def misfit_parameters(fits: Mapping[str, ModelFit], rows: StreamingLS,
+                      weights: Mapping[str, float] | None = None) -> dict[str, list[str]]:
+    """{parameter: the misfit groups it enters}, for the parameters whose estimate rests mostly on groups that do
+    not fit: without those groups' rows its variance would more than double (at least half of its information
+    comes from them), or it would not be identified at all. A parameter a misfit group shares with groups that
+    fit and that determine it (the mass in a lateral-force equation, weighed by the vertical one) keeps its
+    estimate; the note still names the group. weights: {group: sigma_j} of the estimate (WLS, IV; None: OLS)."""
+    bad = [g for g, f in fits.items() if not f.fits]
+    if not bad:
+        return {}
+    names = list(rows.estimated_names)
+    q = len(names)
+
+    def information(groups) -> np.ndarray:
+        A = np.zeros((q, q))
+        for g in groups:
+            R = rows.group_factor(g)[:, :q]
+            A += (R.T @ R) / (1.0 if not weights else weights[g]) ** 2
+        return A
+
+    def variances(A: np.ndarray) -> np.ndarray:
+        out = np.full(q, np.inf)
+        seen = np.flatnonzero(np.diag(A) > 0)
+        if seen.size:  # scaled to a unit diagonal: the columns' units (kt against an offset) are not conditioning
+            d = 1.0 / np.sqrt(np.diag(A)[seen])
+            sub = A[np.ix_(seen, seen)] * np.outer(d, d)
+            if np.linalg.cond(sub) < 1e12:
+                out[seen] = np.diag(np.linalg.inv(sub)) * d ** 2
+        return out
+
+    whole = variances(information(fits))
+    without = variances(information([g for g in fits if g not in bad]))
     out: dict[str, list[str]] = {}
-    for g, f in fits.items():
-        if not f.fits:
-            for n in f.parameters:
+    for g in bad:
+        for n in fits[g].parameters:
+            i = names.index(n)
+            if not without[i] <= 2.0 * whole[i]:
                 out.setdefault(n, []).append(g)
     return out
 
 
-def fit_note(fits: Mapping[str, ModelFit], label: Mapping[str, str] | None = None) -> str:
-    """The verdict in words: every group whose model does not fit, with its figures and parameters."""
+def fit_note(fits: Mapping[str, ModelFit], label: Mapping[str, str] | None = None,
+             misfit: Mapping[str, list[str]] | None = None) -> str:
+    """The verdict in words: every group whose model does not fit, with its figures and parameters (those not in
+    `misfit`, see `misfit_parameters`, marked kept)."""
     label = label or {}
     bad = [f for f in fits.values() if not f.fits]
     if not bad:
@@ -109,10 +142,11 @@ def fit_note(fits: Mapping[str, ModelFit], label: Mapping[str, str] | None = Non
                 f"{FIT_RATIO:g} x what its sensors' errors explain"
                 + (f" (largest: {worst.group}, {worst.ratio:.2g} x)." if worst is not None else ".") + "\n")
     lines = [f"MODEL MISFIT: the residual of {len(bad)} equation group(s) is more than {FIT_RATIO:g} x what the "
-             "sensors' errors explain; the model does not fit them, and their parameters are not results "
-             "(flag misfit):"]
+             "sensors' errors explain: the model does not fit them. The parameters whose estimate rests mostly on "
+             "them are not results (flag misfit); the others are determined by groups that fit:"]
+    flagged = set(misfit or ())
     for f in bad:
-        names = ", ".join(label.get(n, n) for n in f.parameters)
+        names = ", ".join(label.get(n, n) + ("" if n in flagged else " (kept)") for n in f.parameters)
         lines.append(f"  {f.group}: residual {f.residual_rms:.4g} RMS, {f.ratio:.1f} x the {f.noise_rms:.3g} the "
                      f"sensors explain; parameters {names}")
     return "\n".join(lines) + "\n"

@@ -281,10 +281,12 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     #    and cross validation
     fits = model_fits(ident, errors, result.estimates)
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
-                                 flag_percent=cfg.flag_percent, misfit=misfit_parameters(fits))
+                                 flag_percent=cfg.flag_percent,
+                                 misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result) + fit_note(fits, result.labels) + masses_note(result, tree)
+        notes=sensors_note(vehicle) + offsets_note(result) + fit_note(fits, result.labels, result.misfit)
+        + masses_note(result, tree)
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree))
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}

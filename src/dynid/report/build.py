@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ..estimation.result import FLAG_KNOWN, FLAG_UNCERTAIN
+from ..estimation.fit import FIT_RATIO
+from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
 from .figures import CogPoint, ParameterRow, centre_of_gravity_figure, parameter_figure, validation_grid
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
 from .html import Cell, Section, Table, esc, render_html
@@ -95,7 +96,8 @@ def parameter_tables(run) -> list[Table]:
             row.append(Cell(f"[{fixed(lo, d)}, {fixed(hi, d)}]" if np.isfinite(lo) else "", lo if np.isfinite(lo)
                             else None, cls="nowrap"))
             f = flags[i]
-            row += [Cell(f, {FLAG_UNCERTAIN: 2, FLAG_KNOWN: 0}.get(f, 1), cls=f"t flag-{f}" if f else "t"),
+            rank = {FLAG_MISFIT: 3, FLAG_UNCERTAIN: 2, FLAG_KNOWN: 0}.get(f, 1)
+            row += [Cell(f, rank, cls=f"t flag-{f}" if f else "t"),
                     Cell(r.flags[i] if r.flags[i] != FLAG_KNOWN else "", cls="t")]
             rows.append(row)
         tables.append(Table(head, rows, caption=title, tips=tips, cls="params"))
@@ -115,6 +117,14 @@ def flag_legend(run) -> str:
          "What to do: do not use the value as is; add a test that excites it, fix it from a bench measurement "
          "(declare it known), or carry its interval into what you use it for."
          + (f" Flagged here: {labels}." if uncertain else " None flagged here.")),
+        (FLAG_MISFIT, "the residual of an equation group the parameter enters is more than "
+         f"{FIT_RATIO:g} × what its sensors' errors explain (noise and zero offsets, drawn from the sensor suite and "
+         "carried through the same joints and equations): the model does not fit that group, so the value is not a "
+         "result, however small its σ. What to do: read the Notes (which group, by how much); a different equation "
+         "(e.g. a tire that is not a straight line over the tests' load range), sensor dynamics that the vehicle "
+         "file does not declare, or a test outside the model's range."
+         + (f" Flagged here: {', '.join(r.labels.get(n, n) for n in r.misfit)}." if r.misfit
+            else " None flagged here.")),
         (FLAG_KNOWN, "fixed from a bench or the config, not identified (no σ)."),
         ("paper rule: poor", f"the paper's rule (§7.2): %σ above {r.poor_factor:g} × the smallest %σ. Shown for "
          "comparison; it depends on the best-identified parameter and ignores the sensors' offsets, so act on "

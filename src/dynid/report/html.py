@@ -64,7 +64,7 @@ table.sortable th::after{content:" \\2195";color:#aaa;font-size:.8em}
 table.sortable th[aria-sort=ascending]::after{content:" \\2191";color:var(--fg)}
 table.sortable th[aria-sort=descending]::after{content:" \\2193";color:var(--fg)}
 tr:hover td{background:#fafbff}
-td.flag-uncertain{color:var(--warn);font-weight:600;background:var(--warnbg)}
+td.flag-uncertain,td.flag-misfit{color:var(--warn);font-weight:600;background:var(--warnbg)}
 td.flag-known{color:var(--muted)}
 .verdict-ok{color:var(--ok);font-weight:600}.verdict-bad{color:var(--warn);font-weight:600}
 dl.legend{display:grid;grid-template-columns:max-content 1fr;gap:.2em 1em;font-size:13px;margin:.4em 0 1em}
