@@ -38,11 +38,12 @@ def truth():
     return smooth_drive()
 
 
-def smooth_drive(duration: float = 12.0):
+def smooth_drive(duration: float = 12.0, fast_pitch: float = 0.0, geometry: CarGeometry | None = None):
     """A known smooth trajectory of all 42 joints and its noise-free channels:
-    (model, t, q, qd, qdd, wheel wrenches, channels)."""
-    model = dynid.Model(car_template())
-    g = CarGeometry()
+    (model, t, q, qd, qdd, wheel wrenches, channels). fast_pitch: amplitude (rad) of a 3 Hz pitch oscillation
+    added to the slow one (a brake release's pitch-back has such content); geometry: where the sensors sit."""
+    g = CarGeometry() if geometry is None else geometry
+    model = dynid.Model(car_template(g))
     tables = default_tables(g)
     t = np.arange(0, duration, 1 / FS)
     N = len(t)
@@ -55,7 +56,8 @@ def smooth_drive(duration: float = 12.0):
     qdd[:, 0], qdd[:, 1] = -v * np.cos(psi) * dpsi, -v * np.sin(psi) * dpsi
     q[:, 0], q[:, 1] = integral(vx, t), integral(vy, t)
     q[:, 2], qd[:, 2], qdd[:, 2] = (a + b for a, b in zip((0.0, 0.0, 0.0), sine(t, 0.01, 0.8), strict=True))
-    q[:, 4], qd[:, 4], qdd[:, 4] = sine(t, 0.01, 0.6, 1.0)
+    q[:, 4], qd[:, 4], qdd[:, 4] = (a + b for a, b in zip(sine(t, 0.01, 0.6, 1.0), sine(t, fast_pitch, 3.0),
+                                                          strict=True))
     q[:, 5], qd[:, 5], qdd[:, 5] = sine(t, 0.02, 0.5)
     for k in range(4):
         b = 7 + 9 * k
@@ -113,6 +115,32 @@ def test_estimated_joints_match_the_trajectory(truth):
         assert np.abs(est.qd[:, j] - qd[sl, j]).max() < 1e-3 * 25
         assert np.abs(est.qdd[:, j] - qdd[sl, j]).max() < 5e-3 * np.abs(qdd[:, j]).max()
     assert np.abs(est.wheel_wrenches[:, :, 2] - ww[sl, :, 2]).max() < 1e-3 * 4000
+
+
+def test_o6_acceleration_does_not_depend_on_where_the_unit_sits():
+    """The same motion seen by an inertial unit at O6 (dynid's default) and by one at the MuJoCo car's chassis
+    centre of gravity, 1.6 m ahead of O6 and 0.24 m above it, gives the same O6 acceleration: the regressor carries
+    it back to every chassis point with the estimated rotation rates, so the unit's position must drop out. The
+    pitch has a 3 Hz part, where the 4 Hz filter's gain is 0.91: an angular acceleration's lever arm filtered once
+    more than the rates (the estimator's old order) leaves (0.91 - 0.91^2) x 1.6 m x 1.8 rad/s^2 = 0.24 m/s^2 on the
+    vertical. What may remain is the low-pass of a product against the product of low-passes: the lever term
+    (2.9 m/s^2 at 3 Hz) turned by the 0.1 rad, 0.5 Hz yaw into the ground axes, whose 2.5 and 3.5 Hz sidebands the
+    filter passes with gains up to 0.1 apart from the 3 Hz one: at most 0.1 x 0.1 x 2.9 = 0.03 m/s^2 (0.016 seen);
+    bound 0.05 m/s^2, a fifth of the old order's error."""
+    cond = CarConditioning(cutoff=4.0, compensate_delays=False)
+    at_o6 = CarGeometry()
+    at_cog = CarGeometry(imu_position=(0.24, 0.0, 1.60))
+    est = {}
+    for g in (at_o6, at_cog):
+        model, t, q, _, _, _, channels = smooth_drive(fast_pitch=0.005, geometry=g)
+        est[g.imu_position] = estimate_joints(si(channels), FS, model, g, conditioning=cond)
+    a, b = est[at_o6.imu_position], est[at_cog.imu_position]
+    lever = 1.6 * 0.005 * (2 * np.pi * 3.0) ** 2
+    assert lever > 2.5
+    assert np.abs(a.qdd[:, :3] - b.qdd[:, :3]).max() < 0.05
+    i = np.searchsorted(t, a.t[0])
+    # and the pitch is the trajectory's, 3 Hz part included (0.91 of it after the filter)
+    assert np.abs(b.q[:, 4] - q[i:i + len(b.t), 4]).max() < 0.1 * 0.005 + 1e-4
 
 
 @pytest.mark.parametrize("compensate", [False, True])

@@ -312,13 +312,17 @@ def estimate_joints(
         load = filtered[:, [17 + 6 * k + WFT_COMPONENTS.index("Fz") for k in range(4)]] / kt
         z_laser = -(pz_zz[:, :4] + load * pz_zz[:, 4:])
     q[:, 2], qd[:, 2], _ = smooth(z_laser.mean(axis=1))
-    # --- translational accelerations of O6 from the IMU (specific force at its mounting point)
-    dw6 = derivative(lp(w6), fs, axis=0)
+    # --- translational accelerations of O6 from the IMU (specific force at its mounting point): the unit's own
+    # acceleration low-passed once like every signal, then carried to O6 with the low-passed rotation rates, the
+    # ones the regressor carries O6's back to every point of the chassis with. Carried before the low-pass, the
+    # angular acceleration's lever arm term is filtered twice, the regressor's once: with the unit 1.6 m ahead of
+    # O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis equations.
+    w6f = lp(w6)
+    dw6 = derivative(w6f, fs, axis=0)
     r_imu = np.asarray(g.imu_position, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    a_imu6 = f6 + np.einsum("nji,j->ni", R6, np.asarray(model.tree.gravity))
-    a_o6 = a_imu6 - np.cross(dw6, r_imu) - np.cross(w6, np.cross(w6, r_imu))
-    a0 = np.einsum("nij,nj->ni", R6, a_o6)
+    a_imu0 = lp(np.einsum("nij,nj->ni", R6, f6) + np.asarray(model.tree.gravity))
+    a0 = a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
     # --- velocity of O6: the Correvit (or a GNSS/INS) gives the horizontal components (chassis x, y), the
     # height the vertical
     tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in suite.names else ("gnss", gnss_point(g))
@@ -329,7 +333,7 @@ def estimate_joints(
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
     v0 = v_known + s[:, None] * (R6 @ ez6)
     v = lp(v0[:, :2])
-    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, lp(a0)
+    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, a0
 
     deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
     cols = [f - 1 for f in tires]
