@@ -219,3 +219,23 @@ def test_aero_tables_from_a_csv(tmp_path):
     for n in COEFFICIENTS:
         np.testing.assert_allclose(getattr(v.aero, n), 1.5 * getattr(d, n), rtol=1e-15)
     np.testing.assert_allclose(v.aero.point, reference_point(v.geometry))
+
+
+def test_the_tables_a_file_does_not_give_are_named_as_dynid_s_defaults(tmp_path):
+    """A file without [tables] gets dynid's 406-class tables for all 16 (corner, table) pairs, and the results' note
+    says the caster ones were used (no sensor measures the caster; the default turns the hubs with the damper travel);
+    a file giving some keeps the defaults for the rest and the note lists those the estimator uses; the MuJoCo
+    example, which gives all, has none and no note. Oracle: the files' own [tables]."""
+    from dynid.pipeline.run import sensors_note
+
+    bare = load_vehicle(write(tmp_path, SHIPPED))
+    assert len(bare.defaulted_tables) == 16 and "every caster table" in sensors_note(bare)
+    (tmp_path / "c.csv").write_text("travel,value\n-0.1,0\n-0.05,0\n0.05,0\n0.1,0\n")
+    rear = "\n".join(f"{c}.caster = {{ csv = \"c.csv\" }}" for c in ("rear_left", "rear_right"))
+    some = load_vehicle(write(tmp_path, SHIPPED.replace("# [tables]", f"[tables]\n{rear}\n#"), "some.toml"))
+    assert "rear_left.caster" not in some.defaulted_tables and len(some.defaulted_tables) == 14
+    note = sensors_note(some)
+    assert "front_left.caster, front_right.caster" in note and "rear_left" not in note
+    example = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car" / "vehicle.toml"
+    mujoco = load_vehicle(example)
+    assert mujoco.defaulted_tables == () and "Kinematic tables" not in sensors_note(mujoco)

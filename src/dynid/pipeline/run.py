@@ -321,6 +321,15 @@ def sensors_note(vehicle) -> str:
     if not vehicle.correvit:
         out += ("No Correvit: the horizontal velocity over ground comes from the GNSS/INS at its antenna point "
                 f"{list(gnss_point(vehicle.geometry))} m in frame 6.\n")
+    used = [t for t in vehicle.defaulted_tables if t.endswith(".caster") or not vehicle.cameras]
+    if used:
+        which = "every caster table" if len(used) == 4 and all(t.endswith(".caster") for t in used) else \
+            ", ".join(used)
+        out += (f"Kinematic tables not in the vehicle file, dynid's defaults used ({which}): a 406-class saloon's, "
+                "whose anti-dive caster (+1 deg/100 mm front) and wind-up (-0.5 deg/100 mm rear) turn the hubs, and "
+                "the measured wheel wrenches with them, as the dampers move. If the car's differ, give them in "
+                "[tables] (zeros where nothing moves): on the MuJoCo test car, which has none, they turned the "
+                "wrenches by a quarter of a degree under braking and the pitch inertia by 4 %.\n")
     return out
 
 

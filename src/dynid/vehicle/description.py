@@ -117,6 +117,8 @@ class Vehicle:
     lasers: bool = True
     correvit: bool = True
     tire_offsets: bool = True
+    # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
+    defaulted_tables: tuple[str, ...] = ()
 
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
@@ -170,7 +172,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     steering = data.get("steering", {})
     _keys(steering, {"ratio"}, where, "[steering]")
     ratio = _number(steering, "ratio", where, "[steering]", STEERING_RATIO)
-    tables = _tables(data.get("tables", {}), geometry, ratio, path)
+    tables, defaulted = _tables(data.get("tables", {}), geometry, ratio, path)
     aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
     a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True)
@@ -204,7 +206,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted)
+                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted, defaulted_tables=defaulted)
 
 
 def _sensors(t: dict, where: str) -> dict:
@@ -322,10 +324,11 @@ def _vector(v, shape: tuple[int, ...], where: str, what: str) -> np.ndarray:
     return a
 
 
-def _tables(t: dict, g: CarGeometry, ratio: float, path: Path) -> KinematicTables:
+def _tables(t: dict, g: CarGeometry, ratio: float, path: Path) -> tuple[KinematicTables, tuple[str, ...]]:
+    """The file's kinematic tables over dynid's defaults, and which ones ("front_left.caster", ...) are defaults."""
     where = str(path)
     _keys(t, {"file", *CORNER_KEYS}, where, "[tables]")
-    tables = default_tables(g, ratio)
+    defaults = tables = default_tables(g, ratio)
     try:
         if "file" in t:
             tables = load_table_file(path.parent / str(t["file"]), defaults=tables)
@@ -344,7 +347,9 @@ def _tables(t: dict, g: CarGeometry, ratio: float, path: Path) -> KinematicTable
                 tables = tables.replace(k, name, tab)
     except KinematicTableError as exc:
         raise VehicleError(f"{where}: [tables]: {exc}") from None
-    return tables
+    defaulted = tuple(f"{CORNER_KEYS[k]}.{n}" for k in range(4) for n in TABLE_NAMES
+                      if tables.table(k, n) is defaults.table(k, n))
+    return tables, defaulted
 
 
 def _aero(t: dict, g: CarGeometry, path: Path) -> Aerodynamics:
