@@ -38,7 +38,7 @@ from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitte
 class CarJob:
     """One segment and what to evaluate on it.
 
-    offsets: (quantity, one-σ zero offset in the file's unit) whose effect is evaluated on this segment,
+    offsets: (quantity, one-σ zero offset, SI) whose effect is evaluated on this segment,
     standing for `weight` segments of the test; instruments: the last estimate, for an IDIM-IV pass;
     keep_rows: return the rows themselves (each test's first segment: the report's plots)."""
 
@@ -161,9 +161,9 @@ def reduce_car_segment(job: CarJob) -> Partial:
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
     if job.offsets:
         part.bias = ls.bias_accumulator()
-        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (file unit), rows unchanged
+        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
             moved = dict(channels)
-            moved[q] = channels[q] + b * w.factors[q]
+            moved[q] = channels[q] + b
             p = setup.rows(moved, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
