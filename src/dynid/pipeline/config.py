@@ -710,7 +710,7 @@ class _VehicleChannels:
                 alike = instead + name.split("_", 1)[1]
                 hint = f"; map {alike!r} instead" if alike in valid else ""
             raise self.err(where, f"{what}{name!r}: {label} has no such sensor ({why}){hint}")
-        raise self.err(where, f"{what}no channel {name!r} in the sensor suite of {label};"
+        raise self.err(where, f"{what}unknown channel {name!r}, not in the sensor suite of {label};"
                               f"{did_you_mean(name, valid)} {listing}")
 
 

@@ -14,6 +14,7 @@ among them, and its validation files read rows), which `stack_rows` folds.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import pickle
 import threading
@@ -21,7 +22,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from ..estimation.systematic import BiasAccumulator
 from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
+
+if TYPE_CHECKING:
+    from ..vehicle.estimate import CarTrajectory
 
 
 @dataclass(frozen=True)
@@ -108,18 +112,29 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
-    def rows(self, channels: dict[str, np.ndarray], fs: float, instruments: dict[str, float] | None = None,
+    def trajectory(self, channels: dict[str, np.ndarray], fs: float) -> CarTrajectory:
+        """The joints and filtered loads of one segment's channels (SI)."""
+        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
+
+        return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
+                               self.conditioning, self.vehicle.suite)
+
+    def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
-        """The decimated rows of one segment's channels (SI)."""
-        from ..vehicle.estimate import estimate_joints
+        """The decimated rows of one segment's trajectory."""
         from .car import car_system
 
         s = self.settings
-        traj = estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite)
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations)[0]
+
+    def load_only(self, channel: str) -> bool:
+        """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
+        the vertical force of a car without height lasers (its heights come from that load). The estimator takes
+        such a channel through a delay and a low-pass, both of unit gain at 0 Hz, into the loads: its offset moves
+        them by itself, the joints not at all (tests/test_offsets_default.py checks it against the full pass)."""
+        return channel.startswith("wft_") and (self.vehicle.lasers or not channel.endswith("_Fz"))
 
 
 _SETUPS: OrderedDict[str, Any] = OrderedDict()
@@ -152,7 +167,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     setup = car_setup(job.cfg)
     w = job.window
     channels = w.read()
-    sys = setup.rows(channels, w.fs, job.instruments)
+    traj = setup.trajectory(channels, w.fs)
+    sys = setup.rows(traj, w.fs, job.instruments)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
@@ -162,12 +178,24 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if job.offsets:
         part.bias = ls.bias_accumulator()
         for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
-            moved = dict(channels)
-            moved[q] = channels[q] + b
-            p = setup.rows(moved, w.fs, job.instruments, keep=sys.kept)
+            if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
+                moved_traj = shifted_load(traj, q, b)
+            else:
+                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs)
+            p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
     return part
+
+
+def shifted_load(traj: CarTrajectory, channel: str, b: float) -> CarTrajectory:
+    """traj with the wheel-wrench component of the channel wft_{corner}_{component} moved by b (SI)."""
+    from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
+
+    _, corner, comp = channel.split("_")
+    ww = traj.wheel_wrenches.copy()
+    ww[:, CORNER_TAGS.index(corner), WFT_COMPONENTS.index(comp)] += b
+    return dataclasses.replace(traj, wheel_wrenches=ww)
 
 
 # ------------------------------------------------------------------------------------------------------- a robot
