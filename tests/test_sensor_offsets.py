@@ -106,7 +106,8 @@ def test_a_gnss_vehicle_maps_its_velocity_from_a_channel_of_another_name(simulat
                                                        "correvit = false", "map 'gnss_vx' instead"]),
     ("[uncertainty]\noffsets = { correvit_vy = 0.075 }", ["[uncertainty]", "'correvit_vy'", "has no such sensor",
                                                           "map 'gnss_vy' instead"]),
-    ('[channels]\ngnss_vz = { channel = "Vz" }', ["[channels]", "unknown channel 'gnss_vz'", "did you mean 'gnss_vy'?"]),
+    ('[channels]\ngnss_vz = { channel = "Vz" }', ["[channels]", "unknown channel 'gnss_vz'",
+                                                  "did you mean 'gnss_vy'?"]),
 ])
 def test_a_channel_the_vehicle_has_not_is_refused(tmp_path, section, words):
     """[channels] and [uncertainty] name the channels of the vehicle the config names: the paper's Correvit on a

@@ -401,13 +401,13 @@ def offsets_section(offsets: dict) -> Section:
     if source == "vehicle":
         text = (f"σ total carries the zero offsets of the vehicle's sensor suite ({offsets['vehicle']}): each "
                 "channel's constant zero error, 1 σ, taken independent between tests (each test zeroed anew) and "
-                f"propagated to first order on {offsets['segments']} segment(s) per identification test. The "
+                f"propagated to first order on up to {offsets['segments']} segment(s) per identification test. The "
                 "config's [uncertainty] offsets = { channel = value } replaces them; offsets = \"none\" turns them "
                 "off.")
     elif source == "config":
-        text = (f"σ total carries the zero offsets the config declares ([uncertainty] offsets; they replace the "
-                f"vehicle's sensor suite's), 1 σ each, taken independent between tests and propagated to first "
-                f"order on {offsets['segments']} segment(s) per identification test.")
+        text = ("σ total carries the zero offsets the config declares ([uncertainty] offsets; they replace the "
+                "vehicle's sensor suite's), 1 σ each, taken independent between tests and propagated to first "
+                f"order on up to {offsets['segments']} segment(s) per identification test.")
     else:
         text = ("None: the config's [uncertainty] turns the sensors' zero offsets off, so σ total is the "
                 "statistical σ alone (from the noise) and ignores them.")
