@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
+from ..io.units import unit_factor
 from ..signals import decimate_parallel
 from ..vehicle import DAMPERS, WHEELS, Aerodynamics, aero_wrench, car_identification
-from ..vehicle.estimate import CarTrajectory
+from ..vehicle.estimate import CarTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
+from ..vehicle.sensors import CORNER_TAGS
 from .robot import GroupedSystem
 
 
@@ -137,6 +140,62 @@ def _simulated_suspensions(tree, traj: CarTrajectory, coarse: CarTrajectory, eq,
     q, qd, qdd = traj.q.copy(), traj.qd.copy(), traj.qdd.copy()
     q[:, cols], qd[:, cols], qdd[:, cols] = qs, qds, qdds
     return CarTrajectory(traj.t, q, qd, qdd, traj.wheel_wrenches, traj.spin_torques, traj.steering_wheel)
+
+
+@dataclass(frozen=True)
+class SensorOffsets:
+    """The sensor zero offsets propagated to σ total: channel -> (1 σ, the suite's unit of the channel), where they
+    came from ("vehicle": the vehicle's sensor suite, each channel's bias; "config": [uncertainty] offsets; "none":
+    turned off there), the vehicle and the segments per identification test on which they are evaluated."""
+
+    source: str
+    values: dict[str, tuple[float, str]]
+    vehicle: str
+    segments: int
+
+    def si(self) -> dict[str, float]:
+        """channel -> 1 σ in SI (what the channels are read in)."""
+        return {q: v * unit_factor(u, channel=q)[0] for q, (v, u) in self.values.items()}
+
+    def to_dict(self) -> dict:
+        """results.json's "sensor_offsets"."""
+        return {"source": self.source, "vehicle": self.vehicle, "segments": self.segments,
+                "channels": [{"channel": q, "value": v, "unit": u} for q, (v, u) in self.values.items()]}
+
+    def listing(self) -> str:
+        """The values grouped by value and unit, the four corners of a channel in one name: "0.5 mm:
+        laser_height_* (* = rl, rr, fl, fr)"."""
+        groups: dict[tuple[float, str], list[str]] = {}
+        for q, vu in self.values.items():
+            groups.setdefault(vu, []).append(q)
+        starred = False
+        parts = []
+        for (v, u), names in groups.items():
+            shown = []
+            for q in names:
+                tag = next((t for t in CORNER_TAGS if f"_{t}" in q), None)
+                star = q.replace(f"_{tag}", "_*", 1) if tag else q
+                if tag and all(star.replace("_*", f"_{t}", 1) in names for t in CORNER_TAGS):
+                    starred = True
+                    q = star
+                if q not in shown:
+                    shown.append(q)
+            parts.append(f"{v:g} {u}: {', '.join(shown)}")
+        return "; ".join(parts) + (f" (* = {', '.join(CORNER_TAGS)})" if starred else "")
+
+
+def sensor_offsets(settings, vehicle) -> SensorOffsets:
+    """The offsets a car's identification propagates: the config's [uncertainty] offsets (CarSettings.offsets: a
+    table, or {} for none) or, by default (None), the vehicle's sensor suite's zero offsets (the channels the
+    estimator reads whose `bias` is not 0)."""
+    suite = vehicle.suite
+    label = f"{vehicle.name} ({vehicle.source})" if vehicle.source else vehicle.name
+    if settings.offsets is None:
+        read = required_channels(spin=False, suite=suite)
+        values = {c.name: (c.bias, c.unit) for c in suite if c.bias > 0 and c.name in read}
+        return SensorOffsets("vehicle", values, label, settings.offset_segments)
+    values = {q: (v, suite.units[q]) for q, v in settings.offsets.items()}
+    return SensorOffsets("config" if values else "none", values, label, settings.offset_segments)
 
 
 COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is 1 cm of centre-of-mass shift

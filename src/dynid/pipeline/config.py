@@ -54,8 +54,9 @@ and max_gap (as a robot's: the part of the test used, s in the file's time base;
 time stamps, sample periods) and `truth = "sine.json"` (the simulator's sidecar with the true
 parameters); [transmission] and [reference] are the robot's only, [uncertainty] the car's only:
 
-    [channels]                       # only where the file's names differ from the suite's
-    imu_yaw_rate = { channel = "GyroZ", unit = "deg/s" }
+    [channels]                       # only where the file's names differ from the suite's: the channels of
+    imu_yaw_rate = { channel = "GyroZ", unit = "deg/s" }   # the vehicle's own suite ([model] vehicle's
+                                     # [sensors]: a car with a GNSS/INS maps gnss_vx, gnss_vy, not correvit_*)
 
     [conditioning]
     cutoff = 4.0                     # Hz, on every signal (the paper: ~3 Hz, order 5-8)
@@ -74,8 +75,10 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
 
-    [uncertainty]                    # optional: the sensors' zero offsets (1 sigma, each channel's unit),
-    offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # propagated to the estimates (%σ total)
+    [uncertainty]                    # optional: the sensors' zero offsets propagated to the estimates (%σ
+                                     # total). Default: the vehicle's sensor suite's (each channel's `bias`);
+    offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # a table replaces them (1 sigma, in the suite's unit
+                                     # of each channel: docs/vehicle.md); offsets = "none" (or {}) turns them off
     segments = 2                     # segments per test on which their effect is evaluated
 
 Either kind may say where its work runs (the command line's --scheduler and --workers override it):
@@ -142,7 +145,9 @@ class CarSettings:
     min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.01))
     base: str = "generic"
     aero: bool = True
-    offsets: dict[str, float] = field(default_factory=dict)  # channel -> 1-sigma zero offset, channel unit
+    # channel -> 1-sigma zero offset in the suite's unit of the channel (the config's [uncertainty] offsets);
+    # None: the vehicle's sensor suite's (each channel's bias), {}: none
+    offsets: dict[str, float] | None = None
     offset_segments: int = 2
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
 
@@ -226,9 +231,11 @@ def load_config(path: str | Path) -> IdentifyConfig:
     ident = data.get("identification", {})
     _keys(ident, _CAR_IDENTIFICATION if is_car else _ROBOT_IDENTIFICATION, "[identification]", err,
           None if is_car else dict.fromkeys(set(_CAR_IDENTIFICATION) - set(_ROBOT_IDENTIFICATION), _FOR_A_CAR))
-    car = _car_settings(data, err) if is_car else None
+    # a car's [channels] and [uncertainty] name channels of the suite its vehicle has (read only when named)
+    suite = _VehicleChannels(vehicle or "peugeot406", err) if is_car else None
+    car = _car_settings(data, err, suite) if is_car else None
     tests = _tests(data.get("tests", []), here, is_car, err)
-    channels = _channels(data.get("channels", {}), is_car, err)
+    channels = _channels(data.get("channels", {}), err, suite)
     transmission = _transmission(data.get("transmission", {}), err)
     cond = Conditioning() if is_car else _robot_conditioning(data.get("conditioning", {}), err)
 
@@ -395,19 +402,21 @@ def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Pa
     return {q: here / f for q, f in files.items()}
 
 
-def _channels(raw: dict, is_car: bool, err: Err) -> dict[str, ChannelSpec]:
-    """[channels]: a robot's quantity -> { channels = [...], unit }; a car's renamed sensor channels."""
+def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, ChannelSpec]:
+    """[channels]: a robot's quantity -> { channels = [...], unit }; a car's renamed sensor channels (suite: the
+    car's vehicle's sensors, None for a robot)."""
+    is_car = suite is not None
     if is_car:
-        from ..vehicle.estimate import required_channels
-
-        valid, inner = required_channels(spin=False), ("channel", "unit")
+        for q in raw:
+            suite.check(q, "[channels]")
+        inner = ("channel", "unit")
         expected = "{ channel = \"name in the file\", unit = \"...\" }"
     else:
-        valid, inner = _ROBOT_QUANTITIES, ("channels", "unit")
+        inner = ("channels", "unit")
         expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
-    unknown = [q for q in raw if q not in valid]
-    if unknown:
-        raise err("[channels]", unknown_keys(unknown, valid, what="channel" if is_car else "quantity"))
+        unknown = [q for q in raw if q not in _ROBOT_QUANTITIES]
+        if unknown:
+            raise err("[channels]", unknown_keys(unknown, _ROBOT_QUANTITIES, what="quantity"))
     channels = {}
     for q, spec in raw.items():
         where = f"[channels.{q}]"
@@ -523,7 +532,7 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
     return ref
 
 
-def _car_settings(data: dict, err: Err) -> CarSettings:
+def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
     """The car's [conditioning], [identification] options and [uncertainty] (keys checked by the caller)."""
     c = data.get("conditioning", {})
     ident = data.get("identification", {})
@@ -531,7 +540,7 @@ def _car_settings(data: dict, err: Err) -> CarSettings:
     base = ident.get("base", "generic")
     if base not in ("generic", "car"):
         raise err("[identification]", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
-    offsets, segments = _offsets(data.get("uncertainty", {}), err)
+    offsets, segments = _offsets(data.get("uncertainty", {}), err, suite)
     return CarSettings(
         cutoff=_float(c, "cutoff", 4.0, where, err, "a cut-off in Hz (a positive number)"),
         order=_whole(c, "order", 4, where, err), decimate=_decimate(c, (5, 10), where, err, empty=True),
@@ -616,31 +625,98 @@ def _flag(table: dict, key: str, default: bool, where: str, err: Err) -> bool:
     return value
 
 
-def _offsets(u: dict, err: Err) -> tuple[dict[str, float], int]:
-    """[uncertainty] offsets = { channel = 1-sigma zero offset in the channel's unit }, segments = n."""
-    from ..vehicle.estimate import required_channels
+OFFSETS_OFF = "none"  # [uncertainty] offsets = "none": no offsets propagated (so does an empty table)
+OFFSETS_VEHICLE = "vehicle"  # the default, written out: the vehicle's sensor suite's
 
+
+def _offsets(u: dict, err: Err, suite: _VehicleChannels) -> tuple[dict[str, float] | None, int]:
+    """[uncertainty] offsets: absent or "vehicle" (None: the vehicle's suite's), "none" or {} (none), or a table
+    { channel = 1-sigma zero offset in the suite's unit of the channel }; segments = n."""
     where = "[uncertainty]"
     _keys(u, _UNCERTAINTY_KEYS, where, err)
-    raw = u.get("offsets", {})
-    if not isinstance(raw, dict):
-        raise err(where, "offsets must be a table { channel = 1-sigma zero offset in its unit, ... }")
-    known = required_channels(spin=False)
-    offsets = {}
-    for name, v in raw.items():
-        if name not in known:
-            raise err(where, f"offsets: no channel {name!r} among the sensor suite's;{did_you_mean(name, known)} "
-                             f"channels: {', '.join(known)}")
-        try:
-            value = parse_number(v, f"offsets.{name}")
-        except ModelError as exc:
-            raise err(where, str(exc)) from None
-        if not np.isfinite(value) or value < 0:
-            raise err(where, f"offsets.{name} = {v!r}: give a standard deviation >= 0 in the channel's unit")
-        if value > 0:
-            offsets[name] = value
+    raw = u.get("offsets", OFFSETS_VEHICLE)
+    if isinstance(raw, str) and raw.strip().lower() in (OFFSETS_VEHICLE, OFFSETS_OFF):
+        offsets = None if raw.strip().lower() == OFFSETS_VEHICLE else {}
+    elif not isinstance(raw, dict):
+        raise err(where, f"offsets = {raw!r}: give a table {{ channel = 1-sigma zero offset in its unit, ... }} "
+                         f"(it replaces the vehicle's sensor suite's), \"{OFFSETS_OFF}\" (no offsets: σ from the noise "
+                         f"alone) or \"{OFFSETS_VEHICLE}\" (the suite's, the default)")
+    else:
+        offsets = {}
+        for name, v in raw.items():
+            suite.check(name, where, "offsets: ")
+            try:
+                value = parse_number(v, f"offsets.{name}")
+            except ModelError as exc:
+                raise err(where, str(exc)) from None
+            if not np.isfinite(value) or value < 0:
+                raise err(where, f"offsets.{name} = {v!r}: give a standard deviation >= 0 in the channel's unit")
+            if value > 0:
+                offsets[name] = value
     segments = u.get("segments", 2)
     if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
         raise err(where, f"segments = {segments!r}: give a whole number >= 1 (segments per test on which "
                          "the offsets' effect is evaluated)")
     return offsets, segments
+
+
+# why a channel of the paper's suite (or a GNSS/INS) is not on a vehicle, and the prefix of what it has instead
+_NOT_FITTED = (
+    ("correvit_", "its file says [sensors] correvit = false: no Correvit; the horizontal velocity over ground comes "
+                  "from its GNSS/INS (gnss_vx, gnss_vy)", "gnss_"),
+    ("gnss_", "it has the paper's Correvit instead, correvit_vx and correvit_vy; a GNSS/INS is fitted by "
+              "[sensors] correvit = false in the vehicle file", "correvit_"),
+    ("laser_height_", "its file says [sensors] lasers = false: no height lasers; the heights come from the wheel "
+                      "loads through the known tire stiffness", None),
+    ("steer_", "its file says [sensors] cameras = false: no corner cameras; the steering joints come from the "
+               "kinematic tables", None),
+    ("camber_", "its file says [sensors] cameras = false: no corner cameras; the camber joints come from the "
+                "kinematic tables", None),
+)
+
+
+class _VehicleChannels:
+    """The channels the estimator reads on the config's vehicle (its sensor suite), for checking the config's
+    channel names; the vehicle file is read at the first name checked (a config naming none does not read it)."""
+
+    def __init__(self, vehicle: str | Path, err: Err) -> None:
+        self.ref, self.err = vehicle, err
+        self._valid: list[str] | None = None
+        self._vehicle = None
+
+    @property
+    def valid(self) -> list[str]:
+        if self._valid is None:  # imported here: the vehicle's modules are not needed to read a robot's config
+            from ..vehicle.description import load_vehicle
+            from ..vehicle.estimate import required_channels
+
+            self._vehicle = load_vehicle(self.ref)
+            self._valid = required_channels(spin=False, suite=self._vehicle.suite)
+        return self._valid
+
+    def check(self, name: str, where: str, what: str = "") -> None:
+        """name must be a channel of the vehicle's suite: an error naming it and the nearest valid channel, or
+        saying the vehicle has no such sensor (a channel of another suite)."""
+        valid = self.valid
+        if name in valid:
+            return
+        v = self._vehicle
+        label = f"vehicle {v.name!r} ({Path(v.source).name if v.source else self.ref})"
+        listing = f"{label}'s channels: {', '.join(valid)}"
+        if name in _every_channel():
+            why, instead = next((w, i) for p, w, i in _NOT_FITTED if name.startswith(p))
+            hint = ""
+            if instead is not None:
+                alike = instead + name.split("_", 1)[1]
+                hint = f"; map {alike!r} instead" if alike in valid else ""
+            raise self.err(where, f"{what}{name!r}: {label} has no such sensor ({why}){hint}")
+        raise self.err(where, f"{what}unknown channel {name!r}, not in the sensor suite of {label};"
+                              f"{did_you_mean(name, valid)} {listing}")
+
+
+def _every_channel() -> set[str]:
+    """Every channel the estimator knows, whatever the suite: the paper's and a GNSS/INS car's."""
+    from ..vehicle.estimate import required_channels  # as in _VehicleChannels.valid: a car's config only
+    from ..vehicle.sensors import fitted_suite
+
+    return {*required_channels(spin=False), *required_channels(spin=False, suite=fitted_suite(correvit=False))}

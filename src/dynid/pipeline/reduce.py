@@ -14,6 +14,7 @@ among them, and its validation files read rows), which `stack_rows` folds.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import pickle
 import threading
@@ -22,7 +23,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,12 +37,15 @@ from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
 
+if TYPE_CHECKING:
+    from ..vehicle.estimate import CarTrajectory
+
 
 @dataclass(frozen=True)
 class CarJob:
     """One segment and what to evaluate on it.
 
-    offsets: (quantity, one-σ zero offset in the file's unit) whose effect is evaluated on this segment,
+    offsets: (quantity, one-σ zero offset, SI) whose effect is evaluated on this segment,
     standing for `weight` segments of the test; instruments: the last estimate, for an IDIM-IV pass;
     keep_rows: return the rows themselves (each test's first segment: the report's plots)."""
 
@@ -113,18 +117,29 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
-    def rows(self, channels: dict[str, np.ndarray], fs: float, instruments: dict[str, float] | None = None,
+    def trajectory(self, channels: dict[str, np.ndarray], fs: float) -> CarTrajectory:
+        """The joints and filtered loads of one segment's channels (SI)."""
+        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
+
+        return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
+                               self.conditioning, self.vehicle.suite)
+
+    def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
-        """The decimated rows of one segment's channels (SI)."""
-        from ..vehicle.estimate import estimate_joints
+        """The decimated rows of one segment's trajectory."""
         from .car import car_system
 
         s = self.settings
-        traj = estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite)
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations)[0]
+
+    def load_only(self, channel: str) -> bool:
+        """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
+        the vertical force of a car without height lasers (its heights come from that load). The estimator takes
+        such a channel through a delay and a low-pass, both of unit gain at 0 Hz, into the loads: its offset moves
+        them by itself, the joints not at all (tests/test_sensor_offsets.py checks it against the full pass)."""
+        return channel.startswith("wft_") and (self.vehicle.lasers or not channel.endswith("_Fz"))
 
 
 _SETUPS: OrderedDict[str, Any] = OrderedDict()
@@ -157,7 +172,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     setup = car_setup(job.cfg)
     w = job.window
     channels = w.read()
-    sys = setup.rows(channels, w.fs, job.instruments)
+    traj = setup.trajectory(channels, w.fs)
+    sys = setup.rows(traj, w.fs, job.instruments)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
@@ -166,18 +182,20 @@ def reduce_car_segment(job: CarJob) -> Partial:
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
     if job.offsets:
         part.bias = ls.bias_accumulator()
-        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (file unit), rows unchanged
-            moved = dict(channels)
-            moved[q] = channels[q] + b * w.factors[q]
-            p = setup.rows(moved, w.fs, job.instruments, keep=sys.kept)
+        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
+            if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
+                moved_traj = shifted_load(traj, q, b)
+            else:
+                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs)
+            p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
         for e in sensor_errors(channels, setup.vehicle.suite, seed):
-            p = setup.rows({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs, job.instruments,
-                           keep=sys.kept)
+            noisy_traj = setup.trajectory({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs)
+            p = setup.rows(noisy_traj, w.fs, job.instruments, keep=sys.kept)
             noisy.append(StreamingLS(setup.names))
             noisy[-1].add(p.W, p.Y, sys.groups)
         part.errors = ErrorEffect(ls, *noisy)
@@ -196,6 +214,16 @@ def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int) -> tuple[di
             factor = unit_factor(c.unit, channel=c.name)[0]
             e[c.name] = factor * (c.accuracy * rng.standard_normal(n) + c.bias * rng.choice((-1.0, 1.0)))
     return e, {k: -v for k, v in e.items()}
+
+
+def shifted_load(traj: CarTrajectory, channel: str, b: float) -> CarTrajectory:
+    """traj with the wheel-wrench component of the channel wft_{corner}_{component} moved by b (SI)."""
+    from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
+
+    _, corner, comp = channel.split("_")
+    ww = traj.wheel_wrenches.copy()
+    ww[:, CORNER_TAGS.index(corner), WFT_COMPONENTS.index(comp)] += b
+    return dataclasses.replace(traj, wheel_wrenches=ww)
 
 
 # ------------------------------------------------------------------------------------------------------- a robot

@@ -80,6 +80,7 @@ class IdentificationRun:
     config: IdentifyConfig | None = None  # what was run (the report's traceability)
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
     consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
+    offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -190,7 +191,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     from ..signals import border_samples
     from ..vehicle.estimate import required_channels
     from ..vehicle.excitation import excitation_hint
-    from .car import car_scales, car_sections, consistency_text, masses_note
+    from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 
     if cfg.model != "peugeot406":
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
@@ -219,19 +220,25 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
 
-    # 2. map every segment to its factors (the declared offsets' effect on a few of each identification test's),
-    #    fold per role
-    def jobs(instruments: dict[str, float] | None = None, offsets: bool = True) -> list[CarJob]:
+    # 2. map every segment to its factors (the offsets' effect on a few of each identification test's), fold per
+    #    role. The offsets: the config's, or by default the vehicle's sensor suite's
+    offsets = sensor_offsets(settings, vehicle)
+    moved = tuple(offsets.si().items())
+    say(f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each evaluated on "
+        f"up to {settings.offset_segments} segment(s) per identification test" if moved else
+        "no sensor zero offsets propagated: σ from the noise alone")
+
+    def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True) -> list[CarJob]:
         out = []
         for plan in plans:
             if instruments is not None and plan.role != "identify":
                 continue
-            picks = picked(len(plan.segments)) if offsets and settings.offsets and plan.role == "identify" else {}
+            picks = picked(len(plan.segments)) if with_offsets and moved and plan.role == "identify" else {}
             # the sensors' errors' effect on a few segments of each identification test: the model-fit verdict
             errors = picked(len(plan.segments)) if instruments is None and plan.role == "identify" else {}
             for i, (lo, hi) in enumerate(plan.segments):
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
-                                  tuple(settings.offsets.items()) if i in picks else (), picks.get(i, 1.0),
+                                  moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None, errors=i in errors))
         return out
 
@@ -264,7 +271,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
         final = k == settings.iv_passes - 1
         values = dict(zip(result.names, (float(v) for v in result.values), strict=True))
-        part = scheduler.map_reduce(reduce_car_segment, jobs(values, offsets=final), lambda j: j.role, combine,
+        part = scheduler.map_reduce(reduce_car_segment, jobs(values, with_offsets=final), lambda j: j.role, combine,
                                     say)["identify"]
         ident = StreamingLS(names, **kw).merge(part.ls)
         try:
@@ -285,10 +292,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result) + fit_note(fits, result.labels, result.misfit)
+        notes=sensors_note(vehicle) + offsets_note(result, offsets) + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
-        + consistency_text(result, setup.base, tree))
+        + consistency_text(result, setup.base, tree), offsets=offsets.to_dict())
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.errors["direct"] = ident.relative_errors(result)
@@ -333,18 +340,27 @@ def sensors_note(vehicle) -> str:
     return out
 
 
-def offsets_note(result) -> str:
-    """What %σ total means, and which declared sensor offsets weigh most (empty without offsets)."""
+def offsets_note(result, offsets) -> str:
+    """Which sensor zero offsets were propagated (`car.SensorOffsets`), where they came from, what %σ total means
+    and which offsets weigh most."""
+    where = {"vehicle": f"from the vehicle's sensor suite ({offsets.vehicle}: each channel's zero offset; "
+                        "[uncertainty] offsets = {...} in the config replaces them, offsets = \"none\" turns them off)",
+             "config": "from the config's [uncertainty] offsets (they replace the vehicle's sensor suite's)"}
     sys = result.systematic
-    if sys is None:
-        return ""
+    if sys is None or not offsets.values:
+        why = ("the config's [uncertainty] turns them off" if offsets.source != "vehicle"
+               else f"the vehicle's sensor suite ({offsets.vehicle}) declares none")
+        return (f"No sensor zero offsets propagated ({why}): %σ and %σ total are from the noise alone and ignore "
+                "the sensors' zero offsets.\n")
     counts: dict[str, int] = {}
     for n in sys.names:
         channel = sys.main_source(n).split(": ")[-1]
         counts[channel] = counts.get(channel, 0) + 1
     top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
-    return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' declared zero offsets, "
-            f"propagated to first order. The offsets that move most estimates (parameters): {top}.\n")
+    return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' zero offsets, propagated to "
+            f"first order: {len(offsets.values)} channel(s) {where[offsets.source]}, 1 σ each, "
+            f"evaluated on up to {offsets.segments} segment(s) per identification test: {offsets.listing()}. "
+            f"The offsets that move most estimates (parameters): {top}.\n")
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
@@ -519,6 +535,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
                              for m in run.reference]
     if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
         data["consistency"] = run.consistency
+    if getattr(run, "offsets", None) is not None:  # a car's sensor zero offsets: which, how large, from where
+        data["sensor_offsets"] = run.offsets
     data.update(report.data)
     text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)
     written = [write_atomic(out / "results.json", text)]

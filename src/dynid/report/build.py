@@ -402,6 +402,33 @@ def reference_table(run) -> Table:
                   "as"], rows, caption="Our estimate of each published quantity", cls="ref")
 
 
+def offsets_section(offsets: dict) -> Section:
+    """The sensor zero offsets a car's σ total carries (`pipeline.car.SensorOffsets.to_dict`): which channels, how
+    large, and whether the vehicle's sensor suite or the config gave them."""
+    source = offsets["source"]
+    rows = [[Cell(c["channel"], cls="t"), Cell(f"{c['value']:g}", c["value"]), Cell(c["unit"], cls="t nowrap")]
+            for c in offsets["channels"]]
+    if source == "vehicle":
+        text = (f"σ total carries the zero offsets of the vehicle's sensor suite ({offsets['vehicle']}): each "
+                "channel's constant zero error, 1 σ, taken independent between tests (each test zeroed anew) and "
+                f"propagated to first order on up to {offsets['segments']} segment(s) per identification test. The "
+                "config's [uncertainty] offsets = { channel = value } replaces them; offsets = \"none\" turns them "
+                "off.")
+    elif source == "config":
+        text = ("σ total carries the zero offsets the config declares ([uncertainty] offsets; they replace the "
+                "vehicle's sensor suite's), 1 σ each, taken independent between tests and propagated to first "
+                f"order on up to {offsets['segments']} segment(s) per identification test.")
+    else:
+        text = ("None: the config's [uncertainty] turns the sensors' zero offsets off, so σ total is the "
+                "statistical σ alone (from the noise) and ignores them.")
+    if source == "vehicle" and not rows:
+        text = (f"None: the vehicle's sensor suite ({offsets['vehicle']}) declares no zero offsets, so σ total is "
+                "the statistical σ alone.")
+    tables = [Table(["channel", "1 σ", "unit"], rows, caption="Zero offsets propagated (the suite's unit of each "
+                    "channel)", cls="offsets")] if rows else []
+    return Section("Sensor zero offsets in σ total", text, tables=tables, anchor="offsets")
+
+
 def regrouping_text(run) -> str:
     base = run.base
     regrouped = [(n, e) for n, e in zip(base.names, base.expressions, strict=True) if e.replace(" ", "") != n]
@@ -586,6 +613,8 @@ def build_report(run, title: str) -> Report:
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
     out_sections.append(Section("Estimated parameters", "", tables=parameter_tables(run),
                                 html=flag_legend(run), figures=[figs_written[-1][1:]], anchor="parameters"))
+    if getattr(run, "offsets", None) is not None:
+        out_sections.append(offsets_section(run.offsets))
     if run.reference:
         out_sections.append(Section("Comparison with the published identification", tables=[reference_table(run)],
                                     anchor="reference"))
