@@ -14,11 +14,12 @@ among them, and its validation files read rows), which `stack_rows` folds.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import pickle
 import threading
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -28,6 +29,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..estimation import StreamingLS
 from ..estimation.iv import InstrumentSums
+from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows
@@ -50,6 +52,8 @@ class CarJob:
     weight: float = 1.0
     instruments: dict[str, float] | None = None
     keep_rows: bool = False
+    delays: bool = False
+    lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
 
     @property
     def test(self) -> str:
@@ -59,13 +63,15 @@ class CarJob:
 @dataclass
 class Partial:
     """Reduced rows of some segments: least squares' factors, and where evaluated the offsets' sums and the
-    instruments' sums; rows: {test: its first segment's rows}; segments: how many segments went in."""
+    instruments' sums, the channel groups' delay sensitivities; rows: {test: its first segment's rows}; segments:
+    how many segments went in."""
 
     ls: StreamingLS
     bias: BiasAccumulator | None = None
     iv: InstrumentSums | None = None
     rows: dict[str, GroupedSystem] = field(default_factory=dict)
     segments: int = 1
+    shifts: ShiftSums | None = None
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -74,7 +80,7 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments)
+                   a.segments + b.segments, both(a.shifts, b.shifts))
 
 
 class CarSetup:
@@ -82,8 +88,10 @@ class CarSetup:
     the base parameters, the conditioning, the generated identification model."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters, car_template
+        from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters, car_template
         from ..vehicle.description import load_vehicle
+        from ..vehicle.dynamics import DELAY_GROUPS, group_channels
+        from ..vehicle.equations import group_name
         from ..vehicle.estimate import CarConditioning
 
         settings = self.settings = cfg.car
@@ -98,7 +106,23 @@ class CarSetup:
         self.names = list(self.base.names)
         self.conditioning = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
                                             compensate_delays=settings.compensate_delays)
+        self.logger = vehicle.logger
+        # the declared delays are passed to the estimator explicitly (none when the config turns them off)
+        self._estimating = dataclasses.replace(self.conditioning, compensate_delays=True)
         self.aero = vehicle.aero if settings.aero else None
+        # the channel groups whose delay the equations can tell: the inertial unit (chassis motion), the corners'
+        # clearances (suspension equations), the lasers (tire deflections); the horizontal velocity enters only
+        # the aerodynamic wrench (the chassis equations see accelerations, from the inertial unit)
+        fitted = vehicle.suite.names
+        # the delays are read from the chassis and suspension equations: a tire equation's model (a linear spring
+        # through the geometric radius) misfits a real tire, and a misfit's residual reads as a delay; so the
+        # lasers, which only the tire equations see, are not estimated. Nor are the steering and camber cameras:
+        # their angles turn the wheel forces by a few degrees, and their delay moves the residual so little that
+        # the MuJoCo car's tests left it at +-20 ms (tens of samples), for the cost of a pass
+        self.delay_equations = frozenset(group_name(j) for j in (*range(1, 7), *DAMPERS))
+        self.delay_groups = tuple(g for g in DELAY_GROUPS if group_channels(g, fitted)
+                                  and g not in ("lasers", "wheel_angles")
+                                  and (g not in ("correvit", "gnss") or self.aero is not None))
         # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
         self.equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
 
@@ -108,15 +132,28 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
+    def delays(self, fs: float) -> dict[str, float]:
+        """channel -> s: the delay compensated on each channel (the declared dynamics; none when the config turns
+        the compensation off)."""
+        return self.logger.lags(fs) if self.conditioning.compensate_delays else {}
+
     def rows(self, channels: dict[str, np.ndarray], fs: float, instruments: dict[str, float] | None = None,
-             keep: np.ndarray | None = None) -> GroupedSystem:
-        """The decimated rows of one segment's channels (SI)."""
+             keep: np.ndarray | None = None, lags: Mapping[str, float] | None = None) -> GroupedSystem:
+        """The decimated rows of one segment's channels (SI); lags: channel group -> s, its channels taken as
+        that much later than declared (advanced by it more: the delay estimate's perturbations)."""
+        from ..vehicle.dynamics import group_channels
         from ..vehicle.estimate import estimate_joints
         from .car import car_system
 
         s = self.settings
+        delays = self.delays(fs)
+        if lags:
+            delays = {**dict.fromkeys(channels, 0.0), **delays}
+            for g, d in lags.items():
+                for n in group_channels(g, delays):
+                    delays[n] += d
         traj = estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite)
+                               self._estimating, self.vehicle.suite, delays)
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations)[0]
@@ -152,13 +189,24 @@ def reduce_car_segment(job: CarJob) -> Partial:
     setup = car_setup(job.cfg)
     w = job.window
     channels = w.read()
-    sys = setup.rows(channels, w.fs, job.instruments)
+    lags = dict(job.lags)
+    sys = setup.rows(channels, w.fs, job.instruments, lags=lags)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
+    if job.delays and setup.delay_groups:
+        # each group a sample later than declared: the rows' change per second of delay (`estimation.shifts`),
+        # on the equations the delays are read from
+        h = 1.0 / w.fs
+        part.shifts = ShiftSums(setup.delay_groups, *_columns(ls))
+        moved = [setup.rows(channels, w.fs, job.instruments, keep=sys.kept, lags={**lags, g: lags.get(g, 0.0) + h})
+                 for g in setup.delay_groups]
+        used = np.isin(sys.groups, list(setup.delay_equations))
+        part.shifts.add(sys.W[used], sys.Y[used], [(p.W - sys.W)[used] / h for p in moved],
+                        [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
         part.bias = ls.bias_accumulator()
         for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (file unit), rows unchanged
@@ -168,6 +216,12 @@ def reduce_car_segment(job: CarJob) -> Partial:
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
     return part
+
+
+def _columns(ls: StreamingLS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The estimated columns, the known ones and their values (`StreamingLS.bias_accumulator`'s)."""
+    acc = ls.bias_accumulator()
+    return acc.columns, acc.known_columns, acc.known_values
 
 
 # ------------------------------------------------------------------------------------------------------- a robot

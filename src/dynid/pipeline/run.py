@@ -30,9 +30,11 @@ from ..estimation import (
     wls,
 )
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
+from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .delays import DELAY_SEGMENTS, MAX_STEPS, delay_check
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -77,6 +79,7 @@ class IdentificationRun:
     config: IdentifyConfig | None = None  # what was run (the report's traceability)
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
     consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
+    delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -224,16 +227,18 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             if instruments is not None and plan.role != "identify":
                 continue
             picks = picked(len(plan.segments)) if offsets and settings.offsets and plan.role == "identify" else {}
+            timed = picked(len(plan.segments), DELAY_SEGMENTS) if instruments is None and plan.role == "identify" \
+                else {}
             for i, (lo, hi) in enumerate(plan.segments):
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   tuple(settings.offsets.items()) if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0 and instruments is None))
+                                  instruments, keep_rows=i == 0 and instruments is None, delays=i in timed))
         return out
 
-    def picked(n_segments: int) -> dict[int, float]:
-        """The segments (index -> weight) on which the declared offsets' effect is evaluated: a few spread over
-        the test, each standing for len / picked of them."""
-        pick = np.unique(np.linspace(0, n_segments - 1, min(settings.offset_segments, n_segments)).round())
+    def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
+        """The segments (index -> weight) on which the declared offsets' effect (or the delays) is evaluated: a
+        few spread over the test, each standing for len / picked of them."""
+        pick = np.unique(np.linspace(0, n_segments - 1, min(n or settings.offset_segments, n_segments)).round())
         return {int(i): n_segments / len(pick) for i in pick}
 
     say(f"joints and equations on {scheduler}")
@@ -252,6 +257,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
     if parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
+    delays = None
+    if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
+        delays = _car_delays(cfg, setup, plans, jobs(offsets=False), parts["identify"].shifts, result, scheduler, say)
     for k in range(settings.iv_passes if cfg.method == "iv" else 0):
         # instruments from the last estimate on every identification segment (and, on the final pass, on the
         # offsets' segments), then the IV estimate on the same rows (min_speed applies to the simulated rates)
@@ -271,7 +279,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             result = result.with_systematic(propagate(part.iv.normal(result.weights), part.bias, x,
                                                       ident.estimated_names, result.weights))
 
-    # 4. results, direct and cross validation
+    # 4. results, direct and cross validation; a delay mismatch's shift of the estimates in their σ total
+    if delays is not None and delays.mismatched:
+        result = result.with_systematic(delays.systematic(result.estimated_names, result.systematic))
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
                                  flag_percent=cfg.flag_percent)
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
@@ -281,6 +291,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         + consistency_text(result, setup.base, tree))
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
+    run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
@@ -293,6 +304,37 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
+                say: Progress):
+    """The channel groups' delays (`pipeline.delays`): Gauss-Newton steps of the joint fit of the estimate and the
+    groups' extra delays, the first on the sums the identification's map gathered, the next (while a step moves a
+    delay by more than a tenth of a sample, and only when one is more than a sample off) on the same segments
+    mapped again about the delays found. The warnings go to `say`."""
+    names = result.estimated_names
+    x = np.array([result.value(n) for n in names])
+    fs = plans[0].fs
+    timed = [j for j in jobs if j.delays]
+    lags: dict[str, float] = {}
+    step = np.zeros(len(x))
+    for k in range(1, MAX_STEPS + 1):
+        est = estimate_shifts(sums, x, names, result.weights or None)
+        # a group the equations leave uncertain by more than a sample is reported, not stepped on
+        moved = {g: float(v) for g, v, e in zip(est.sources, est.values, est.std, strict=True) if e <= 1.0 / fs}
+        shift = step + est.parameter_step  # the parameters' change from the estimate to this step's joint fit
+        big = any(abs(lags.get(g, 0.0) + v) > 1.0 / fs for g, v in moved.items())
+        if k == MAX_STEPS or not big or all(abs(v) < 0.1 / fs for v in moved.values()):
+            break
+        lags = {g: lags.get(g, 0.0) + v for g, v in moved.items()}
+        step = shift
+        say(f"channel delays: step {k + 1}, about {', '.join(f'{g} {1e3 * v:+.1f} ms' for g, v in lags.items())}")
+        again = [dataclasses.replace(j, lags=tuple(lags.items()), keep_rows=False, offsets=()) for j in timed]
+        sums = scheduler.map_reduce(reduce_car_segment, again, lambda j: j.role, combine, say)["identify"].shifts
+    check = delay_check(est, lags, setup.logger, cfg.car.compensate_delays, fs, len(timed), k, shift)
+    for w in check.warnings():
+        say(f"WARNING: {w}")
+    return check
 
 
 def sensors_note(vehicle) -> str:
