@@ -68,6 +68,7 @@ class DelayCheck:
     steps: int
     names: tuple[str, ...]
     shift: np.ndarray
+    reference: float = 0.0  # the reference group's declared (compensated) delay, s
 
     @property
     def mismatched(self) -> list[GroupDelay]:
@@ -80,9 +81,19 @@ class DelayCheck:
                 f"{_ms(g.estimated)} ± {_ms(g.std, sign=False)} ms in these files, {_ms(g.residual)} ms from the "
                 f"{_ms(g.declared)} ms {what}: the logger's dynamics are not the declared ones, and the estimates "
                 "the misalignment moves carry it in their σ total (flagged where it exceeds the flag threshold). "
-                "Fix: declare the logger's dynamics in the vehicle file's [sensors.dynamics] (docs/vehicle.md; "
-                f"e.g. {g.group} = {{ delay_ms = {max(1e3 * g.estimated, 0):.3g} }}, or default = \"none\" for "
-                "channels the logger aligned)" for g in self.mismatched]
+                "Fix: declare the logger's dynamics in the vehicle file's [sensors.dynamics] (docs/vehicle.md), "
+                f"e.g. {self._suggestion(g)}" for g in self.mismatched]
+
+    def _suggestion(self, g: GroupDelay) -> str:
+        """A declaration the data agree with: "none" for a group aligned with the transducers (themselves
+        "none"), else its delay as the data say it (the transducers' own added)."""
+        absolute = g.estimated + self.reference
+        if abs(g.estimated) <= self.sample and abs(self.reference) <= self.sample:
+            return f'{g.group} = "none" (or default = "none": every channel aligned by the logger)'
+        if absolute < 0:
+            return (f"the transducers' own delay (wft = {{ delay_ms = {-1e3 * absolute:.3g} }}: the {g.label} lead "
+                    "them)")
+        return f"{g.group} = {{ delay_ms = {1e3 * absolute:.3g} }}"
 
     def text(self) -> str:
         """The terminal's table and the warnings."""
@@ -145,7 +156,7 @@ def delay_check(estimate: ShiftEstimate, lags: dict[str, float], logger: LoggerD
         extra = lags.get(g, 0.0) + (float(estimate.values[k]) if det else 0.0)
         out.append(GroupDelay(g, ALL_GROUPS[g][0], members, declared, declared + extra,
                               float(estimate.std[k]) if det else float("nan"), det))
-    return DelayCheck(tuple(out), 1.0 / fs, compensated, segments, steps, estimate.names, shift)
+    return DelayCheck(tuple(out), 1.0 / fs, compensated, segments, steps, estimate.names, shift, ref)
 
 
 def _prefixes(group: str) -> str:

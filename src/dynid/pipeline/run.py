@@ -317,17 +317,16 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
     fs = plans[0].fs
     timed = [j for j in jobs if j.delays]
     lags: dict[str, float] = {}
-    step = np.zeros(len(x))
     for k in range(1, MAX_STEPS + 1):
         est = estimate_shifts(sums, x, names, result.weights or None)
         # a group the equations leave uncertain by more than a sample is reported, not stepped on
         moved = {g: float(v) for g, v, e in zip(est.sources, est.values, est.std, strict=True) if e <= 1.0 / fs}
-        shift = step + est.parameter_step  # the parameters' change from the estimate to this step's joint fit
+        # every step's sums are taken about the estimate x: its parameter step is the change from x to the joint fit
+        shift = est.parameter_step
         big = any(abs(lags.get(g, 0.0) + v) > 1.0 / fs for g, v in moved.items())
         if k == MAX_STEPS or not big or all(abs(v) < 0.1 / fs for v in moved.values()):
             break
         lags = {g: lags.get(g, 0.0) + v for g, v in moved.items()}
-        step = shift
         say(f"channel delays: step {k + 1}, about {', '.join(f'{g} {1e3 * v:+.1f} ms' for g, v in lags.items())}")
         again = [dataclasses.replace(j, lags=tuple(lags.items()), keep_rows=False, offsets=()) for j in timed]
         sums = scheduler.map_reduce(reduce_car_segment, again, lambda j: j.role, combine, say)["identify"].shifts

@@ -92,13 +92,14 @@ class ChannelDynamics:
             out += max(0.0, 0.5 * (1.0 / self.rate - 1.0 / fs))
         return out
 
-    def describe(self) -> str:
+    def describe(self, fs: float) -> str:
+        """In words, on a logger at fs Hz."""
         if self.source == NONE:
             return "none (aligned by the logger)"
         parts = []
         if self.bandwidth is not None:
             parts.append(f"{self.bandwidth:g} Hz band limit (Butterworth, order {self.order})")
-        if self.rate is not None:
+        if self.rate is not None and self.rate < fs:
             parts.append(f"sampled at {self.rate:g} Hz and held")
         if self.delay:
             parts.append(f"{1e3 * self.delay:g} ms pure delay")
@@ -128,7 +129,7 @@ class LoggerDynamics:
         out = [f"Sensor dynamics ([sensors.dynamics] default {self.default!r}{over}), delay at {fs:g} Hz:"]
         rows: dict[tuple, list[str]] = {}
         for n, d in self.channels.items():
-            rows.setdefault((d.describe(), round(d.lag(fs), 9)), []).append(n)
+            rows.setdefault((d.describe(fs), round(d.lag(fs), 9)), []).append(n)
         for (what, lag), names in rows.items():
             out.append(f"  {1e3 * lag:7.2f} ms  {what}: {_compact(names)}")
         return out
