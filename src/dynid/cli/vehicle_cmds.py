@@ -188,7 +188,7 @@ def show_vehicle(v) -> str:
            + ("height lasers" if v.lasers else "no height lasers (heights from the wheel loads through the known kt)")
            + ", " + ("cameras" if v.cameras else "damper potentiometers (no cameras: steering and camber from the "
                      "tables)") + "."]
-    out += v.logger.summary(v.suite.rate) + [""]
+    out += [*v.logger.summary(v.suite.rate), ""]
     lines = format_table(tree).splitlines()
     out.append(f"{lines[0]}  role")
     for fr, line in zip(tree.frames, lines[1:], strict=True):

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..estimation.shifts import ShiftEstimate
 from ..estimation.systematic import SystematicUncertainty
-from ..vehicle.dynamics import ALL_GROUPS, REFERENCE, LoggerDynamics, group_channels
+from ..vehicle.dynamics import GROUPS, REFERENCE, LoggerDynamics, group_channels
 
 DELAY_SEGMENTS = 2  # segments per identification test on which the delays are evaluated (spread over it)
 MISMATCH_SIGMAS = 3.0  # and a mismatch is more than a sample and more than this many σ
@@ -154,13 +154,13 @@ def delay_check(estimate: ShiftEstimate, lags: dict[str, float], logger: LoggerD
         declared = float(np.median([lag[n] for n in members])) - ref if compensated else 0.0
         det = bool(estimate.determined[k]) and float(estimate.std[k]) <= 1.0 / fs
         extra = lags.get(g, 0.0) + (float(estimate.values[k]) if det else 0.0)
-        out.append(GroupDelay(g, ALL_GROUPS[g][0], members, declared, declared + extra,
+        out.append(GroupDelay(g, GROUPS[g][0], members, declared, declared + extra,
                               float(estimate.std[k]) if det else float("nan"), det))
     return DelayCheck(tuple(out), 1.0 / fs, compensated, segments, steps, estimate.names, shift, ref)
 
 
 def _prefixes(group: str) -> str:
-    return ", ".join(p + "*" for p in ALL_GROUPS[group][1])
+    return ", ".join(p + "*" for p in GROUPS[group][1])
 
 
 def _ms(x: float, sign: bool = True) -> str:

@@ -90,7 +90,7 @@ class CarSetup:
     def __init__(self, cfg: IdentifyConfig) -> None:
         from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters, car_template
         from ..vehicle.description import load_vehicle
-        from ..vehicle.dynamics import DELAY_GROUPS, group_channels
+        from ..vehicle.dynamics import group_channels
         from ..vehicle.equations import group_name
         from ..vehicle.estimate import CarConditioning
 
@@ -113,16 +113,14 @@ class CarSetup:
         # the channel groups whose delay the equations can tell: the inertial unit (chassis motion), the corners'
         # clearances (suspension equations), the lasers (tire deflections); the horizontal velocity enters only
         # the aerodynamic wrench (the chassis equations see accelerations, from the inertial unit)
-        fitted = vehicle.suite.names
         # the delays are read from the chassis and suspension equations: a tire equation's model (a linear spring
         # through the geometric radius) misfits a real tire, and a misfit's residual reads as a delay; so the
-        # lasers, which only the tire equations see, are not estimated. Nor are the steering and camber cameras:
-        # their angles turn the wheel forces by a few degrees, and their delay moves the residual so little that
-        # the MuJoCo car's tests left it at +-20 ms (tens of samples), for the cost of a pass
+        # lasers, which only the tire equations see, are not estimated. Nor are the steering and camber cameras
+        # (their angles turn the wheel forces by a few degrees: the MuJoCo car's tests left their delay at
+        # +-20 ms) and the Correvit or GNSS/INS (the horizontal velocity enters only the aerodynamic wrench: the
+        # demo's σ was above a sample), each for the cost of a pass
         self.delay_equations = frozenset(group_name(j) for j in (*range(1, 7), *DAMPERS))
-        self.delay_groups = tuple(g for g in DELAY_GROUPS if group_channels(g, fitted)
-                                  and g not in ("lasers", "wheel_angles")
-                                  and (g not in ("correvit", "gnss") or self.aero is not None))
+        self.delay_groups = tuple(g for g in ("imu", "clearances") if group_channels(g, vehicle.suite.names))
         # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
         self.equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
 

@@ -22,8 +22,9 @@ until the next; absent: the logger's rate) and `delay_ms` (a pure delay: transpo
 takes its own entry, else its group's, else the pattern's that matches it, else `default`; two patterns
 matching one channel are an error.
 
-`DELAY_GROUPS` are the channel groups whose delay relative to the wheel force transducers the identification
-estimates from the data (`pipeline/run.py`), each a set of channels one device writes.
+`GROUPS` are the channel groups a key may name, each the channels one device (or one band of it) writes; the
+identification estimates the delay of some of them relative to the wheel force transducers, the REFERENCE
+(`pipeline/delays.py`).
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ MAX_ORDER = 10
 
 # group -> (what it is, the channel-name prefixes it holds); the wheel force transducers (and the wheel speeds,
 # the same device) are the reference the others' delays are estimated against
-DELAY_GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
+DEVICES: dict[str, tuple[str, tuple[str, ...]]] = {
     "imu": ("inertial unit", ("imu_",)),
     "correvit": ("Correvit", ("correvit_",)),
     "gnss": ("GNSS/INS velocity", ("gnss_",)),
@@ -54,8 +55,7 @@ DELAY_GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
     "lasers": ("height lasers", ("laser_height_",)),
 }
 REFERENCE = ("wft", ("wheel force transducers and wheel speeds", ("wft_", "wheel_speed_")))
-ALL_GROUPS = {**DELAY_GROUPS, REFERENCE[0]: REFERENCE[1], "steering_wheel": ("steering-wheel encoder",
-                                                                             ("steering_wheel",))}
+GROUPS = {**DEVICES, REFERENCE[0]: REFERENCE[1], "steering_wheel": ("steering-wheel encoder", ("steering_wheel",))}
 
 
 class DynamicsError(ModelError):
@@ -138,7 +138,7 @@ class LoggerDynamics:
 def _compact(names: list[str]) -> str:
     """Channel names, a device's run written as its prefix: "wft_* (24)"."""
     out, seen = [], set()
-    for _, prefixes in ALL_GROUPS.values():
+    for _, prefixes in GROUPS.values():
         for p in prefixes:
             mine = [n for n in names if n.startswith(p)]
             if len(mine) > 2:
@@ -149,8 +149,8 @@ def _compact(names: list[str]) -> str:
 
 
 def group_channels(group: str, names) -> list[str]:
-    """The channels of `names` in a group of ALL_GROUPS."""
-    prefixes = ALL_GROUPS[group][1]
+    """The channels of `names` in a group of GROUPS."""
+    prefixes = GROUPS[group][1]
     return [n for n in names if n.startswith(prefixes)]
 
 
@@ -179,11 +179,11 @@ def parse_dynamics(table: object, suite: SensorSuite, where: str) -> LoggerDynam
             raise DynamicsError(f"{where}: {sec}: empty key")
         if key in names:
             exact[key] = spec
-        elif key in ALL_GROUPS:
+        elif key in GROUPS:
             members = group_channels(key, names)
             if not members:
-                raise DynamicsError(f"{where}: {sec} {key}: this car carries no {ALL_GROUPS[key][0]} "
-                                    f"({', '.join(p + '*' for p in ALL_GROUPS[key][1])}); remove the entry")
+                raise DynamicsError(f"{where}: {sec} {key}: this car carries no {GROUPS[key][0]} "
+                                    f"({', '.join(p + '*' for p in GROUPS[key][1])}); remove the entry")
             groups[key] = spec
         elif any(ch in key for ch in "*?["):
             if not fnmatch.filter(names, key):
@@ -191,9 +191,9 @@ def parse_dynamics(table: object, suite: SensorSuite, where: str) -> LoggerDynam
                                     f"{', '.join(names)}")
             patterns[key] = spec
         else:
-            hint = did_you_mean(key, names + list(ALL_GROUPS) + ["default"])
+            hint = did_you_mean(key, names + list(GROUPS) + ["default"])
             raise DynamicsError(f"{where}: {sec}: unknown channel {key!r};{hint or ''} keys are default, a channel "
-                                f"of this car, a group ({', '.join(ALL_GROUPS)}) or a pattern such as \"wft_*\"")
+                                f"of this car, a group ({', '.join(GROUPS)}) or a pattern such as \"wft_*\"")
     # the most specific entry wins: a channel, then its group, then a pattern (two patterns on one channel: error)
     by_pattern: dict[str, str] = {}
     for key in patterns:
@@ -255,5 +255,5 @@ def _entry(spec: object, channel: SensorChannel, where: str, what: str) -> Chann
     return ChannelDynamics(bandwidth, order, rate, 1e-3 * (delay or 0.0), "declared")
 
 
-__all__ = ["ALL_GROUPS", "DELAY_GROUPS", "REFERENCE", "ChannelDynamics", "DynamicsError", "LoggerDynamics",
+__all__ = ["DEVICES", "GROUPS", "REFERENCE", "ChannelDynamics", "DynamicsError", "LoggerDynamics",
            "group_channels", "parse_dynamics", "table1_dynamics"]
