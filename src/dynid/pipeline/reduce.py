@@ -110,15 +110,13 @@ class CarSetup:
         # the declared delays are passed to the estimator explicitly (none when the config turns them off)
         self._estimating = dataclasses.replace(self.conditioning, compensate_delays=True)
         self.aero = vehicle.aero if settings.aero else None
-        # the channel groups whose delay the equations can tell: the inertial unit (chassis motion), the corners'
-        # clearances (suspension equations), the lasers (tire deflections); the horizontal velocity enters only
-        # the aerodynamic wrench (the chassis equations see accelerations, from the inertial unit)
-        # the delays are read from the chassis and suspension equations: a tire equation's model (a linear spring
-        # through the geometric radius) misfits a real tire, and a misfit's residual reads as a delay; so the
-        # lasers, which only the tire equations see, are not estimated. Nor are the steering and camber cameras
-        # (their angles turn the wheel forces by a few degrees: the MuJoCo car's tests left their delay at
-        # +-20 ms) and the Correvit or GNSS/INS (the horizontal velocity enters only the aerodynamic wrench: the
-        # demo's σ was above a sample), each for the cost of a pass
+        # the channel groups whose delay the identification estimates (pipeline.delays): the inertial unit (the
+        # chassis motion) and the clearances (the suspensions), from the chassis and suspension equations. Not the
+        # tire equations: their model (a linear spring through the geometric radius) misfits a real tire, and a
+        # misfit's residual reads as a delay; so not the lasers either, which only they see. Nor the steering and
+        # camber cameras (their angles turn the wheel forces by a few degrees: the MuJoCo car's tests left their
+        # delay at +-20 ms) or the Correvit and GNSS/INS (the horizontal velocity enters only the aerodynamic
+        # wrench: the demo's σ was above a sample): not worth a pass each
         self.delay_equations = frozenset(group_name(j) for j in (*range(1, 7), *DAMPERS))
         self.delay_groups = tuple(g for g in ("imu", "clearances") if group_channels(g, vehicle.suite.names))
         # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
