@@ -32,6 +32,7 @@ from ..vehicle.dynamics import GROUPS, REFERENCE, LoggerDynamics, group_channels
 DELAY_SEGMENTS = 2  # segments per identification test on which the delays are evaluated (spread over it)
 MISMATCH_SIGMAS = 3.0  # and a mismatch is more than a sample and more than this many σ
 MAX_STEPS = 4  # Gauss-Newton steps at most; a step below a tenth of a sample ends them
+DELAY_SOURCE = "delay mismatch"  # the systematic source's name: "delay mismatch: imu, clearances"
 
 
 @dataclass(frozen=True)
@@ -134,7 +135,7 @@ class DelayCheck:
         shifts = dict(current.shifts) if current is not None else {}
         cov = np.array(current.covariance, dtype=float) if current is not None else np.zeros((len(names),) * 2)
         d = self.shift[[self.names.index(n) for n in names]]
-        shifts["delay mismatch: " + ", ".join(g.group for g in self.mismatched)] = d
+        shifts[f"{DELAY_SOURCE}: " + ", ".join(g.group for g in self.mismatched)] = d
         return SystematicUncertainty(tuple(names), cov + np.outer(d, d), shifts)
 
 
@@ -167,4 +168,4 @@ def _ms(x: float, sign: bool = True) -> str:
     return f"{1e3 * x:+.2f}" if sign else f"{1e3 * x:.2f}"
 
 
-__all__ = ["DELAY_SEGMENTS", "DelayCheck", "GroupDelay", "delay_check"]
+__all__ = ["DELAY_SEGMENTS", "DELAY_SOURCE", "DelayCheck", "GroupDelay", "delay_check"]

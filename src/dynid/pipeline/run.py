@@ -34,7 +34,7 @@ from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
-from .delays import DELAY_SEGMENTS, MAX_STEPS, delay_check
+from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -355,17 +355,28 @@ def sensors_note(vehicle) -> str:
 
 
 def offsets_note(result) -> str:
-    """What %σ total means, and which declared sensor offsets weigh most (empty without offsets)."""
+    """What %σ total means, and which declared sensor offsets weigh most (empty without offsets); and whether it
+    holds a channel-delay mismatch's shift (`pipeline.delays`)."""
     sys = result.systematic
     if sys is None:
         return ""
+    delay = next((s for s in sys.shifts if s.startswith(DELAY_SOURCE)), None)
     counts: dict[str, int] = {}
     for n in sys.names:
         channel = sys.main_source(n).split(": ")[-1]
-        counts[channel] = counts.get(channel, 0) + 1
-    top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
-    return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' declared zero offsets, "
-            f"propagated to first order. The offsets that move most estimates (parameters): {top}.\n")
+        if not sys.main_source(n).startswith(DELAY_SOURCE):
+            counts[channel] = counts.get(channel, 0) + 1
+    text = "%σ is the paper's (least squares, statistical); %σ total adds "
+    if len(sys.shifts) > (delay is not None):
+        text += "the sensors' declared zero offsets, propagated to first order"
+        if counts:
+            top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
+            text += f". The offsets that move most estimates (parameters): {top}"
+        text += ". It also adds " if delay else ".\n"
+    if delay:
+        text += (f"the shift of the estimates that the channels' delays as the data say them imply ({delay}: see "
+                 "Channel delays), the bias of a logger whose dynamics are not the declared ones.\n")
+    return text
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
