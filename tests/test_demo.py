@@ -50,3 +50,15 @@ def test_parameters_not_flagged_are_within_5_percent_and_3_sigma(demo):
         assert abs(q["value"] - q["truth"]) <= 0.05 * q["scale"], q
         assert abs(q["value"] - q["truth"]) <= 3 * q["std_total"], q
         assert q["std_total"] >= q["std"] and q["main_offset"]
+
+
+def test_the_channel_delays_are_the_declared_ones(demo):
+    """dynid's simulator writes the Table-1 sensor chain the 406's file declares (by default): the delays the
+    equations' residual asks for are the declared ones within a sample (1.6 ms), and nothing is warned."""
+    _, res = demo
+    d = res["delays"]
+    assert {g["group"] for g in d["groups"]} == {"imu", "clearances"}
+    for g in d["groups"]:
+        assert g["determined"] and abs(g["difference_ms"]) < d["sample_ms"], g
+        assert not g["mismatch"]
+    assert not d["warnings"]

@@ -150,7 +150,7 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("[imu]", "[sensors]\nlasers = false\n[imu]"), ["lasers = false", "K15", "[known]",
                                                                        "tire bench"]),
     (lambda s: s.replace("[imu]", "[sensors]\nradar = true\n[imu]"),
-     ["[sensors]", "'radar'", "cameras, correvit, correvit_position_m, gnss_position_m, laser_positions_m"]),
+     ["[sensors]", "'radar'", "cameras, correvit, correvit_position_m, dynamics, gnss_position_m, laser_positions_m"]),
     (lambda s: s.replace("[imu]", "[sensors]\ncameras = 0\n[imu]"), ["[sensors] cameras", "true or false"]),
     (lambda s: s.replace("[imu]", "[sensors]\nlaser_positions_m = [[-0.5, -0.4, 0.0], [0.0, 0.4, 0.0], "
                                   "[0.0, -0.4, 2.7], [0.0, 0.4, 2.7]]\n[imu]"),
@@ -161,7 +161,33 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("# [tables]", '[aero]\nfile = "aero_text.csv"\n# [tables]'), ["aero_text.csv", "line 3"]),
     (lambda s: s.replace("[imu]", "[sensors]\ngnss_position_m = [1.0, 0.0, 1.3]\n[imu]"),
      ["gnss_position_m", "correvit = false"]),
+    # the logger's dynamics (vehicle.dynamics)
+    (lambda s: _dynamics(s, 'imu_yaw_rat = "none"'), ["[sensors.dynamics]", "'imu_yaw_rat'",
+                                                     "did you mean 'imu_yaw_rate'", "pattern"]),
+    (lambda s: _dynamics(s, 'default = "ideal"'), ["[sensors.dynamics] default = 'ideal'", '"none"', '"table1"']),
+    (lambda s: _dynamics(s, 'imu = "aligned"'), ["[sensors.dynamics] imu = 'aligned'", '"none"', "bandwidth_hz"]),
+    (lambda s: _dynamics(s, "imu = { bandwith_hz = 10 }"), ["[sensors.dynamics] imu", "'bandwith_hz'",
+                                                           "did you mean 'bandwidth_hz'"]),
+    (lambda s: _dynamics(s, "imu = { delay_ms = -3 }"), ["[sensors.dynamics] imu", "delay_ms = -3", "0..500",
+                                                        "milliseconds"]),
+    (lambda s: _dynamics(s, "imu = { delay_ms = 25000 }"), ["delay_ms = 25000", "0..500"]),
+    (lambda s: _dynamics(s, "imu = { bandwidth_hz = 0 }"), ["bandwidth_hz = 0", "(Hz)"]),
+    (lambda s: _dynamics(s, "imu = { order = 2 }"), ["order without bandwidth_hz"]),
+    (lambda s: _dynamics(s, "imu = { bandwidth_hz = 10, order = 2.5 }"), ["order = 2.5", "whole number"]),
+    (lambda s: _dynamics(s, "imu = { rate_hz = true }"), ["rate_hz = True", "number"]),
+    (lambda s: _dynamics(s, "imu = {}"), ["imu = {}", "declares nothing"]),
+    (lambda s: _dynamics(s, '"gnss_*" = "none"'), ["'gnss_*' matches no channel"]),
+    (lambda s: _dynamics(s, 'gnss = "none"'), ["gnss", "carries no GNSS/INS velocity", "remove the entry"]),
+    (lambda s: _dynamics(s, '"wft_*" = "none"\n"wft_rl_*" = { delay_ms = 2 }'),
+     ["'wft_*'", "'wft_rl_*'", "both match wft_rl_Fx", "its own entry"]),
+    (lambda s: s.replace("[imu]", '[sensors]\ndynamics = "none"\n[imu]'), ["[sensors.dynamics] must be a table"]),
+    (lambda s: _dynamics(s, '"wft_*" = "none"\nwft_rl_Fx = { delay_ms = 2 }'), None),  # a channel beats a pattern
 ]
+
+
+def _dynamics(text: str, entries: str) -> str:
+    """The file with a [sensors.dynamics] table of these entries."""
+    return text.replace("[imu]", f"[sensors.dynamics]\n{entries}\n\n[imu]")
 
 
 @pytest.mark.parametrize("change, words", BAD)

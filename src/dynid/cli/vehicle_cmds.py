@@ -189,7 +189,8 @@ def show_vehicle(v) -> str:
            + ("Correvit" if v.correvit else "GNSS/INS velocity (no Correvit)") + ", "
            + ("height lasers" if v.lasers else "no height lasers (heights from the wheel loads through the known kt)")
            + ", " + ("cameras" if v.cameras else "damper potentiometers (no cameras: steering and camber from the "
-                     "tables)") + ".", ""]
+                     "tables)") + "."]
+    out += [*v.logger.summary(v.suite.rate), ""]
     lines = format_table(tree).splitlines()
     out.append(f"{lines[0]}  role")
     for fr, line in zip(tree.frames, lines[1:], strict=True):

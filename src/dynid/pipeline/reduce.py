@@ -20,7 +20,7 @@ import pickle
 import threading
 import zlib
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -31,6 +31,7 @@ from ..dynamics import BaseParameters, Model
 from ..estimation import StreamingLS
 from ..estimation.fit import ErrorEffect
 from ..estimation.iv import InstrumentSums
+from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
 from .config import IdentifyConfig
@@ -58,6 +59,8 @@ class CarJob:
     instruments: dict[str, float] | None = None
     keep_rows: bool = False
     errors: bool = False  # evaluate the sensors' errors' effect on the rows (the model-fit verdict)
+    delays: bool = False
+    lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
 
     @property
     def test(self) -> str:
@@ -67,7 +70,8 @@ class CarJob:
 @dataclass
 class Partial:
     """Reduced rows of some segments: least squares' factors, and where evaluated the offsets' sums and the
-    instruments' sums; rows: {test: its first segment's rows}; segments: how many segments went in."""
+    instruments' sums, the channel groups' delay sensitivities; rows: {test: its first segment's rows}; segments:
+    how many segments went in."""
 
     ls: StreamingLS
     bias: BiasAccumulator | None = None
@@ -75,6 +79,7 @@ class Partial:
     rows: dict[str, GroupedSystem] = field(default_factory=dict)
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
+    shifts: ShiftSums | None = None
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -83,7 +88,7 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments, both(a.errors, b.errors))
+                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts))
 
 
 class CarSetup:
@@ -91,8 +96,10 @@ class CarSetup:
     the base parameters, the conditioning, the generated identification model."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from ..vehicle import EQUATION_ROWS, TIRES, car_base_parameters
+        from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
         from ..vehicle.description import load_vehicle
+        from ..vehicle.dynamics import group_channels
+        from ..vehicle.equations import group_name
         from ..vehicle.estimate import CarConditioning
 
         settings = self.settings = cfg.car
@@ -107,7 +114,19 @@ class CarSetup:
         self.names = list(self.base.names)
         self.conditioning = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
                                             compensate_delays=settings.compensate_delays)
+        self.logger = vehicle.logger
+        # the declared delays are passed to the estimator explicitly (none when the config turns them off)
+        self._estimating = dataclasses.replace(self.conditioning, compensate_delays=True)
         self.aero = vehicle.aero if settings.aero else None
+        # the channel groups whose delay the identification estimates (pipeline.delays): the inertial unit (the
+        # chassis motion) and the clearances (the suspensions), from the chassis and suspension equations. Not the
+        # tire equations: their model (a linear spring through the geometric radius) misfits a real tire, and a
+        # misfit's residual reads as a delay; so not the lasers either, which only they see. Nor the steering and
+        # camber cameras (their angles turn the wheel forces by a few degrees: the MuJoCo car's tests left their
+        # delay at +-20 ms) or the Correvit and GNSS/INS (the horizontal velocity enters only the aerodynamic
+        # wrench: the demo's σ was above a sample): not worth a pass each
+        self.delay_equations = frozenset(group_name(j) for j in (*range(1, 7), *DAMPERS))
+        self.delay_groups = tuple(g for g in ("imu", "clearances") if group_channels(g, vehicle.suite.names))
         # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
         self.equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
 
@@ -117,12 +136,26 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
-    def trajectory(self, channels: dict[str, np.ndarray], fs: float) -> CarTrajectory:
-        """The joints and filtered loads of one segment's channels (SI)."""
-        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
+    def delays(self, fs: float) -> dict[str, float]:
+        """channel -> s: the delay compensated on each channel (the declared dynamics; none when the config turns
+        the compensation off)."""
+        return self.logger.lags(fs) if self.conditioning.compensate_delays else {}
 
+    def trajectory(self, channels: dict[str, np.ndarray], fs: float,
+                   lags: Mapping[str, float] | None = None) -> CarTrajectory:
+        """The joints and filtered loads of one segment's channels (SI); lags: channel group -> s, its channels
+        taken as that much later than declared (advanced by it more: the delay estimate's perturbations)."""
+        from ..vehicle.dynamics import group_channels  # the car's modules, as in __init__: a robot needs none
+        from ..vehicle.estimate import estimate_joints
+
+        delays = self.delays(fs)
+        if lags:
+            delays = {**dict.fromkeys(channels, 0.0), **delays}
+            for g, d in lags.items():
+                for n in group_channels(g, delays):
+                    delays[n] += d
         return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite)
+                               self._estimating, self.vehicle.suite, delays)
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
@@ -172,7 +205,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     setup = car_setup(job.cfg)
     w = job.window
     channels = w.read()
-    traj = setup.trajectory(channels, w.fs)
+    lags = dict(job.lags)
+    traj = setup.trajectory(channels, w.fs, lags)
     sys = setup.rows(traj, w.fs, job.instruments)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
@@ -180,13 +214,23 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
+    if job.delays and setup.delay_groups:
+        # each group a sample later than declared: the rows' change per second of delay (`estimation.shifts`),
+        # on the equations the delays are read from
+        h = 1.0 / w.fs
+        part.shifts = ShiftSums(setup.delay_groups, *_columns(ls))
+        moved = [setup.rows(setup.trajectory(channels, w.fs, {**lags, g: lags.get(g, 0.0) + h}), w.fs,
+                            job.instruments, keep=sys.kept) for g in setup.delay_groups]
+        used = np.isin(sys.groups, list(setup.delay_equations))
+        part.shifts.add(sys.W[used], sys.Y[used], [(p.W - sys.W)[used] / h for p in moved],
+                        [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
         part.bias = ls.bias_accumulator()
         for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
             if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
                 moved_traj = shifted_load(traj, q, b)
             else:
-                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs)
+                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags)
             p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
@@ -194,7 +238,7 @@ def reduce_car_segment(job: CarJob) -> Partial:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
         for e in sensor_errors(channels, setup.vehicle.suite, seed):
-            noisy_traj = setup.trajectory({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs)
+            noisy_traj = setup.trajectory({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs, lags)
             p = setup.rows(noisy_traj, w.fs, job.instruments, keep=sys.kept)
             noisy.append(StreamingLS(setup.names))
             noisy[-1].add(p.W, p.Y, sys.groups)
@@ -224,6 +268,12 @@ def shifted_load(traj: CarTrajectory, channel: str, b: float) -> CarTrajectory:
     ww = traj.wheel_wrenches.copy()
     ww[:, CORNER_TAGS.index(corner), WFT_COMPONENTS.index(comp)] += b
     return dataclasses.replace(traj, wheel_wrenches=ww)
+
+
+def _columns(ls: StreamingLS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The estimated columns, the known ones and their values (`StreamingLS.bias_accumulator`'s)."""
+    acc = ls.bias_accumulator()
+    return acc.columns, acc.known_columns, acc.known_values
 
 
 # ------------------------------------------------------------------------------------------------------- a robot

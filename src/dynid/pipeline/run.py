@@ -33,9 +33,11 @@ from ..estimation import (
     wls,
 )
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
+from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -81,6 +83,7 @@ class IdentificationRun:
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
     consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
+    delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -234,18 +237,22 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             if instruments is not None and plan.role != "identify":
                 continue
             picks = picked(len(plan.segments)) if with_offsets and moved and plan.role == "identify" else {}
-            # the sensors' errors' effect on a few segments of each identification test: the model-fit verdict
-            errors = picked(len(plan.segments)) if instruments is None and plan.role == "identify" else {}
+            # the sensors' errors' effect on a few segments of each identification test (the model-fit verdict),
+            # and the channel delays' on a few
+            main = instruments is None and plan.role == "identify"
+            errors = picked(len(plan.segments)) if main and with_offsets else {}
+            timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0 and instruments is None, errors=i in errors))
+                                  instruments, keep_rows=i == 0 and instruments is None, errors=i in errors,
+                                  delays=i in timed))
         return out
 
-    def picked(n_segments: int) -> dict[int, float]:
-        """The segments (index -> weight) on which the declared offsets' effect is evaluated: a few spread over
-        the test, each standing for len / picked of them."""
-        pick = np.unique(np.linspace(0, n_segments - 1, min(settings.offset_segments, n_segments)).round())
+    def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
+        """The segments (index -> weight) on which the declared offsets' effect (or the delays) is evaluated: a
+        few spread over the test, each standing for len / picked of them."""
+        pick = np.unique(np.linspace(0, n_segments - 1, min(n or settings.offset_segments, n_segments)).round())
         return {int(i): n_segments / len(pick) for i in pick}
 
     say(f"joints and equations on {scheduler}")
@@ -265,6 +272,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
     if parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
+    delays = None
+    if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
+        delays = _car_delays(cfg, setup, plans, jobs(with_offsets=False), parts["identify"].shifts, result,
+                             scheduler, say)
     for k in range(settings.iv_passes if cfg.method == "iv" else 0):
         # instruments from the last estimate on every identification segment (and, on the final pass, on the
         # offsets' segments), then the IV estimate on the same rows (min_speed applies to the simulated rates)
@@ -285,8 +296,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                                       ident.estimated_names, result.weights))
 
     # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
-    #    and cross validation
+    #    and cross validation; a delay mismatch's shift of the estimates in their σ total
     fits = model_fits(ident, errors, result.estimates)
+    if delays is not None and delays.mismatched:
+        result = result.with_systematic(delays.systematic(result.estimated_names, result.systematic))
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
                                  flag_percent=cfg.flag_percent,
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
@@ -298,6 +311,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         + consistency_text(result, setup.base, tree), offsets=offsets.to_dict())
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
+    run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
@@ -311,6 +325,36 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
+                say: Progress):
+    """The channel groups' delays (`pipeline.delays`): Gauss-Newton steps of the joint fit of the estimate and the
+    groups' extra delays, the first on the sums the identification's map gathered, the next (while a step moves a
+    delay by more than a tenth of a sample, and only when one is more than a sample off) on the same segments
+    mapped again about the delays found. The warnings go to `say`."""
+    names = result.estimated_names
+    x = np.array([result.value(n) for n in names])
+    fs = plans[0].fs
+    timed = [j for j in jobs if j.delays]
+    lags: dict[str, float] = {}
+    for k in range(1, MAX_STEPS + 1):
+        est = estimate_shifts(sums, x, names, result.weights or None)
+        # a group the equations leave uncertain by more than a sample is reported, not stepped on
+        moved = {g: float(v) for g, v, e in zip(est.sources, est.values, est.std, strict=True) if e <= 1.0 / fs}
+        # every step's sums are taken about the estimate x: its parameter step is the change from x to the joint fit
+        shift = est.parameter_step
+        big = any(abs(lags.get(g, 0.0) + v) > 1.0 / fs for g, v in moved.items())
+        if k == MAX_STEPS or not big or all(abs(v) < 0.1 / fs for v in moved.values()):
+            break
+        lags = {g: lags.get(g, 0.0) + v for g, v in moved.items()}
+        say(f"channel delays: step {k + 1}, about {', '.join(f'{g} {1e3 * v:+.1f} ms' for g, v in lags.items())}")
+        again = [dataclasses.replace(j, lags=tuple(lags.items()), keep_rows=False, offsets=()) for j in timed]
+        sums = scheduler.map_reduce(reduce_car_segment, again, lambda j: j.role, combine, say)["identify"].shifts
+    check = delay_check(est, lags, setup.logger, cfg.car.compensate_delays, fs, len(timed), k, shift)
+    for w in check.warnings():
+        say(f"WARNING: {w}")
+    return check
 
 
 def sensors_note(vehicle) -> str:
@@ -342,25 +386,31 @@ def sensors_note(vehicle) -> str:
 
 def offsets_note(result, offsets) -> str:
     """Which sensor zero offsets were propagated (`car.SensorOffsets`), where they came from, what %σ total means
-    and which offsets weigh most."""
+    and which offsets weigh most; and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
     where = {"vehicle": f"from the vehicle's sensor suite ({offsets.vehicle}: each channel's zero offset; "
                         "[uncertainty] offsets = {...} in the config replaces them, offsets = \"none\" turns them off)",
              "config": "from the config's [uncertainty] offsets (they replace the vehicle's sensor suite's)"}
     sys = result.systematic
+    delay = None if sys is None else next((s for s in sys.shifts if s.startswith(DELAY_SOURCE)), None)
+    delay_text = ("" if delay is None else
+                  f"%σ total also adds the shift of the estimates that the channels' delays as the data say them imply "
+                  f"({delay}: see Channel delays), the bias of a logger whose dynamics are not the declared ones.\n")
     if sys is None or not offsets.values:
         why = ("the config's [uncertainty] turns them off" if offsets.source != "vehicle"
                else f"the vehicle's sensor suite ({offsets.vehicle}) declares none")
-        return (f"No sensor zero offsets propagated ({why}): %σ and %σ total are from the noise alone and ignore "
-                "the sensors' zero offsets.\n")
+        return (f"No sensor zero offsets propagated ({why}): %σ is from the noise alone and ignores the sensors' "
+                "zero offsets.\n" + delay_text)
     counts: dict[str, int] = {}
     for n in sys.names:
-        channel = sys.main_source(n).split(": ")[-1]
-        counts[channel] = counts.get(channel, 0) + 1
+        source = sys.main_source(n)
+        if not source.startswith(DELAY_SOURCE):
+            channel = source.split(": ")[-1]
+            counts[channel] = counts.get(channel, 0) + 1
     top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
     return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' zero offsets, propagated to "
             f"first order: {len(offsets.values)} channel(s) {where[offsets.source]}, 1 σ each, "
             f"evaluated on up to {offsets.segments} segment(s) per identification test: {offsets.listing()}. "
-            f"The offsets that move most estimates (parameters): {top}.\n")
+            + (f"The offsets that move most estimates (parameters): {top}.\n" if top else "\n") + delay_text)
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:

@@ -493,6 +493,35 @@ def consistency_section(run) -> Section:
     return Section("Physical consistency", text, html=html, anchor="consistency")
 
 
+def delays_section(run) -> Section | None:
+    """A car's channel delays relative to the wheel force transducers, declared against estimated
+    (`pipeline.delays`), and the mismatch warnings."""
+    check = getattr(run, "delays", None)
+    if check is None:
+        return None
+    rows = []
+    for g in check.groups:
+        verdict = ("MISMATCH" if g.mismatch(check.sample) else "ok") if g.determined else "not determined"
+        est = [Cell(f"{1e3 * g.estimated:+.2f}", 1e3 * g.estimated), Cell(f"{1e3 * g.std:.2f}", 1e3 * g.std),
+               Cell(f"{1e3 * g.residual:+.2f}", 1e3 * g.residual)] if g.determined else ["", "", ""]
+        rows.append([Cell(g.group, cls="t"), Cell(g.label, cls="t"),
+                     Cell(f"{1e3 * g.declared:+.2f}", 1e3 * g.declared), *est,
+                     Cell(verdict, cls="t flag-uncertain" if verdict == "MISMATCH" else "t")])
+    table = Table(["group", "channels", "declared, ms", "estimated, ms", "σ, ms", "difference, ms", "verdict"], rows,
+                  caption="Delay relative to the wheel force transducers", sortable=False)
+    off = "" if check.compensated else "; here compensate_delays = false: none"
+    text = (f"How late each channel group is against the wheel force transducers: as declared (the vehicle file's "
+            f"[sensors.dynamics], compensated before the equations{off}), and as the chassis and suspension "
+            f"equations' residual says (the delay that minimises it jointly with the parameters, σ from its curvature; "
+            f"{check.segments} segment(s), {check.steps} step(s)). One "
+            f"sample is {1e3 * check.sample:.2f} ms; a difference above a sample and 3 σ is a mismatch: the estimates "
+            "the misalignment moves carry that shift in their σ total (source \"delay mismatch\").")
+    warnings = check.warnings()
+    if warnings:
+        text += "\n\n" + "\n\n".join(f"WARNING: {w}" for w in warnings)
+    return Section("Channel delays", text, tables=[table], anchor="delays")
+
+
 def input_files(cfg) -> list[tuple[str, Path]]:
     """(role, path) of every file the run read: the config, the model or vehicle file, the tests' files and
     truth sidecars, the reference."""
@@ -632,6 +661,10 @@ def build_report(run, title: str) -> Report:
     if is_car:
         vtext += "\nThe plots show the first segment of each test (the CSV has the same rows)."
     out_sections.append(Section("Validation", vtext, tables=[vt] if vt else [], figures=vfigs, anchor="validation"))
+    ds = delays_section(run)
+    if ds is not None:
+        out_sections.append(ds)
+        data["delays"] = run.delays.to_dict()
     _, other = split_notes(run.notes)
     if other:
         out_sections.append(Section("Notes", "\n\n".join(other), anchor="notes"))

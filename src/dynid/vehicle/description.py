@@ -31,6 +31,10 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     gnss_position_m = [1.1, 0.0, 1.35]      # its point in frame 6 (default: roof, centreline, mid-wheelbase)
     correvit_position_m = [0.1, 1.0, 1.35]  # the Correvit's point (default: right flank, mid-wheelbase)
     laser_positions_m = [[0, -0.4, 0], [0, 0.4, 0], [0, -0.4, 2.7], [0, 0.4, 2.7]]  # rl rr fl fr
+    [sensors.dynamics]                      # optional: the logger's delays (vehicle.dynamics; default Table 1)
+    default = "table1"                      # or "none": every channel already aligned by the logger
+    "wft_*" = "none"                        # a pattern, a group (imu, cameras, ...) or a channel
+    imu = { bandwidth_hz = 10, rate_hz = 125, delay_ms = 2 }
     [imu]                                   # optional: where the inertial unit is
     position_m = [0.0, 0.0, 0.0]            # in frame 6
     axes = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]   # rows: the unit's x, y, z in frame 6 (ISO 8855)
@@ -68,6 +72,7 @@ from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import ModelError, Tree
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
+from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
 from .sensors import SensorSuite, fitted_suite
@@ -119,6 +124,7 @@ class Vehicle:
     tire_offsets: bool = True
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
     defaulted_tables: tuple[str, ...] = ()
+    dynamics: LoggerDynamics | None = None  # [sensors.dynamics]; None: the suite's Table-1 sensors
 
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
@@ -130,6 +136,12 @@ class Vehicle:
         """The sensors fitted: the paper's suite (Table 1) at this car's positions, less what the file says is
         not fitted (`sensors.fitted_suite`)."""
         return fitted_suite(self.geometry, cameras=self.cameras, lasers=self.lasers, correvit=self.correvit)
+
+    @property
+    def logger(self) -> LoggerDynamics:
+        """Each channel's declared dynamics (`vehicle.dynamics`): the file's [sensors.dynamics], by default the
+        paper's Table-1 sensors."""
+        return self.dynamics if self.dynamics is not None else table1_dynamics(self.suite)
 
 
 def shipped_vehicles() -> list[str]:
@@ -187,6 +199,11 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     points = {k: fitted.pop(k) for k in ("gnss_position", "correvit_position", "laser_positions")}
     geometry = dataclasses.replace(geometry, **{k: v for k, v in points.items() if v is not None})
     _check_points(geometry, where)
+    declared = fitted.pop("dynamics")
+    try:
+        dynamics = None if declared is None else parse_dynamics(declared, fitted_suite(geometry, **fitted), where)
+    except DynamicsError as exc:
+        raise VehicleError(str(exc)) from None
     if not fitted["lasers"]:
         missing = [n for n in ("K15", "K24", "K33", "K42") if n not in known]
         if missing:
@@ -206,16 +223,18 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted, defaulted_tables=defaulted)
+                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted, defaulted_tables=defaulted,
+                   dynamics=dynamics)
 
 
 def _sensors(t: dict, where: str) -> dict:
     """[sensors]: cameras, lasers, correvit (true: fitted, the default) and gnss_position_m (where the GNSS/INS
-    velocity is measured when there is no Correvit). The inertial unit, the dynamometric wheels and the
+    velocity is measured when there is no Correvit), the sensors' points, and `dynamics` (checked by
+    `dynamics.parse_dynamics` once the suite is known). The inertial unit, the dynamometric wheels and the
     steering-wheel encoder are always fitted."""
-    _keys(t, {"cameras", "lasers", "correvit", "gnss_position_m", "correvit_position_m", "laser_positions_m"}, where,
-          "[sensors]")
-    out: dict = {}
+    _keys(t, {"cameras", "lasers", "correvit", "gnss_position_m", "correvit_position_m", "laser_positions_m",
+              "dynamics"}, where, "[sensors]")
+    out: dict = {"dynamics": t.get("dynamics")}
     for k in ("cameras", "lasers", "correvit"):
         v = t.get(k, True)
         if not isinstance(v, bool):

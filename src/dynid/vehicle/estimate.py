@@ -32,6 +32,7 @@ from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
+from .dynamics import ChannelDynamics
 from .geometry import CarGeometry
 from .sensors import (
     CORNER_TAGS,
@@ -57,7 +58,7 @@ class CarConditioning:
     """cutoff (Hz) and order of the zero-phase Butterworth on every signal; attitude_crossover (Hz):
     below it the inclinometers set roll and pitch, above it the integrated gyros; border (s):
     trimmed at each end (None: the filter's transient); compensate_delays: advance each channel by
-    its sensor's low-frequency delay (see `sensor_delay`)."""
+    its declared low-frequency delay (`estimate_joints`' delays, by default `sensor_delay`); false: none."""
 
     cutoff: float = 4.0
     order: int = 4
@@ -67,15 +68,12 @@ class CarConditioning:
 
 
 def sensor_delay(channel: SensorChannel, fs: float) -> float:
-    """Low-frequency delay (s) of a channel: its band limit, a 2nd-order Butterworth at `bandwidth`
-    (group delay sqrt(2) / (2 pi f_c) well below f_c), plus the mean age of a held value when the sensor
-    samples slower than the logger. A 10 Hz inertial unit lags a 150 Hz force transducer by about 25 ms, several
-    degrees of phase at 0.5 Hz: enough to bias inertias and damping if left in."""
-    delay = 0.0 if channel.bandwidth is None else np.sqrt(2.0) / (2 * np.pi * channel.bandwidth)
-    # a value held from the sensor's sample until the next is read on the logger's ticks: its age is
-    # uniform over 0, 1/fs, ..., 1/rate - 1/fs, mean (1/rate - 1/fs) / 2 -- continuous in fs, so a time
-    # column's rounding (fs = 625.0000000000688 for a 625 Hz sensor) gives no spurious delay
-    return delay + max(0.0, 0.5 * (1.0 / channel.rate - 1.0 / fs))
+    """Low-frequency delay (s) of a channel with its Table-1 sensor: its band limit, a 2nd-order Butterworth at
+    `bandwidth` (group delay sqrt(2) / (2 pi f_c) well below f_c), plus the mean age of a held value when the
+    sensor samples slower than the logger (`dynamics.ChannelDynamics.lag`). A 10 Hz inertial unit lags a 150 Hz
+    force transducer by about 25 ms, several degrees of phase at 0.5 Hz: enough to bias inertias and damping if
+    left in."""
+    return ChannelDynamics.table1(channel).lag(fs)
 
 
 def advance(x: Array, delay: float, fs: float) -> Array:
@@ -176,17 +174,17 @@ def _saturated_cameras(ch: Mapping[str, Array], suite: SensorSuite) -> dict[str,
     return out
 
 
-def _from_tables(ch: dict[str, Array], clipped: Mapping[str, Array], tables: KinematicTables, suite: SensorSuite,
-                 fs: float | None) -> None:
+def _from_tables(ch: dict[str, Array], clipped: Mapping[str, Array], tables: KinematicTables,
+                 delays: Mapping[str, float], fs: float) -> None:
     """Saturated camera samples replaced, in place, by the kinematic tables' value at the measured damper
     clearance and steering-wheel angle: a spiral steers the front wheels past the cameras' 5° range, and a
     clipped steering angle biases every front-corner equation. With delays compensated (fs given) the mask
-    is widened by the channel's advance so that no sample the shift moved off the limit is kept."""
+    is widened by the channel's advance (delays, s) so that no sample the shift moved off the limit is kept."""
     for name, mask in clipped.items():
         prefix, tag = name.split("_")
         k = CORNER_TAGS.index(tag)
-        if fs is not None:
-            reach = int(np.ceil(sensor_delay(suite[name], fs) * fs)) + 1
+        if delays.get(name, 0.0):
+            reach = int(np.ceil(abs(delays[name]) * fs)) + 1
             mask = np.convolve(mask, np.ones(2 * reach + 1), mode="same") > 0
         table = tables.table(k, dict(_CAMERA_TABLES)[prefix])
         x = ch[name].copy()
@@ -202,10 +200,13 @@ def estimate_joints(
     tables: KinematicTables | None = None,
     conditioning: CarConditioning | None = None,
     suite: SensorSuite | None = None,
+    delays: Mapping[str, float] | None = None,
 ) -> CarTrajectory:
     """q, qd, qdd of the 42 joints and the filtered loads from the sensor channels (SI), trimmed of the borders.
 
-    suite: the sensors' definitions, for their delays (default: the paper's suite on this geometry)."""
+    suite: the sensors' definitions (default: the paper's suite on this geometry). delays: channel -> s, how late
+    the logger wrote it (its declared dynamics, `Vehicle.logger`; default: the suite's Table-1 sensors,
+    `sensor_delay`); each channel is advanced by it when `conditioning.compensate_delays`."""
     g = geometry or CarGeometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
@@ -217,9 +218,12 @@ def estimate_joints(
     cameras = all(f"steer_{t}" in suite.names and f"camber_{t}" in suite.names for t in CORNER_TAGS)
     lasers = all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS)
     clipped = _saturated_cameras(ch, suite)
-    if c.compensate_delays:
-        ch = {k: advance(v, sensor_delay(suite[k], fs), fs) if k in suite.names else v for k, v in ch.items()}
-    _from_tables(ch, clipped, tables, suite, fs if c.compensate_delays else None)
+    if not c.compensate_delays:
+        delays = {}
+    elif delays is None:
+        delays = {k: sensor_delay(suite[k], fs) for k in suite.names}
+    ch = {k: advance(v, delays[k], fs) if delays.get(k) else v for k, v in ch.items()}
+    _from_tables(ch, clipped, tables, delays, fs)
     N = len(ch["imu_roll"])
     if model.n != FRAMES:
         raise ModelError(f"the car estimator needs the 42-frame car template; got {model.name!r} ({model.n} frames)")
