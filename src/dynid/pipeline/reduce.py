@@ -136,26 +136,18 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
-    def delays(self, fs: float) -> dict[str, float]:
-        """channel -> s: the delay compensated on each channel (the declared dynamics; none when the config turns
-        the compensation off)."""
-        return self.logger.lags(fs) if self.conditioning.compensate_delays else {}
-
     def trajectory(self, channels: dict[str, np.ndarray], fs: float,
                    lags: Mapping[str, float] | None = None) -> CarTrajectory:
-        """The joints and filtered loads of one segment's channels (SI); lags: channel group -> s, its channels
-        taken as that much later than declared (advanced by it more: the delay estimate's perturbations)."""
+        """The joints and filtered loads of one segment's channels (SI), the declared dynamics undone (none when
+        the config turns the compensation off); lags: channel group -> s, its channels taken as that much later
+        than declared (advanced by it more: the delay estimate's perturbations)."""
         from ..vehicle.dynamics import group_channels  # the car's modules, as in __init__: a robot needs none
         from ..vehicle.estimate import estimate_joints
 
-        delays = self.delays(fs)
-        if lags:
-            delays = {**dict.fromkeys(channels, 0.0), **delays}
-            for g, d in lags.items():
-                for n in group_channels(g, delays):
-                    delays[n] += d
+        extra = {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
+        dynamics = self.logger.channels if self.conditioning.compensate_delays else {}
         return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self._estimating, self.vehicle.suite, delays)
+                               self._estimating, self.vehicle.suite, dynamics, extra)
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:

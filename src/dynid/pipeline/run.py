@@ -163,6 +163,12 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
 
 
+def _known_truth(base: dict[str, float], truth: dict[str, float]) -> dict[str, float]:
+    """The base parameters' true values, less those whose own parameter the truth file does not give (the MuJoCo
+    car's truth has no tire offsets: their true value is unknown, not 0)."""
+    return {n: v for n, v in base.items() if n in truth}
+
+
 def read_truth(path: Path, tree) -> dict[str, float]:
     """True parameter values from a simulator's JSON sidecar: a {name or label: value} table under
     "true_parameters", "truth" or "parameters" (a list of {"name", "value"} records is accepted too).
@@ -209,7 +215,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         return dict(zip(names, setup.base.values(X), strict=True))
 
     kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
-              truth=base_values(truth) if truth else None, poor_factor=cfg.poor_factor)
+              truth=_known_truth(base_values(truth), truth) if truth else None, poor_factor=cfg.poor_factor)
 
     # 1. plan: each test's file indexed, its clock and segments (a pass over the time stamps only)
     wanted = required_channels(spin=False, suite=vehicle.suite)

@@ -82,15 +82,19 @@ class ChannelDynamics:
         """Low-frequency delay (s) on a logger at fs Hz: the band limit's group delay at zero frequency,
         1 / (2 pi f_c sin(pi / 2n)) for an n-th order Butterworth (sqrt(2) / (2 pi f_c) for the 2nd order),
         plus the mean age of a held value when the sensor samples slower than the logger, plus the pure delay."""
-        out = self.delay
-        if self.bandwidth is not None:
-            out += 1.0 / (2 * math.pi * self.bandwidth * math.sin(math.pi / (2 * self.order)))
+        out = self.delay + self.band_delay()
         if self.rate is not None:
             # a value held from the sensor's sample until the next is read on the logger's ticks: its age is
             # uniform over 0, 1/fs, ..., 1/rate - 1/fs, mean (1/rate - 1/fs) / 2 -- continuous in fs, so a time
             # column's rounding (fs = 625.0000000000688 for a 625 Hz sensor) gives no spurious delay
             out += max(0.0, 0.5 * (1.0 / self.rate - 1.0 / fs))
         return out
+
+    def band_delay(self) -> float:
+        """The band limit's group delay at zero frequency (s; 0 without one)."""
+        if self.bandwidth is None:
+            return 0.0
+        return 1.0 / (2 * math.pi * self.bandwidth * math.sin(math.pi / (2 * self.order)))
 
     def describe(self, fs: float) -> str:
         """In words, on a logger at fs Hz."""
