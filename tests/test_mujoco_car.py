@@ -10,45 +10,15 @@ unloaded-radius offset must give the truth's line on the sine, and the model-fit
 misfits once the spiral is in (their parameters are then not results).
 """
 
-import csv
-import json
-from pathlib import Path
-
 import pytest
-from conftest import SHARED
+from mujoco_car import identify, mujoco_truth
 
-from dynid.cli.main import main
-
-DATA = SHARED / "data" / "mujoco-car"
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car"
 TIRE_PARAMETERS = {f"{term}{tire}" for term in ("K", "OFF") for tire in (15, 24, 33, 42)}
-TESTS = {"sine": "sine steering 90 km/h", "spiral": "spiral 70 km/h", "braking": "straight-line braking from 100 km/h"}
 
 
 @pytest.fixture(scope="module")
 def truth() -> dict:
-    if not (DATA / "truth.json").exists():
-        pytest.skip(f"the MuJoCo car's data not found at {DATA} (shared/ is beside the repository in CI)")
-    return json.loads((DATA / "truth.json").read_text())
-
-
-def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool) -> tuple[dict, dict]:
-    """results.json's parameters by label and engineering.csv by key, of the example's vehicle on `tests`."""
-    lines = ['[model]', f'vehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"']
-    for t in tests:
-        lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
-                  f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
-    lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
-              f"compensate_delays = {'true' if compensate_delays else 'false'}",
-              "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
-    cfg = tmp / f"{folder}_{'_'.join(tests)}.toml"
-    cfg.write_text("\n".join(lines) + "\n")
-    out = tmp / cfg.stem
-    assert main(["identify", str(cfg), "--out", str(out)]) == 0
-    res = json.loads((out / "results.json").read_text())
-    with open(out / "engineering.csv", newline="") as f:
-        eng = {r["key"]: float(r["value"]) for r in csv.DictReader(f)}
-    return res, eng
+    return mujoco_truth()
 
 
 @pytest.fixture(scope="module")

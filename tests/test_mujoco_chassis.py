@@ -22,49 +22,21 @@ tables' Ackermann steer replaced the spiral's front steer above the cameras' 5 d
 the set of tests (-3.3 % sine + braking, +1.3 % spiral + braking on an earlier file).
 """
 
-import csv
-import json
-from pathlib import Path
-
 import pytest
-from conftest import SHARED
+from mujoco_car import identify, mujoco_truth
 
-from dynid.cli.main import main
-
-DATA = SHARED / "data" / "mujoco-car"
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car"
-TESTS = {"sine": "sine steering 90 km/h", "spiral": "spiral 70 km/h", "braking": "straight-line braking from 100 km/h"}
 NON_SPINNING_AXLE_INERTIA = 2 * 0.81 + 2 * 1.01  # kg.m2: truth.json's notes on ZZ14 .. ZZ41
 
 
 @pytest.fixture(scope="module")
 def truth() -> dict:
-    if not (DATA / "truth.json").exists():
-        pytest.skip(f"the MuJoCo car's data not found at {DATA} (shared/ is beside the repository in CI)")
-    return json.loads((DATA / "truth.json").read_text())
-
-
-def identify(tmp: Path, tests: list[str]) -> tuple[dict, dict]:
-    """results.json's parameters by name and engineering.csv by key, of the example's vehicle on `tests` (ideal/)."""
-    lines = ["[model]", f'vehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"']
-    for t in tests:
-        lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
-                  f'file = "{(DATA / "ideal" / f"{t}.parquet").as_posix()}"']
-    lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
-              "compensate_delays = false", "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
-    cfg = tmp / f"ideal_{'_'.join(tests)}.toml"
-    cfg.write_text("\n".join(lines) + "\n")
-    out = tmp / cfg.stem
-    assert main(["identify", str(cfg), "--out", str(out)]) == 0
-    res = json.loads((out / "results.json").read_text())
-    with open(out / "engineering.csv", newline="") as f:
-        eng = {r["key"]: float(r["value"]) for r in csv.DictReader(f)}
-    return {p["name"]: p["value"] for p in res["parameters"]}, eng
+    return mujoco_truth()
 
 
 @pytest.fixture(scope="module", params=[("sine", "spiral", "braking"), ("sine", "braking")], ids="+".join)
 def run(request, truth, tmp_path_factory):
-    return identify(tmp_path_factory.mktemp("mj"), list(request.param))
+    res, eng = identify(tmp_path_factory.mktemp("mj"), "ideal", list(request.param), compensate_delays=False)
+    return {p["name"]: p["value"] for p in res["parameters"]}, eng
 
 
 def test_chassis_inertia_and_centre_of_gravity_from_ideal_channels(truth, run):

@@ -1,0 +1,41 @@
+"""The MuJoCo test car of ../shared/data/mujoco-car/ through `dynid identify` with the example's vehicle file
+(examples/mujoco_car/): what tests/test_mujoco_car.py and tests/test_mujoco_chassis.py share."""
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from conftest import SHARED
+
+from dynid.cli.main import main
+
+DATA = SHARED / "data" / "mujoco-car"
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car"
+TESTS = {"sine": "sine steering 90 km/h", "spiral": "spiral 70 km/h", "braking": "straight-line braking from 100 km/h"}
+
+
+def mujoco_truth() -> dict:
+    """truth.json, or the test skipped when the data are not beside the repository."""
+    if not (DATA / "truth.json").exists():
+        pytest.skip(f"the MuJoCo car's data not found at {DATA} (shared/ is beside the repository in CI)")
+    return json.loads((DATA / "truth.json").read_text())
+
+
+def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool) -> tuple[dict, dict]:
+    """results.json and engineering.csv's values by key, of the example's vehicle on `tests` of `folder`."""
+    lines = ['[model]', f'vehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"']
+    for t in tests:
+        lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
+                  f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
+    lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
+              f"compensate_delays = {'true' if compensate_delays else 'false'}",
+              "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
+    cfg = tmp / f"{folder}_{'_'.join(tests)}.toml"
+    cfg.write_text("\n".join(lines) + "\n")
+    out = tmp / cfg.stem
+    assert main(["identify", str(cfg), "--out", str(out)]) == 0
+    res = json.loads((out / "results.json").read_text())
+    with open(out / "engineering.csv", newline="") as f:
+        eng = {r["key"]: float(r["value"]) for r in csv.DictReader(f)}
+    return res, eng
