@@ -265,3 +265,20 @@ def test_the_tables_a_file_does_not_give_are_named_as_dynid_s_defaults(tmp_path)
     example = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car" / "vehicle.toml"
     mujoco = load_vehicle(example)
     assert mujoco.defaulted_tables == () and "Kinematic tables" not in sensors_note(mujoco)
+
+
+def test_a_folder_named_like_a_shipped_vehicle_does_not_hide_it(tmp_path, monkeypatch):
+    """`dynid demo --out peugeot406` leaves a folder of that name: a config saying vehicle = "peugeot406" run from
+    beside it still gets the shipped vehicle (it read the folder: "cannot read the vehicle file (Is a directory)").
+    A folder given where a vehicle file is wanted says so."""
+    from dynid.vehicle.description import VehicleError, load_vehicle, vehicle_path
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "peugeot406").mkdir()
+    assert vehicle_path("peugeot406").is_file() and load_vehicle("peugeot406").name == load_vehicle().name
+    (tmp_path / "mycar").mkdir()
+    with pytest.raises(VehicleError, match="mycar: a folder, not a vehicle file"):
+        load_vehicle("mycar")
+    (tmp_path / "car.toml").mkdir()
+    with pytest.raises(VehicleError, match=r"car\.toml: a folder, not a vehicle file"):
+        load_vehicle("car.toml")

@@ -153,12 +153,16 @@ def shipped_vehicles() -> list[str]:
 def vehicle_path(name_or_path: str | os.PathLike[str]) -> Path:
     """The file of a shipped vehicle name, or the path given (a name not shipped and not a file is an error)."""
     p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
-        if not p.exists():
-            raise VehicleError(f"{p}: no such vehicle file; `dynid vehicle new NAME --out {p}` writes a starting one")
+    if p.suffix == ".toml" or p.is_file():
+        if not p.is_file():
+            what = "a folder, not a vehicle file" if p.is_dir() else "no such vehicle file"
+            raise VehicleError(f"{p}: {what}; `dynid vehicle new NAME --out {p}` writes a starting one")
         return p
-    if str(name_or_path) in shipped_vehicles():
+    if str(name_or_path) in shipped_vehicles():  # a folder of the same name (a run's output) does not hide it
         return Path(str(resources.files("dynid.vehicle") / "vehicles" / f"{name_or_path}.toml"))
+    if p.is_dir():
+        raise VehicleError(f"{p}: a folder, not a vehicle file; give the .toml file (shipped vehicles: "
+                           f"{', '.join(shipped_vehicles())})")
     raise VehicleError(f"no shipped vehicle {str(name_or_path)!r} and no such file; shipped: "
                        f"{', '.join(shipped_vehicles())} (or give a path to a .toml vehicle file)")
 
