@@ -254,20 +254,65 @@ def test_a_folder_with_a_users_files_is_refused_and_kept(tmp_path, old):
     assert (out / "notes.txt").read_text() == "mine"
 
 
-def test_empty_and_older_dynid_folders_are_replaced(tmp_path):
+def test_an_empty_folder_is_replaced(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     (empty / ".DS_Store").write_bytes(b"\0")  # a file browser's, not the user's
-    legacy = tmp_path / "legacy"  # written by a dynid without the marker
+    with staged_folder(empty) as stage:
+        write_set(stage, "new")
+    complete(empty)
+    assert leftovers(empty) == []
+
+
+def _refused_and_kept(folder: Path, *named: str) -> None:
+    """staged_folder(folder) refuses with one line naming `named`, and every file (the symlinks' targets too)
+    keeps its bytes, hidden ones and the marker included."""
+    before = snapshot(folder)
+    links = {p: os.readlink(p) for p in folder.rglob("*") if p.is_symlink()}
+    with pytest.raises(OutputError) as err, staged_folder(folder):
+        pytest.fail(f"{folder} was accepted")
+    text = str(err.value)
+    assert "\n" not in text and "--out" in text and all(n in text for n in named), text
+    assert snapshot(folder) == before and {p: os.readlink(p) for p in links} == links
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(f".{folder.name}.partial")]
+
+
+def test_a_folder_dynid_cannot_prove_it_wrote_is_refused_and_kept(tmp_path):
+    """Without a marker (another tool's results.json, an older dynid's run, a marker deleted) nothing is proven
+    dynid's: refused, every file kept byte for byte (the rule before guessed by file type and deleted them)."""
+    legacy = tmp_path / "legacy"
     (legacy / "data").mkdir(parents=True)
     for name in ("results.json", "report.html", "parameters.csv", "figure_parameters.png", "identify.toml",
-                 "data/sine.csv", "data/sine.json", ".report.html.x1y2.tmp.html"):
-        (legacy / name).write_text("old")
-    for folder in (empty, legacy):
-        with staged_folder(folder) as stage:
-            write_set(stage, "new")
-        complete(folder)
-        assert leftovers(folder) == []
+                 "data/sine.csv", "data/sine.json"):
+        (legacy / name).write_text(f"old {name}")
+    _refused_and_kept(legacy, "figure_parameters.png")
+    (legacy / MARKER).write_text("{not json")  # a damaged marker proves nothing either
+    _refused_and_kept(legacy, MARKER)
+
+
+def test_an_output_edited_since_dynid_wrote_it_is_refused_and_kept(old):
+    out, _ = old
+    (out / "data" / "a.csv").write_text("t,old\nmy note\n")  # the user's notes in an output
+    _refused_and_kept(out, "data/a.csv")
+
+
+def test_an_output_made_read_only_is_refused_and_kept(old):
+    out, _ = old
+    os.chmod(out / "report.html", 0o444)  # the user's way of saying "keep this one"
+    try:
+        _refused_and_kept(out, "report.html")
+    finally:
+        os.chmod(out / "report.html", 0o644)
+
+
+def test_an_output_replaced_by_a_link_is_refused_and_its_target_kept(tmp_path, old):
+    out, _ = old
+    mine = tmp_path / "mine.json"
+    mine.write_text(json.dumps({"run": "old"}))  # the same bytes as the output it stands for
+    (out / "results.json").unlink()
+    (out / "results.json").symlink_to(mine)
+    _refused_and_kept(out, "results.json")
+    assert mine.read_text() == json.dumps({"run": "old"})
 
 
 def test_a_folder_holding_the_runs_input_is_refused(tmp_path, monkeypatch):

@@ -20,6 +20,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import sys
 import tempfile
 import threading
@@ -85,7 +86,6 @@ class OutputError(OSError):
 MARKER = ".dynid-output.json"  # written last in every output folder: run id and the files with their SHA-256
 _JUNK = {".DS_Store", "Thumbs.db", "desktop.ini"}  # written by file browsers, not by a user: replaced freely
 _TMP = re.compile(r"^\..+\.tmp(\.[^.]*)?$")  # atomic_path's temporaries, left by a killed pre-staging run
-_LEGACY = {".json", ".html", ".csv", ".png", ".svg", ".toml"}  # what dynid wrote before the marker existed
 
 
 class Terminated(BaseException):
@@ -195,19 +195,39 @@ def _check_replaceable(real: Path, shown: Path) -> None:
                           "a folder inside it")
     if not os.access(real, os.W_OK | os.X_OK):
         raise OutputError(f"{shown}: cannot write there (permission denied); give --out a folder you can write")
-    known: set[str] = set()
-    try:  # the files the last run wrote, listed by it
-        known = set(json.loads((real / MARKER).read_text(encoding="utf-8"))["files"]) | {MARKER}
-    except (OSError, ValueError, KeyError, TypeError):  # no marker (or damaged): written by an older dynid?
-        if (real / "results.json").is_file():  # then its file types, and a demo's data/
-            demo = (real / "identify.toml").is_file()
-            known = {r for r in _names(real) if ("/" not in r and Path(r).suffix in _LEGACY)
-                     or (demo and r.startswith("data/"))}
-    extra = list(itertools.islice((r for r in _names(real) if r not in known and not _ours(r)), 4))
+    written = _written(real)
+    extra = list(itertools.islice((r for r in _names(real) if not _ours(r) and not _replaceable(real, r, written)),
+                                  4))
     if extra:
         listed = ", ".join(extra[:3]) + (", ..." if len(extra) > 3 else "")
-        raise OutputError(f"{shown}: holds files dynid did not write ({listed}); an output folder is replaced "
-                          "as a whole, so give --out a new or empty folder, or move those files out")
+        raise OutputError(f"{shown}: holds files dynid did not write, or not as they are now ({listed}: its "
+                          f"{MARKER} does not list them with these bytes); an output folder is replaced as a whole, "
+                          "so give --out a new or empty folder, or move those files out")
+
+
+def _written(real: Path) -> dict[str, str] | None:
+    """The files the marker of the run that wrote `real` lists, with their SHA-256 (None without a readable one)."""
+    try:
+        files = json.loads((real / MARKER).read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return files if isinstance(files, dict) and all(isinstance(v, str) for v in files.values()) else None
+
+
+def _replaceable(real: Path, rel: str, written: dict[str, str] | None) -> bool:
+    """Whether dynid may delete `rel` in `real`: the marker itself, or a file the marker lists (`written`) with
+    these bytes, still a regular file (not a link put in its place) that the user has not made read-only."""
+    if written is None:
+        return False  # no readable marker: nothing is proven dynid's, the marker's remains included
+    if rel == MARKER:
+        return True
+    p = real / rel
+    try:
+        st = p.lstat()
+    except OSError:
+        return True  # gone meanwhile: nothing to keep
+    return (rel in written and stat.S_ISREG(st.st_mode) and bool(st.st_mode & stat.S_IWUSR)
+            and file_sha256(p) == written[rel])
 
 
 def _check_inputs(real: Path, shown: Path, inputs: Iterable[str | os.PathLike[str]]) -> None:
