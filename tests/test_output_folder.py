@@ -551,3 +551,49 @@ def test_the_demo_is_staged_and_names_its_final_folder(tmp_path, capsys):
     for f in inside:
         assert hashlib.sha256(Path(f["path"]).read_bytes()).hexdigest() == f["sha256"]
     assert "s of driving)" in err
+
+
+# ------------------------------------------------------------------ commands that write one file
+
+
+def _a_urdf(tmp_path: Path) -> Path:
+    from test_urdf import SMALL
+
+    src = tmp_path / "robot.urdf"
+    src.write_text(SMALL["fixed_inertial_child"])
+    return src
+
+
+@pytest.mark.parametrize("command", ["model import", "model export", "model codegen", "vehicle new", "simulate",
+                                     "excite"])
+def test_a_command_does_not_replace_a_file_it_did_not_write(tmp_path, capsys, command):
+    """Every command that writes files refuses, before it computes, to replace one that exists (dynid cannot prove
+    it wrote a lone file): one line naming it and --force, the file byte for byte as it was."""
+    src = _a_urdf(tmp_path)
+    assert main(["model", "import", str(src), "--out", str(tmp_path / "robot.toml")]) == 0
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    argv, victim = {
+        "model import": (["model", "import", str(src)], mine / "m.toml"),
+        "model export": (["model", "export", str(tmp_path / "robot.toml"), "--urdf", str(src)], mine / "r.urdf"),
+        "model codegen": (["model", "codegen", str(tmp_path / "robot.toml"), "--lang", "numpy", "--model", "idm",
+                           "--prefix", "arm"], mine / "arm_idm.py"),
+        "vehicle new": (["vehicle", "new", "mycar"], mine / "car.toml"),
+        "simulate": (["simulate", "sine"], mine / "sine.json"),  # the sidecar of sine.csv
+        "excite": (["excite", "tx40"], mine / "traj.toml"),  # the coefficients beside traj.csv
+    }[command]
+    out = {"model codegen": mine, "simulate": mine / "sine.csv", "excite": mine / "traj.csv"}.get(command, victim)
+    victim.write_bytes(b"the user's own \x00 bytes")
+    capsys.readouterr()
+    assert main([*argv, "--out", str(out)]) == 2
+    one_line(capsys.readouterr().err, str(victim), "--force")
+    assert victim.read_bytes() == b"the user's own \x00 bytes"
+    assert sorted(p.name for p in mine.iterdir()) == [victim.name]
+
+
+def test_force_replaces_the_file(tmp_path, capsys):
+    src = _a_urdf(tmp_path)
+    out = tmp_path / "m.toml"
+    out.write_text("old")
+    assert main(["model", "import", str(src), "--out", str(out), "--force"]) == 0
+    assert "[joints]" in out.read_text()

@@ -362,6 +362,7 @@ def test_cli_export_params_toml_and_errors(tmp_path, capsys):
     back = import_urdf(tmp_path / "new.urdf").tree
     assert back.values["M1"] == pytest.approx(0.5) and back.values["M2"] == pytest.approx(0.9)
     (tmp_path / "bad.toml").write_text("[parameters.2]\nM = -0.9\n")
+    args.append("--force")  # new.urdf exists now: the errors below are the parameters'
     capsys.readouterr()
     assert main([*args, "--params", str(tmp_path / "bad.toml")]) == 2
     err = capsys.readouterr().err.strip()

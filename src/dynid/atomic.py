@@ -81,6 +81,25 @@ class OutputError(OSError):
     """An output that cannot be written where asked (the message says where and why)."""
 
 
+def refuse_overwrite(paths: Iterable[str | os.PathLike[str]], force: bool = False) -> None:
+    """Before a command computes anything: none of `paths` (the files it is about to write) exists, unless the
+    user said --force. dynid cannot prove it wrote a lone file (an output folder has its marker), so an
+    existing one is the user's until they say otherwise. Raises OutputError (one line)."""
+    if force:
+        return
+    for p in map(Path, paths):
+        if os.path.lexists(p):
+            what = "a folder" if p.is_dir() else "a link" if p.is_symlink() else "a file"
+            raise OutputError(f"{p}: exists ({what}) and dynid does not replace what it cannot prove it wrote; "
+                              "give another --out, or add --force to replace it")
+
+
+def add_force(parser) -> None:
+    """The --force flag of a command that writes files (`refuse_overwrite`)."""
+    parser.add_argument("--force", action="store_true",
+                        help="replace files the command would write that exist already (default: refuse)")
+
+
 # ------------------------------------------------------------------ a whole output folder
 
 MARKER = ".dynid-output.json"  # written last in every output folder: run id and the files with their SHA-256

@@ -23,6 +23,8 @@ import math
 import sys
 from pathlib import Path
 
+from ..atomic import add_force, refuse_overwrite
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `excite` to the top-level `dynid` sub-commands."""
@@ -37,6 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                   "dynid excite robot.toml --limits limits.toml --period 10 --harmonics 5 --fs 200 --out traj.csv"])
     p.add_argument("model", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     p.add_argument("--out", required=True, help="output CSV file; the coefficients go to <stem>.toml beside it")
+    add_force(p)
     p.add_argument("--period", type=float, default=10.0, help="period T of the trajectory, s (default 10)")
     p.add_argument("--harmonics", type=int, default=5, help="number of harmonics L of the series (default 5)")
     p.add_argument("--limits", default=None,
@@ -97,6 +100,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise ExcitationError(f"--out {out}: the folder {out.parent} does not exist")
     side = out.with_suffix(".toml")
+    refuse_overwrite([out, side], args.force)
     for name, v in (("--period", args.period), ("--fs", args.fs)):
         if not (v > 0 and math.isfinite(v)):
             raise ExcitationError(f"{name} must be a positive number, got {v}")

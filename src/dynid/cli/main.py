@@ -288,10 +288,9 @@ def _user_errors() -> tuple[type[Exception], ...]:
     from ..vehicle.sensors import SensorError
     from ..vehicle.sim.car import SimulationError
     from ..vehicle.sim.manoeuvres import ManoeuvreError
-    from ..vehicle.sim.recording import OutputError as SimulationOutputError
 
-    return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationOutputError,
-            SimulationError, ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError)
+    return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationError,
+            ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

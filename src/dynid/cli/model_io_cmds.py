@@ -7,6 +7,7 @@ import json
 import re
 from pathlib import Path
 
+from ..atomic import add_force, refuse_overwrite
 from ..model import INERTIAL, ModelError, Tree
 
 _STANDARD = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FV|FS|OFF|K)(\d+)$")
@@ -25,6 +26,7 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
     imp.add_argument("urdf", help="the URDF file (expanded, not .xacro), e.g. robot.urdf")
     imp.add_argument("--out", required=True, help="model file to write (TOML), e.g. --out robot.toml")
     imp.add_argument("--name", default=None, help="model name (default: the URDF's robot name), e.g. --name panda")
+    add_force(imp)
     imp.set_defaults(func=cmd_import)
     exp = command(
         model_subparsers, "export", help="write a parameter set into a URDF's inertials (mass, CoM, inertia)",
@@ -41,6 +43,7 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
                           "NAME = value lines, e.g. --params out/results.json or --params params.toml")
     exp.add_argument("--urdf", required=True, help="the URDF the model was imported from, e.g. --urdf robot.urdf")
     exp.add_argument("--out", required=True, help="URDF to write (atomically), e.g. --out robot_identified.urdf")
+    add_force(exp)
     exp.set_defaults(func=cmd_export)
 
 
@@ -48,6 +51,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from ..model import save_tree
     from ..model.urdf import import_urdf
 
+    refuse_overwrite([args.out], args.force)
     imp = import_urdf(args.urdf, name=args.name)
     tree = imp.tree
     _write(lambda: save_tree(tree, args.out), args.out)
@@ -65,6 +69,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     from .. import load_model
     from ..model.urdf import export_urdf
 
+    refuse_overwrite([args.out], args.force)
     tree = load_model(args.model).tree
     if not tree.joint_names:
         raise ModelError(f"{args.model}: has no [joints] table, so its frames cannot be matched to URDF joints; "

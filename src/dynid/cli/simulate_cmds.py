@@ -15,6 +15,8 @@ import argparse
 import sys
 import time
 
+from ..atomic import add_force, refuse_overwrite
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `simulate` to the top-level `dynid` sub-commands."""
@@ -39,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="file format (default: from the extension of --out)")
     p.add_argument("--truth", action="store_true", help="add the noise-free truth channels true_q*, true_qd*, ...")
     p.add_argument("--noise-free", action="store_true", help="sensor channels without noise and bias")
-    p.add_argument("--out", required=True, help="output file (.csv, .parquet, .mf4)")
+    p.add_argument("--out", required=True, help="output file (.csv, .parquet, .mf4); its sidecar <stem>.json beside it")
+    add_force(p)
     p.add_argument("--vehicle", default="peugeot406",
                    help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
                         "(default: peugeot406)")
@@ -69,14 +72,16 @@ def progress_bar(total: float):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    from ..atomic import OutputError
     from ..pipeline.demo import simulated_car
     from ..vehicle.description import load_vehicle
     from ..vehicle.sim import ManoeuvreError, SimulationError, manoeuvre
-    from ..vehicle.sim.recording import OutputError, check_output, write_test
+    from ..vehicle.sim.recording import check_output, write_test
 
     try:
         m = manoeuvre(args.manoeuvre, speed=args.speed, duration=args.duration)
-        check_output(args.out, args.format)
+        path, _ = check_output(args.out, args.format)
+        refuse_overwrite([path, path.with_suffix(".json")], args.force)
         t0 = time.perf_counter()
         print("dynid: building the car (a first run compiles its models: up to a minute)", file=sys.stderr)
         sim = simulated_car(args.vehicle)

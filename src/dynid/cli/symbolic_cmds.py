@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+from ..atomic import OutputError, add_force, refuse_overwrite
+
 HELP_FILE = "model file (TOML) or a shipped example: puma560, tx40, floating_tree"
 
 
@@ -36,6 +38,7 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
                           "linear in the parameters), inertia (the inertia matrix) or dgm (the geometric model: "
                           "frame poses)")
     gen.add_argument("--out", required=True, help="output directory (created if missing)")
+    add_force(gen)
     gen.add_argument("--prefix", default=None, help="C function prefix / file stem (default: from the model name)")
     gen.add_argument("--block", action="store_true",
                      help="C: also <prefix>_<model>_block, the batch function with 8 samples side by side, "
@@ -114,13 +117,17 @@ def cmd_codegen(args: argparse.Namespace) -> int:
             files = {f"{stem}_{args.model}.h": h, f"{stem}_{args.model}.c": c}
         else:
             files = {f"{stem}_{args.model}.txt": to_text(prog)}
+        refuse_overwrite([out / name for name in files], args.force)
         for name, text in files.items():
             write_atomic(out / name, text)
     except SymbolicError as exc:
         print(f"dynid: error: {exc}", file=sys.stderr)
         return 2
+    except OutputError as exc:
+        print(f"dynid: error: {exc}", file=sys.stderr)
+        return 2
     except OSError as exc:
-        print(f"dynid: error: cannot write to {out}: {exc.strerror}", file=sys.stderr)
+        print(f"dynid: error: cannot write to {out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     for name in files:
         print(out / name)

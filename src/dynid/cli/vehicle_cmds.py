@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import add_force, refuse_overwrite
 from ..model import ModelError
 from ..model.consistency import check_physical
 from .main import format_table
@@ -120,6 +121,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                   examples='dynid vehicle new "My car" --out mycar.toml')
     new.add_argument("name", help="the car's name, as the reports will show it")
     new.add_argument("--out", required=True, help="the file to write (.toml); an existing file is not replaced")
+    add_force(new)
     new.set_defaults(func=cmd_new)
     show = command(sub, "show", help="frames, parameters, base parameters and the a priori set's consistency",
                    description="Show what a vehicle file describes: its frames, its parameters (a priori, known "
@@ -148,8 +150,7 @@ def cmd_new(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix != ".toml":
         raise VehicleError(f"{out}: a vehicle file ends in .toml")
-    if out.exists():
-        raise VehicleError(f"{out} exists: give another --out, or edit that file")
+    refuse_overwrite([out], args.force)
     head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
             "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
     lines = [line for line in vehicle_path("peugeot406").read_text(encoding="utf-8").splitlines()

@@ -18,15 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ...atomic import write_atomic
+from ...atomic import OutputError, write_atomic
 from ..sensors import SensorSuite, paper_suite, truth_channel_names, truth_channel_units
 from ..template import TIRES
 
 FORMATS = {"csv": ".csv", "parquet": ".parquet", "mf4": ".mf4"}
-
-
-class OutputError(OSError):
-    """The output file cannot be written where asked (the message says where and why)."""
 
 
 def channels(result, seed: int | None = 0, noise: bool = True, truth: bool = False,
