@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import EstimationWarning
 from .streaming import StreamingLS
 
 FIT_RATIO = 3.0
@@ -69,8 +70,8 @@ class ErrorEffect:
 
     def explained_rms(self) -> dict[str, float]:
         """{group: the residual RMS the errors add to the group's own least-squares fit}."""
-        with warnings.catch_warnings():  # a floored group's warning belongs to the estimate, not to this check
-            warnings.simplefilter("ignore")
+        with warnings.catch_warnings():  # a group without residual (NaN sigma) is the estimate's to warn of
+            warnings.simplefilter("ignore", EstimationWarning)
             clean, plus, minus = (s.group_fits(sigma_floor=0.0) for s in (self.clean, self.plus, self.minus))
         return {g: float(np.sqrt(max((plus[g].raw_sigma ** 2 + minus[g].raw_sigma ** 2) / 2 - clean[g].raw_sigma ** 2,
                                      0.0))) for g in clean}
@@ -78,14 +79,17 @@ class ErrorEffect:
 
 def model_fits(rows: StreamingLS, errors: ErrorEffect, x: Mapping[str, float]) -> dict[str, ModelFit]:
     """Each group's verdict at the estimate x ({name: value}): `rows` holds [W | Y] of the identification rows,
-    `errors` the same rows of a few segments without and with the sensors' errors."""
+    `errors` the same rows of a few segments without and with the sensors' errors. A group none of those segments
+    holds is not judged (left out), rather than called a misfit for want of a noise figure."""
     residual = rows.group_rms(x)
     explained = errors.explained_rms()
     out = {}
     for g, rms in residual.items():
+        if g not in explained:
+            continue
         R = rows.group_factor(g)
         carried = tuple(n for j, n in enumerate(rows.estimated_names) if np.any(R[:, j] != 0.0))
-        out[g] = ModelFit(g, float(rms), float(explained.get(g, 0.0)), carried)
+        out[g] = ModelFit(g, float(rms), float(explained[g]), carried)
     return out
 
 

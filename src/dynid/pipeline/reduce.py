@@ -229,7 +229,7 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
-        for e in sensor_errors(channels, setup.vehicle.suite, seed):
+        for e in sensor_errors(channels, setup.vehicle.suite, seed, w.fs):
             noisy_traj = setup.trajectory({k: v + e[k] if k in e else v for k, v in channels.items()}, w.fs, lags)
             p = setup.rows(noisy_traj, w.fs, job.instruments, keep=sys.kept)
             noisy.append(StreamingLS(setup.names))
@@ -238,17 +238,21 @@ def reduce_car_segment(job: CarJob) -> Partial:
     return part
 
 
-def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int) -> tuple[dict[str, np.ndarray], ...]:
-    """One draw of the sensors' errors on the channels present (SI), and its opposite: white noise of each
-    channel's accuracy and its zero offset (bias) with a random sign (`vehicle.sensors.SensorChannel`, channel
-    units; estimation/fit.py says why)."""
+def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) -> tuple[dict[str, np.ndarray], ...]:
+    """One draw of the sensors' errors on the channels present (SI, logger at fs Hz), and its opposite: white
+    noise of each channel's accuracy held at the sensor's own rate, as the suite's chain holds it
+    (`vehicle.sensors.corrupt`: a 125 Hz unit's noise is 5 samples long, so more of it passes the low-pass), and
+    its zero offset (bias) with a random sign (channel units; estimation/fit.py says why)."""
+    from ..vehicle.sensors import sample_and_hold
+
     rng = np.random.default_rng(seed)
     e = {}
     for c in suite:
         if c.name in channels:
-            n = np.shape(channels[c.name])
+            n = np.size(channels[c.name])
             factor = unit_factor(c.unit, channel=c.name)[0]
-            e[c.name] = factor * (c.accuracy * rng.standard_normal(n) + c.bias * rng.choice((-1.0, 1.0)))
+            noise = sample_and_hold(c.accuracy * rng.standard_normal(n), c.rate, fs)
+            e[c.name] = factor * (noise + c.bias * rng.choice((-1.0, 1.0)))
     return e, {k: -v for k, v in e.items()}
 
 

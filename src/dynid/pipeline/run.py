@@ -163,10 +163,18 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
 
 
-def _known_truth(base: dict[str, float], truth: dict[str, float]) -> dict[str, float]:
-    """The base parameters' true values, less those whose own parameter the truth file does not give (the MuJoCo
-    car's truth has no tire offsets: their true value is unknown, not 0)."""
-    return {n: v for n, v in base.items() if n in truth}
+def true_base_values(truth: dict[str, float], tree, base) -> dict[str, float]:
+    """The base parameters' true values from a truth file's standard ones. A standard parameter the file does not
+    give is its known value in the tree if it is known (a bench value), else unknown: a base parameter that is
+    it or regroups it is left out (the MuJoCo car's truth has no tire offsets: their truth is unknown, not 0)."""
+    missing = np.array([n not in truth and n not in tree.known for n in tree.parameter_names])
+    X = np.array([truth.get(n, tree.values.get(n, 0.0)) for n in tree.parameter_names])
+    XB = base.values(X)
+    regrouped = np.asarray(base.regrouped_columns, dtype=int)
+    unknown = missing[list(base.columns)]
+    if regrouped.size:
+        unknown |= (np.abs(base.beta) > 0) @ missing[regrouped] > 0
+    return {n: float(v) for n, v, u in zip(base.names, XB, unknown, strict=True) if not u}
 
 
 def read_truth(path: Path, tree) -> dict[str, float]:
@@ -215,7 +223,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         return dict(zip(names, setup.base.values(X), strict=True))
 
     kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
-              truth=_known_truth(base_values(truth), truth) if truth else None, poor_factor=cfg.poor_factor)
+              truth=true_base_values(truth, tree, setup.base) if truth else None, poor_factor=cfg.poor_factor)
 
     # 1. plan: each test's file indexed, its clock and segments (a pass over the time stamps only)
     wanted = required_channels(spin=False, suite=vehicle.suite)
