@@ -203,13 +203,14 @@ def test_chassis_rotation_is_the_iso_zyx_sequence():
 
 @pytest.mark.parametrize("rate", [125.0, 312.5, 625.0])  # the logger's rate a whole multiple (sensors in sync)
 @pytest.mark.parametrize("fs", [625.0, 625.0000000000688])  # a CSV time column's median step gives the second
-def test_sensor_delay_is_the_mean_age_of_a_held_sample(rate, fs):
-    """The hold part of sensor_delay against the sensors' own sample-and-hold applied to a ramp x = t: the
-    mean of t - held(t) is the mean age of the value read; continuous in fs (no spurious 0.8 ms at 625 Hz)."""
-    from dynid.vehicle.estimate import sensor_delay
+def test_the_declared_delay_is_the_mean_age_of_a_held_sample(rate, fs):
+    """The hold part of a Table-1 channel's declared delay (ChannelDynamics.lag) against the sensors' own
+    sample-and-hold applied to a ramp x = t: the mean of t - held(t) is the mean age of the value read;
+    continuous in fs (no spurious 0.8 ms at 625 Hz)."""
+    from dynid.vehicle.dynamics import ChannelDynamics
     from dynid.vehicle.sensors import SensorChannel, sample_and_hold
 
     c = SensorChannel("x", "m", "x", "x", "x", accuracy=0.0, bandwidth=None, resolution=0.0, range=None, rate=rate)
     t = np.arange(6250) / 625.0
     age = np.mean(t - sample_and_hold(t, rate, 625.0))
-    assert abs(sensor_delay(c, fs) - age) < 1e-9 + 1e-12 * fs  # the rate's rounding, ~1e-13 s
+    assert abs(ChannelDynamics.table1(c).lag(fs) - age) < 1e-9 + 1e-12 * fs  # the rate's rounding, ~1e-13 s

@@ -98,7 +98,7 @@ def _print_run(run, validation_title: str) -> None:
         print(run.reference_table())
     print(f"\n{validation_title}")
     print(validation_table(run.errors, run.not_excited))
-    if getattr(run, "delays", None) is not None:
+    if run.delays is not None:
         print(f"\n{run.delays.text()}")
 
 

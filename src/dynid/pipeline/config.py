@@ -64,7 +64,7 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     decimate = [5, 10]
     attitude_crossover = 0.2         # Hz: inclinometers below, integrated gyros above
     segment = 60.0                   # s: long tests are processed in overlapping segments (bounded memory)
-    compensate_delays = true         # advance each channel by its declared delay (the vehicle file's
+    compensate_delays = true         # undo each channel's declared dynamics (the vehicle file's
                                      # [sensors.dynamics], default Table 1); false: none, whatever is declared
     min_speed = 0.01                 # m/s: damper rows left out where |clearance rate| is below (dry
                                      # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none

@@ -3,8 +3,10 @@
 `reduce_car_segment(job)` is a pure function of a small picklable job (the config, the segment's
 time window of its file, and what to evaluate on it): it reads the window, estimates the joints,
 builds the 14 equations' decimated rows and reduces them to a `Partial` (per equation group the
-triangular factor of [W | Y]; for some segments the sensor offsets' sensitivities, or an IDIM-IV
-pass's instrument sums). `combine` is pure and associative to round-off: Partials of any split of
+triangular factor of [W | Y]; for a few segments of each identification test the sensor offsets'
+sensitivities, the rows with one draw of the sensors' errors added and subtracted (the model-fit verdict,
+estimation/fit.py) and the channel groups' delay sensitivities (estimation/shifts.py); or an IDIM-IV pass's
+instrument sums). `combine` is pure and associative to round-off: Partials of any split of
 the data combine into the whole data's. A scheduler (`schedulers`) maps the first over every
 segment, on this machine's cores or a cluster's workers, and folds with the second.
 
@@ -115,8 +117,6 @@ class CarSetup:
         self.conditioning = CarConditioning(settings.cutoff, settings.order, settings.attitude_crossover,
                                             compensate_delays=settings.compensate_delays)
         self.logger = vehicle.logger
-        # the declared delays are passed to the estimator explicitly (none when the config turns them off)
-        self._estimating = dataclasses.replace(self.conditioning, compensate_delays=True)
         self.aero = vehicle.aero if settings.aero else None
         # the channel groups whose delay the identification estimates (pipeline.delays): the inertial unit (the
         # chassis motion) and the clearances (the suspensions), from the chassis and suspension equations. Not the
@@ -145,9 +145,8 @@ class CarSetup:
         from ..vehicle.estimate import estimate_joints
 
         extra = {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
-        dynamics = self.logger.channels if self.conditioning.compensate_delays else {}
         return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self._estimating, self.vehicle.suite, dynamics, extra)
+                               self.conditioning, self.vehicle.suite, self.logger.channels, extra)
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:

@@ -599,7 +599,7 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
                              for m in run.reference]
     if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
         data["consistency"] = run.consistency
-    if getattr(run, "offsets", None) is not None:  # a car's sensor zero offsets: which, how large, from where
+    if run.offsets is not None:  # a car's sensor zero offsets: which, how large, from where
         data["sensor_offsets"] = run.offsets
     data.update(report.data)
     text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)

@@ -496,7 +496,7 @@ def consistency_section(run) -> Section:
 def delays_section(run) -> Section | None:
     """A car's channel delays relative to the wheel force transducers, declared against estimated
     (`pipeline.delays`), and the mismatch warnings."""
-    check = getattr(run, "delays", None)
+    check = run.delays
     if check is None:
         return None
     rows = []
@@ -642,7 +642,7 @@ def build_report(run, title: str) -> Report:
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
     out_sections.append(Section("Estimated parameters", "", tables=parameter_tables(run),
                                 html=flag_legend(run), figures=[figs_written[-1][1:]], anchor="parameters"))
-    if getattr(run, "offsets", None) is not None:
+    if run.offsets is not None:
         out_sections.append(offsets_section(run.offsets))
     if run.reference:
         out_sections.append(Section("Comparison with the published identification", tables=[reference_table(run)],

@@ -24,7 +24,7 @@ import functools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter
+from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from . import _checks
 from ._zero_phase import sos_filtfilt
@@ -72,6 +72,15 @@ def apply_zero_phase(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int
             f"and needs at least {pad + 1}. Use a longer record or a lower order"
         )
     return sos_filtfilt(sos, a, axis, pad)
+
+
+def undo_lowpass_phase(x: NDArray[np.float64], fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
+    """x (1-D) with the phase of a causal digital Butterworth low-pass (the design of `design_lowpass`) undone:
+    the same filter run backwards in time from the last sample's steady state. Zero phase overall; the gain
+    becomes |H|^2 (within 0.2 % of 1 below a fifth of the cut-off). Package helper: a sensor's declared band
+    limit (vehicle.estimate.compensate); arguments assumed checked, cutoff < fs / 2."""
+    sos = design_lowpass(fs, cutoff, order)
+    return sosfilt(sos, x[::-1], zi=sosfilt_zi(sos) * x[-1])[0][::-1]
 
 
 def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:

@@ -2,9 +2,10 @@
 
 A logger writes each channel late by its sensors' and its own filters: a band limit delays a slow signal by
 its group delay, a sensor sampling slower than the logger holds each value for a while, a bus or a processor
-adds a fixed latency. The estimator advances every channel by that low-frequency delay (`estimate.py`) so that
-the two sides of Y = W X describe the same instant: an inertial unit 25 ms late against the force transducers
-is several degrees of phase at 0.5 Hz, enough to move an inertia by half.
+adds a fixed latency. The estimator undoes them (`estimate.compensate`: the band limit's phase exactly, the
+hold and the latency by a shift) so that the two sides of Y = W X describe the same instant: an inertial unit
+25 ms late against the force transducers is several degrees of phase at 0.5 Hz, enough to move an inertia by
+half.
 
 The vehicle file declares them in `[sensors.dynamics]` (docs/vehicle.md):
 
@@ -121,11 +122,6 @@ class LoggerDynamics:
     def lags(self, fs: float) -> dict[str, float]:
         """name -> low-frequency delay (s) of every channel on a logger at fs Hz."""
         return {n: d.lag(fs) for n, d in self.channels.items()}
-
-    def group_lag(self, group: str, fs: float) -> float | None:
-        """The mean declared delay (s) of a group's channels (None: no channel of the group is fitted)."""
-        names = group_channels(group, self.channels)
-        return sum(self.channels[n].lag(fs) for n in names) / len(names) if names else None
 
     def summary(self, fs: float) -> list[str]:
         """One line per group of channels sharing the same dynamics: what was declared and the delay."""

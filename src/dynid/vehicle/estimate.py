@@ -26,20 +26,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
+from ..signals.filters import undo_lowpass_phase
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry
 from .sensors import (
     CORNER_TAGS,
     ISO_AXES,
     WFT_COMPONENTS,
-    SensorChannel,
     SensorSuite,
     correvit_point,
     gnss_point,
@@ -58,23 +57,14 @@ EARTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 class CarConditioning:
     """cutoff (Hz) and order of the zero-phase Butterworth on every signal; attitude_crossover (Hz):
     below it the inclinometers set roll and pitch, above it the integrated gyros; border (s):
-    trimmed at each end (None: the filter's transient); compensate_delays: advance each channel by
-    its declared dynamics (`estimate_joints`' dynamics, by default the Table-1 sensors'); false: none."""
+    trimmed at each end (None: the filter's transient); compensate_delays: undo each channel's declared
+    dynamics (`estimate_joints`' dynamics, by default the Table-1 sensors'); false: none."""
 
     cutoff: float = 4.0
     order: int = 4
     attitude_crossover: float = 0.2
     border: float | None = None
     compensate_delays: bool = True
-
-
-def sensor_delay(channel: SensorChannel, fs: float) -> float:
-    """Low-frequency delay (s) of a channel with its Table-1 sensor: its band limit, a 2nd-order Butterworth at
-    `bandwidth` (group delay sqrt(2) / (2 pi f_c) well below f_c), plus the mean age of a held value when the
-    sensor samples slower than the logger (`dynamics.ChannelDynamics.lag`). A 10 Hz inertial unit lags a 150 Hz
-    force transducer by about 25 ms, several degrees of phase at 0.5 Hz: enough to bias inertias and damping if
-    left in."""
-    return ChannelDynamics.table1(channel).lag(fs)
 
 
 def advance(x: Array, delay: float, fs: float) -> Array:
@@ -109,8 +99,7 @@ def compensate(x: Array, dynamics: ChannelDynamics, fs: float, extra: float = 0.
     shift = dynamics.lag(fs) + extra
     band = dynamics.bandwidth
     if band is not None and band < 0.45 * fs:  # a digital Butterworth of that band exists at this rate
-        sos = signal.butter(dynamics.order, band, fs=fs, output="sos")
-        x = signal.sosfilt(sos, x[::-1], zi=signal.sosfilt_zi(sos) * x[-1])[0][::-1]
+        x = undo_lowpass_phase(x, fs, band, dynamics.order)
         shift -= dynamics.band_delay()
     return advance(x, shift, fs) if shift else np.asarray(x, dtype=float)
 
@@ -195,8 +184,8 @@ def _from_tables(ch: dict[str, Array], clipped: Mapping[str, Array], tables: Kin
                  delays: Mapping[str, float], fs: float) -> None:
     """Saturated camera samples replaced, in place, by the kinematic tables' value at the measured damper
     clearance and steering-wheel angle: a spiral steers the front wheels past the cameras' 5° range, and a
-    clipped steering angle biases every front-corner equation. With delays compensated (fs given) the mask
-    is widened by the channel's advance (delays, s) so that no sample the shift moved off the limit is kept."""
+    clipped steering angle biases every front-corner equation. The mask is widened by the channel's delay
+    (delays, s: what compensating it moved) so that no sample moved off the limit is kept."""
     for name, mask in clipped.items():
         prefix, tag = name.split("_")
         k = CORNER_TAGS.index(tag)
