@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mujoco_car import DATA as MUJOCO
+from mujoco_car import EXAMPLE, mujoco_truth
 from scipy import signal
 
 from dynid.cli.main import main
@@ -25,16 +27,14 @@ from dynid.vehicle.description import VehicleError, load_vehicle
 from dynid.vehicle.dynamics import ChannelDynamics, parse_dynamics, table1_dynamics
 from dynid.vehicle.sensors import paper_suite
 
-ROOT = Path(__file__).resolve().parents[1]
-MUJOCO = ROOT.parent / "shared" / "data" / "mujoco-car"
-EXAMPLE = ROOT / "examples" / "mujoco_car"
-
 
 def _example_vehicle(tmp_path: Path) -> str:
     """The example's vehicle file's text, its kinematic tables copied beside where the caller writes it."""
     (tmp_path / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text(encoding="utf-8"),
                                               encoding="utf-8")
     return (EXAMPLE / "vehicle.toml").read_text(encoding="utf-8")
+
+
 FS = 625.0
 SAMPLE_MS = 1e3 / FS
 
@@ -145,8 +145,7 @@ def test_estimate_shifts_is_the_least_squares_of_the_stacked_weighted_system():
 
 # ------------------------------------------------------------------------------- the MuJoCo car (independent)
 def _mujoco() -> None:
-    if not (MUJOCO / "ideal" / "sine.parquet").exists():
-        pytest.skip(f"the MuJoCo car's files are not at {MUJOCO} (shared/ is beside the repository)")
+    mujoco_truth()  # skips without the MuJoCo car's files
 
 
 def _ideal_config(tmp_path: Path, dynamics: str | None) -> Path:
