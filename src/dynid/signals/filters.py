@@ -24,10 +24,10 @@ import functools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, sosfilt, sosfilt_zi
+from scipy.signal import butter, sosfilt
 
 from . import _checks
-from ._zero_phase import sos_filtfilt
+from ._zero_phase import sos_filtfilt, steady_state
 from .errors import SignalError
 
 
@@ -80,7 +80,7 @@ def undo_lowpass_phase(x: NDArray[np.float64], fs: float, cutoff: float, order: 
     becomes |H|^2 (within 0.2 % of 1 below a fifth of the cut-off). Package helper: a sensor's declared band
     limit (vehicle.estimate.compensate); arguments assumed checked, cutoff < fs / 2."""
     sos = design_lowpass(fs, cutoff, order)
-    return sosfilt(sos, x[::-1], zi=sosfilt_zi(sos) * x[-1])[0][::-1]
+    return sosfilt(sos, x[::-1], zi=steady_state(sos) * x[-1])[0][::-1]
 
 
 def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:
