@@ -1,0 +1,270 @@
+"""Where an identification's time goes, stage by stage, per hour of 625 Hz car data, against this machine's limits.
+
+Run:  python benchmarks/profile_car.py [--minutes 10]
+
+Writes `--minutes` of the sensor suite's channels (Parquet, as bench_pipeline.py: a 12 s manoeuvre repeated),
+then runs the car identification in this process on ONE thread (every segment in turn, so each stage's time is
+its own, not shared with a second core) with timers around the pipeline's functions:
+
+- plan: each test's pass over the time stamps (`sources.plan_car_test`);
+- read: decoding a segment's channels (`SegmentWindow.read`);
+- compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensate`);
+- joints: the rest of `estimate_joints` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
+- regressor: the generated 14-equation identification model (`GeneratedRegressor`);
+- equations: the rest of `car_identification` (the wheel wrenches' and gravity's rows);
+- decimation: the parallel decimation of W and Y (`car._decimated`);
+- rows, other: the rest of `car_system` (aerodynamics, row selection, stacking);
+- QR: the streamed least squares' factor updates (`StreamingLS.add`);
+- offsets, error draws, delays: what the sensor offsets' propagation, the model-fit verdict's error draws and
+  the channel delays' estimate add (each on 2 segments per test, whatever its length: a fixed cost, reported
+  per test);
+- solve and report: the rest of `identify` (solve, validation, the delays' further steps, notes), and
+  `write_outputs` (tables, figures, report.html): fixed costs, in seconds.
+
+Each stage prints its seconds per hour of data and, where this run measures one, its limit on this machine:
+the bytes the stage must touch over the memory bandwidth (a large copy, measured here) for read and
+decimation, and the arithmetic over one core's peak (benchmarks/roofline.py) for the regressor (its
+operations counted on the SYMORO-style model) and the QR (2 n p^2 per block of n rows, p columns).
+Writes benchmarks/results/profile_car.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import os
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
+
+from bench_pipeline import write_hour  # noqa: E402
+from results_file import write_results  # noqa: E402
+
+CONFIG = """
+[model]
+template = "peugeot406"
+
+[[tests]]
+name = "one hour"
+file = "{file}"
+
+[conditioning]
+segment = 60.0
+"""
+
+SPENT: dict[str, float] = defaultdict(float)
+COUNT: dict[str, int] = defaultdict(int)
+
+
+def timed(owner, name: str, stage: str) -> None:
+    """Wrap owner.name (a module's function or a class's method) to add its time to SPENT[stage]."""
+    fn = getattr(owner, name)
+
+    @functools.wraps(fn)
+    def wrapper(*a, **k):
+        t = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            SPENT[stage] += time.perf_counter() - t
+            COUNT[stage] += 1
+
+    setattr(owner, name, wrapper)
+
+
+def bandwidth() -> float:
+    """Bytes per second of a large copy (read + write counted), best of 5."""
+    a = np.ones(64 * 2**20 // 8)
+    b = np.empty_like(a)
+    best = min(_copy_time(a, b) for _ in range(5))
+    return 2 * a.nbytes / best
+
+
+def _copy_time(a, b) -> float:
+    t = time.perf_counter()
+    np.copyto(b, a)
+    return time.perf_counter() - t
+
+
+class Inline:
+    """A scheduler running every job in turn in this thread (the stages' times are then their own)."""
+
+    def __repr__(self) -> str:
+        return "1 thread, inline"
+
+    def map_reduce(self, fn, jobs, key, combine, progress=None):
+        from dynid.pipeline.schedulers import _by_key, tree_fold
+
+        results = [fn(j) for j in jobs]
+        return {k: tree_fold([results[i] for i in idx], combine) for k, idx in _by_key(jobs, key).items()}
+
+    def close(self) -> None:
+        pass
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=10.0)
+    args = ap.parse_args()
+
+    import dynid.pipeline.car as car
+    import dynid.pipeline.reduce as reduce
+    import dynid.pipeline.run as run
+    import dynid.pipeline.sources as sources
+    import dynid.vehicle.estimate as estimate
+    from dynid.estimation.streaming import StreamingLS
+    from dynid.pipeline.config import load_config
+    from dynid.symbolic.generated import GeneratedRegressor
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        data = write_hour(folder, args.minutes, "parquet")
+        cfg_file = folder / "identify.toml"
+        cfg_file.write_text(CONFIG.format(file=data.name))
+        cfg = load_config(cfg_file)
+        with contextlib.redirect_stdout(None):
+            run.identify(cfg, scheduler=Inline())  # compiled kernels and caches warm, not timed
+
+        kernel_calls: list[tuple[int, tuple]] = []
+        original_call = GeneratedRegressor.__call__
+
+        def regressor_call(self, q, qd, qdd, wrenches, rows, cols):
+            kernel_calls.append((np.atleast_2d(q).shape[0], (self.tree, tuple(rows), tuple(cols), tuple(wrenches))))
+            return original_call(self, q, qd, qdd, wrenches, rows, cols)
+
+        GeneratedRegressor.__call__ = regressor_call
+        timed(GeneratedRegressor, "__call__", "regressor")
+        timed(run, "plan_car_test", "plan")
+        timed(sources.SegmentWindow, "read", "read")
+        timed(estimate, "compensate", "compensation")
+        timed(estimate, "estimate_joints", "joints+compensation")
+        timed(car, "car_identification", "equations+regressor")
+        timed(car, "_decimated", "decimation")
+        timed(car, "car_system", "car_system")
+        timed(run, "reduce_car_segment", "segments")
+        rows_seen: list[tuple[int, int]] = []
+        original_add = StreamingLS.add
+
+        def add(self, W, Y, groups):
+            rows_seen.append(np.shape(W))
+            return original_add(self, W, Y, groups)
+
+        StreamingLS.add = add
+        timed(StreamingLS, "add", "QR")
+
+        # the stages: every segment once, as the identification's map does, without the per-test extras
+        setup = reduce.car_setup(cfg)
+        plan = run.plan_car_test(cfg, cfg.tests[0], estimate.required_channels(spin=False, suite=setup.vehicle.suite),
+                                 setup.vehicle.suite.units, cfg.car.segment, lambda fs: 0, lambda _m: None)
+        windows = [sources.segment_window(plan, lo, hi) for lo, hi in plan.segments]
+        for i, w in enumerate(windows):
+            run.reduce_car_segment(reduce.CarJob(cfg, w, "identify", i + 1))
+        staged = dict(SPENT)
+        staged_kernels, staged_rows = list(kernel_calls), list(rows_seen)
+        # the whole identification (inline) and its report, timed apart
+        t0 = time.perf_counter()
+        with contextlib.redirect_stdout(None):
+            result = run.identify(cfg, scheduler=Inline())
+        identify_s = time.perf_counter() - t0
+        out = folder / "out"
+        out.mkdir()
+        t0 = time.perf_counter()
+        run.write_outputs(result, out, "profile")
+        report_s = time.perf_counter() - t0
+
+        # the fixed per-test costs: one segment's extras, evaluated alone
+        from dynid.pipeline.car import sensor_offsets
+
+        moved = tuple(sensor_offsets(cfg.car, setup.vehicle).si().items())
+        w = windows[len(windows) // 2]
+        extras = {}
+        base = reduce.CarJob(cfg, w, "identify", 1)
+        for label, job in (("offsets", reduce.CarJob(cfg, w, "identify", 1, moved)),
+                           ("error draws", reduce.CarJob(cfg, w, "identify", 1, errors=True)),
+                           ("delays", reduce.CarJob(cfg, w, "identify", 1, delays=True))):
+            times = []
+            for j in (base, job, base, job):
+                t = time.perf_counter()
+                reduce.reduce_car_segment(j)
+                times.append(time.perf_counter() - t)
+            extras[label] = max(0.0, min(times[1], times[3]) - min(times[0], times[2]))
+
+    hours = args.minutes / 60.0
+    per_hour = {k: v / hours for k, v in staged.items()}
+    joints = per_hour.get("joints+compensation", 0.0) - per_hour.get("compensation", 0.0)
+    equations = per_hour.get("equations+regressor", 0.0) - per_hour.get("regressor", 0.0)
+    rows_other = (per_hour.get("car_system", 0.0) - per_hour.get("equations+regressor", 0.0)
+                  - per_hour.get("decimation", 0.0))
+    segments = per_hour.get("segments", 0.0)
+    in_segments = (per_hour.get("read", 0.0) + per_hour.get("joints+compensation", 0.0)
+                   + per_hour.get("car_system", 0.0) + per_hour.get("QR", 0.0))
+    fixed = 2 * sum(extras.values()) * len(cfg.tests)
+    rest = identify_s - hours * (segments + per_hour.get("plan", 0.0)) - fixed  # s, whatever the length
+
+    # limits
+    bw = bandwidth()
+    from roofline import operations, peak_flops
+
+    peak = peak_flops()
+    samples = args.minutes * 60 * 625
+    channels = len(estimate.required_channels(spin=False))
+    read_limit = samples * channels * 8 * 2 / bw / hours  # decoded values written once, read once
+    _, (tree, rows, cols, wrenches) = staged_kernels[-1]
+    from dynid.symbolic import WrenchSite
+
+    sites = [WrenchSite(x.link, tuple(float(v) for v in x.point), x.frame) for x in wrenches]
+    ops, _funcs = operations(tree, "regressor", rows=list(rows), cols=list(cols), wrenches=sites)
+    reg_samples = sum(n for n, _ in staged_kernels) / hours
+    regressor_limit = reg_samples * ops / peak
+    qr_flops = sum(2.0 * n * p * p for n, p in staged_rows) / hours
+    qr_limit = qr_flops / peak
+
+    table = [
+        ("plan (time stamps)", per_hour.get("plan", 0.0), None),
+        ("read (decode a segment's channels)", per_hour.get("read", 0.0), read_limit),
+        ("compensation (sensor dynamics undone)", per_hour.get("compensation", 0.0), None),
+        ("joints (attitude, tables, filters, derivatives)", joints, None),
+        ("regressor (generated 14-equation model)", per_hour.get("regressor", 0.0), regressor_limit),
+        ("equations (wrenches, gravity rows)", equations, None),
+        ("decimation (parallel, W and Y)", per_hour.get("decimation", 0.0), None),
+        ("rows, other (aero, selection, stacking)", rows_other, None),
+        ("QR (streamed factor updates)", per_hour.get("QR", 0.0), qr_limit),
+        ("segments, not in the stages above", segments - in_segments, None),
+    ]
+    print(f"{args.minutes:g} min of 625 Hz car data, one thread; figures per hour of data "
+          f"(memory bandwidth {bw / 1e9:.1f} GB/s, one core's peak {peak / 1e9:.1f} Gop/s, measured now)")
+    print(f"  {'stage':<50} {'s / hour':>9} {'limit s':>9} {'x limit':>8}")
+    for name, s, limit in table:
+        lim = f"{limit:9.3f}" if limit else f"{'-':>9}"
+        ratio = f"{s / limit:8.1f}" if limit else f"{'-':>8}"
+        print(f"  {name:<50} {s:9.2f} {lim} {ratio}")
+    total = sum(s for _, s, _ in table)
+    print(f"  {'total':<50} {total:9.2f}")
+    print("  fixed per identification test (2 segments each, whatever its length), s:")
+    for label, s in extras.items():
+        print(f"  {'  ' + label:<50} {2 * s:9.2f}")
+    print(f"  fixed per identification, s: solve, validation, delay steps, notes {rest:.2f}; report (tables, "
+          f"figures, report.html) {report_s:.2f}")
+    print(f"  the whole identification of these {args.minutes:g} min took {identify_s:.1f} s on one thread")
+    write_results("profile_car", {"minutes": args.minutes, "per_hour_s": {n: s for n, s, _ in table},
+                                  "limit_per_hour_s": {n: lim for n, _, lim in table if lim},
+                                  "per_test_fixed_s": {k: 2 * v for k, v in extras.items()},
+                                  "rest_s": rest, "report_s": report_s, "identify_s": identify_s,
+                                  "bandwidth_gb_s": bw / 1e9, "peak_gop_s": peak / 1e9,
+                                  "regressor_ops_per_sample": ops, "machine": os.uname().machine,
+                                  "cpus": os.cpu_count()})
+
+
+if __name__ == "__main__":
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):  # one thread, BLAS included (as the pipeline's workers)
+        main()
