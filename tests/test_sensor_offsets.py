@@ -169,8 +169,9 @@ def test_explicit_offsets_replace_the_suites_and_none_turns_them_off(noisy, unce
 
 
 def test_a_wheel_force_offset_moves_the_loads_alone(noisy):
-    """The wheel-force channels' offsets are propagated without re-estimating the joints (`CarSetup.load_only`):
-    the rows' change equals the full pass through the estimator with the channel moved (to round-off)."""
+    """The wheel-force channels' offsets are propagated without re-estimating the joints (`CarSetup.load_only`),
+    the others' without undoing the sensor dynamics again (`CarSetup.compensated`): the rows' change equals the
+    full pass through the estimator with the channel moved (to round-off)."""
     from dynid.pipeline.reduce import car_setup, shifted_load
     from dynid.pipeline.sources import plan_car_test, segment_window
     from dynid.signals import border_samples
@@ -194,6 +195,20 @@ def test_a_wheel_force_offset_moves_the_loads_alone(noisy):
         assert np.abs(dY - dY_full).max() <= 1e-9 * np.abs(dY_full).max(), q
         assert np.abs(short.W - full.W).max() <= 1e-9 * np.abs(sys.W).max(), q
     assert not any(setup.load_only(q) for q in ("imu_az", "laser_height_rl", "clearance_fl"))
+    # the other channels' offsets go through the joints, but not through the sensor dynamics' undoing again:
+    # it is affine with unit gain at 0 Hz (the reversed Butterworth from its steady state, a shift), so the
+    # moved channel's undone values are the undone channel plus the offset; the same rows as the full pass
+    compensated = setup.compensated(channels, w.fs)
+    for q, b in (("imu_az", 0.01), ("imu_roll", 0.05 * np.pi / 180), ("laser_height_rl", 5e-4)):
+        moved = {**channels, q: channels[q] + b}
+        short = setup.rows(setup.trajectory(moved, w.fs, None, {**compensated, q: compensated[q] + b}), w.fs,
+                           keep=sys.kept)
+        full = setup.rows(setup.trajectory(moved, w.fs), w.fs, keep=sys.kept)
+        # round-off of the rows' own scale (1e-12 of it: the filters' sums over thousands of samples), and an
+        # offset whose effect stands a thousand times above it (a laser's moves the tire rows' W only)
+        roundoff = 1e-12 * max(np.abs(full.Y).max(), np.abs(full.W).max())
+        assert max(np.abs(full.Y - sys.Y).max(), np.abs(full.W - sys.W).max()) > 1e3 * roundoff, q
+        assert max(np.abs(short.Y - full.Y).max(), np.abs(short.W - full.W).max()) <= roundoff, q
 
 
 def test_without_height_lasers_a_vertical_wheel_force_moves_the_joints(tmp_path):

@@ -136,17 +136,33 @@ class CarSetup:
 
         return GeneratedRegressor(self.tree)
 
-    def trajectory(self, channels: dict[str, np.ndarray], fs: float,
-                   lags: Mapping[str, float] | None = None) -> CarTrajectory:
+    def trajectory(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
+                   compensated: Mapping[str, np.ndarray] | None = None) -> CarTrajectory:
         """The joints and filtered loads of one segment's channels (SI), the declared dynamics undone (none when
         the config turns the compensation off); lags: channel group -> s, its channels taken as that much later
-        than declared (advanced by it more: the delay estimate's perturbations)."""
-        from ..vehicle.dynamics import group_channels  # the car's modules, as in __init__: a robot needs none
-        from ..vehicle.estimate import estimate_joints
+        than declared (advanced by it more: the delay estimate's perturbations); compensated: `compensated` of
+        these channels and lags, when known (not undone again)."""
+        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
 
-        extra = {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
         return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite, self.logger.channels, extra)
+                               self.conditioning, self.vehicle.suite, self.logger.channels,
+                               self._lags(channels, lags), compensated)
+
+    def compensated(self, channels: dict[str, np.ndarray], fs: float,
+                    lags: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
+        """The channels with the declared dynamics undone and the groups' lags advanced (`trajectory`'s first
+        step), to be reused by passes that move one channel by a constant."""
+        from ..vehicle.estimate import compensated_channels
+
+        return compensated_channels(channels, fs, self.conditioning, self.vehicle.suite, self.logger.channels,
+                                    self._lags(channels, lags))
+
+    @staticmethod
+    def _lags(channels, lags: Mapping[str, float] | None) -> dict[str, float]:
+        """channel -> s of the groups' lags."""
+        from ..vehicle.dynamics import group_channels
+
+        return {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
@@ -165,6 +181,8 @@ class CarSetup:
         them by itself, the joints not at all (tests/test_sensor_offsets.py checks it against the full pass)."""
         return channel.startswith("wft_") and (self.vehicle.lasers or not channel.endswith("_Fz"))
 
+
+CAMERAS = ("steer_", "camber_")  # the channels whose saturation the estimator replaces by the kinematic tables
 
 _SETUPS: OrderedDict[str, Any] = OrderedDict()
 _SETUPS_KEPT = 64  # a campaign's configs take turns on every worker: keep them all (a setup is a few MB)
@@ -197,7 +215,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     w = job.window
     channels = w.read()
     lags = dict(job.lags)
-    traj = setup.trajectory(channels, w.fs, lags)
+    compensated = setup.compensated(channels, w.fs, lags)
+    traj = setup.trajectory(channels, w.fs, lags, compensated)
     sys = setup.rows(traj, w.fs, job.instruments)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
@@ -220,8 +239,11 @@ def reduce_car_segment(job: CarJob) -> Partial:
         for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
             if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
                 moved_traj = shifted_load(traj, q, b)
-            else:
+            elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
                 moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags)
+            else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
+                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags,
+                                              {**compensated, q: compensated[q] + b})
             p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)

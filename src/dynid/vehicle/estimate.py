@@ -198,6 +198,31 @@ def _from_tables(ch: dict[str, Array], clipped: Mapping[str, Array], tables: Kin
         ch[name] = x
 
 
+def _declared(c: CarConditioning, suite: SensorSuite, dynamics: Mapping[str, ChannelDynamics] | None
+              ) -> Mapping[str, ChannelDynamics]:
+    """The dynamics to undo: none when the conditioning says so, else the given or the suite's Table-1 ones."""
+    if not c.compensate_delays:
+        return {}
+    return table1_dynamics(suite).channels if dynamics is None else dynamics
+
+
+def compensated_channels(
+    channels: Mapping[str, Array],
+    fs: float,
+    conditioning: CarConditioning | None = None,
+    suite: SensorSuite | None = None,
+    dynamics: Mapping[str, ChannelDynamics] | None = None,
+    lags: Mapping[str, float] | None = None,
+) -> dict[str, Array]:
+    """The channels (SI) with their declared dynamics undone (`compensate`) and `lags` advanced, as
+    `estimate_joints` takes them first (its arguments' meaning)."""
+    dynamics = _declared(conditioning or CarConditioning(), suite or paper_suite(), dynamics)
+    lags = lags or {}
+    none = ChannelDynamics()
+    return {k: compensate(np.asarray(v, dtype=float), dynamics.get(k, none), fs, lags.get(k, 0.0))
+            if k in dynamics or lags.get(k) else np.asarray(v, dtype=float) for k, v in channels.items()}
+
+
 def estimate_joints(
     channels: Mapping[str, Array],
     fs: float,
@@ -208,13 +233,16 @@ def estimate_joints(
     suite: SensorSuite | None = None,
     dynamics: Mapping[str, ChannelDynamics] | None = None,
     lags: Mapping[str, float] | None = None,
+    compensated: Mapping[str, Array] | None = None,
 ) -> CarTrajectory:
     """q, qd, qdd of the 42 joints and the filtered loads from the sensor channels (SI), trimmed of the borders.
 
     suite: the sensors' definitions (default: the paper's suite on this geometry). dynamics: channel -> what the
     logger did to it (`Vehicle.logger.channels`; default: the suite's Table-1 sensors), undone (`compensate`)
     when `conditioning.compensate_delays`. lags: channel -> s, how much later than that the channel is taken
-    (advanced by it more, whatever compensate_delays says: the delay estimate's perturbations)."""
+    (advanced by it more, whatever compensate_delays says: the delay estimate's perturbations). compensated:
+    the channels already undone (`compensated_channels` of these channels, dynamics and lags), not undone again:
+    a sensor offset's pass moves one channel of them (the undoing is affine, of unit gain at 0 Hz)."""
     g = geometry or CarGeometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
@@ -226,15 +254,11 @@ def estimate_joints(
     cameras = all(f"steer_{t}" in suite.names and f"camber_{t}" in suite.names for t in CORNER_TAGS)
     lasers = all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS)
     clipped = _saturated_cameras(ch, suite)
-    if not c.compensate_delays:
-        dynamics = {}
-    elif dynamics is None:
-        dynamics = table1_dynamics(suite).channels
+    dynamics = _declared(c, suite, dynamics)
     lags = lags or {}
     none = ChannelDynamics()
     delays = {k: dynamics.get(k, none).lag(fs) + lags.get(k, 0.0) for k in ch}
-    ch = {k: compensate(v, dynamics.get(k, none), fs, lags.get(k, 0.0)) if k in dynamics or lags.get(k) else v
-          for k, v in ch.items()}
+    ch = dict(compensated) if compensated is not None else compensated_channels(ch, fs, c, suite, dynamics, lags)
     _from_tables(ch, clipped, tables, delays, fs)
     N = len(ch["imu_roll"])
     if model.n != FRAMES:
