@@ -112,6 +112,15 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _scheduler_address(text: str) -> str:
+    from ..pipeline.schedulers import address_problem
+
+    problem = address_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text.strip()
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -260,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "output folder each inside --out, and campaign.csv across them")
     ident.add_argument("--out", default="dynid-out", help="output folder, replaced as a whole at the end "
                                                           "(default: dynid-out)")
-    ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    ident.add_argument("--scheduler", default=None, metavar="ADDRESS", type=_scheduler_address,
                        help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
                             "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
                             "config's [compute] scheduler, else this machine's threads")
