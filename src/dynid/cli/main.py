@@ -298,17 +298,20 @@ def _user_errors() -> tuple[type[Exception], ...]:
     from ..vehicle.sim.car import SimulationError
     from ..vehicle.sim.manoeuvres import ManoeuvreError
     from ..vehicle.sim.recording import OutputError as SimulationOutputError
+    from .usage import UsageError
 
     return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationOutputError,
-            SimulationError, ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError)
+            SimulationError, ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError, UsageError)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     from ..atomic import Terminated, final_text
+    from .usage import check_options
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_options(args)
         return int(args.func(args) or 0)
     except _user_errors() as exc:
         print(f"dynid: error: {final_text(str(exc))}", file=sys.stderr)

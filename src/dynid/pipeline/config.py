@@ -538,6 +538,20 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
     ref = {**ref, "file": here / ref["file"]}
     if not ref["file"].exists():
         raise err(where, f"file not found: {ref['file']}")
+    if ref["file"].is_dir():
+        raise err(where, f"file = {str(ref['file'])!r} is a folder; give the published table's CSV file")
+    from .reference import parse_combination, read_reference
+
+    try:  # read now: a file that cannot be compared with is refused before the identification, not after it
+        read_reference(ref["file"])
+        for k, v in ref.get("combinations", {}).items():
+            try:
+                parse_combination(v)
+            except ModelError as exc:
+                raise ModelError(f"combinations: {k} = {v!r}: {exc}; give a linear combination of base "
+                                 "parameters: fvm6 = \"1024*fvm6\"") from None
+    except ModelError as exc:
+        raise err(where, str(exc)) from None
     return ref
 
 
