@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from collections.abc import Sequence
 
@@ -304,6 +305,27 @@ def _user_errors() -> tuple[type[Exception], ...]:
             SimulationError, ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError, UsageError)
 
 
+# a write the file system refused for want of room: the fix, and the output named when the error names no file
+_NO_ROOM = {errno.ENOSPC: "free space on that disk, or write elsewhere (--out)",
+            errno.EDQUOT: "your disk quota is used up: free space, or write elsewhere (--out)",
+            errno.EFBIG: "a file outgrew the largest size allowed there (the file system's limit, or the shell's "
+                         "ulimit -f): write elsewhere (--out), or write shorter files"}
+
+
+def _os_error_text(exc: OSError, out: object) -> str:
+    """One line for a file system refusal: the file (or, for a write refused for want of room that names none, the
+    output being written), what the system said, and the fix where there is one."""
+    from ..atomic import final_text
+
+    what = " ".join(str(exc.strerror or exc).split())
+    fix = _NO_ROOM.get(exc.errno)
+    name = exc.filename if exc.filename else (out if fix and out else None)
+    where = f"{final_text(str(name))}: " if name else ""
+    if fix:
+        return f"{where}{what} while writing{'' if exc.filename or not out else ' the output'}; {fix}"
+    return f"{where}{what}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from ..atomic import Terminated, final_text
     from .usage import check_options
@@ -334,8 +356,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:  # a file system refusal (full disk, read-only, a folder where a file is wanted)
         if args.debug:
             raise
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"dynid: error: {final_text(where)}{exc.strerror or exc} (--debug shows where)", file=sys.stderr)
+        print(f"dynid: error: {_os_error_text(exc, getattr(args, 'out', None))} (--debug shows where)",
+              file=sys.stderr)
         return 2
     except Exception as exc:  # a bug of dynid's: one line and the way to the traceback, never a raw one
         if args.debug:
