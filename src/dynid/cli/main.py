@@ -126,7 +126,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..atomic import final_text, staged_folder, write_atomic
-    from ..pipeline.campaign import campaign_names, identify_campaign, summary, summary_csv, summary_text
+    from ..pipeline.campaign import (
+        SUMMARY_FILE,
+        campaign_names,
+        identify_campaign,
+        summary,
+        summary_csv,
+        summary_text,
+    )
     from ..pipeline.config import ConfigError, load_config
     from ..pipeline.run import write_outputs
     from ..pipeline.schedulers import scheduler_for
@@ -162,7 +169,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         if len(runs) > 1:
             head, rows = summary(names, runs)
             print(f"\nThe campaign ({len(runs)} identifications):\n{summary_text(head, rows)}")
-            files.append(write_atomic(stage / "campaign.csv", summary_csv(head, rows)))
+            files.append(write_atomic(stage / SUMMARY_FILE, summary_csv(head, rows)))
     print(f"\nwrote {', '.join(str(out / f.relative_to(stage)) for f in files)}")
     failed = [(n, r) for n, r in zip(names, runs, strict=True) if isinstance(r, Exception)]
     for name, exc in failed:  # the others' results are written: a campaign is not lost to one broken file
