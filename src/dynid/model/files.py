@@ -37,7 +37,8 @@ equals FS tanh(qd / (2 vs)): choose by the convention of the vs you have. A per-
 takes the top-level shape when it names none, and the top-level vs when it names none and
 its shape is not sign; a shape other than sign applies only to joints with an FS term.
 
-Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
+Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`. Lengths are in m
+(each under 100 m: mm written for m is refused), gravity in m/s² (at most 50), parameters SI.
 """
 
 from __future__ import annotations

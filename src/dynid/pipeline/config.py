@@ -27,8 +27,8 @@
     tau = [[32, 0], [0, 32]]
 
     [conditioning]
-    cutoff = 25.0                    # Hz, zero-phase Butterworth on positions
-    order = 4                        # a whole number >= 1
+    cutoff = 25.0                    # Hz (0.01 to below fs/2), zero-phase Butterworth on positions
+    order = 4                        # a whole number from 1 to 20
     border = 0.1                     # s trimmed at each end (default: the filter transient)
     decimate = [10, 10]              # whole factors >= 2, applied in turn (or one: decimate = 10)
     min_speed = { 1 = 0.05 }         # rows of joint 1 dropped where |qd1| < 0.05
@@ -36,7 +36,7 @@
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
                                      # (needs pip install 'dynid[pc]'; docs/robot.md)
-    known = { IA1 = 0.36 }           # fixed parameters: their contribution moves to Y
+    known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
 
