@@ -196,7 +196,7 @@ CONFIG_CASES = [
      ["robot.toml", "[compute]", "scheduler = 'threads'", "leave the scheduler out"]),
     ("compute scheduler dashboard", lambda t: t + '\n[compute]\nscheduler = "http://10.0.0.5:8787"\n', {},
      ["robot.toml", "[compute]", "dashboard", "tcp://HOST:8786"]),
-    ("order 2**62", R("order = 4", f"order = {2**62}"), {}, ["robot.toml", f"order = {2**62}", "from 1 to 20"]),
+    ("order 2**62", R("order = 4", f"order = {2**62}"), {}, ["robot.toml", f"order = {2**62}", "at most 20"]),
     ("known 1e308", R('method = "wls"', 'method = "wls"\nknown = { FV1 = 1e308 }'), {},
      ["robot.toml", "[identification]", "FV1 = 1e+308", "SI units"]),
     ("config nested 5000 deep", lambda t: t + NESTED, {}, ["robot.toml", "nests", "right file"]),

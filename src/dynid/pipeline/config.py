@@ -540,10 +540,10 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
         raise err(where, f"file not found: {ref['file']}")
     if ref["file"].is_dir():
         raise err(where, f"file = {str(ref['file'])!r} is a folder; give the published table's CSV file")
-    from .reference import parse_combination, read_reference
+    from .reference import parse_combination, reference_text
 
-    try:  # read now: a file that cannot be compared with is refused before the identification, not after it
-        read_reference(ref["file"])
+    try:  # a binary or non-UTF-8 file is refused now, before the identification (its rows are read with the results)
+        reference_text(ref["file"])
         for k, v in ref.get("combinations", {}).items():
             try:
                 parse_combination(v)
@@ -641,8 +641,8 @@ def _whole(table: dict, key: str, default: int, where: str, err: Err) -> int:
     """The filter order: a whole number from 1 to MAX_ORDER (4.7 is refused, not truncated)."""
     value = table.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_ORDER:
-        raise err(where, f"{key} = {value!r}; give the Butterworth order, a whole number from 1 to {MAX_ORDER} "
-                         "(the paper uses 5 to 8)")
+        raise err(where, f"{key} = {value!r}; give the Butterworth order, a whole number >= 1 and at most "
+                         f"{MAX_ORDER} (the paper uses 5 to 8)")
     return value
 
 

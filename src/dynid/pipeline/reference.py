@@ -54,9 +54,9 @@ class ReferenceRow:
     wls_rel_std: float
 
 
-def read_reference(path: str | Path) -> list[ReferenceRow]:
-    """The rows of a reference table (module doc). Errors name the file (and the line) and say what to give: a
-    file that is not UTF-8 text, a row that is not `expression, 4 numbers`, an expression that is no combination."""
+def reference_text(path: str | Path) -> str:
+    """The text of a reference table; a file that cannot be read, is binary or is not UTF-8 raises a `ModelError`
+    naming it and the fix (a config's loader calls this before any work; its rows are read with the results)."""
     where = f"{path} (the [reference] file)"
     try:
         raw = Path(path).read_bytes()
@@ -71,6 +71,14 @@ def read_reference(path: str | Path) -> list[ReferenceRow]:
         from ..textfiles import encoding_problem
 
         raise ModelError(f"{where}: {encoding_problem(path)}") from None
+    return text
+
+
+def read_reference(path: str | Path) -> list[ReferenceRow]:
+    """The rows of a reference table (module doc). Errors name the file (and the line) and say what to give: a
+    file that is not UTF-8 text, a row that is not `expression, 4 numbers`, an expression that is no combination."""
+    where = f"{path} (the [reference] file)"
+    text = reference_text(path)
     rows = []
     for line, rec in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
         if not rec or not any(c.strip() for c in rec):
