@@ -418,11 +418,13 @@ def test_a_negative_seed_is_refused(tmp_path, capsys, monkeypatch):
     assert not any(tmp_path.iterdir())
 
 
-def test_a_scheduler_option_of_the_wrong_kind_is_refused(base, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(["identify", str(base / "robot.toml"), "--scheduler", "threads"])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and "--scheduler" in err and "leave the scheduler out" in err
+@pytest.mark.parametrize("address, words", [("threads", ["leave the scheduler out"]), ("Local", ['"local"']),
+                                            ("http://10.0.0.5:8787", ["dashboard", "tcp://HOST:8786"])],
+                         ids=["threads", "Local", "dashboard"])
+def test_a_scheduler_option_of_the_wrong_kind_is_refused(base, tmp_path, capsys, address, words):
+    code, err = run(capsys, "identify", base / "robot.toml", "--scheduler", address, "--out", tmp_path / "out")
+    assert_one_line_error(code, err, f"--scheduler {address!r}", *words)
+    assert not (tmp_path / "out").exists()
 
 
 def test_identify_from_python_takes_a_path(base, tmp_path):

@@ -113,15 +113,6 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _scheduler_address(text: str) -> str:
-    from ..pipeline.schedulers import address_problem
-
-    problem = address_problem(text)
-    if problem is not None:
-        raise argparse.ArgumentTypeError(problem)
-    return text.strip()
-
-
 def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -136,9 +127,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
     )
     from ..pipeline.config import ConfigError, load_config
     from ..pipeline.run import write_outputs
-    from ..pipeline.schedulers import scheduler_for
+    from ..pipeline.schedulers import address_problem, scheduler_for
     from ..report.build import input_files
 
+    if args.scheduler is not None:  # checked before any config is read or any work starts
+        problem = address_problem(args.scheduler)
+        if problem is not None:
+            raise ConfigError(f"--scheduler {problem}")
+        args.scheduler = args.scheduler.strip()
     cfgs = [load_config(c) for c in args.config]
     out = Path(args.out)
     computes = {(c.scheduler, c.workers) for c in cfgs}
@@ -277,7 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "output folder each inside --out, and campaign.csv across them")
     ident.add_argument("--out", default="dynid-out", help="output folder, replaced as a whole at the end "
                                                           "(default: dynid-out)")
-    ident.add_argument("--scheduler", default=None, metavar="ADDRESS", type=_scheduler_address,
+    ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
                             "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
                             "config's [compute] scheduler, else this machine's threads")
