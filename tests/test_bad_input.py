@@ -135,6 +135,33 @@ def R(a: str, b: str) -> Callable[[str], str]:
     return edit
 
 
+def _time_in_ms(text: str) -> str:
+    """The log with its time column in ms under its "time [s]" header."""
+    rows = text.splitlines()
+    return "\n".join([rows[0]] + [f"{float(r.split(',', 1)[0]) * 1000:.10g}," + r.split(",", 1)[1]
+                                   for r in rows[1:]]) + "\n"
+
+
+def _damaged_parquet(text: str) -> bytes:
+    """The log as Parquet (plain column names), its first data page header overwritten: the footer reads, the data
+    does not (pyarrow's OSError names no file)."""
+    import io
+
+    import pyarrow.csv as pc
+    import pyarrow.parquet as pq
+
+    table = pc.read_csv(io.BytesIO(text.encode()))
+    table = table.rename_columns([c.split(" [")[0] for c in table.column_names])
+    buf = io.BytesIO()
+    pq.write_table(table, buf)
+    raw = bytearray(buf.getvalue())
+    raw[8:60] = b"\xff" * 52
+    return bytes(raw)
+
+
+NESTED = "x = " + "[" * 5000 + "]" * 5000 + "\n"
+PARQUET_FILES = ('files = { q = "log.csv", tau = "log.csv" }', 'files = { q = "l.parquet", tau = "l.parquet" }')
+
 # (case id, config edit, {file: new content (str: text, bytes: raw) or an edit of the base log}, words of the error)
 CONFIG_CASES = [
     ("duplicate test name", R('name = "b"', 'name = "a"'), {}, ["robot.toml", "'a'", "own name"]),
@@ -162,6 +189,29 @@ CONFIG_CASES = [
     ("compute scheduler number", lambda t: t + "\n[compute]\nscheduler = 8786\n", {},
      ["[compute]", "scheduler = 8786", "tcp://"]),
     ("compute key misspelt", lambda t: t + "\n[compute]\nworker = 2\n", {}, ["worker", "did you mean 'workers'"]),
+    # issue 30, item 4: no internal error for any of these
+    ("compute scheduler Local", lambda t: t + '\n[compute]\nscheduler = "Local"\n', {},
+     ["robot.toml", "[compute]", "scheduler = 'Local'", '"local"']),
+    ("compute scheduler threads", lambda t: t + '\n[compute]\nscheduler = "threads"\n', {},
+     ["robot.toml", "[compute]", "scheduler = 'threads'", "leave the scheduler out"]),
+    ("compute scheduler dashboard", lambda t: t + '\n[compute]\nscheduler = "http://10.0.0.5:8787"\n', {},
+     ["robot.toml", "[compute]", "dashboard", "tcp://HOST:8786"]),
+    ("order 2**62", R("order = 4", f"order = {2**62}"), {}, ["robot.toml", f"order = {2**62}", "at most 20"]),
+    ("known 1e308", R('method = "wls"', 'method = "wls"\nknown = { FV1 = 1e308 }'), {},
+     ["robot.toml", "[identification]", "FV1 = 1e+308", "SI units"]),
+    ("config nested 5000 deep", lambda t: t + NESTED, {}, ["robot.toml", "nests", "right file"]),
+    ("binary reference file", lambda t: t + '\n[reference]\nfile = "published.csv"\n',
+     {"published.csv": bytes(range(256)) * 8}, ["robot.toml", "[reference]", "published.csv", "binary", "CSV text"]),
+    ("reference row not a combination", lambda t: t + '\n[reference]\nfile = "published.csv"\n',
+     {"published.csv": "Izz1 ++ m3,1,2,3,4\n"}, ["[reference]", "published.csv", "line 1", "Izz1 + 1.0*Ia1"]),
+    ("cutoff 1e-9", R("cutoff = 20.0", "cutoff = 1e-9"), {}, ["robot.toml", "[conditioning]", "cutoff = 1e-09",
+                                                            "0.01 Hz"]),
+    ("decimate 1000 on 3000 samples", R("decimate = [5]", "decimate = [1000]"), {},
+     ["robot.toml", "rows for the", "[conditioning] decimate"]),
+    ("time in ms under [s]", None, {"log.csv": _time_in_ms},
+     ["robot.toml", "[conditioning] cutoff = 20", "log.csv", "time [ms]"]),
+    ("damaged Parquet data", R(*PARQUET_FILES), {"l.parquet": lambda t: _damaged_parquet(t)},
+     ["l.parquet", "row group 0", "damaged"]),
     ("role unknown", R('role = "validate"', 'role = "check"'), {}, ["role", "'check'"]),
     ("method unknown", R('method = "wls"', 'method = "wsl"'), {}, ["method", "'wsl'"]),
     ("method misspelt key", R('method = "wls"', 'methd = "wls"'), {}, ["methd", "did you mean 'method'"]),
@@ -278,6 +328,9 @@ MODEL_CASES = [
     ("negative moment of inertia", R("M = 2.0", "M = 2.0\nZZ = -0.1"), ["ZZ = -0.1", "moment of inertia"]),
     ("negative viscous friction", R("M = 2.0", "M = 2.0\nFV = -1.0"), ["FV = -1", "friction"]),
     ("a length in the wrong unit", R('"pi/2", 0.3', '"pi/2", 1e8'), ["frame 2", "column d", "metres"]),
+    ("a length in mm", R('"pi/2", 0.3', '"pi/2", 300'), ["frame 2", "column d", "300 m", "metres", "0.3 m"]),
+    ("gravity in the wrong unit", R("-9.81]", "-9.81e6]"), ["gravity", "m/s²", "at most 50", "-9.81"]),
+    ("model nested 5000 deep", lambda t: t + NESTED, ["model.toml", "nests"]),
     ("a tree too large to analyse", lambda t: 'name = "chain"\nframes = [' + ", ".join(
         f"[{j}, {j - 1}, 0, 0, 0, {j % 2 * 1.5707963}, 0.1, 0, 0.05]" for j in range(1, 10001)) + "]\n",
      ["10000 equations", "GiB", "smaller tree"]),
@@ -293,6 +346,97 @@ def test_bad_model_file(base, tmp_path, capsys, edit, words):
         path.write_text(edit(MODEL))
     code, err = run(capsys, "model", "show", path)
     assert_one_line_error(code, err, *words)
+
+
+def _vehicle_text() -> str:
+    from dynid.vehicle.description import vehicle_path
+
+    return vehicle_path("peugeot406").read_text()
+
+
+VEHICLE_CASES = [
+    ("body mass in g", R("M6 = 1685.0", "M6 = 1685000.0"), ["[a_priori]", "M6 = 1.685e+06", "300..4000 kg", "unit"]),
+    ("spring in N/mm", R("ks9 = 22000.0", "ks9 = 22.0"), ["[a_priori]", "ks9 = 22", "N/m", "unit"]),
+    ("inertial unit 50 m from the car", R("position_m = [0.0, 0.0, 0.0]", "position_m = [0.0, 50.0, 0.0]"),
+     ["[imu] position_m", "not on the car", "lengths in m"]),
+    ("vehicle nested 5000 deep", lambda t: NESTED + t, ["car.toml", "nests"]),
+]
+
+
+@pytest.mark.parametrize("edit, words", [c[1:] for c in VEHICLE_CASES], ids=[c[0] for c in VEHICLE_CASES])
+def test_bad_vehicle_file(tmp_path, capsys, edit, words):
+    path = tmp_path / "car.toml"
+    path.write_text(edit(_vehicle_text()))
+    code, err = run(capsys, "vehicle", "show", path)
+    assert_one_line_error(code, err, "car.toml", *words)
+
+
+def test_the_shipped_vehicles_and_examples_are_in_range():
+    """The range checks refuse none of the files dynid ships (and the baseline of the cases above reads)."""
+    from dynid.vehicle.description import load_vehicle, shipped_vehicles
+
+    for name in shipped_vehicles():
+        load_vehicle(name)
+    load_vehicle(Path(__file__).parents[1] / "examples" / "mujoco_car" / "vehicle.toml")
+
+
+@pytest.mark.parametrize("code_, words", [("ENOSPC", ["No space left", "free space", "--out"]),
+                                          ("EFBIG", ["too large", "ulimit -f", "--out"])], ids=["disk full", "EFBIG"])
+def test_a_full_disk_names_the_output(base, tmp_path, capsys, monkeypatch, code_, words):
+    """A write refused for want of room whose OSError names no file (as write() gives it) names --out."""
+    import errno
+
+    import dynid.pipeline.run as pipeline_run
+
+    def full(*_a, **_k):
+        number = getattr(errno, code_)
+        raise OSError(number, os.strerror(number))
+
+    monkeypatch.setattr(pipeline_run, "write_outputs", full)
+    work = tmp_path / "w"
+    shutil.copytree(base, work)
+    code, err = run(capsys, "identify", work / "robot.toml", "--out", work / "out")
+    assert_one_line_error(code, err, str(work / "out"), *words)
+
+
+def test_a_config_named_like_the_campaign_table_keeps_both(base, tmp_path, capsys):
+    """campaign.csv.toml's folder and the campaign table campaign.csv no longer replace each other."""
+    work = tmp_path / "w"
+    shutil.copytree(base, work)
+    shutil.copy(work / "robot.toml", work / "campaign.csv.toml")
+    code, err = run(capsys, "identify", work / "robot.toml", work / "campaign.csv.toml", "--out", work / "out")
+    assert code == 0, err[-1500:]
+    assert (work / "out" / "campaign.csv").is_file()
+    assert (work / "out" / "campaign.csv-config" / "results.json").is_file()
+    assert (work / "out" / "robot" / "results.json").is_file()
+
+
+def test_a_negative_seed_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, err = run(capsys, "simulate", "static", "--duration", "1", "--seed", "-1", "--out", "x.csv")
+    assert_one_line_error(code, err, "--seed -1", ">= 0")
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("address, words", [("threads", ["leave the scheduler out"]), ("Local", ['"local"']),
+                                            ("http://10.0.0.5:8787", ["dashboard", "tcp://HOST:8786"])],
+                         ids=["threads", "Local", "dashboard"])
+def test_a_scheduler_option_of_the_wrong_kind_is_refused(base, tmp_path, capsys, address, words):
+    code, err = run(capsys, "identify", base / "robot.toml", "--scheduler", address, "--out", tmp_path / "out")
+    assert_one_line_error(code, err, f"--scheduler {address!r}", *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_identify_from_python_takes_a_path(base, tmp_path):
+    """dynid.identify("config.toml"): a path is loaded; anything else but a config says what it takes."""
+    import dynid
+
+    work = tmp_path / "w"
+    shutil.copytree(base, work)
+    run_ = dynid.identify(str(work / "robot.toml"))
+    assert run_.errors["direct"]["overall"] < 1.0
+    with pytest.raises(TypeError, match="config file's path or an IdentifyConfig"):
+        dynid.identify(3)
 
 
 def test_a_model_file_with_a_bom_reads(tmp_path, capsys):

@@ -18,6 +18,24 @@ def load_model(path: str | os.PathLike[str]) -> Model:
     return Model(load_tree(path))
 
 
+def identify(config, progress=None, scheduler=None):
+    """Run the identification a config describes, as `dynid identify` does (without writing the output folder).
+
+    config: the config file's path (str or path-like), or an `IdentifyConfig` from
+    `dynid.pipeline.config.load_config`. progress: a callable taking each progress message; scheduler: where the
+    segments run (default: the config's [compute], else this machine's threads). Returns the
+    `IdentificationRun` (its `result`, `errors`, `summary()`)."""
+    from .pipeline.config import IdentifyConfig, load_config
+    from .pipeline.run import identify as run
+
+    if isinstance(config, str | os.PathLike):
+        config = load_config(config)
+    elif not isinstance(config, IdentifyConfig):
+        raise TypeError(f"dynid.identify() takes a config file's path or an IdentifyConfig "
+                        f"(dynid.pipeline.config.load_config), not {type(config).__name__}")
+    return run(config, progress=progress, scheduler=scheduler)
+
+
 __all__ = [
     "EXAMPLES",
     "BaseParameters",
@@ -27,6 +45,7 @@ __all__ = [
     "Wrench",
     "__version__",
     "example_path",
+    "identify",
     "load_model",
     "save_tree",
 ]

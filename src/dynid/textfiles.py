@@ -56,6 +56,9 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -
         raise error(f"{path}: the {what} is {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise error(f"{path}: the {what} nests arrays or tables hundreds deep, beyond what can be read; no dynid "
+                    "file nests more than a few levels: is it the right file? look for a run of '[' or '{'") from None
 
 
 def read_csv_rows(path: str | os.PathLike[str]) -> list[list[str]]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from collections.abc import Sequence
 
@@ -116,12 +117,24 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..atomic import final_text, staged_folder, write_atomic
-    from ..pipeline.campaign import campaign_names, identify_campaign, summary, summary_csv, summary_text
+    from ..pipeline.campaign import (
+        SUMMARY_FILE,
+        campaign_names,
+        identify_campaign,
+        summary,
+        summary_csv,
+        summary_text,
+    )
     from ..pipeline.config import ConfigError, load_config
     from ..pipeline.run import write_outputs
-    from ..pipeline.schedulers import scheduler_for
+    from ..pipeline.schedulers import address_problem, scheduler_for
     from ..report.build import input_files
 
+    if args.scheduler is not None:  # checked before any config is read or any work starts
+        problem = address_problem(args.scheduler)
+        if problem is not None:
+            raise ConfigError(f"--scheduler {problem}")
+        args.scheduler = args.scheduler.strip()
     cfgs = [load_config(c) for c in args.config]
     out = Path(args.out)
     computes = {(c.scheduler, c.workers) for c in cfgs}
@@ -152,7 +165,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         if len(runs) > 1:
             head, rows = summary(names, runs)
             print(f"\nThe campaign ({len(runs)} identifications):\n{summary_text(head, rows)}")
-            files.append(write_atomic(stage / "campaign.csv", summary_csv(head, rows)))
+            files.append(write_atomic(stage / SUMMARY_FILE, summary_csv(head, rows)))
     print(f"\nwrote {', '.join(str(out / f.relative_to(stage)) for f in files)}")
     failed = [(n, r) for n, r in zip(names, runs, strict=True) if isinstance(r, Exception)]
     for name, exc in failed:  # the others' results are written: a campaign is not lost to one broken file
@@ -288,17 +301,41 @@ def _user_errors() -> tuple[type[Exception], ...]:
     from ..vehicle.sensors import SensorError
     from ..vehicle.sim.car import SimulationError
     from ..vehicle.sim.manoeuvres import ManoeuvreError
+    from .usage import UsageError
 
     return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationError,
-            ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError)
+            ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError, UsageError)
+
+
+# a write the file system refused for want of room: the fix, and the output named when the error names no file
+_NO_ROOM = {errno.ENOSPC: "free space on that disk, or write elsewhere (--out)",
+            errno.EDQUOT: "your disk quota is used up: free space, or write elsewhere (--out)",
+            errno.EFBIG: "a file outgrew the largest size allowed there (the file system's limit, or the shell's "
+                         "ulimit -f): write elsewhere (--out), or write shorter files"}
+
+
+def _os_error_text(exc: OSError, out: object) -> str:
+    """One line for a file system refusal: the file (or, for a write refused for want of room that names none, the
+    output being written), what the system said, and the fix where there is one."""
+    from ..atomic import final_text
+
+    what = " ".join(str(exc.strerror or exc).split())
+    fix = _NO_ROOM.get(exc.errno)
+    name = exc.filename if exc.filename else (out if fix and out else None)
+    where = f"{final_text(str(name))}: " if name else ""
+    if fix:
+        return f"{where}{what} while writing{'' if exc.filename or not out else ' the output'}; {fix}"
+    return f"{where}{what}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     from ..atomic import Terminated, final_text
+    from .usage import check_options
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_options(args)
         return int(args.func(args) or 0)
     except _user_errors() as exc:
         print(f"dynid: error: {final_text(str(exc))}", file=sys.stderr)
@@ -321,8 +358,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:  # a file system refusal (full disk, read-only, a folder where a file is wanted)
         if args.debug:
             raise
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"dynid: error: {final_text(where)}{exc.strerror or exc} (--debug shows where)", file=sys.stderr)
+        print(f"dynid: error: {_os_error_text(exc, getattr(args, 'out', None))} (--debug shows where)",
+              file=sys.stderr)
         return 2
     except Exception as exc:  # a bug of dynid's: one line and the way to the traceback, never a raw one
         if args.debug:

@@ -20,6 +20,19 @@ def fill(text: str, indent: str = "") -> str:
                        for p in text.strip().split("\n\n"))
 
 
+class UsageError(ValueError):
+    """An option's value that parses but cannot be used (a negative --seed): one line naming the option and the
+    fix, as every other bad input."""
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """The options shared by several commands, checked before the command runs."""
+    seed = getattr(args, "seed", None)
+    if seed is not None and seed < 0:
+        raise UsageError(f"--seed {seed}: give a whole number >= 0 (NumPy's generators take no negative seed; the "
+                         "same seed gives the same noise)")
+
+
 def command(subparsers: argparse._SubParsersAction, name: str, *, help: str, description: str,
             examples: str | Sequence[str], notes: str = "") -> argparse.ArgumentParser:
     """A sub-command whose help shows `description` (wrapped) and `examples` (kept as written, each a full

@@ -79,7 +79,9 @@ def fit_group(
         raise IdentificationError(
             f"equation group {group!r} has {n} rows for the {r} parameters it identifies ({', '.join(params)}): "
             "its noise level sigma_j = ||Y_j - W_j X_j|| / sqrt(n_j - p_j) needs more rows than parameters; "
-            "add samples of this group, merge it with another group, or pass group_sigmas",
+            "add samples of this group (a longer test, or less decimation: a config's [conditioning] decimate "
+            "divides the samples by its factors' product; a lower min_speed), merge it with another group, or pass "
+            "group_sigmas",
             parameters=params,
             group=group,
         )

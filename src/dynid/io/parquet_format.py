@@ -71,7 +71,7 @@ def read_parquet(
             skipped[field.name] = f"column of type {field.type}, not numeric"
             continue
         # One column at a time: the memory peak is the data plus one column, not twice the file.
-        col = pfile.read(columns=[field.name], use_pandas_metadata=False).column(0)
+        col = read_columns(pfile, label, [field.name]).column(0)
         if pa.types.is_timestamp(field.type):
             start = col[0].as_py() if len(col) else None
             if start is not None:
@@ -92,7 +92,26 @@ def open_parquet(path: Any, label: str, filesystem: Any = None) -> Any:
     except (pa.ArrowInvalid, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
-        raise FileFormatError(f"{label}: not a readable Parquet file ({exc})", source=label) from None
+        raise FileFormatError(f"{label}: not a readable Parquet file ({' '.join(str(exc).split())})",
+                              source=label) from None
+
+
+def read_columns(pfile: Any, label: str, columns: list[str], group: int | None = None) -> Any:
+    """`pfile.read_row_group(group, columns)` (group None: the whole file's); a damaged data page (pyarrow's
+    OSError or ArrowException, which name no file) is a one-line `FileFormatError` naming the file."""
+    pa = require("pyarrow", "Reading Parquet files")
+    try:
+        if group is None:
+            return pfile.read(columns=columns, use_pandas_metadata=False)
+        return pfile.read_row_group(group, columns=columns, use_pandas_metadata=False)
+    except (OSError, pa.ArrowException) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        where = "" if group is None else f"row group {group}, "
+        shown = ", ".join(columns[:3]) + (", ..." if len(columns) > 3 else "")
+        raise FileFormatError(
+            f"{label}: {where}column(s) {shown}: not readable Parquet data ({' '.join(str(exc).split())}); the file is "
+            "damaged or cut short: write it (or copy it) again", source=label) from None
 
 
 def schema_metadata(schema: Any) -> dict[str, str]:

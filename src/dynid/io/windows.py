@@ -838,7 +838,7 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     ticks: dict[str, int] = {}
     stamps = [f for f in fields if pa.types.is_timestamp(f.type)]
     if stamps and first is not None:
-        table = pfile.read_row_group(first, columns=[f.name for f in stamps], use_pandas_metadata=False)
+        table = parquet_format.read_columns(pfile, label, [f.name for f in stamps], first)
         for f in stamps:
             col = table.column(f.name)
             ticks[f.name] = parquet_format.first_tick(pa, col)
@@ -850,7 +850,7 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     for g in groups:
         rows = meta.row_group(g).num_rows
         if tfield is not None:
-            col = pfile.read_row_group(g, columns=[time_name], use_pandas_metadata=False).column(0)
+            col = parquet_format.read_columns(pfile, label, [time_name], g).column(0)
             column = parquet_format.convert_column(pa, tfield, col, ticks.get(time_name))
             t = table_time([column], time_name, None, label, None, row0)
         else:
@@ -875,7 +875,7 @@ def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]
             opened.append(_open_parquet(index.path))
         pfile = opened[0]
         field = pfile.schema_arrow.field(name)
-        col = pfile.read_row_group(block.group, columns=[name], use_pandas_metadata=False).column(0)
+        col = parquet_format.read_columns(pfile, index.path, [name], block.group).column(0)
         return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(name))
 
     return _cached(_key(index, block.group, name), make, _columns_nbytes, store)

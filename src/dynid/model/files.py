@@ -37,7 +37,8 @@ equals FS tanh(qd / (2 vs)): choose by the convention of the vs you have. A per-
 takes the top-level shape when it names none, and the top-level vs when it names none and
 its shape is not sign; a shape other than sign applies only to joints with an FS term.
 
-Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`.
+Angles and lengths may be numbers or strings of arithmetic on numbers and `pi`. Lengths are in m
+(each under 100 m: mm written for m is refused), gravity in m/s² (at most 50), parameters SI.
 """
 
 from __future__ import annotations
@@ -102,9 +103,11 @@ def load_tree(path: str | os.PathLike[str]) -> Tree:
 # mass, rotor inertia, friction); products of inertia, first moments and offsets take either sign
 _NONNEGATIVE = {"XX": "a moment of inertia", "YY": "a moment of inertia", "ZZ": "a moment of inertia",
                 "M": "a mass", "IA": "a rotor inertia", "FV": "viscous friction", "FS": "Coulomb friction"}
-# lengths beyond this are a unit slip, and they wreck the base-parameter analysis's precision (1e8 m once gave
-# 4 base parameters instead of 17)
-MAX_LENGTH_M = 1e4
+# lengths beyond this are a unit slip (mm written for m: d = 300), and they wreck the base-parameter analysis's
+# precision (1e8 m once gave 4 base parameters instead of 17); no robot arm or car spans 100 m
+MAX_LENGTH_M = 100.0
+# m/s^2: gravity beyond this is a unit slip (mm/s^2: -9810, or -9.81e6); the Earth's is 9.81, Jupiter's 24.8
+MAX_GRAVITY = 50.0
 
 
 def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
@@ -142,8 +145,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             else:
                 vals[col] = parse_number(v, where)
                 if col in ("b", "d", "r") and abs(vals[col]) > MAX_LENGTH_M:
-                    raise ModelError(f"{where}: {vals[col]:g} m; lengths are in metres and a tree spans less than "
-                                     f"{MAX_LENGTH_M:g} m (a unit slip?)")
+                    raise ModelError(f"{where}: {vals[col]:g} m; lengths are in metres and a link is shorter than "
+                                     f"{MAX_LENGTH_M:g} m (a unit slip? {vals[col]:g} mm is "
+                                     f"{vals[col] / 1000:g} m)")
         frames.append(Frame(**vals))
 
     joint_terms: dict[int, tuple[str, ...]] = {}
@@ -207,6 +211,10 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
     gravity = data.get("gravity", [0.0, 0.0, -9.81])
     if not isinstance(gravity, list) or len(gravity) != 3:
         raise ModelError(f"{source}: gravity must be a list of 3 numbers")
+    g = [parse_number(x, f"{source}: gravity") for x in gravity]
+    if math.hypot(*g) > MAX_GRAVITY:
+        raise ModelError(f"{source}: gravity = {_short(gravity)} is {math.hypot(*g):g} m/s²; give it in m/s², at most "
+                         f"{MAX_GRAVITY:g} (the Earth's: [0, 0, -9.81] with z up)")
     try:
         return Tree(
             name=str(data.get("name", Path(source).stem)),
@@ -216,7 +224,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             values=values,
             known=frozenset(data.get("known", [])),
             labels=dict(data.get("labels", {})),
-            gravity=tuple(parse_number(g, f"{source}: gravity") for g in gravity),
+            gravity=tuple(g),
             joint_names=joint_names,
             friction_shape=friction_shape,
         )

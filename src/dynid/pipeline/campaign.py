@@ -24,11 +24,15 @@ Progress = Callable[[str], None]
 CAR_FIGURES = ("mass_total", "cg_ahead_rear", "cg_height", "cg_lateral")
 
 
+SUMMARY_FILE = "campaign.csv"  # the campaign's table, beside the configs' folders in the output folder
+
+
 def campaign_names(paths: Sequence[Path]) -> list[str]:
-    """One output folder name per config: its file's stem, with its folder's name where two stems agree."""
-    stems = [p.stem for p in paths]
-    names = [f"{p.parent.name}-{p.stem}" if stems.count(p.stem) > 1 else p.stem for p in paths]
-    if len(set(names)) < len(names):
+    """One output folder name per config: its file's stem, with its folder's name where two stems agree; a stem that
+    is the campaign table's name (campaign.csv.toml) gets "-config", so that neither replaces the other."""
+    stems = [p.stem + "-config" if p.stem.casefold() == SUMMARY_FILE.casefold() else p.stem for p in paths]
+    names = [f"{p.parent.name}-{stem}" if stems.count(stem) > 1 else stem for p, stem in zip(paths, stems, strict=True)]
+    if len({n.casefold() for n in names}) < len(names):
         names = [f"{i + 1}-{n}" for i, n in enumerate(names)]
     return names
 

@@ -27,8 +27,8 @@
     tau = [[32, 0], [0, 32]]
 
     [conditioning]
-    cutoff = 25.0                    # Hz, zero-phase Butterworth on positions
-    order = 4                        # a whole number >= 1
+    cutoff = 25.0                    # Hz (0.01 to below fs/2), zero-phase Butterworth on positions
+    order = 4                        # a whole number from 1 to 20
     border = 0.1                     # s trimmed at each end (default: the filter transient)
     decimate = [10, 10]              # whole factors >= 2, applied in turn (or one: decimate = 10)
     min_speed = { 1 = 0.05 }         # rows of joint 1 dropped where |qd1| < 0.05
@@ -36,7 +36,7 @@
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
                                      # (needs pip install 'dynid[pc]'; docs/robot.md)
-    known = { IA1 = 0.36 }           # fixed parameters: their contribution moves to Y
+    known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
 
@@ -266,6 +266,12 @@ def _compute(c: dict, err: Err) -> dict[str, Any]:
     if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
         raise err("[compute]", f"scheduler = {scheduler!r}; give \"local\" (a Dask cluster on this machine) or a "
                                "Dask scheduler's address such as \"tcp://10.0.0.5:8786\"")
+    if scheduler is not None:
+        from .schedulers import address_problem
+
+        problem = address_problem(scheduler)
+        if problem is not None:
+            raise err("[compute]", f"scheduler = {problem}")
     workers = c.get("workers")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise err("[compute]", f"workers = {workers!r}; give a whole number >= 1 (threads, or worker processes)")
@@ -474,7 +480,7 @@ def _robot_conditioning(c: dict, err: Err) -> Conditioning:
     if border is not None and not _number(border, lambda v: v >= 0):
         raise err(where, f"border = {border!r}; give the time trimmed at each end in s (a number >= 0)")
     return Conditioning(
-        cutoff=_float(c, "cutoff", 25.0, where, err, "a cut-off in Hz (a positive number)"),
+        cutoff=_cutoff(c, 25.0, where, err),
         order=_whole(c, "order", 4, where, err),
         border=None if border is None else float(border),
         decimate=_decimate(c, (10, 10), where, err),
@@ -509,6 +515,9 @@ def _known(ident: dict, err: Err) -> dict[str, float]:
             raise err("[identification]", f"{exc} (the parameter's fixed value, SI)") from None
         if not np.isfinite(value):
             raise err("[identification]", f"known: {name} = {v!r}; give a finite number (its fixed value, SI)")
+        if abs(value) > MAX_KNOWN:
+            raise err("[identification]", f"known: {name} = {v!r} is beyond ±{MAX_KNOWN:g}: give its fixed value in SI "
+                                          "units (kg, m, kg·m², N/m, N·s/m, N; is the unit right?)")
         out[name] = value
     return out
 
@@ -529,6 +538,20 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
     ref = {**ref, "file": here / ref["file"]}
     if not ref["file"].exists():
         raise err(where, f"file not found: {ref['file']}")
+    if ref["file"].is_dir():
+        raise err(where, f"file = {str(ref['file'])!r} is a folder; give the published table's CSV file")
+    from .reference import parse_combination, reference_text
+
+    try:  # a binary or non-UTF-8 file is refused now, before the identification (its rows are read with the results)
+        reference_text(ref["file"])
+        for k, v in ref.get("combinations", {}).items():
+            try:
+                parse_combination(v)
+            except ModelError as exc:
+                raise ModelError(f"combinations: {k} = {v!r}: {exc}; give a linear combination of base "
+                                 "parameters: fvm6 = \"1024*fvm6\"") from None
+    except ModelError as exc:
+        raise err(where, str(exc)) from None
     return ref
 
 
@@ -542,7 +565,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         raise err("[identification]", f"base = {base!r}; use \"generic\" (the paper's 48) or \"car\"")
     offsets, segments = _offsets(data.get("uncertainty", {}), err, suite)
     return CarSettings(
-        cutoff=_float(c, "cutoff", 4.0, where, err, "a cut-off in Hz (a positive number)"),
+        cutoff=_cutoff(c, 4.0, where, err),
         order=_whole(c, "order", 4, where, err), decimate=_decimate(c, (5, 10), where, err, empty=True),
         attitude_crossover=_float(c, "attitude_crossover", 0.2, where, err, "a crossover in Hz (a positive number)"),
         segment=_float(c, "segment", 60.0, where, err, "a segment length in s (a positive number)"),
@@ -592,11 +615,34 @@ def _float(table: dict, key: str, default: float, where: str, err: Err, expected
     return float(value)
 
 
+# the Butterworth's order: the paper uses 5 to 8; beyond 20 the sections' poles crowd the unit circle and the
+# borders outgrow any test (order 5000 designed for minutes, 2**62 asked for an array larger than memory)
+MAX_ORDER = 20
+# Hz: below it the zero-phase filter's borders (about 3 / cutoff s at each end) outlast any test, and its impulse
+# response is longer than memory holds (1e-9 Hz once asked for 52 TiB)
+MIN_CUTOFF_HZ = 0.01
+# [identification] known: a fixed value larger than this in SI units is a unit slip (no robot or car parameter
+# comes near: a car's body is 1e3 kg, 1e4 kg.m^2, a tire 1e6 N/m), and 1e308 overflowed the least squares
+MAX_KNOWN = 1e9
+
+
+def _cutoff(table: dict, default: float, where: str, err: Err) -> float:
+    """The positions' (a car's: every signal's) low-pass cut-off, Hz: MIN_CUTOFF_HZ or above (the sample rate's
+    Nyquist limit is checked against each test's files)."""
+    value = _float(table, "cutoff", default, where, err, "a cut-off in Hz (a positive number)")
+    if value < MIN_CUTOFF_HZ:
+        raise err(where, f"cutoff = {table.get('cutoff')!r} Hz is below {MIN_CUTOFF_HZ:g} Hz: the filter's borders "
+                         f"(about {3 / value:.3g} s at each end) would outlast any test; give the cut-off in Hz, 2 to "
+                         "5 times the highest frequency of the motion (a robot: 10-30 Hz, a car: 3-5 Hz)")
+    return value
+
+
 def _whole(table: dict, key: str, default: int, where: str, err: Err) -> int:
-    """The filter order: a whole number >= 1 (4.7 is refused, not truncated)."""
+    """The filter order: a whole number from 1 to MAX_ORDER (4.7 is refused, not truncated)."""
     value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise err(where, f"{key} = {value!r}; give the Butterworth order, a whole number >= 1")
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_ORDER:
+        raise err(where, f"{key} = {value!r}; give the Butterworth order, a whole number >= 1 and at most "
+                         f"{MAX_ORDER} (the paper uses 5 to 8)")
     return value
 
 

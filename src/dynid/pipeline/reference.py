@@ -12,6 +12,7 @@ the published quantity as a linear combination of our base parameters instead.
 from __future__ import annotations
 
 import csv
+import io
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -53,18 +54,47 @@ class ReferenceRow:
     wls_rel_std: float
 
 
+def reference_text(path: str | Path) -> str:
+    """The text of a reference table; a file that cannot be read, is binary or is not UTF-8 raises a `ModelError`
+    naming it and the fix (a config's loader calls this before any work; its rows are read with the results)."""
+    where = f"{path} (the [reference] file)"
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as exc:
+        raise ModelError(f"{where}: cannot read it ({exc.strerror or exc})") from None
+    if b"\x00" in raw[:4096]:
+        raise ModelError(f"{where}: binary data, not text (a NUL byte in its first 4 kB); give the published table "
+                         "as CSV text: expression, OLS value, OLS %σ, WLS value, WLS %σ") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        from ..textfiles import encoding_problem
+
+        raise ModelError(f"{where}: {encoding_problem(path)}") from None
+    return text
+
+
 def read_reference(path: str | Path) -> list[ReferenceRow]:
+    """The rows of a reference table (module doc). Errors name the file (and the line) and say what to give: a
+    file that is not UTF-8 text, a row that is not `expression, 4 numbers`, an expression that is no combination."""
+    where = f"{path} (the [reference] file)"
+    text = reference_text(path)
     rows = []
-    with open(path, newline="") as fh:
-        for line, rec in enumerate(csv.reader(fh), start=1):
-            if not rec:
-                continue
-            try:
-                rows.append(ReferenceRow(rec[0], *(float(x) for x in rec[1:5])))
-            except (ValueError, TypeError):
-                raise ModelError(
-                    f"{path}, line {line}: expected 'expression, OLS value, OLS %σ, WLS value, WLS %σ'; got {rec}"
-                ) from None
+    for line, rec in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+        if not rec or not any(c.strip() for c in rec):
+            continue
+        try:
+            if len(rec) < 5:
+                raise ValueError
+            row = ReferenceRow(rec[0], *(float(x) for x in rec[1:5]))
+            parse_combination(row.expression)
+        except (ValueError, TypeError, ModelError):
+            shown = repr(rec) if len(repr(rec)) <= 80 else repr(rec)[:60] + "..."
+            raise ModelError(
+                f"{where}, line {line}: expected 'expression, OLS value, OLS %σ, WLS value, WLS %σ' with the "
+                f"expression a combination like Izz1 + 1.0*Ia1; got {shown}"
+            ) from None
+        rows.append(row)
     return rows
 
 

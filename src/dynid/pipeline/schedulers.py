@@ -157,6 +157,40 @@ class DaskScheduler:
         return dict(zip(out, self.client.gather(list(out.values())), strict=True))
 
 
+# the schemes dask.distributed connects to (distributed.comm's registry; http is the dashboard's, not a scheduler's)
+DASK_SCHEMES = ("tcp", "tls", "ucx", "ws", "wss", "inproc")
+_ADDRESS_HELP = ("give \"local\" (a Dask cluster on this machine), a Dask scheduler's address such as "
+                 "\"tcp://10.0.0.5:8786\", or leave it out for this machine's threads")
+
+
+def address_problem(address: str) -> str | None:
+    """Why `address` is no scheduler dynid can use, with the fix (None: "local" or a Dask scheduler's address
+    scheme://host:port, the scheme optional). Checked where the address is read, before any work starts."""
+    text = address.strip()
+    if text == "local":
+        return None
+    if text.lower() in ("local", "localcluster", "threads", "thread", "this machine", "none", "default"):
+        hint = ("write it in lower case: \"local\" (a Dask cluster on this machine)" if text.lower() == "local" else
+                "this machine's threads are the default: leave the scheduler out (or give \"local\" for a Dask "
+                "cluster on this machine)")
+        return f"{address!r} is not a scheduler; {hint}"
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    scheme = scheme.lower()
+    if scheme in ("http", "https"):
+        return (f"{address!r} is a web address (the Dask dashboard's, usually port 8787), not the scheduler's; give "
+                "the scheduler's address, tcp://HOST:8786 (printed by dask scheduler as \"Scheduler at\")")
+    if scheme not in DASK_SCHEMES:
+        return f"{address!r}: unknown scheme {scheme!r} (Dask's: {', '.join(DASK_SCHEMES)}); {_ADDRESS_HELP}"
+    if scheme == "inproc":
+        return None
+    host, colon, port = rest.rstrip("/").rpartition(":")
+    if not colon or not host or not port.isdigit() or not 0 < int(port) < 65536 or "/" in host:
+        return f"{address!r} is not \"local\" nor a scheduler's address HOST:PORT; {_ADDRESS_HELP}"
+    return None
+
+
 def scheduler_for(address: str | None, workers: int | None = None) -> LocalScheduler | DaskScheduler:
     """None: this machine's threads; "local" or an address: Dask."""
     return LocalScheduler(workers) if not address else DaskScheduler(address, workers)

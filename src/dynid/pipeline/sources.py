@@ -174,12 +174,31 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
         expect = (unit_factor(units[q])[1],) if q in units else None
         factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
     fs = 1.0 / float(np.median(np.diff(clock)))
+    if cfg.car is not None:
+        _below_nyquist(cfg, spec, cfg.car.cutoff, fs, timed, label)
     N = clock.size
     bd = border(fs)
     step = N if segment_s is None else max(int(segment_s * fs), 4 * bd)
     segments = tuple((s, min(N, s + step + 2 * bd)) for s in range(0, max(N - 2 * bd, 1), step))
     return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock, fs, timed, spec.max_gap,
                        tuple(s.h for _, s in streams), segments)
+
+
+def _below_nyquist(cfg: IdentifyConfig, spec: TestSpec, cutoff: float, fs: float, timed: bool, file: str) -> None:
+    """The [conditioning] cutoff must be below the test's Nyquist frequency: refused naming the config, the file and
+    its sample rate, with the likely slip (a time column in ms read as s; an fs in kHz)."""
+    if cutoff < fs / 2:
+        return
+    lower = f"lower the cut-off below {fs / 2:.6g} Hz"
+    if timed and fs <= 2.0:  # steps of 0.5 s or more: a logger's ms (or µs) read as s
+        why = (f"{file}'s time stamps step by {1 / fs:.6g} s ({fs:.6g} Hz): is its time column in ms? give its unit "
+               f"in the header (\"time [ms]\"), else {lower}")
+    elif timed:
+        why = f"{file}'s time stamps step by {1 / fs:.6g} s ({fs:.6g} Hz); {lower}"
+    else:
+        why = f"the test's fs = {fs:g} Hz (no time column in {file}): give fs in Hz (not kHz), else {lower}"
+    raise ConfigError(f"{cfg.path}: [conditioning] cutoff = {cutoff:g} Hz is not below the Nyquist frequency "
+                      f"fs/2 = {fs / 2:.6g} Hz of test {spec.name!r}: {why}")
 
 
 def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
@@ -332,6 +351,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
         say(f"{spec.name}: every channel on one uniform {1 / ref.h:.6g} Hz clock, {clock.size} samples "
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
     fs = _rate(ref.h) if ref.timed or spec.fs is None else spec.fs
+    _below_nyquist(cfg, spec, cfg.conditioning.cutoff, fs, ref.timed, str(spec.files["q"]))
     units = {q: tuple(cfg.channels[q].unit or indexes[q].units.get(n, "") for n in cfg.channels[q].channels)
              for q in ("q", "tau")}
     return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in ("q", "tau")},

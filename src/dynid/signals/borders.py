@@ -76,7 +76,12 @@ def border_samples(fs: float, cutoff: float, order: int, tol: float = 1e-3) -> i
     radius = float(np.max(np.abs(poles)))
     # First guess of the response length from the slowest pole's decay, then doubled
     # until the truncated part is negligible against tol.
-    n = 64 + (math.ceil(math.log(1e-3 * tol) / math.log(radius)) if radius > 0.0 else 0)
+    n = 64 + (math.ceil(math.log(1e-3 * tol) / math.log(radius)) if 0.0 < radius < 1.0 else 0)
+    if n > _MAX_RESPONSE or radius >= 1.0:  # refused before allocating (a 1e-9 Hz cut-off asked for 52 TiB)
+        raise SignalError(
+            f"the impulse response of the order-{order} low-pass at cutoff {cutoff:g} Hz for fs = {fs:g} Hz is "
+            f"longer than {_MAX_RESPONSE} samples; raise the cut-off (or lower fs: decimate)"
+        )
     while True:
         impulse = np.zeros(n)
         impulse[0] = 1.0

@@ -267,13 +267,14 @@ def _check_points(g: CarGeometry, where: str) -> None:
     from .sensors import correvit_point, gnss_point, laser_point
 
     ground = g.wheel_centre_height - g.wheel_radius
-    named = [("correvit_position_m", correvit_point(g)), ("gnss_position_m", gnss_point(g))]
-    named += [(f"laser_positions_m[{k}]", laser_point(g, k)) for k in range(4)]
+    named = [("[sensors] correvit_position_m", correvit_point(g)), ("[sensors] gnss_position_m", gnss_point(g))]
+    named += [(f"[sensors] laser_positions_m[{k}]", laser_point(g, k)) for k in range(4)]
+    named.append(("[imu] position_m", np.asarray(g.imu_position, dtype=float)))
     for key, p in named:
         if p[0] <= ground + 0.05 or float(np.linalg.norm(p)) > 3.0 + g.wheelbase:
-            raise VehicleError(f"{where}: [sensors] {key} = {list(p)} m is not on the car (x6 must be above the "
-                               f"ground, {ground + 0.05:.3g} m, and the point near the body); frame 6: x6 up, y6 "
-                               "right, z6 forward, origin on the rear axle")
+            raise VehicleError(f"{where}: {key} = {[float(x) for x in p]} m is not on the car (x6 must be above the "
+                               f"ground, {ground + 0.05:.3g} m, and the point within {3.0 + g.wheelbase:.3g} m of "
+                               "O6); frame 6: x6 up, y6 right, z6 forward, origin on the rear axle; lengths in m")
 
 
 def _keys(table: dict, valid: set[str], where: str, section: str) -> None:
@@ -426,6 +427,35 @@ def _parameter_names() -> dict[str, str]:
     return out
 
 
+# plausible passenger-car ranges of the paper's 48 parameters (SI): outside them the value is a unit slip (g for kg,
+# N/mm for N/m) or a typo; wide enough for a small city car to a large van. docs/vehicle.md lists them
+_CHASSIS = 6
+WHEEL_FRAMES = (14, 23, 32, 41)
+TIRE_FRAMES = (15, 24, 33, 42)
+
+
+def parameter_range(name: str) -> tuple[float, float, str, str]:
+    """(low, high, unit, what) of a template parameter's plausible value for a passenger car."""
+    kind, frame = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
+    j = int(frame) if frame else 0
+    if j == _CHASSIS:
+        return {"M": (300.0, 4000.0, "kg", "the body's mass, wheels apart"),
+                "XX": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
+                "YY": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
+                "ZZ": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
+                }.get(kind, (-2e5, 2e5, "kg·m² or kg·m", "a product of inertia or first moment of the body"))
+    if j in WHEEL_FRAMES:
+        return {"M": (1.0, 200.0, "kg", "a wheel's mass")}.get(kind, (0.0, 50.0, "kg·m²", "a wheel's inertia"))
+    if j in TIRE_FRAMES:
+        return (1e4, 5e6, "N/m", "a tire's vertical stiffness kt")
+    return {"K": (1e3, 1e6, "N/m", "a suspension spring's stiffness ks"),
+            "FV": (0.0, 1e5, "N·s/m", "a damper's viscous coefficient h"),
+            "FS": (0.0, 1e4, "N", "a damper's dry friction fs"),
+            "OFF": (-1e5, 1e5, "N", "a damper's offset (preload) off"),
+            "karf": (0.0, 1e6, "N/m", "an anti-roll bar's stiffness"),
+            "karr": (0.0, 1e6, "N/m", "an anti-roll bar's stiffness")}.get(kind, (-math.inf, math.inf, "", ""))
+
+
 def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool) -> dict[str, float]:
     out: dict[str, float] = {}
     for k, v in t.items():
@@ -444,6 +474,13 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
         kind = n.rstrip("0123456789")
         if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr")) and v < 0:
             raise VehicleError(f"{where}: [{section}] {n} = {v}: a mass, stiffness, damping or friction is >= 0")
+    given = {names[k]: k for k in t}
+    for n, v in out.items():
+        lo, hi, unit, what = parameter_range(n)
+        if not lo <= v <= hi:
+            key = given.get(n, n)
+            raise VehicleError(f"{where}: [{section}] {key} = {v:g} is outside {lo:g}..{hi:g} {unit} for a passenger "
+                               f"car ({what}); is the unit right? parameters are SI")
     if complete:
         absent = [n for n in paper_parameter_names() if n not in out
                   and not n.startswith(("FS", "OFF"))]  # the paper gives no a priori fs and off: 0
