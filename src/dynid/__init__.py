@@ -25,14 +25,8 @@ def identify(config, progress=None, scheduler=None):
     `dynid.pipeline.config.load_config`. progress: a callable taking each progress message; scheduler: where the
     segments run (default: the config's [compute], else this machine's threads). Returns the
     `IdentificationRun` (its `result`, `errors`, `summary()`)."""
-    from .pipeline.config import IdentifyConfig, load_config
     from .pipeline.run import identify as run
 
-    if isinstance(config, str | os.PathLike):
-        config = load_config(config)
-    elif not isinstance(config, IdentifyConfig):
-        raise TypeError(f"dynid.identify() takes a config file's path or an IdentifyConfig "
-                        f"(dynid.pipeline.config.load_config), not {type(config).__name__}")
     return run(config, progress=progress, scheduler=scheduler)
 
 

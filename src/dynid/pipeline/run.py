@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +37,7 @@ from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_st
 from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
 from ..report import parameter_table
-from .config import ConfigError, IdentifyConfig, TestSpec
+from .config import ConfigError, IdentifyConfig, TestSpec, load_config
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .heap import trim_heap
 from .reduce import (
@@ -445,10 +446,16 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
     return run
 
 
-def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: Scheduler | None = None
-             ) -> IdentificationRun:
+def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | None = None,
+             scheduler: Scheduler | None = None) -> IdentificationRun:
     """Run the identification a config describes (a robot from joint files, or a car from its sensors), its
-    segments on `scheduler` (default: the config's [compute], else this machine's cores; see `schedulers`)."""
+    segments on `scheduler` (default: the config's [compute], else this machine's cores; see `schedulers`).
+    cfg: an `IdentifyConfig` (`config.load_config`) or the config file's path."""
+    if isinstance(cfg, str | os.PathLike):
+        cfg = load_config(cfg)
+    elif not isinstance(cfg, IdentifyConfig):
+        raise TypeError(f"identify() takes a config file's path or an IdentifyConfig "
+                        f"(dynid.pipeline.config.load_config), not {type(cfg).__name__}")
     if scheduler is None:
         with contextlib.closing(scheduler_for(cfg.scheduler, cfg.workers)) as own:
             return identify(cfg, progress, own)
