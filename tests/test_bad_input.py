@@ -16,6 +16,8 @@ import contextlib
 import json
 import os
 import shutil
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -629,3 +631,31 @@ def test_fuzz_csv_reader(tmp_path, raw):
     path.write_bytes(raw)
     with contextlib.suppress(DataError):
         read_recording(path, fs=100.0)
+
+
+@pytest.mark.skipif(os.name != "posix", reason="named pipes and /dev/zero")
+@pytest.mark.parametrize("kind", ["fifo", "dev_zero", "folder"])
+def test_a_data_file_that_is_no_file_is_refused_before_it_is_read(tmp_path, capsys, kind):
+    """A named pipe blocks its reader for ever and a link to /dev/zero never ends (it grew one process to 20 GB):
+    neither is opened, the one line names it and what it is (issue 30). A test run in a child with a timeout, so
+    a regression hangs the child, not the suite."""
+    data = tmp_path / "sine.csv"
+    if kind == "fifo":
+        os.mkfifo(data)
+    elif kind == "dev_zero":
+        data.symlink_to("/dev/zero")
+    else:
+        data.mkdir()
+    cfg = tmp_path / "car.toml"
+    cfg.write_text('[model]\nvehicle = "peugeot406"\n\n[[tests]]\nname = "sine"\nfile = "sine.csv"\n')
+    proc = subprocess.run([sys.executable, "-m", "dynid.cli.main", "identify", str(cfg), "--out",
+                           str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    what = {"fifo": "a named pipe", "dev_zero": "a device", "folder": "a folder"}[kind]
+    assert proc.returncode == 2 and len(lines) == 1 and str(data) in lines[0] and what in lines[0], proc.stderr
+    if kind == "fifo":  # a config that is a pipe: refused the same way
+        pipe = tmp_path / "pipe.toml"
+        os.mkfifo(pipe)
+        proc = subprocess.run([sys.executable, "-m", "dynid.cli.main", "identify", str(pipe)], capture_output=True,
+                              text=True, timeout=120)
+        assert proc.returncode == 2 and "a named pipe" in proc.stderr and len(proc.stderr.splitlines()) == 1

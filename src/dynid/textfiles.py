@@ -6,19 +6,45 @@ from __future__ import annotations
 import csv
 import io
 import os
+import stat
 import tomllib
 from pathlib import Path
 
 _UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
 
 
+MAX_TEXT_BYTES = 64 * 2**20  # a config, model or vehicle file, a table: kilobytes; more is the wrong file
+
+
 class TextEncodingError(ValueError):
     """A text file that is not UTF-8: the message says where and what to do (the caller adds the file)."""
 
 
+class NotAFileError(OSError):
+    """A path that is not a regular file (a pipe, a device, a folder): reading it could hang or never end."""
+
+
+def regular_file(path: str | os.PathLike[str], limit: int | None = None) -> os.stat_result:
+    """stat of `path` (symlinks followed) if it is a regular file of at most `limit` bytes, else NotAFileError
+    naming it: a named pipe blocks its reader for ever and /dev/zero never ends, so neither is opened."""
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a named pipe" if stat.S_ISFIFO(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "a socket"
+                if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+        raise NotAFileError(f"{path}: is {kind}, not a file; give the file itself (a copy of the stream, if it "
+                            "is one)")
+    if limit is not None and st.st_size > limit:
+        raise NotAFileError(f"{path}: {st.st_size / 2**20:.0f} MiB, more than any text file of this kind "
+                            f"({limit / 2**20:.0f} MiB at most): is it the right file?")
+    return st
+
+
 def read_utf8(path: str | os.PathLike[str]) -> str:
     """The text of a small file (a config, a model, a table). OSError passes through; a file that is not
-    UTF-8 raises TextEncodingError."""
+    UTF-8 raises TextEncodingError; a path that is not a regular file, or one over MAX_TEXT_BYTES, raises
+    NotAFileError (an OSError) before anything is read."""
+    regular_file(path, MAX_TEXT_BYTES)
     raw = Path(path).read_bytes()
     try:
         return raw.decode("utf-8-sig")
@@ -50,6 +76,8 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -
     path = Path(path)
     try:
         return tomllib.loads(read_utf8(path))
+    except NotAFileError as exc:
+        raise error(f"{exc} (the {what})") from None
     except OSError as exc:
         raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
     except TextEncodingError as exc:

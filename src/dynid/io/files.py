@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..textfiles import NotAFileError, regular_file
 from .csv_format import read_csv, write_csv
 from .errors import FileFormatError
 from .mat_format import read_mat, write_mat
@@ -107,6 +108,10 @@ def read_recording(
     _check_options(reader, fmt, options, "reading")
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
+    try:
+        regular_file(path)  # a named pipe would block the reader for ever, /dev/zero never end
+    except NotAFileError as exc:
+        raise FileFormatError(str(exc), source=str(path)) from None
     params = inspect.signature(reader).parameters
     kwargs = {k: v for k, v in options.items() if k in params}
     if channels is not None and "channels" in params:

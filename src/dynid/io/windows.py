@@ -80,7 +80,7 @@ from typing import Any, BinaryIO
 import numpy as np
 from numpy.typing import NDArray
 
-from ..textfiles import encoding_problem
+from ..textfiles import NotAFileError, encoding_problem, regular_file
 from . import csv_format, mat_format, mdf_format, parquet_format
 from ._optional import require
 from ._table import (
@@ -412,9 +412,11 @@ def _stat(path: str) -> tuple[int, int]:
     where = _where(path)
     if where is None:
         try:
-            st = os.stat(path)
+            st = regular_file(path)  # a named pipe would block the index for ever, /dev/zero never end
         except FileNotFoundError:
             raise FileNotFoundError(f"{path}: no such file") from None
+        except NotAFileError as exc:
+            raise FileFormatError(str(exc), source=path) from None
         return st.st_size, st.st_mtime_ns
     fs, inner = where
     try:
