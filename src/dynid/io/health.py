@@ -13,9 +13,20 @@ What is judged, per channel (values in the channel's unit):
 - clipped at the declared range: runs of `min_samples` or more samples at a limit.
 - clipped by the shape of the data (no range declared, or a logger limit below it): a run of identical
   values at the block's highest or lowest value, longer than `min_run` and than eight of the channel's
-  own holds, ENTERED OR LEFT AT SPEED: the value a few holds before (after) the run differs from it by
-  more than `KINK` noise deviations. A signal that comes to rest on its extreme (a car stopping, a
-  noise-free file) approaches it slowly and is not a clip; a clipped one runs into the limit.
+  own holds, ENTERED OR LEFT AT SPEED: the value two holds before (after) the run differs from it by
+  more than `KINK` noise deviations plus a resolution step (read farther, it flags the noise-free files'
+  rests: a step steer's yaw rate leaving 0 is a flat extreme left at speed over 50 ms); OR NOISY BESIDE
+  IT: the `NEAR` holds before or after the run turn back at `REVERSALS` of their steps or more, so that
+  noise would have moved the value had the sensor been free to follow (a slow ramp clipped). A signal
+  that comes to rest on its extreme (a car stopping, a noise-free file) approaches it slowly and without
+  noise: not a clip.
+- clipped, seen from the count: at least `MANY` holds, and `SHARE` of the samples, at exactly the block's
+  highest or lowest value, in a channel of `LEVELS` distinct values or more. A noisy sensor reaches its
+  extreme once or a few times (on the demo's files, two seeds, at most 9 holds for a channel of 20 levels
+  or more; a steering wheel held still at a 0.1 deg resolution, on fewer levels, 39 times); a
+  clipped one stays there whenever the truth is beyond it, its noise pulling it below now and then (the
+  flat top broken into short runs, which the rule above misses). A noise-free signal of few levels
+  (an attitude on two or three 0.05 deg steps) is not judged.
 - spikes: a value that jumps away from its neighbours and straight back: in the series of the channel's
   distinct consecutive values (a held sensor's holds merged), a step up then down (or down then up) each
   larger than `SPIKE` times the 99th percentile of the channel's step sizes. A band-limited signal turns
@@ -40,9 +51,12 @@ from numpy.typing import NDArray
 
 ERROR = "error"  # the identification stops: its answer would be wrong
 WARNING = "warning"  # listed: the answer may be affected near the span
+NOTE = "note"  # listed: the pipeline takes care of it
 SEVERE_SHARE = 0.05  # a channel clipped (or out of range) on this share of its samples or more stops the run
 SPIKE = 5.0  # a spike's two steps, in 99th percentiles of the channel's step sizes
 KINK = 4.0  # noise deviations between a plateau and the signal a few holds before or after it
+NEAR, REVERSALS = 20, 0.4  # holds beside a plateau read for noise, the share of their steps that turn back
+MANY, SHARE, LEVELS = 20, 0.05, 20  # holds and share of the samples at one extreme, in a channel of so many levels
 _SHOWN = 3  # spans listed in a finding's text
 
 
@@ -51,9 +65,10 @@ class Finding:
     """One thing wrong with a channel (or a group of channels) of one test.
 
     channel: the file's channel name (several joined by " and " for a wiring finding); kind: "out of
-    range", "clipped", "spike", "dead", "swapped", "gravity", "weight"; severity: ERROR (the run stops) or
-    WARNING; t_start, t_end: s, in the file's time base, the first and last sample concerned; share: of the
-    channel's samples concerned (0..1); detail: what was seen; fix: what to do."""
+    range", "clipped", "spike", "dead", "swapped", "gravity", "weight"; severity: ERROR (the run stops),
+    WARNING or NOTE (the pipeline takes care of it); t_start, t_end: s, in the file's time base, the first
+    and last sample concerned; share: of the channel's samples concerned (0..1); detail: what was seen;
+    fix: what to do."""
 
     channel: str
     kind: str
@@ -169,20 +184,31 @@ class ChannelScan:
                     self.at_limit.add(float(t[a]), float(t[b - 1]), int(b - a), limit)
 
     def _plateaus(self, t, x, starts, lengths, hold: int, sigma: float) -> None:
+        y = x[starts]
+        top, bottom = float(y.max()), float(y.min())
+        levels = np.unique(y).size
+        flat = set()
+        for v in (top, bottom) if top != bottom else (top,):
+            if self.limits is not None and v in self.limits:
+                continue  # at the declared range: counted there
+            at = np.flatnonzero(x == v)
+            if levels >= LEVELS and np.count_nonzero(y == v) >= MANY and at.size >= SHARE * x.size:
+                # the holds at the extreme, as spans: those closer than a plateau's length are one span
+                cut = np.flatnonzero(np.diff(at) > self.min_run) + 1
+                for run in np.split(at, cut):
+                    self.plateau.add(float(t[run[0]]), float(t[run[-1]]), run.size, v)
+                flat.add(v)
         longest = max(self.min_run, 8 * hold)
         gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
         jump = KINK * sigma + self.resolution
-        top, bottom = float(x.max()), float(x.min())
         for k in np.flatnonzero(lengths >= longest):
             a, n = int(starts[k]), int(lengths[k])
             v = float(x[a])
-            if v != top and v != bottom:
+            if v not in (top, bottom) or v in flat or (self.limits is not None and v in self.limits):
                 continue
-            if self.limits is not None and v in self.limits:
-                continue  # at the declared range: counted there
             before = abs(v - x[a - gap]) if a - gap >= 0 else 0.0
             after = abs(v - x[a + n - 1 + gap]) if a + n - 1 + gap < x.size else 0.0
-            if max(before, after) > jump:
+            if max(before, after) > jump or _noisy(y[max(0, k - NEAR):k]) or _noisy(y[k + 1:k + 1 + NEAR]):
                 self.plateau.add(float(t[a]), float(t[a + n - 1]), n, v)
 
     def _spikes(self, t, x, starts) -> None:
@@ -250,9 +276,16 @@ class ChannelScan:
         return sorted(out, key=lambda f: f.severity != ERROR)
 
 
+def _noisy(y: NDArray[np.float64]) -> bool:
+    """Whether the holds y show noise: their steps change sign at least `REVERSALS` of the time (white noise:
+    two in three; a noise-free signal only at its peaks)."""
+    step = np.sign(np.diff(y))
+    return step.size >= NEAR // 2 and float(np.mean(step[1:] != step[:-1])) >= REVERSALS
+
+
 def _listed(spans: list[tuple[float, float]]) -> str:
     shown = [f"t = {a:.6g} s" if a == b else f"t = {a:.6g}..{b:.6g} s" for a, b in spans[:_SHOWN]]
     return "; ".join(shown) + (" ..." if len(spans) > _SHOWN else "")
 
 
-__all__ = ["ERROR", "SEVERE_SHARE", "WARNING", "ChannelScan", "Finding", "holds", "noise_deviation"]
+__all__ = ["ERROR", "NOTE", "SEVERE_SHARE", "WARNING", "ChannelScan", "Finding", "holds", "noise_deviation"]
