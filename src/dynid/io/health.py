@@ -186,30 +186,28 @@ class ChannelScan:
     def _plateaus(self, t, x, starts, lengths, hold: int, sigma: float) -> None:
         y = x[starts]
         top, bottom = float(y.max()), float(y.min())
-        levels = np.unique(y).size
-        flat = set()
-        for v in (top, bottom) if top != bottom else (top,):
-            if self.limits is not None and v in self.limits:
-                continue  # at the declared range: counted there
-            at = np.flatnonzero(x == v)
-            if levels >= LEVELS and np.count_nonzero(y == v) >= MANY and at.size >= SHARE * x.size:
-                # the holds at the extreme, as spans: those closer than a plateau's length are one span
-                cut = np.flatnonzero(np.diff(at) > self.min_run) + 1
-                for run in np.split(at, cut):
-                    self.plateau.add(float(t[run[0]]), float(t[run[-1]]), run.size, v)
-                flat.add(v)
+        ranged = set(self.limits or ())  # values at the declared range are counted there
+        clipped = set()
+        if np.unique(y).size >= LEVELS:  # seen from the count
+            clipped |= {v for v in {top, bottom} - ranged
+                        if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
         longest = max(self.min_run, 8 * hold)
         gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
         jump = KINK * sigma + self.resolution
-        for k in np.flatnonzero(lengths >= longest):
+        for k in np.flatnonzero(lengths >= longest):  # seen from the shape
             a, n = int(starts[k]), int(lengths[k])
             v = float(x[a])
-            if v not in (top, bottom) or v in flat or (self.limits is not None and v in self.limits):
+            if v not in (top, bottom) or v in clipped or v in ranged:
                 continue
             before = abs(v - x[a - gap]) if a - gap >= 0 else 0.0
             after = abs(v - x[a + n - 1 + gap]) if a + n - 1 + gap < x.size else 0.0
             if max(before, after) > jump or _noisy(y[max(0, k - NEAR):k]) or _noisy(y[k + 1:k + 1 + NEAR]):
-                self.plateau.add(float(t[a]), float(t[a + n - 1]), n, v)
+                clipped.add(v)
+        for v in sorted(clipped):
+            # every sample at a clipped value is clipped; those closer than a plateau's length make one span
+            at = np.flatnonzero(x == v)
+            for run in np.split(at, np.flatnonzero(np.diff(at) > self.min_run) + 1):
+                self.plateau.add(float(t[run[0]]), float(t[run[-1]]), run.size, v)
 
     def _spikes(self, t, x, starts) -> None:
         y = x[starts]

@@ -237,12 +237,13 @@ def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, 
 
 
 def health_note(listed: Sequence[dict]) -> str:
-    """The findings that did not stop the run, for the notes under the tables ('' when none)."""
+    """The findings that did not stop the run, a paragraph to append to the notes under the tables (its own
+    first line break; '' when none)."""
     if not listed:
         return ""
     lines = [f"  {d['severity']}: {d['test']}: channel {d['channel']!r}: {d['detail']}, "
              f"t = {d['t_start']:.6g}..{d['t_end']:.6g} s: {d['fix']}" for d in listed]
-    return "Data health (checked before the identification):\n" + "\n".join(lines) + "\n"
+    return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
 
 
 __all__ = ["car_health", "check_car_tests", "expected_loads", "health_note"]

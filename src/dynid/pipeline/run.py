@@ -38,6 +38,7 @@ from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
+from .health import check_car_tests, health_note
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -84,6 +85,7 @@ class IdentificationRun:
     consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
+    health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -228,6 +230,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             f"({len(plan.segments)} segment(s))")
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
+    health = check_car_tests(cfg, plans, vehicle, say)  # the data's health: an error stops the run here
 
     # 2. map every segment to its factors (the offsets' effect on a few of each identification test's), fold per
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
@@ -314,7 +317,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         notes=sensors_note(vehicle) + offsets_note(result, offsets) + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
-        + consistency_text(result, setup.base, tree), offsets=offsets.to_dict())
+        + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
+        offsets=offsets.to_dict(), health=health)
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
@@ -593,6 +597,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["consistency"] = run.consistency
     if getattr(run, "offsets", None) is not None:  # a car's sensor zero offsets: which, how large, from where
         data["sensor_offsets"] = run.offsets
+    if getattr(run, "health", None) is not None:  # a car's data health findings (pipeline.health)
+        data["health"] = run.health
     data.update(report.data)
     text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)
     written = [write_atomic(out / "results.json", text)]
