@@ -13,9 +13,9 @@ What is judged, per channel (values in the channel's unit):
 - clipped at the declared range: runs of `min_samples` or more samples at a limit.
 - clipped by the shape of the data (no range declared, or a logger limit below it): a run of identical
   values at the block's highest or lowest value, longer than `min_run` and than eight of the channel's
-  own holds, ENTERED OR LEFT AT SPEED: the value two holds before (after) the run differs from it by
-  more than `KINK` noise deviations plus a resolution step (read farther, it flags the noise-free files'
-  rests: a step steer's yaw rate leaving 0 is a flat extreme left at speed over 50 ms); OR NOISY BESIDE
+  own holds, ENTERED AND LEFT AT SPEED: the values two holds before and after the run differ from it by
+  more than `KINK` noise deviations plus a resolution step (one side, or farther, flags the noise-free
+  files' rests: a step steer's yaw rate leaves 0 at speed); OR NOISY BESIDE
   IT: the `NEAR` holds before or after the run turn back at `REVERSALS` of their steps or more, so that
   noise would have moved the value had the sensor been free to follow (a slow ramp clipped). A signal
   that comes to rest on its extreme (a car stopping, a noise-free file) approaches it slowly and without
@@ -106,10 +106,12 @@ def holds(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
 
 
 def noise_deviation(x: NDArray[np.float64], resolution: float = 0.0) -> float:
-    """Robust standard deviation of x's noise (module doc), in x's unit; at least `resolution`."""
+    """Robust standard deviation of x's noise, in x's unit; at least `resolution`: 1.4826 x the median absolute
+    deviation of the second differences of its holds, over sqrt(6) (a second difference holds three samples'
+    noise, weighted 1, -2, 1; the signal's slope drops out, its curvature between holds is far below the noise)."""
     starts, _ = holds(x)
-    step = np.diff(x[starts])
-    sigma = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / math.sqrt(2.0) if step.size > 2 else 0.0
+    d2 = np.diff(x[starts], 2)
+    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0) if d2.size > 2 else 0.0
     return max(sigma, resolution)
 
 
@@ -199,9 +201,11 @@ class ChannelScan:
             v = float(x[a])
             if v not in (top, bottom) or v in clipped or v in ranged:
                 continue
-            before = abs(v - x[a - gap]) if a - gap >= 0 else 0.0
-            after = abs(v - x[a + n - 1 + gap]) if a + n - 1 + gap < x.size else 0.0
-            if max(before, after) > jump or _noisy(y[max(0, k - NEAR):k]) or _noisy(y[k + 1:k + 1 + NEAR]):
+            # a clip is run into and out of: at speed on both sides (a plateau at either end of the block is not
+            # judged so: a noise-free record starting at rest leaves it at speed)
+            inside = a - gap >= 0 and a + n - 1 + gap < x.size
+            kink = inside and min(abs(v - x[a - gap]), abs(v - x[a + n - 1 + gap])) > jump
+            if kink or _noisy(y[max(0, k - NEAR):k]) or _noisy(y[k + 1:k + 1 + NEAR]):
                 clipped.add(v)
         for v in sorted(clipped):
             # every sample at a clipped value is clipped; those closer than a plateau's length make one span
