@@ -133,14 +133,15 @@ class ChannelScan:
     """The health of one channel from its blocks, fed in time order (`add`), judged at the end (`findings`).
 
     name, unit: the file's; limits: the sensor's declared (low, high) range in the channel's unit (None:
-    not declared); resolution: its quantisation step (0: unknown); command: the channel is a driver's input
-    (a steering wheel), which may stay still for a whole test; min_run: the shortest clipped plateau, in
+    not declared); resolution: its quantisation step (0: unknown); still: for a channel that may read one value
+    over a whole test (a steering wheel on a straight line, a wheel that does not steer), what to check then
+    (a constant channel is then a warning; None: an error, a dead sensor); min_run: the shortest clipped plateau, in
     samples (default: 0.1 s at 625 Hz; a clip shorter than that hardly matters once low-passed)."""
 
     def __init__(self, name: str, unit: str = "", limits: tuple[float, float] | None = None,
-                 resolution: float = 0.0, command: bool = False, min_run: int = 62, min_samples: int = 5) -> None:
+                 resolution: float = 0.0, still: str | None = None, min_run: int = 62, min_samples: int = 5) -> None:
         self.name, self.unit, self.limits = name, unit, limits
-        self.resolution, self.command = float(resolution), command
+        self.resolution, self.still = float(resolution), still
         self.min_run, self.min_samples = int(min_run), int(min_samples)
         self.n = 0
         self.first_value: float | None = None
@@ -234,11 +235,9 @@ class ChannelScan:
         u = f" {self.unit}" if self.unit else ""
         out = []
         if self.constant and self.n > 1:
-            if self.command:
+            if self.still is not None:
                 out.append(Finding(self.name, "dead", WARNING, self.t_first, self.t_last,
-                                   f"reads {self.first_value:g}{u} throughout",
-                                   "fine if the driver did not touch it in this test; otherwise its encoder is "
-                                   "disconnected: fix the wiring", 1.0))
+                                   f"reads {self.first_value:g}{u} throughout", self.still, 1.0))
             else:
                 out.append(Finding(self.name, "dead", ERROR, self.t_first, self.t_last,
                                    f"reads {self.first_value:g}{u} throughout (a dead or disconnected sensor)",

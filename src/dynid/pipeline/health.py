@@ -7,9 +7,12 @@ them again for free) and judges:
 - each channel (`io.health.ChannelScan`): values out of the sensor's declared range, runs at that
   range, flat tops at its extremes entered at speed, spikes, a channel that never moves. The
   declared range and resolution come from the vehicle's sensor suite, converted to the file's unit.
-  A camera's steering or camber angle at its range is repaired by the estimator (the kinematic
-  tables' value stands in for it: `vehicle.estimate`): a note, not an error. The steering-wheel
-  angle may stay still for a whole straight-line test: a warning, not an error.
+  A camera's steering or camber angle at or beyond its range is repaired by the estimator (the
+  kinematic tables' value stands in for it: `vehicle.estimate`): a note, not an error. The
+  steering-wheel angle may stay still for a whole straight-line test, a rear wheel may never steer,
+  a rigid axle's camber never changes (the MuJoCo car's ideal files): a warning, not an error. So is
+  a still yaw rate, roll or lateral speed in a test without lateral acceleration, or a still pitch in
+  a test without longitudinal acceleration (a noise-free file's straight braking reads no roll).
 - the wheel loads against the vehicle's a priori set: each load's mean and its change with the
   longitudinal and lateral accelerations (least squares over the test, on the accelerations that
   the test moves by more than `EXCITED`), against what the corner should give (its share of the weight
@@ -33,7 +36,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,8 +51,17 @@ WINDOW_S = 120.0  # s of the file read at a time
 EXCITED = 1.0  # m/s^2: an acceleration's standard deviation over the test above which its load transfer is judged
 G = 9.80665
 CORNERS = ("rl", "rr", "fl", "fr")
-_REPAIRED = ("steer_", "camber_")  # camera channels whose samples at the range the estimator replaces
-_COMMANDS = ("steering_wheel",)  # a driver's input: may stay still for a whole test
+# channels that a test without lateral (longitudinal) acceleration may leave still: judged dead only when the
+# test moves that acceleration by more than EXCITED
+_MOVED_BY = {"imu_yaw_rate": "imu_ay", "imu_roll_rate": "imu_ay", "imu_roll": "imu_ay", "correvit_vy": "imu_ay",
+             "gnss_vy": "imu_ay", "imu_pitch_rate": "imu_ax", "imu_pitch": "imu_ax"}
+_REPAIRED = ("steer_", "camber_")  # camera channels whose samples at or beyond the range the estimator replaces
+# channels that may read one value over a whole test, and what to check then
+_STILL = {"steering_wheel": "fine if the driver did not steer in this test; otherwise its encoder is disconnected: "
+                            "fix the wiring",
+          "steer_": "fine for a wheel that does not steer (a rear axle); otherwise check the camera and its wiring",
+          "camber_": "fine for a wheel whose camber does not change (a rigid axle, or an ideal file); otherwise "
+                     "check the camera and its wiring"}
 
 
 @dataclass
@@ -61,6 +73,18 @@ class _Loads:
     n: int = 0
     up_sum: float = 0.0
     up_n: int = 0
+    moves: dict = field(default_factory=dict)  # imu_ax, imu_ay -> [n, sum, sum of squares], SI
+
+    def move(self, q: str, x: NDArray) -> None:
+        m = self.moves.setdefault(q, [0, 0.0, 0.0])
+        m[0] += x.size
+        m[1] += float(np.sum(x))
+        m[2] += float(np.sum(x * x))
+
+    def std(self, q: str) -> float:
+        """Standard deviation of an acceleration over the test (0 when not read)."""
+        n, s1, s2 = self.moves.get(q, (0, 0.0, 0.0))
+        return math.sqrt(max(s2 / n - (s1 / n) ** 2, 0.0)) if n else 0.0
 
     def add(self, ax: NDArray, ay: NDArray, loads: NDArray) -> None:
         X = np.column_stack([np.ones_like(ax), ax, ay])
@@ -86,7 +110,8 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
         k = unit_factor(c.unit)[0] / plan.factors[q] if c is not None else 1.0
         limits = None if c is None or c.range is None else tuple(sorted((c.range[0] * k, c.range[1] * k)))
         scans[q] = ChannelScan(name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0,
-                               command=q in _COMMANDS, min_run=max(5, round(0.1 * plan.fs)))
+                               still=next((w for k, w in _STILL.items() if q.startswith(k)), None),
+                               min_run=max(5, round(0.1 * plan.fs)))
     loads = [f"wft_{c}_Fz" for c in CORNERS]
     wired = all(q in plan.quantity_names for q in (*loads, "imu_ax", "imu_ay"))
     acc = _Loads(np.zeros((3, 3)), np.zeros((3, 4)))
@@ -107,6 +132,9 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
             t_ref = got[loads[0]][0]
             acc.add(*(_on(*got[q], t_ref) for q in ("imu_ax", "imu_ay")),
                     np.column_stack([_on(*got[q], t_ref) for q in loads]))
+        for q in ("imu_ax", "imu_ay"):
+            if q in got:
+                acc.move(q, got[q][1])
         if up is not None and up[0] in got:
             acc.up_sum += float(np.sum(got[up[0]][1]))
             acc.up_n += got[up[0]][1].size
@@ -116,9 +144,13 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
     out = []
     for q, scan in scans.items():
         for f in scan.findings():
-            if q.startswith(_REPAIRED) and f.kind == "clipped" and f.detail.startswith("at the sensor's declared"):
+            if q.startswith(_REPAIRED) and f.kind in ("clipped", "out of range") and "declared range" in f.detail:
                 f = replace(f, severity=NOTE, fix="the estimator replaces these samples by the kinematic tables' "
                             "value at the measured clearance and steering-wheel angle")
+            if f.kind == "dead" and q in _MOVED_BY and acc.std(_MOVED_BY[q]) <= EXCITED:
+                f = replace(f, severity=WARNING, detail=f.detail.replace(" (a dead or disconnected sensor)", ""),
+                            fix=f"fine if this test has no such motion ({_MOVED_BY[q]} varies "
+                            f"by {acc.std(_MOVED_BY[q]):.2g} m/s^2 RMS); otherwise check the sensor and its wiring")
             out.append(f)
     if wired and acc.n > 3:
         out += _wiring(acc, vehicle, [plan.quantity_names[q] for q in loads], t0, t1)
