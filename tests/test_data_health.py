@@ -235,3 +235,69 @@ def test_clean_files_keep_their_answer_and_list_the_notes(demo, tmp_path, monkey
     run_module.write_outputs(checked, tmp_path / "out", "health")
     data = json.loads((tmp_path / "out" / "results.json").read_text())
     assert [h["channel"] for h in data["health"]] == ["steer_fl", "steer_fr"]
+
+
+# ------------------------------------------------------------------------------------------------------- a robot
+ROBOT_CONFIG = """[model]
+example = "tx40"
+
+[[tests]]
+name = "sines"
+role = "identify"
+files = { q = "log.csv", tau = "log.csv" }
+
+[channels]
+q = { channels = ["q1", "q2", "q3", "q4", "q5", "q6"] }
+tau = { channels = ["tau1", "tau2", "tau3", "tau4", "tau5", "tau6"] }
+
+[conditioning]
+cutoff = 20.0
+order = 4
+decimate = [5]
+
+[identification]
+method = "wls"
+"""
+
+
+def robot_log(folder, clip: float | None = None, noise: float = 0.0) -> None:
+    """A TX40 on six sines for 6 s at 500 Hz, torques from its own inverse dynamics (plus white noise of `noise`
+    N.m, seeded); clip: tau2 clipped at that percentile of its own values."""
+    from dynid import load_model
+
+    model = load_model("tx40")
+    t = np.arange(3000) / 500.0
+    q = np.stack([0.5 * np.sin(2 * np.pi * (0.3 + 0.1 * j) * t + j) for j in range(6)], axis=1)
+    qd = np.gradient(q, t, axis=0)
+    tau = model.inverse_dynamics(q, qd, np.gradient(qd, t, axis=0))
+    tau = tau + noise * np.random.default_rng(5).standard_normal(tau.shape)
+    if clip is not None:
+        tau[:, 1] = np.minimum(tau[:, 1], np.percentile(tau[:, 1], clip))
+    head = ",".join(["time [s]"] + [f"q{j + 1} [rad]" for j in range(6)] + [f"tau{j + 1} [N.m]" for j in range(6)])
+    np.savetxt(folder / "log.csv", np.column_stack([t, q, tau]), delimiter=",", header=head, comments="",
+               fmt="%.10g")
+    (folder / "robot.toml").write_text(ROBOT_CONFIG)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.5])
+def test_a_robot_torque_clipped_on_40_percent_stops_the_run(tmp_path, capsys, noise):
+    """The tester's: tau2 clipped on 40 % of its samples identified with a 0.23 % residual. Now exit status 2, one
+    line naming the file, tau2 and a span covering every clipped sample; the same log unclipped identifies with
+    no finding (noise-free, and with 0.5 N.m of noise)."""
+    clean, clipped = tmp_path / "clean", tmp_path / "clipped"
+    for folder, clip in ((clean, None), (clipped, 60)):
+        folder.mkdir()
+        robot_log(folder, clip, noise)
+    assert main(["identify", str(clean / "robot.toml"), "--out", str(clean / "out")]) == 0
+    assert json.loads((clean / "out" / "results.json").read_text())["health"] == []
+    capsys.readouterr()
+    assert main(["identify", str(clipped / "robot.toml"), "--out", str(clipped / "out")]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("dynid: error")]
+    assert len(errors) == 1 and "log.csv" in errors[0] and "'tau2'" in errors[0], errors
+    rec = read_recording(clipped / "log.csv")
+    tau2 = rec.channel("tau2")
+    at = tau2.time[tau2.values == tau2.values.max()]
+    span = errors[0].split("), t = ")[-1].split(" s:")[0]
+    t0, t1 = (float(v) for v in span.split(".."))
+    assert t0 <= at[0] and t1 >= at[-1], (span, at[0], at[-1])
+    assert "40" in errors[0]  # the share, in %

@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from ..io import read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
 from .config import ConfigError, IdentifyConfig
-from .sources import CarTestPlan
+from .sources import CarTestPlan, RobotTestPlan
 
 Progress = Callable[[str], None]
 WINDOW_S = 120.0  # s of the file read at a time
@@ -268,6 +268,50 @@ def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, 
     return listed
 
 
+def robot_health(plan: RobotTestPlan) -> list[Finding]:
+    """The findings of one planned robot test: each joint's position and torque channel (`io.health.ChannelScan`:
+    clipped plateaus, spikes, a channel that never moves), read a window at a time, errors first. No range is
+    declared for a robot's channels: clips are seen from the data. A joint that does not move in a test, or
+    whose torque does not change, may be the test's design (one joint excited at a time): a warning."""
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
+    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)))
+             for q in ("q", "tau") for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
+    for q in ("q", "tau"):
+        a = t0
+        while a <= t1:
+            b = min(a + WINDOW_S, t1)
+            rec = read_window(plan.indexes[q], list(plan.channels[q]), a, b)
+            for n in plan.channels[q]:
+                ch = rec.channels[n]
+                keep = slice(None) if b >= t1 else ch.time < b
+                scans[(q, n)].add(ch.time[keep], ch.values[keep])
+            if b >= t1:
+                break
+            a = b
+    out = [f for scan in scans.values() for f in scan.findings()]
+    order = {ERROR: 0, WARNING: 1, NOTE: 2}
+    return sorted(out, key=lambda f: order[f.severity])
+
+
+def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
+    """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
+    (`ConfigError`, one line), the rest is said and returned as dicts."""
+    listed, errors = [], []
+    for f in robot_health(plan):
+        source = str(plan.indexes["tau" if f.channel in plan.channels["tau"] else "q"].path)
+        line = f"test {plan.test!r} ({source}): {f.text()}"
+        if f.severity == ERROR:
+            errors.append(line)
+        else:
+            say(f"data health, {f.severity}: {line}")
+        listed.append({"test": plan.test, "file": source, **f.as_dict()})
+    if errors:
+        more = f" ({len(errors) - 1} more error(s) in the data: {'; '.join(errors[1:])})" if len(errors) > 1 else ""
+        raise ConfigError(f"{cfg.path}: data health: {errors[0]}{more}")
+    return listed
+
+
 def health_note(listed: Sequence[dict]) -> str:
     """The findings that did not stop the run, a paragraph to append to the notes under the tables (its own
     first line break; '' when none)."""
@@ -278,4 +322,4 @@ def health_note(listed: Sequence[dict]) -> str:
     return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
 
 
-__all__ = ["car_health", "check_car_tests", "expected_loads", "health_note"]
+__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health"]

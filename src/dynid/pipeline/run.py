@@ -38,7 +38,7 @@ from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
-from .health import check_car_tests, health_note
+from .health import check_car_tests, check_robot_test, health_note
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -128,14 +128,18 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
-def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress
-                  ) -> dict[str, GroupedSystem]:
-    """Each test's decimated rows: its files planned from their stamps, cut into chunks read and reduced on the
-    scheduler's workers (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
+def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
+                  health: list[dict] | None = None) -> dict[str, GroupedSystem]:
+    """Each test's decimated rows: its files planned from their stamps, their data health checked (an error stops
+    here; the other findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
+    (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
     jobs = []
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
         plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
+        found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
+        if health is not None:
+            health += found
         transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
@@ -458,7 +462,8 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: S
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
-    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say)
+    health: list[dict] = []
+    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
@@ -476,7 +481,8 @@ def identify(cfg: IdentifyConfig, progress: Progress | None = None, scheduler: S
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
-    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg), systems)
+    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
+                    systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
