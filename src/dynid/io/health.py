@@ -168,9 +168,7 @@ class ChannelScan:
             return
         self._limits(t, x)
         starts, lengths = holds(x)
-        hold = max(1, int(np.median(lengths)))
-        sigma = noise_deviation(x, self.resolution)
-        self._plateaus(t, x, starts, lengths, hold, sigma)
+        self._plateaus(t, x, starts, lengths)
         self._spikes(t, x, starts)
 
     def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
@@ -186,21 +184,26 @@ class ChannelScan:
                 if b - a >= self.min_samples:
                     self.at_limit.add(float(t[a]), float(t[b - 1]), int(b - a), limit)
 
-    def _plateaus(self, t, x, starts, lengths, hold: int, sigma: float) -> None:
+    def _plateaus(self, t, x, starts, lengths) -> None:
         y = x[starts]
         top, bottom = float(y.max()), float(y.min())
         ranged = set(self.limits or ())  # values at the declared range are counted there
-        clipped = set()
-        if np.unique(y).size >= LEVELS:  # seen from the count
-            clipped |= {v for v in {top, bottom} - ranged
-                        if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
+        # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free)
+        many = {v for v in {top, bottom} - ranged
+                if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
+        clipped = many if many and np.unique(y).size >= LEVELS else set()
+        counts = np.cumsum(np.bincount(lengths))  # the median hold, from the lengths' histogram (no sort)
+        hold = max(1, int(np.searchsorted(counts, (lengths.size + 1) // 2)))
         longest = max(self.min_run, 8 * hold)
-        gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
-        jump = KINK * sigma + self.resolution
-        for k in np.flatnonzero(lengths >= longest):  # seen from the shape
+        long = np.flatnonzero(lengths >= longest)  # seen from the shape
+        long = long[np.isin(y[long], [top, bottom])]
+        if long.size:
+            gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
+            jump = KINK * noise_deviation(x, self.resolution) + self.resolution
+        for k in long:
             a, n = int(starts[k]), int(lengths[k])
             v = float(x[a])
-            if v not in (top, bottom) or v in clipped or v in ranged:
+            if v in clipped or v in ranged:
                 continue
             # a clip is run into and out of: at speed on both sides (a plateau at either end of the block is not
             # judged so: a noise-free record starting at rest leaves it at speed)
