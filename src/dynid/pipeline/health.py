@@ -110,7 +110,7 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
         k = unit_factor(c.unit)[0] / plan.factors[q] if c is not None else 1.0
         limits = None if c is None or c.range is None else tuple(sorted((c.range[0] * k, c.range[1] * k)))
         scans[q] = ChannelScan(name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0,
-                               still=next((w for k, w in _STILL.items() if q.startswith(k)), None),
+                               still=next((w for key, w in _STILL.items() if q.startswith(key)), None),
                                min_run=max(5, round(0.1 * plan.fs)))
     loads = [f"wft_{c}_Fz" for c in CORNERS]
     wired = all(q in plan.quantity_names for q in (*loads, "imu_ax", "imu_ay"))
@@ -128,7 +128,7 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
             t, x = ch.time[keep], ch.values[keep]
             scans[q].add(t, x)
             got[q] = (t, x * plan.factors[q])
-        if wired:
+        if wired and all(got[q][0].size > 1 for q in (*loads, "imu_ax", "imu_ay")):
             t_ref = got[loads[0]][0]
             acc.add(*(_on(*got[q], t_ref) for q in ("imu_ax", "imu_ay")),
                     np.column_stack([_on(*got[q], t_ref) for q in loads]))
