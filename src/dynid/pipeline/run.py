@@ -39,6 +39,7 @@ from ..model import ModelError
 from ..report import parameter_table
 from .config import ConfigError, IdentifyConfig, TestSpec, load_config
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
+from .health import check_car_tests, check_robot_test, health_note
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -85,6 +86,7 @@ class IdentificationRun:
     consistency: dict | None = None  # a robot's physical-consistency verdict (robot_consistency), for results.json
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
+    health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -127,14 +129,18 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
-def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress
-                  ) -> dict[str, GroupedSystem]:
-    """Each test's decimated rows: its files planned from their stamps, cut into chunks read and reduced on the
-    scheduler's workers (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
+def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
+                  health: list[dict] | None = None) -> dict[str, GroupedSystem]:
+    """Each test's decimated rows: its files planned from their stamps, their data health checked (an error stops
+    here; the other findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
+    (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
     jobs = []
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
         plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
+        found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
+        if health is not None:
+            health += found
         transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
@@ -237,6 +243,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             f"({len(plan.segments)} segment(s))")
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
+    health = check_car_tests(cfg, plans, vehicle, say)  # the data's health: an error stops the run here
 
     # 2. map every segment to its factors (the offsets' effect on a few of each identification test's), fold per
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
@@ -323,7 +330,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         notes=sensors_note(vehicle) + offsets_note(result, offsets) + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
-        + consistency_text(result, setup.base, tree), offsets=offsets.to_dict())
+        + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
+        offsets=offsets.to_dict(), health=health)
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
@@ -469,7 +477,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
-    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say)
+    health: list[dict] = []
+    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
     a_priori = dict(zip(names, base.values(model.parameters), strict=True))
     say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
@@ -487,7 +496,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
-    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg), systems)
+    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
+                    systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
@@ -608,6 +618,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["consistency"] = run.consistency
     if run.offsets is not None:  # a car's sensor zero offsets: which, how large, from where
         data["sensor_offsets"] = run.offsets
+    if getattr(run, "health", None) is not None:  # a car's data health findings (pipeline.health)
+        data["health"] = run.health
     data.update(report.data)
     text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)
     written = [write_atomic(out / "results.json", text)]

@@ -1,0 +1,325 @@
+"""A car test's data health, checked before the identification: its channels one by one, then the wiring.
+
+`car_health(plan, vehicle)` reads the planned span of the test's file a window at a time (the
+blocks it decodes stay in the reader's cache, so that the identification's first segments read
+them again for free) and judges:
+
+- each channel (`io.health.ChannelScan`): values out of the sensor's declared range, runs at that
+  range, flat tops at its extremes entered at speed, spikes, a channel that never moves. The
+  declared range and resolution come from the vehicle's sensor suite, converted to the file's unit.
+  A camera's steering or camber angle at or beyond its range is repaired by the estimator (the
+  kinematic tables' value stands in for it: `vehicle.estimate`): a note, not an error. The
+  steering-wheel angle may stay still for a whole straight-line test, a rear wheel may never steer,
+  a rigid axle's camber never changes (the MuJoCo car's ideal files): a warning, not an error. So is
+  a still yaw rate, roll or lateral speed in a test without lateral acceleration, or a still pitch in
+  a test without longitudinal acceleration (a noise-free file's straight braking reads no roll).
+- the wheel loads against the vehicle's a priori set: each load's mean and its change with the
+  longitudinal and lateral accelerations (least squares over the test, on the accelerations that
+  the test moves by more than `EXCITED`), against what the corner should give (its share of the weight
+  from the centre of mass; the load transfers m h a / 2L and m h a / 4t at the centre of mass's height
+  h above the ground). The loads are then assigned to the corners in every order: when another order
+  explains them four times better than the file's, and the file's misses by more than 3 tolerances, the
+  channels are swapped (an error naming them). The tolerances (10 % of a wheel's static load; half an
+  expected transfer) cover an a priori set as far from the car as the demo's (its centre of mass is 8 cm
+  off lengthwise and 10 cm in height); a swap of a front and a rear load moves two means by the
+  front-rear difference and flips a transfer's sign.
+- the total of the loads against the a priori weight (a unit or a calibration factor), and the
+  accelerometer's vertical axis against gravity (a sign or a unit).
+
+Findings are `io.health.Finding`s (channel, time span in the file's time base, severity, what to do).
+`check_car_tests` runs them over every test: an error stops the identification with one line
+(`ConfigError`, exit status 2); warnings and notes are reported through `progress` and returned.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..io import read_window, unit_factor
+from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
+from .config import ConfigError, IdentifyConfig
+from .sources import CarTestPlan, RobotTestPlan
+
+Progress = Callable[[str], None]
+WINDOW_S = 120.0  # s of the file read at a time
+EXCITED = 1.0  # m/s^2: an acceleration's standard deviation over the test above which its load transfer is judged
+G = 9.80665
+CORNERS = ("rl", "rr", "fl", "fr")
+# channels that a test without lateral (longitudinal) acceleration may leave still: judged dead only when the
+# test moves that acceleration by more than EXCITED
+_MOVED_BY = {"imu_yaw_rate": "imu_ay", "imu_roll_rate": "imu_ay", "imu_roll": "imu_ay", "correvit_vy": "imu_ay",
+             "gnss_vy": "imu_ay", "imu_pitch_rate": "imu_ax", "imu_pitch": "imu_ax"}
+_REPAIRED = ("steer_", "camber_")  # camera channels whose samples at or beyond the range the estimator replaces
+# channels that may read one value over a whole test, and what to check then
+_STILL = {"steering_wheel": "fine if the driver did not steer in this test; otherwise its encoder is disconnected: "
+                            "fix the wiring",
+          "steer_": "fine for a wheel that does not steer (a rear axle); otherwise check the camera and its wiring",
+          "camber_": "fine for a wheel whose camber does not change (a rigid axle, or an ideal file); otherwise "
+                     "check the camera and its wiring"}
+
+
+@dataclass
+class _Loads:
+    """Sums for the least squares of the four wheel loads on [1, ax, ay] over a test, and the vertical axis."""
+
+    xtx: NDArray[np.float64]
+    xty: NDArray[np.float64]
+    n: int = 0
+    up_sum: float = 0.0
+    up_n: int = 0
+    moves: dict = field(default_factory=dict)  # imu_ax, imu_ay -> [n, sum, sum of squares], SI
+
+    def move(self, q: str, x: NDArray) -> None:
+        m = self.moves.setdefault(q, [0, 0.0, 0.0])
+        m[0] += x.size
+        m[1] += float(np.sum(x))
+        m[2] += float(np.sum(x * x))
+
+    def std(self, q: str) -> float:
+        """Standard deviation of an acceleration over the test (0 when not read)."""
+        n, s1, s2 = self.moves.get(q, (0, 0.0, 0.0))
+        return math.sqrt(max(s2 / n - (s1 / n) ** 2, 0.0)) if n else 0.0
+
+    def add(self, ax: NDArray, ay: NDArray, loads: NDArray) -> None:
+        X = np.column_stack([np.ones_like(ax), ax, ay])
+        self.xtx += X.T @ X
+        self.xty += X.T @ loads
+        self.n += ax.size
+
+
+def _on(t: NDArray, x: NDArray, t_ref: NDArray) -> NDArray:
+    """x (on t) at the times t_ref (itself when they are the same stamps)."""
+    return x if t is t_ref or (t.size == t_ref.size and np.array_equal(t, t_ref)) else np.interp(t_ref, t, x)
+
+
+def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
+    """The findings of one planned car test (module doc), errors first. vehicle: `vehicle.description.Vehicle`."""
+    suite = vehicle.suite
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    units = plan.index.units
+    scans: dict[str, ChannelScan] = {}
+    for q, name in plan.quantity_names.items():
+        c = suite[q] if q in suite.names else None
+        # the suite's figures are in its unit, the values in the file's: x_file = x_suite * f_suite / f_file
+        k = unit_factor(c.unit)[0] / plan.factors[q] if c is not None else 1.0
+        limits = None if c is None or c.range is None else tuple(sorted((c.range[0] * k, c.range[1] * k)))
+        scans[q] = ChannelScan(name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0,
+                               still=next((w for key, w in _STILL.items() if q.startswith(key)), None),
+                               min_run=max(5, round(0.1 * plan.fs)))
+    loads = [f"wft_{c}_Fz" for c in CORNERS]
+    wired = all(q in plan.quantity_names for q in (*loads, "imu_ax", "imu_ay"))
+    acc = _Loads(np.zeros((3, 3)), np.zeros((3, 4)))
+    up = _vertical_axis(vehicle)
+    a = t0
+    while a <= t1:
+        b = min(a + WINDOW_S, t1)
+        last = b >= t1
+        rec = read_window(plan.index, list(plan.file_names), a, b)
+        got = {}
+        for q, name in plan.quantity_names.items():
+            ch = rec.channels[name]
+            keep = slice(None) if last else ch.time < b  # windows share their end stamp: counted once
+            t, x = ch.time[keep], ch.values[keep]
+            scans[q].add(t, x)
+            got[q] = (t, x * plan.factors[q])
+        if wired and all(got[q][0].size > 1 for q in (*loads, "imu_ax", "imu_ay")):
+            t_ref = got[loads[0]][0]
+            acc.add(*(_on(*got[q], t_ref) for q in ("imu_ax", "imu_ay")),
+                    np.column_stack([_on(*got[q], t_ref) for q in loads]))
+        for q in ("imu_ax", "imu_ay"):
+            if q in got:
+                acc.move(q, got[q][1])
+        if up is not None and up[0] in got:
+            acc.up_sum += float(np.sum(got[up[0]][1]))
+            acc.up_n += got[up[0]][1].size
+        if last:
+            break
+        a = b
+    out = []
+    for q, scan in scans.items():
+        for f in scan.findings():
+            if q.startswith(_REPAIRED) and f.kind in ("clipped", "out of range") and "declared range" in f.detail:
+                f = replace(f, severity=NOTE, fix="the estimator replaces these samples by the kinematic tables' "
+                            "value at the measured clearance and steering-wheel angle")
+            if f.kind == "dead" and q in _MOVED_BY and acc.std(_MOVED_BY[q]) <= EXCITED:
+                f = replace(f, severity=WARNING, detail=f.detail.replace(" (a dead or disconnected sensor)", ""),
+                            fix=f"fine if this test has no such motion ({_MOVED_BY[q]} varies "
+                            f"by {acc.std(_MOVED_BY[q]):.2g} m/s^2 RMS); otherwise check the sensor and its wiring")
+            out.append(f)
+    if wired and acc.n > 3:
+        out += _wiring(acc, vehicle, [plan.quantity_names[q] for q in loads], t0, t1)
+    if up is not None and acc.up_n:
+        out += _gravity(acc.up_sum / acc.up_n, up, plan.quantity_names.get(up[0], up[0]), t0, t1)
+    order = {ERROR: 0, WARNING: 1, NOTE: 2}
+    return sorted(out, key=lambda f: order[f.severity])
+
+
+def expected_loads(vehicle) -> tuple[NDArray[np.float64], float]:
+    """Per corner (rl, rr, fl, fr) the a priori [static load N, dFz/dax, dFz/day (N per m/s^2)], (4, 3), and the
+    a priori weight, N (module doc; ax forward, ay left, ISO: braking loads the front, a left turn the right)."""
+    v = {**vehicle.a_priori.values, **vehicle.known}
+    g = vehicle.geometry
+    m = v["M6"] + sum(v.get(f"M{j}", 0.0) for j in (14, 23, 32, 41))
+    xg, zg = v["MX6"] / v["M6"], v["MZ6"] / v["M6"]
+    h = xg - (g.wheel_centre_height - g.wheel_radius)  # the centre of mass above the ground
+    L = g.wheelbase
+    front = (zg - g.rear.position) / L
+    out = np.empty((4, 3))
+    for k in range(4):
+        ax = g.axle(k)
+        right = 1.0 if k % 2 else -1.0
+        out[k] = (m * G * (front if k >= 2 else 1.0 - front) / 2.0, (-1.0 if k >= 2 else 1.0) * m * h / (2.0 * L),
+                  right * m * h / (4.0 * ax.half_track))
+    return out, m * G
+
+
+def _wiring(acc: _Loads, vehicle, names: Sequence[str], t0: float, t1: float) -> list[Finding]:
+    exp, weight = expected_loads(vehicle)
+    n = acc.n
+    mean = acc.xtx[0] / n
+    std = np.sqrt(np.maximum(np.diag(acc.xtx)[1:] / n - mean[1:] ** 2, 0.0))
+    used = [0] + [1 + i for i in range(2) if std[i] > EXCITED]  # the accelerations this test moves
+    b = np.linalg.solve(acc.xtx[np.ix_(used, used)], acc.xty[used]).T  # (4, len(used)): each load's coefficients
+    e = exp[:, used]
+    tol = np.concatenate(([0.1 * weight / 4.0], 0.5 * np.abs(exp[0, used[1:]])))
+    out = []
+    total = float(acc.xty[0].sum() / n)
+    if not 0.8 < total / weight < 1.25:
+        out.append(Finding(" + ".join(names), "weight", ERROR if not 0.67 < total / weight < 1.5 else WARNING,
+                           t0, t1, f"the four wheel loads average {total:.6g} N in all, the a priori weight is "
+                           f"{weight:.6g} N ({total / weight:.3g} times)",
+                           "check the wheel force channels' unit (N, kN, daN) and calibration, and the vehicle "
+                           "file's a priori mass"))
+
+    def cost(order: Sequence[int]) -> float:
+        return float(np.sum(((b - e[list(order)]) / tol) ** 2))
+
+    ident = cost(range(4))
+    best = min(itertools.permutations(range(4)), key=cost)
+    if list(best) != [0, 1, 2, 3] and ident > 9.0 and cost(best) < ident / 4.0:
+        moved = [k for k in range(4) if best[k] != k]
+        reads = ", ".join(f"{names[k]} reads the {_corner(best[k])} load" for k in moved)
+        seen = "; ".join(f"{names[k]}: {_coefficients(b[k], used)}" for k in moved)
+        out.append(Finding(" and ".join(names[k] for k in moved), "swapped", ERROR, t0, t1,
+                           f"wired to the wrong corners: {reads} (mean load and load transfer with the "
+                           f"accelerations; {seen}; the a priori set expects "
+                           + "; ".join(f"{_corner(k)}: {_coefficients(exp[k, used], used)}" for k in moved)
+                           + f"; {cost(best) / ident:.2g} of the misfit in that order)",
+                           "swap the channels' names in the file, or map each corner's quantity to its channel in "
+                           "[channels] (e.g. wft_fl_Fz = { channels = [\"<the file's channel>\"] })", 1.0))
+    return out
+
+
+def _corner(k: int) -> str:
+    return ("rear left", "rear right", "front left", "front right")[k]
+
+
+def _coefficients(row: NDArray, used: Sequence[int]) -> str:
+    label = ("mean {:.0f} N", "{:+.0f} N per m/s^2 of ax", "{:+.0f} N per m/s^2 of ay")
+    return ", ".join(label[u].format(v) for u, v in zip(used, row, strict=True))
+
+
+def _vertical_axis(vehicle) -> tuple[str, float] | None:
+    """The accelerometer channel closest to the chassis' vertical and what it reads at rest, m/s^2 (specific
+    force: +g on an axis pointing up), or None without one within 30 degrees of it."""
+    A = np.asarray(vehicle.geometry.imu_axes, dtype=float)  # rows: the unit's x, y, z in frame 6 (x6 up)
+    i = int(np.argmax(np.abs(A[:, 0])))
+    if abs(A[i, 0]) < math.cos(math.radians(30.0)):
+        return None
+    name = ("imu_ax", "imu_ay", "imu_az")[i]
+    return (name, G * float(A[i, 0])) if name in vehicle.suite.names else None
+
+
+def _gravity(mean: float, up: tuple[str, float], channel: str, t0: float, t1: float) -> list[Finding]:
+    expect = up[1]
+    if abs(mean - expect) <= 0.25 * G:
+        return []
+    why = ("its sign is inverted (the axis points down)" if abs(mean + expect) <= 0.25 * G
+           else "a wrong unit (g or m/s^2?) or a wrong axis")
+    return [Finding(channel, "gravity", ERROR, t0, t1,
+                    f"averages {mean:.4g} m/s^2 over the test where gravity alone gives {expect:.4g} m/s^2: {why}",
+                    "fix the channel's unit or sign in the file or in [channels], or the unit's axes in the vehicle "
+                    "file (imu_axes)", 1.0)]
+
+
+def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, say: Progress) -> list[dict]:
+    """Every planned test's findings: an error stops the run (`ConfigError`: one line naming the test's file,
+    the channel, the time span and the fix, and how many more errors there are); the rest is said and returned
+    as dicts (the finding's fields, the test and its file), for results.json."""
+    listed, errors = [], []
+    for plan in plans:
+        source = str(plan.index.path)
+        for f in car_health(plan, vehicle):
+            line = f"test {plan.test!r} ({source}): {f.text()}"
+            if f.severity == ERROR:
+                errors.append(line)
+            else:
+                say(f"data health, {f.severity}: {line}")
+            listed.append({"test": plan.test, "file": source, **f.as_dict()})
+    if errors:
+        more = f" ({len(errors) - 1} more error(s) in the data: {'; '.join(errors[1:])})" if len(errors) > 1 else ""
+        raise ConfigError(f"{cfg.path}: data health: {errors[0]}{more}")
+    return listed
+
+
+def robot_health(plan: RobotTestPlan) -> list[Finding]:
+    """The findings of one planned robot test: each joint's position and torque channel (`io.health.ChannelScan`:
+    clipped plateaus, spikes, a channel that never moves), read a window at a time, errors first. No range is
+    declared for a robot's channels: clips are seen from the data. A joint that does not move in a test, or
+    whose torque does not change, may be the test's design (one joint excited at a time): a warning."""
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
+    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)))
+             for q in ("q", "tau") for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
+    for q in ("q", "tau"):
+        a = t0
+        while a <= t1:
+            b = min(a + WINDOW_S, t1)
+            rec = read_window(plan.indexes[q], list(plan.channels[q]), a, b)
+            for n in plan.channels[q]:
+                ch = rec.channels[n]
+                keep = slice(None) if b >= t1 else ch.time < b
+                scans[(q, n)].add(ch.time[keep], ch.values[keep])
+            if b >= t1:
+                break
+            a = b
+    out = [f for scan in scans.values() for f in scan.findings()]
+    order = {ERROR: 0, WARNING: 1, NOTE: 2}
+    return sorted(out, key=lambda f: order[f.severity])
+
+
+def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
+    """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
+    (`ConfigError`, one line), the rest is said and returned as dicts."""
+    listed, errors = [], []
+    for f in robot_health(plan):
+        source = str(plan.indexes["tau" if f.channel in plan.channels["tau"] else "q"].path)
+        line = f"test {plan.test!r} ({source}): {f.text()}"
+        if f.severity == ERROR:
+            errors.append(line)
+        else:
+            say(f"data health, {f.severity}: {line}")
+        listed.append({"test": plan.test, "file": source, **f.as_dict()})
+    if errors:
+        more = f" ({len(errors) - 1} more error(s) in the data: {'; '.join(errors[1:])})" if len(errors) > 1 else ""
+        raise ConfigError(f"{cfg.path}: data health: {errors[0]}{more}")
+    return listed
+
+
+def health_note(listed: Sequence[dict]) -> str:
+    """The findings that did not stop the run, a paragraph to append to the notes under the tables (its own
+    first line break; '' when none)."""
+    if not listed:
+        return ""
+    lines = [f"  {d['severity']}: {d['test']}: channel {d['channel']!r}: {d['detail']}, "
+             f"t = {d['t_start']:.6g}..{d['t_end']:.6g} s: {d['fix']}" for d in listed]
+    return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
+
+
+__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health"]
