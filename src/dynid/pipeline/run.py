@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import write_atomic
+from ..atomic import final_text, write_atomic
 from ..dynamics import BaseParameters, Model
 from ..estimation import (
     IdentificationError,
@@ -618,10 +618,11 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["consistency"] = run.consistency
     if run.offsets is not None:  # a car's sensor zero offsets: which, how large, from where
         data["sensor_offsets"] = run.offsets
-    if getattr(run, "health", None) is not None:  # a car's data health findings (pipeline.health)
+    if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
     data.update(report.data)
-    text = json.dumps(_finite(data), indent=2, allow_nan=False, default=_json)
+    # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
+    text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))
     written = [write_atomic(out / "results.json", text)]
     for name, content in report.files.items():
         written.append(write_atomic(out / name, content))
