@@ -219,6 +219,34 @@ def test_identify_stops_with_one_line_and_status_2(demo, tmp_path, capsys):
         identify(load_config(config))
 
 
+def test_data_health_warn_says_the_errors_and_runs_on(demo, tmp_path, capsys):
+    """[identification] data_health = "warn": the same dead channel is said (and kept in results.json as an
+    error), the run goes on; the stop's one line names the other errors' channels and this setting."""
+    file = "lane.csv"
+
+    def freeze(ch):
+        for name in ("imu_yaw_rate", "imu_roll_rate"):
+            replaced(ch, name, np.full(len(ch[name]), 0.25))
+
+    config, *_ = injected(demo[SEEDS[1]], tmp_path, file, freeze)
+    assert main(["identify", str(config), "--out", str(tmp_path / "stop")]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("dynid: error")]
+    assert len(errors) == 1, errors
+    err = errors[0]
+    assert "1 more error(s), on imu_" in err and 'data_health = "warn"' in err, err
+    assert "imu_roll_rate" in err and "imu_yaw_rate" in err, err
+    text = config.read_text()
+    assert "[identification]" in text
+    config.write_text(text.replace("[identification]", '[identification]\ndata_health = "warn"'))
+    assert main(["identify", str(config), "--out", str(tmp_path / "warn")]) == 0
+    health = json.loads((tmp_path / "warn" / "results.json").read_text())["health"]
+    dead = {h["channel"] for h in health if h["kind"] == "dead" and h["severity"] == ERROR}
+    assert {"imu_yaw_rate", "imu_roll_rate"} <= dead, health
+    config.write_text(text.replace("[identification]", '[identification]\ndata_health = "ignore"'))
+    assert main(["identify", str(config), "--out", str(tmp_path / "bad")]) == 2
+    assert 'data_health = \'ignore\'; give "stop"' in capsys.readouterr().err
+
+
 def test_clean_files_keep_their_answer_and_list_the_notes(demo, tmp_path, monkeypatch):
     """The check reads the files beside the identification and changes nothing: the estimates with and without it
     are the same numbers; results.json carries the findings (here the lane change's camera notes)."""

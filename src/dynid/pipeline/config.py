@@ -39,6 +39,8 @@
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
+    data_health = "stop"             # a data health error (a clipped, dead or swapped channel) stops the run;
+                                     # "warn": said, kept in results.json, the run goes on (docs/tutorial.md)
 
     [reference]                      # optional: a published base-parameter table to compare with
     file = "published.csv"
@@ -164,6 +166,7 @@ class IdentifyConfig:
     known: dict[str, float] = field(default_factory=dict)
     poor_factor: float = 20.0
     flag_percent: float = 2.5
+    data_health: str = "stop"
     reference: dict[str, Any] | None = None
     car: CarSettings | None = None
     # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
@@ -189,8 +192,9 @@ _ROBOT_QUANTITIES = ("q", "tau")
 _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
-_ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes")
+_ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health")
+DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
 _FOR_A_CAR = "a car's key: [model] template or vehicle"
@@ -254,9 +258,18 @@ def load_config(path: str | Path) -> IdentifyConfig:
         path=path, model=model, tests=tests, channels=channels, transmission=transmission,
         conditioning=cond, method=method, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
-        reference=_reference(data.get("reference"), here, err), car=car, vehicle=vehicle,
+        data_health=_data_health(ident, err), reference=_reference(data.get("reference"), here, err), car=car,
+        vehicle=vehicle,
         **_compute(data.get("compute", {}), err),
     )
+
+
+def _data_health(ident: dict, err: Err) -> str:
+    value = ident.get("data_health", "stop")
+    if value not in DATA_HEALTH:
+        raise err("[identification]", f"data_health = {value!r}; give \"stop\" (a data health error stops the run, "
+                                      "the default) or \"warn\" (it is said and kept in results.json, the run goes on)")
+    return value
 
 
 def _compute(c: dict, err: Err) -> dict[str, Any]:

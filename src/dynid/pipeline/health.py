@@ -252,20 +252,8 @@ def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, 
     """Every planned test's findings: an error stops the run (`ConfigError`: one line naming the test's file,
     the channel, the time span and the fix, and how many more errors there are); the rest is said and returned
     as dicts (the finding's fields, the test and its file), for results.json."""
-    listed, errors = [], []
-    for plan in plans:
-        source = str(plan.index.path)
-        for f in car_health(plan, vehicle):
-            line = f"test {plan.test!r} ({source}): {f.text()}"
-            if f.severity == ERROR:
-                errors.append(line)
-            else:
-                say(f"data health, {f.severity}: {line}")
-            listed.append({"test": plan.test, "file": source, **f.as_dict()})
-    if errors:
-        more = f" ({len(errors) - 1} more error(s) in the data: {'; '.join(errors[1:])})" if len(errors) > 1 else ""
-        raise ConfigError(f"{cfg.path}: data health: {errors[0]}{more}")
-    return listed
+    return _reported(cfg, [(plan.test, str(plan.index.path), f) for plan in plans for f in car_health(plan, vehicle)],
+                     say)
 
 
 def robot_health(plan: RobotTestPlan) -> list[Finding]:
@@ -297,18 +285,28 @@ def robot_health(plan: RobotTestPlan) -> list[Finding]:
 def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
     """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
     (`ConfigError`, one line), the rest is said and returned as dicts."""
+    return _reported(cfg, [(plan.test, str(plan.indexes["tau" if f.channel in plan.channels["tau"] else "q"].path), f)
+                           for f in robot_health(plan)], say)
+
+
+def _reported(cfg: IdentifyConfig, found: Sequence[tuple[str, str, Finding]], say: Progress) -> list[dict]:
+    """The findings (test, its file, finding) said and returned as dicts (the finding's fields, the test and its
+    file), for results.json; with [identification] data_health = "stop" (the default) an error stops the run
+    instead (`ConfigError`: one line naming the test's file, the channel, the span and the fix, and the channels
+    of the other errors)."""
     listed, errors = [], []
-    for f in robot_health(plan):
-        source = str(plan.indexes["tau" if f.channel in plan.channels["tau"] else "q"].path)
-        line = f"test {plan.test!r} ({source}): {f.text()}"
-        if f.severity == ERROR:
-            errors.append(line)
+    for test, source, f in found:
+        line = f"test {test!r} ({source}): {f.text()}"
+        if f.severity == ERROR and cfg.data_health == "stop":
+            errors.append((line, f.channel))
         else:
             say(f"data health, {f.severity}: {line}")
-        listed.append({"test": plan.test, "file": source, **f.as_dict()})
+        listed.append({"test": test, "file": source, **f.as_dict()})
     if errors:
-        more = f" ({len(errors) - 1} more error(s) in the data: {'; '.join(errors[1:])})" if len(errors) > 1 else ""
-        raise ConfigError(f"{cfg.path}: data health: {errors[0]}{more}")
+        others = list(dict.fromkeys(channel for _, channel in errors[1:]))
+        more = (f" ({len(errors) - 1} more error(s), on {', '.join(others[:6])}{', ...' if len(others) > 6 else ''}; "
+                "data_health = \"warn\" in [identification] says each and runs on)" if len(errors) > 1 else "")
+        raise ConfigError(f"{cfg.path}: data health: {errors[0][0]}{more}")
     return listed
 
 
