@@ -2,20 +2,9 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
-from .dynamics import BaseParameters, Model, Wrench
+from ._version import __version__
+from .dynamics import BaseParameters, Model, Wrench, load_model
 from .model import EXAMPLES, ModelError, Tree, example_path, load_tree, save_tree
-
-__version__ = "0.1.0"
-
-
-def load_model(path: str | os.PathLike[str]) -> Model:
-    """Load a model file (TOML), or a shipped example by name (puma560, tx40, floating_tree)."""
-    if isinstance(path, str) and path in EXAMPLES and not Path(path).exists():
-        path = example_path(path)
-    return Model(load_tree(path))
 
 
 def identify(config, progress=None, scheduler=None):
@@ -24,7 +13,8 @@ def identify(config, progress=None, scheduler=None):
     config: the config file's path (str or path-like), or an `IdentifyConfig` from
     `dynid.pipeline.config.load_config`. progress: a callable taking each progress message; scheduler: where the
     segments run (default: the config's [compute], else this machine's threads). Returns the
-    `IdentificationRun` (its `result`, `errors`, `summary()`)."""
+    `IdentificationRun` (its `result`, `errors`, `summary()`). The pipeline is imported here, on first use:
+    `import dynid` stays light."""
     from .pipeline.run import identify as run
 
     return run(config, progress=progress, scheduler=scheduler)
@@ -41,5 +31,6 @@ __all__ = [
     "example_path",
     "identify",
     "load_model",
+    "load_tree",
     "save_tree",
 ]

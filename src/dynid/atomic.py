@@ -422,7 +422,7 @@ def file_sha256(path: Path) -> str:
 
 
 def _write_marker(stage: Path) -> None:
-    from . import __version__
+    from ._version import __version__
 
     files = {}
     for rel in _names(stage):

@@ -83,8 +83,8 @@ def _noise(text: str) -> list[float]:
 def cmd_excite(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .. import load_model
     from ..atomic import write_atomic
+    from ..dynamics import load_model
     from ..estimation.excitation import (
         ExcitationError,
         Limits,

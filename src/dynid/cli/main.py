@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..model import ModelError, Tree
 
 SIGMA = {0: "R", 1: "P", 2: "F"}
@@ -52,7 +52,7 @@ def format_parameters(tree: Tree) -> str:
 
 
 def cmd_model_show(args: argparse.Namespace) -> int:
-    from .. import load_model
+    from ..dynamics import load_model
 
     if args.template:
         from .vehicle_cmds import show_template

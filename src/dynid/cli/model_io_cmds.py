@@ -66,7 +66,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from .. import load_model
+    from ..dynamics import load_model
     from ..model.urdf import export_urdf
 
     refuse_overwrite([args.out], args.force)

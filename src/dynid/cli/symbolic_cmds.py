@@ -56,7 +56,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _load(args: argparse.Namespace):
-    from .. import load_model
+    from ..dynamics import load_model
 
     return load_model(args.file).tree
 

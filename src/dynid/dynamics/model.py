@@ -8,11 +8,14 @@ one sample; q has one column per frame 1..n (fixed frames' columns are ignored).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
 from ..kinematics import forward, motion
+from ..model import EXAMPLES, example_path, load_tree
 from ..model.tree import Tree
 from . import base as _base
 from . import inertia, newton_euler
@@ -123,3 +126,10 @@ class Model:
     ) -> _base.BaseParameters:
         """Base parameters with regrouping relations (numeric QR on random samples)."""
         return _base.base_parameters(self.tree, rows, cols, seed=seed)
+
+
+def load_model(path: str | os.PathLike[str]) -> Model:
+    """Load a model file (TOML), or a shipped example by name (puma560, tx40, floating_tree)."""
+    if isinstance(path, str) and path in EXAMPLES and not Path(path).exists():
+        path = example_path(path)
+    return Model(load_tree(path))

@@ -312,7 +312,7 @@ class RobotSetup:
     """A robot config's model and base parameters, built once per process."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from .. import load_model
+        from ..dynamics import load_model
 
         self.model = load_model(cfg.model)
         self.base: BaseParameters = self.model.base_parameters()

@@ -547,7 +547,7 @@ def input_files(cfg) -> list[tuple[str, Path]]:
 
 
 def provenance(run) -> dict[str, Any]:
-    from .. import __version__
+    from .._version import __version__
     from ..atomic import file_sha256, final_path
 
     files = []
