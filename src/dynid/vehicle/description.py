@@ -69,7 +69,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.files import did_you_mean, read_toml, unknown_keys
-from ..model.tree import ModelError, Tree
+from ..model.tree import FRICTION_SHAPES, ModelError, Tree
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
@@ -89,7 +89,7 @@ from .tables import load_tables as load_table_file
 from .template import CORNERS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
-             "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
+             "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
 SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "steering": dict, "imu": dict,
             "sensors": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
 REQUIRED = ("name", "axles", "wheels", "a_priori")
@@ -123,6 +123,8 @@ class Vehicle:
     correvit: bool = True
     tire_offsets: bool = True
     tire_law: str = "paper"  # [wheels] tire_law: template.TIRE_LAWS
+    # [axles.*] damper_friction: damper frame -> (shape, vs) of its dry friction's law; absent: sign(qd)
+    damper_friction: dict[int, tuple[str, float]] = field(default_factory=dict)
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
     defaulted_tables: tuple[str, ...] = ()
     dynamics: LoggerDynamics | None = None  # [sensors.dynamics]; None: the suite's Table-1 sensors
@@ -130,7 +132,8 @@ class Vehicle:
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
         return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
-                            tire_offsets=self.tire_offsets, tire_law=self.tire_law)
+                            tire_offsets=self.tire_offsets, tire_law=self.tire_law,
+                            damper_friction=self.damper_friction)
 
     @property
     def suite(self) -> SensorSuite:
@@ -220,6 +223,8 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
         raise VehicleError(f"{where}: [wheels] unloaded_radius_known must be true or false; got {known_radius!r}")
     # without lasers the deflections come from the loads through the bench's kt: there is no offset to identify
     tire_offsets = fitted["lasers"] and not known_radius
+    damper_friction = {d: law for axle, pair in (("rear", DAMPERS[:2]), ("front", DAMPERS[2:]))
+                       if (law := _damper_friction(data["axles"][axle], where, f"[axles.{axle}]")) for d in pair}
     tire_law = data["wheels"].get("tire_law", "paper")
     if tire_law not in TIRE_LAWS:
         raise VehicleError(f"{where}: [wheels] tire_law = {tire_law!r}; give one of {', '.join(TIRE_LAWS)} "
@@ -232,8 +237,26 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law, **fitted,
+                   truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law,
+                   damper_friction=damper_friction, **fitted,
                    defaulted_tables=defaulted, dynamics=dynamics)
+
+
+def _damper_friction(t: dict, where: str, sec: str) -> tuple[str, float] | None:
+    """damper_friction = "sign" (the default: fs sign(qd)) or { shape = "tanh" | "sigmoid", vs_m_s = ... }: the dry
+    friction of the axle's dampers as a smooth law of the clearance rate (`model.tree.FRICTION_SHAPES`)."""
+    raw = t.get("damper_friction", "sign")
+    if raw == "sign":
+        return None
+    smooth = [s for s in FRICTION_SHAPES if s != "sign"]
+    if not isinstance(raw, dict) or set(raw) != {"shape", "vs_m_s"} or raw["shape"] not in smooth:
+        raise VehicleError(f"{where}: {sec} damper_friction = {raw!r}; give \"sign\" or {{ shape = \"tanh\" or "
+                           f"\"sigmoid\", vs_m_s = the rate (m/s) below which the friction is not developed }}")
+    vs = raw["vs_m_s"]
+    if isinstance(vs, bool) or not isinstance(vs, int | float) or not 0.0 < vs <= 0.5:
+        raise VehicleError(f"{where}: {sec} damper_friction vs_m_s = {vs!r}; give a rate in m/s in (0, 0.5], e.g. "
+                           "0.002")
+    return raw["shape"], float(vs)
 
 
 def _sensors(t: dict, where: str) -> dict:

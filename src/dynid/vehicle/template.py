@@ -262,6 +262,7 @@ def car_template(
     check_rest: bool = True,
     tire_offsets: bool = False,
     tire_law: str = "paper",
+    damper_friction: dict[int, tuple[str, float]] | None = None,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -276,6 +277,7 @@ def car_template(
     tire_law: "paper" (kt q = the load along the wheel's vertical) or "progressive" (kt q + ktq q² (+ off), ktq15
     ... ktq42: the Magic Formula's vertical law Fz = (qFz1 rho / R0 + qFz2 (rho / R0)^2) Fz0 of the deflection rho
     from the unloaded radius, written about dynid's q = rho + R0 - R: a tire stiffens as its contact patch grows).
+    damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
     """
     from .parameters import a_priori
     from .statics import rest_state
@@ -289,7 +291,8 @@ def car_template(
     terms.update({t: (*tire_terms, "KQ") if tire_law == "progressive" else tire_terms for t in TIRES})
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
-    tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81))
+    tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81),
+                friction_shape=dict(damper_friction or {}))
     tree = tree.with_values(a_priori().values if values is None else dict(values))
     if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
         rest_state(tree, default_tables(geometry), fix_dampers=True)
