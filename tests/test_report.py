@@ -81,10 +81,10 @@ def test_the_compact_suv_truth_gives_back_its_documented_figures():
     # whole car: the wheels on the axles, by hand
     assert q["cg_ahead_rear"] == pytest.approx((1670 * 1.59 + 90 * 2.79) / 1850)
     assert q["front_share"] == pytest.approx(100 * (1670 * 1.59 + 90 * 2.79) / 1850 / 2.79)
-    # roll stiffness by hand: front dampers tilted 10° and 2°, rear vertical; half tracks 0.79 m
+    # roll stiffness by hand: front dampers tilted 10° and 2°, rear vertical; half tracks 0.79 m; N·m/deg
     c2 = 1 / (1 + math.tan(math.radians(10)) ** 2 + math.tan(math.radians(2)) ** 2)
-    front = (30400 + 30900 + 4 * 25300) * 0.79**2 / c2
-    rear = (28100 + 27600 + 4 * 15200) * 0.79**2
+    front = (30400 + 30900 + 4 * 25300) * 0.79**2 / c2 * math.pi / 180
+    rear = (28100 + 27600 + 4 * 15200) * 0.79**2 * math.pi / 180
     assert q["roll_front"] == pytest.approx(front) and q["roll_rear"] == pytest.approx(rear)
     assert q["roll_front_share"] == pytest.approx(100 * front / (front + rear))
     assert damper_vertical(v.geometry, False) == 1.0
