@@ -496,7 +496,7 @@ def _chassis_sheet(t: object, g: CarGeometry, where: str, section: str) -> dict[
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise VehicleError(f"{where}: {sec} {k} = {v!r} must be a finite number (the unit is in the key)")
         lo, hi, unit, what = CHASSIS_SHEET[k]
-        hi = min(hi, g.wheelbase)
+        hi = g.wheelbase if k == "cog_ahead_of_rear_axle_m" else hi
         if not lo <= v <= hi:
             raise VehicleError(f"{where}: {sec} {k} = {v:g} is outside {lo:g}..{hi:g} {unit} for a passenger car "
                                f"({what}); is the unit right?")

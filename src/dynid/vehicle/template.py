@@ -134,9 +134,8 @@ def labels() -> dict[str, str]:
 
 # what each parameter is, in a chassis engineer's words: the quantity by the kind of parameter and the role of its
 # frame, the corner from the frame (the anti-roll bars: the axle of the dampers they couple)
-_CHASSIS_AXES = {"XX": "yaw inertia about O6 (x6, up)", "YY": "pitch inertia about O6 (y6, right)",
-                 "ZZ": "roll inertia about O6 (z6, forward)", "XY": "product of inertia xy6 about O6",
-                 "XZ": "product of inertia xz6 about O6", "YZ": "product of inertia yz6 about O6"}
+_CHASSIS_AXES = {"XX": "yaw inertia about O6", "YY": "pitch inertia about O6", "ZZ": "roll inertia about O6",
+                 "XY": "product of inertia xy6", "XZ": "product of inertia xz6", "YZ": "product of inertia yz6"}
 _QUANTITY = {
     ("damper", "K"): ("spring", "N/m"), ("damper", "FV"): ("damping", "N·s/m"),
     ("damper", "FS"): ("dry friction", "N"), ("damper", "OFF"): ("spring preload (offset)", "N"),
@@ -176,7 +175,7 @@ def meaning(name: str) -> Meaning | None:
         if kind == "M":
             return Meaning("chassis", "sprung mass", "kg")
         if kind in ("MX", "MY", "MZ"):
-            return Meaning("chassis", f"first moment {kind[1].lower()}6 (mass × CoG)", "kg·m")
+            return Meaning("chassis", f"first moment {kind[1].lower()}6", "kg·m")
         if kind in _CHASSIS_AXES:
             return Meaning("chassis", _CHASSIS_AXES[kind], "kg·m²")
         return None
