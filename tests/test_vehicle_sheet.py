@@ -349,3 +349,22 @@ def test_the_shipped_406_sheet_is_a_passenger_car():
     assert 0.9 < q["ride_frequency_front"] < 1.6 and 0.9 < q["ride_frequency_rear"] < 1.8
     assert 0.2 < q["damping_ratio_front"] < 1.0 and 1 < q["roll_gradient"] < 8 and 0.5 < q["pitch_gradient"] < 5
     assert 400 < q["roll_front"] < 3000  # N·m/deg
+
+
+def test_a_new_vehicle_file_offers_the_data_sheet_and_it_reads_as_the_same_car(tmp_path, capsys):
+    """`dynid vehicle new` ends with the 406's chassis as a commented [a_priori.chassis]: uncommented in place of
+    XX6..M6 it is the same chassis to the 4 digits it is written with."""
+    path = tmp_path / "mine.toml"
+    assert main(["vehicle", "new", "Mine", "--out", str(path)]) == 0
+    text = path.read_text(encoding="utf-8")
+    assert "# [a_priori.chassis]" in text
+    lines, section = [], ""
+    for line in text.splitlines():
+        section = line.split("]")[0] + "]" if line.startswith("[") else section
+        if section == "[a_priori]" and line.split(" = ")[0] in CHASSIS:
+            continue
+        lines.append(re.sub(r"^# (\[a_priori\.chassis\]|mass_kg|cog_|I[xyz][xyz]_)", r"\1", line))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    mine, shipped = load_vehicle(path), load_vehicle("peugeot406")
+    for k in CHASSIS:
+        assert mine.a_priori[k] == pytest.approx(shipped.a_priori[k], rel=2e-3, abs=0.5), k

@@ -162,9 +162,21 @@ def cmd_new(args: argparse.Namespace) -> int:
             lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
         elif line.startswith("unloaded_radius_known = "):  # the 406 is simulated; a real tire's radius is not known
             lines[i] = "unloaded_radius_known = false  # true only if radius_m is the unloaded radius to 0.1 mm"
-    write_atomic(out, "\n".join(head + lines).rstrip() + "\n")
+    write_atomic(out, "\n".join(head + lines).rstrip() + "\n" + _sheet_hint())
     print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")
     return 0
+
+
+def _sheet_hint() -> str:
+    """A commented [a_priori.chassis] (the 406's a priori chassis as a data sheet gives it) for a new file."""
+    from ..vehicle.description import chassis_sheet_keys, load_vehicle
+
+    v = load_vehicle("peugeot406")
+    keys = chassis_sheet_keys(v.a_priori.values, v.geometry)
+    keys.pop("cog_above_wheel_centres_m")
+    return ("\n# The chassis can be given as a data sheet gives it, instead of XX6 ... M6 (remove those):"
+            "\n# CoG and inertia at the CoG in ISO 8855 axes (x forward, y left, z up; docs/engineering.md)\n"
+            "# [a_priori.chassis]\n" + "".join(f"# {k} = {x:.4g}\n" for k, x in keys.items()))
 
 
 def cmd_show(args: argparse.Namespace) -> int:

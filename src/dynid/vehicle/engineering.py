@@ -186,6 +186,17 @@ def _series(a: float, b: float) -> float:
     return a * b / (a + b) if a + b else 0.0
 
 
+def _gradient(moment: float, stiffness: float) -> float:
+    """deg per g of a body on an angular stiffness whose weight's arm adds `moment` per radian (m g d): the
+    equilibrium angle (m g d) / (K - m g d); NaN when K <= m g d (no equilibrium: the body would not stand)."""
+    return moment / (stiffness - moment) / DEG if stiffness > moment else float("nan")
+
+
+def _ratio(a: float, b: float) -> float:
+    """a / b, NaN where b is 0 (a set without tires or springs: no figure rather than an exception)."""
+    return a / b if b else float("nan")
+
+
 def car_quantities(values: Mapping[str, float], geometry: CarGeometry) -> dict[str, float]:
     """The engineering figures (QUANTITIES' keys, their units) of one parameter set; missing names are 0."""
     v = values
@@ -235,8 +246,8 @@ def car_quantities(values: Mapping[str, float], geometry: CarGeometry) -> dict[s
         out[f"wheel_rate_bar_{axle}"] = 2 * bar / cv**2
         ride[axle] = sum(_series(kk / cv**2, tt) for kk, tt in zip(ks, kt, strict=True))
         damping = sum(h) / cv**2
-        out[f"ride_frequency_{axle}"] = float(np.sqrt(ride[axle] / m_axle[axle]) / (2 * np.pi))
-        out[f"damping_ratio_{axle}"] = damping / (2 * float(np.sqrt(ride[axle] * m_axle[axle])))
+        out[f"ride_frequency_{axle}"] = float(np.sqrt(max(_ratio(ride[axle], m_axle[axle]), 0.0)) / (2 * np.pi))
+        out[f"damping_ratio_{axle}"] = _ratio(damping, 2 * float(np.sqrt(max(ride[axle] * m_axle[axle], 0.0))))
         roll[axle] = (sum(ks) + 4 * bar) * t**2 / cv**2  # N·m/rad
         roll_eff[axle] = _series(roll[axle], sum(kt) * t**2)
         centre[axle] = -t * float(np.tan(ax.damper_lateral_tilt))  # the slides' roll centre, above the ground
@@ -245,16 +256,16 @@ def car_quantities(values: Mapping[str, float], geometry: CarGeometry) -> dict[s
     out.update({"roll_front": roll["front"] * DEG, "roll_rear": roll["rear"] * DEG, "roll_total": total * DEG,
                 "roll_front_share": 100 * roll["front"] / total if total else float("nan")})
     # corner weights: each axle's share of the sprung mass, the lateral offset's moment shared as the roll stiffness
-    share_roll = roll_eff["front"] / (roll_eff["front"] + roll_eff["rear"])
+    share_roll = _ratio(roll_eff["front"], roll_eff["front"] + roll_eff["rear"])
     for axle, s_roll in (("front", share_roll), ("rear", 1 - share_roll)):
         t = (geometry.front if axle == "front" else geometry.rear).half_track
         for k, sign in zip(axle_corners(axle), (1.0, -1.0), strict=True):
             out[f"corner_{_key(CORNERS[k])}"] = (m_axle[axle] / 2 + sign * m6 * y_s * s_roll / (2 * t)
                                                    + wheel_m[k])
     arm = h_s - (centre["rear"] + (centre["front"] - centre["rear"]) * share_sprung)  # CoG above the roll axis
-    out["roll_gradient"] = m6 * G * arm / (roll_eff["front"] + roll_eff["rear"] - m6 * G * arm) / DEG
+    out["roll_gradient"] = _gradient(m6 * G * arm, roll_eff["front"] + roll_eff["rear"])
     pitch = L**2 * _series(ride["front"], ride["rear"])  # N·m/rad about the ground, the body free to heave
-    out["pitch_gradient"] = m6 * G * h_s / (pitch - m6 * G * h_s) / DEG
+    out["pitch_gradient"] = _gradient(m6 * G * h_s, pitch)
     return {k: float(x) for k, x in out.items()}
 
 
