@@ -153,8 +153,8 @@ def cmd_new(args: argparse.Namespace) -> int:
     refuse_overwrite([out], args.force)
     head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
             "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
-    lines = [line for line in vehicle_path("peugeot406").read_text(encoding="utf-8").splitlines()
-             if not line.startswith("# ")]
+    source = vehicle_path("peugeot406")
+    lines = [line for line in source.read_text(encoding="utf-8").splitlines() if not line.startswith("# ")]
     for i, line in enumerate(lines):  # JSON's string escapes are TOML's
         if line.startswith("name = "):
             lines[i] = f"name = {json.dumps(args.name)}"
@@ -162,16 +162,17 @@ def cmd_new(args: argparse.Namespace) -> int:
             lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
         elif line.startswith("unloaded_radius_known = "):  # the 406 is simulated; a real tire's radius is not known
             lines[i] = "unloaded_radius_known = false  # true only if radius_m is the unloaded radius to 0.1 mm"
-    write_atomic(out, "\n".join(head + lines).rstrip() + "\n" + _sheet_hint())
+    write_atomic(out, "\n".join(head + lines).rstrip() + "\n" + _sheet_hint(source))
     print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")
     return 0
 
 
-def _sheet_hint() -> str:
-    """A commented [a_priori.chassis] (the 406's a priori chassis as a data sheet gives it) for a new file."""
+def _sheet_hint(source: Path) -> str:
+    """A commented [a_priori.chassis]: the a priori chassis of the file a new one starts from, as a data sheet
+    gives it."""
     from ..vehicle.description import chassis_sheet_keys, load_vehicle
 
-    v = load_vehicle("peugeot406")
+    v = load_vehicle(source)
     keys = chassis_sheet_keys(v.a_priori.values, v.geometry)
     keys.pop("cog_above_wheel_centres_m")
     return ("\n# The chassis can be given as a data sheet gives it, instead of XX6 ... M6 (remove those):"

@@ -140,6 +140,7 @@ _QUANTITY = {
     ("damper", "K"): ("spring", "N/m"), ("damper", "FV"): ("damping", "N·s/m"),
     ("damper", "FS"): ("dry friction", "N"), ("damper", "OFF"): ("spring preload (offset)", "N"),
     ("tire", "K"): ("tire vertical stiffness", "N/m"), ("tire", "OFF"): ("tire load offset", "N"),
+    ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
     ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
     ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
 }
