@@ -154,7 +154,8 @@ def backward_recursion(tree: Tree, mo: Motion, F: list, M: list) -> Array:
 
 
 def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inertia_only: bool = False) -> Array:
-    """IA qdd + FV qd + FS s(qd) + OFF + K q per joint (s: the joint's Coulomb law), plus the couplings, (n, N)."""
+    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² per joint (s: the joint's Coulomb law), plus the couplings,
+    (n, N)."""
     tau = np.zeros_like(q)
     idx = tree.index
     for j, terms in tree.joint_terms.items():
@@ -172,7 +173,7 @@ def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inerti
 
 def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
                       law: tuple[str, float] = SIGN_LAW) -> Array:
-    """Generalized force of joint j per unit of its term IA, FV, FS, OFF or K, (N,); law: the (shape, vs)
+    """Generalized force of joint j per unit of its term IA, FV, FS, OFF, K or KQ, (N,); law: the (shape, vs)
     of its FS term (Tree.friction_law)."""
     match term:
         case "IA":
@@ -185,6 +186,8 @@ def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
             return np.ones_like(q)
         case "K":
             return q
+        case "KQ":
+            return q * q
     raise ModelError(f"unknown joint term {term!r}")
 
 

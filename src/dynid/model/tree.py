@@ -39,7 +39,9 @@ from functools import cached_property
 import numpy as np
 
 INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
-JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K")
+# KQ: a spring's second-order term KQ q^2 (with K and OFF, a quadratic law about any reference: a tire whose load
+# rises faster than its deflection)
+JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K", "KQ")
 FRICTION_SHAPES = ("sign", "tanh", "sigmoid")
 SIGN_LAW: tuple[str, float] = ("sign", 0.0)
 COUPLING_KINDS = ("K", "IA", "FV", "FS")

@@ -242,6 +242,8 @@ class Builder:
                 return ONE
             case "K":
                 return g.q(j)
+            case "KQ":
+                return mul(g.q(j), g.q(j))
         raise SymbolicError(f"unknown joint term {term!r}")
 
     def coupling_value(self, ci: int) -> Poly:

@@ -86,7 +86,7 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, DAMPERS, car_template, labels, paper_parameter_names
+from .template import CORNERS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
@@ -122,6 +122,7 @@ class Vehicle:
     lasers: bool = True
     correvit: bool = True
     tire_offsets: bool = True
+    tire_law: str = "paper"  # [wheels] tire_law: template.TIRE_LAWS
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
     defaulted_tables: tuple[str, ...] = ()
     dynamics: LoggerDynamics | None = None  # [sensors.dynamics]; None: the suite's Table-1 sensors
@@ -129,7 +130,7 @@ class Vehicle:
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
         return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
-                            tire_offsets=self.tire_offsets)
+                            tire_offsets=self.tire_offsets, tire_law=self.tire_law)
 
     @property
     def suite(self) -> SensorSuite:
@@ -219,6 +220,10 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
         raise VehicleError(f"{where}: [wheels] unloaded_radius_known must be true or false; got {known_radius!r}")
     # without lasers the deflections come from the loads through the bench's kt: there is no offset to identify
     tire_offsets = fitted["lasers"] and not known_radius
+    tire_law = data["wheels"].get("tire_law", "paper")
+    if tire_law not in TIRE_LAWS:
+        raise VehicleError(f"{where}: [wheels] tire_law = {tire_law!r}; give one of {', '.join(TIRE_LAWS)} "
+                           "(docs/vehicle.md, 'The tire equation')")
     truth = None
     if "truth" in data:
         truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry), a_priori,
@@ -228,8 +233,8 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, tire_offsets=tire_offsets, **fitted, defaulted_tables=defaulted,
-                   dynamics=dynamics)
+                   truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law, **fitted,
+                   defaulted_tables=defaulted, dynamics=dynamics)
 
 
 def _sensors(t: dict, where: str) -> dict:
@@ -323,7 +328,7 @@ def _geometry(data: dict, where: str) -> CarGeometry:
                             kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
 
     wheels = data["wheels"]
-    _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known"}, where, "[wheels]")
+    _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known", "tire_law"}, where, "[wheels]")
     imu = data.get("imu", {})
     _keys(imu, {"position_m", "axes"}, where, "[imu]")
     position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")

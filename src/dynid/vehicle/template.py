@@ -128,7 +128,7 @@ def labels() -> dict[str, str]:
     for d in DAMPERS:
         out.update({f"K{d}": f"ks{d}", f"FV{d}": f"h{d}", f"FS{d}": f"fs{d}", f"OFF{d}": f"off{d}"})
     for t in TIRES:
-        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}"})
+        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}"})
     return out
 
 
@@ -309,6 +309,10 @@ def frames(geometry: CarGeometry) -> tuple[Frame, ...]:
     return tuple(rows)
 
 
+# the tire equation's law (see car_template): the paper's linear spring, or a progressive one
+TIRE_LAWS = ("paper", "progressive")
+
+
 def car_template(
     geometry: CarGeometry | None = None,
     values: dict[str, float] | None = None,
@@ -316,6 +320,7 @@ def car_template(
     known: set[str] | frozenset[str] = frozenset(),
     check_rest: bool = True,
     tire_offsets: bool = False,
+    tire_law: str = "paper",
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -327,14 +332,20 @@ def car_template(
     unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
     is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
     equation (R is the unloaded radius).
+    tire_law: "paper" (kt q = the load along the wheel's vertical) or "progressive" (kt q + ktq q² (+ off), ktq15
+    ... ktq42: the Magic Formula's vertical law Fz = (qFz1 rho / R0 + qFz2 (rho / R0)^2) Fz0 of the deflection rho
+    from the unloaded radius, written about dynid's q = rho + R0 - R: a tire stiffens as its contact patch grows).
     """
     from .parameters import a_priori
     from .statics import rest_state
     from .tables import default_tables
 
+    if tire_law not in TIRE_LAWS:
+        raise ValueError(f"tire_law must be one of {TIRE_LAWS}; got {tire_law!r}")
     geometry = CarGeometry() if geometry is None else geometry
     terms = {d: ("FV", "FS", "OFF", "K") for d in DAMPERS}
-    terms.update({t: ("OFF", "K") if tire_offsets else ("K",) for t in TIRES})
+    tire_terms = ("OFF", "K") if tire_offsets else ("K",)
+    terms.update({t: (*tire_terms, "KQ") if tire_law == "progressive" else tire_terms for t in TIRES})
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
     tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81))
