@@ -271,6 +271,7 @@ def test_the_car_results_as_data(car):
     data = json.loads((out / "results.json").read_text())
     p = {q["name"]: q for q in data["parameters"]}
     assert p["K9"]["unit"] == "N/m" and p["M6"]["unit"] == "kg"
+    assert (p["K9"]["corner"], p["K9"]["quantity"]) == ("rear left", "spring")
     lo, hi = p["M6"]["interval_95"]
     assert lo < p["M6"]["value"] < hi and hi - lo == pytest.approx(2 * 1.959964 * p["M6"]["std_total"])
     for key in ("value", "std", "rel_std_percent", "a_priori", "truth", "flag", "paper_rule", "scale", "std_total"):

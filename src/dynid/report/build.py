@@ -639,9 +639,12 @@ def build_report(run, title: str) -> Report:
     data: dict[str, Any] = {}
     per: dict[str, dict[str, Any]] = {}
     total = r.std_total
+    what = meanings(run)
     for i, n in enumerate(r.names):
         lo, hi = interval95(float(r.values[i]), float(total[i]))
         per[n] = {"unit": parameter_unit(n, tree), "interval_95": [lo, hi]}
+        if n in what:
+            per[n].update(zip(("corner", "quantity"), what[n], strict=True))
     res = r.residual
     n_known = len(r.names) - len(r.estimated_names)
     summary = (f"{r.method}: {len(r.estimated_names)} parameters estimated from {res.n_rows} rows"
