@@ -89,7 +89,21 @@ class IdentificationRun:
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
 
     def summary(self) -> str:
-        text = parameter_table(self.result, self.sections)
+        """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
+        sheet, then the notes."""
+        meanings = None
+        if self.vehicle is not None:
+            from ..vehicle.template import meaning
+
+            found = {n: meaning(n) for n in self.result.names}
+            meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
+        text = parameter_table(self.result, self.sections, meanings=meanings)
+        if self.vehicle is not None:
+            from ..report.build import car_engineering
+            from ..report.tables import engineering_block
+
+            quantities, kind, _, _ = car_engineering(self)
+            text += "\n\n" + engineering_block(quantities, kind)
         return f"{text}\n\n{self.notes}" if self.notes else text
 
     def reference_table(self) -> str:

@@ -195,8 +195,8 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     tables, defaulted = _tables(data.get("tables", {}), geometry, ratio, path)
     aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
-    a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True)
-    known = _parameters(data.get("known", {}), names, where, "known", complete=False)
+    a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True, geometry=geometry)
+    known = _parameters(data.get("known", {}), names, where, "known", complete=False, geometry=geometry)
     for axle, bar in (("front", "karf"), ("rear", "karr")):
         if not data["axles"][axle].get("anti_roll_bar", True):
             if known.get(bar, 0.0) != 0.0:
@@ -231,7 +231,8 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
                            "(docs/vehicle.md, 'The tire equation')")
     truth = None
     if "truth" in data:
-        truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False), a_priori, known, geometry,
+        truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry), a_priori,
+                       known, geometry,
                        tables, where)
     name = data["name"].strip()
     if not name:
@@ -484,7 +485,82 @@ def parameter_range(name: str) -> tuple[float, float, str, str]:
             "karr": (0.0, 1e6, "N/m", "an anti-roll bar's stiffness")}.get(kind, (-math.inf, math.inf, "", ""))
 
 
-def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool) -> dict[str, float]:
+# [a_priori.chassis], [truth.chassis], [known.chassis]: the chassis as a data sheet gives it, in place of XX6..M6.
+# key -> (low, high, unit, what); the CoG's position ahead of the rear axle is checked against the wheelbase
+CHASSIS_SHEET = {
+    "mass_kg": (300.0, 4000.0, "kg", "the chassis's (sprung) mass, wheels apart"),
+    "cog_ahead_of_rear_axle_m": (0.0, math.inf, "m", "the chassis's CoG ahead of the rear axle, between the axles"),
+    "cog_above_ground_m": (0.15, 1.5, "m", "the chassis's CoG above the ground at design ride height"),
+    "cog_above_wheel_centres_m": (-0.3, 1.2, "m", "the chassis's CoG above the wheel centres at design"),
+    "cog_left_m": (-0.3, 0.3, "m", "the chassis's CoG left of the centreline (ISO y)"),
+    "Ixx_kg_m2": (50.0, 2e4, "kg·m²", "roll inertia at the CoG (ISO x forward)"),
+    "Iyy_kg_m2": (200.0, 5e4, "kg·m²", "pitch inertia at the CoG (ISO y left)"),
+    "Izz_kg_m2": (200.0, 5e4, "kg·m²", "yaw inertia at the CoG (ISO z up)"),
+    "Ixy_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry xy at the CoG, -∫xy dm"),
+    "Ixz_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry xz at the CoG, -∫xz dm"),
+    "Iyz_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry yz at the CoG, -∫yz dm"),
+}
+CHASSIS_PARAMETERS = ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "MX6", "MY6", "MZ6", "M6")
+
+
+def _chassis_sheet(t: object, g: CarGeometry, where: str, section: str) -> dict[str, float]:
+    """XX6..M6 from a [section.chassis] data sheet (`engineering.chassis_from_data_sheet`), every key checked."""
+    from .engineering import chassis_from_data_sheet
+
+    sec = f"[{section}.chassis]"
+    if not isinstance(t, dict):
+        raise VehicleError(f"{where}: {sec} must be a table (mass_kg, cog_ahead_of_rear_axle_m, cog_above_ground_m, "
+                           f"Ixx_kg_m2, ...); got {t!r}")
+    _keys(t, set(CHASSIS_SHEET), where, sec)
+    heights = [k for k in ("cog_above_ground_m", "cog_above_wheel_centres_m") if k in t]
+    missing = [k for k in ("mass_kg", "cog_ahead_of_rear_axle_m", "Ixx_kg_m2", "Iyy_kg_m2", "Izz_kg_m2") if k not in t]
+    if len(heights) != 1:
+        missing.append("cog_above_ground_m (or cog_above_wheel_centres_m)" if not heights else
+                       "not both: cog_above_ground_m and cog_above_wheel_centres_m, only one")
+    if missing:
+        raise VehicleError(f"{where}: {sec}: missing {', '.join(missing)}")
+    x: dict[str, float] = {}
+    for k, v in t.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise VehicleError(f"{where}: {sec} {k} = {v!r} must be a finite number (the unit is in the key)")
+        lo, hi, unit, what = CHASSIS_SHEET[k]
+        hi = g.wheelbase if k == "cog_ahead_of_rear_axle_m" else hi
+        if not lo <= v <= hi:
+            raise VehicleError(f"{where}: {sec} {k} = {v:g} is outside {lo:g}..{hi:g} {unit} for a passenger car "
+                               f"({what}); is the unit right?")
+        x[k] = float(v)
+    above = (x["cog_above_ground_m"] if heights[0] == "cog_above_ground_m"
+             else x["cog_above_wheel_centres_m"] + g.wheel_radius)
+    J = np.array([[x["Ixx_kg_m2"], x.get("Ixy_kg_m2", 0.0), x.get("Ixz_kg_m2", 0.0)],
+                  [x.get("Ixy_kg_m2", 0.0), x["Iyy_kg_m2"], x.get("Iyz_kg_m2", 0.0)],
+                  [x.get("Ixz_kg_m2", 0.0), x.get("Iyz_kg_m2", 0.0), x["Izz_kg_m2"]]])
+    return chassis_from_data_sheet(x["mass_kg"], x["cog_ahead_of_rear_axle_m"], above, x.get("cog_left_m", 0.0), J, g)
+
+
+def chassis_sheet_keys(values: dict[str, float], g: CarGeometry) -> dict[str, float]:
+    """The [*.chassis] keys of a parameter set's XX6..M6 (`engineering.chassis_data_sheet`): what `dynid vehicle
+    show` prints, and what reads back to the same XX6..M6."""
+    from .engineering import chassis_data_sheet
+
+    d = chassis_data_sheet(values, g)
+    tiny = 1e-13 * max(abs(d["Ixx"]), abs(d["Iyy"]), abs(d["Izz"]))  # a product that is round-off of 0 reads 0
+    d = {k: 0.0 if k.startswith("I") and abs(x) < tiny else x for k, x in d.items()}
+    return {"mass_kg": d["mass_sprung"], "cog_ahead_of_rear_axle_m": d["cgs_ahead_rear"],
+            "cog_above_ground_m": d["cgs_height"], "cog_above_wheel_centres_m": d["cgs_height"] - g.wheel_radius,
+            "cog_left_m": d["cgs_lateral"], "Ixx_kg_m2": d["Ixx"], "Iyy_kg_m2": d["Iyy"], "Izz_kg_m2": d["Izz"],
+            "Ixy_kg_m2": d["Ixy"], "Ixz_kg_m2": d["Ixz"], "Iyz_kg_m2": d["Iyz"]}
+
+
+def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool,
+                geometry: CarGeometry | None = None) -> dict[str, float]:
+    t = dict(t)
+    sheet: dict[str, float] = {}
+    if "chassis" in t and geometry is not None:
+        given = [k for k in t if names.get(k) in CHASSIS_PARAMETERS]
+        if given:
+            raise VehicleError(f"{where}: [{section}] gives {', '.join(given)} and [{section}.chassis]: give the "
+                               "chassis one way, its data sheet or the frame-6 parameters XX6..M6")
+        sheet = _chassis_sheet(t.pop("chassis"), geometry, where, section)
     out: dict[str, float] = {}
     for k, v in t.items():
         if k not in names:
@@ -498,6 +574,7 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
         if n in out:
             raise VehicleError(f"{where}: [{section}] {n} is given twice (as a name and as a label)")
         out[n] = float(v)
+    out.update(sheet)
     for n, v in out.items():
         kind = n.rstrip("0123456789")
         if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr")) and v < 0:
