@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import argparse
 import errno
+import math
 import sys
 from collections.abc import Sequence
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .._version import __version__
-from ..model import ModelError, Tree
+
+if TYPE_CHECKING:  # the model layer (NumPy) is imported by the commands that use it: --help and --version stay quick
+    from ..model import Tree
 
 SIGMA = {0: "R", 1: "P", 2: "F"}
 
@@ -25,7 +27,7 @@ def format_table(tree: Tree) -> str:
     head = f"{'j':>3} {'a(j)':>4} {'sigma':>5} {'gamma':>9} {'b':>8} {'alpha':>9} {'d':>8} {'theta':>9} {'r':>8}"
     lines = [head]
     for f in tree.frames:
-        th = f"q{f.j}" + (f"{np.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
+        th = f"q{f.j}" + (f"{math.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
         r = f"q{f.j}" + (f"{f.r:+.4g}" if f.r else "") if f.sigma == 1 else f"{f.r:.4g}"
         lines.append(
             f"{f.j:>3} {f.ant:>4} {SIGMA[f.sigma]:>5} {_deg(f.gamma):>9} {f.b:>8.4g} {_deg(f.alpha):>9} "
@@ -35,7 +37,7 @@ def format_table(tree: Tree) -> str:
 
 
 def _deg(a: float) -> str:
-    return f"{np.degrees(a):.4g}°" if a else "0"
+    return f"{math.degrees(a):.4g}°" if a else "0"
 
 
 def format_parameters(tree: Tree) -> str:
@@ -53,6 +55,7 @@ def format_parameters(tree: Tree) -> str:
 
 def cmd_model_show(args: argparse.Namespace) -> int:
     from ..dynamics import load_model
+    from ..model import ModelError
 
     if args.template:
         from .vehicle_cmds import show_template
@@ -295,6 +298,7 @@ def _user_errors() -> tuple[type[Exception], ...]:
     from ..atomic import OutputError
     from ..estimation.errors import IdentificationError
     from ..io.errors import DataError, MissingDependencyError
+    from ..model import ModelError
     from ..signals.errors import SignalError
     from ..symbolic.expr import SymbolicError
     from ..textfiles import TextEncodingError

@@ -17,10 +17,13 @@ import time
 
 from ..atomic import add_force, refuse_overwrite
 
+# the names of vehicle.sim.manoeuvres.DEFAULTS, spelt out because importing the simulator for `dynid --help` costs a
+# second; tests/test_cli.py holds the two equal
+MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "static")
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `simulate` to the top-level `dynid` sub-commands."""
-    from ..vehicle.sim.manoeuvres import DEFAULTS
     from .usage import command
 
     p = command(subparsers, "simulate", help="simulate a test-track manoeuvre and write the sensor file",
@@ -33,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                           "dynid simulate spiral --duration 30 --truth --out spiral.mf4"],
                 notes="The first run compiles the car's models (up to a minute); later runs load them from the "
                       "cache.")
-    p.add_argument("manoeuvre", help=f"one of {', '.join(DEFAULTS)}")
+    p.add_argument("manoeuvre", help=f"one of {', '.join(MANOEUVRES)}")
     p.add_argument("--speed", type=float, default=None, help="speed, km/h (default: the manoeuvre's)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the manoeuvre's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
