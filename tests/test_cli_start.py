@@ -59,4 +59,4 @@ def test_simulate_lists_the_simulators_manoeuvres():
     from dynid.cli.simulate_cmds import MANOEUVRES
     from dynid.vehicle.sim.manoeuvres import DEFAULTS
 
-    assert MANOEUVRES == tuple(DEFAULTS)
+    assert tuple(DEFAULTS) == MANOEUVRES
