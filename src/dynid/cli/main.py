@@ -88,8 +88,11 @@ def cmd_model_show(args: argparse.Namespace) -> int:
 
 def _say(msg: str) -> None:
     from ..atomic import final_text
+    from ..progress import Count
+    from .progress import report
 
-    print(f"· {final_text(msg)}", file=sys.stderr)  # the output folder's name, never its staging folder's
+    # the output folder's name, never its staging folder's; a count (segments) is drawn as a bar on a terminal
+    report(msg if isinstance(msg, Count) else final_text(msg))
 
 
 def _print_run(run, validation_title: str) -> None:
@@ -332,6 +335,12 @@ def _os_error_text(exc: OSError, out: object) -> str:
     return f"{where}{what}"
 
 
+def _end_bars() -> None:
+    from .progress import report
+
+    report.close()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from ..atomic import Terminated, final_text
     from .usage import check_options
@@ -340,7 +349,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         check_options(args)
-        return int(args.func(args) or 0)
+        try:
+            return int(args.func(args) or 0)
+        finally:  # a bar an error interrupted is ended (its line finished) before the error's line
+            _end_bars()
     except _user_errors() as exc:
         print(f"dynid: error: {final_text(str(exc))}", file=sys.stderr)
         return 2
