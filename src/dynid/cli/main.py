@@ -281,7 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "(default: dynid-out)")
     ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
-                            "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
+                            "scheduler's address (tcp://host:8786; needs pip install distributed); default: the "
                             "config's [compute] scheduler, else this machine's threads")
     ident.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                        help="threads, or a LocalCluster's worker processes (default: the config's, else 2); a remote "

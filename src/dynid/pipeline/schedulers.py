@@ -110,7 +110,7 @@ class DaskScheduler:
             from ..io.errors import MissingDependencyError
 
             raise MissingDependencyError("Running on a Dask cluster needs dask.distributed: "
-                                         "pip install 'dynid[dask]'") from None
+                                         "pip install distributed (dynid's 'dask' extra)") from None
         self.address = address
         from .dask_worker import MallocTuning
 
