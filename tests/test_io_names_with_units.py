@@ -139,3 +139,24 @@ def test_an_index_or_a_note_in_brackets_stays_in_the_name(tmp_path):
     rec = read_recording(path)
     assert set(rec.channels) == {"x[0]", "x[1]", "ay (filtered)"}
     assert all(c.unit == "" for c in rec.channels.values())
+
+
+def test_parquet_copies_of_the_simulated_cars_csv_files_identify_as_them(tmp_path):
+    """The issue's case: the quick demo's logger files as `dynid simulate` writes them (CSV, units in the header),
+    read by pandas and written to Parquet by pyarrow, identify to the CSVs' estimate and σ."""
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    from dynid.pipeline.demo import simulate_tests, write_demo
+
+    config = write_demo(tmp_path, simulate_tests(quick=True), seed=5)
+    text = config.read_text()
+    for csv in sorted((tmp_path / "data").glob("*.csv")):
+        pd.read_csv(csv, comment="#").to_parquet(csv.with_suffix(".parquet"))
+        text = text.replace(f'"data/{csv.name}"', f'"data/{csv.stem}.parquet"')
+    assert ".csv" not in text
+    copy = tmp_path / "parquet.toml"
+    copy.write_text(text)
+    a, b = identify(load_config(config)).result, identify(load_config(copy)).result
+    assert list(a.names) == list(b.names)
+    np.testing.assert_allclose(b.values, a.values, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(b.std, a.std, rtol=1e-9, atol=0)
