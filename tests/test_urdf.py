@@ -80,7 +80,7 @@ ROBOTS = {
 def robot_text(name: str) -> str:
     d = robots_dir()
     if d is None:
-        pytest.skip("example-robot-data is not installed (pip install 'dynid[test]')")
+        pytest.skip("example-robot-data is not installed (pip install -e '.[test]' in the clone)")
     return re.sub(r"<mimic[^>]*/>", "", (d / ROBOTS[name]).read_text(encoding="utf-8"))
 
 

@@ -125,8 +125,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
     if len(noise) not in (1, len(moving)):
         raise ExcitationError(f"--noise: give one value or {len(moving)} (one per moving joint), got {len(noise)}")
 
-    def say(msg: str) -> None:
-        print(f"· {msg}", file=sys.stderr)
+    from .progress import report as say  # the starts as a bar with its time left on a terminal
 
     d = design_excitation(model, limits, period=args.period, harmonics=args.harmonics, samples=args.samples,
                           scale=args.scale, starts=args.starts, optimise=args.refine, maxiter=args.maxiter,

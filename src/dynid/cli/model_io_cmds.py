@@ -6,9 +6,12 @@ import argparse
 import json
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..atomic import add_force, refuse_overwrite
-from ..model import INERTIAL, ModelError, Tree
+
+if TYPE_CHECKING:  # the model layer (NumPy) is imported where used: `dynid --help` stays quick
+    from ..model import Tree
 
 _STANDARD = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FV|FS|OFF|K)(\d+)$")
 
@@ -67,6 +70,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from ..dynamics import load_model
+    from ..model import ModelError
     from ..model.urdf import export_urdf
 
     refuse_overwrite([args.out], args.force)
@@ -85,6 +89,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def _write(action, out: str) -> None:
+    from ..model import ModelError
+
     try:
         action()
     except OSError as exc:
@@ -93,6 +99,8 @@ def _write(action, out: str) -> None:
 
 def read_parameters(path: str, tree: Tree) -> dict[str, float]:
     """Standard parameter values from a results.json (base parameters) or a TOML parameter file."""
+    from ..model import ModelError
+
     p = Path(path)
     if p.suffix.lower() == ".json":
         try:
@@ -130,6 +138,8 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
 
 
 def _json_table(data: object, p: Path) -> dict[str, float]:
+    from ..model import ModelError
+
     params = data.get("parameters") if isinstance(data, dict) else None
     if isinstance(params, list):
         out = {}
@@ -144,6 +154,8 @@ def _json_table(data: object, p: Path) -> dict[str, float]:
 
 
 def _standard(table: dict[str, float], tree: Tree, where: str) -> dict[str, float]:
+    from ..model import ModelError
+
     out = {}
     for k, v in table.items():
         try:
@@ -158,6 +170,7 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
     standard parameter X_1 takes X_B - beta X_2 with the regrouped X_2 at the model's (a priori) values.
     Only the inertial parameters are returned (a URDF has no joint terms)."""
     from ..dynamics import Model
+    from ..model import ModelError
 
     base = Model(tree).base_parameters()  # as the identification computed it (deterministic samples)
     unknown = [k for k in base_values if k not in base.names]
@@ -175,6 +188,8 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
 
 
 def _is_inertial(name: str) -> bool:
+    from ..model import INERTIAL
+
     m = _STANDARD.match(name)
     return bool(m) and m.group(1) in INERTIAL
 

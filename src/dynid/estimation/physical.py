@@ -21,7 +21,7 @@ I the inertia matrix about O_j in frame j (XX XY XZ; XY YY YZ; XZ YZ ZZ). J ⪰ 
 non-negative mass distribution has these moments; J ≻ 0 is exactly `model.consistency.check_body`'s three
 conditions (M > 0, inertia at the centre of mass positive definite, strict triangle inequalities).
 
-Solved with cvxpy and Clarabel (interior point), an optional extra: ``pip install 'dynid[pc]'``.
+Solved with cvxpy and Clarabel (interior point), the optional `pc` extra: ``pip install cvxpy clarabel``.
 This module works on arrays and names (K, the positions of each body's ten parameters, the non-negative
 ones); `pipeline.run` builds them from a tree and its base parameters.
 """
@@ -67,8 +67,8 @@ less than 1e-4 moves the estimate by less than 1e-2 σ (||L Δb||² <= Δchi² f
 convex set), so it does not matter; and the interior-point solution's duals of inactive constraints are
 complementary-slackness noise, about its gap (1e-8 relative) over the slack, far below."""
 
-_SOLVER_ERROR = ("method \"wls-pc\" needs the optional extra with cvxpy and the Clarabel solver: "
-                 "pip install 'dynid[pc]'")
+_SOLVER_ERROR = ("method \"wls-pc\" needs cvxpy and the Clarabel solver (dynid's optional 'pc' extra): "
+                 "pip install cvxpy clarabel")
 
 
 def require_cvxpy() -> Any:

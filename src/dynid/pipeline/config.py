@@ -35,7 +35,7 @@
 
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
-                                     # (needs pip install 'dynid[pc]'; docs/robot.md)
+                                     # (needs pip install cvxpy clarabel; docs/robot.md)
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
@@ -87,7 +87,7 @@ Either kind may say where its work runs (the command line's --scheduler and --wo
 
     [compute]
     scheduler = "local"              # a Dask LocalCluster on this machine, or a Dask scheduler's address
-                                     # ("tcp://10.0.0.5:8786"; needs pip install 'dynid[dask]'); default: this
+                                     # ("tcp://10.0.0.5:8786"; needs pip install distributed); default: this
                                      # machine's threads. The workers read the files themselves: give paths
                                      # every worker reaches (a shared file system)
     workers = 2                      # threads, or a LocalCluster's single-threaded worker processes

@@ -602,7 +602,7 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
                 f"triangle inequalities hold; IA, FV, FS >= 0), checked on {checked_on}.")
     else:
         text = ("IA, FV, FS >= 0 and the moments readable on the base set hold; not checked on the regrouped "
-                "set (pip install 'dynid[pc]' for the check, or method = \"wls-pc\"):\n"
+                "set (pip install cvxpy clarabel, the 'pc' extra, for the check, or method = \"wls-pc\"):\n"
                 + "\n".join(f"  {u}" for u in unchecked))
     return {"realisable": realisable, "checked_on": checked_on,
             "violations": [{"body": v.body, "condition": v.condition, "message": v.message} for v in violations],
