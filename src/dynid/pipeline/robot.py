@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
+from ..model.tree import FIXED, Tree
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
 
 Array = np.ndarray
@@ -181,3 +182,85 @@ def _decimation_transient(fs: float, factors: Sequence[int]) -> int:
         pad += border_samples(rate, 0.8 * rate / (2.0 * f), DECIMATION_ORDER, tol=1e-9) * before + f * before
         rate, before = rate / f, before * f
     return -(-pad // D) * D
+
+
+PRODUCTS = ("XY", "XZ", "YZ")
+FIRST_MOMENTS = ("MX", "MY", "MZ")
+
+
+def link_length(tree: Tree, j: int, X: Array | None = None) -> float:
+    """A link's size (m) from the model file's a priori values and geometry: the largest of the distance from
+    O_j to its centre of mass, the distances from O_j to its children's origins (the joint-to-joint lengths of
+    the MDH table) and its radius of gyration about the centre of mass (sqrt(tr I_G / 2m), the RMS distance of
+    its mass from the centre of mass). 0 for a link without a priori mass and children."""
+    block = tree.inertial_block(X)[j]
+    m, ms = block[9], block[6:9]
+    sizes = [0.0]
+    if m > 0:
+        com = ms / m
+        I_o = _inertia(block)
+        I_g = I_o - m * (float(com @ com) * np.eye(3) - np.outer(com, com))
+        sizes += [float(np.linalg.norm(com)), float(np.sqrt(max(np.trace(I_g), 0.0) / (2.0 * m)))]
+    for k in tree.children[j]:
+        f = tree.frames[k - 1]
+        p = np.array([f.d, -f.r * np.sin(f.alpha), f.b + f.r * np.cos(f.alpha)])  # |Rz(gamma) p| = |p|
+        sizes.append(float(np.linalg.norm(p)))
+    return max(sizes)
+
+
+def standard_scales(tree: Tree, X: Array | None = None) -> Array:
+    """(p,) the engineering scale of each standard parameter from the values X (default the model file's a priori
+    set), all about O_j in frame j as the parameters are:
+
+    - a product of inertia XY_j against sqrt(XX_j YY_j) (XZ, YZ alike): the largest |XY_j| that a real body with
+      those moments can have (the inertia is positive semidefinite), so the scale of the product's possible size.
+      For a thin link (a forearm: moments 0.19, 0.19 and 0.004 kg.m2 about its long axis) it lies between the
+      smallest principal moment, which would call a 0.1 degree tilt of its principal axes uncertain, and the
+      largest, which would hide a product as large as the thin axis' moment;
+    - a first moment MX_j against the link's mass times its size (`link_length`), so that 5 % of it (the flag's
+      95 % interval at 2.5 %) is a centre-of-mass shift of 1/20 of the link;
+    - every other parameter against its own |value|.
+
+    0 where X says nothing (no mass, no inertia)."""
+    X = tree.parameters if X is None else np.asarray(X, dtype=float)
+    out = np.abs(X).astype(float)
+    blocks = tree.inertial_block(X)
+    for f in tree.frames:
+        if f.sigma == FIXED and not np.any(blocks[f.j]):
+            continue
+        i0 = tree.index[f"XX{f.j}"]
+        xx, yy, zz = np.abs(blocks[f.j, [0, 3, 5]])
+        bound = {"XY": np.sqrt(xx * yy), "XZ": np.sqrt(xx * zz), "YZ": np.sqrt(yy * zz)}
+        for k, kind in enumerate(("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")):
+            if kind in PRODUCTS:
+                out[i0 + k] = bound[kind]
+            elif kind in FIRST_MOMENTS:
+                out[i0 + k] = abs(blocks[f.j, 9]) * link_length(tree, f.j, X)
+    return out
+
+
+def robot_scales(tree: Tree, base: BaseParameters, values: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The engineering scale of each base parameter, against which the "uncertain" flag judges its σ.
+
+    A base parameter X_B = X_k + sum_i beta_i X_i regroups standard parameters, each with its own scale s
+    (`standard_scales`, from the model file's a priori values and geometry), so its scale is
+    s_k + sum_i |beta_i| s_i: the size its value would have if every part it sums had its own size, whatever
+    cancels (XX_jR = XX_j - YY_j + ... is near zero for a symmetric link, its σ is not measured against that).
+    A parameter is never judged against less than its own estimate, |value| (values: the estimates by base
+    name): a scale of 0 (nothing a priori) leaves the default, |value|."""
+    s = standard_scales(tree)
+    out = {}
+    for r, (name, col) in enumerate(zip(base.names, base.columns, strict=True)):
+        scale = float(s[col])
+        if base.regrouped_columns:
+            scale += float(np.abs(base.beta[r]) @ s[list(base.regrouped_columns)])
+        if values is not None and name in values:
+            scale = max(scale, abs(float(values[name])))
+        if scale > 0:
+            out[name] = scale
+    return out
+
+
+def _inertia(block: Array) -> Array:
+    xx, xy, xz, yy, yz, zz = block[:6]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])

@@ -52,7 +52,7 @@ from .reduce import (
     stack_rows,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
+from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
 from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
     plan_car_test,
@@ -495,7 +495,9 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
-    result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
+    # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
+    result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
+        model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
                     systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
