@@ -26,6 +26,15 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
     imp.add_argument("urdf", help="the URDF file (expanded, not .xacro), e.g. robot.urdf")
     imp.add_argument("--out", required=True, help="model file to write (TOML), e.g. --out robot.toml")
     imp.add_argument("--name", default=None, help="model name (default: the URDF's robot name), e.g. --name panda")
+    imp.add_argument("--joints", default=None,
+                     help="the identified chain: the moving joints to keep, comma-separated; every other one is "
+                          "frozen (held still, at its --freeze value or 0) with the joints that mimic it, e.g. "
+                          "--joints panda_joint1,panda_joint2,panda_joint3,panda_joint4,panda_joint5,panda_joint6,"
+                          "panda_joint7")
+    imp.add_argument("--freeze", default=None,
+                     help="moving joints to hold still, comma-separated NAME or NAME=VALUE (rad or m, default 0), "
+                          "merged into the body they hang from; a joint that mimics a frozen one follows it, e.g. "
+                          "--freeze panda_finger_joint1=0.04")
     add_force(imp)
     imp.set_defaults(func=cmd_import)
     exp = command(
@@ -52,7 +61,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     from ..model.urdf import import_urdf
 
     refuse_overwrite([args.out], args.force)
-    imp = import_urdf(args.urdf, name=args.name)
+    freeze = _freeze_option(args.freeze, args.urdf)
+    joints = None if args.joints is None else [j.strip() for j in args.joints.split(",") if j.strip()]
+    imp = import_urdf(args.urdf, name=args.name, freeze=freeze, joints=joints)
     tree = imp.tree
     _write(lambda: save_tree(tree, args.out), args.out)
     moving = len(tree.joint_names)
@@ -60,9 +71,30 @@ def cmd_import(args: argparse.Namespace) -> int:
     merged = sum(len(v) for v in imp.merged.values())
     print(f"{args.urdf}: {tree.name}, {moving} moving joints"
           + (f", {helpers} fixed frame(s) inserted for nearly parallel offset axes" if helpers else "")
-          + (f", {merged} link(s) merged through fixed joints" if merged else ""))
+          + (f", {merged} link(s) merged through fixed joints" if merged else "")
+          + (f", {len(tree.mimic)} mimic joint(s) following their master ("
+             + ", ".join(f"{tree.joint_names[j]} = {m.ratio:g} {tree.joint_names[m.master]} + {m.offset:g}"
+                         for j, m in sorted(tree.mimic.items())) + ")" if tree.mimic else "")
+          + (f", frozen: {', '.join(f'{k} = {v:g}' for k, v in tree.frozen.items())}" if tree.frozen else ""))
     print(f"wrote {args.out} ({tree.n} frames, {tree.p} parameters)")
     return 0
+
+
+def _freeze_option(text: str | None, where: str) -> dict[str, float] | None:
+    """--freeze a,b=0.01 -> {a: 0.0, b: 0.01}."""
+    if text is None:
+        return None
+    out = {}
+    for item in (x.strip() for x in text.split(",")):
+        if not item:
+            continue
+        name, _, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value) if value.strip() else 0.0
+        except ValueError:
+            raise ModelError(f"{where}: --freeze {item!r}: the value after = must be a number (rad or m), like "
+                             f"--freeze {name.strip()}=0.04") from None
+    return out
 
 
 def cmd_export(args: argparse.Namespace) -> int:

@@ -75,6 +75,17 @@ class Coupling:
 
 
 @dataclass(frozen=True)
+class Mimic:
+    """A joint that follows another (a URDF <mimic>): q_slave = ratio * q_master + offset, so qd_slave = ratio *
+    qd_master and qdd_slave = ratio * qdd_master. It has no actuator of its own: by virtual work its generalized
+    force is carried by the master's, tau_master + ratio * tau_slave, and its own is 0 (as a fixed frame's)."""
+
+    master: int
+    ratio: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
 class Tree:
     """A modified-DH tree with its named parameter vector.
 
@@ -85,7 +96,11 @@ class Tree:
     joint_names: frame number -> the name of its joint in another description (a URDF's
     joint names, kept so that data columns and exports can be matched by name);
     friction_shape: frame number -> (shape, vs) of its FS term when not sign, shape
-    "tanh" or "sigmoid" (see the module doc); joints not listed use sign.
+    "tanh" or "sigmoid" (see the module doc); joints not listed use sign;
+    mimic: frame number -> the `Mimic` it follows (a kinematic constraint: its data column is
+    ignored, its motion is the master's, its force is added into the master's equation);
+    frozen: the moving joints of the description it was imported from (a URDF's) that the import
+    held still, name -> value (rad or m), merged into the body they hang from: no frame.
     """
 
     name: str
@@ -98,6 +113,8 @@ class Tree:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     joint_names: dict[int, str] = field(default_factory=dict)
     friction_shape: dict[int, tuple[str, float]] = field(default_factory=dict)
+    mimic: dict[int, Mimic] = field(default_factory=dict)
+    frozen: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -136,6 +153,16 @@ class Tree:
     @cached_property
     def depth(self) -> np.ndarray:
         return np.array([len(a) for a in self.ancestors])
+
+    @cached_property
+    def equations(self) -> tuple[int, ...]:
+        """The frames that have an equation of their own: moving joints that follow no other (mimic)."""
+        return tuple(f.j for f in self.frames if f.sigma != FIXED and f.j not in self.mimic)
+
+    @cached_property
+    def unconstrained(self) -> Tree:
+        """This tree with its mimic joints as independent joints (what the engine recurses over)."""
+        return _replace(self, mimic={}) if self.mimic else self
 
     # ----- constant geometry -----------------------------------------------------
     @cached_property
@@ -318,6 +345,25 @@ def _validate(tree: Tree) -> None:
         if name in seen_names:
             raise ModelError(f"{where}: frames {seen_names[name]} and {j} are both named {name!r}")
         seen_names[name] = j
+    for j, m in tree.mimic.items():
+        w = f"{where}, frame {j}"
+        if not isinstance(m, Mimic):
+            raise ModelError(f"{w}: a mimic is Mimic(master, ratio, offset), got {m!r}")
+        if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n or tree.frames[j - 1].sigma == FIXED:
+            raise ModelError(f"{where}: mimic given for frame {j!r}, which is not a moving joint (1..{n})")
+        if not isinstance(m.master, int) or not 1 <= m.master <= n or tree.frames[m.master - 1].sigma == FIXED:
+            raise ModelError(f"{w} follows frame {m.master!r}, which is not a moving joint (1..{n})")
+        if m.master == j or m.master in tree.mimic:
+            raise ModelError(f"{w} follows frame {m.master}, which follows another joint or is itself: name the "
+                             "joint that is actuated (a chain q3 = a q2 + b, q2 = c q1 + d is q3 = a c q1 + a d + b)")
+        if not (np.isfinite(m.ratio) and np.isfinite(m.offset)) or m.ratio == 0.0:
+            raise ModelError(f"{w}: mimic ratio {m.ratio!r} must be finite and non-zero, offset {m.offset!r} finite")
+    for jname, v in tree.frozen.items():
+        if not isinstance(jname, str) or not jname or isinstance(v, bool) or not isinstance(v, int | float) \
+                or not np.isfinite(v):
+            raise ModelError(f"{where}: frozen joint {jname!r} = {v!r}: a joint name and a finite value (rad or m)")
+        if jname in tree.joint_names.values():
+            raise ModelError(f"{where}: joint {jname!r} is both frozen and frame {tree.frame_of(jname)}")
     for j, law in tree.friction_shape.items():
         if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n:
             raise ModelError(f"{where}: friction shape given for frame {j!r}, which does not exist (1..{n})")
