@@ -269,6 +269,45 @@ class Tree:
         return _replace(self, known=frozenset(self.parameter_names[self.column(k)] for k in known))
 
 
+def freeze(tree: Tree, frames: dict[int, float]) -> Tree:
+    """The tree with the moving joints `frames` (frame -> value, rad or m) held still: fixed frames (sigma = 2)
+    whose constant theta (revolute) or r (prismatic) includes the value, their joint terms dropped, their names
+    moved from `joint_names` to `frozen`. A joint that mimics a frozen one is frozen with it, at its mimic's value.
+    Their bodies stay (their parameters regroup into what the moving joints see). A coupling on a frozen joint is
+    refused: it would act on a joint that no longer moves."""
+    held = dict(frames)
+    for j, m in tree.mimic.items():
+        if m.master in held:
+            held.setdefault(j, m.ratio * held[m.master] + m.offset)
+    for j in held:
+        if not 1 <= j <= tree.n or tree.frames[j - 1].sigma == FIXED:
+            raise ModelError(f"model {tree.name!r}: frame {j} is not a moving joint; it cannot be frozen")
+        if j in tree.mimic and tree.mimic[j].master not in held:
+            raise ModelError(f"model {tree.name!r}: frame {j} follows frame {tree.mimic[j].master}, which moves; "
+                             "freeze that joint (its mimics follow it)")
+    for c in tree.couplings:
+        bad = [j for j in c.coeffs if j in held]
+        if bad:
+            raise ModelError(f"model {tree.name!r}: coupling {c.name!r} acts on joint {bad[0]}, which is frozen")
+    new_frames = []
+    for f in tree.frames:
+        if f.j in held:
+            v = held[f.j]
+            theta, r = (f.theta + v, f.r) if f.sigma == REVOLUTE else (f.theta, f.r + v)
+            f = Frame(f.j, f.ant, FIXED, f.gamma, f.b, f.alpha, f.d, theta, r)
+        new_frames.append(f)
+    gone = {f"{t}{j}" for j in held for t in tree.joint_terms.get(j, ())}
+    names = {j: n for j, n in tree.joint_names.items() if j not in held}
+    frozen = dict(tree.frozen) | {tree.joint_names.get(j, f"frame {j}"): held[j] for j in sorted(held)}
+    return _replace(tree, frames=tuple(new_frames),
+                    joint_terms={j: t for j, t in tree.joint_terms.items() if j not in held},
+                    values={k: v for k, v in tree.values.items() if k not in gone},
+                    known=frozenset(k for k in tree.known if k not in gone),
+                    joint_names=names, mimic={j: m for j, m in tree.mimic.items() if j not in held},
+                    friction_shape={j: law for j, law in tree.friction_shape.items() if j not in held},
+                    frozen=frozen)
+
+
 def _replace(tree: Tree, **changes: object) -> Tree:
     import dataclasses
 

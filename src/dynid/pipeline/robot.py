@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
-from ..model.tree import FIXED, Tree
+from ..model.tree import FIXED, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
 
 Array = np.ndarray
@@ -68,6 +68,63 @@ class GroupedSystem:
         return GroupedSystem(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("W", "Y", "groups", "t")), Z)
 
 
+@dataclass(frozen=True)
+class DataJoints:
+    """Which joints a robot's data files give: the model (with the joints the data do not give frozen), the frame
+    of each data column, in order, and a note saying what was frozen ("" if nothing)."""
+
+    tree: Tree
+    columns: tuple[int, ...]
+    note: str = ""
+
+
+def data_joints(tree: Tree, k: int, selection: Sequence[str] | None = None, source: str = "") -> DataJoints:
+    """The joints k data columns are, in frame order:
+
+    - with a selection (joint names: the identified chain, the config's [model] joints), those joints; every
+      other moving joint is frozen at 0 with the joints that mimic it (`model.tree.freeze`);
+    - else k = n: one column per frame (as the model file's frames; the columns of fixed frames and mimic joints
+      are not read); k = the joints with an equation (`Tree.equations`: neither fixed nor mimic); or k = those
+      less the joints that others mimic (a gripper's): those are frozen at 0 with their mimics, and said so.
+    Anything else is a one-line ModelError naming the counts and the joints."""
+    where = f"{source}: " if source else ""
+    if selection is not None:
+        frames = [tree.frame_of(name) for name in selection]
+        followers = [j for j in frames if j in tree.mimic]
+        if followers:
+            j = followers[0]
+            raise ModelError(f"{where}[model] joints: {tree.joint_names.get(j, j)!r} mimics "
+                             f"{tree.joint_names.get(tree.mimic[j].master)!r}; select that joint (its mimics follow)")
+        held = {j: 0.0 for j in tree.equations if j not in frames}
+        out = freeze(tree, held) if held else tree
+        note = (f"joints not selected in [model] joints, held still at 0: {', '.join(out.frozen)}" if held else "")
+        if k != len(out.equations):
+            raise ModelError(f"{where}the data give {k} joint columns; [model] joints selects {len(out.equations)}")
+        return DataJoints(out, out.equations, note)
+    if k == tree.n:
+        return DataJoints(tree, tuple(range(1, tree.n + 1)))
+    if k == len(tree.equations):
+        return DataJoints(tree, tree.equations)
+    masters = sorted({m.master for m in tree.mimic.values()})
+    if masters and k == len(tree.equations) - len(masters):
+        out = freeze(tree, dict.fromkeys(masters, 0.0))
+        return DataJoints(out, out.equations, f"not in the data (the data give {k} joints), held still at 0 with "
+                                              f"the joints that mimic them: {', '.join(out.frozen)}")
+    named = ", ".join(tree.joint_names.get(j, str(j)) for j in tree.equations)
+    raise ModelError(f"{where}the data give {k} joint columns; model {tree.name!r} has {tree.n} frames, "
+                     f"{len(tree.equations)} of them joints with an equation ({named}): give one column per joint, "
+                     "or choose the identified joints with [model] joints = [...] (the others are held still)")
+
+
+def to_frames(a: Array, columns: Sequence[int], n: int) -> Array:
+    """(N, k) data columns as (N, n) frame columns (0 in the frames without data: fixed, mimic or frozen)."""
+    if len(columns) == n:
+        return a
+    out = np.zeros((a.shape[0], n))
+    out[:, np.asarray(columns) - 1] = a
+    return out
+
+
 def condition(test: JointTest, c: Conditioning) -> tuple[Array, Array, Array, Array, slice]:
     """Filtered q, qd, qdd and the kept slice (borders trimmed), tau on the same samples."""
     q, qd, qdd = filtered_derivatives(test.q, test.fs, c.cutoff, order=c.order, nderiv=2)
@@ -91,7 +148,7 @@ def joint_system(
     A record whose full-rate W would exceed `segment_bytes` is done in segments that overlap by the decimation
     filter's transient: each segment's decimated rows are those a whole-record decimation gives, to the
     filter's tail beyond the overlap (1e-9 of the signal), so the result does not depend on the segmenting."""
-    rows = list(range(1, model.n + 1)) if rows is None else list(rows)
+    rows = list(model.tree.equations) if rows is None else list(rows)
     q, qd, qdd, tau, keep = condition(test, c)
     Y = tau[:, np.array(rows) - 1]
     t = (np.arange(test.q.shape[0])[keep] / test.fs)
@@ -143,7 +200,7 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
     own outputs kept (on the whole record's decimation grid), the slow rows dropped."""
-    rows = list(range(1, model.n + 1)) if rows is None else list(rows)
+    rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     qf, qdf, qddf = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=2)
     b, D = _border(fs, c), int(np.prod(c.decimate))

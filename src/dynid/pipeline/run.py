@@ -141,7 +141,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
         if health is not None:
             health += found
-        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))),
+                    len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
@@ -472,6 +473,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         return _identify_car(cfg, say, scheduler)
     setup = robot_setup(cfg)
     model, base = setup.model, setup.base
+    if setup.joints.note:
+        say(setup.joints.note)
     names = list(base.names)
     bad = [k for k in cfg.known if k not in names]
     if bad:
