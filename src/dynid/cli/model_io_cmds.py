@@ -106,14 +106,58 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not tree.joint_names:
         raise ModelError(f"{args.model}: has no [joints] table, so its frames cannot be matched to URDF joints; "
                          f"make it with dynid model import")
-    values = None if args.params is None else read_parameters(args.params, tree)
+    plausible = _plausible(args.params, tree) if args.params else None
+    if plausible is not None:
+        values = plausible.values
+    else:
+        values = None if args.params is None else read_parameters(args.params, tree)
     what = args.params or args.model
     notes: list[str] = []
     _write(lambda: notes.extend(export_urdf(tree, args.urdf, args.out, values, what=what)), args.out)
     for note in notes:
         print(f"note: {note}")
+    if plausible is not None:
+        name, z = plausible.worst
+        print(f"the standard set closest to {args.model} in each link's units that is physically plausible "
+              f"(pseudo-inertia positive definite with a margin, centre of mass inside the link) reproduces the "
+              f"estimate to chi-square {plausible.chi2:.3g} (σ² units; the base parameter moved most: {name}, "
+              f"{z:+.2f} σ). How far each link moved from {args.model}:")
+        for line in plausible.moves:
+            print(f"  {line}")
+        for line in plausible.warnings:
+            print(f"warning: {line}: more than the file's 10 % prior; the data moved it there (weigh the link, or "
+                  "excite it)")
     print(f"wrote {args.out} (inertials of {len(tree.joint_names)} links from {what})")
     return 0
+
+
+def _plausible(params: str, tree: Tree):
+    """For an identification's results.json (base parameters with their σ) and the pc extra installed: the
+    physically plausible standard set closest to the model file (pipeline.run.plausible_export); else None."""
+    p = Path(params)
+    if p.suffix.lower() != ".json":
+        return None
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+        import cvxpy  # noqa: F401  (the pc extra)
+    except (OSError, json.JSONDecodeError, ImportError):
+        return None  # read_parameters says what is wrong with the file; without cvxpy the exact regrouping
+    if not isinstance(data, dict) or "base_parameters" not in data or not isinstance(data.get("parameters"), list):
+        return None
+    from ..dynamics import Model
+    from ..estimation.errors import IdentificationError
+    from ..pipeline.run import plausible_export
+
+    rows = [r for r in data["parameters"] if isinstance(r, dict) and "name" in r]
+    values = {str(r["name"]): float(r["value"]) for r in rows}
+    std = {str(r["name"]): float(r.get("std") or 0.0) for r in rows}
+    base = Model(tree).base_parameters()
+    if set(values) != set(base.names):
+        return None  # read_parameters names the mismatch
+    try:
+        return plausible_export(tree, base, values, std)
+    except IdentificationError as exc:
+        raise ModelError(f"{params}: {exc}") from None
 
 
 def _write(action, out: str) -> None:

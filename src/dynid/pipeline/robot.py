@@ -265,6 +265,31 @@ def link_length(tree: Tree, j: int, X: Array | None = None) -> float:
     return max(sizes)
 
 
+def link_box(tree: Tree, j: int, X: Array | None = None) -> tuple[Array, Array]:
+    """The extent of link j (m, in frame j) where its centre of mass must lie: the box spanning O_j, its children's
+    origins and its a priori centre of mass, widened on every side by its radius of gyration about that centre
+    of mass and by a tenth of its size (`link_length`)."""
+    block = tree.inertial_block(X)[j]
+    m = block[9]
+    points = [np.zeros(3)]
+    pad = 0.1 * link_length(tree, j, X)
+    if m > 0:
+        com = block[6:9] / m
+        points.append(com)
+        I_g = _inertia(block) - m * (float(com @ com) * np.eye(3) - np.outer(com, com))
+        pad += float(np.sqrt(max(np.trace(I_g), 0.0) / (2.0 * m)))
+    for k in tree.children[j]:
+        f = tree.frames[k - 1]
+        points.append(_rz(f.gamma) @ np.array([f.d, -f.r * np.sin(f.alpha), f.b + f.r * np.cos(f.alpha)]))
+    P = np.array(points)
+    return P.min(axis=0) - pad, P.max(axis=0) + pad
+
+
+def _rz(t: float) -> Array:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def standard_scales(tree: Tree, X: Array | None = None) -> Array:
     """(p,) the engineering scale of each standard parameter from the values X (default the model file's a priori
     set), all about O_j in frame j as the parameters are:

@@ -539,6 +539,62 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     return ConsistencyStructure(tuple(names), tuple(base.names), K, bodies, nonneg)
 
 
+@dataclass(frozen=True)
+class PlausibleExport:
+    """What `plausible_export` chose: the standard values, the links' moves from the model file (one line each:
+    frame, joint, mass, centre of mass and inertia changes) and the lines to warn about (a link moved more than
+    its prior spread), and how closely the estimate is reproduced (chi2, worst base parameter in σ)."""
+
+    values: dict[str, float]
+    moves: list[str]
+    warnings: list[str]
+    chi2: float
+    worst: tuple[str, float]
+
+
+def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], base_std: dict[str, float]
+                     ) -> PlausibleExport:
+    """The standard set a URDF export writes for an identified base estimate (`estimation.physical.
+    plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
+    scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
+    file in each link's own units, the estimate reproduced within its σ."""
+    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
+    from .robot import link_box, link_length
+
+    structure = consistency_structure(tree, base)
+    bodies = {}
+    for j in structure.bodies:
+        m0 = float(tree.values.get(f"M{j}", 0.0))
+        lo, hi = link_box(tree, j)
+        bodies[j] = (m0, link_length(tree, j), lo, hi)
+    prior = dict(zip(tree.parameter_names, tree.parameters, strict=True))
+    fit = plausible_standard(structure, base_values, base_std, prior, bodies)
+    moves, warn = [], []
+    for j in sorted(structure.bodies):
+        m0, L, _, _ = bodies[j]
+        if m0 <= 0:
+            continue
+        old = np.array([prior.get(f"{k}{j}", 0.0) for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        new = np.array([fit.standard[f"{k}{j}"] for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        dm, shift = new[9] - old[9], float(np.linalg.norm(new[6:9] / new[9] - old[6:9] / old[9]))
+        I_old, I_new = _inertia_at_com(old), _inertia_at_com(new)
+        dI = float(np.linalg.norm(I_new - I_old) / max(np.linalg.norm(I_old), 1e-300))
+        who = f"frame {j} ({tree.joint_names.get(j, 'link')})"
+        line = (f"{who}: mass {old[9]:.4g} -> {new[9]:.4g} kg ({100 * dm / old[9]:+.1f} %), centre of mass moved "
+                f"{1000 * shift:.1f} mm ({100 * shift / L:.1f} % of the link's {L:.3g} m), inertia at it "
+                f"{100 * dI:.1f} %")
+        moves.append(line)
+        if abs(dm) > PRIOR_SPREAD * old[9] or shift > PRIOR_SPREAD * L:
+            warn.append(line)
+    return PlausibleExport(fit.standard, moves, warn, fit.chi2, fit.worst)
+
+
+def _inertia_at_com(p: np.ndarray) -> np.ndarray:
+    xx, xy, xz, yy, yz, zz = p[:6]
+    c = p[6:9] / p[9]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - p[9] * (c @ c * np.eye(3) - np.outer(c, c))
+
+
 def robot_consistency(result: IdentificationResult, structure: ConsistencyStructure, tree,
                       fit: PhysicalFit | None = None) -> dict:
     """A robot estimate's physical-consistency verdict, by the car's check (`check_physical`):
