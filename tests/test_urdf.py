@@ -522,3 +522,30 @@ def test_cli_export_params_toml_and_errors(tmp_path, capsys):
     (tmp_path / "typo.toml").write_text("MM1 = 1.0\n")
     assert main([*args, "--params", str(tmp_path / "typo.toml")]) == 2
     assert "'MM1' is not a parameter" in capsys.readouterr().err
+
+
+def test_mimic_kinematics_match_pinocchio():
+    """The Panda's right finger (a mimic) placed and its Jacobian taken as Pinocchio's mimic model does: the
+    finger's column of q is ignored, and its motion is in the first finger's column (J G)."""
+    path = robot_file("panda")
+    tree = import_urdf(path).tree
+    pm = pin.buildModelFromXML(path.read_text(encoding="utf-8"), mimic=True)
+    data = pm.createData()
+    frame = {name: j for j, name in tree.joint_names.items()}
+    actuated = [frame[pm.names[i]] - 1 for i in range(1, pm.njoints) if pm.joints[i].nv > 0]
+    right = tree.frame_of("panda_finger_joint2")
+    jid = pm.getJointId("panda_finger_joint2")
+    q = states(tree.n)[0]
+    q[:, right - 1] = 123.0  # ignored
+    model = Model(tree)
+    T, J = model.transforms(q), model.jacobian(q, right)
+    assert np.all(J[:, :, right - 1] == 0.0)
+    for s in range(q.shape[0]):
+        pin.forwardKinematics(pm, data, q[s, actuated])
+        M = data.oMi[jid]
+        # dynid's frame has the URDF link frame's origin; its z is the joint axis (0 -1 0 in the link frame)
+        assert np.abs(T[s, right][:3, 3] - M.translation).max() < 1e-12
+        assert np.abs(T[s, right][:3, 2] - M.rotation @ np.array([0.0, -1.0, 0.0])).max() < 1e-12
+        pin.computeJointJacobians(pm, data, q[s, actuated])
+        Jp = pin.getJointJacobian(pm, data, jid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        assert np.abs(J[s][:, actuated] - Jp).max() < 1e-12
