@@ -115,7 +115,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     tree = model.tree
-    moving = [f for f in tree.frames if f.sigma != 2]
+    moving = [tree.frames[j - 1] for j in tree.equations]  # neither fixed frames nor mimic joints
     if args.limits is None:
         limits = Limits.default([f.sigma == 1 for f in moving])
         print("dynid: no --limits: using the stand-ins ±2.5 rad, 1.5 rad/s, 5 rad/s² (prismatic ±0.25 m, "

@@ -333,7 +333,8 @@ class _Problem:
                  scale: str, smooth: float, rest: bool, margin: float) -> None:
         tree = model.tree
         self.model, self.limits, self.period, self.L = model, limits, float(period), int(harmonics)
-        self.joints = tuple(f.j for f in tree.frames if f.sigma != 2)
+        # the joints with an equation: neither fixed frames nor mimic joints (which follow their master's series)
+        self.joints = tuple(getattr(tree, "equations", None) or (f.j for f in tree.frames if f.sigma != 2))
         self.n, self.m = tree.n, len(self.joints)
         if limits.m != self.m:
             raise ExcitationError(f"the limits are for {limits.m} joints; model {tree.name!r} has {self.m} "

@@ -124,6 +124,16 @@ def parameter_tables(run) -> list[Table]:
     return tables
 
 
+def _scale_rule(run) -> str:
+    """How the flag's scales were chosen, for the legend: the car's chassis rule or the robot's per-link rule."""
+    if getattr(run.config, "kind", None) == "car":
+        return "; the smallest principal moment for a product of inertia, M6 × 0.2 m for a first moment"
+    return ("; for a product of inertia XY_j the largest a real body with the link's a priori moments can have, "
+            "sqrt(XX_j YY_j); for a first moment the link's mass × its size (centre-of-mass distance, joint-to-joint "
+            "length or radius of gyration, the largest); a base parameter that regroups several sums their scales, "
+            "and none is judged against less than its own value")
+
+
 def flag_legend(run) -> str:
     """What each flag means and what to do about it; for the car, which test would excite the flagged ones."""
     r = run.result
@@ -131,8 +141,7 @@ def flag_legend(run) -> str:
     labels = ", ".join(r.labels.get(n, n) for n in uncertain)
     items = [
         (FLAG_UNCERTAIN, f"the total standard uncertainty exceeds {r.flag_percent:g} % of the parameter's "
-         "engineering scale (its value" + ("; the smallest principal moment for a product of inertia, M6 × 0.2 m "
-                                           "for a first moment" if r.scales else "")
+         "engineering scale (its value" + (_scale_rule(run) if r.scales else "")
          + f"): its 95 % interval is wider than ±{2 * r.flag_percent:g} %. "
          "What to do: do not use the value as is; add a test that excites it, fix it from a bench measurement "
          "(declare it known), or carry its interval into what you use it for."
