@@ -85,6 +85,8 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def _freeze_option(text: str | None, where: str) -> dict[str, float] | None:
     """--freeze a,b=0.01 -> {a: 0.0, b: 0.01}."""
+    from ..model import ModelError
+
     if text is None:
         return None
     out = {}
@@ -150,6 +152,7 @@ def _plausible(params: str, tree: Tree):
         return None
     from ..dynamics import Model
     from ..estimation.errors import IdentificationError
+    from ..model import ModelError
     from ..pipeline.run import plausible_export
 
     rows = [r for r in data["parameters"] if isinstance(r, dict) and "name" in r]
