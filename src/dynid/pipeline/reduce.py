@@ -319,8 +319,10 @@ class RobotSetup:
         tree = load_model(cfg.model).tree
         k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
              else len(cfg.channels["q"].channels) if "q" in cfg.channels else tree.n)
+        # a transmission's rows are the joints it gives: name it when its count is the one that does not match
+        source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
         try:  # the joints the data give; the others (a gripper not logged) held still
-            self.joints = data_joints(tree, k, cfg.joints, str(cfg.path))
+            self.joints = data_joints(tree, k, cfg.joints, source)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
         self.model = Model(self.joints.tree)
