@@ -101,3 +101,16 @@ def test_flag_judges_products_and_first_moments_against_the_link(runs):
         else:  # mass x size, the size at least the joint-to-joint distance of the README's table (0.225 m)
             assert r.scale[i] >= v["M"] * (0.225 if j in ("2", "3") else 0.0), name
         assert (name in r.uncertain) == (100 * r.std_total[i] / r.scale[i] > r.flag_percent), name
+
+
+def test_physically_consistent_wls_is_compared_with_the_published_wls(tx40_data, tmp_path):
+    """method = "wls-pc" is a weighted estimate: the reference table, the report and results.json set it beside the
+    published WLS column, not the OLS one (they used to, as its result's method "WLS-PC" is not "WLS")."""
+    pytest.importorskip("cvxpy")
+    run = identify(dataclasses.replace(load_config(CONFIG), method="wls-pc"))
+    write_outputs(run, tmp_path, "TX40")
+    published = [r["published_value"] for r in json.loads((tmp_path / "results.json").read_text())["reference"]]
+    assert published == [m.row.wls for m in run.reference]
+    assert any(m.row.wls != m.row.ols for m in run.reference)
+    table = [float(line.split()[3]) for line in run.reference_table().splitlines()[1:]]  # printed to 6 digits
+    assert table == pytest.approx([m.row.wls for m in run.reference], rel=1e-5, abs=1e-12)

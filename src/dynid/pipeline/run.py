@@ -111,10 +111,9 @@ class IdentificationRun:
         r = self.result
         names = list(r.names)
         cov = r.full_covariance
-        use_wls = r.method == "WLS"
         lines = [f"{'published':>10} {'ours':>12} {'ours %σ':>8} {'published':>12} {'pub. %σ':>8} {'gap/σ_pub':>9}  as"]
         for m in self.reference:
-            pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+            pub, pub_rel = m.row.published(r.method)
             ours = m.value(names, r.values)
             ours_rel = 100 * m.std(names, cov) / abs(ours) if ours else float("nan")
             gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
@@ -686,8 +685,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         p.update(report.per_parameter.get(p["name"], {}))
     data["base_parameters"] = dict(zip(run.base.names, run.base.expressions, strict=True))
     if run.reference:
-        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value": m.row.wls
-                              if r.method == "WLS" else m.row.ols, "ours": m.value(list(r.names), r.values)}
+        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value":
+                              m.row.published(r.method)[0], "ours": m.value(list(r.names), r.values)}
                              for m in run.reference]
     if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
         data["consistency"] = run.consistency

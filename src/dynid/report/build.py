@@ -424,10 +424,9 @@ def reference_table(run) -> Table:
     r = run.result
     names = list(r.names)
     cov = r.full_covariance
-    use_wls = r.method == "WLS"
     rows = []
     for m in run.reference:
-        pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+        pub, pub_rel = m.row.published(r.method)
         ours = m.value(names, r.values)
         sd = m.std(names, cov)
         gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
