@@ -29,9 +29,9 @@
     tau = { channels = ["Joint_1", "Joint_2"], unit = "N.m" }
                                      # or current = { channels = ["I_1", "I_2"], unit = "A" }: motor currents
 
-    [drive]                          # with current channels: the motor torque is gain x current (tau_m = g i,
-    gains = [0.35, 0.35]             # N.m/A motor side, one per current channel; [transmission] tau maps it)
-    identify_gains = true            # optional: the gains are parameters (the values above their a priori); or
+    # [drive]                        # with current channels: the motor torque is gain x current (tau_m = g i,
+    # gains = [0.35, 0.35]           # N.m/A motor side, one per current channel; [transmission] tau maps it)
+    # identify_gains = true          # optional: the gains are parameters (the values above their a priori); or
                                      # the channels whose gain is identified, identify_gains = ["I_1"]. Every gain
                                      # identified needs a test with a known payload (the scale is free otherwise)
 

@@ -511,8 +511,10 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         a_priori |= dict(zip(gains, cfg.drive.gains, strict=True))
         known |= {g: v for g, v, free in zip(gains, cfg.drive.gains, cfg.drive.identify, strict=True) if not free}
         free = [g for g, f in zip(gains, cfg.drive.identify, strict=True) if f]
+        scale = [w for w, has in (("the payload test(s)", any(t.payload for t in cfg.tests if t.role == "identify")),
+                                  ("the known gain(s)", len(free) < len(gains))) if has]
         say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
-            f"{'the payload test(s)' if setup.payloads else 'the known gains'})")
+            f"{' and '.join(scale)})")
     say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
     kw = dict(a_priori=a_priori, known=known or None, poor_factor=cfg.poor_factor)
     structure = consistency_structure(model.tree, base)
