@@ -270,3 +270,23 @@ def test_a_payload_that_is_no_body_is_refused(tmp_path, logs, capsys):
 def test_wls_pc_refuses_identified_gains(tmp_path, logs, capsys):
     err = _cli_error(tmp_path, _text(tmp_path, logs, gains_drive(SHEET), method="wls-pc"), capsys)
     assert "wls-pc" in err and "identify_gains = false" in err
+
+
+@pytest.mark.parametrize(("old", "new", "words"), [
+    ("current = { channels", 'tau = { channels = ["c1"] }\ncurrent = { channels',
+     ["[channels]", "both tau and current"]),
+    ("identify_gains = true", 'identify_gains = ["c1", "c9"]', ["identify_gains", "'c9'", "not a current channel"]),
+    ("mass_kg = 2.2", "mass_kg = 0.0", ["payload", "mass_kg = 0.0", "> 0"]),
+    ("payload = { mass_kg", "payload = { frame = 9, mass_kg", ["payload frame = 9", "frames 1 to 6"]),
+])
+def test_drive_and_payload_mistakes_are_one_line(tmp_path, logs, capsys, old, new, words):
+    text = _text(tmp_path, logs, gains_drive(SHEET))
+    assert old in text
+    err = _cli_error(tmp_path, text.replace(old, new, 1), capsys)
+    assert all(w in err for w in words), err
+
+
+def test_drive_gains_need_current_channels(tmp_path, logs, capsys):
+    text = config(tmp_path, logs, "tau", "bad", gains_drive(SHEET)).read_text()
+    err = _cli_error(tmp_path, text, capsys)
+    assert "[drive]" in err and "[channels] has tau" in err
