@@ -135,6 +135,7 @@ class TestSpec:
 class ChannelSpec:
     channels: tuple[str, ...]
     unit: str | None
+    unit_over_file: bool = False  # the config's unit wins over a file that says another (its header is wrong)
 
 
 @dataclass(frozen=True)
@@ -446,10 +447,10 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
     if is_car:
         for q in raw:
             suite.check(q, "[channels]")
-        inner = ("channel", "unit")
+        inner = ("channel", "unit", "unit_over_file")
         expected = "{ channel = \"name in the file\", unit = \"...\" }"
     else:
-        inner = ("channels", "unit")
+        inner = ("channels", "unit", "unit_over_file")
         expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
         unknown = [q for q in raw if q not in _ROBOT_QUANTITIES]
         if unknown:
@@ -471,7 +472,11 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
-        channels[q] = ChannelSpec(tuple(names), unit)
+        over = spec.get("unit_over_file", False)
+        if not isinstance(over, bool) or (over and unit is None):
+            raise err(where, f"unit_over_file = {over!r}; true (with a unit) when the file's own unit is wrong and "
+                             "the config's is right, else leave it out")
+        channels[q] = ChannelSpec(tuple(names), unit, over)
     if is_car:  # two sensors read from one logger channel: a copy-paste slip, never a car's wiring
         seen: dict[str, str] = {}
         for q, c in channels.items():
