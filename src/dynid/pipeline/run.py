@@ -449,12 +449,16 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
         val = GroupedSystem.stack([systems[t.name] for t in cross])
         run.validate = {t.name: systems[t.name] for t in cross}
         run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
+        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
     # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
     # ||Y|| makes the relative error look small whatever the dynamics
     run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
     if cross:
         run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
     result.validation.update(run.errors)
+    if any(run.not_excited.values()):
+        result.validation["not_excited"] = run.not_excited
     return run
 
 

@@ -157,11 +157,12 @@ def paper_rule_details(run) -> str:
     rows = [[Cell(r.labels.get(r.names[i], r.names[i]), cls="t"), _num(float(rel[i]), 2),
              Cell(flags[i], cls=f"t flag-{flags[i]}" if flags[i] else "t")] for i in poor]
     table = Table(["parameter", "%σ", "flag"], rows, cls="rule")
-    return (f"<details class=\"rule\"><summary>The paper's rule (§7.2): {len(poor)} of {len(est)} estimated "
-            f"parameters \"poor\" (%σ above {r.poor_factor:g} × {rel[best]:.3g} %, that of "
-            f"{esc(r.labels.get(r.names[best], r.names[best]))})</summary>"
-            "<p>For comparison with the paper only: the rule depends on the best-identified parameter and ignores "
-            "the sensors' offsets; the flag column is the one to act on.</p>"
+    best_label = r.labels.get(r.names[best], r.names[best])
+    summary = (f"The paper's rule (§7.2): {len(poor)} of {len(est)} estimated parameters \"poor\" (%σ above "
+               f"{r.poor_factor:g} × {rel[best]:.3g} %, that of {best_label})")
+    why = ("For comparison with the paper only: the rule depends on the best-identified parameter and ignores the "
+           "sensors' offsets; the flag column is the one to act on.")
+    return (f'<details class="rule"><summary>{esc(summary)}</summary><p>{esc(why)}</p>'
             + (table_html(table) if rows else "") + "</details>")
 
 
