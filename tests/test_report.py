@@ -314,6 +314,23 @@ def test_one_axis_convention_iso_8855_in_the_validation(car):
         assert [float(r["predicted"]) for r in mine] == pytest.approx(sign * WX, rel=1e-8, abs=1e-6)
 
 
+def test_a_figure_is_shown_at_its_drawn_size():
+    """A figure 3 inches wide is 288 CSS px (96 an inch) whatever its pixels: the PNG's resolution says so."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dynid.report.figures import REPORT_DPI, _png
+    from dynid.report.html import figure_html, png_css_size
+
+    fig = plt.figure(figsize=(3.0, 2.0))
+    png = _png(fig, plt, REPORT_DPI)
+    assert png_css_size(png) == pytest.approx((288.0, 192.0), abs=0.5)
+    assert 'width="288" height="192" style="--w:288px"' in figure_html("a", png)
+    assert png_css_size(b"GIF89a...") is None
+
+
 def test_a_panel_the_test_barely_moves_says_not_excited():
     """One rule (estimation.not_excited) for the cross-validation table's * and the plots' panels: RMS of the test's
     Y below twice the identification's residual RMS there. The demo's braking printed 220 % and 378 % for the
