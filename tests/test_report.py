@@ -300,7 +300,8 @@ def test_one_axis_convention_iso_8855_in_the_validation(car):
     rows = [r[0] for r in _table(page, "Relative error per equation group")["rows"]]
     assert rows[:6] == ["Y_E force", "X_E force", "Z_E force", "yaw moment", "pitch moment", "roll moment"]
     text = (out / "report.html").read_text()
-    assert "x0 right, y0 forward, z0 up" in text and "Y_E force = −x" in text  # the paper's frame, where it must be
+    assert "x0 right, y0 forward, z0 up" in text and "Y_E force = −x" in text  # the paper's frames, where they must be
+    assert "x6 up, y6 right, z6 forward. So XX6 is the yaw inertia" in text  # its chassis parameters
     sig = list(csv.DictReader(io.StringIO((out / "validation.csv").read_text())))
     paper = validation_signals(run)
     for equation, quantity, sign in (("x", "Y_E force", -1), ("y", "X_E force", 1), ("pitch", "pitch moment", -1),

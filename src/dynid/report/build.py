@@ -28,6 +28,13 @@ from .html import Cell, Section, Table, esc, render_html, table_html
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
 CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
+# the one place the report keeps the paper's axes: its chassis parameters are defined in them
+FRAME6_TEXT = ("The chassis parameters are the paper's, about the origin of its chassis frame 6 (on the rear axle, "
+               "midway between the rear wheel centres, at their height) in that frame's axes: x6 up, y6 right, z6 "
+               "forward. So XX6 is the yaw inertia, YY6 the pitch and ZZ6 the roll one, about that point; MX6, MY6 "
+               "and MZ6 are M6 times the centre of gravity's height above the wheel centres, its offset to the right "
+               "and its distance ahead of the rear axle. \"The car in engineering terms\" gives them about the centre "
+               "of gravity in ISO 8855 axes.")
 
 
 @dataclass
@@ -685,7 +692,7 @@ def build_report(run, title: str) -> Report:
     pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
-    out_sections.append(Section("Estimated parameters", "", tables=parameter_tables(run),
+    out_sections.append(Section("Estimated parameters", FRAME6_TEXT if is_car else "", tables=parameter_tables(run),
                                 html=flag_legend(run) + paper_rule_details(run), figures=[figs_written[-1][1:]],
                                 anchor="parameters"))
     if run.offsets is not None:
