@@ -175,11 +175,16 @@ def png_css_size(png: bytes) -> tuple[float, float] | None:
     if png[:8] != b"\x89PNG\r\n\x1a\n" or png[12:16] != b"IHDR":
         return None
     w, h = struct.unpack(">II", png[16:24])
-    k = png.find(b"pHYs", 0, 4096)
-    if k > 0:
-        px, py, unit = struct.unpack(">IIB", png[k + 4:k + 13])
-        if unit == 1 and px > 0 and py > 0:  # pixels per metre
-            return w / (px * 0.0254) * CSS_PX_PER_INCH, h / (py * 0.0254) * CSS_PX_PER_INCH
+    at = 8
+    while at + 8 <= len(png):  # the chunks before the image data: length, type, data, CRC
+        n, kind = struct.unpack(">I4s", png[at:at + 8])
+        if kind == b"pHYs" and n == 9:
+            px, py, unit = struct.unpack(">IIB", png[at + 8:at + 17])
+            if unit == 1 and px > 0 and py > 0:  # pixels per metre
+                return w / (px * 0.0254) * CSS_PX_PER_INCH, h / (py * 0.0254) * CSS_PX_PER_INCH
+        if kind in (b"IDAT", b"IEND"):
+            break
+        at += 12 + n
     return float(w), float(h)
 
 
