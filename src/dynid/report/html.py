@@ -67,6 +67,7 @@ nav{font-size:.92em;margin:.5em 0 1em;display:flex;flex-wrap:wrap;gap:.25em 1.1e
 .tablewrap th.pin,.tablewrap td.pin{position:sticky;left:var(--pin-left,0);right:0;z-index:1;background:#fff;
  box-shadow:inset 1px 0 var(--line),inset -1px 0 var(--line)}
 .tablewrap th:first-child,.tablewrap th.pin{background:var(--band)}
+.tablewrap tr:hover td:first-child,.tablewrap tr:hover td.pin{background:#fafbff}
 table{border-collapse:collapse;margin:.3em 0 1.2em;font-size:13px;font-variant-numeric:tabular-nums}
 caption{text-align:left;font-weight:600;padding:.3em 0;caption-side:top}
 th,td{padding:3px 7px;border-bottom:1px solid var(--line);text-align:right;vertical-align:top}
