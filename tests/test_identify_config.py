@@ -182,7 +182,7 @@ SECOND_TEST = '[[tests]]\nname = "sine"\nrole = "validate"\n{extra}\nfiles = {{{
     (('name = "t"', 'name = "t"\nfile = "q.csv"'), ['[[tests]] #1 ("t")', "unknown key 'file'", "files = {"]),
     (('name = "t"', 'name = "t"\ntruth = "q.csv"'), ['[[tests]] #1 ("t")', "unknown key 'truth'", "car"]),
     (('example = "puma560"', 'example = "puma560"\nwheelbase = 2.7'),
-     ["[model]", "unknown key 'wheelbase'", "example, file, template, vehicle", "vehicle file"]),
+     ["[model]", "unknown key 'wheelbase'", "example, file, joints, template, vehicle", "vehicle file"]),
     (("[conditioning]", '[transmission]\nqoffset = [0, 0, 0, 0, 0, 0]\n[conditioning]'),
      ["[transmission]", "unknown key 'qoffset'", "did you mean 'q_offset'?"]),
     (("[conditioning]", '[identifcation]\nmethod = "wls"\n[conditioning]'),

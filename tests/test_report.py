@@ -82,10 +82,10 @@ def test_the_compact_suv_truth_gives_back_its_documented_figures():
     # whole car: the wheels on the axles, by hand
     assert q["cg_ahead_rear"] == pytest.approx((1670 * 1.59 + 90 * 2.79) / 1850)
     assert q["front_share"] == pytest.approx(100 * (1670 * 1.59 + 90 * 2.79) / 1850 / 2.79)
-    # roll stiffness by hand: front dampers tilted 10° and 2°, rear vertical; half tracks 0.79 m
+    # roll stiffness by hand: front dampers tilted 10° and 2°, rear vertical; half tracks 0.79 m; N·m/deg
     c2 = 1 / (1 + math.tan(math.radians(10)) ** 2 + math.tan(math.radians(2)) ** 2)
-    front = (30400 + 30900 + 4 * 25300) * 0.79**2 / c2
-    rear = (28100 + 27600 + 4 * 15200) * 0.79**2
+    front = (30400 + 30900 + 4 * 25300) * 0.79**2 / c2 * math.pi / 180
+    rear = (28100 + 27600 + 4 * 15200) * 0.79**2 * math.pi / 180
     assert q["roll_front"] == pytest.approx(front) and q["roll_rear"] == pytest.approx(rear)
     assert q["roll_front_share"] == pytest.approx(100 * front / (front + rear))
     assert damper_vertical(v.geometry, False) == 1.0
@@ -243,14 +243,15 @@ def test_the_car_report_has_the_papers_tables_with_units(car):
     assert not [c for c in page.pre if c != "config"]  # no <pre> table left: only the config's listing
     for title, names in run.sections:
         t = _table(page, title)
-        assert t["head"][:2] == ["parameter", "unit"]
+        assert t["head"][:3] == ["parameter", "corner, quantity", "unit"]
         for col in ("a priori", "truth", "estimate", "σ total", "%σ", "%σ total", "95 % interval", "flag"):
             assert col in t["head"], col
         assert [r[0] for r in t["rows"]] == [run.result.labels[n] for n in names]
     chassis = {r[0]: r for r in _table(page, "Chassis (paper Table 2)")["rows"]}
-    assert chassis["M6"][1] == "kg" and chassis["XX6"][1] == "kg·m²" and chassis["MX6"][1] == "kg·m"
+    assert chassis["M6"][2] == "kg" and chassis["XX6"][2] == "kg·m²" and chassis["MX6"][2] == "kg·m"
     susp = {r[0]: r for r in _table(page, "Suspensions and anti-roll bars (paper Table 3)")["rows"]}
-    assert [susp[k][1] for k in ("ks9", "h9", "fs9", "off9", "karf")] == ["N/m", "N·s/m", "N", "N", "N/m"]
+    assert [susp[k][2] for k in ("ks9", "h9", "fs9", "off9", "karf")] == ["N/m", "N·s/m", "N", "N", "N/m"]
+    assert susp["ks9"][1] == "spring, rear left" and susp["karf"][1] == "anti-roll bar, front axle"
     # the estimate is rounded to two digits of σ total
     head = _table(page, "Chassis (paper Table 2)")["head"]
     i = run.result.index("M6")
@@ -271,6 +272,7 @@ def test_the_car_results_as_data(car):
     data = json.loads((out / "results.json").read_text())
     p = {q["name"]: q for q in data["parameters"]}
     assert p["K9"]["unit"] == "N/m" and p["M6"]["unit"] == "kg"
+    assert (p["K9"]["corner"], p["K9"]["quantity"]) == ("rear left", "spring")
     lo, hi = p["M6"]["interval_95"]
     assert lo < p["M6"]["value"] < hi and hi - lo == pytest.approx(2 * 1.959964 * p["M6"]["std_total"])
     for key in ("value", "std", "rel_std_percent", "a_priori", "truth", "flag", "paper_rule", "scale", "std_total"):
@@ -282,6 +284,12 @@ def test_the_car_results_as_data(car):
     assert {f["role"] for f in data["provenance"]["files"]} >= {"config", "vehicle (shipped)"}
     rows = list(csv.DictReader(io.StringIO((out / "parameters.csv").read_text())))
     assert [r["name"] for r in rows] == list(run.result.names) and rows[0]["unit"] == "kg·m²"
+    by = {r["label"]: r for r in rows}
+    assert (by["ks9"]["corner"], by["ks9"]["quantity"], by["ks9"]["unit"]) == ("rear left", "spring", "N/m")
+    assert (by["kt42"]["corner"], by["kt42"]["quantity"]) == ("front right", "tire vertical stiffness")
+    eng_rows = {r["key"]: r for r in csv.DictReader(io.StringIO((out / "engineering.csv").read_text()))}
+    assert eng_rows["roll_front"]["unit"] == "N·m/deg" and eng_rows["ride_frequency_front"]["unit"] == "Hz"
+    assert eng_rows["roll_gradient"]["unit"] == "deg/g" and float(eng_rows["corner_front_left"]["std"]) > 0
     sig = list(csv.DictReader(io.StringIO((out / "validation.csv").read_text())))
     tests = {(r["validation"], r["test"]) for r in sig}
     assert ("direct", "sine steering 90 km/h") in tests and ("cross", "step steer 80 km/h") in tests
@@ -379,8 +387,10 @@ def test_the_car_sigma_against_a_monte_carlo_of_the_estimates_covariance(car):
     rng = np.random.default_rng(3)
     draws = rng.multivariate_normal([values[n] for n in names], C, size=3000)
     sampled = [car_quantities({**values, **dict(zip(names, d, strict=True))}, geometry) for d in draws]
-    for key in ("cgs_height", "cg_ahead_rear", "Izz", "roll_front", "front_share"):
-        assert got[key] == pytest.approx(np.std([s[key] for s in sampled]), rel=0.08), key
+    for key in ("cgs_height", "cg_ahead_rear", "Izz", "roll_front", "front_share", "corner_front_left",
+                "wheel_rate_rear_left", "ride_frequency_front", "damping_ratio_rear", "roll_gradient",
+                "pitch_gradient"):
+        assert got[key] == pytest.approx(np.std([s[key] for s in sampled]), rel=0.10), key
 
 
 def test_the_robot_report_has_units_and_per_joint_plots(robot):
@@ -417,10 +427,12 @@ window.addEventListener("load", function () {
  out.nav = [nav.scrollWidth, nav.clientWidth];
  function box(e) { var r = e.getBoundingClientRect(); return [r.left, r.right]; }
  document.querySelectorAll("table").forEach(function (t) {
-  var heads = Array.from(t.tHead.rows[0].cells), k = heads.findIndex(function (h) {
-   return h.classList.contains("pin"); });
-  var cells = k < 0 ? [] : [heads[k]].concat(Array.from(t.tBodies[0].rows).map(function (r) { return r.cells[k]; }));
-  out.tables.push({caption: t.caption ? t.caption.textContent : "", pin: k < 0 ? "" : heads[k].textContent,
+  var heads = Array.from(t.tHead.rows[0].cells), pins = heads.filter(function (h) {
+   return h.classList.contains("pin"); }), cells = [];
+  pins.forEach(function (h) { var k = heads.indexOf(h);
+   Array.from(t.rows).forEach(function (r) { if (r.cells[k]) cells.push(r.cells[k]); }); });
+  out.tables.push({caption: t.caption ? t.caption.textContent : "",
+                   pins: pins.map(function (h) { return h.textContent; }),
                    box: box(t.closest(".tablewrap") || t.parentElement), first: box(heads[0]), table: t.scrollWidth,
                    pinned: cells.map(box)});
  });
@@ -457,15 +469,19 @@ def measure_layout(page: Path, width: int) -> dict:
 def test_the_report_reads_on_a_laptop_and_a_phone(which, width, request):
     """Issue 27: at 390 px the contents line wrapped nowhere (the page was 1187 px wide) and the parameter tables'
     estimates sat off-screen. Now the page is never wider than the screen, every table's pinned estimate is in view
-    inside its scroll box without scrolling, and a figure never shrinks below 85 % of its drawn size."""
+    inside its scroll box without scrolling (a car's corner and quantity too), and a figure never shrinks below
+    85 % of its drawn size."""
     _, out = request.getfixturevalue(which)
     m = measure_layout(out / "report.html", width)
     assert m["viewport"] == width
     assert m["width"] <= m["viewport"], "the page is wider than the screen"
     assert m["nav"][0] <= m["nav"][1], "the contents line does not wrap"
-    pinned = [t for t in m["tables"] if t["pin"]]
+    pinned = [t for t in m["tables"] if t["pins"]]
     assert len(pinned) >= (10 if which == "car" else 1)  # the car's engineering and parameter tables
-    assert {t["pin"] for t in pinned} <= {"estimate", "ours"}
+    assert all("estimate" in t["pins"] or "ours" in t["pins"] for t in pinned)
+    if which == "car":  # the parameter tables keep the corner and quantity in view too
+        assert sum(t["pins"] == ["corner, quantity", "estimate"] for t in pinned) == len(request.getfixturevalue(
+            "car")[0].sections)
     for t in m["tables"]:
         left, right = t["box"]
         assert right <= m["viewport"] + 0.5, t["caption"]

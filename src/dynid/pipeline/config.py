@@ -6,6 +6,9 @@
                                      # or template = "peugeot406" (a car: see below),
                                      # or vehicle = "peugeot406" (a car described by a vehicle file: a shipped
                                      # vehicle's name, or a path ending in .toml relative to this config)
+    joints = ["joint1", "joint2"]    # optional, a robot: the identified joints (the model file's [joints] names;
+                                     # the others are held still at 0). Without it, data that lack the joints
+                                     # others mimic (a gripper) hold those still, and say so
 
     [[tests]]
     name = "exciting trajectory"
@@ -35,7 +38,7 @@
 
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
-                                     # (needs pip install 'dynid[pc]'; docs/robot.md)
+                                     # (needs pip install cvxpy clarabel; docs/robot.md)
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
@@ -87,7 +90,7 @@ Either kind may say where its work runs (the command line's --scheduler and --wo
 
     [compute]
     scheduler = "local"              # a Dask LocalCluster on this machine, or a Dask scheduler's address
-                                     # ("tcp://10.0.0.5:8786"; needs pip install 'dynid[dask]'); default: this
+                                     # ("tcp://10.0.0.5:8786"; needs pip install distributed); default: this
                                      # machine's threads. The workers read the files themselves: give paths
                                      # every worker reaches (a shared file system)
     workers = 2                      # threads, or a LocalCluster's single-threaded worker processes
@@ -171,6 +174,7 @@ class IdentifyConfig:
     car: CarSettings | None = None
     # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
     vehicle: str | Path | None = None
+    joints: tuple[str, ...] | None = None  # [model] joints: a robot's identified joints, by name
     scheduler: str | None = None  # [compute]: None (this machine's threads), "local" or a Dask scheduler's address
     workers: int | None = None
 
@@ -186,6 +190,7 @@ _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identific
         "compute")
 _COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
+_MODEL_OPTIONS = ("joints",)  # a robot's: the identified joints, by name (the others are held still)
 _ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
 _ROBOT_QUANTITIES = ("q", "tau")
@@ -259,7 +264,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
         conditioning=cond, method=method, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
         data_health=_data_health(ident, err), reference=_reference(data.get("reference"), here, err), car=car,
-        vehicle=vehicle,
+        vehicle=vehicle, joints=_model_joints(data.get("model", {}), is_car, err),
         **_compute(data.get("compute", {}), err),
     )
 
@@ -317,14 +322,27 @@ def _sections(data: dict, path: Path) -> None:
                               "and its keys below")
 
 
+def _model_joints(m: dict, is_car: bool, err: Err) -> tuple[str, ...] | None:
+    """[model] joints = ["joint1", ...]: a robot's identified joints (the model file's [joints] names)."""
+    if "joints" not in m:
+        return None
+    joints = m["joints"]
+    if is_car:
+        raise err("[model]", "joints = [...] chooses a robot's identified joints; a car's equations are its template's")
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
+        raise err("[model]", f"joints = {joints!r}; give the identified joints' names, like joints = [\"joint1\", "
+                  "\"joint2\"] (the model file's [joints] table)")
+    return tuple(joints)
+
+
 def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None]:
     """[model]: the model (a shipped name or a robot file's path) and the vehicle (a car's vehicle file: a
     resolved Path, or a shipped vehicle's name; None for a robot or the template alone)."""
     where = "[model]"
-    unknown = [k for k in m if k not in _MODEL_KEYS]
+    unknown = [k for k in m if k not in (*_MODEL_KEYS, *_MODEL_OPTIONS)]
     if unknown:  # e.g. wheelbase: a car's dimensions are its vehicle file's
-        raise err(where, unknown_keys(unknown, _MODEL_KEYS) + " (a car's geometry, tables and known values are "
-                         "its vehicle file's: vehicle = \"my_car.toml\")")
+        raise err(where, unknown_keys(unknown, (*_MODEL_KEYS, *_MODEL_OPTIONS)) + " (a car's geometry, tables and "
+                         "known values are its vehicle file's: vehicle = \"my_car.toml\")")
     given = [k for k in _MODEL_KEYS if k in m]
     if not given:
         raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "

@@ -36,8 +36,9 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
+from ..model.tree import ModelError
 from .config import IdentifyConfig
-from .robot import GroupedSystem, chunk_rows
+from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
 
 if TYPE_CHECKING:
@@ -313,8 +314,16 @@ class RobotSetup:
 
     def __init__(self, cfg: IdentifyConfig) -> None:
         from ..dynamics import load_model
+        from .config import ConfigError
 
-        self.model = load_model(cfg.model)
+        tree = load_model(cfg.model).tree
+        k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
+             else len(cfg.channels["q"].channels) if "q" in cfg.channels else tree.n)
+        try:  # the joints the data give; the others (a gripper not logged) held still
+            self.joints = data_joints(tree, k, cfg.joints, str(cfg.path))
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
+        self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
 
 
@@ -328,7 +337,9 @@ def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
     setup = robot_setup(job.cfg)
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
-    q, tau = transmitted(job.cfg, arrays["q"], arrays["tau"], setup.model.n)
+    columns = setup.joints.columns
+    q, tau = (to_frames(a, columns, setup.model.n)
+              for a in transmitted(job.cfg, arrays["q"], arrays["tau"], len(columns)))
     return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                       job.n_samples)
 

@@ -54,7 +54,7 @@ from .reduce import (
     stack_rows,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
+from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
 from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
     plan_car_test,
@@ -93,7 +93,21 @@ class IdentificationRun:
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
 
     def summary(self) -> str:
-        text = parameter_table(self.result, self.sections)
+        """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
+        sheet, then the notes."""
+        meanings = None
+        if self.vehicle is not None:
+            from ..vehicle.template import meaning
+
+            found = {n: meaning(n) for n in self.result.names}
+            meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
+        text = parameter_table(self.result, self.sections, meanings=meanings)
+        if self.vehicle is not None:
+            from ..report.build import car_engineering
+            from ..report.tables import engineering_block
+
+            quantities, kind, _, _ = car_engineering(self)
+            text += "\n\n" + engineering_block(quantities, kind)
         return f"{text}\n\n{self.notes}" if self.notes else text
 
     def reference_table(self) -> str:
@@ -145,7 +159,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
         if health is not None:
             health += found
-        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))),
+                    len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
@@ -480,6 +495,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         return _identify_car(cfg, say, scheduler)
     setup = robot_setup(cfg)
     model, base = setup.model, setup.base
+    if setup.joints.note:
+        say(setup.joints.note)
     names = list(base.names)
     bad = [k for k in cfg.known if k not in names]
     if bad:
@@ -503,7 +520,9 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
-    result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
+    # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
+    result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
+        model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
                     systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
@@ -540,6 +559,62 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     kinds = {c.name: c.kind for c in tree.couplings}
     nonneg = tuple(i for i, n in enumerate(names) if kinds.get(n, n.rstrip("0123456789")) in NONNEGATIVE_TERMS)
     return ConsistencyStructure(tuple(names), tuple(base.names), K, bodies, nonneg)
+
+
+@dataclass(frozen=True)
+class PlausibleExport:
+    """What `plausible_export` chose: the standard values, the links' moves from the model file (one line each:
+    frame, joint, mass, centre of mass and inertia changes) and the lines to warn about (a link moved more than
+    its prior spread), and how closely the estimate is reproduced (chi2, worst base parameter in σ)."""
+
+    values: dict[str, float]
+    moves: list[str]
+    warnings: list[str]
+    chi2: float
+    worst: tuple[str, float]
+
+
+def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], base_std: dict[str, float]
+                     ) -> PlausibleExport:
+    """The standard set a URDF export writes for an identified base estimate (`estimation.physical.
+    plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
+    scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
+    file in each link's own units, the estimate reproduced within its σ."""
+    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
+    from .robot import link_box, link_length
+
+    structure = consistency_structure(tree, base)
+    bodies = {}
+    for j in structure.bodies:
+        m0 = float(tree.values.get(f"M{j}", 0.0))
+        lo, hi = link_box(tree, j)
+        bodies[j] = (m0, link_length(tree, j), lo, hi)
+    prior = dict(zip(tree.parameter_names, tree.parameters, strict=True))
+    fit = plausible_standard(structure, base_values, base_std, prior, bodies)
+    moves, warn = [], []
+    for j in sorted(structure.bodies):
+        m0, L, _, _ = bodies[j]
+        if m0 <= 0:
+            continue
+        old = np.array([prior.get(f"{k}{j}", 0.0) for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        new = np.array([fit.standard[f"{k}{j}"] for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        dm, shift = new[9] - old[9], float(np.linalg.norm(new[6:9] / new[9] - old[6:9] / old[9]))
+        I_old, I_new = _inertia_at_com(old), _inertia_at_com(new)
+        dI = float(np.linalg.norm(I_new - I_old) / max(np.linalg.norm(I_old), 1e-300))
+        who = f"frame {j} ({tree.joint_names.get(j, 'link')})"
+        line = (f"{who}: mass {old[9]:.4g} -> {new[9]:.4g} kg ({100 * dm / old[9]:+.1f} %), centre of mass moved "
+                f"{1000 * shift:.1f} mm ({100 * shift / L:.1f} % of the link's {L:.3g} m), inertia at it "
+                f"{100 * dI:.1f} %")
+        moves.append(line)
+        if abs(dm) > PRIOR_SPREAD * old[9] or shift > PRIOR_SPREAD * L:
+            warn.append(line)
+    return PlausibleExport(fit.standard, moves, warn, fit.chi2, fit.worst)
+
+
+def _inertia_at_com(p: np.ndarray) -> np.ndarray:
+    xx, xy, xz, yy, yz, zz = p[:6]
+    c = p[6:9] / p[9]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - p[9] * (c @ c * np.eye(3) - np.outer(c, c))
 
 
 def robot_consistency(result: IdentificationResult, structure: ConsistencyStructure, tree,
@@ -596,7 +671,7 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
                 f"triangle inequalities hold; IA, FV, FS >= 0), checked on {checked_on}.")
     else:
         text = ("IA, FV, FS >= 0 and the moments readable on the base set hold; not checked on the regrouped "
-                "set (pip install 'dynid[pc]' for the check, or method = \"wls-pc\"):\n"
+                "set (pip install cvxpy clarabel, the 'pc' extra, for the check, or method = \"wls-pc\"):\n"
                 + "\n".join(f"  {u}" for u in unchecked))
     return {"realisable": realisable, "checked_on": checked_on,
             "violations": [{"body": v.body, "condition": v.condition, "message": v.message} for v in violations],

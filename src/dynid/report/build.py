@@ -67,15 +67,33 @@ def _num(x: float | None, d: int | None) -> Cell:
     return Cell(fixed(float(x), d) if ok else "", float(x) if ok else None)
 
 
+def meanings(run) -> dict[str, tuple[str, str]]:
+    """A car's parameters' (corner, quantity) by name (`vehicle.template.meaning`); {} for a robot."""
+    if not _is_car(run):
+        return {}
+    from ..vehicle.template import meaning
+
+    found = {n: meaning(n) for n in run.result.names}
+    return {n: (m.corner, m.quantity) for n, m in found.items() if m is not None}
+
+
+def _is_car(run) -> bool:
+    r = run.result
+    return getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+
+
 def parameter_tables(run) -> list[Table]:
     """One table per section of the run (the paper's tables): unit, a priori, truth, estimate and σ total
     rounded to σ total, σ, %σ, %σ total, 95 % interval and the flag (the paper's rule: `paper_rule_details`)."""
     r, tree = run.result, run.model.tree
     has_truth, has_sys = bool(r.truth), r.systematic is not None
     total, flags, rel_total = r.std_total, r.uncertainty_flags, r.rel_std_total_percent
-    head = ["parameter", "unit", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "σ total", "σ"]
+    what = meanings(run)
+    head = ["parameter"] + (["corner, quantity"] if what else []) + ["unit", "a priori"]
+    head += (["truth"] if has_truth else []) + ["estimate", "σ total", "σ"]
     head += ["%σ"] + (["%σ total"] if has_sys else []) + ["95 % interval", "flag"]
-    tips = ["the parameter (paper's label)", "SI unit", "the a priori value (vehicle file or model)"]
+    tips = ["the parameter (paper's label)"] + (["which corner of the car, and what the parameter is"] if what
+                                                 else []) + ["SI unit", "the a priori value (vehicle file or model)"]
     tips += ["the simulator's value"] if has_truth else []
     tips += ["estimate, rounded to two significant digits of σ total",
              "total standard uncertainty: statistical and the declared sensor offsets" if has_sys
@@ -92,8 +110,10 @@ def parameter_tables(run) -> list[Table]:
             d = decimals(st)
             lo, hi = interval95(v, st)
             label = r.labels.get(n, n)
-            row = [Cell(label, title=n if label != n else "", cls="t"), Cell(parameter_unit(n, tree), cls="t nowrap"),
-                   _num(r.a_priori.get(n), d)]
+            row = [Cell(label, title=n if label != n else "", cls="t")]
+            if what:
+                row.append(Cell(", ".join(reversed(what[n])) if n in what else "", cls="t"))
+            row += [Cell(parameter_unit(n, tree), cls="t nowrap"), _num(r.a_priori.get(n), d)]
             if has_truth:
                 row.append(_num(r.truth.get(n), d))
             vs, ss = round_to_uncertainty(v, st)
@@ -107,8 +127,18 @@ def parameter_tables(run) -> list[Table]:
             f = flags[i]
             rank = {FLAG_MISFIT: 3, FLAG_UNCERTAIN: 2, FLAG_KNOWN: 0}.get(f, 1)
             rows.append([*row, Cell(f, rank, cls=f"t flag-{f}" if f else "t")])
-        tables.append(Table(head, rows, caption=title, tips=tips, cls="params"))
+        tables.append(Table(head, rows, caption=title, tips=tips, cls="params", pin=("corner, quantity", "estimate")))
     return tables
+
+
+def _scale_rule(run) -> str:
+    """How the flag's scales were chosen, for the legend: the car's chassis rule or the robot's per-link rule."""
+    if getattr(run.config, "kind", None) == "car":
+        return "; the smallest principal moment for a product of inertia, M6 × 0.2 m for a first moment"
+    return ("; for a product of inertia XY_j the largest a real body with the link's a priori moments can have, "
+            "sqrt(XX_j YY_j); for a first moment the link's mass × its size (centre-of-mass distance, joint-to-joint "
+            "length or radius of gyration, the largest); a base parameter that regroups several sums their scales, "
+            "and none is judged against less than its own value")
 
 
 def flag_legend(run) -> str:
@@ -118,8 +148,7 @@ def flag_legend(run) -> str:
     labels = ", ".join(r.labels.get(n, n) for n in uncertain)
     items = [
         (FLAG_UNCERTAIN, f"the total standard uncertainty exceeds {r.flag_percent:g} % of the parameter's "
-         "engineering scale (its value" + ("; the smallest principal moment for a product of inertia, M6 × 0.2 m "
-                                           "for a first moment" if r.scales else "")
+         "engineering scale (its value" + (_scale_rule(run) if r.scales else "")
          + f"): its 95 % interval is wider than ±{2 * r.flag_percent:g} %. "
          "What to do: do not use the value as is; add a test that excites it, fix it from a bench measurement "
          "(declare it known), or carry its interval into what you use it for."
@@ -224,7 +253,7 @@ def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
-    from ..vehicle.engineering import car_quantities
+    from ..vehicle.engineering import car_quantities, damper_vertical
 
     r = run.result
     truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
@@ -263,8 +292,17 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
         + "; bench-known parameters count as exact. Heights are above flat ground at design ride height (wheel "
         f"centres at the unloaded tire radius, {vehicle.geometry.wheel_radius:g} m). Inertia is about the centre "
         "of gravity in ISO 8855 vehicle axes (x forward, y left, z up), products as the inertia matrix's entries "
-        "(Ixz = −∫xz dm). Roll stiffness: springs and anti-roll bar at the wheels, K = (ks_l + ks_r + 4 k_ar) t²/c² "
-        "(t the half track, c the vertical component of the damper axis), tires in series not counted.")
+        "(Ixz = −∫xz dm). The springs act along the damper axes (the template's slides): with c the vertical "
+        "component of an axle's damper axis "
+        f"(front {damper_vertical(vehicle.geometry, True):.4f}, rear {damper_vertical(vehicle.geometry, False):.4f}), "
+        "a vertical wheel travel z moves the damper z/c, so the wheel rate is ks/c², the anti-roll bar's in roll "
+        "2 k_ar/c² (one wheel alone: half) and the damping h/c². Ride frequency and damping ratio per axle: the "
+        "wheel rates in series with the tires, on the axle's share of the sprung mass, one degree of freedom "
+        "(unsprung masses and dry friction left out). Roll stiffness: springs and anti-roll bar at the wheels, "
+        "K = (ks_l + ks_r + 4 k_ar) t²/c² (t the half track), tires not counted; the roll gradient counts them in "
+        "series and turns about the slides' roll axis (roll centres t·tan(damper lateral tilt) below the ground); "
+        "the pitch gradient turns about the ground (no anti-dive). Corner weights: on a level scale with no "
+        "diagonal preload. Each formula and its assumptions: docs/engineering.md.")
     return Section("The car in engineering terms", text, tables=tables, anchor="engineering")
 
 
@@ -451,7 +489,7 @@ def reference_table(run) -> Table:
                      _num(100 * sd / abs(ours) if ours else float("nan"), 2), Cell(f"{pub:.6g}", pub),
                      _num(pub_rel, 2), _num(gap, 2), Cell(how, cls="t")])
     return Table(["published", "ours", "σ", "ours %σ", "published value", "published %σ", "gap / σ published",
-                  "as"], rows, caption="Our estimate of each published quantity", cls="ref", pin="ours")
+                  "as"], rows, caption="Our estimate of each published quantity", cls="ref", pin=("ours",))
 
 
 def offsets_section(offsets: dict) -> Section:
@@ -634,15 +672,19 @@ def parameters_csv(run, sections) -> str:
     total, rel_total, uflags = r.std_total, r.rel_std_total_percent, r.uncertainty_flags
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["name", "label", "table", "unit", "a_priori", "truth", "value", "std", "std_total",
-                "rel_std_percent", "rel_std_total_percent", "ci95_low", "ci95_high", "flag", "paper_rule"])
+    what = meanings(run)
+    w.writerow(["name", "label", "corner", "quantity", "table", "unit", "a_priori", "truth", "value", "std",
+                "std_total", "rel_std_percent", "rel_std_total_percent", "ci95_low", "ci95_high", "flag",
+                "paper_rule"])
 
     def g(x):
         return "" if x is None or not np.isfinite(x) else f"{float(x):.10g}"
 
     for i, n in enumerate(r.names):
         lo, hi = interval95(float(r.values[i]), float(total[i]))
-        w.writerow([n, r.labels.get(n, n), where.get(n, ""), parameter_unit(n, tree), g(r.a_priori.get(n)),
+        corner, quantity = what.get(n, ("", ""))
+        w.writerow([n, r.labels.get(n, n), corner, quantity, where.get(n, ""), parameter_unit(n, tree),
+                    g(r.a_priori.get(n)),
                     g(r.truth.get(n)) if r.truth else "", g(r.values[i]), g(r.std[i]), g(total[i]),
                     g(r.rel_std_percent[i]), g(rel_total[i]), g(lo), g(hi), uflags[i], r.flags[i]])
     return buf.getvalue()
@@ -652,15 +694,18 @@ def build_report(run, title: str) -> Report:
     """Everything but the writing: the page, the CSV files and figures (file name -> content), the additions
     to results.json."""
     r, tree = run.result, run.model.tree
-    is_car = getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+    is_car = _is_car(run)
     sections_list = _sections(run)
     files: dict[str, str | bytes] = {}
     data: dict[str, Any] = {}
     per: dict[str, dict[str, Any]] = {}
     total = r.std_total
+    what = meanings(run)
     for i, n in enumerate(r.names):
         lo, hi = interval95(float(r.values[i]), float(total[i]))
         per[n] = {"unit": parameter_unit(n, tree), "interval_95": [lo, hi]}
+        if n in what:
+            per[n].update(zip(("corner", "quantity"), what[n], strict=True))
     res = r.residual
     n_known = len(r.names) - len(r.estimated_names)
     summary = (f"{r.method}: {len(r.estimated_names)} parameters estimated from {res.n_rows} rows"
@@ -683,11 +728,11 @@ def build_report(run, title: str) -> Report:
             for q in quantities]}
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["key", "group", "quantity", "unit", "value", "std", "ci95_low", "ci95_high"])
+        w.writerow(["key", "group", "quantity", "unit", "value", "std", "ci95_low", "ci95_high", "note"])
         for q in quantities:
             lo, hi = interval95(q.value, q.std)
             w.writerow([q.key, q.group, q.label, q.unit, f"{q.value:.10g}", f"{q.std:.6g}", f"{lo:.10g}",
-                        f"{hi:.10g}"])
+                        f"{hi:.10g}", q.note])
         files["engineering.csv"] = buf.getvalue()
     pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "

@@ -2,10 +2,10 @@
 figures embedded as base64, one file with no external asset; a print style sheet.
 
 Any screen, 390 CSS px (a phone) to a desktop: the page is never wider than the window. The contents line wraps;
-a table wider than the page scrolls sideways inside its own box, its first column (the name) and its pinned one
-(the estimate) kept in view; a figure is shown at its drawn size (its PNG's resolution, 96 CSS px an inch),
-shrunk to the page down to 85 % of it, and scrolls sideways in its own box on a narrower screen rather than
-shrinking until its text cannot be read."""
+a table wider than the page scrolls sideways inside its own box, its first column (the name) and its pinned ones
+(the estimate; a car's corner and quantity) kept in view; a figure is shown at its drawn size (its PNG's
+resolution, 96 CSS px an inch), shrunk to the page down to 85 % of it, and scrolls sideways in its own box on a
+narrower screen rather than shrinking until its text cannot be read."""
 
 from __future__ import annotations
 
@@ -36,7 +36,8 @@ class Table:
     tips: Sequence[str] = ()
     cls: str = ""
     sortable: bool = True
-    pin: str = "estimate"  # the head of the column kept in view beside the first when the table scrolls sideways
+    # the heads of the columns kept in view beside the first when the table scrolls sideways (absent ones ignored)
+    pin: Sequence[str] = ("estimate",)
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ nav{font-size:.92em;margin:.5em 0 1em;display:flex;flex-wrap:wrap;gap:.25em 1.1e
 .tablewrap{overflow-x:auto;max-width:100%}
 .tablewrap th:first-child,.tablewrap td:first-child{position:sticky;left:0;z-index:2;background:#fff;
  box-shadow:inset -1px 0 var(--line)}
-.tablewrap th.pin,.tablewrap td.pin{position:sticky;left:var(--pin-left,0);right:0;z-index:1;background:#fff;
+.tablewrap th.pin,.tablewrap td.pin{position:sticky;left:0;right:0;z-index:1;background:#fff;
  box-shadow:inset 1px 0 var(--line),inset -1px 0 var(--line)}
 .tablewrap th:first-child,.tablewrap th.pin{background:var(--band)}
 .tablewrap tr:hover td:first-child,.tablewrap tr:hover td.pin{background:#fafbff}
@@ -102,10 +103,15 @@ code{font-size:12px;word-break:break-all}
 """
 
 # sort a table by a clicked head: numbers by data-sort (or the text), text otherwise; click again to reverse;
-# a pinned column sticks just right of the first (the name) when the table scrolls sideways
+# the pinned columns stick side by side right of the first (the name) when the table scrolls sideways: each
+# one's left and right offsets are the widths of the sticky columns before and after it
 _JS = """
-function pin(){document.querySelectorAll("table").forEach(function(t){var h=t.querySelector("thead th");
- if(h&&t.querySelector("th.pin"))t.style.setProperty("--pin-left",h.getBoundingClientRect().width+"px");});}
+function pin(){document.querySelectorAll("table").forEach(function(t){
+ var hs=t.tHead?Array.from(t.tHead.rows[0].cells):[],ks=[],w=function(k){return hs[k].getBoundingClientRect().width};
+ hs.forEach(function(h,k){if(h.classList.contains("pin"))ks.push(k)});if(!ks.length)return;
+ var left=w(0),right=ks.reduce(function(a,k){return a+w(k)},0);
+ ks.forEach(function(k){right-=w(k);Array.from(t.rows).forEach(function(r){var c=r.cells[k];
+  if(c){c.style.left=left+"px";c.style.right=right+"px";}});left+=w(k);});});}
 pin();window.addEventListener("load",pin);window.addEventListener("resize",pin);
 document.querySelectorAll("table.sortable").forEach(function(t){
  t.querySelectorAll("thead th").forEach(function(th,i){th.addEventListener("click",function(){
@@ -141,11 +147,11 @@ def table_html(t: Table) -> str:
         parts.append(f"<caption>{esc(t.caption)}</caption>")
     tips = list(t.tips) + [""] * (len(t.head) - len(t.tips))
     first = t.rows[0] if t.rows else []
-    pinned = list(t.head).index(t.pin) if t.pin in t.head and list(t.head).index(t.pin) > 0 else -1
+    pinned = {k for k, h in enumerate(t.head) if k > 0 and h in t.pin}
     heads = []
     for k, (h, tip) in enumerate(zip(t.head, tips, strict=True)):
         left = (k < len(first) and isinstance(first[k], Cell) and "t" in first[k].cls.split()) or k == 0
-        cls = " ".join(c for c in ("t" if left else "", "pin" if k == pinned else "") if c)
+        cls = " ".join(c for c in ("t" if left else "", "pin" if k in pinned else "") if c)
         title = f' title="{esc(tip)}"' if tip else ""
         heads.append(f'<th scope="col"{f" class={chr(34)}{cls}{chr(34)}" if cls else ""}{title}>{esc(h)}</th>')
     parts.append("<thead><tr>" + "".join(heads) + "</tr></thead><tbody>")
@@ -153,7 +159,7 @@ def table_html(t: Table) -> str:
         cells = []
         for k, c in enumerate(row):
             c = c if isinstance(c, Cell) else Cell(str(c), cls="t" if k == 0 else "")
-            cls = f"{c.cls} pin".strip() if k == pinned else c.cls
+            cls = f"{c.cls} pin".strip() if k in pinned else c.cls
             attrs = ""
             if cls:
                 attrs += f' class="{esc(cls)}"'
