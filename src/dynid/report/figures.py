@@ -67,7 +67,7 @@ CSS_DPI = 96.0
 """CSS pixels per inch: the HTML report shows a figure at its drawn size (`html.figure_html` reads the PNG's
 resolution), so a font of p points is p × 96 / 72 CSS pixels on any screen; the report's figures use 7 points
 and more (9.3 px and more)."""
-REPORT_DPI = 1.25 * CSS_DPI  # the report's PNGs: 1.25 pixels per CSS pixel (sharper on HiDPI; more is slower)
+REPORT_DPI = CSS_DPI  # one pixel per CSS pixel: 1.25 was 0.1 s slower and 30 % larger for a little sharpness
 
 
 def _png(fig, plt, dpi: float = 90) -> bytes:
