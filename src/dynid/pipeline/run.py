@@ -87,6 +87,7 @@ class IdentificationRun:
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
+    tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
 
     def summary(self) -> str:
         text = parameter_table(self.result, self.sections)
@@ -344,10 +345,28 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         moved = validate.group_rms()
         run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
     result.validation.update(run.errors)
+    if settings.tire_curves:
+        run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _tire_curves(parts: dict, vehicle, say: Progress):
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    from ..vehicle.tire_curves import fit_tire_curves
+
+    samples = [p.tires for p in parts.values() if p.tires is not None]
+    if not samples:
+        return None
+    merged = samples[0]
+    for s in samples[1:]:
+        merged = merged.merge(s)
+    curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
+        + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
+    return curves
 
 
 def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
@@ -620,6 +639,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
+        data["tires"] = run.tires.to_dict()
     data.update(report.data)
     # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
     text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))

@@ -31,8 +31,9 @@ tire where the data allow:
   pass the curve's peak (it shapes the curve beyond it), else fixed at 0; a load term only when the loads spread
   over LOAD_SPREAD of Fz0.
 - longitudinal: samples with |α| <= ALPHA_PURE and speed >= MIN_SPEED: Fx = -Kx (κ - κ0), Kx = kx0 Fz
-  (1 + pKx2 dfz), fitted as κ = κ0 - Fx / Kx (the slip is the noisy side: `fit_longitudinal`). Straight-line braking holds one slip for seconds (about 0.03 at 6 m/s²): Kx is the secant
-  to that slip, not the slope at zero, and no Magic Formula is fitted unless a test passes the peak (ABS).
+  (1 + pKx2 dfz), fitted as κ = κ0 - Fx / Kx (the slip is the noisy side: `fit_longitudinal`). Straight-line
+  braking holds one slip for seconds (about 0.03 at 6 m/s²): Kx is the secant to that slip, not the slope at
+  zero, and no Magic Formula is fitted (its peak is not reached; an ABS stop would).
 
 Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
 [MF_C_BOUNDS] and E <= 1, from a few starts). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
@@ -634,8 +635,9 @@ class TireCurves:
         for name, c in self.per_tire.items():
             fz = c.fz_mean
             v, s = c.stiffness(fz)
+            how = "the axle's curve shape" if c.magic else f"|alpha| <= {math.degrees(LINEAR_ALPHA):g} deg"
             lines.append(f"  tire {name:<2} cornering stiffness {v * DEG:7.1f} ± {s * DEG:.1f} N/deg at {fz:.0f} N "
-                         + ("(the axle's curve shape)" if c.magic else f"(|alpha| <= {math.degrees(LINEAR_ALPHA):g} deg)"))
+                         f"({how})")
         for what, why in self.missing.items():
             lines.append(f"  {what}: not fitted ({why})")
         return "\n".join(lines)
