@@ -18,14 +18,15 @@ def tire_figure(tires) -> bytes:
     0.5, 1 and 1.5 times the axle's nominal load, dashed beyond the slips measured), and longitudinal force over
     load against slip ratio with the fitted law."""
     plt = _pyplot()
-    from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE
+    from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), squeeze=False)
     s = tires.samples
+    kappa0 = free_rolling_slip(s) if s is not None else None
     for col, (axle, corners) in enumerate(AXLES.items()):
         ax = axes[0, col]
         if s is not None and len(s):
-            m = np.isin(s.corner, corners) & (np.abs(s.kappa) <= KAPPA_PURE)
+            m = np.isin(s.corner, corners) & (np.abs(s.kappa - kappa0) <= KAPPA_PURE)
             sc = ax.scatter(np.degrees(s.alpha[m]), s.fy[m] / s.fz[m], c=s.fz[m], s=4, cmap="viridis", alpha=0.6,
                             label="measured (pure slip)")
             fig.colorbar(sc, ax=ax, label="Fz (N)")
@@ -93,9 +94,9 @@ def tire_section(tires) -> tuple[Section, dict[str, str | bytes]]:
     """The report's section and its files (tires.csv, figure_tires.png)."""
     text = ("Tire characteristics from the wheel force transducers and the wheels' slips, in ISO wheel axes (x the "
             "wheel plane's line on the road, z the road's normal): a tire machine's axes, not the wheel's own, which "
-            "the body roll tilts. Pure slip only: lateral samples with |κ| ≤ 0.01, longitudinal with |α| ≤ 0.5°, "
-            "speed above 10 m/s. σ from the Jacobian and the residual, widened by the residual's autocorrelation; it "
-            "assumes the model right (combined slip, camber thrust and relaxation are not modelled). Beyond the "
+            "the body roll tilts. Pure slip only: lateral samples within 0.01 of the wheel's free-rolling slip "
+            "ratio, longitudinal with |α| ≤ 0.5°, speed above 10 m/s. σ from the Jacobian and the residual, widened "
+            "by the residual's autocorrelation; it assumes the model right (combined slip, camber thrust and relaxation are not modelled). Beyond the "
             "slips measured (dashed) the curve is an extrapolation.")
     if tires.missing:
         text += "\nNot fitted: " + "; ".join(f"{k} ({v})" for k, v in tires.missing.items())

@@ -22,8 +22,8 @@ given positive, in N/rad (SI, results.json) and in N/deg and N per unit slip (th
 The fits (`fit_tire_curves`), per axle (both wheels together: the load transfer spreads their loads) and per
 tire where the data allow:
 
-- lateral, pure slip: samples with |κ| <= KAPPA_PURE (the spiral's front inner wheel spins up to κ = -0.07
-  driving, and combined slip then lowers its Fy), speed >= MIN_SPEED (the slips' noise grows as 1/v). The
+- lateral, pure slip: samples with |κ - κ free rolling| <= KAPPA_PURE (the spiral's front inner wheel spins up
+  to κ = -0.07 driving, and combined slip then lowers its Fy), speed >= MIN_SPEED (the slips' noise grows as 1/v). The
   Magic Formula Fy = -D sin(C atan(B x - E (B x - atan(B x)))), x = α + Sh, with the load dependence
   D = μ Fz, μ = μ0 (1 + pD2 dfz), cornering stiffness K = B C D = k0 Fz (1 + pK2 dfz), dfz = Fz / Fz0 - 1,
   Fz0 the axle's mean load in the tests. Fitted when the tests reach the nonlinear range (the largest |Fy| is
@@ -398,8 +398,22 @@ def _ordered(s: TireSamples) -> TireSamples:
     return s.select(order)
 
 
+def free_rolling_slip(s: TireSamples) -> Array:
+    """Per sample, its wheel's free-rolling slip ratio: the median κ where |Fx| <= 2 % of Fz at speed (0 when
+    the wheel never rolls free). The wheel radius the slips are counted with is the geometric one; a tire rolls
+    on a larger effective radius (dynid's 406: about -0.02 of slip), and pure slip is about that."""
+    out = np.zeros(len(s))
+    for k in np.unique(s.corner):
+        m = s.corner == k
+        free = m & (np.abs(s.fx) <= 0.02 * np.abs(s.fz)) & (s.vx >= MIN_SPEED)
+        if free.any():
+            out[m] = float(np.median(s.kappa[free]))
+    return out
+
+
 def pure_lateral(s: TireSamples) -> TireSamples:
-    return s.select((np.abs(s.kappa) <= KAPPA_PURE) & (s.vx >= MIN_SPEED) & (s.fz > 0))
+    """The samples in pure lateral slip: |κ - κ free rolling| <= KAPPA_PURE, at speed, loaded."""
+    return s.select((np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE) & (s.vx >= MIN_SPEED) & (s.fz > 0))
 
 
 def pure_longitudinal(s: TireSamples) -> TireSamples:
@@ -714,7 +728,8 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
                 out.per_tire[CORNER_TAGS[k]] = fit_tire(lat.select(m), out.lateral.get(axle))
             except TireCurveError as exc:
                 out.missing[f"tire {CORNER_TAGS[k]} lateral"] = str(exc)
-    out.samples = s.select(((np.abs(s.kappa) <= KAPPA_PURE) | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
+    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
+    out.samples = s.select((pure_y | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
     out.seconds = time.perf_counter() - t0
     return out
 
