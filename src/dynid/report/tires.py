@@ -96,7 +96,8 @@ def tire_section(tires) -> tuple[Section, dict[str, str | bytes]]:
             "wheel plane's line on the road, z the road's normal): a tire machine's axes, not the wheel's own, which "
             "the body roll tilts. Pure slip only: lateral samples within 0.01 of the wheel's free-rolling slip "
             "ratio, longitudinal with |α| ≤ 0.5°, speed above 10 m/s. σ from the Jacobian and the residual, widened "
-            "by the residual's autocorrelation; it assumes the model right (combined slip, camber thrust and relaxation are not modelled). Beyond the "
+            "by the residual's autocorrelation; it assumes the model right (combined slip, camber thrust and "
+            "relaxation are not modelled). Beyond the "
             "slips measured (dashed) the curve is an extrapolation.")
     if tires.missing:
         text += "\nNot fitted: " + "; ".join(f"{k} ({v})" for k, v in tires.missing.items())
