@@ -179,3 +179,78 @@ def test_slip_ratio_and_rolled_body():
     assert np.allclose(np.abs(s.gamma), phi, atol=1e-9)
     assert np.allclose(s.fy, 500 * math.cos(phi) - 1000 * math.sin(phi), atol=1e-6)
     assert np.allclose(s.fz, 1000 * math.cos(phi) + 500 * math.sin(phi), atol=1e-6)
+
+
+# --------------------------------------------------------------------------- the MuJoCo car (tire_truth.csv)
+def _truth_law():
+    """The MuJoCo tire's pure-slip lateral law from tire_truth.csv: Fy(alpha, Fz) (a cubic spline in alpha at each
+    of the file's loads, linear between loads) and its slope at zero slip against load (central differences)."""
+    from mujoco_car import DATA, mujoco_truth
+    from scipy.interpolate import CubicSpline
+
+    mujoco_truth()  # skips without the data
+    T = np.loadtxt(DATA / "tire_truth.csv", delimiter=",", comments="#", skiprows=6)
+    loads = np.unique(T[:, 0])
+    splines = [CubicSpline(T[T[:, 0] == f, 1], T[T[:, 0] == f, 2]) for f in loads]
+    slopes = np.array([-float(s(0.0, 1)) for s in splines])
+
+    def fy(alpha: np.ndarray, fz: float) -> np.ndarray:
+        i = int(np.clip(np.searchsorted(loads, fz) - 1, 0, len(loads) - 2))
+        w = (fz - loads[i]) / (loads[i + 1] - loads[i])
+        return (1 - w) * splines[i](alpha) + w * splines[i + 1](alpha)
+
+    return fy, lambda fz: float(np.interp(fz, loads, slopes))
+
+
+@pytest.fixture(scope="module", params=["ideal", "noise"])
+def mujoco_tires(request, tmp_path_factory) -> dict:
+    from mujoco_car import identify, mujoco_truth
+
+    mujoco_truth()
+    res, _ = identify(tmp_path_factory.mktemp("tires"), request.param, ["sine", "spiral", "braking"],
+                      compensate_delays=request.param == "noise")
+    return res["tires"]
+
+
+def _law(entry: dict):
+    p = {q["name"]: q["value"] for q in entry["parameters"]}
+    return lambda a, fz: lateral_force(p, entry["fz0_N"], a, np.full_like(a, fz), entry["model"] != "linear")
+
+
+@pytest.mark.parametrize("axle", ["front", "rear"])
+def test_mujoco_cornering_stiffness_per_axle(mujoco_tires, axle):
+    """Cornering stiffness at the axle's mean load within 5 % of the truth curve's slope at zero slip (the truth's
+    loads interpolated); ideal/ (true channels) and noise/ (the paper's sensor chain)."""
+    _, slope = _truth_law()
+    c = mujoco_tires["lateral"][axle]
+    fz = c["mean_load_N"]
+    assert c["cornering_stiffness_N_per_rad"] == pytest.approx(slope(fz), rel=0.05)
+    assert c["cornering_stiffness_N_per_deg"] == pytest.approx(slope(fz) * math.pi / 180, rel=0.05)
+
+
+@pytest.mark.parametrize("axle", ["front", "rear"])
+def test_mujoco_lateral_curve_over_the_spiral(mujoco_tires, axle):
+    """The fitted lateral curve within 5 % of the truth over the slip angles the spiral reaches on that axle
+    (ideal/: rear -4.2..0°, front -6.9..0°), at the axle's mean load and at ±40 % of it (within the spiral's loads):
+    relative error where |alpha| >= 0.5°, below it against the force at 0.5°."""
+    fy_true, _ = _truth_law()
+    c = mujoco_tires["lateral"][axle]
+    assert c["model"] == "magic formula"
+    wheels = ("fl", "fr") if axle == "front" else ("rl", "rr")
+    spiral = [r for r in mujoco_tires["reach"] if r["test"].startswith("spiral") and r["wheel"] in wheels]
+    lo, hi = min(r["alpha_deg"][0] for r in spiral), max(r["alpha_deg"][1] for r in spiral)
+    assert lo < -4.0  # the spiral reaches the nonlinear range
+    law = _law(c)
+    a = np.radians(np.linspace(lo, hi, 200))
+    for fz in (0.6 * c["mean_load_N"], c["mean_load_N"], 1.4 * c["mean_load_N"]):
+        fit, true = law(a, fz), fy_true(a, fz)
+        floor = abs(float(fy_true(np.radians(np.array([0.5])), fz)[0]))
+        err = np.abs(fit - true) / np.maximum(np.abs(true), floor)
+        assert err.max() < 0.05, (fz, float(err.max()), float(np.degrees(a[err.argmax()])))
+
+
+def test_mujoco_outputs(mujoco_tires):
+    """The not-fitted list is empty and every test's reach is reported; the fit takes well under 2 s."""
+    assert not mujoco_tires["not_fitted"]
+    assert {r["test"][:6] for r in mujoco_tires["reach"]} == {"sine s", "spiral", "straig"}
+    assert mujoco_tires["fit_seconds"] < 2.0
