@@ -85,8 +85,10 @@ def tire_table(tires) -> Table:
 def reach_table(tires) -> Table:
     rows = [[r["test"], r["wheel"], f"{r['alpha_deg'][0]:+.2f} .. {r['alpha_deg'][1]:+.2f}",
              f"{r['kappa'][0]:+.4f} .. {r['kappa'][1]:+.4f}", f"{r['fz_N'][0]:.0f} .. {r['fz_N'][1]:.0f}",
-             f"{r['inclination_deg']:.1f}"] for r in tires.reach]
-    return Table(["test", "wheel", "slip angle (deg)", "slip ratio", "Fz (N)", "|inclination| (deg)"], rows,
+             f"{r['inclination_deg']:.1f}", r.get("lateral_regime", ""),
+             f"{100 * r['peak_force_used']:.0f} %" if "peak_force_used" in r else ""] for r in tires.reach]
+    return Table(["test", "wheel", "slip angle (deg)", "slip ratio", "Fz (N)", "|inclination| (deg)",
+                  "lateral curve reached", "share of peak force"], rows,
                  caption="Which test reaches which part of the curves (speed above 10 m/s)")
 
 

@@ -652,6 +652,15 @@ class TireCurves:
             how = "the axle's curve shape" if c.magic else f"|alpha| <= {math.degrees(LINEAR_ALPHA):g} deg"
             lines.append(f"  tire {name:<2} cornering stiffness {v * DEG:7.1f} ± {s * DEG:.1f} N/deg at {fz:.0f} N "
                          f"({how})")
+        tests: dict[str, list[str]] = {}
+        for r in self.reach:
+            if "lateral_regime" in r and r["wheel"] in ("rl", "fl"):  # one wheel per axle: the pair is symmetric
+                use = f", {100 * r['peak_force_used']:.0f} % of peak" if "peak_force_used" in r else ""
+                tests.setdefault(r["test"], []).append(
+                    f"{'front' if r['wheel'] == 'fl' else 'rear'} {r['alpha_deg'][0]:+.1f}..{r['alpha_deg'][1]:+.1f}"
+                    f" deg ({r['lateral_regime']}{use})")
+        for test, parts in tests.items():
+            lines.append(f"  reach, {test}: " + "; ".join(parts))
         for what, why in self.missing.items():
             lines.append(f"  {what}: not fitted ({why})")
         return "\n".join(lines)
@@ -702,6 +711,27 @@ def slip_reach(s: TireSamples) -> list[dict]:
     return out
 
 
+def _regime(curves: TireCurves, row: dict) -> dict:
+    """Which part of its axle's lateral curve a test's wheel reached: "linear" (|Fy| within 5 % of K |α| at the
+    largest |α|), "nonlinear" or "beyond the peak", and the share of the peak force used (Magic Formula only)."""
+    axle = next((a for a, ks in AXLES.items() if CORNER_TAGS.index(row["wheel"]) in ks), None)
+    c = curves.lateral.get(axle)
+    if c is None:
+        return {}
+    a = math.radians(max(abs(x) for x in row["alpha_deg"]))
+    fz = float(np.mean(row["fz_N"]))
+    p = c.fit_params()
+    fy = abs(float(c.force(np.array([-a]), np.array([fz]))[0]))
+    linear = abs(float(_stiffness(p, c.fz0, fz))) * a
+    out: dict = {"lateral_regime": "linear" if linear == 0 or fy >= 0.95 * linear else "nonlinear"}
+    if c.magic:
+        D = float(_mu(p, c.fz0, fz)) * fz
+        out["peak_force_used"] = fy / D
+        if a > peak_slip(float(_stiffness(p, c.fz0, fz)) / (p["C"] * D), p["C"], p["E"]):
+            out["lateral_regime"] = "beyond the peak"
+    return out
+
+
 def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
     """Every curve the samples support (module doc); what they do not is said in `missing`."""
     import time
@@ -728,6 +758,8 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
                 out.per_tire[CORNER_TAGS[k]] = fit_tire(lat.select(m), out.lateral.get(axle))
             except TireCurveError as exc:
                 out.missing[f"tire {CORNER_TAGS[k]} lateral"] = str(exc)
+    for r in out.reach:
+        r.update(_regime(out, r))
     pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
     out.samples = s.select((pure_y | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
     out.seconds = time.perf_counter() - t0
