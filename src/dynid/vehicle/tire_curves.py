@@ -622,10 +622,16 @@ class TireCurves:
         return rows
 
     def csv(self) -> str:
-        lines = ["key,axle_or_tire,quantity,unit,value,std"]
+        """tires.csv (`rows`)."""
+        import csv
+        import io
+
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["key", "axle_or_tire", "quantity", "unit", "value", "std"])
         for key, who, q, unit, v, s in self.rows():
-            lines.append(f"{key},{who},{q},{unit},{v:.8g},{s:.4g}")
-        return "\n".join(lines) + "\n"
+            w.writerow([key, who, q, unit, f"{v:.8g}", f"{s:.4g}"])
+        return buf.getvalue()
 
     def text(self) -> str:
         """The terminal's compact block."""
