@@ -250,7 +250,8 @@ def test_mujoco_lateral_curve_over_the_spiral(mujoco_tires, axle):
 
 
 def test_mujoco_outputs(mujoco_tires):
-    """The not-fitted list is empty and every test's reach is reported; the fit takes well under 2 s."""
+    """The not-fitted list is empty and every test's reach is reported; the fit takes under 2 s of processor time
+    (issue 31's benchmark; its wall time depends on what else the machine runs)."""
     assert not mujoco_tires["not_fitted"]
     assert {r["test"][:6] for r in mujoco_tires["reach"]} == {"sine s", "spiral", "straig"}
-    assert mujoco_tires["fit_seconds"] < 2.0
+    assert mujoco_tires["fit_cpu_seconds"] < 2.0
