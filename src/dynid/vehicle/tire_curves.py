@@ -739,7 +739,16 @@ def _regime(curves: TireCurves, row: dict) -> dict:
 
 
 def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
-    """Every curve the samples support (module doc); what they do not is said in `missing`."""
+    """Every curve the samples support (module doc); what they do not is said in `missing`. BLAS on one thread:
+    the problems are a few thousand rows by a few columns, where threads cost more than they give (on a loaded
+    machine, 3 s of wall time against 0.4 s)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _fit_tire_curves(samples, wheel_radius)
+
+
+def _fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
     import time
 
     t0, c0 = time.perf_counter(), time.process_time()
