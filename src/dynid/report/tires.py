@@ -73,7 +73,7 @@ def tire_table(tires) -> Table:
         mf = (" ".join(f"{k} {co[k][0]:.3g}±{co[k][1]:.2g}" for k in "BCDE") if co else "linear")
         rows.append([name, "cornering stiffness", f"{c.fz_mean:.0f}", f"{v * DEG:.1f}", f"{s * DEG:.1f}", "N/deg",
                      f"{math.degrees(a0):+.1f} .. {math.degrees(a1):+.1f}°", mf])
-    for name, law in tires.longitudinal.items():
+    for name, law in {**tires.longitudinal, **{f"tire {k}": v for k, v in tires.longitudinal_per_tire.items()}}.items():
         v, s = law.stiffness(law.fz0)
         rows.append([name, "slip stiffness (secant)", f"{law.fz0:.0f}", f"{v:.0f}", f"{s:.0f}", "N per unit slip",
                      f"κ {law.kappa_range[0]:.3f} .. {law.kappa_range[1]:.3f}",

@@ -557,6 +557,7 @@ class TireCurves:
     lateral: dict[str, LateralCurve] = field(default_factory=dict)
     longitudinal: dict[str, LongitudinalLaw] = field(default_factory=dict)
     per_tire: dict[str, LateralCurve] = field(default_factory=dict)
+    longitudinal_per_tire: dict[str, LongitudinalLaw] = field(default_factory=dict)
     reach: list[dict] = field(default_factory=list)
     missing: dict[str, str] = field(default_factory=dict)
     samples: TireSamples | None = None  # the pure-slip samples, for the report's figure
@@ -578,11 +579,16 @@ class TireCurves:
             out["lateral"][name] = _lateral_dict(c)
         for name, c in self.per_tire.items():
             out["per_tire"][name] = _lateral_dict(c)
-        for name, law in self.longitudinal.items():
-            kx, skx = law.stiffness(law.fz0)
-            k0, sk0 = law.fit.value("kappa0"), law.fit.sigma("kappa0")
-            out["longitudinal"][name] = {
-                "model": "linear (secant over the slip range)", "fz0_N": law.fz0,
+        out["longitudinal_per_tire"] = {}
+        for key, laws in (("longitudinal", self.longitudinal), ("longitudinal_per_tire", self.longitudinal_per_tire)):
+            for name, law in laws.items():
+                out[key][name] = self._longitudinal_dict(law)
+        return out
+
+    def _longitudinal_dict(self, law: LongitudinalLaw) -> dict:
+        kx, skx = law.stiffness(law.fz0)
+        k0, sk0 = law.fit.value("kappa0"), law.fit.sigma("kappa0")
+        return {"model": "linear (secant over the slip range)", "fz0_N": law.fz0,
                 "slip_stiffness_N_per_unit_slip": kx, "slip_stiffness_std": skx,
                 "free_rolling_slip": k0, "free_rolling_slip_std": sk0,
                 "effective_rolling_radius_m": self.wheel_radius * (1 - k0),
@@ -591,7 +597,6 @@ class TireCurves:
                 "parameters": _params(law.fit), "rms_N": law.fit.rms, "samples": law.fit.n, "tau": law.fit.tau,
                 "stiffness_vs_load": [{"fz_N": f, "value": v, "std": s}
                                       for f in _loads(law.fz0) for v, s in [law.stiffness(f)]]}
-        return out
 
     def rows(self) -> list[list]:
         """tires.csv's rows: key, axle or tire, quantity, unit, value, std."""
@@ -610,7 +615,7 @@ class TireCurves:
                         rows.append([f"mf_{k}_{name}", name, k, "", c.fit.value(k), c.fit.sigma(k)])
                 rows.append([f"alpha_offset_{name}", name, "slip angle offset Sh", "deg",
                              math.degrees(c.fit.value("Sh")), math.degrees(c.fit.sigma("Sh"))])
-        for name, law in self.longitudinal.items():
+        for name, law in {**self.longitudinal, **self.longitudinal_per_tire}.items():
             for f in _loads(law.fz0):
                 v, s = law.stiffness(f)
                 rows.append([f"slip_stiffness_{name}_{f:.0f}N", name, f"longitudinal slip stiffness at {f:.0f} N",
@@ -658,6 +663,10 @@ class TireCurves:
             how = "the axle's curve shape" if c.magic else f"|alpha| <= {math.degrees(LINEAR_ALPHA):g} deg"
             lines.append(f"  tire {name:<2} cornering stiffness {v * DEG:7.1f} ± {s * DEG:.1f} N/deg at {fz:.0f} N "
                          f"({how})")
+        if self.longitudinal_per_tire:
+            lines.append("  slip stiffness per tire (N per unit slip, at its mean load): " + "; ".join(
+                f"{name} {law.stiffness(law.fz0)[0]:.0f} ± {law.stiffness(law.fz0)[1]:.0f} at {law.fz0:.0f} N"
+                for name, law in self.longitudinal_per_tire.items()))
         tests: dict[str, list[str]] = {}
         for r in self.reach:
             if "lateral_regime" in r and r["wheel"] in ("rl", "fl"):  # one wheel per axle: the pair is symmetric
@@ -773,6 +782,10 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
                 out.per_tire[CORNER_TAGS[k]] = fit_tire(lat.select(m), out.lateral.get(axle))
             except TireCurveError as exc:
                 out.missing[f"tire {CORNER_TAGS[k]} lateral"] = str(exc)
+            try:
+                out.longitudinal_per_tire[CORNER_TAGS[k]] = fit_longitudinal(lon.select(lon.corner == k))
+            except TireCurveError as exc:
+                out.missing[f"tire {CORNER_TAGS[k]} longitudinal"] = str(exc)
     for r in out.reach:
         r.update(_regime(out, r))
     pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
