@@ -79,6 +79,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
+    tire_curves = true               # the tires' cornering and slip stiffness and lateral Magic Formula from
+                                     # the wheel wrenches and slips (vehicle.tire_curves); false: not fitted
 
     [uncertainty]                    # optional: the sensors' zero offsets propagated to the estimates (%σ
                                      # total). Default: the vehicle's sensor suite's (each channel's `bias`);
@@ -156,6 +158,7 @@ class CarSettings:
     offsets: dict[str, float] | None = None
     offset_segments: int = 2
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
+    tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
 
 
 @dataclass(frozen=True)
@@ -199,7 +202,8 @@ _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
 _ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
+                       "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
@@ -608,6 +612,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
+        tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
 
 

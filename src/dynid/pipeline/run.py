@@ -91,6 +91,7 @@ class IdentificationRun:
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
+    tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
 
     def summary(self) -> str:
         """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
@@ -361,10 +362,28 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         # relative error of noise over noise: marked, not hidden
         run.not_excited["cross"] = not_excited(validate.group_rms(), run.residual_rms)
     result.validation.update(run.errors)
+    if settings.tire_curves:
+        run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _tire_curves(parts: dict, vehicle, say: Progress):
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    from ..vehicle.tire_curves import fit_tire_curves
+
+    samples = [p.tires for p in parts.values() if p.tires is not None]
+    if not samples:
+        return None
+    merged = samples[0]
+    for s in samples[1:]:
+        merged = merged.merge(s)
+    curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
+        + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
+    return curves
 
 
 def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
@@ -702,6 +721,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
+        data["tires"] = run.tires.to_dict()
     data.update(report.data)
     # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
     text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))

@@ -733,6 +733,12 @@ def build_report(run, title: str) -> Report:
             w.writerow([q.key, q.group, q.label, q.unit, f"{q.value:.10g}", f"{q.std:.6g}", f"{lo:.10g}",
                         f"{hi:.10g}", q.note])
         files["engineering.csv"] = buf.getvalue()
+    if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
+        from .tires import tire_section
+
+        section, tire_files = tire_section(run.tires)
+        out_sections.append(section)
+        files.update(tire_files)
     pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
