@@ -249,7 +249,10 @@ def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
     vehicle = _vehicle(run)
     values = {**tree.values, **r.estimates}
     C, kind = _covariance(r)
-    return engineering_figures(values, vehicle.geometry, list(r.estimated_names), C), kind, vehicle, values
+    quantities = engineering_figures(values, vehicle.geometry, list(r.estimated_names), C)
+    if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves), σ of their fit
+        quantities += run.tires.quantities()
+    return quantities, kind, vehicle, values
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
@@ -271,8 +274,8 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
         lo, hi = interval95(q.value, q.std)
         row = [Cell(q.label, cls="t"), Cell(q.unit, cls="t nowrap"), Cell(vs, q.value), Cell(ss, q.std),
                Cell(f"[{fixed(lo, d)}, {fixed(hi, d)}]" if np.isfinite(lo) else "", cls="nowrap")]
-        row += [_num(prior[q.key], d)] if prior else []
-        row += [_num(truth[q.key], d)] if truth else []
+        row += [_num(prior.get(q.key), d)] if prior else []
+        row += [_num(truth.get(q.key), d)] if truth else []
         rows.append([*row, Cell(q.note, cls="t")])
     if rows:
         tables.append(Table(head, rows, caption=group, sortable=False, cls="eng"))

@@ -625,6 +625,23 @@ class TireCurves:
                          self.wheel_radius * (1 - k0), self.wheel_radius * sk0])
         return rows
 
+    def quantities(self) -> list:
+        """The engineering sheet's tire figures (`vehicle.engineering.Quantity`): per axle the cornering stiffness
+        (N/deg) and the longitudinal slip stiffness (N per unit slip) at the axle's nominal load, with σ."""
+        from .engineering import Quantity
+
+        out = []
+        for name, c in self.lateral.items():
+            v, s = c.stiffness(c.fz0)
+            out.append(Quantity(f"cornering_stiffness_{name}", "tires", f"cornering stiffness, {name} axle", "N/deg",
+                                v * DEG, s * DEG, f"per tire, at {c.fz0:.0f} N (tires.csv: other loads, each tire)"))
+        for name, law in self.longitudinal.items():
+            v, s = law.stiffness(law.fz0)
+            out.append(Quantity(f"slip_stiffness_{name}", "tires", f"longitudinal slip stiffness, {name} axle",
+                                "N per unit slip", v, s, f"per tire, at {law.fz0:.0f} N (secant over the slips "
+                                f"reached, up to {max(abs(x) for x in law.kappa_range):.3f})"))
+        return out
+
     def csv(self) -> str:
         """tires.csv (`rows`)."""
         import csv
