@@ -748,3 +748,25 @@ def test_a_line_without_end_is_refused_at_the_bound(tmp_path: Path, monkeypatch,
         msg = str(exc.value)
         assert "\n" not in msg and "longer than 4,096 characters" in msg, msg
         assert f"line {where if where == 1 else 2 + rows[:200].count(chr(10))}" in msg, msg
+
+
+@pytest.mark.parametrize("bound", ["MAX_ROW_GROUPS", "MAX_FOOTER"])
+def test_a_parquet_file_past_its_index_bounds_is_refused(tmp_path: Path, monkeypatch, bound: str) -> None:
+    """Opening a Parquet file holds its footer (every row group's metadata) and indexes each row group: a file past
+    either bound (lowered here: 10 row groups, a 100-byte footer) is refused with one line before that, by the
+    whole-file and the window readers."""
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    from dynid.io import parquet_format
+    from dynid.io.windows import index_file
+
+    path = tmp_path / "groups.parquet"
+    t = np.arange(200) / 100.0
+    pq.write_table(pa.table({"time": t, "a": np.sin(t)}), path, row_group_size=10)  # 20 row groups
+    read_recording(path)  # within the default bounds
+    monkeypatch.setattr(parquet_format, bound, 10 if bound == "MAX_ROW_GROUPS" else 100)
+    for read in (read_recording, index_file):
+        with pytest.raises(FileFormatError) as exc:
+            read(path)
+        msg = str(exc.value)
+        assert "\n" not in msg and str(path) in msg and "fewer, larger row groups" in msg, msg
