@@ -16,7 +16,7 @@ import pytest
 import dynid
 from dynid.io import Channel, FileFormatError, Recording, read_recording, write_recording
 from dynid.io.mapping import ChannelMap, UnitOverrideWarning
-from dynid.pipeline.config import load_config
+from dynid.pipeline.config import ConfigError, load_config
 from dynid.pipeline.run import identify
 
 FS = 500.0
@@ -92,8 +92,10 @@ def test_copies_with_units_in_their_names_identify_as_the_csv(csv_log):
 
 
 def test_a_name_unit_the_config_contradicts_is_treated_as_in_the_csv(csv_log):
-    """The config says rad where the names say deg: the channel map warns naming both units, and an
-    identification takes the config's unit, for the Parquet copy exactly as for the CSV."""
+    """The config says rad where the names say deg: the channel map warns naming both units; an identification
+    refuses it with one line naming the channel, both units and the two fixes (issue 30: deg over a file's rad
+    scaled the inertias by 57 with a 0.02 % residual), for the Parquet copy exactly as for the CSV; with
+    unit_over_file = true (the file's header is what is wrong) the config's unit is taken, alike in both."""
     parquet = _copies(csv_log)["parquet"]
     cmap = ChannelMap.from_dict({"q": {"channel": "j1", "unit": "rad"}}, source="identify.toml")
     said = {}
@@ -101,9 +103,13 @@ def test_a_name_unit_the_config_contradicts_is_treated_as_in_the_csv(csv_log):
         with pytest.warns(UnitOverrideWarning) as caught:
             cmap.si_channels(read_recording(path))
         said[path.suffix] = str(caught[0].message).replace(str(path), "FILE")
+        with pytest.raises(ConfigError) as refused:
+            _estimate(path, ', unit = "rad"')
+        msg = str(refused.value)
+        assert "\n" not in msg and all(w in msg for w in ("'j1'", "'deg'", "'rad'", "unit_over_file = true")), msg
     assert said[".csv"] == said[".parquet"] and "'deg'" in said[".csv"] and "'rad'" in said[".csv"]
-    np.testing.assert_allclose(_estimate(parquet, ', unit = "rad"'), _estimate(csv_log, ', unit = "rad"'),
-                               rtol=1e-9, atol=1e-12)
+    over = ', unit = "rad", unit_over_file = true'
+    np.testing.assert_allclose(_estimate(parquet, over), _estimate(csv_log, over), rtol=1e-9, atol=1e-12)
 
 
 def test_a_name_unit_the_file_contradicts_is_refused(tmp_path):

@@ -107,6 +107,8 @@ def _print_run(run, validation_title: str) -> None:
     print(validation_table(run.errors, run.not_excited))
     if run.delays is not None:
         print(f"\n{run.delays.text()}")
+    if getattr(run, "tires", None) is not None:
+        print(f"\n{run.tires.text()}")
 
 
 def _positive_int(text: str) -> int:

@@ -56,8 +56,30 @@ def _guess_delimiter(header: str, path: Path) -> str:
     return best if counts[best] > 0 else ","
 
 
-def _numbered_lines(fh: io.TextIOBase, start: int) -> Iterator[tuple[int, str]]:
-    for number, line in enumerate(fh, start=start):
+# the longest line read: 10 000 channels of 25 characters is 250 kB; a file with no line end (a binary file named
+# .csv, one giant line) is refused at this length instead of held whole
+MAX_LINE = 16 * 2**20
+
+
+def bounded_lines(fh, label: str, start: int = 1, limit: int | None = None) -> Iterator[tuple[int, str | bytes]]:
+    """(number, line) of a text or binary file, each line with its end, none longer than `limit` characters (bytes,
+    default MAX_LINE): a longer one is a FileFormatError naming the line, read no further than the limit."""
+    limit = MAX_LINE if limit is None else limit
+    number = start
+    while True:
+        line = fh.readline(limit + 1)
+        if not line:
+            return
+        if len(line) > limit:
+            raise FileFormatError(f"{label}, line {number}: longer than {limit:,} characters (no line end found): "
+                                  "not a CSV of samples; check the file (a binary file named .csv?) and its line ends",
+                                  source=label, line=number)
+        yield number, line
+        number += 1
+
+
+def _numbered_lines(fh: io.TextIOBase, start: int, label: str = "") -> Iterator[tuple[int, str]]:
+    for number, line in bounded_lines(fh, label, start):
         yield number, line.rstrip("\r\n")
 
 
@@ -117,7 +139,7 @@ class CsvHeader:
 def _read_csv(path: Path, label: str, fs: float | None, time: str | None, delimiter: str | None, decimal: str,
               units_row: bool | None, units_in_header: bool, encoding: str) -> Recording:
     with open(path, encoding=encoding, newline="") as fh:
-        lines = _numbered_lines(fh, 1)
+        lines = _numbered_lines(fh, 1, label)
         head = read_header(lines, path, label, time, delimiter, decimal, units_row, units_in_header)
         data, present, line_numbers = parse_rows(
             _chain(head.pending, lines), len(head.names), head.names, head.delimiter, decimal, label

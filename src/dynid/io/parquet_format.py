@@ -92,17 +92,53 @@ def read_parquet(
     return recording_from_columns(path, columns, time=time, fs=fs, metadata=metadata, skipped=skipped)
 
 
+# bounds on what opening a file holds before its data are read: the footer (every row group's metadata, read whole
+# by pyarrow) and the row groups (one index entry and one read each). An hour of 60 channels at 625 Hz is a footer of
+# tens of kB in a few row groups; a file appended row by row can have millions
+MAX_FOOTER = 64 * 2**20
+MAX_ROW_GROUPS = 100_000
+
+
+def _footer_length(path: Any, filesystem: Any) -> int | None:
+    """The footer's length from the file's last 8 bytes (length, b"PAR1"); None when it cannot be read so (another
+    filesystem, a short file: pyarrow then says what is wrong)."""
+    if filesystem is not None:
+        return None
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(0, os.SEEK_END)
+            if fh.tell() < 12:
+                return None
+            fh.seek(-8, os.SEEK_END)
+            tail = fh.read(8)
+    except OSError:
+        return None
+    return int.from_bytes(tail[:4], "little") if tail[4:] == b"PAR1" else None
+
+
 def open_parquet(path: Any, label: str, filesystem: Any = None) -> Any:
-    """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet is a one-line `FileFormatError`."""
+    """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet, or whose footer or row-group count passes the
+    bounds (MAX_FOOTER, MAX_ROW_GROUPS), is a one-line `FileFormatError`."""
     pa = require("pyarrow", "Reading Parquet files")
     pq = require("pyarrow.parquet", "Reading Parquet files")
+    footer = _footer_length(path, filesystem)
+    if footer is not None and footer > MAX_FOOTER:
+        raise FileFormatError(f"{label}: its Parquet footer is {footer:,} bytes (more than {MAX_FOOTER:,}): too many "
+                              "row groups or columns to index; rewrite it with fewer, larger row groups (pyarrow's "
+                              "row_group_size of 100 000 rows or more)", source=label)
     try:
-        return pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
+        pfile = pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
     except (pa.ArrowInvalid, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         raise FileFormatError(f"{label}: not a readable Parquet file ({' '.join(str(exc).split())})",
                               source=label) from None
+    groups = pfile.metadata.num_row_groups
+    if groups > MAX_ROW_GROUPS:
+        raise FileFormatError(f"{label}: {groups:,} row groups (more than {MAX_ROW_GROUPS:,}); rewrite it with "
+                              "fewer, larger row groups (pyarrow's row_group_size of 100 000 rows or more)",
+                              source=label)
+    return pfile
 
 
 def read_columns(pfile: Any, label: str, columns: list[str], group: int | None = None) -> Any:

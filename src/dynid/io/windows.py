@@ -780,10 +780,14 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
                 number = 0
                 while True:
                     pos = fh.tell()
-                    raw = fh.readline()
+                    raw = fh.readline(csv_format.MAX_LINE + 1)
                     if not raw:
                         return
                     number += 1
+                    if len(raw) > csv_format.MAX_LINE:
+                        raise FileFormatError(f"{label}, line {number}: longer than {csv_format.MAX_LINE:,} "
+                                              "characters (no line end found): not a CSV of samples; check the file",
+                                              source=label, line=number)
                     offsets[number] = pos
                     yield number, _lines_of(raw, number, first_enc if pos == 0 else rest_enc, label)[0][1]
 
@@ -796,7 +800,7 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
             line, row0 = head.data_line, 0
             time_name = find_time_column(head.names, options.get("time"), options.get("fs"), label)
             while True:
-                raw_lines = list(islice(fh, block_rows))
+                raw_lines = [x for _, x in islice(csv_format.bounded_lines(fh, label, line), block_rows)]
                 if not raw_lines:
                     break
                 raw = b"".join(raw_lines)

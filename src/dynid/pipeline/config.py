@@ -90,6 +90,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
+    tire_curves = true               # the tires' cornering and slip stiffness and lateral Magic Formula from
+                                     # the wheel wrenches and slips (vehicle.tire_curves); false: not fitted
 
     [uncertainty]                    # optional: the sensors' zero offsets propagated to the estimates (%σ
                                      # total). Default: the vehicle's sensor suite's (each channel's `bias`);
@@ -181,6 +183,7 @@ class DriveSpec:
 class ChannelSpec:
     channels: tuple[str, ...]
     unit: str | None
+    unit_over_file: bool = False  # the config's unit wins over a file that says another (its header is wrong)
 
 
 @dataclass(frozen=True)
@@ -201,6 +204,7 @@ class CarSettings:
     offsets: dict[str, float] | None = None
     offset_segments: int = 2
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
+    tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
 
 
 @dataclass(frozen=True)
@@ -253,7 +257,8 @@ _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
 _ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
+                       "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
@@ -611,10 +616,10 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
     if is_car:
         for q in raw:
             suite.check(q, "[channels]")
-        inner = ("channel", "unit")
+        inner = ("channel", "unit", "unit_over_file")
         expected = "{ channel = \"name in the file\", unit = \"...\" }"
     else:
-        inner = ("channels", "unit")
+        inner = ("channels", "unit", "unit_over_file")
         expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
         unknown = [q for q in raw if q not in _ROBOT_QUANTITIES]
         if unknown:
@@ -636,7 +641,11 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
-        channels[q] = ChannelSpec(tuple(names), unit)
+        over = spec.get("unit_over_file", False)
+        if not isinstance(over, bool) or (over and unit is None):
+            raise err(where, f"unit_over_file = {over!r}; true (with a unit) when the file's own unit is wrong and "
+                             "the config's is right, else leave it out")
+        channels[q] = ChannelSpec(tuple(names), unit, over)
     if is_car:  # two sensors read from one logger channel: a copy-paste slip, never a car's wiring
         seen: dict[str, str] = {}
         for q, c in channels.items():
@@ -768,6 +777,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
+        tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
 
 

@@ -43,6 +43,7 @@ from .sources import RobotTestPlan, SegmentWindow, driven, gain_names, read_robo
 
 if TYPE_CHECKING:
     from ..vehicle.estimate import CarTrajectory
+    from ..vehicle.tire_curves import TireSamples
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,7 @@ class Partial:
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
+    tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -91,7 +93,8 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts))
+                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
+                   both(a.tires, b.tires))
 
 
 class CarSetup:
@@ -222,6 +225,13 @@ def reduce_car_segment(job: CarJob) -> Partial:
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    if setup.settings.tire_curves and job.instruments is None and not job.lags:
+        from ..vehicle.tire_curves import tire_samples
+
+        # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
+        step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
+        part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
+                                  step)
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)

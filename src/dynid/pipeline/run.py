@@ -28,10 +28,12 @@ from ..estimation import (
     group_noise,
     misfit_parameters,
     model_fits,
+    not_excited,
     nrmse,
     ols,
     propagate,
     relative_errors,
+    residual_rms,
     wls,
 )
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
@@ -81,6 +83,8 @@ class IdentificationRun:
     sections: list[tuple[str, list[str]]] | None = None  # how the parameter tables are grouped
     notes: str = ""  # printed under the tables (e.g. the physical-consistency verdict)
     not_excited: dict[str, list[str]] = field(default_factory=dict)  # kind -> groups whose Y is mostly noise
+    # the identification's residual RMS per equation group: the noise floor of `estimation.not_excited`
+    residual_rms: dict[str, float] = field(default_factory=dict)
     systems: dict[str, GroupedSystem] = field(default_factory=dict)  # test name -> its rows (the report's plots)
     config: IdentifyConfig | None = None  # what was run (the report's traceability)
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
@@ -88,6 +92,7 @@ class IdentificationRun:
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
+    tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
 
     def summary(self) -> str:
         """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
@@ -354,18 +359,35 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
+    run.residual_rms = ident.group_rms(result)
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
         # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
         # relative error of noise over noise: marked, not hidden
-        noise = ident.group_rms(result)
-        moved = validate.group_rms()
-        run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
+        run.not_excited["cross"] = not_excited(validate.group_rms(), run.residual_rms)
     result.validation.update(run.errors)
+    if settings.tire_curves:
+        run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _tire_curves(parts: dict, vehicle, say: Progress):
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    from ..vehicle.tire_curves import fit_tire_curves
+
+    samples = [p.tires for p in parts.values() if p.tires is not None]
+    if not samples:
+        return None
+    merged = samples[0]
+    for s in samples[1:]:
+        merged = merged.merge(s)
+    curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
+        + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
+    return curves
 
 
 def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
@@ -458,17 +480,22 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
     result = run.result
     ident = run.identify
     run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
+    run.residual_rms = residual_rms(ident.W, ident.Y, result.values, ident.groups)
     cross = [t for t in cfg.tests if t.role == "validate"]
     if cross:
         val = GroupedSystem.stack([systems[t.name] for t in cross])
         run.validate = {t.name: systems[t.name] for t in cross}
         run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
+        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
     # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
     # ||Y|| makes the relative error look small whatever the dynamics
     run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
     if cross:
         run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
     result.validation.update(run.errors)
+    if any(run.not_excited.values()):
+        result.validation["not_excited"] = run.not_excited
     return run
 
 
@@ -746,6 +773,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
+        data["tires"] = run.tires.to_dict()
     data.update(report.data)
     # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
     text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))
