@@ -11,7 +11,7 @@ import numpy as np
 from ..atomic import add_force, refuse_overwrite
 from ..model import ModelError
 from ..model.consistency import check_physical
-from .main import format_table
+from .model_table import format_table
 
 TEMPLATES = ("peugeot406",)
 
