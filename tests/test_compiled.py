@@ -94,17 +94,6 @@ def test_inertia_matrix_matches_pinocchio(tree):
         assert rel(M[s][np.ix_(c, c)], Mp) < 1e-10
 
 
-def test_far_from_origin_keeps_precision():
-    """A floating tree 5 km from the origin gives the same torques and regressor as at the origin."""
-    tree = random_tree(seed=7, n=20, floating=True)
-    q, qd, qdd = random_states(tree, 10, seed=1)
-    far = q.copy()
-    far[:, :3] += 5000.0
-    m = Model(tree)
-    assert rel(m.inverse_dynamics(far, qd, qdd), m.inverse_dynamics(q, qd, qdd)) < 1e-11
-    assert rel(m.regressor(far, qd, qdd), m.regressor(q, qd, qdd)) < 1e-11
-
-
 # ----- against the NumPy engine: joint terms, couplings, wrenches, restrictions --------------
 
 
