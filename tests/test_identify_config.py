@@ -53,6 +53,7 @@ def run(tmp_path: Path, text: str, capsys, out: str = "out", q: str = "q.csv") -
     return rc, cap.out, cap.err
 
 
+@pytest.mark.e2e
 def test_a_consistent_robot_test_is_identified(files, capsys):
     """End to end on the engine's own torques (noise-free): the base parameters the run identifies well
     (σ under 1 % of the value) equal the truth, the model's values regrouped, to 0.5 % (measured: 27 of 52,

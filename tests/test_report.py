@@ -236,6 +236,8 @@ def _table(page: _Tables, caption: str) -> dict:
     return found[0]
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_report_has_the_papers_tables_with_units(car):
     run, out = car
     page = parse(out / "report.html")
@@ -265,6 +267,8 @@ def test_the_car_report_has_the_papers_tables_with_units(car):
     assert _table(page, "Inertia of the sprung mass about its CoG (ISO 8855)")["rows"][0][1] == "kg·m²"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_results_as_data(car):
     run, out = car
     data = json.loads((out / "results.json").read_text())
@@ -289,6 +293,8 @@ def test_the_car_results_as_data(car):
     assert not list(out.rglob(".*.tmp*"))
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_sigma_against_a_monte_carlo_of_the_estimates_covariance(car):
     from dynid.report.build import _covariance
 
@@ -327,6 +333,8 @@ def test_the_robot_report_has_units_and_per_joint_plots(robot):
 
 
 @pytest.mark.skipif(shutil.which("chromium") is None, reason="no chromium: the screenshot test needs a browser")
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_demo_report_renders_in_a_headless_browser(car, tmp_path):
     _, out = car
     shot = tmp_path / "report.png"
