@@ -12,12 +12,12 @@ import warnings
 
 import numpy as np
 import pytest
-from oracles import PinModel, random_inertia, random_states, random_tree
+from oracles import PinModel, random_inertia, random_states, random_tree, rigid
 
 import dynid
 from dynid import Model, Wrench, load_model
 from dynid.dynamics import newton_euler, resolve_backend
-from dynid.model import INERTIAL, ModelError
+from dynid.model import ModelError
 from dynid.vehicle import car_template
 from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names
 
@@ -29,12 +29,6 @@ pin = pytest.importorskip("pinocchio")
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
-
-
-def rigid(tree):
-    """The tree without joint terms and couplings (Pinocchio models neither)."""
-    values = {k: v for k, v in tree.values.items() if k.rstrip("0123456789") in INERTIAL}
-    return dataclasses.replace(tree, couplings=(), joint_terms={}, values=values)
 
 
 TREES = {

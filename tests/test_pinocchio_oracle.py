@@ -7,14 +7,12 @@ gamma and b, a virtual floating-base chain, random physical inertias, random gra
 shipped robots and the car's 42-frame template without their joint terms and couplings.
 """
 
-import dataclasses
 
 import numpy as np
 import pytest
-from oracles import PinModel, random_inertia, random_states, random_tree
+from oracles import PinModel, random_inertia, random_states, random_tree, rigid
 
 from dynid import Model, load_model
-from dynid.model import INERTIAL
 from dynid.vehicle import car_template
 
 pin = pytest.importorskip("pinocchio")
@@ -75,12 +73,6 @@ def test_regressor_matches_pinocchio(tree):
             X[cols] = x
             tau_pin = PinModel(tree, X, only_link=f.j).rnea(q, qd, qdd)
             assert rel(W[:, :, cols] @ x, tau_pin) < 1e-9
-
-
-def rigid(tree):
-    """The tree without joint terms and couplings (Pinocchio models neither)."""
-    values = {k: v for k, v in tree.values.items() if k.rstrip("0123456789") in INERTIAL}
-    return dataclasses.replace(tree, couplings=(), joint_terms={}, values=values)
 
 
 SHIPPED = {
