@@ -22,16 +22,25 @@ def mujoco_truth() -> dict:
     return json.loads((DATA / "truth.json").read_text())
 
 
-def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool) -> tuple[dict, dict]:
-    """results.json and engineering.csv's values by key, of the example's vehicle on `tests` of `folder`."""
-    lines = ['[model]', f'vehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"']
+def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
+             tire_law: str = "paper") -> tuple[dict, dict]:
+    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` in its
+    [wheels]) on `tests` of `folder`."""
+    vehicle = EXAMPLE / "vehicle.toml"
+    if tire_law != "paper":
+        text = vehicle.read_text()
+        assert text.count("[wheels]") == 1
+        vehicle = tmp / f"vehicle_{tire_law}.toml"
+        (tmp / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
+        vehicle.write_text(text.replace("[wheels]", f'[wheels]\ntire_law = "{tire_law}"'))
+    lines = ['[model]', f'vehicle = "{vehicle.as_posix()}"']
     for t in tests:
         lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
                   f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
               f"compensate_delays = {'true' if compensate_delays else 'false'}",
               "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
-    cfg = tmp / f"{folder}_{'_'.join(tests)}.toml"
+    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}.toml"
     cfg.write_text("\n".join(lines) + "\n")
     out = tmp / cfg.stem
     assert main(["identify", str(cfg), "--out", str(out)]) == 0

@@ -98,7 +98,7 @@ def full_model(name: str) -> Model:
     tree = load_model(name).tree
     rng = np.random.default_rng(3)
     moving = [f.j for f in tree.frames if f.sigma != 2]
-    terms = {j: ("IA", "FV", "FS", "OFF", "K") for j in moving}
+    terms = {j: ("IA", "FV", "FS", "OFF", "K", "KQ") for j in moving}
     a, b = moving[1], moving[-1]
     couplings = tuple(dynid.model.Coupling(f"c{k}", k, {a: 1.5, b: -0.7}) for k in ("K", "IA", "FV", "FS"))
     t = dataclasses.replace(tree, joint_terms=terms, couplings=couplings, values={})

@@ -104,15 +104,18 @@ def test_block_idm_with_parameters_and_wrench_matches_engine():
     close(tau, np.einsum("nij,j->ni", W, X) - Q)
 
 
+@pytest.mark.parametrize("law", ["paper", "progressive"])
 @pytest.mark.parametrize("N", SIZES)
-def test_car_identification_model_through_generated_regressor(N):
-    """The pipeline's call: the 14 equations, the paper's 48 columns, wheel wrenches; W and Q."""
-    tree = car_template()
+def test_car_identification_model_through_generated_regressor(N, law):
+    """The pipeline's call: the 14 equations, the paper's 48 columns (and the tires' offsets and second-order terms
+    KQ q² of the progressive law), wheel wrenches; W and Q."""
+    tree = car_template(tire_offsets=law != "paper", tire_law=law)
     m = Model(tree)
     q, qd, qdd = random_states(tree, N, seed=N + 2)
     rng = np.random.default_rng(N)
     wrenches = [Wrench(t, rng.normal(size=(N, 6)), (0.0, 0.1, -0.2), frame=t) for t in (15, 24, 33, 42)]
-    rows, cols = list(EQUATION_ROWS), paper_parameter_names()
+    extra = [f"{p}{t}" for p in ("OFF", "KQ") for t in (15, 24, 33, 42)] if law != "paper" else []
+    rows, cols = list(EQUATION_ROWS), [*paper_parameter_names(), *extra]
     W, Q = GeneratedRegressor(tree)(q, qd, qdd, wrenches, rows, cols)
     We, Qe = m.regressor(q, qd, qdd, wrenches, rows=rows, cols=cols)
     close(W, We)

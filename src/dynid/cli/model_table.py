@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-import numpy as np
+import math
+from typing import TYPE_CHECKING
 
-from ..model import Tree
+if TYPE_CHECKING:  # no model layer (NumPy) at import: `dynid --help` stays quick
+    from ..model import Tree
 
 SIGMA = {0: "R", 1: "P", 2: "F"}
 
@@ -14,7 +16,7 @@ def format_table(tree: Tree) -> str:
     head = f"{'j':>3} {'a(j)':>4} {'sigma':>5} {'gamma':>9} {'b':>8} {'alpha':>9} {'d':>8} {'theta':>9} {'r':>8}"
     lines = [head]
     for f in tree.frames:
-        th = f"q{f.j}" + (f"{np.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
+        th = f"q{f.j}" + (f"{math.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
         r = f"q{f.j}" + (f"{f.r:+.4g}" if f.r else "") if f.sigma == 1 else f"{f.r:.4g}"
         lines.append(
             f"{f.j:>3} {f.ant:>4} {SIGMA[f.sigma]:>5} {_deg(f.gamma):>9} {f.b:>8.4g} {_deg(f.alpha):>9} "
@@ -24,4 +26,4 @@ def format_table(tree: Tree) -> str:
 
 
 def _deg(a: float) -> str:
-    return f"{np.degrees(a):.4g}°" if a else "0"
+    return f"{math.degrees(a):.4g}°" if a else "0"

@@ -46,8 +46,8 @@ except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
 Array = np.ndarray
-_TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4}
-_SMOOTH_FS = 5  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
+_TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4, "KQ": 5}
+_SMOOTH_FS = 6  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
 _COUPLING_CODE = {"K": 0, "IA": 1, "FV": 2, "FS": 3}
 # fused multiply-add only: no reassociation (the sincos reduction relies on the order of operations)
 _FASTMATH = {"contract"}
@@ -143,13 +143,13 @@ def _local_rotation(R, E, j, revolute, th):
 
 @_inline
 def _joint_terms(tau_row, q, qd, qdd, jt, has_jt, fs_w):
-    """IA qdd + FV qd + FS s(qd) + OFF + K q added to tau_row (one sample); s = sign where fs_w[j] is 0,
+    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² added to tau_row (one sample); s = sign where fs_w[j] is 0,
     else tanh(qd / fs_w[j]) (fs_w: vs for tanh, 2 vs for sigmoid, see _friction_widths)."""
     for j in range(1, jt.shape[0]):
         if has_jt[j]:
             x, v, a = q[j - 1], qd[j - 1], qdd[j - 1]
             c = _sign(v) if fs_w[j] == 0.0 else math.tanh(v / fs_w[j])
-            tau_row[j - 1] += jt[j, 0] * a + jt[j, 1] * v + jt[j, 2] * c + jt[j, 3] + jt[j, 4] * x
+            tau_row[j - 1] += jt[j, 0] * a + jt[j, 1] * v + jt[j, 2] * c + jt[j, 3] + (jt[j, 4] + jt[j, 5] * x) * x
 
 
 @_inline
@@ -458,6 +458,8 @@ def _reg_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, todo, motion, axis, re
                 x = 1.0
             elif kind == 4:
                 x = q[s, j]
+            elif kind == 5:
+                x = q[s, j] * q[s, j]
             else:  # _SMOOTH_FS
                 x = math.tanh(qd[s, j] / t_w[t])
             W[s, t_rpos[t], t_cpos[t]] = x
@@ -606,7 +608,7 @@ def _parameter_arrays(tree: Tree, X: Array, inertia_only: bool) -> dict:
 
 
 def _joint_coefficients(tree: Tree, X: Array, inertia_only: bool) -> tuple[Array, Array]:
-    jt = np.zeros((tree.n + 1, 5))
+    jt = np.zeros((tree.n + 1, len(_TERM_CODE)))
     for j, terms in tree.joint_terms.items():
         for t in terms:
             if t == "IA" or not inertia_only:

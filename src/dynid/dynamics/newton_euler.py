@@ -154,7 +154,8 @@ def backward_recursion(tree: Tree, mo: Motion, F: list, M: list) -> Array:
 
 
 def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inertia_only: bool = False) -> Array:
-    """IA qdd + FV qd + FS s(qd) + OFF + K q per joint (s: the joint's Coulomb law), plus the couplings, (n, N)."""
+    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² per joint (s: the joint's Coulomb law), plus the couplings,
+    (n, N)."""
     tau = np.zeros_like(q)
     idx = tree.index
     for j, terms in tree.joint_terms.items():
@@ -172,7 +173,7 @@ def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inerti
 
 def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
                       law: tuple[str, float] = SIGN_LAW) -> Array:
-    """Generalized force of joint j per unit of its term IA, FV, FS, OFF or K, (N,); law: the (shape, vs)
+    """Generalized force of joint j per unit of its term IA, FV, FS, OFF, K or KQ, (N,); law: the (shape, vs)
     of its FS term (Tree.friction_law)."""
     match term:
         case "IA":
@@ -185,6 +186,8 @@ def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
             return np.ones_like(q)
         case "K":
             return q
+        case "KQ":
+            return q * q
     raise ModelError(f"unknown joint term {term!r}")
 
 
@@ -241,8 +244,15 @@ def inverse_dynamics(
     """Joint forces/torques (N, n) that produce qdd at (q, qd) under gravity and the wrenches.
 
     tau = M(q) qdd + H(q, qd) + joint terms - J^T F_ext; X defaults to the model's values.
-    Fixed frames get 0. backend: "numba", "numpy" or None (see `resolve_backend`).
+    Fixed frames get 0, and so do mimic joints, whose force is in their master's (see `mimic`; their columns of
+    q, qd, qdd are ignored). backend: "numba", "numpy" or None (see `resolve_backend`).
     """
+    if tree.mimic:
+        from .mimic import follow, project
+
+        q, qd, qdd = follow(tree, q, qd, qdd)
+        tau = inverse_dynamics(tree.unconstrained, q, qd, qdd, wrenches, X, backend=backend)
+        return project(tree, tau, range(1, tree.n + 1), axis=-1)
     if resolve_backend(backend) == "numba":
         return _compiled_inverse_dynamics(tree, q, qd, qdd, wrenches, X)
     qs, single = joint_array(q, tree, "q")

@@ -21,7 +21,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import islice
@@ -35,21 +34,9 @@ from ..textfiles import encoding_problem
 from ._table import TIME_NAMES, Column, Grid, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording
+from .units import split_unit  # the header's "name [unit]": the rule every format's reader shares
 
 BLOCK_LINES = 65536  # lines parsed per NumPy call
-_HEADER_UNIT = re.compile(r"^(?P<name>.*?\S)\s*(?:\[(?P<u1>[^\[\]]*)\]|\((?P<u2>[^()]*)\))\s*$")
-
-
-def split_header_cell(cell: str) -> tuple[str, str]:
-    """'roll [deg]' -> ('roll', 'deg'); 'speed (km/h)' -> ('speed', 'km/h'); 'Fz' -> ('Fz', '')."""
-    cell = cell.strip()
-    m = _HEADER_UNIT.match(cell)
-    if m is None:
-        return cell, ""
-    unit = m.group("u1") if m.group("u1") is not None else m.group("u2")
-    return m.group("name").strip(), unit.strip()
-
-
 def _is_number(cell: str, decimal: str) -> bool:
     s = cell.strip()
     if decimal == ",":
@@ -169,7 +156,7 @@ def read_header(lines: Iterator[tuple[int, str]], path: Path, label: str, time: 
     names: list[str] = []
     units: list[str] = []
     for j, cell in enumerate(cells):
-        name, unit = split_header_cell(cell) if units_in_header else (cell.strip(), "")
+        name, unit = split_unit(cell) if units_in_header else (cell.strip(), "")
         if not name:
             raise FileFormatError(
                 f"{label}, line {header_no}, column {j + 1}: empty column name in the header",
@@ -345,7 +332,7 @@ def _header_cell(name: str, unit: str) -> str:
     if unit:
         return f"{name} [{unit}]"
     # A name that would read back as "name [unit]" gets an explicit empty unit.
-    return f"{name} []" if split_header_cell(name)[1] or name != split_header_cell(name)[0] else name
+    return f"{name} []" if split_unit(name)[1] or name != split_unit(name)[0] else name
 
 
 def write_csv(recording: Recording, path: str | os.PathLike[str], *, delimiter: str = ",") -> Path:

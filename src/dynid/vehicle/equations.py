@@ -99,9 +99,9 @@ def _cached(tree: Tree, key: tuple, make):
 
 
 def identified(tree: Tree) -> list[str]:
-    """The paper's parameters not listed as known, in the paper's order, then the tires' offsets where the tree
-    has them (`car_template(tire_offsets=True)`)."""
-    names = [*paper_parameter_names(), *(f"OFF{t}" for t in TIRES if f"OFF{t}" in tree.index)]
+    """The paper's parameters not listed as known, in the paper's order, then the tires' offsets and progressive
+    stiffnesses where the tree has them (`car_template(tire_offsets=True, tire_law="progressive")`)."""
+    names = [*paper_parameter_names(), *(f"{p}{t}" for p in ("OFF", "KQ") for t in TIRES if f"{p}{t}" in tree.index)]
     return [n for n in names if n not in tree.known]
 
 

@@ -94,17 +94,22 @@ CONSTANT_JOINTS = tuple(j for k in range(4) for j in (base(k), base(k) + 1))
 EQUATION_ROWS = (*FREE_JOINTS, *DAMPERS, *TIRES)
 
 
+CORNER_FRAMES = len(ROLES)  # frames per corner
+
+
 def corner_of(frame: int) -> int:
-    if not 7 <= frame <= FRAMES:
-        raise ValueError(f"frame {frame} is not in a corner (7..42)")
-    return (frame - 7) // 9
+    """The corner (index into CORNERS) a frame belongs to."""
+    for k in range(len(CORNERS)):
+        if base(k) <= frame < base(k) + CORNER_FRAMES:
+            return k
+    raise ValueError(f"frame {frame} is not in a corner ({base(0)}..{FRAMES})")
 
 
 def role(frame: int) -> str:
     """What a frame is: 'x', 'roll', 'damper', 'wheel', ..."""
-    if frame <= 6:
-        return ("x", "y", "z", "yaw", "pitch", "roll")[frame - 1]
-    return ROLES[(frame - 7) % 9]
+    if frame <= CHASSIS:
+        return CHASSIS_GROUPS[frame - 1]
+    return ROLES[frame - base(corner_of(frame))]
 
 
 def paper_parameter_names() -> tuple[str, ...]:
@@ -123,8 +128,62 @@ def labels() -> dict[str, str]:
     for d in DAMPERS:
         out.update({f"K{d}": f"ks{d}", f"FV{d}": f"h{d}", f"FS{d}": f"fs{d}", f"OFF{d}": f"off{d}"})
     for t in TIRES:
-        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}"})
+        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}"})
     return out
+
+
+# what each parameter is, in a chassis engineer's words: the quantity by the kind of parameter and the role of its
+# frame, the corner from the frame (the anti-roll bars: the axle of the dampers they couple)
+_CHASSIS_AXES = {"XX": "yaw inertia about O6", "YY": "pitch inertia about O6", "ZZ": "roll inertia about O6",
+                 "XY": "product of inertia xy6", "XZ": "product of inertia xz6", "YZ": "product of inertia yz6"}
+_QUANTITY = {
+    ("damper", "K"): ("spring", "N/m"), ("damper", "FV"): ("damping", "N·s/m"),
+    ("damper", "FS"): ("dry friction", "N"), ("damper", "OFF"): ("spring preload (offset)", "N"),
+    ("tire", "K"): ("tire vertical stiffness", "N/m"), ("tire", "OFF"): ("tire load offset", "N"),
+    ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
+    ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
+    ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
+}
+
+
+@dataclass(frozen=True)
+class Meaning:
+    """What a parameter of the car is: its corner ("rear left", ..., "front axle", "chassis"), the quantity
+    ("spring", "damper", "tire vertical stiffness", "chassis inertia, yaw (about x6, up)", ...) and its SI unit."""
+
+    corner: str
+    quantity: str
+    unit: str
+
+    def text(self) -> str:
+        """ "spring, rear left" """
+        return f"{self.quantity}, {self.corner}"
+
+
+def meaning(name: str) -> Meaning | None:
+    """The corner, quantity and unit of a parameter of the car template (dynid name or the paper's label); None for
+    a name that is not one (a robot's, a base parameter's combination)."""
+    name = {label: n for n, label in labels().items()}.get(name, name)
+    for bar, couples in (("karr", (0, 1)), ("karf", (2, 3))):
+        if name == bar:
+            axle = CORNERS[couples[0]].split()[0]
+            return Meaning(f"{axle} axle", "anti-roll bar", "N/m")
+    kind = name.rstrip("0123456789")
+    if not kind or kind == name:
+        return None
+    j = int(name[len(kind):])
+    if j == CHASSIS:
+        if kind == "M":
+            return Meaning("chassis", "sprung mass", "kg")
+        if kind in ("MX", "MY", "MZ"):
+            return Meaning("chassis", f"first moment {kind[1].lower()}6", "kg·m")
+        if kind in _CHASSIS_AXES:
+            return Meaning("chassis", _CHASSIS_AXES[kind], "kg·m²")
+        return None
+    if not base(0) <= j <= FRAMES:
+        return None
+    found = _QUANTITY.get((role(j), kind))
+    return None if found is None else Meaning(CORNERS[corner_of(j)], *found)
 
 
 # ----- design poses and their MDH rows -------------------------------------------------
@@ -250,6 +309,10 @@ def frames(geometry: CarGeometry) -> tuple[Frame, ...]:
     return tuple(rows)
 
 
+# the tire equation's law (see car_template): the paper's linear spring, or a progressive one
+TIRE_LAWS = ("paper", "progressive")
+
+
 def car_template(
     geometry: CarGeometry | None = None,
     values: dict[str, float] | None = None,
@@ -257,6 +320,8 @@ def car_template(
     known: set[str] | frozenset[str] = frozenset(),
     check_rest: bool = True,
     tire_offsets: bool = False,
+    tire_law: str = "paper",
+    damper_friction: dict[int, tuple[str, float]] | None = None,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -268,17 +333,25 @@ def car_template(
     unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
     is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
     equation (R is the unloaded radius).
+    tire_law: "paper" (kt q = the load along the wheel's vertical) or "progressive" (kt q + ktq q² (+ off), ktq15
+    ... ktq42: the Magic Formula's vertical law Fz = (qFz1 rho / R0 + qFz2 (rho / R0)^2) Fz0 of the deflection rho
+    from the unloaded radius, written about dynid's q = rho + R0 - R: a tire stiffens as its contact patch grows).
+    damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
     """
     from .parameters import a_priori
     from .statics import rest_state
     from .tables import default_tables
 
+    if tire_law not in TIRE_LAWS:
+        raise ValueError(f"tire_law must be one of {TIRE_LAWS}; got {tire_law!r}")
     geometry = CarGeometry() if geometry is None else geometry
     terms = {d: ("FV", "FS", "OFF", "K") for d in DAMPERS}
-    terms.update({t: ("OFF", "K") if tire_offsets else ("K",) for t in TIRES})
+    tire_terms = ("OFF", "K") if tire_offsets else ("K",)
+    terms.update({t: (*tire_terms, "KQ") if tire_law == "progressive" else tire_terms for t in TIRES})
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
-    tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81))
+    tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81),
+                friction_shape=dict(damper_friction or {}))
     tree = tree.with_values(a_priori().values if values is None else dict(values))
     if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
         rest_state(tree, default_tables(geometry), fix_dampers=True)
