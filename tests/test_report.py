@@ -507,3 +507,18 @@ def test_the_report_reads_on_a_laptop_and_a_phone(which, width, request):
         assert f["shown"] >= 0.85 * f["drawn"] - 0.5  # legible: scrolls in its box rather than shrinking
         if width == 1366:
             assert f["shown"] == pytest.approx(f["drawn"], abs=1)  # a laptop shows it whole at its drawn size
+
+
+def test_terminal_validation_names_the_chassis_equations_as_the_report():
+    """One axis convention (issue 27): the terminal's validation table names the chassis equations by their ISO 8855
+    names, as the report does (report.axes), and says how results.json's paper names map to them."""
+    from dynid.report.axes import CHASSIS_AXES
+    from dynid.report.tables import validation_table
+
+    errors = {"direct": {g: 0.01 * (k + 1) for k, g in enumerate([*CHASSIS_AXES, "susp9"])}}
+    lines = validation_table(errors).splitlines()
+    for k, g in enumerate(CHASSIS_AXES):
+        label, value = lines[1 + k].rsplit(None, 2)[0].strip(), lines[1 + k].split()[-2]
+        assert label == CHASSIS_AXES[g].label and float(value) == pytest.approx(k + 1)
+    assert lines[7].split()[0] == "susp9"
+    assert "Y_E force = -x" in lines[-1] and "pitch moment = -pitch" in lines[-1]

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..estimation import EXCITED_FACTOR, IdentificationResult
+from .axes import CHASSIS_AXES, axis_label
 
 
 def _cell(v: float | None, spec: str = ".6g") -> str:
@@ -76,11 +77,15 @@ def validation_table(errors: Mapping[str, Mapping[str, float]],
     kinds = [k for k in errors if errors[k]]
     marked = {k: set((not_excited or {}).get(k, ())) for k in kinds}
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
-    lines = ["group".rjust(12) + "".join(k.rjust(13) for k in kinds)]
-    for g in groups:
-        lines.append(g.rjust(12) + "".join(
+    width = max([12, *(len(axis_label(g)) + 1 for g in groups)])
+    lines = ["group".rjust(width) + "".join(k.rjust(13) for k in kinds)]
+    for g in groups:  # a chassis equation by its ISO 8855 name, as in the report (report.axes)
+        lines.append(axis_label(g).rjust(width) + "".join(
             ((f"{100 * errors[k][g]:.2f} %" + ("*" if g in marked[k] else " ")) if g in errors[k] else "").rjust(13)
             for k in kinds))
+    if any(g in CHASSIS_AXES for g in groups):
+        lines.append("  (chassis equations in ISO 8855 axes; results.json names them as the paper does: Y_E force = "
+                     "-x, X_E force = y, Z_E force = z, pitch moment = -pitch)")
     if any(marked.values()):
         lines.append(f"* the test barely moves this equation (RMS of Y below {EXCITED_FACTOR:g} times the "
                      "identification's residual RMS there): its relative error mostly compares noise with a small "
