@@ -56,6 +56,11 @@ def is_bag_folder(path: str | os.PathLike[str]) -> bool:
     return p.is_dir() and (p / "metadata.yaml").is_file()
 
 
+def is_bag(path: str | os.PathLike[str]) -> bool:
+    """A ROS 2 bag: a bag folder, or a .db3 or .mcap file."""
+    return is_bag_folder(path) or Path(path).suffix.lower() in EXTENSIONS
+
+
 def bag_stat(path: str | os.PathLike[str]) -> tuple[int, int]:
     """(total size, latest modification time in ns) of a bag folder's files: a bag rewritten is seen."""
     size, mtime = 0, 0
@@ -403,10 +408,8 @@ class _Decoder:
         while todo.size:
             r0 = int(todo[0])
             lay = self.layout(raws[r0], first + r0)
-            if tried >= _MAX_LAYOUTS:  # messages of many layouts: one at a time
-                rows = todo[:1]
-            else:
-                rows = todo[lengths[todo] == lay.size]
+            # messages of many layouts: one at a time
+            rows = todo[:1] if tried >= _MAX_LAYOUTS else todo[lengths[todo] == lay.size]
             buf = np.frombuffer(b"".join([raws[k] for k in rows.tolist()]), dtype=np.uint8).reshape(rows.size,
                                                                                                   lay.size)
             if rows.size > 1:

@@ -16,6 +16,12 @@
     end = 58.0
     max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
     files = { q = "pos.csv", tau = "torques.csv" }
+                                     # or file = "run.mcap": one file holding both; a ROS 2 bag (a folder
+                                     # with metadata.yaml, or its .db3/.mcap) reads sensor_msgs/JointState:
+    topic = "/joint_states"          # (a bag) the JointState topic; default: the bag's only one
+    ignore_joints = ["panda_finger_joint1"]  # (a bag) joints in the messages the model does not have
+                                     # A bag's q and tau are each model joint's position and effort, by the
+                                     # names of the model's [joints] table: [channels] is not needed for it
 
     [channels]                       # quantity (q, tau) -> channels, one per joint, with the file's unit
     q = { channels = ["Joint_1", "Joint_2"], unit = "rad" }
@@ -126,6 +132,8 @@ class TestSpec:
     start: float | None = None  # s, in the files' time base: the part of the test used
     end: float | None = None
     max_gap: float = 10.0  # sample periods: a longer hole in the time stamps is refused
+    topic: str | None = None  # a ROS 2 bag's JointState topic (None: the bag's only one)
+    ignore_joints: tuple[str, ...] = ()  # a bag's joints the model does not have, left out
 
 
 @dataclass(frozen=True)
@@ -186,7 +194,7 @@ _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identific
         "compute")
 _COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
-_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
+_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "file", "topic", "ignore_joints", "start", "end", "max_gap")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
 _ROBOT_QUANTITIES = ("q", "tau")
 _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
@@ -353,8 +361,7 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
     seen: dict[str, int] = {}
     valid = _CAR_TEST_KEYS if is_car else _ROBOT_TEST_KEYS
     notes = ({"files": "a robot test's key; a car test reads one logger file: file = \"test.csv\""} if is_car else
-             {"file": "a car test's key; a robot test reads files = { q = \"...\", tau = \"...\" }",
-              "truth": "a car test's key: the simulator's sidecar"})
+             {"truth": "a car test's key: the simulator's sidecar"})
     for i, t in enumerate(raw, start=1):  # a list: checked in _sections
         where = _test_label(i, t)
         if not isinstance(t, dict):
@@ -373,8 +380,16 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
             if not isinstance(t.get("file"), str):
                 raise err(where, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
             files = {"channels": here / t["file"]}
+        elif "file" in t:
+            if "files" in t:
+                raise err(where, "has file and files: give file = \"run.mcap\" (one file holding q and tau) or "
+                                 "files = { q = \"...\", tau = \"...\" }, not both")
+            if not isinstance(t["file"], str):
+                raise err(where, f"file = {t['file']!r}; give a file name (a string, relative to this config)")
+            files = {"q": here / t["file"], "tau": here / t["file"]}
         else:
             files = _test_files(t.get("files"), here, where, err)
+        bag = _bag_options(t, files, where, err) if not is_car else (None, ())
         for q, f in files.items():
             if not f.exists():
                 raise err(where, f"file for {q!r} not found: {f}")
@@ -399,10 +414,26 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
             if not truth.exists():
                 raise err(where, f"truth file not found: {truth}")
         tests.append(TestSpec(name, role, files, None if fs is None else float(fs), truth,
-                              *(None if v is None else float(v) for v in window.values()), float(max_gap)))
+                              *(None if v is None else float(v) for v in window.values()), float(max_gap), *bag))
     if not any(t.role == "identify" for t in tests):
         raise err("[[tests]]", "at least one test must have role = \"identify\"")
     return tuple(tests)
+
+
+def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple[str | None, tuple[str, ...]]:
+    """A robot test's topic and ignore_joints, which only a ROS 2 bag takes."""
+    from ..io.rosbag_format import is_bag
+
+    topic, ignore = t.get("topic"), t.get("ignore_joints", [])
+    if ("topic" in t or "ignore_joints" in t) and not all(is_bag(f) for f in files.values()):
+        key = "topic" if "topic" in t else "ignore_joints"
+        raise err(where, f"{key} is for a ROS 2 bag (a .db3 or .mcap file, or a bag folder); this test reads "
+                         f"{', '.join(sorted({f.name for f in files.values()}))}: remove it")
+    if topic is not None and (not isinstance(topic, str) or not topic.strip()):
+        raise err(where, f"topic = {topic!r}; give the JointState topic's name, e.g. \"/joint_states\"")
+    if not isinstance(ignore, list) or not all(isinstance(j, str) for j in ignore):
+        raise err(where, f"ignore_joints = {ignore!r}; give a list of joint names, e.g. [\"panda_finger_joint1\"]")
+    return topic, tuple(ignore)
 
 
 def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Path]:

@@ -1,0 +1,260 @@
+"""ROS 2 bags (issue 26, item 5): sensor_msgs/JointState from rosbag2 files, SQLite3 and MCAP.
+
+Oracle: the CSV route of the same samples. A simulated puma560 log (q a Fourier trajectory, tau the model's
+inverse dynamics at the instants the samples were taken, plus noise) with irregular stamps (jitter, holes) is
+written both as a CSV (time column, written here with NumPy) and as a bag by rosbags' own writer, each message
+serialized by rosbags' typestore; `dynid identify` on either gives the same estimate (1e-12). The bag's messages
+name the joints in another order than the model, some in a third order, and carry a gripper joint the model
+does not have (ignore_joints). Bad bags give exit 2 and one line naming the bag and the fix.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dynid
+from dynid.cli.main import main
+from dynid.io import read_recording
+
+pytest.importorskip("rosbags")
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+FS = 1000.0
+DURATION = 12.0
+JOINTS = ["waist", "shoulder", "elbow", "wrist_roll", "wrist_bend", "flange"]
+STORE = get_typestore(Stores.ROS2_HUMBLE)
+JS = STORE.types["sensor_msgs/msg/JointState"]
+T0_NS = 1_732_700_000_123_456_789  # an epoch stamp, as a robot's clock gives
+
+CONFIG = """
+[model]
+file = "puma_named.toml"
+
+[[tests]]
+name = "t"
+{test}
+
+[conditioning]
+cutoff = 20.0
+decimate = [10, 5]
+"""
+
+
+def fourier(t: np.ndarray, seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    w = 2 * np.pi * 0.1 * np.arange(1, 6)
+    a, b = rng.normal(0, 0.25, (2, 6, 5)) / np.arange(1, 6)
+    q0 = rng.uniform(-0.5, 0.5, 6)
+    s, c = np.sin(np.multiply.outer(t, w)), np.cos(np.multiply.outer(t, w))
+    return q0 + s @ a.T + c @ b.T, (c * w) @ a.T - (s * w) @ b.T, -(s * w**2) @ a.T - (c * w**2) @ b.T
+
+
+def message(stamp_ns: int, names: list[str], q: np.ndarray, qd: np.ndarray, tau: np.ndarray):
+    H, T = STORE.types["std_msgs/msg/Header"], STORE.types["builtin_interfaces/msg/Time"]
+    return JS(header=H(stamp=T(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9), frame_id=""), name=names,
+              position=np.asarray(q, float), velocity=np.asarray(qd, float), effort=np.asarray(tau, float))
+
+
+def write_bag(path: Path, plugin, messages, topic: str = "/joint_states", others=()) -> Path:
+    """A rosbag2 folder written by rosbags: messages = [(receive ns, JointState)]; others = [(topic, type)]."""
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conn = w.add_connection(topic, JS.__msgtype__, typestore=STORE)
+        for name, msgtype in others:
+            w.add_connection(name, msgtype, typestore=STORE)
+        for ns, msg in messages:
+            w.write(conn, ns, STORE.serialize_cdr(msg, JS.__msgtype__))
+    return path
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    """The samples: irregular header stamps (jitter +-0.1 ms, holes of up to 8 samples), q, qd, tau."""
+    d = tmp_path_factory.mktemp("bag")
+    text = (Path(dynid.__file__).parent / "model" / "examples" / "puma560.toml").read_text()
+    names = "\n".join(f'{j} = "{n}"' for j, n in enumerate(JOINTS, start=1))
+    (d / "puma_named.toml").write_text(f"{text}\n[joints]\n{names}\n")
+    model = dynid.load_model(d / "puma_named.toml")
+    n = int(DURATION * FS)
+    rng = np.random.default_rng(11)
+    keep = np.ones(n, bool)
+    for i, h in enumerate(rng.choice(np.arange(100, n - 100), 20, replace=False)):
+        keep[h:h + (8 if i % 4 == 0 else rng.integers(1, 5))] = False
+    stamp_ns = T0_NS + np.round((np.arange(n) / FS + rng.uniform(-1e-4, 1e-4, n)) * 1e9).astype(np.int64)[keep]
+    t = (stamp_ns - stamp_ns[0]).astype(float) / 1e9
+    q, qd, qdd = fourier(t)
+    tau = model.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, (t.size, 6))
+    # the CSV of the same samples (the oracle's route): time from the first stamp, numbers written exactly
+    cols = ["time"] + [f"q{i}" for i in range(1, 7)] + [f"tau{i}" for i in range(1, 7)]
+    with open(d / "log.csv", "w") as fh:
+        fh.write(",".join(cols) + "\n")
+        for row in np.column_stack([t, q, tau]).tolist():
+            fh.write(",".join(map(repr, row)) + "\n")
+    return d, stamp_ns, q, qd, tau
+
+
+def bag_messages(stamp_ns, q, qd, tau, *, gripper: bool = True):
+    """The driver's messages: joints in another order than the model's, every 7th in a third order, a gripper."""
+    order = [2, 0, 1, 5, 3, 4]
+    out = []
+    for k, ns in enumerate(stamp_ns.tolist()):
+        o = order if k % 7 else order[::-1]
+        names = [JOINTS[i] for i in o] + (["gripper"] if gripper else [])
+        tail = [0.01] if gripper else []
+        out.append((ns + 250_000, message(ns, names, [*q[k, o], *tail], [*qd[k, o], *tail], [*tau[k, o], *tail])))
+    return out
+
+
+@pytest.fixture(scope="module", params=[StoragePlugin.SQLITE3, StoragePlugin.MCAP], ids=["sqlite3", "mcap"])
+def bag(request, log):
+    d, stamp_ns, q, qd, tau = log
+    return write_bag(d / f"run_{request.param.name.lower()}", request.param, bag_messages(stamp_ns, q, qd, tau))
+
+
+def identify_cli(d: Path, test: str, out: str) -> dict[str, float]:
+    cfg = d / f"{out}.toml"
+    cfg.write_text(CONFIG.format(test=test))
+    rc = main(["identify", str(cfg), "--out", str(d / out)])
+    assert rc == 0
+    data = json.loads((d / out / "results.json").read_text())
+    return {p["name"]: p["value"] for p in data["parameters"]}
+
+
+@pytest.fixture(scope="module")
+def csv_estimate(log):
+    d = log[0]
+    return identify_cli(d, 'files = { q = "log.csv", tau = "log.csv" }\n'
+                           '[channels]\nq = { channels = ["q1", "q2", "q3", "q4", "q5", "q6"], unit = "rad" }\n'
+                           'tau = { channels = ["tau1", "tau2", "tau3", "tau4", "tau5", "tau6"], unit = "N.m" }',
+                        "csv")
+
+
+@pytest.mark.parametrize("which", ["folder", "storage file"])
+def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(log, bag, csv_estimate, which):
+    d = log[0]
+    path = bag if which == "folder" else next(p for p in bag.iterdir() if p.suffix in (".db3", ".mcap"))
+    got = identify_cli(d, f'file = "{path}"\ntopic = "/joint_states"\nignore_joints = ["gripper"]',
+                       f"{bag.name}_{which.replace(' ', '_')}")
+    assert got.keys() == csv_estimate.keys()
+    for name, value in csv_estimate.items():
+        assert got[name] == pytest.approx(value, rel=1e-12, abs=1e-12 * max(map(abs, csv_estimate.values()))), name
+
+
+def test_the_channels_are_the_header_stamps_and_the_messages_values(log, bag):
+    """read_recording against rosbags' own deserializer, message by message (an independent decoder)."""
+    from rosbags.rosbag2 import Reader
+
+    rec = read_recording(bag)
+    want_t, want = [], {}
+    with Reader(bag) as r:
+        for conn, _, raw in r.messages():
+            m = STORE.deserialize_cdr(raw, conn.msgtype)
+            ns = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+            want_t.append(ns)
+            for name, p, v, e in zip(m.name, m.position, m.velocity, m.effort, strict=True):
+                for field, x in (("position", p), ("velocity", v), ("effort", e)):
+                    want.setdefault(f"{name}.{field}", []).append(x)
+    t = (np.array(want_t) - want_t[0]) / 1e9
+    assert sorted(rec.channels) == sorted(want)
+    for name, values in want.items():
+        np.testing.assert_array_equal(rec.channels[name].values, values)
+        np.testing.assert_array_equal(rec.channels[name].time, t)
+    assert rec.metadata["time.start_ns"] == str(want_t[0]) and rec.metadata["topic"] == "/joint_states"
+
+
+def test_messages_without_velocity_and_a_joint_in_some_messages_only(tmp_path):
+    """An empty array is no sample (as an empty CSV cell), a joint absent from a message too."""
+    msgs = []
+    for k in range(10):
+        names = ["a", "b"] if k % 2 else ["a"]
+        vals = [k, 10 + k] if k % 2 else [k]
+        msgs.append((k, message(T0_NS + k * 10**6, names, vals, [] if k < 5 else vals, vals)))
+    rec = read_recording(write_bag(tmp_path / "b", StoragePlugin.MCAP, msgs))
+    np.testing.assert_array_equal(rec.channels["a.position"].values, np.arange(10))
+    np.testing.assert_array_equal(rec.channels["b.position"].values, [11, 13, 15, 17, 19])
+    np.testing.assert_array_equal(rec.channels["b.position"].time, [0.001, 0.003, 0.005, 0.007, 0.009])
+    np.testing.assert_array_equal(rec.channels["a.velocity"].values, [5, 6, 7, 8, 9])
+
+
+def cli_error(d: Path, test: str, capsys) -> str:
+    cfg = d / "bad.toml"
+    cfg.write_text(CONFIG.format(test=test))
+    rc = main(["identify", str(cfg), "--out", str(d / "bad_out")])
+    err = capsys.readouterr().err.strip()
+    last = err.splitlines()[-1]
+    assert rc == 2 and last.startswith("dynid: error:") and "Traceback" not in err, err
+    return last
+
+
+@pytest.fixture
+def small(log, tmp_path):
+    d, stamp_ns, q, qd, tau = log
+    model_file = tmp_path / "puma_named.toml"
+    model_file.write_text((d / "puma_named.toml").read_text())
+    return tmp_path, bag_messages(stamp_ns[:3000], q, qd, tau)
+
+
+def test_a_missing_topic_lists_the_bags_topics(small, capsys):
+    d, msgs = small
+    write_bag(d / "b", StoragePlugin.SQLITE3, msgs, others=[("/tf", "tf2_msgs/msg/TFMessage")])
+    last = cli_error(d, 'file = "b"\ntopic = "/joint_state"', capsys)
+    assert "no topic '/joint_state'" in last and "/joint_states (sensor_msgs/msg/JointState)" in last
+    assert "/tf (tf2_msgs/msg/TFMessage)" in last and "give one of them" in last
+
+
+def test_several_joint_state_topics_ask_for_one(small, capsys):
+    d, msgs = small
+    write_bag(d / "b", StoragePlugin.MCAP, msgs, others=[("/arm2/joint_states", JS.__msgtype__)])
+    last = cli_error(d, 'file = "b"\nignore_joints = ["gripper"]', capsys)
+    assert "2 sensor_msgs/msg/JointState topics" in last and 'topic = "/arm2/joint_states"' in last
+
+
+def test_a_joint_the_model_does_not_have(small, capsys):
+    d, msgs = small
+    write_bag(d / "b", StoragePlugin.MCAP, msgs)
+    last = cli_error(d, 'file = "b"', capsys)
+    assert "joint 'gripper'" in last and "not a joint of the model" in last and 'ignore_joints = ["gripper"]' in last
+
+
+def test_a_model_joint_missing_from_the_messages(small, capsys):
+    d, msgs = small
+    msgs = [(ns, message(0, [n for n in m.name if n != "elbow"], *(
+        [x for n, x in zip(m.name, getattr(m, f), strict=True) if n != "elbow"] for f in ("position", "velocity",
+                                                                                         "effort"))))
+            for ns, m in msgs]
+    write_bag(d / "b", StoragePlugin.SQLITE3, msgs)
+    last = cli_error(d, 'file = "b"\nignore_joints = ["gripper"]', capsys)
+    assert "joint 'elbow' is not in the messages" in last and "[joints]" in last
+
+
+def test_mismatched_arrays_name_the_message(small, capsys):
+    d, msgs = small
+    ns, m = msgs[1234]
+    msgs[1234] = (ns, message(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, list(m.name), m.position,
+                              m.velocity, m.effort[:5]))
+    write_bag(d / "b", StoragePlugin.MCAP, msgs)
+    last = cli_error(d, 'file = "b"\nignore_joints = ["gripper"]', capsys)
+    stamp = f"{m.header.stamp.sec}.{m.header.stamp.nanosec:09d}"
+    assert "message 1234" in last and stamp in last and "7 joint name(s) but 5 effort value(s)" in last
+
+
+@pytest.mark.parametrize("storage", [".db3", ".mcap"])
+def test_a_corrupt_bag_is_one_line(small, capsys, storage):
+    d, msgs = small
+    plugin = StoragePlugin.SQLITE3 if storage == ".db3" else StoragePlugin.MCAP
+    folder = write_bag(d / "b", plugin, msgs)
+    f = next(folder.glob(f"*{storage}"))
+    data = bytearray(f.read_bytes())
+    f.write_bytes(bytes(data[: len(data) // 2]))  # a recording cut short
+    last = cli_error(d, f'file = "b/{f.name}"\nignore_joints = ["gripper"]', capsys)
+    assert f.name in last and ("unreadable ROS 2 bag" in last or "not a rosbag2" in last), last
+
+
+def test_topic_on_a_csv_test_is_refused(log, capsys):
+    d = log[0]
+    last = cli_error(d, 'file = "log.csv"\ntopic = "/joint_states"', capsys)
+    assert "topic is for a ROS 2 bag" in last
