@@ -27,9 +27,11 @@ message iterator costs ~8 µs a message (a 1 h, 1 kHz bag: 30 s).
 
 from __future__ import annotations
 
+import gc
 import os
 import struct
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -175,6 +177,19 @@ class _Bag:
                                   "`ros2 bag reindex` on it", source=self.label, channel=self.topic) from None
 
 
+@contextmanager
+def _no_gc() -> Iterator[None]:
+    """The cyclic garbage collector paused while a run's row tuples are made (none holds a cycle): it would
+    otherwise walk the ever larger heap of them, which doubles the time of a long bag's read."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 def _ids(storage: Any, topic: str) -> list[int]:
     return [c.id for c in storage.connections if c.topic == topic and c.msgtype == JOINT_STATE]
 
@@ -195,10 +210,13 @@ def _sqlite_runs(storage: Any, topic: str, start: int | None, stop: int | None
         args.append(stop)
     cursor = storage.dbconn.execute(query + " ORDER BY timestamp, id", args)
     while True:
-        rows = list(islice(cursor, BLOCK_MESSAGES))
-        if not rows:
-            return
-        yield [t for t, _ in rows], [bytes(d) for _, d in rows]
+        with _no_gc():
+            rows = list(islice(cursor, BLOCK_MESSAGES))
+            if not rows:
+                return
+            times, datas = zip(*rows, strict=True)
+            del rows
+        yield list(times), list(datas)
 
 
 _RECORD = struct.Struct("<BQHIQQ")  # MCAP message record: op, length, channel id, sequence, log time, publish time
@@ -225,7 +243,8 @@ def _mcap_runs(storage: Any, topic: str, start: int | None, stop: int | None
         (crc,) = struct.unpack("<I", bio.read(4))
         bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
         raw = decompress(bio.read(chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc)
-        t, d = _chunk_messages(raw, ids, lo, hi)
+        with _no_gc():
+            t, d = _chunk_messages(raw, ids, lo, hi)
         if not t.size:
             continue
         if pending and t[0] >= latest:  # after every message pending (a recorder's usual file): they go first
@@ -340,7 +359,17 @@ class Decoded:
     stamps: NDArray[np.int64]  # (R,), ns
     joints: list[str]
     values: dict[str, NDArray[np.float64]]  # field -> (R, J), NaN where absent
-    present: dict[str, NDArray[np.bool_]]  # field -> (R, J)
+    present: dict[str, NDArray[np.bool_] | None]  # field -> (R, J), None: every message has every joint's
+
+    def mask(self, field: str, j: int) -> NDArray[np.bool_] | None:
+        """Which messages have joint j's field (None: all)."""
+        p = self.present[field]
+        return None if p is None else p[:, j]
+
+    def has(self, field: str, j: int) -> bool:
+        """Some message has joint j's field."""
+        p = self.present[field]
+        return p is None or bool(p[:, j].any())
 
 
 class _Decoder:
@@ -400,9 +429,8 @@ class _Decoder:
         """The messages raws (numbered first, first + 1, ...) decoded."""
         R = len(raws)
         lengths = np.fromiter(map(len, raws), dtype=np.int64, count=R)
-        stamps = np.empty(R, dtype=np.int64)
         joints: dict[str, int] = {}
-        parts: list[tuple[NDArray[np.intp], _Layout, NDArray[np.uint8]]] = []  # rows, layout, their bytes (n, L)
+        parts: list[tuple[NDArray[np.intp] | slice, _Layout, NDArray[np.uint8]]] = []  # rows, layout, bytes (n, L)
         todo = np.arange(R)
         tried = 0
         while todo.size:
@@ -410,21 +438,37 @@ class _Decoder:
             lay = self.layout(raws[r0], first + r0)
             # messages of many layouts: one at a time
             rows = todo[:1] if tried >= _MAX_LAYOUTS else todo[lengths[todo] == lay.size]
-            buf = np.frombuffer(b"".join([raws[k] for k in rows.tolist()]), dtype=np.uint8).reshape(rows.size,
-                                                                                                  lay.size)
+            every = rows.size == R
+            joined = b"".join(raws if every else [raws[k] for k in rows.tolist()])
+            buf = np.frombuffer(joined, dtype=np.uint8).reshape(rows.size, lay.size)
             if rows.size > 1:
-                fixed = _structure(lay)
-                same = (buf[:, fixed] == buf[0, fixed]).all(axis=1)
+                same = np.ones(rows.size, dtype=bool)
+                for lo, hi in _structure(lay):
+                    same &= (buf[:, lo:hi] == buf[0, lo:hi]).all(axis=1)
                 if not same.all():
-                    rows, buf = rows[same], buf[same]
-            parts.append((rows, lay, buf))
+                    rows, buf, every = rows[same], buf[same], False
+            parts.append((slice(None) if every else rows, lay, buf))
             for name in lay.names:
                 joints.setdefault(name, len(joints))
+            if every:
+                break
             done = np.zeros(R, dtype=bool)
             done[rows] = True
             todo = todo[~done[todo]]
             tried += 1
         J = len(joints)
+        if len(parts) == 1 and isinstance(parts[0][0], slice):  # one layout (the usual bag): no scatter
+            _, lay, buf = parts[0]
+            values, present = {}, {}
+            for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
+                if k:
+                    values[field] = _block_doubles(buf, off, k, lay.little)
+                    present[field] = None
+                else:
+                    values[field] = np.full((R, J), np.nan)
+                    present[field] = np.zeros((R, J), dtype=bool)
+            return Decoded(_stamps(buf, lay.little), list(joints), values, present)
+        stamps = np.empty(R, dtype=np.int64)
         values = {f: np.full((R, J), np.nan) for f in FIELDS}
         present = {f: np.zeros((R, J), dtype=bool) for f in FIELDS}
         for rows, lay, buf in parts:
@@ -432,19 +476,26 @@ class _Decoder:
             cols = np.array([joints[n] for n in lay.names], dtype=np.intp)
             for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
                 if k:
-                    block = np.ascontiguousarray(buf[:, off:off + 8 * k]).view("<f8" if lay.little else ">f8")
-                    values[field][rows[:, None], cols[None, :]] = block
+                    values[field][rows[:, None], cols[None, :]] = _block_doubles(buf, off, k, lay.little)
                     present[field][rows[:, None], cols[None, :]] = True
         return Decoded(stamps, list(joints), values, present)
 
 
-def _structure(lay: _Layout) -> NDArray[np.intp]:
-    """The byte positions that must be equal in messages of one layout: all but the stamp and the doubles."""
-    keep = np.ones(lay.size, dtype=bool)
-    keep[4:12] = False
+def _block_doubles(buf: NDArray[np.uint8], off: int, k: int, little: bool) -> NDArray[np.float64]:
+    """(n, k) float64 from the bytes off..off + 8k of each row."""
+    out = np.ascontiguousarray(buf[:, off:off + 8 * k]).view("<f8" if little else ">f8")
+    return out if out.dtype == np.float64 else out.astype(np.float64)
+
+
+def _structure(lay: _Layout) -> list[tuple[int, int]]:
+    """The byte ranges that must be equal in messages of one layout: all but the stamp and the doubles."""
+    keep = np.ones(lay.size + 2, dtype=bool)
+    keep[0] = keep[-1] = False
+    keep[1 + 4:1 + 12] = False
     for off, k in lay.arrays:
-        keep[off:off + 8 * k] = False
-    return np.flatnonzero(keep)
+        keep[1 + off:1 + off + 8 * k] = False
+    edges = np.flatnonzero(np.diff(keep.astype(np.int8)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def _stamp(raw: bytes, little: bool) -> int:
@@ -538,7 +589,7 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
                 t0 = int(d.stamps[0])
             for j, name in enumerate(d.joints):
                 have = joints.setdefault(name, set())
-                have.update(f for f in FIELDS if d.present[f][:, j].any())
+                have.update(f for f in FIELDS if d.has(f, j))
             t = seconds(d.stamps, t0)
             blocks.append(BagBlock(n, len(datas), times[0], times[-1], float(t.min()), float(t.max()),
                                    bool(np.all(t[1:] >= t[:-1]))))
@@ -575,9 +626,10 @@ def _columns(d: Decoded, t0_ns: int, names: Sequence[str]) -> list[Column]:
             cols.append(Column(name, "", np.empty(0), np.zeros(R, dtype=bool)))
             continue
         f, k = where[name]
-        mask = d.present[f][:, k]
+        mask = d.mask(f, k)
         values = np.ascontiguousarray(d.values[f][:, k])
-        cols.append(Column(name, "", values, None) if mask.all() else Column(name, "", values[mask], mask))
+        cols.append(Column(name, "", values, None) if mask is None or mask.all()
+                    else Column(name, "", values[mask], mask))
     return cols
 
 
@@ -599,7 +651,8 @@ def read_rosbag(path: str | os.PathLike[str], *, topic: str | None = None,
         dec = _Decoder(bag)
         total = bag.count
         stamps = np.empty(total, dtype=np.int64)
-        store: dict[str, tuple[NDArray[np.float64], NDArray[np.bool_]]] = {}
+        # channel -> [values, presence or None (every message so far has it)]; NaN where absent
+        store: dict[str, list] = {}
         fields: dict[str, set[str]] = {}
         n = 0
         for _, datas in _batches(bag, BLOCK_MESSAGES):
@@ -608,35 +661,47 @@ def read_rosbag(path: str | os.PathLike[str], *, topic: str | None = None,
             if n + R > stamps.size:  # the bag's count was short (a bag folder's metadata): grow
                 grow = n + R - stamps.size
                 stamps = np.concatenate([stamps, np.empty(grow, dtype=np.int64)])
-                store = {k: (np.concatenate([v, np.full(grow, np.nan)]), np.concatenate([p, np.zeros(grow, bool)]))
-                         for k, (v, p) in store.items()}
+                for entry in store.values():
+                    entry[0] = np.concatenate([entry[0], np.full(grow, np.nan)])
+                    entry[1] = None if entry[1] is None else np.concatenate([entry[1], np.zeros(grow, bool)])
             stamps[n:n + R] = d.stamps
+            seen = set()
             for k, joint in enumerate(d.joints):
                 for f in FIELDS:
                     name = channel_name(joint, f)
-                    if not d.present[f][:, k].any() and name not in store:
+                    if name not in store and not d.has(f, k):
                         continue
                     if channels is not None and name not in channels:
                         fields.setdefault(joint, set()).add(f)
                         continue
+                    seen.add(name)
                     if name not in store:
-                        store[name] = (np.full(stamps.size, np.nan), np.zeros(stamps.size, dtype=bool))
-                    v, p = store[name]
-                    v[n:n + R] = d.values[f][:, k]
-                    p[n:n + R] = d.present[f][:, k]
+                        store[name] = [np.full(stamps.size, np.nan), None if n == 0 else np.zeros(stamps.size, bool)]
+                    entry = store[name]
+                    entry[0][n:n + R] = d.values[f][:, k]
+                    mask = d.mask(f, k)
+                    if mask is not None and entry[1] is None:
+                        entry[1] = np.ones(stamps.size, dtype=bool)
+                    if entry[1] is not None:
+                        entry[1][n:n + R] = True if mask is None else mask
+            for name, entry in store.items():  # channels of joints this block's messages do not name
+                if name not in seen:
+                    if entry[1] is None:
+                        entry[1] = np.ones(stamps.size, dtype=bool)
+                    entry[1][n:n + R] = False
             n += R
         name_of_topic = bag.topic
     if n == 0:
         raise FileFormatError(f"{label}: topic {name_of_topic} has no message; record the joint states",
                               source=label, channel=name_of_topic)
-    stamps = stamps[:n]
     t0 = int(stamps[0])
-    cols = [Column("time", "s", seconds(stamps, t0))]
+    cols = [Column("time", "s", seconds(stamps[:n], t0))]
     del stamps
     for name in list(store):
         v, p = store.pop(name)
-        v, p = v[:n], p[:n]
-        cols.append(Column(name, "", v, None) if p.all() else Column(name, "", v[p], p))
+        v = v[:n]
+        p = None if p is None else p[:n]
+        cols.append(Column(name, "", v, None) if p is None or p.all() else Column(name, "", v[p], p))
     skipped = {channel_name(j, f): "not among the channels asked for" for j, fs in fields.items() for f in fs}
     if channels is not None:
         skipped.update({c: f"no such channel on topic {name_of_topic}" for c in channels
