@@ -49,6 +49,7 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 FIELDS = ("position", "velocity", "effort")
 EXTENSIONS = (".db3", ".mcap")
 BLOCK_MESSAGES = 65536
+Piece = list[bytes] | NDArray[np.uint8]  # messages: their CDR bytes, or rows of a (n, length) array of equal lengths
 _MAX_LAYOUTS = 64  # layouts tried in one block before decoding its remaining messages one by one
 
 
@@ -147,10 +148,10 @@ class _Bag:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def runs(self, start: int | None = None, stop: int | None = None) -> Iterator[tuple[list[int], list[bytes]]]:
+    def runs(self, start: int | None = None, stop: int | None = None) -> Iterator[tuple[NDArray[np.int64], Piece]]:
         """The topic's messages with start <= receive time < stop, in bag order, as runs of (receive times ns, CDR
-        bytes) of any length: SQLite3 storages queried in bulk, indexed MCAP storages' chunks walked here (rosbags'
-        chunk index and decompression), anything else through rosbags' message iterator."""
+        bytes: a `Piece`) of any length: SQLite3 storages queried in bulk, indexed MCAP storages' chunks walked
+        here (rosbags' chunk index and decompression), anything else through rosbags' message iterator."""
         try:
             storage = self.reader.storage
             storages = getattr(storage, "storages", [storage])
@@ -168,7 +169,7 @@ class _Bag:
                     got = list(islice(it, BLOCK_MESSAGES))
                     if not got:
                         break
-                    yield [t for _, t, _ in got], [d for _, _, d in got]
+                    yield np.array([t for _, t, _ in got], dtype=np.int64), [d for _, _, d in got]
         except FileFormatError:
             raise
         except Exception as exc:
@@ -195,7 +196,7 @@ def _ids(storage: Any, topic: str) -> list[int]:
 
 
 def _sqlite_runs(storage: Any, topic: str, start: int | None, stop: int | None
-                 ) -> Iterator[tuple[list[int], list[bytes]]]:
+                 ) -> Iterator[tuple[NDArray[np.int64], Piece]]:
     """A SQLite3 storage's messages of the topic, ordered by receive time as rosbags orders them."""
     ids = _ids(storage, topic)
     if not ids:
@@ -216,24 +217,24 @@ def _sqlite_runs(storage: Any, topic: str, start: int | None, stop: int | None
                 return
             times, datas = zip(*rows, strict=True)
             del rows
-        yield list(times), list(datas)
+        yield np.array(times, dtype=np.int64), list(datas)
 
 
 _RECORD = struct.Struct("<BQHIQQ")  # MCAP message record: op, length, channel id, sequence, log time, publish time
 
 
 def _mcap_runs(storage: Any, topic: str, start: int | None, stop: int | None
-               ) -> Iterator[tuple[list[int], list[bytes]]]:
+               ) -> Iterator[tuple[NDArray[np.int64], Piece]]:
     """An indexed MCAP storage's messages of the topic: each chunk's in receive-time order (stable), the chunks'
     merged by receive time (ties in file order), as rosbags' own iterator orders them. A run of message records
-    of one length is found with NumPy, not record by record."""
+    of one length is found with NumPy, not record by record, and kept as rows of the chunk's bytes."""
     from rosbags.rosbag2.storage_mcap import decompress
 
     lo = -(2**63) if start is None else start
     hi = 2**63 - 1 if stop is None else stop
     ids = set(_ids(storage, topic))
     bio = storage.bio
-    pending: list[tuple[NDArray[np.int64], list[bytes]]] = []  # chunks that may overlap in receive time
+    pending: list[tuple[NDArray[np.int64], list[Piece]]] = []  # chunks that may overlap in receive time
     latest = -(2**63)
     for chunk in sorted(storage.chunks, key=lambda c: c.chunk_start_offset):
         if chunk.message_end_time < lo or chunk.message_start_time >= hi or not any(
@@ -248,30 +249,40 @@ def _mcap_runs(storage: Any, topic: str, start: int | None, stop: int | None
         if not t.size:
             continue
         if pending and t[0] >= latest:  # after every message pending (a recorder's usual file): they go first
-            yield _merged(pending)
+            yield from _merged(pending)
             pending = []
         pending.append((t, d))
         latest = max(latest, int(t[-1]))
     if pending:
-        yield _merged(pending)
+        yield from _merged(pending)
 
 
-def _merged(runs: list[tuple[NDArray[np.int64], list[bytes]]]) -> tuple[list[int], list[bytes]]:
+def _merged(runs: list[tuple[NDArray[np.int64], list[Piece]]]) -> Iterator[tuple[NDArray[np.int64], Piece]]:
     """Runs each in receive-time order merged by receive time, ties in the runs' order."""
     if len(runs) == 1:
-        return runs[0][0].tolist(), runs[0][1]
+        t, pieces = runs[0]
+        yield from _with_times(t, pieces)
+        return
     t = np.concatenate([t for t, _ in runs])
-    d = [x for _, ds in runs for x in ds]
+    d = _as_bytes([p for _, ps in runs for p in ps])
     order = np.argsort(t, kind="stable")
-    return t[order].tolist(), [d[k] for k in order.tolist()]
+    yield t[order], [d[k] for k in order.tolist()]
 
 
-def _chunk_messages(raw: bytes, ids: set[int], lo: int, hi: int) -> tuple[NDArray[np.int64], list[bytes]]:
-    """The messages of the channels `ids` received in lo..hi-1 in one decompressed chunk, in receive-time order."""
+def _with_times(t: NDArray[np.int64], pieces: list[Piece]) -> Iterator[tuple[NDArray[np.int64], Piece]]:
+    at = 0
+    for p in pieces:
+        yield t[at:at + len(p)], p
+        at += len(p)
+
+
+def _chunk_messages(raw: bytes, ids: set[int], lo: int, hi: int) -> tuple[NDArray[np.int64], list[Piece]]:
+    """The messages of the channels `ids` received in lo..hi-1 in one decompressed chunk, in receive-time order:
+    their receive times and their bytes, runs of records of one length as rows of a (n, length) view."""
     arr = np.frombuffer(raw, dtype=np.uint8)
     end = len(raw)
     times: list[NDArray[np.int64]] = []
-    datas: list[bytes] = []
+    pieces: list[Piece] = []
     pos = 0
     while pos < end:
         op, length = raw[pos], int.from_bytes(raw[pos + 1:pos + 9], "little")
@@ -284,18 +295,40 @@ def _chunk_messages(raw: bytes, ids: set[int], lo: int, hi: int) -> tuple[NDArra
         heads = arr[starts[:, None] + np.arange(11)]  # op, length, channel id of each record of the guessed run
         same = (heads == heads[0]).all(axis=1)
         k = int(np.argmin(same)) if not same.all() else n
-        starts = starts[:k]
         if int(heads[0, 9]) | int(heads[0, 10]) << 8 in ids:
-            stamp = arr[starts[:, None] + np.arange(15, 23)].copy().view("<u8")[:, 0].astype(np.int64)
+            rows = arr[pos:pos + step * k].reshape(k, step)
+            stamp = np.ascontiguousarray(rows[:, 15:23]).view("<u8")[:, 0].astype(np.int64)
             keep = (stamp >= lo) & (stamp < hi)
-            times.append(stamp[keep])
-            datas += [raw[p + 31:p + step] for p in starts[keep].tolist()]
+            if keep.any():
+                times.append(stamp[keep])
+                pieces.append(rows[:, 31:] if keep.all() else rows[keep, 31:])
         pos += step * k
-    t = np.concatenate(times) if times else np.empty(0, dtype=np.int64)
+    if not times:
+        return np.empty(0, dtype=np.int64), []
+    t = np.concatenate(times)
     order = np.argsort(t, kind="stable")
     if np.any(order != np.arange(order.size)):
-        datas = [datas[k] for k in order.tolist()]
-    return t[order], datas
+        d = _as_bytes(pieces)
+        return t[order], [[d[k] for k in order.tolist()]]
+    return t, pieces
+
+
+def _as_bytes(pieces: Sequence[Piece]) -> list[bytes]:
+    return [m for p in pieces for m in (p if isinstance(p, list) else [row.tobytes() for row in p])]
+
+
+def _split(pieces: list[Piece], c: int) -> tuple[list[Piece], list[Piece]]:
+    """The first c messages of pieces, and the rest."""
+    head: list[Piece] = []
+    for i, p in enumerate(pieces):
+        if c <= 0:
+            return head, pieces[i:]
+        if len(p) <= c:
+            head.append(p)
+            c -= len(p)
+        else:
+            return [*head, p[:c]], [p[c:], *pieces[i + 1:]]
+    return head, []
 
 
 # ------------------------------------------------------------------------------------------------------- decoding
@@ -425,12 +458,46 @@ class _Decoder:
                                   "decodes it; please report it with the bag", source=self.bag.label,
                                   channel=self.bag.topic, sample=index)
 
-    def decode(self, raws: Sequence[bytes], first: int) -> Decoded:
-        """The messages raws (numbered first, first + 1, ...) decoded."""
+    def decode(self, pieces: Sequence[Piece], first: int) -> Decoded:
+        """The messages of pieces (numbered first, first + 1, ...) decoded."""
+        if pieces and all(isinstance(p, np.ndarray) for p in pieces) and len({p.shape[1] for p in pieces}) == 1:
+            buf = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)  # type: ignore[arg-type]
+            lay = self.layout(buf[0].tobytes(), first)
+            if self._same(buf, lay).all():
+                return self._single(buf, lay)
+        return self._decode(_as_bytes(pieces), first)
+
+    @staticmethod
+    def _same(buf: NDArray[np.uint8], lay: _Layout) -> NDArray[np.bool_]:
+        """Which rows have the layout of the first (its structure's bytes the same)."""
+        if buf.shape[1] != lay.size:
+            return np.zeros(buf.shape[0], dtype=bool)
+        same = np.ones(buf.shape[0], dtype=bool)
+        if buf.shape[0] > 1:
+            for lo, hi in _structure(lay):
+                same &= (buf[:, lo:hi] == buf[0, lo:hi]).all(axis=1)
+        return same
+
+    @staticmethod
+    def _single(buf: NDArray[np.uint8], lay: _Layout) -> Decoded:
+        """Messages of one layout: each field's numbers a (R, J) view of their bytes, no scatter."""
+        R, J = buf.shape[0], len(lay.names)
+        values: dict[str, NDArray[np.float64]] = {}
+        present: dict[str, NDArray[np.bool_] | None] = {}
+        for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
+            if k:
+                values[field] = _block_doubles(buf, off, k, lay.little)
+                present[field] = None
+            else:
+                values[field] = np.full((R, J), np.nan)
+                present[field] = np.zeros((R, J), dtype=bool)
+        return Decoded(_stamps(buf, lay.little), list(lay.names), values, present)
+
+    def _decode(self, raws: list[bytes], first: int) -> Decoded:
         R = len(raws)
         lengths = np.fromiter(map(len, raws), dtype=np.int64, count=R)
         joints: dict[str, int] = {}
-        parts: list[tuple[NDArray[np.intp] | slice, _Layout, NDArray[np.uint8]]] = []  # rows, layout, bytes (n, L)
+        parts: list[tuple[NDArray[np.intp], _Layout, NDArray[np.uint8]]] = []  # rows, layout, their bytes (n, L)
         todo = np.arange(R)
         tried = 0
         while todo.size:
@@ -441,43 +508,29 @@ class _Decoder:
             every = rows.size == R
             joined = b"".join(raws if every else [raws[k] for k in rows.tolist()])
             buf = np.frombuffer(joined, dtype=np.uint8).reshape(rows.size, lay.size)
-            if rows.size > 1:
-                same = np.ones(rows.size, dtype=bool)
-                for lo, hi in _structure(lay):
-                    same &= (buf[:, lo:hi] == buf[0, lo:hi]).all(axis=1)
-                if not same.all():
-                    rows, buf, every = rows[same], buf[same], False
-            parts.append((slice(None) if every else rows, lay, buf))
+            same = self._same(buf, lay)
+            if not same.all():
+                rows, buf, every = rows[same], buf[same], False
+            if every:
+                return self._single(buf, lay)
+            parts.append((rows, lay, buf))
             for name in lay.names:
                 joints.setdefault(name, len(joints))
-            if every:
-                break
             done = np.zeros(R, dtype=bool)
             done[rows] = True
             todo = todo[~done[todo]]
             tried += 1
         J = len(joints)
-        if len(parts) == 1 and isinstance(parts[0][0], slice):  # one layout (the usual bag): no scatter
-            _, lay, buf = parts[0]
-            values, present = {}, {}
-            for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
-                if k:
-                    values[field] = _block_doubles(buf, off, k, lay.little)
-                    present[field] = None
-                else:
-                    values[field] = np.full((R, J), np.nan)
-                    present[field] = np.zeros((R, J), dtype=bool)
-            return Decoded(_stamps(buf, lay.little), list(joints), values, present)
         stamps = np.empty(R, dtype=np.int64)
         values = {f: np.full((R, J), np.nan) for f in FIELDS}
-        present = {f: np.zeros((R, J), dtype=bool) for f in FIELDS}
+        present: dict[str, NDArray[np.bool_] | None] = {f: np.zeros((R, J), dtype=bool) for f in FIELDS}
         for rows, lay, buf in parts:
             stamps[rows] = _stamps(buf, lay.little)
             cols = np.array([joints[n] for n in lay.names], dtype=np.intp)
             for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
                 if k:
                     values[field][rows[:, None], cols[None, :]] = _block_doubles(buf, off, k, lay.little)
-                    present[field][rows[:, None], cols[None, :]] = True
+                    present[field][rows[:, None], cols[None, :]] = True  # type: ignore[index]
         return Decoded(stamps, list(joints), values, present)
 
 
@@ -544,27 +597,33 @@ class BagScan:
     fields: dict[str, tuple[str, ...]]  # joint -> the fields with at least one sample
     blocks: tuple[BagBlock, ...]
     count: int
+    # every channel's stamps (s) when they all share them (every message names the same joints, with the same
+    # arrays filled: a driver's usual output), else None: a planner's pass over the stamps need not read the bag
+    stamps: NDArray[np.float64] | None = None
 
 
 def _batches(bag: _Bag, size: int, start: int | None = None, stop: int | None = None
-             ) -> Iterator[tuple[list[int], list[bytes]]]:
-    """The topic's messages in runs of at least `size` (receive times, bytes), cut only where the receive time
+             ) -> Iterator[tuple[NDArray[np.int64], list[Piece]]]:
+    """The topic's messages in runs of at least `size` (receive times, pieces), cut only where the receive time
     grows, so that a run is exactly the messages of its receive-time span."""
-    times: list[int] = []
-    datas: list[bytes] = []
-    for t, d in bag.runs(start, stop):
-        times += t
-        datas += d
-        while len(times) >= size:
-            c = size
-            while c < len(times) and times[c] == times[c - 1]:
-                c += 1
-            if c == len(times):
+    times: list[NDArray[np.int64]] = []
+    pieces: list[Piece] = []
+    n = 0
+    for t, p in bag.runs(start, stop):
+        times.append(t)
+        pieces.append(p)
+        n += t.size
+        while n >= size:
+            every = np.concatenate(times) if len(times) > 1 else times[0]
+            grows = np.flatnonzero(every[size:] > every[size - 1:-1])
+            if not grows.size:
                 break  # the last receive time may go on in the next run
-            yield times[:c], datas[:c]
-            times, datas = times[c:], datas[c:]
-    if times:
-        yield times, datas
+            c = size + int(grows[0])
+            head, pieces = _split(pieces, c)
+            yield every[:c], head
+            times, n = [every[c:]], every.size - c
+    if n:
+        yield np.concatenate(times), pieces
 
 
 def seconds(stamps: NDArray[np.int64], t0_ns: int) -> NDArray[np.float64]:
@@ -581,25 +640,35 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
     joints: dict[str, set[str]] = {}
     t0: int | None = None
     n = 0
+    shared: list[NDArray[np.float64]] | None = []  # the stamps while every channel has every message
+    signature = None
     with _Bag(label, topic) as bag:
         dec = _Decoder(bag)
-        for times, datas in _batches(bag, block_rows):
-            d = dec.decode(datas, n)
+        for times, pieces in _batches(bag, block_rows):
+            d = dec.decode(pieces, n)
             if t0 is None:
                 t0 = int(d.stamps[0])
             for j, name in enumerate(d.joints):
                 have = joints.setdefault(name, set())
                 have.update(f for f in FIELDS if d.has(f, j))
             t = seconds(d.stamps, t0)
-            blocks.append(BagBlock(n, len(datas), times[0], times[-1], float(t.min()), float(t.max()),
+            sig = (tuple(d.joints), tuple(f for f in FIELDS if d.present[f] is None))
+            partial = any(p is not None and p.any() for p in d.present.values())
+            if shared is not None and not partial and signature in (None, sig):
+                shared.append(t)
+                signature = sig
+            else:
+                shared = None
+            blocks.append(BagBlock(n, t.size, int(times[0]), int(times[-1]), float(t.min()), float(t.max()),
                                    bool(np.all(t[1:] >= t[:-1]))))
-            n += len(datas)
+            n += t.size
         name = bag.topic
     if not blocks:
         raise FileFormatError(f"{label}: topic {name} has no message; record the joint states", source=label,
                               channel=name)
     fields = {j: tuple(f for f in FIELDS if f in have) for j, have in joints.items()}
-    return BagScan(name, int(t0), tuple(joints), fields, tuple(blocks), n)  # type: ignore[arg-type]
+    stamps = None if shared is None else np.concatenate(shared)
+    return BagScan(name, int(t0), tuple(joints), fields, tuple(blocks), n, stamps)  # type: ignore[arg-type]
 
 
 def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_ns: int, names: Sequence[str]
@@ -608,12 +677,13 @@ def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_
     absent from a message has no sample there)."""
     label = os.fspath(path)
     with _Bag(label, topic) as bag:
-        raws = [d for _, ds in bag.runs(block.log_lo, block.log_hi + 1) for d in ds]
-        if len(raws) != block.rows:
-            raise FileFormatError(f"{label}: topic {topic} has {len(raws)} message(s) received in "
+        pieces = [p for _, p in bag.runs(block.log_lo, block.log_hi + 1)]
+        got = sum(map(len, pieces))
+        if got != block.rows:
+            raise FileFormatError(f"{label}: topic {topic} has {got} message(s) received in "
                                   f"{block.log_lo}..{block.log_hi} ns where it had {block.rows} when indexed; index "
                                   "the bag again", source=label, channel=topic)
-        d = _Decoder(bag).decode(raws, block.first)
+        d = _Decoder(bag).decode(pieces, block.first)
     return _columns(d, t0_ns, names)
 
 
@@ -655,8 +725,8 @@ def read_rosbag(path: str | os.PathLike[str], *, topic: str | None = None,
         store: dict[str, list] = {}
         fields: dict[str, set[str]] = {}
         n = 0
-        for _, datas in _batches(bag, BLOCK_MESSAGES):
-            d = dec.decode(datas, n)
+        for _, pieces in _batches(bag, BLOCK_MESSAGES):
+            d = dec.decode(pieces, n)
             R = d.stamps.size
             if n + R > stamps.size:  # the bag's count was short (a bag folder's metadata): grow
                 grow = n + R - stamps.size

@@ -326,6 +326,11 @@ def time_bases(index: FileIndex, channels: Sequence[str]) -> list[TimeBase]:
     names = _asked(index, channels)
     if index.format == "parquet" and _parquet_dense(index, names):
         return [(names, _parquet_stamps(index), None)]
+    if index.format == "rosbag":  # every channel on the messages' stamps, kept by the index's pass in this process
+        with _lock:
+            hit = _cache.get(_key(index, "stamps"))
+        if hit is not None:
+            return [(names, hit[0], None)]
     # partition refinement: the channels start as one base, split in each block by their stamps there (a channel
     # without samples in a block has the empty stamps), so a base is the channels sharing their stamps everywhere
     bases: list[tuple[list[str], list, list]] = [(list(names), [], [])]
@@ -1172,8 +1177,11 @@ def _index_rosbag(p: Path, label: str, options: dict[str, Any], block_rows: int,
                    for b in scan.blocks)
     metadata = (("format", "rosbag"), ("topic", scan.topic), ("time.start_ns", str(scan.t0_ns)))
     extra = (("topic", scan.topic), ("t0_ns", scan.t0_ns), ("joints", scan.joints))
-    return FileIndex(label, "rosbag", *stat, tuple(sorted(options.items())), channels, blocks, metadata, (), "time",
-                     extra)
+    index = FileIndex(label, "rosbag", *stat, tuple(sorted(options.items())), channels, blocks, metadata, (), "time",
+                      extra)
+    if scan.stamps is not None:  # for `time_bases` (a planner's next step), without a second pass over the bag
+        _cached(_key(index, "stamps"), lambda: scan.stamps, lambda a: a.nbytes)
+    return index
 
 
 def _bag_block(index: FileIndex, block: Block) -> list[Column]:
