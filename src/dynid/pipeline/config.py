@@ -16,12 +16,12 @@
     end = 58.0
     max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
     files = { q = "pos.csv", tau = "torques.csv" }
-                                     # or file = "run.mcap": one file holding both; a ROS 2 bag (a folder
-                                     # with metadata.yaml, or its .db3/.mcap) reads sensor_msgs/JointState:
-    topic = "/joint_states"          # (a bag) the JointState topic; default: the bag's only one
-    ignore_joints = ["panda_finger_joint1"]  # (a bag) joints in the messages the model does not have
-                                     # A bag's q and tau are each model joint's position and effort, by the
-                                     # names of the model's [joints] table: [channels] is not needed for it
+                                     # or file = "run.mcap": one file holding q and tau. A ROS 2 bag (a folder
+                                     # with metadata.yaml, or its .db3/.mcap) reads sensor_msgs/JointState and
+                                     # takes topic = "/joint_states" (default: the bag's only JointState topic)
+                                     # and ignore_joints = ["gripper"] (joints the model does not have); its q
+                                     # and tau are each model joint's position and effort, matched by the names
+                                     # of the model's [joints] table: [channels] is not needed for it
 
     [channels]                       # quantity (q, tau) -> channels, one per joint, with the file's unit
     q = { channels = ["Joint_1", "Joint_2"], unit = "rad" }
