@@ -30,6 +30,8 @@ from __future__ import annotations
 import gc
 import os
 import struct
+import threading
+from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -88,11 +90,12 @@ def _rosbags() -> tuple[Any, Any]:
 
 
 class _Bag:
-    """An open bag and its JointState topic's connections."""
+    """An open bag and its JointState topic's connections (`opened` shares them within a process)."""
 
     def __init__(self, path: str, topic: str | None) -> None:
         rosbag2, typesys = _rosbags()
         self.label = path
+        self.lock = threading.Lock()
         try:
             self.reader = rosbag2.Reader(Path(path))
             self.reader.open()
@@ -142,12 +145,6 @@ class _Bag:
         if getattr(self.reader, "is_open", False):
             self.reader.close()
 
-    def __enter__(self) -> _Bag:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def runs(self, start: int | None = None, stop: int | None = None) -> Iterator[tuple[NDArray[np.int64], Piece]]:
         """The topic's messages with start <= receive time < stop, in bag order, as runs of (receive times ns, CDR
         bytes: a `Piece`) of any length: SQLite3 storages queried in bulk, indexed MCAP storages' chunks walked
@@ -176,6 +173,39 @@ class _Bag:
             raise FileFormatError(f"{self.label}: unreadable ROS 2 bag, topic {self.topic} "
                                   f"({type(exc).__name__}: {_one_line(exc)}); is the file complete? Try "
                                   "`ros2 bag reindex` on it", source=self.label, channel=self.topic) from None
+
+
+_OPEN_BAGS = 4  # bags kept open per process
+_open: OrderedDict[tuple, _Bag] = OrderedDict()
+_open_lock = threading.Lock()
+
+
+@contextmanager
+def opened(path: str, topic: str | None) -> Iterator[_Bag]:
+    """The bag open, held by this thread until the block ends. Bags stay open in the process (the last
+    `_OPEN_BAGS`, reopened if the files change): rosbags counts a SQLite3 bag's messages when it opens it, a pass
+    over the whole file (5 s for an hour at 1 kHz), which each window of the bag would pay again."""
+    p = Path(path)
+    stamp = bag_stat(p) if is_bag_folder(p) else (p.stat().st_size, p.stat().st_mtime_ns)
+    key = (os.fspath(path), topic, stamp)
+    with _open_lock:
+        bag = _open.pop(key, None)
+    if bag is None:
+        bag = _Bag(os.fspath(path), topic)
+    with bag.lock:
+        try:
+            yield bag
+        finally:
+            with _open_lock:
+                if key in _open:  # another thread opened it meanwhile: one is enough
+                    bag.close()
+                else:
+                    _open[key] = bag
+                while len(_open) > _OPEN_BAGS:
+                    _, old = _open.popitem(last=False)
+                    if old.lock.acquire(blocking=False):
+                        old.close()
+                        old.lock.release()
 
 
 @contextmanager
@@ -642,7 +672,7 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
     n = 0
     shared: list[NDArray[np.float64]] | None = []  # the stamps while every channel has every message
     signature = None
-    with _Bag(label, topic) as bag:
+    with opened(label, topic) as bag:
         dec = _Decoder(bag)
         for times, pieces in _batches(bag, block_rows):
             d = dec.decode(pieces, n)
@@ -676,7 +706,7 @@ def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_
     """The block's time column ("time", s) and the channels `names` ("joint.field") as table columns (a channel
     absent from a message has no sample there)."""
     label = os.fspath(path)
-    with _Bag(label, topic) as bag:
+    with opened(label, topic) as bag:
         pieces = [p for _, p in bag.runs(block.log_lo, block.log_hi + 1)]
         got = sum(map(len, pieces))
         if got != block.rows:
@@ -717,7 +747,7 @@ def read_rosbag(path: str | os.PathLike[str], *, topic: str | None = None,
     Memory: the channels kept (8 bytes a sample) and one block of messages.
     """
     label = os.fspath(path)
-    with _Bag(label, topic) as bag:
+    with opened(label, topic) as bag:
         dec = _Decoder(bag)
         total = bag.count
         stamps = np.empty(total, dtype=np.int64)
