@@ -258,3 +258,32 @@ def test_topic_on_a_csv_test_is_refused(log, capsys):
     d = log[0]
     last = cli_error(d, 'file = "log.csv"\ntopic = "/joint_states"', capsys)
     assert "topic is for a ROS 2 bag" in last
+
+
+@pytest.mark.parametrize("plugin", [StoragePlugin.SQLITE3, StoragePlugin.MCAP], ids=["sqlite3", "mcap"])
+@pytest.mark.parametrize("layouts", ["one layout", "two layouts"])
+def test_windows_are_the_whole_reads_samples(log, tmp_path, plugin, layouts):
+    """Windows of small blocks (dynid.io.windows) give, bit for bit, the whole bag's samples in their time span,
+    also where a block's messages were checked to share one layout when indexed and are not compared again."""
+    from dynid.io.windows import index_file, read_window, time_bases
+
+    _, stamp_ns, q, qd, tau = log
+    msgs = bag_messages(stamp_ns[:5000], q, qd, tau, gripper=False)
+    if layouts == "one layout":
+        msgs = [(ns, message(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, JOINTS, q[k], qd[k], tau[k]))
+                for k, (ns, m) in enumerate(msgs)]
+    bag = write_bag(tmp_path / "b", plugin, msgs)
+    whole = read_recording(bag)
+    index = index_file(bag, block_rows=700)
+    assert {b.group for b in index.blocks} == ({1} if layouts == "one layout" else {0})
+    names = [f"{j}.{f}" for j in JOINTS for f in ("position", "effort")]
+    (members, stamps, _), = time_bases(index, names)
+    assert members == names
+    np.testing.assert_array_equal(stamps, whole.channels[names[0]].time)
+    for a, b in ((0.0, 5.0), (0.7, 1.9), (2.5, 2.5005), (4.0, 9.0)):
+        got = read_window(index, names, a, b)
+        for n in names:
+            ch = whole.channels[n]
+            keep = (ch.time >= a) & (ch.time <= b)
+            np.testing.assert_array_equal(got.channels[n].values, ch.values[keep])
+            np.testing.assert_array_equal(got.channels[n].time, ch.time[keep])

@@ -423,6 +423,7 @@ class Decoded:
     joints: list[str]
     values: dict[str, NDArray[np.float64]]  # field -> (R, J), NaN where absent
     present: dict[str, NDArray[np.bool_] | None]  # field -> (R, J), None: every message has every joint's
+    layouts: int = 1  # the number of byte layouts among the messages
 
     def mask(self, field: str, j: int) -> NDArray[np.bool_] | None:
         """Which messages have joint j's field (None: all)."""
@@ -441,6 +442,7 @@ class _Decoder:
     def __init__(self, bag: _Bag) -> None:
         self.bag = bag
         self.checked: set[tuple] = set()
+        self.trusted = False
 
     def where(self, index: int, stamp: int | None) -> str:
         at = "" if stamp is None else f", header stamp {stamp // 10**9}.{stamp % 10**9:09d} s"
@@ -488,8 +490,10 @@ class _Decoder:
                                   "decodes it; please report it with the bag", source=self.bag.label,
                                   channel=self.bag.topic, sample=index)
 
-    def decode(self, pieces: Sequence[Piece], first: int) -> Decoded:
-        """The messages of pieces (numbered first, first + 1, ...) decoded."""
+    def decode(self, pieces: Sequence[Piece], first: int, one_layout: bool = False) -> Decoded:
+        """The messages of pieces (numbered first, first + 1, ...) decoded. one_layout: they are known to share the
+        first's layout (an index's pass checked them, and the file is unchanged): not compared again."""
+        self.trusted = one_layout
         if pieces and all(isinstance(p, np.ndarray) for p in pieces) and len({p.shape[1] for p in pieces}) == 1:
             buf = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)  # type: ignore[arg-type]
             lay = self.layout(buf[0].tobytes(), first)
@@ -497,13 +501,12 @@ class _Decoder:
                 return self._single(buf, lay)
         return self._decode(_as_bytes(pieces), first)
 
-    @staticmethod
-    def _same(buf: NDArray[np.uint8], lay: _Layout) -> NDArray[np.bool_]:
+    def _same(self, buf: NDArray[np.uint8], lay: _Layout) -> NDArray[np.bool_]:
         """Which rows have the layout of the first (its structure's bytes the same)."""
         if buf.shape[1] != lay.size:
             return np.zeros(buf.shape[0], dtype=bool)
         same = np.ones(buf.shape[0], dtype=bool)
-        if buf.shape[0] > 1:
+        if buf.shape[0] > 1 and not self.trusted:
             for lo, hi in _structure(lay):
                 same &= (buf[:, lo:hi] == buf[0, lo:hi]).all(axis=1)
         return same
@@ -561,7 +564,7 @@ class _Decoder:
                 if k:
                     values[field][rows[:, None], cols[None, :]] = _block_doubles(buf, off, k, lay.little)
                     present[field][rows[:, None], cols[None, :]] = True  # type: ignore[index]
-        return Decoded(stamps, list(joints), values, present)
+        return Decoded(stamps, list(joints), values, present, len(parts))
 
 
 def _block_doubles(buf: NDArray[np.uint8], off: int, k: int, little: bool) -> NDArray[np.float64]:
@@ -614,6 +617,7 @@ class BagBlock:
     t_min: float
     t_max: float
     increasing: bool
+    one_layout: bool = False  # every message of the block has the first's layout (checked when indexed)
 
 
 @dataclass(frozen=True)
@@ -690,7 +694,7 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
             else:
                 shared = None
             blocks.append(BagBlock(n, t.size, int(times[0]), int(times[-1]), float(t.min()), float(t.max()),
-                                   bool(np.all(t[1:] >= t[:-1]))))
+                                   bool(np.all(t[1:] >= t[:-1])), d.layouts == 1))
             n += t.size
         name = bag.topic
     if not blocks:
@@ -713,7 +717,7 @@ def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_
             raise FileFormatError(f"{label}: topic {topic} has {got} message(s) received in "
                                   f"{block.log_lo}..{block.log_hi} ns where it had {block.rows} when indexed; index "
                                   "the bag again", source=label, channel=topic)
-        d = _Decoder(bag).decode(pieces, block.first)
+        d = _Decoder(bag).decode(pieces, block.first, block.one_layout)
     return _columns(d, t0_ns, names)
 
 

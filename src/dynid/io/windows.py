@@ -114,7 +114,9 @@ class Block:
     t_min, t_max : s, smallest and largest time stamp in the block, NaN stamps left out
         (+inf and -inf when the block has none: no window meets it).
     increasing : the block's stamps never go back (non-decreasing, no NaN).
-    group : Parquet row group; MDF channel group; MATLAB v7.3 time vector (0, 1, ...); 0 otherwise.
+    group : Parquet row group; MDF channel group; MATLAB v7.3 time vector (0, 1, ...); ROS 2 bag: 1 when every
+        message of the block has one byte layout (checked when indexed: a window decodes them without comparing);
+        0 otherwise.
     offset, end : CSV: the byte range [offset, end) of the block's lines; ROS 2 bag: the first and last receive
         time (ns) of the block's messages (no other block has a message received at those times).
     line : CSV only, the number (1-based) of the block's first line.
@@ -1173,8 +1175,8 @@ def _index_rosbag(p: Path, label: str, options: dict[str, Any], block_rows: int,
     """One pass over the bag's JointState topic (`rosbag_format.scan_bag`): blocks of messages, their stamps' spans."""
     scan = rosbag_format.scan_bag(label, topic=options.get("topic"), block_rows=block_rows)
     channels = tuple((rosbag_format.channel_name(j, f), "") for j in scan.joints for f in scan.fields[j])
-    blocks = tuple(Block(b.first, b.rows, b.t_min, b.t_max, b.increasing, offset=b.log_lo, end=b.log_hi)
-                   for b in scan.blocks)
+    blocks = tuple(Block(b.first, b.rows, b.t_min, b.t_max, b.increasing, group=int(b.one_layout), offset=b.log_lo,
+                         end=b.log_hi) for b in scan.blocks)
     metadata = (("format", "rosbag"), ("topic", scan.topic), ("time.start_ns", str(scan.t0_ns)))
     extra = (("topic", scan.topic), ("t0_ns", scan.t0_ns), ("joints", scan.joints))
     index = FileIndex(label, "rosbag", *stat, tuple(sorted(options.items())), channels, blocks, metadata, (), "time",
@@ -1186,5 +1188,5 @@ def _index_rosbag(p: Path, label: str, options: dict[str, Any], block_rows: int,
 
 def _bag_block(index: FileIndex, block: Block) -> list[Column]:
     b = rosbag_format.BagBlock(block.row0, block.rows, block.offset, block.end, block.t_min, block.t_max,
-                               block.increasing)
+                               block.increasing, bool(block.group))
     return rosbag_format.block_columns(index.path, index.info("topic"), b, index.info("t0_ns"), index.names)
