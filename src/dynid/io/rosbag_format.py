@@ -108,10 +108,14 @@ class _Bag:
                                   "Try `ros2 bag reindex` on it", source=path) from None
         self.typestore = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
         try:
-            self.topic, self.connections = self._topic(topic)
+            self.select(topic)
         except BaseException:
             self.close()
             raise
+
+    def select(self, topic: str | None) -> None:
+        """Read `topic` (None: the bag's only JointState topic) from now on; errors list the bag's topics."""
+        self.topic, self.connections = self._topic(topic)
 
     def _topic(self, topic: str | None) -> tuple[str, list[Any]]:
         topics: dict[str, set[str]] = {}
@@ -187,13 +191,14 @@ def opened(path: str, topic: str | None) -> Iterator[_Bag]:
     over the whole file (5 s for an hour at 1 kHz), which each window of the bag would pay again."""
     p = Path(path)
     stamp = bag_stat(p) if is_bag_folder(p) else (p.stat().st_size, p.stat().st_mtime_ns)
-    key = (os.fspath(path), topic, stamp)
+    key = (os.fspath(path), stamp)
     with _open_lock:
         bag = _open.pop(key, None)
     if bag is None:
         bag = _Bag(os.fspath(path), topic)
     with bag.lock:
         try:
+            bag.select(topic)
             yield bag
         finally:
             with _open_lock:
