@@ -448,6 +448,7 @@ class _Decoder:
         self.bag = bag
         self.checked: set[tuple] = set()
         self.trusted = False
+        self.fields: tuple[str, ...] = FIELDS
 
     def where(self, index: int, stamp: int | None) -> str:
         at = "" if stamp is None else f", header stamp {stamp // 10**9}.{stamp % 10**9:09d} s"
@@ -495,10 +496,13 @@ class _Decoder:
                                   "decodes it; please report it with the bag", source=self.bag.label,
                                   channel=self.bag.topic, sample=index)
 
-    def decode(self, pieces: Sequence[Piece], first: int, one_layout: bool = False) -> Decoded:
+    def decode(self, pieces: Sequence[Piece], first: int, one_layout: bool = False,
+               fields: Sequence[str] = FIELDS) -> Decoded:
         """The messages of pieces (numbered first, first + 1, ...) decoded. one_layout: they are known to share the
-        first's layout (an index's pass checked them, and the file is unchanged): not compared again."""
+        first's layout (an index's pass checked them, and the file is unchanged): not compared again. fields: the
+        fields whose numbers are wanted (the others' `values` are empty (R, 0) arrays; `present` tells them all)."""
         self.trusted = one_layout
+        self.fields = tuple(fields)
         if pieces and all(isinstance(p, np.ndarray) for p in pieces) and len({p.shape[1] for p in pieces}) == 1:
             buf = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)  # type: ignore[arg-type]
             lay = self.layout(buf[0].tobytes(), first)
@@ -516,14 +520,16 @@ class _Decoder:
                 same &= (buf[:, lo:hi] == buf[0, lo:hi]).all(axis=1)
         return same
 
-    @staticmethod
-    def _single(buf: NDArray[np.uint8], lay: _Layout) -> Decoded:
+    def _single(self, buf: NDArray[np.uint8], lay: _Layout) -> Decoded:
         """Messages of one layout: each field's numbers a (R, J) view of their bytes, no scatter."""
         R, J = buf.shape[0], len(lay.names)
         values: dict[str, NDArray[np.float64]] = {}
         present: dict[str, NDArray[np.bool_] | None] = {}
         for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
-            if k:
+            if field not in self.fields:
+                values[field] = np.empty((R, 0))
+                present[field] = None if k else np.zeros((R, J), dtype=bool)
+            elif k:
                 values[field] = _block_doubles(buf, off, k, lay.little)
                 present[field] = None
             else:
@@ -560,14 +566,15 @@ class _Decoder:
             tried += 1
         J = len(joints)
         stamps = np.empty(R, dtype=np.int64)
-        values = {f: np.full((R, J), np.nan) for f in FIELDS}
+        values = {f: np.full((R, J), np.nan) if f in self.fields else np.empty((R, 0)) for f in FIELDS}
         present: dict[str, NDArray[np.bool_] | None] = {f: np.zeros((R, J), dtype=bool) for f in FIELDS}
         for rows, lay, buf in parts:
             stamps[rows] = _stamps(buf, lay.little)
             cols = np.array([joints[n] for n in lay.names], dtype=np.intp)
             for field, (off, k) in zip(FIELDS, lay.arrays, strict=True):
                 if k:
-                    values[field][rows[:, None], cols[None, :]] = _block_doubles(buf, off, k, lay.little)
+                    if field in self.fields:
+                        values[field][rows[:, None], cols[None, :]] = _block_doubles(buf, off, k, lay.little)
                     present[field][rows[:, None], cols[None, :]] = True  # type: ignore[index]
         return Decoded(stamps, list(joints), values, present, len(parts))
 
@@ -684,7 +691,7 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
     with opened(label, topic) as bag:
         dec = _Decoder(bag)
         for times, pieces in _batches(bag, block_rows):
-            d = dec.decode(pieces, n)
+            d = dec.decode(pieces, n, fields=())  # the stamps and which fields each joint has: no numbers
             if t0 is None:
                 t0 = int(d.stamps[0])
             for j, name in enumerate(d.joints):
@@ -722,7 +729,7 @@ def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_
             raise FileFormatError(f"{label}: topic {topic} has {got} message(s) received in "
                                   f"{block.log_lo}..{block.log_hi} ns where it had {block.rows} when indexed; index "
                                   "the bag again", source=label, channel=topic)
-        d = _Decoder(bag).decode(pieces, block.first, block.one_layout)
+        d = _Decoder(bag).decode(pieces, block.first, block.one_layout, {n.rpartition(".")[2] for n in names})
     return _columns(d, t0_ns, names)
 
 
@@ -764,8 +771,9 @@ def read_rosbag(path: str | os.PathLike[str], *, topic: str | None = None,
         store: dict[str, list] = {}
         fields: dict[str, set[str]] = {}
         n = 0
+        wanted = FIELDS if channels is None else {c.rpartition(".")[2] for c in channels}
         for _, pieces in _batches(bag, BLOCK_MESSAGES):
-            d = dec.decode(pieces, n)
+            d = dec.decode(pieces, n, fields=wanted)
             R = d.stamps.size
             if n + R > stamps.size:  # the bag's count was short (a bag folder's metadata): grow
                 grow = n + R - stamps.size
