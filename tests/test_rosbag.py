@@ -115,11 +115,16 @@ def bag(request, log):
     return write_bag(d / f"run_{request.param.name.lower()}", request.param, bag_messages(stamp_ns, q, qd, tau))
 
 
-def identify_cli(d: Path, test: str, out: str) -> dict[str, float]:
+def identify_cli(d: Path, test: str, out: str, capsys=None) -> dict[str, float]:
     cfg = d / f"{out}.toml"
     cfg.write_text(CONFIG.format(test=test))
     rc = main(["identify", str(cfg), "--out", str(d / out)])
     assert rc == 0
+    if capsys is not None:
+        said = capsys.readouterr()
+        text = said.out + said.err
+        # the stamps checked and resampled as a CSV time column's are (tests/test_robot_time.py)
+        assert "resampled onto a uniform clock" in text and "jitter" in text, text
     data = json.loads((d / out / "results.json").read_text())
     return {p["name"]: p["value"] for p in data["parameters"]}
 
@@ -134,11 +139,12 @@ def csv_estimate(log):
 
 
 @pytest.mark.parametrize("which", ["folder", "storage file"])
-def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(log, bag, csv_estimate, which):
+def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(log, bag, csv_estimate, which, capsys):
     d = log[0]
     path = bag if which == "folder" else next(p for p in bag.iterdir() if p.suffix in (".db3", ".mcap"))
+    capsys.readouterr()
     got = identify_cli(d, f'file = "{path}"\ntopic = "/joint_states"\nignore_joints = ["gripper"]',
-                       f"{bag.name}_{which.replace(' ', '_')}")
+                       f"{bag.name}_{which.replace(' ', '_')}", capsys)
     assert got.keys() == csv_estimate.keys()
     for name, value in csv_estimate.items():
         assert got[name] == pytest.approx(value, rel=1e-12, abs=1e-12 * max(map(abs, csv_estimate.values()))), name
@@ -220,12 +226,20 @@ def test_a_joint_the_model_does_not_have(small, capsys):
     assert "joint 'gripper'" in last and "not a joint of the model" in last and 'ignore_joints = ["gripper"]' in last
 
 
+def stamp_of(m) -> int:
+    return m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+
+
+def without(m, joint: str):
+    """The message m without `joint`."""
+    keep = [i for i, n in enumerate(m.name) if n != joint]
+    return message(stamp_of(m), [m.name[i] for i in keep], *(getattr(m, f)[keep] for f in ("position", "velocity",
+                                                                                            "effort")))
+
+
 def test_a_model_joint_missing_from_the_messages(small, capsys):
     d, msgs = small
-    msgs = [(ns, message(0, [n for n in m.name if n != "elbow"], *(
-        [x for n, x in zip(m.name, getattr(m, f), strict=True) if n != "elbow"] for f in ("position", "velocity",
-                                                                                         "effort"))))
-            for ns, m in msgs]
+    msgs = [(ns, without(m, "elbow")) for ns, m in msgs]
     write_bag(d / "b", StoragePlugin.SQLITE3, msgs)
     last = cli_error(d, 'file = "b"\nignore_joints = ["gripper"]', capsys)
     assert "joint 'elbow' is not in the messages" in last and "[joints]" in last
@@ -252,6 +266,14 @@ def test_a_corrupt_bag_is_one_line(small, capsys, storage):
     f.write_bytes(bytes(data[: len(data) // 2]))  # a recording cut short
     last = cli_error(d, f'file = "b/{f.name}"\nignore_joints = ["gripper"]', capsys)
     assert f.name in last and ("unreadable ROS 2 bag" in last or "not a rosbag2" in last), last
+
+
+def test_unstamped_messages_are_refused(small, capsys):
+    d, msgs = small
+    msgs = [(ns, message(0, list(m.name), m.position, m.velocity, m.effort)) for ns, m in msgs]
+    write_bag(d / "b", StoragePlugin.SQLITE3, msgs)
+    last = cli_error(d, 'file = "b"\nignore_joints = ["gripper"]', capsys)
+    assert "all have the header stamp 0.000000000 s" in last and "does not stamp them" in last
 
 
 def test_topic_on_a_csv_test_is_refused(log, capsys):

@@ -712,6 +712,10 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
     if not blocks:
         raise FileFormatError(f"{label}: topic {name} has no message; record the joint states", source=label,
                               channel=name)
+    if n > 1 and all(b.t_min == b.t_max == 0.0 for b in blocks):
+        raise FileFormatError(f"{label}: the {n} messages of topic {name} all have the header stamp "
+                              f"{t0 // 10**9}.{t0 % 10**9:09d} s: the publisher does not stamp them; stamp each "
+                              "message with the time its sample was taken (header.stamp)", source=label, channel=name)
     fields = {j: tuple(f for f in FIELDS if f in have) for j, have in joints.items()}
     stamps = None if shared is None else np.concatenate(shared)
     return BagScan(name, int(t0), tuple(joints), fields, tuple(blocks), n, stamps)  # type: ignore[arg-type]
