@@ -6,11 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from ..atomic import add_force, refuse_overwrite
-from ..model import ModelError
-from ..model.consistency import check_physical
 from .main import format_table
 
 TEMPLATES = ("peugeot406",)
@@ -18,6 +14,11 @@ TEMPLATES = ("peugeot406",)
 
 def show_template(name: str) -> str:
     """The full text for a template: MDH table, the three parameter sets, consistency, base parameters."""
+    import numpy as np
+
+    from ..model import ModelError
+    from ..model.consistency import check_physical
+
     if name not in TEMPLATES:
         raise ModelError(f"no car template {name!r}; templates: {', '.join(TEMPLATES)}")
     from ..vehicle import parameters as params
@@ -133,13 +134,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from ..vehicle.description import load_vehicle, shipped_vehicles
+    import tomllib
+    from importlib.util import find_spec
 
-    for name in shipped_vehicles():
-        v = load_vehicle(name)
-        g = v.geometry
-        print(f"{name:<14} {v.name}: wheelbase {g.wheelbase:.3g} m, tracks {2 * g.front.half_track:.3g} / "
-              f"{2 * g.rear.half_track:.3g} m, {'with' if v.truth else 'no'} simulation truth")
+    # the shipped files are read as TOML, not loaded as vehicles: loading one builds its tables and template
+    # (NumPy, SciPy: two seconds) for three numbers; tests/test_vehicle_file.py loads every shipped vehicle.
+    # find_spec locates dynid.vehicle without running its __init__ (which imports all of it).
+    spec = find_spec("dynid.vehicle")
+    folder = Path(next(iter(spec.submodule_search_locations))) / "vehicles"  # type: ignore[union-attr]
+    for path in sorted(folder.glob("*.toml")):
+        v = tomllib.loads(path.read_text(encoding="utf-8"))
+        axles = v["axles"]
+        print(f"{path.stem:<14} {v['name']}: wheelbase {axles['wheelbase_m']:.3g} m, tracks "
+              f"{2 * axles['front']['half_track_m']:.3g} / {2 * axles['rear']['half_track_m']:.3g} m, "
+              f"{'with' if 'truth' in v else 'no'} simulation truth")
     return 0
 
 
@@ -208,6 +216,7 @@ def chassis_sheet_text(v) -> list[str]:
 
 def show_vehicle(v) -> str:
     """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
+    from ..model.consistency import check_physical
     from ..vehicle.equations import car_base_parameters, identified
     from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, meaning, paper_parameter_names, role
 

@@ -721,6 +721,18 @@ def scan_bag(path: str | os.PathLike[str], *, topic: str | None = None, block_ro
     return BagScan(name, int(t0), tuple(joints), fields, tuple(blocks), n, stamps)  # type: ignore[arg-type]
 
 
+def first_joints(path: str | os.PathLike[str], *, topic: str | None = None) -> tuple[str, ...]:
+    """The joint names of the topic's first message (what a planner needs before indexing the bag)."""
+    label = os.fspath(path)
+    with opened(label, topic) as bag:
+        for _, piece in bag.runs():
+            if len(piece):
+                first = piece[0] if isinstance(piece, list) else piece[0].tobytes()
+                return _Decoder(bag).layout(first, 0).names
+        raise FileFormatError(f"{label}: topic {bag.topic} has no message; record the joint states", source=label,
+                              channel=bag.topic)
+
+
 def block_columns(path: str | os.PathLike[str], topic: str, block: BagBlock, t0_ns: int, names: Sequence[str]
                   ) -> list[Column]:
     """The block's time column ("time", s) and the channels `names` ("joint.field") as table columns (a channel

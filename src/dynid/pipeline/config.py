@@ -6,6 +6,9 @@
                                      # or template = "peugeot406" (a car: see below),
                                      # or vehicle = "peugeot406" (a car described by a vehicle file: a shipped
                                      # vehicle's name, or a path ending in .toml relative to this config)
+    joints = ["joint1", "joint2"]    # optional, a robot: the identified joints (the model file's [joints] names;
+                                     # the others are held still at 0). Without it, data that lack the joints
+                                     # others mimic (a gripper) hold those still, and say so
 
     [[tests]]
     name = "exciting trajectory"
@@ -41,7 +44,7 @@
 
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
-                                     # (needs pip install 'dynid[pc]'; docs/robot.md)
+                                     # (needs pip install cvxpy clarabel; docs/robot.md)
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
@@ -82,6 +85,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
+    tire_curves = true               # the tires' cornering and slip stiffness and lateral Magic Formula from
+                                     # the wheel wrenches and slips (vehicle.tire_curves); false: not fitted
 
     [uncertainty]                    # optional: the sensors' zero offsets propagated to the estimates (%σ
                                      # total). Default: the vehicle's sensor suite's (each channel's `bias`);
@@ -93,7 +98,7 @@ Either kind may say where its work runs (the command line's --scheduler and --wo
 
     [compute]
     scheduler = "local"              # a Dask LocalCluster on this machine, or a Dask scheduler's address
-                                     # ("tcp://10.0.0.5:8786"; needs pip install 'dynid[dask]'); default: this
+                                     # ("tcp://10.0.0.5:8786"; needs pip install distributed); default: this
                                      # machine's threads. The workers read the files themselves: give paths
                                      # every worker reaches (a shared file system)
     workers = 2                      # threads, or a LocalCluster's single-threaded worker processes
@@ -140,6 +145,7 @@ class TestSpec:
 class ChannelSpec:
     channels: tuple[str, ...]
     unit: str | None
+    unit_over_file: bool = False  # the config's unit wins over a file that says another (its header is wrong)
 
 
 @dataclass(frozen=True)
@@ -160,6 +166,7 @@ class CarSettings:
     offsets: dict[str, float] | None = None
     offset_segments: int = 2
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
+    tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
 
 
 @dataclass(frozen=True)
@@ -179,6 +186,7 @@ class IdentifyConfig:
     car: CarSettings | None = None
     # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
     vehicle: str | Path | None = None
+    joints: tuple[str, ...] | None = None  # [model] joints: a robot's identified joints, by name
     scheduler: str | None = None  # [compute]: None (this machine's threads), "local" or a Dask scheduler's address
     workers: int | None = None
 
@@ -194,6 +202,7 @@ _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identific
         "compute")
 _COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
+_MODEL_OPTIONS = ("joints",)  # a robot's: the identified joints, by name (the others are held still)
 _ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "file", "topic", "ignore_joints", "start", "end", "max_gap")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
 _ROBOT_QUANTITIES = ("q", "tau")
@@ -201,7 +210,8 @@ _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
 _ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
+                       "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
@@ -267,7 +277,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
         conditioning=cond, method=method, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
         data_health=_data_health(ident, err), reference=_reference(data.get("reference"), here, err), car=car,
-        vehicle=vehicle,
+        vehicle=vehicle, joints=_model_joints(data.get("model", {}), is_car, err),
         **_compute(data.get("compute", {}), err),
     )
 
@@ -325,14 +335,27 @@ def _sections(data: dict, path: Path) -> None:
                               "and its keys below")
 
 
+def _model_joints(m: dict, is_car: bool, err: Err) -> tuple[str, ...] | None:
+    """[model] joints = ["joint1", ...]: a robot's identified joints (the model file's [joints] names)."""
+    if "joints" not in m:
+        return None
+    joints = m["joints"]
+    if is_car:
+        raise err("[model]", "joints = [...] chooses a robot's identified joints; a car's equations are its template's")
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
+        raise err("[model]", f"joints = {joints!r}; give the identified joints' names, like joints = [\"joint1\", "
+                  "\"joint2\"] (the model file's [joints] table)")
+    return tuple(joints)
+
+
 def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None]:
     """[model]: the model (a shipped name or a robot file's path) and the vehicle (a car's vehicle file: a
     resolved Path, or a shipped vehicle's name; None for a robot or the template alone)."""
     where = "[model]"
-    unknown = [k for k in m if k not in _MODEL_KEYS]
+    unknown = [k for k in m if k not in (*_MODEL_KEYS, *_MODEL_OPTIONS)]
     if unknown:  # e.g. wheelbase: a car's dimensions are its vehicle file's
-        raise err(where, unknown_keys(unknown, _MODEL_KEYS) + " (a car's geometry, tables and known values are "
-                         "its vehicle file's: vehicle = \"my_car.toml\")")
+        raise err(where, unknown_keys(unknown, (*_MODEL_KEYS, *_MODEL_OPTIONS)) + " (a car's geometry, tables and "
+                         "known values are its vehicle file's: vehicle = \"my_car.toml\")")
     given = [k for k in _MODEL_KEYS if k in m]
     if not given:
         raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "
@@ -459,10 +482,10 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
     if is_car:
         for q in raw:
             suite.check(q, "[channels]")
-        inner = ("channel", "unit")
+        inner = ("channel", "unit", "unit_over_file")
         expected = "{ channel = \"name in the file\", unit = \"...\" }"
     else:
-        inner = ("channels", "unit")
+        inner = ("channels", "unit", "unit_over_file")
         expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
         unknown = [q for q in raw if q not in _ROBOT_QUANTITIES]
         if unknown:
@@ -484,7 +507,11 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
-        channels[q] = ChannelSpec(tuple(names), unit)
+        over = spec.get("unit_over_file", False)
+        if not isinstance(over, bool) or (over and unit is None):
+            raise err(where, f"unit_over_file = {over!r}; true (with a unit) when the file's own unit is wrong and "
+                             "the config's is right, else leave it out")
+        channels[q] = ChannelSpec(tuple(names), unit, over)
     if is_car:  # two sensors read from one logger channel: a copy-paste slip, never a car's wiring
         seen: dict[str, str] = {}
         for q, c in channels.items():
@@ -616,6 +643,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
+        tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
 
 

@@ -36,12 +36,14 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
+from ..model.tree import ModelError
 from .config import IdentifyConfig
-from .robot import GroupedSystem, chunk_rows
+from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
 
 if TYPE_CHECKING:
     from ..vehicle.estimate import CarTrajectory
+    from ..vehicle.tire_curves import TireSamples
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,7 @@ class Partial:
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
+    tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -90,7 +93,8 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts))
+                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
+                   both(a.tires, b.tires))
 
 
 class CarSetup:
@@ -221,6 +225,13 @@ def reduce_car_segment(job: CarJob) -> Partial:
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    if setup.settings.tire_curves and job.instruments is None and not job.lags:
+        from ..vehicle.tire_curves import tire_samples
+
+        # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
+        step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
+        part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
+                                  step)
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
@@ -313,9 +324,37 @@ class RobotSetup:
 
     def __init__(self, cfg: IdentifyConfig) -> None:
         from ..dynamics import load_model
+        from .config import ConfigError
 
-        self.model = load_model(cfg.model)
+        tree = load_model(cfg.model).tree
+        k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
+             else len(cfg.channels["q"].channels) if "q" in cfg.channels else _bag_joints(cfg, tree))
+        # a transmission's rows are the joints it gives: name it when its count is the one that does not match
+        source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
+        try:  # the joints the data give; the others (a gripper not logged) held still
+            self.joints = data_joints(tree, k, cfg.joints, source)
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
+        self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
+
+
+def _bag_joints(cfg: IdentifyConfig, tree) -> int:
+    """The joint columns a config's ROS 2 bags give (a robot config without [channels]): the selected joints'
+    count, else the model's joints with an equation that its first bag's first message names. When that is all
+    of them less the joints others mimic (a gripper not logged), those are held still; any other count reads all
+    of them, and the bag's test says which one the messages lack (`sources.plan_robot_test`)."""
+    from ..io.rosbag_format import first_joints, is_bag
+
+    bag = next((t for t in cfg.tests if is_bag(t.files["q"])), None)
+    if bag is None:
+        return tree.n
+    if cfg.joints is not None:
+        return len(cfg.joints)
+    named = set(first_joints(bag.files["q"], topic=bag.topic))
+    k = sum(tree.joint_names.get(j) in named for j in tree.equations)
+    masters = {m.master for m in tree.mimic.values()}
+    return k if k == len(tree.equations) - len(masters) else len(tree.equations)
 
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
@@ -328,7 +367,9 @@ def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
     setup = robot_setup(job.cfg)
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
-    q, tau = transmitted(job.cfg, arrays["q"], arrays["tau"], setup.model.n)
+    columns = setup.joints.columns
+    q, tau = (to_frames(a, columns, setup.model.n)
+              for a in transmitted(job.cfg, arrays["q"], arrays["tau"], len(columns)))
     return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                       job.n_samples)
 

@@ -27,10 +27,12 @@ from ..estimation import (
     fit_note,
     misfit_parameters,
     model_fits,
+    not_excited,
     nrmse,
     ols,
     propagate,
     relative_errors,
+    residual_rms,
     wls,
 )
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
@@ -52,7 +54,7 @@ from .reduce import (
     stack_rows,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
+from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
 from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
     plan_car_test,
@@ -80,6 +82,8 @@ class IdentificationRun:
     sections: list[tuple[str, list[str]]] | None = None  # how the parameter tables are grouped
     notes: str = ""  # printed under the tables (e.g. the physical-consistency verdict)
     not_excited: dict[str, list[str]] = field(default_factory=dict)  # kind -> groups whose Y is mostly noise
+    # the identification's residual RMS per equation group: the noise floor of `estimation.not_excited`
+    residual_rms: dict[str, float] = field(default_factory=dict)
     systems: dict[str, GroupedSystem] = field(default_factory=dict)  # test name -> its rows (the report's plots)
     config: IdentifyConfig | None = None  # what was run (the report's traceability)
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
@@ -87,6 +91,7 @@ class IdentificationRun:
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
+    tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
 
     def summary(self) -> str:
         """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
@@ -111,10 +116,9 @@ class IdentificationRun:
         r = self.result
         names = list(r.names)
         cov = r.full_covariance
-        use_wls = r.method == "WLS"
         lines = [f"{'published':>10} {'ours':>12} {'ours %σ':>8} {'published':>12} {'pub. %σ':>8} {'gap/σ_pub':>9}  as"]
         for m in self.reference:
-            pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+            pub, pub_rel = m.row.published(r.method)
             ours = m.value(names, r.values)
             ours_rel = 100 * m.std(names, cov) / abs(ours) if ours else float("nan")
             gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
@@ -157,7 +161,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
         if health is not None:
             health += found
-        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))),
+                    len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
@@ -352,18 +357,35 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
+    run.residual_rms = ident.group_rms(result)
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
         # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
         # relative error of noise over noise: marked, not hidden
-        noise = ident.group_rms(result)
-        moved = validate.group_rms()
-        run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
+        run.not_excited["cross"] = not_excited(validate.group_rms(), run.residual_rms)
     result.validation.update(run.errors)
+    if settings.tire_curves:
+        run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _tire_curves(parts: dict, vehicle, say: Progress):
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    from ..vehicle.tire_curves import fit_tire_curves
+
+    samples = [p.tires for p in parts.values() if p.tires is not None]
+    if not samples:
+        return None
+    merged = samples[0]
+    for s in samples[1:]:
+        merged = merged.merge(s)
+    curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
+        + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
+    return curves
 
 
 def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
@@ -456,17 +478,22 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
     result = run.result
     ident = run.identify
     run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
+    run.residual_rms = residual_rms(ident.W, ident.Y, result.values, ident.groups)
     cross = [t for t in cfg.tests if t.role == "validate"]
     if cross:
         val = GroupedSystem.stack([systems[t.name] for t in cross])
         run.validate = {t.name: systems[t.name] for t in cross}
         run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
+        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
     # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
     # ||Y|| makes the relative error look small whatever the dynamics
     run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
     if cross:
         run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
     result.validation.update(run.errors)
+    if any(run.not_excited.values()):
+        result.validation["not_excited"] = run.not_excited
     return run
 
 
@@ -488,6 +515,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         return _identify_car(cfg, say, scheduler)
     setup = robot_setup(cfg)
     model, base = setup.model, setup.base
+    if setup.joints.note:
+        say(setup.joints.note)
     names = list(base.names)
     bad = [k for k in cfg.known if k not in names]
     if bad:
@@ -511,7 +540,9 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
-    result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
+    # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
+    result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
+        model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
                     systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
@@ -548,6 +579,62 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     kinds = {c.name: c.kind for c in tree.couplings}
     nonneg = tuple(i for i, n in enumerate(names) if kinds.get(n, n.rstrip("0123456789")) in NONNEGATIVE_TERMS)
     return ConsistencyStructure(tuple(names), tuple(base.names), K, bodies, nonneg)
+
+
+@dataclass(frozen=True)
+class PlausibleExport:
+    """What `plausible_export` chose: the standard values, the links' moves from the model file (one line each:
+    frame, joint, mass, centre of mass and inertia changes) and the lines to warn about (a link moved more than
+    its prior spread), and how closely the estimate is reproduced (chi2, worst base parameter in σ)."""
+
+    values: dict[str, float]
+    moves: list[str]
+    warnings: list[str]
+    chi2: float
+    worst: tuple[str, float]
+
+
+def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], base_std: dict[str, float]
+                     ) -> PlausibleExport:
+    """The standard set a URDF export writes for an identified base estimate (`estimation.physical.
+    plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
+    scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
+    file in each link's own units, the estimate reproduced within its σ."""
+    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
+    from .robot import link_box, link_length
+
+    structure = consistency_structure(tree, base)
+    bodies = {}
+    for j in structure.bodies:
+        m0 = float(tree.values.get(f"M{j}", 0.0))
+        lo, hi = link_box(tree, j)
+        bodies[j] = (m0, link_length(tree, j), lo, hi)
+    prior = dict(zip(tree.parameter_names, tree.parameters, strict=True))
+    fit = plausible_standard(structure, base_values, base_std, prior, bodies)
+    moves, warn = [], []
+    for j in sorted(structure.bodies):
+        m0, L, _, _ = bodies[j]
+        if m0 <= 0:
+            continue
+        old = np.array([prior.get(f"{k}{j}", 0.0) for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        new = np.array([fit.standard[f"{k}{j}"] for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        dm, shift = new[9] - old[9], float(np.linalg.norm(new[6:9] / new[9] - old[6:9] / old[9]))
+        I_old, I_new = _inertia_at_com(old), _inertia_at_com(new)
+        dI = float(np.linalg.norm(I_new - I_old) / max(np.linalg.norm(I_old), 1e-300))
+        who = f"frame {j} ({tree.joint_names.get(j, 'link')})"
+        line = (f"{who}: mass {old[9]:.4g} -> {new[9]:.4g} kg ({100 * dm / old[9]:+.1f} %), centre of mass moved "
+                f"{1000 * shift:.1f} mm ({100 * shift / L:.1f} % of the link's {L:.3g} m), inertia at it "
+                f"{100 * dI:.1f} %")
+        moves.append(line)
+        if abs(dm) > PRIOR_SPREAD * old[9] or shift > PRIOR_SPREAD * L:
+            warn.append(line)
+    return PlausibleExport(fit.standard, moves, warn, fit.chi2, fit.worst)
+
+
+def _inertia_at_com(p: np.ndarray) -> np.ndarray:
+    xx, xy, xz, yy, yz, zz = p[:6]
+    c = p[6:9] / p[9]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - p[9] * (c @ c * np.eye(3) - np.outer(c, c))
 
 
 def robot_consistency(result: IdentificationResult, structure: ConsistencyStructure, tree,
@@ -604,7 +691,7 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
                 f"triangle inequalities hold; IA, FV, FS >= 0), checked on {checked_on}.")
     else:
         text = ("IA, FV, FS >= 0 and the moments readable on the base set hold; not checked on the regrouped "
-                "set (pip install 'dynid[pc]' for the check, or method = \"wls-pc\"):\n"
+                "set (pip install cvxpy clarabel, the 'pc' extra, for the check, or method = \"wls-pc\"):\n"
                 + "\n".join(f"  {u}" for u in unchecked))
     return {"realisable": realisable, "checked_on": checked_on,
             "violations": [{"body": v.body, "condition": v.condition, "message": v.message} for v in violations],
@@ -627,8 +714,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         p.update(report.per_parameter.get(p["name"], {}))
     data["base_parameters"] = dict(zip(run.base.names, run.base.expressions, strict=True))
     if run.reference:
-        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value": m.row.wls
-                              if r.method == "WLS" else m.row.ols, "ours": m.value(list(r.names), r.values)}
+        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value":
+                              m.row.published(r.method)[0], "ours": m.value(list(r.names), r.values)}
                              for m in run.reference]
     if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
         data["consistency"] = run.consistency
@@ -636,6 +723,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
+        data["tires"] = run.tires.to_dict()
     data.update(report.data)
     # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
     text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))

@@ -17,6 +17,7 @@ its slice of the uniform clock from the samples around it (a margin of several s
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -29,6 +30,7 @@ from numpy.typing import NDArray
 from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
 from ..io.align import InterpSpec
 from ..io.rosbag_format import is_bag
+from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, time_bases
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .timebase import RATE_TOLERANCE, _rate, opened, stream
@@ -124,6 +126,30 @@ def _test_clock(ref, streams: Sequence, cfg: IdentifyConfig, spec: TestSpec, rec
     return clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
 
 
+def channel_unit(cfg: IdentifyConfig, quantity: str, channel: str, file_unit: str, source: str) -> str:
+    """The unit a channel is read in: the config's [channels] unit, else the file's. A config unit that contradicts
+    the file's own is refused (deg over a file's rad scaled a robot's inertias by 57 with a 0.02 % residual), unless
+    the entry says unit_over_file = true (the file's header is what is wrong)."""
+    spec = cfg.channels.get(quantity)
+    if spec is None or spec.unit is None:
+        return file_unit
+    if file_unit.strip() and not spec.unit_over_file and _contradict(file_unit, spec.unit):
+        raise ConfigError(f"{source}: channel {channel!r} is in {file_unit!r} by the file, in {spec.unit!r} by "
+                          f"{cfg.path} [channels.{quantity}]: remove that unit to read the file's, or, if the file's "
+                          "header is what is wrong, add unit_over_file = true to that entry")
+    return spec.unit
+
+
+def _contradict(a: str, b: str) -> bool:
+    """Two known units of one kind that differ (deg and rad); unknown or of different kinds (the config's unit is
+    then checked against the quantity, with its own message): no."""
+    try:
+        (fa, sa), (fb, sb) = unit_factor(a), unit_factor(b)
+    except DataError:
+        return False
+    return sa == sb and not same_unit(a, b) and not math.isclose(fa, fb, rel_tol=1e-12)
+
+
 def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], units: dict[str, str],
                   segment_s: float | None, border: Callable[[float], int], progress: Progress | None = None
                   ) -> CarTestPlan:
@@ -172,7 +198,7 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
     factors = {}
     for q, name in in_file.items():
-        unit = renamed.get(q, (None, None))[1] or file_units.get(name, "")
+        unit = channel_unit(cfg, q, name, file_units.get(name, ""), label)
         expect = (unit_factor(units[q])[1],) if q in units else None
         factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
     fs = 1.0 / float(np.median(np.diff(clock)))
@@ -359,8 +385,8 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     fs = _rate(ref.h) if ref.timed or spec.fs is None else spec.fs
     _below_nyquist(cfg, spec, cfg.conditioning.cutoff, fs, ref.timed, str(spec.files["q"]))
     units = bag[2] if bag is not None else {
-        q: tuple(cfg.channels[q].unit or indexes[q].units.get(n, "") for n in cfg.channels[q].channels)
-        for q in ("q", "tau")}
+        q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
+                 for n in cfg.channels[q].channels) for q in ("q", "tau")}
     return RobotTestPlan(spec.name, spec.role, indexes, chans, units, clock, fs, timed, spec.max_gap,
                          window_margin(spec.max_gap, [s.h for s in every]))
 
@@ -380,17 +406,19 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
     index = index_file(path, topic=spec.topic)
     topic = index.info("topic")
     say(f"{spec.name}: {path.name}, topic {topic}: {index.rows} messages")
-    tree = robot_setup(cfg).model.tree
+    setup = robot_setup(cfg)
+    tree, columns = setup.joints.tree, setup.joints.columns  # the joints the data give, in column order
     model = cfg.model if isinstance(cfg.model, str) else Path(cfg.model).name
     in_bag = index.info("joints")
-    unnamed = [f.j for f in tree.frames if f.j not in tree.joint_names]
+    unnamed = [j for j in columns if j not in tree.joint_names]
     if unnamed:
         raise ConfigError(f"{cfg.path}: test {spec.name!r} reads the bag {label}, whose joints go by name, but the "
                           f"model {model} names no joint for frame(s) {', '.join(map(str, unnamed))}: add a [joints] "
                           f"table to it (1 = \"{in_bag[0] if in_bag else 'joint name'}\", ...)")
-    names = [tree.joint_names[f.j] for f in tree.frames]
+    names = [tree.joint_names[j] for j in columns]
+    known = set(tree.joint_names.values()) | set(tree.frozen)  # a joint held still may be in the messages
     ignored = set(spec.ignore_joints)
-    extra = [j for j in in_bag if j not in names and j not in ignored]
+    extra = [j for j in in_bag if j not in known and j not in ignored]
     if extra:
         raise ConfigError(f"{cfg.path}: test {spec.name!r}: joint {extra[0]!r} of {label} (topic {topic}) is not a "
                           f"joint of the model {model} (its joints: {', '.join(names)}); add ignore_joints = "
@@ -399,7 +427,8 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
     if missing:
         raise ConfigError(f"{cfg.path}: test {spec.name!r}: the model {model}'s joint {missing[0]!r} is not in the "
                           f"messages of {label} (topic {topic}; joints there: {', '.join(in_bag)}); make the "
-                          "model's [joints] table use the bag's names, or record that joint")
+                          "model's [joints] table use the bag's names, record that joint, or choose the identified "
+                          "joints with [model] joints = [...] (the others are held still)")
     have = set(index.names)
     for field, quantity in (("position", "q"), ("effort", "tau")):
         lacking = [j for j in names if f"{j}.{field}" not in have]
@@ -408,7 +437,7 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
                               f"{field} for joint {lacking[0]!r} (its {field} arrays are empty); {quantity} needs "
                               f"it: record a JointState with {field}")
     chans = {"q": tuple(f"{j}.position" for j in names), "tau": tuple(f"{j}.effort" for j in names)}
-    prismatic = [f.sigma == PRISMATIC for f in tree.frames]
+    prismatic = [tree.frames[j - 1].sigma == PRISMATIC for j in columns]
     units = {"q": tuple("m" if p else "rad" for p in prismatic), "tau": tuple("N" if p else "N*m" for p in prismatic)}
     keep = set(chans["q"]) | set(chans["tau"])
     index = dataclasses.replace(index, channels=tuple((n, u) for n, u in index.channels if n in keep))

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..estimation import IdentificationResult
+from ..estimation import EXCITED_FACTOR, IdentificationResult
 
 
 def _cell(v: float | None, spec: str = ".6g") -> str:
@@ -82,8 +82,9 @@ def validation_table(errors: Mapping[str, Mapping[str, float]],
             ((f"{100 * errors[k][g]:.2f} %" + ("*" if g in marked[k] else " ")) if g in errors[k] else "").rjust(13)
             for k in kinds))
     if any(marked.values()):
-        lines.append("* the test barely moves this equation (RMS of Y below twice the identification's residual "
-                     "RMS there): its relative error mostly compares noise with a small signal")
+        lines.append(f"* the test barely moves this equation (RMS of Y below {EXCITED_FACTOR:g} times the "
+                     "identification's residual RMS there): its relative error mostly compares noise with a small "
+                     "signal")
     return "\n".join(lines)
 
 
