@@ -309,3 +309,42 @@ def test_windows_are_the_whole_reads_samples(log, tmp_path, plugin, layouts):
             keep = (ch.time >= a) & (ch.time <= b)
             np.testing.assert_array_equal(got.channels[n].values, ch.values[keep])
             np.testing.assert_array_equal(got.channels[n].time, ch.time[keep])
+
+
+def test_a_panda_bag_without_the_gripper_holds_it_still(tmp_path):
+    """The Panda imported from example-robot-data as it is (the fingers a mimic pair), its arm's /joint_states
+    in a bag: the gripper, absent from the messages, is held still as with a CSV log (tests/test_robot_gripper.py),
+    and the estimate is that of the CSV of the same samples."""
+    from test_robot_gripper import ARM, DURATION, FS, SIGMA, config, trajectory
+    from test_urdf import robot_file
+
+    from dynid import Model
+    from dynid.model import save_tree
+    from dynid.model.urdf import import_urdf
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.run import identify
+
+    path = robot_file("panda")
+    save_tree(import_urdf(path).tree, tmp_path / "panda.toml")
+    t = np.arange(int(DURATION * FS)) / FS
+    q, qd, qdd = trajectory(t, 7)
+    tau = Model(import_urdf(path, joints=ARM).tree).inverse_dynamics(q, qd, qdd)
+    tau += SIGMA * np.random.default_rng(7).normal(size=q.shape)
+    stamp_ns = T0_NS + np.round(t * 1e9).astype(np.int64)
+    t = (stamp_ns - stamp_ns[0]) / 1e9
+    with open(tmp_path / "arm.csv", "w") as fh:  # the numbers written exactly (repr), as the bag holds them
+        fh.write(",".join(["time [s]", *(f"q_{n} [rad]" for n in ARM), *(f"tau_{n} [N.m]" for n in ARM)]) + "\n")
+        for row in np.column_stack([t, q, tau]).tolist():
+            fh.write(",".join(map(repr, row)) + "\n")
+    write_bag(tmp_path / "arm_bag", StoragePlugin.MCAP,
+              [(ns, message(ns, ARM, q[k], qd[k], tau[k])) for k, ns in enumerate(stamp_ns.tolist())])
+    said: list[str] = []
+    via_csv = identify(load_config(config(tmp_path, "csv", tmp_path / "panda.toml", tmp_path / "arm.csv", ARM)))
+    cfg = tmp_path / "bag.toml"
+    cfg.write_text('[model]\nfile = "panda.toml"\n\n[[tests]]\nname = "excitation"\nfile = "arm_bag"\n\n'
+                   "[conditioning]\ncutoff = 10.0\norder = 4\ndecimate = [5]\n")
+    via_bag = identify(load_config(cfg), progress=said.append)
+    assert any("panda_finger_joint1, panda_finger_joint2" in s and "held still" in s for s in said), said
+    assert via_bag.result.names == via_csv.result.names
+    np.testing.assert_allclose(via_bag.result.values, via_csv.result.values, rtol=1e-12,
+                               atol=1e-12 * np.abs(via_csv.result.values).max())
