@@ -255,9 +255,6 @@ def _sqlite_runs(storage: Any, topic: str, start: int | None, stop: int | None
         yield np.array(times, dtype=np.int64), list(datas)
 
 
-_RECORD = struct.Struct("<BQHIQQ")  # MCAP message record: op, length, channel id, sequence, log time, publish time
-
-
 def _mcap_runs(storage: Any, topic: str, start: int | None, stop: int | None
                ) -> Iterator[tuple[NDArray[np.int64], Piece]]:
     """An indexed MCAP storage's messages of the topic: each chunk's in receive-time order (stable), the chunks'
@@ -327,6 +324,7 @@ def _chunk_messages(raw: bytes, ids: set[int], lo: int, hi: int) -> tuple[NDArra
         step = 9 + length
         n = (end - pos) // step
         starts = pos + step * np.arange(n)
+        # a message record: op (1), length (8), channel id (2), sequence (4), log time (8), publish time (8), data
         heads = arr[starts[:, None] + np.arange(11)]  # op, length, channel id of each record of the guessed run
         same = (heads == heads[0]).all(axis=1)
         k = int(np.argmin(same)) if not same.all() else n

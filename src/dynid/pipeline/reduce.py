@@ -36,7 +36,7 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
-from ..model.tree import ModelError
+from ..model.tree import ModelError, Tree
 from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
 from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
@@ -339,7 +339,7 @@ class RobotSetup:
         self.base: BaseParameters = self.model.base_parameters()
 
 
-def _bag_joints(cfg: IdentifyConfig, tree) -> int:
+def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
     """The joint columns a config's ROS 2 bags give (a robot config without [channels]): the selected joints'
     count, else the model's joints with an equation that its first bag's first message names. When that is all
     of them less the joints others mimic (a gripper not logged), those are held still; any other count reads all
