@@ -348,3 +348,29 @@ def test_a_panda_bag_without_the_gripper_holds_it_still(tmp_path):
     assert via_bag.result.names == via_csv.result.names
     np.testing.assert_allclose(via_bag.result.values, via_csv.result.values, rtol=1e-12,
                                atol=1e-12 * np.abs(via_csv.result.values).max())
+
+
+@pytest.mark.parametrize("plugin", [StoragePlugin.SQLITE3, StoragePlugin.MCAP], ids=["sqlite3", "mcap"])
+def test_a_topic_among_others_interleaved(tmp_path, plugin):
+    """Two JointState topics recorded together (messages alternating, the other's in runs too): the topic asked for
+    reads exactly its messages, in rosbags' order (rosbags' own reader as the oracle)."""
+    from rosbags.rosbag2 import Reader
+
+    with Writer(tmp_path / "b", version=9, storage_plugin=plugin) as w:
+        arm = w.add_connection("/joint_states", JS.__msgtype__, typestore=STORE)
+        other = w.add_connection("/gripper/joint_states", JS.__msgtype__, typestore=STORE)
+        for k in range(3000):
+            ns = T0_NS + k * 10**6
+            w.write(arm, ns, STORE.serialize_cdr(message(ns, JOINTS, np.full(6, k), np.zeros(6), np.ones(6)),
+                                                 JS.__msgtype__))
+            for r in range(1 if k < 1500 else 3):  # alternating, then runs of three
+                w.write(other, ns + r, STORE.serialize_cdr(message(ns + r, ["finger"], [-k], [], []), JS.__msgtype__))
+    rec = read_recording(tmp_path / "b", topic="/joint_states")
+    want = []
+    with Reader(tmp_path / "b") as r:
+        conns = [c for c in r.connections if c.topic == "/joint_states"]
+        want = [STORE.deserialize_cdr(raw, c.msgtype).position[0] for c, _, raw in r.messages(conns)]
+    np.testing.assert_array_equal(rec.channels["waist.position"].values, want)
+    assert "finger.position" not in rec.channels
+    grip = read_recording(tmp_path / "b", topic="/gripper/joint_states")
+    assert len(grip.channels["finger.position"]) == 1500 + 3 * 1500 and "finger.velocity" not in grip.channels

@@ -321,13 +321,28 @@ def _chunk_messages(raw: bytes, ids: set[int], lo: int, hi: int) -> tuple[NDArra
         if op != 0x05:
             pos += 9 + length
             continue
+        # a message record: op (1), length (8), channel id (2), sequence (4), log time (8), publish time (8), data
         step = 9 + length
         n = (end - pos) // step
-        starts = pos + step * np.arange(n)
-        # a message record: op (1), length (8), channel id (2), sequence (4), log time (8), publish time (8), data
-        heads = arr[starts[:, None] + np.arange(11)]  # op, length, channel id of each record of the guessed run
-        same = (heads == heads[0]).all(axis=1)
-        k = int(np.argmin(same)) if not same.all() else n
+        if n < 2 or raw[pos:pos + 11] != raw[pos + step:pos + step + 11]:  # a record alone (topics interleaved)
+            channel, log_time = int.from_bytes(raw[pos + 9:pos + 11], "little"), int.from_bytes(
+                raw[pos + 15:pos + 23], "little")
+            if channel in ids and lo <= log_time < hi:
+                times.append(np.array([log_time], dtype=np.int64))
+                pieces.append([raw[pos + 31:pos + step]])
+            pos += step
+            continue
+        k, probe = n, 64  # the run of records like this one (op, length, channel id): probed in growing steps
+        while True:
+            starts = pos + step * np.arange(min(probe, n))
+            heads = arr[starts[:, None] + np.arange(11)]
+            same = (heads == heads[0]).all(axis=1)
+            if not same.all():
+                k = int(np.argmin(same))
+                break
+            if probe >= n:
+                break
+            probe *= 8
         if int(heads[0, 9]) | int(heads[0, 10]) << 8 in ids:
             rows = arr[pos:pos + step * k].reshape(k, step)
             stamp = np.ascontiguousarray(rows[:, 15:23]).view("<u8")[:, 0].astype(np.int64)
