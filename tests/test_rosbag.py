@@ -374,3 +374,27 @@ def test_a_topic_among_others_interleaved(tmp_path, plugin):
     assert "finger.position" not in rec.channels
     grip = read_recording(tmp_path / "b", topic="/gripper/joint_states")
     assert len(grip.channels["finger.position"]) == 1500 + 3 * 1500 and "finger.velocity" not in grip.channels
+
+
+@pytest.mark.parametrize("plugin", [StoragePlugin.SQLITE3, StoragePlugin.MCAP], ids=["sqlite3", "mcap"])
+@pytest.mark.parametrize("mode", ["file", "message"])
+def test_compressed_bags(tmp_path, plugin, mode):
+    """rosbag2's zstd compression, of the whole storage file or of each message (`ros2 bag record
+    --compression-mode`), read as the uncompressed bag, whole and by windows."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode
+
+    from dynid.io.windows import index_file, read_window
+
+    w = Writer(tmp_path / "b", version=9, storage_plugin=plugin)
+    w.set_compression(CompressionMode.FILE if mode == "file" else CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with w:
+        conn = w.add_connection("/joint_states", JS.__msgtype__, typestore=STORE)
+        for k in range(2000):
+            ns = T0_NS + k * 10**6
+            w.write(conn, ns, STORE.serialize_cdr(message(ns, JOINTS, np.full(6, k), np.zeros(6), np.ones(6)),
+                                                  JS.__msgtype__))
+    rec = read_recording(tmp_path / "b")
+    np.testing.assert_array_equal(rec.channels["waist.position"].values, np.arange(2000))
+    np.testing.assert_array_equal(rec.channels["waist.position"].time, np.arange(2000) / 1000)
+    got = read_window(index_file(tmp_path / "b", block_rows=300), ["flange.position"], 0.5, 1.2)
+    np.testing.assert_array_equal(got.channels["flange.position"].values, np.arange(500, 1201))
