@@ -16,6 +16,9 @@ import pytest
 
 from dynid.cli.main import main
 
+# `dynid demo --quick`: the quick selection's car identification end to end (about 15 s).
+pytestmark = [pytest.mark.e2e]
+
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):

@@ -147,6 +147,8 @@ def test_an_index_or_a_note_in_brackets_stays_in_the_name(tmp_path):
     assert all(c.unit == "" for c in rec.channels.values())
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_parquet_copies_of_the_simulated_cars_csv_files_identify_as_them(tmp_path):
     """The issue's case: the quick demo's logger files as `dynid simulate` writes them (CSV, units in the header),
     read by pandas and written to Parquet by pyarrow, identify to the CSVs' estimate and σ."""

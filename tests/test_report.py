@@ -237,6 +237,8 @@ def _table(page: _Tables, caption: str) -> dict:
     return found[0]
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_report_has_the_papers_tables_with_units(car):
     run, out = car
     page = parse(out / "report.html")
@@ -267,6 +269,8 @@ def test_the_car_report_has_the_papers_tables_with_units(car):
     assert _table(page, "Inertia of the sprung mass about its CoG (ISO 8855)")["rows"][0][1] == "kg·m²"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_results_as_data(car):
     run, out = car
     data = json.loads((out / "results.json").read_text())
@@ -298,6 +302,8 @@ def test_the_car_results_as_data(car):
     assert not list(out.rglob(".*.tmp*"))
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_one_axis_convention_iso_8855_in_the_validation(car):
     """The chassis equations are the paper's joints 1-6 in its ground frame (x0 right, y0 forward): the report
     names them in ISO 8855 terms and gives their signals in ISO signs, validation.csv beside the paper's name."""
@@ -360,6 +366,8 @@ def test_a_panel_the_test_barely_moves_says_not_excited():
     assert corners[("Y_E force", "sine")] == "1.0 %"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_papers_rule_is_folded_not_beside_every_flag(car):
     run, out = car
     page = parse(out / "report.html")
@@ -374,6 +382,8 @@ def test_the_papers_rule_is_folded_not_beside_every_flag(car):
     assert [r["name"] for r in rows if r["paper_rule"] == "poor"] == poor  # kept in the CSV
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_car_sigma_against_a_monte_carlo_of_the_estimates_covariance(car):
     from dynid.report.build import _covariance
 
@@ -466,6 +476,8 @@ def measure_layout(page: Path, width: int) -> dict:
 @needs_chromium
 @pytest.mark.parametrize("width", [1366, 390])
 @pytest.mark.parametrize("which", ["car", "robot"])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_report_reads_on_a_laptop_and_a_phone(which, width, request):
     """Issue 27: at 390 px the contents line wrapped nowhere (the page was 1187 px wide) and the parameter tables'
     estimates sat off-screen. Now the page is never wider than the screen, every table's pinned estimate is in view

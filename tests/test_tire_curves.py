@@ -218,6 +218,8 @@ def _law(entry: dict):
 
 
 @pytest.mark.parametrize("axle", ["front", "rear"])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_mujoco_cornering_stiffness_per_axle(mujoco_tires, axle):
     """Cornering stiffness at the axle's mean load within 5 % of the truth curve's slope at zero slip (the truth's
     loads interpolated); ideal/ (true channels) and noise/ (the paper's sensor chain)."""
@@ -229,6 +231,8 @@ def test_mujoco_cornering_stiffness_per_axle(mujoco_tires, axle):
 
 
 @pytest.mark.parametrize("axle", ["front", "rear"])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_mujoco_lateral_curve_over_the_spiral(mujoco_tires, axle):
     """The fitted lateral curve within 5 % of the truth over the slip angles the spiral reaches on that axle
     (ideal/: rear -4.2..0°, front -6.9..0°), at the axle's mean load and at ±40 % of it (within the spiral's loads):
@@ -249,6 +253,8 @@ def test_mujoco_lateral_curve_over_the_spiral(mujoco_tires, axle):
         assert err.max() < 0.05, (fz, float(err.max()), float(np.degrees(a[err.argmax()])))
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_mujoco_outputs(mujoco_tires):
     """The not-fitted list is empty and every test's reach is reported; the fit takes under 2 s of processor time
     (issue 31's benchmark; its wall time depends on what else the machine runs)."""

@@ -45,6 +45,7 @@ def tx40(tx40_data):
     return identify(dataclasses.replace(cfg, method="wls-pc")), identify(cfg)
 
 
+@pytest.mark.slow
 def test_tx40_every_body_is_realisable_and_the_fit_barely_worsens(tx40, tmp_path):
     pc, plain = tx40
     fit = pc.consistency["wls_pc"]
@@ -101,6 +102,7 @@ def _independent(W, Y, groups, names, structure, sigmas, margin, known=None, sol
     return structure.base_map @ (d * u.value)
 
 
+@pytest.mark.slow
 def test_tx40_agrees_with_an_independent_formulation(tx40):
     pc, _ = tx40
     structure = consistency_structure(pc.model.tree, pc.base)

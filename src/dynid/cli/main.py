@@ -4,40 +4,20 @@ from __future__ import annotations
 
 import argparse
 import errno
-import math
 import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from .._version import __version__
+from .model_table import format_table
 
 if TYPE_CHECKING:  # the model layer (NumPy) is imported by the commands that use it: --help and --version stay quick
     from ..model import Tree
-
-SIGMA = {0: "R", 1: "P", 2: "F"}
 
 DESCRIPTION = """\
 dynid identifies the dynamic parameters of robots and cars (masses, inertias, friction,
 springs) from measurements with the inverse dynamic identification model and least squares,
 and reports them with their uncertainty, validation and physical consistency."""
-
-
-def format_table(tree: Tree) -> str:
-    """The geometric table in SYMORO's layout (angles in degrees where that reads better)."""
-    head = f"{'j':>3} {'a(j)':>4} {'sigma':>5} {'gamma':>9} {'b':>8} {'alpha':>9} {'d':>8} {'theta':>9} {'r':>8}"
-    lines = [head]
-    for f in tree.frames:
-        th = f"q{f.j}" + (f"{math.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
-        r = f"q{f.j}" + (f"{f.r:+.4g}" if f.r else "") if f.sigma == 1 else f"{f.r:.4g}"
-        lines.append(
-            f"{f.j:>3} {f.ant:>4} {SIGMA[f.sigma]:>5} {_deg(f.gamma):>9} {f.b:>8.4g} {_deg(f.alpha):>9} "
-            f"{f.d:>8.4g} {th:>9} {r:>8}"
-        )
-    return "\n".join(lines)
-
-
-def _deg(a: float) -> str:
-    return f"{math.degrees(a):.4g}°" if a else "0"
 
 
 def format_parameters(tree: Tree) -> str:

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from ..atomic import add_force, refuse_overwrite
-from .main import format_table
+from .model_table import format_table
 
 TEMPLATES = ("peugeot406",)
 

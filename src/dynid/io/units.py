@@ -3,7 +3,7 @@
 The table is multiplicative: value_SI = factor * value (no unit here needs an offset;
 temperatures are not in it). The SI unit strings returned are plain ASCII:
 
-    rad, rad/s, rad/s^2, m, m/s, m/s^2, N, N*m, kg, s, Hz, Pa, 1 (dimensionless)
+    rad, rad/s, rad/s^2, m, m/s, m/s^2, N, N*m, kg, A, s, Hz, Pa, 1 (dimensionless)
 
 Spelling is forgiving where it cannot be ambiguous: surrounding brackets ("[deg]"),
 superscripts ("m/s²" = "m/s^2" = "m/s2"), product signs ("N·m" = "N.m" = "N*m" =
@@ -68,6 +68,7 @@ _GROUPS: dict[str, dict[str, float]] = {
     "N": {"N": 1.0, "kN": 1e3, "daN": 10.0},
     "N*m": {"N*m": 1.0, "Nm": 1.0, "kN*m": 1e3, "kNm": 1e3, "daN*m": 10.0, "N*mm": 1e-3, "Nmm": 1e-3},
     "kg": {"kg": 1.0},
+    "A": {"A": 1.0, "mA": 1e-3},  # a motor's current (drive gains: tau_m = g i)
     "s": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0, "h": 3600.0},
     "Hz": {"Hz": 1.0, "kHz": 1e3},
     "Pa": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2},
@@ -131,7 +132,7 @@ def _known_text() -> str:
 # what a quantity's SI unit is called in an error message
 _KIND = {"rad": "an angle", "rad/s": "an angular rate", "rad/s^2": "an angular acceleration", "m": "a length",
          "m/s": "a speed", "m/s^2": "an acceleration", "N": "a force", "N*m": "a torque", "kg": "a mass",
-         "s": "a time", "Hz": "a frequency", "Pa": "a pressure", "1": "a pure number"}
+         "A": "a current", "s": "a time", "Hz": "a frequency", "Pa": "a pressure", "1": "a pure number"}
 
 
 def unit_factor(

@@ -39,7 +39,7 @@ from ..io.units import unit_factor
 from ..model.tree import ModelError, Tree
 from .config import IdentifyConfig
 from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
-from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
+from .sources import RobotTestPlan, SegmentWindow, driven, gain_names, read_robot_window
 
 if TYPE_CHECKING:
     from ..vehicle.estimate import CarTrajectory
@@ -337,6 +337,20 @@ class RobotSetup:
             raise ConfigError(str(exc)) from None
         self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
+        # the estimated parameters: the base parameters, then the drive gains when identified
+        self.names = [*self.base.names, *gain_names(cfg)]
+        clash = sorted(set(self.base.names) & set(gain_names(cfg)))
+        if clash:
+            raise ConfigError(f"{cfg.path}: [drive] the gain {clash[0]!r} has the name of a parameter of the model; "
+                              "rename that parameter (a coupling) in the model file")
+        self.payloads: dict[str, tuple[int, np.ndarray]] = {}  # test -> (frame, its standard parameters)
+        for t in cfg.tests:
+            if t.payload is not None:
+                j = max(self.joints.columns) if t.payload.frame is None else t.payload.frame
+                if not 1 <= j <= self.model.n:
+                    raise ConfigError(f"{cfg.path}: test {t.name!r}: payload frame = {j}; model {self.model.name!r} "
+                                      f"has frames 1 to {self.model.n}: name the link that carries it")
+                self.payloads[t.name] = (j, t.payload.standard())
 
 
 def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
@@ -359,19 +373,24 @@ def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
     """The config's robot setup (see `_setup`)."""
-    return _setup(("robot", cfg.path, cfg.model), lambda: RobotSetup(cfg))
+    return _setup(("robot", cfg.path, cfg.model, cfg.tests, cfg.drive), lambda: RobotSetup(cfg))
 
 
 def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
-    """The chunk's samples read, through the channel map and transmission, to its decimated rows."""
+    """The chunk's samples read, through the channel map, drive gains and transmission, to its decimated rows (with
+    the drive gains' columns when they are identified, and the test's payload torque taken off)."""
     setup = robot_setup(job.cfg)
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
-    columns = setup.joints.columns
-    q, tau = (to_frames(a, columns, setup.model.n)
-              for a in transmitted(job.cfg, arrays["q"], arrays["tau"], len(columns)))
+    columns, n = setup.joints.columns, setup.model.n
+    q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
+    q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
+    if gains is not None and len(columns) != n:  # the joints without data: no rows, zero columns
+        full = np.zeros((gains.shape[0], n, gains.shape[2]))
+        full[:, np.asarray(columns) - 1, :] = gains
+        gains = full
     return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
-                      job.n_samples)
+                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
 
 
 def stack_rows(a: GroupedSystem, b: GroupedSystem) -> GroupedSystem:

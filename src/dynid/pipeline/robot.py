@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
-from ..model.tree import FIXED, ModelError, Tree, freeze
+from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
 
 Array = np.ndarray
@@ -195,11 +195,16 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
 
 
 def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
-               chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None) -> GroupedSystem:
+               chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
+               payload: tuple[int, Array] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
-    own outputs kept (on the whole record's decimation grid), the slow rows dropped."""
+    own outputs kept (on the whole record's decimation grid), the slow rows dropped.
+
+    gains: (len(q), n, k) columns appended to W on the same samples (drive gains identified: `sources.driven`),
+    filtered and decimated as W's. payload: (frame, its 10 standard parameters about the frame's origin): a known
+    body fixed to that link, whose torque (the link's regressor columns times them) is taken off the torques."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     qf, qdf, qddf = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=2)
@@ -208,7 +213,14 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
     w = slice(lo - first, hi - first)
     W = np.ascontiguousarray(model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=list(base.columns)))
-    Wd, Yd = decimate_parallel(W, tau[w][:, np.array(rows) - 1], c.decimate, fs, order=DECIMATION_ORDER)
+    Y = tau[w][:, np.array(rows) - 1]
+    if payload is not None:
+        j, Xp = payload
+        Wp = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=[f"{k}{j}" for k in INERTIAL])
+        Y = Y - Wp @ Xp
+    if gains is not None:
+        W = np.concatenate([W, gains[w][:, np.array(rows) - 1, :]], axis=2)
+    Wd, Yd = decimate_parallel(W, Y, c.decimate, fs, order=DECIMATION_ORDER)
     del W
     speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D

@@ -25,6 +25,7 @@ from ..estimation import (
     IdentificationResult,
     StreamingLS,
     fit_note,
+    group_noise,
     misfit_parameters,
     model_fits,
     not_excited,
@@ -134,14 +135,17 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
     and transmission. The identification reads a chunk at a time instead; this is for looking at a test."""
     plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), progress)
     arrays = read_robot_window(plan, 0, plan.samples)
-    q, tau = transmitted(cfg, arrays["q"], arrays["tau"], n)
+    effort = arrays[plan.effort]
+    if plan.effort == "current":  # the motor torques by the config's gains (an identified gain's a priori value)
+        effort = effort * np.array(cfg.drive.gains)
+    q, tau = transmitted(cfg, arrays["q"], effort, n)
     return JointTest(spec.name, float(plan.fs), q, tau)
 
 
 def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     from ..io.rosbag_format import is_bag
 
-    for quantity in ("q", "tau"):
+    for quantity in ("q", cfg.effort):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
         if quantity not in cfg.channels and not is_bag(spec.files[quantity]):  # a bag's: its joints' names
@@ -161,7 +165,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
         if health is not None:
             health += found
-        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))),
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels[plan.effort]))),
                     len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
@@ -517,17 +521,31 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     model, base = setup.model, setup.base
     if setup.joints.note:
         say(setup.joints.note)
-    names = list(base.names)
+    names = list(setup.names)  # the base parameters, then the drive gains when identified
+    gains = names[len(base.names):]
     bad = [k for k in cfg.known if k not in names]
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
+    if gains and cfg.method == "wls-pc":
+        raise ConfigError(f"{cfg.path}: [identification] method = \"wls-pc\" does not take identified drive gains "
+                          "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
+                          "known ([drive] identify_gains = false)")
     health: list[dict] = []
     systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
-    a_priori = dict(zip(names, base.values(model.parameters), strict=True))
-    say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
-    kw = dict(a_priori=a_priori, known=cfg.known or None, poor_factor=cfg.poor_factor)
+    a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
+    known = dict(cfg.known)
+    if gains:  # the data sheet's gains are their a priori values; those not identified are known
+        a_priori |= dict(zip(gains, cfg.drive.gains, strict=True))
+        known |= {g: v for g, v, free in zip(gains, cfg.drive.gains, cfg.drive.identify, strict=True) if not free}
+        free = [g for g, f in zip(gains, cfg.drive.identify, strict=True) if f]
+        scale = [w for w, has in (("the payload test(s)", any(t.payload for t in cfg.tests if t.role == "identify")),
+                                  ("the known gain(s)", len(free) < len(gains))) if has]
+        say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
+            f"{' and '.join(scale)})")
+    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
+    kw = dict(a_priori=a_priori, known=known or None, poor_factor=cfg.poor_factor)
     structure = consistency_structure(model.tree, base)
     fit = None
     try:
@@ -536,15 +554,23 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                          standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)), **kw)
             result = fit.result
         else:
-            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls" and not gains
+                      else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method == "wls"
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
-    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
-                    systems)
+    sections = None
+    if gains:  # the rows in joint torques with the estimated gains, for the validation and its plots
+        systems = {k: torques_with_gains(s, len(base.names), result.values[len(base.names):])
+                   for k, s in systems.items()}
+        ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+        sections = [(f"{result.method} estimates of the base parameters", list(base.names)),
+                    ("drive gains (N·m/A, motor side)", gains)]
+    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health,
+                                           sections=sections), systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
@@ -556,6 +582,32 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
             say(f"{len(unmatched)} published rows match none of our base parameters: "
                 + "; ".join(r.expression for r in unmatched[:3]))
     return run
+
+
+def _wls_with_gains(ident: GroupedSystem, names: list[str], p: int, a_priori: dict[str, float], kw: dict
+                    ) -> IdentificationResult:
+    """Gautier's WLS with identified drive gains. A joint's equation alone cannot fix its gain's scale (without a
+    payload its rows are homogeneous, W_j X - Nt diag(i) g = 0, and solve exactly at X = g = 0), so each joint's
+    noise level sigma_j (paper eq. (8)) is taken from its rows in joint torques through given gains: first the
+    data sheet's, then the estimate's (one pass more: sigma_j is the final model's residual per joint)."""
+    gains = np.array([a_priori[n] for n in names[p:]])
+    known = {k: v for k, v in (kw.get("known") or {}).items() if k in names[:p]} or None
+    result = None
+    for _ in range(2):
+        s = torques_with_gains(ident, p, gains)
+        fits = group_noise(s.W[:, :p], s.Y, s.groups, names[:p], known=known)
+        result = wls(ident.W, ident.Y, ident.groups, names, group_sigmas={g: f.sigma for g, f in fits.items()}, **kw)
+        gains = result.values[p:]
+    return result
+
+
+def torques_with_gains(s: GroupedSystem, p: int, gains: np.ndarray) -> GroupedSystem:
+    """Rows [W | G] [X; g] = Y of identified drive gains (G = -Nt diag(i) decimated) as joint-torque rows: the
+    measured torque Y - G g (the currents through the estimated gains, the payload's torque off) against W X, the
+    gains' columns zeroed (so W @ [X; g] is the prediction)."""
+    W = s.W.copy()
+    W[:, p:] = 0.0
+    return GroupedSystem(W, s.Y - s.W[:, p:] @ gains, s.groups, s.t)
 
 
 def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
@@ -657,13 +709,13 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
         violations = check_physical(fit.standard, frames=bodies) + check_joint_terms(fit.standard, couplings)
     else:
         K, std = structure.base_map, structure.standard_names
-        single = {n: float(v) for n, v, row in zip(structure.base_names, result.values, K, strict=True)
+        values = dict(zip(result.names, (float(v) for v in result.values), strict=True))  # drive gains aside
+        single = {n: values[n] for n, row in zip(structure.base_names, K, strict=True)
                   if np.count_nonzero(row) == 1 and n in std and row[std.index(n)] == 1.0}
         violations = check_base_singletons(single, couplings)
         checked_on = "the base parameters that are one standard parameter each"
         try:
-            feas = feasible_standard(structure, dict(zip(result.names, (float(v) for v in result.values),
-                                                         strict=True)))
+            feas = feasible_standard(structure, values)
         except IdentificationError:  # no pc extra: say what is left unchecked
             unchecked = [f"body {j}: mass, inertia at the centre of mass, triangle inequalities (its parameters "
                          "regroup)" for j in bodies if any(std[i] not in single for i in structure.bodies[j])]

@@ -309,8 +309,8 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
 # -------------------------------------------------------------------------------------------------- a robot's test
 @dataclass(frozen=True)
 class RobotTestPlan:
-    """One robot test's files (q and tau, one file or two) and their clock (q's); cut to the samples a chunk reads
-    (`first` onwards), what a chunk's job carries."""
+    """One robot test's files (q and its effort, tau or current; one file or two) and their clock (q's); cut to the
+    samples a chunk reads (`first` onwards), what a chunk's job carries."""
 
     test: str
     role: str
@@ -328,6 +328,11 @@ class RobotTestPlan:
     def samples(self) -> int:
         return int(self.clock.size)
 
+    @property
+    def effort(self) -> str:
+        """'current' (motor currents) or 'tau' (joint torques)."""
+        return "current" if "current" in self.channels else "tau"
+
 
 def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None) -> RobotTestPlan:
     """The robot test's files indexed and its clock planned (`timebase`'s rules: q's stamps set the clock, cut to
@@ -338,20 +343,21 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
     timed = True
     reported: set[tuple[Path, tuple[str, ...]]] = set()
-    bag = _bag_channels(cfg, spec, say) if is_bag(spec.files["q"]) or is_bag(spec.files["tau"]) else None
-    chans = ({q: tuple(cfg.channels[q].channels) for q in ("q", "tau")} if bag is None else bag[1])
+    bag = _bag_channels(cfg, spec, say) if is_bag(spec.files["q"]) or is_bag(spec.files[cfg.effort]) else None
+    quantities = ("q", cfg.effort) if bag is None else ("q", "tau")
+    chans = {q: tuple(cfg.channels[q].channels) for q in quantities} if bag is None else bag[1]
     if bag is not None:
         by_file[spec.files["q"]] = bag[0]
-    for quantity in ("q", "tau"):
+    for quantity in quantities:
         path = spec.files[quantity]
         names = list(chans[quantity])
         if path not in by_file:
-            wanted = [n for q in ("q", "tau") if spec.files[q] == path for n in chans[q]]
+            wanted = [n for q in quantities if spec.files[q] == path for n in chans[q]]
             by_file[path], timed = opened(lambda fs, p=path, w=wanted: index_file(p, channels=list(dict.fromkeys(w)),
                                                                                  fs=fs),
                                           path, spec.fs, spec.name, cfg.path)
         index = indexes[quantity] = by_file[path]
-        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in ("q", "tau") if spec.files[q] == path
+        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in quantities if spec.files[q] == path
                                                          for n in chans[q])), spec.name)
         streams[quantity] = []
         for members, t, lines in bases:
@@ -386,7 +392,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     _below_nyquist(cfg, spec, cfg.conditioning.cutoff, fs, ref.timed, str(spec.files["q"]))
     units = bag[2] if bag is not None else {
         q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
-                 for n in cfg.channels[q].channels) for q in ("q", "tau")}
+                 for n in cfg.channels[q].channels) for q in quantities}
     return RobotTestPlan(spec.name, spec.role, indexes, chans, units, clock, fs, timed, spec.max_gap,
                          window_margin(spec.max_gap, [s.h for s in every]))
 
@@ -400,9 +406,13 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
 
     path = spec.files["q"]
     label = str(path)
-    if spec.files["tau"] != path:
+    if cfg.effort == "current":
+        raise ConfigError(f"{cfg.path}: test {spec.name!r} reads the ROS 2 bag {label}, whose JointState effort is "
+                          "the joint torque (REP 103), but the config reads motor currents ([channels] current): "
+                          "remove [channels] current and [drive], or give the currents in a table file")
+    if spec.files.get("tau") != path:
         raise ConfigError(f"{cfg.path}: test {spec.name!r} reads q from {spec.files['q']} and tau from "
-                          f"{spec.files['tau']}; a ROS 2 bag holds both: give file = \"{path.name}\"")
+                          f"{spec.files.get('tau')}; a ROS 2 bag holds both: give file = \"{path.name}\"")
     index = index_file(path, topic=spec.topic)
     topic = index.info("topic")
     say(f"{spec.name}: {path.name}, topic {topic}: {index.rows} messages")
@@ -469,14 +479,42 @@ def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> 
     return q, tau
 
 
+def driven(cfg: IdentifyConfig, q: np.ndarray, effort: np.ndarray, n: int
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The joints' q, the joint torques known from the effort channels (SI) and, with identified drive gains, each
+    gain's column on the joint side, (N, n, channels):
+
+    - torques: tau = Nt tau_file (`transmitted`), no columns;
+    - currents with known gains: the motor torques g * i, then tau = Nt (g * i), no columns;
+    - currents with a gain identified: the joint torque Nt diag(i) g is linear in the gains, so every channel's gain
+      is a parameter with the column -Nt[:, k] i_k (W X - Nt diag(i) g = 0); the known gains' columns are moved to
+      the right-hand side by the estimator (`known`), and the torque known here is 0."""
+    if cfg.effort != "current":
+        return (*transmitted(cfg, q, effort, n), None)
+    gains = np.array(cfg.drive.gains)
+    if not cfg.drive.identified:
+        return (*transmitted(cfg, q, effort * gains, n), None)
+    q, tau = transmitted(cfg, q, np.zeros_like(effort), n)
+    Nt = cfg.transmission.get("tau", np.eye(effort.shape[1]))
+    return q, tau, -effort[:, None, :] * Nt[None, :, :]
+
+
+def gain_names(cfg: IdentifyConfig) -> list[str]:
+    """The drive gains' parameter names, G1.. in the order of [channels] current (empty without identified gains)."""
+    if cfg.drive is None or not cfg.drive.identified:
+        return []
+    return [f"G{k}" for k in range(1, len(cfg.drive.gains) + 1)]
+
+
 def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArray[np.float64]]:
-    """{"q": (hi - lo, channels), "tau": ...} in SI: the clock samples lo..hi of the test, each channel from its
-    file's samples around them, interpolated where not on the clock (cubic for q, linear for tau)."""
+    """{"q": (hi - lo, channels), "tau" or "current": ...} in SI: the clock samples lo..hi of the test, each channel
+    from its file's samples around them, interpolated where not on the clock (cubic for q, linear for the effort)."""
     from ..io import to_si
 
     clock = plan.clock[lo:hi]
     out = {}
-    for quantity, kind, expect in (("q", "cubic", ("rad", "m")), ("tau", "linear", ("N*m", "N"))):
+    effort = ("current", "linear", ("A",)) if plan.effort == "current" else ("tau", "linear", ("N*m", "N"))
+    for quantity, kind, expect in (("q", "cubic", ("rad", "m")), effort):
         index, names = plan.indexes[quantity], list(plan.channels[quantity])
         al = _resampled(index, names, clock, plan.margin, plan.timed, plan.first + lo, lambda _n, k=kind: k)
         out[quantity] = np.stack([to_si(al[n], u, channel=n, source=str(index.path), expect=expect)[0]
