@@ -192,7 +192,8 @@ SECOND_TEST = '[[tests]]\nname = "sine"\nrole = "validate"\n{extra}\nfiles = {{{
      ["[identification]", "unknown key 'methd'", "did you mean 'method'?"]),
     (("[channels]", SECOND_TEST.format(extra='rol = "identify"') + "[channels]"),
      ['[[tests]] #2 ("sine")', "unknown key 'rol'", "did you mean 'role'?"]),
-    (('name = "t"', 'name = "t"\nfile = "q.csv"'), ['[[tests]] #1 ("t")', "unknown key 'file'", "files = {"]),
+    # a robot test takes file = (one file holding q and tau, e.g. a ROS 2 bag) or files =, not both
+    (('name = "t"', 'name = "t"\nfile = "q.csv"'), ['[[tests]] #1 ("t")', "file and files", "files = {"]),
     (('name = "t"', 'name = "t"\ntruth = "q.csv"'), ['[[tests]] #1 ("t")', "unknown key 'truth'", "car"]),
     (('example = "puma560"', 'example = "puma560"\nwheelbase = 2.7'),
      ["[model]", "unknown key 'wheelbase'", "example, file, joints, template, vehicle", "vehicle file"]),

@@ -13,6 +13,8 @@ PACKAGES = {
     "pyarrow.parquet": ("pyarrow", "parquet"),
     "asammdf": ("asammdf", "mdf"),
     "h5py": ("h5py", "mat73"),
+    "rosbags.rosbag2": ("rosbags", "ros"),
+    "rosbags.typesys": ("rosbags", "ros"),
 }
 
 

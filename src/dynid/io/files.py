@@ -6,8 +6,10 @@
 | "parquet" | .parquet .pq         | fs, time             | pyarrow (extra `parquet`) |
 | "mat"     | .mat                 | fs, time             | scipy; h5py for v7.3 (extra `mat73`) |
 | "mdf"     | .mf4 .mdf            | -                    | asammdf (extra `mdf`)     |
+| "rosbag"  | .db3 .mcap, a bag folder | topic            | rosbags (extra `ros`)     |
 
-Writing: "csv", "parquet", "mat", "mdf", always atomically (a temporary file in the
+A ROS 2 bag (a folder with metadata.yaml, or its .db3 / .mcap file) is read only
+(`dynid.io.rosbag_format`). Writing: "csv", "parquet", "mat", "mdf", always atomically (a temporary file in the
 same folder, renamed over the target when complete).
 """
 
@@ -26,12 +28,14 @@ from .mat_format import read_mat, write_mat
 from .mdf_format import read_mdf, write_mdf
 from .parquet_format import read_parquet, write_parquet
 from .recording import Recording
+from .rosbag_format import is_bag_folder, read_rosbag
 
 READERS: dict[str, Callable[..., Recording]] = {
     "csv": read_csv,
     "parquet": read_parquet,
     "mat": read_mat,
     "mdf": read_mdf,
+    "rosbag": read_rosbag,
 }
 WRITERS: dict[str, Callable[..., Path]] = {
     "csv": write_csv,
@@ -48,17 +52,23 @@ EXTENSIONS = {
     ".mat": "mat",
     ".mf4": "mdf",
     ".mdf": "mdf",
+    ".db3": "rosbag",
+    ".mcap": "rosbag",
 }
-ALIASES = {"mf4": "mdf", "mdf4": "mdf", "pq": "parquet", "matlab": "mat", "tsv": "csv", "txt": "csv"}
+ALIASES = {"mf4": "mdf", "mdf4": "mdf", "pq": "parquet", "matlab": "mat", "tsv": "csv", "txt": "csv",
+           "ros": "rosbag", "ros2": "rosbag", "bag": "rosbag"}
 
 
 def format_of(path: str | os.PathLike[str], format: str | None = None) -> str:
-    """The format name for `path` ("csv", "parquet", "mat" or "mdf"), from `format` or the extension."""
+    """The format name for `path` ("csv", "parquet", "mat", "mdf" or "rosbag"), from `format` or the extension (a
+    folder with a metadata.yaml is a ROS 2 bag)."""
     if format is not None:
         name = ALIASES.get(format.lower(), format.lower())
         if name not in READERS:
             raise FileFormatError(f"unknown format {format!r}; known: {', '.join(READERS)}", source=str(path))
         return name
+    if is_bag_folder(path):
+        return "rosbag"
     suffix = Path(path).suffix.lower()
     if suffix not in EXTENSIONS:
         raise FileFormatError(
@@ -109,7 +119,8 @@ def read_recording(
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
     try:
-        regular_file(path)  # a named pipe would block the reader for ever, /dev/zero never end
+        if not (fmt == "rosbag" and is_bag_folder(path)):
+            regular_file(path)  # a named pipe would block the reader for ever, /dev/zero never end
     except NotAFileError as exc:
         raise FileFormatError(str(exc), source=str(path)) from None
     params = inspect.signature(reader).parameters

@@ -26,6 +26,7 @@ What a block is, per format:
 | mdf     | `block_rows` consecutive records of one channel group | each group's records it overlaps   |
 | mat 7.3 | `block_rows` consecutive rows of one time vector      | slices of each vector it overlaps  |
 | mat v5  | the whole file (scipy cannot read a v5 file in parts) | the whole file (cached), sliced    |
+| rosbag  | `block_rows` consecutive messages of the topic        | the blocks its time span overlaps  |
 
 The index of a MAT file is built from the file read whole, once (v7.3 files are then
 read in slices: HDF5 datasets; v5 files, MATLAB's default below 2 GB, are not streamed).
@@ -81,7 +82,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..textfiles import NotAFileError, encoding_problem, regular_file
-from . import csv_format, mat_format, mdf_format, parquet_format
+from . import csv_format, mat_format, mdf_format, parquet_format, rosbag_format
 from ._optional import require
 from ._table import (
     TIME_NAMES,
@@ -113,8 +114,11 @@ class Block:
     t_min, t_max : s, smallest and largest time stamp in the block, NaN stamps left out
         (+inf and -inf when the block has none: no window meets it).
     increasing : the block's stamps never go back (non-decreasing, no NaN).
-    group : Parquet row group; MDF channel group; MATLAB v7.3 time vector (0, 1, ...); 0 otherwise.
-    offset, end : CSV only, the byte range [offset, end) of the block's lines.
+    group : Parquet row group; MDF channel group; MATLAB v7.3 time vector (0, 1, ...); ROS 2 bag: 1 when every
+        message of the block has one byte layout (checked when indexed: a window decodes them without comparing);
+        0 otherwise.
+    offset, end : CSV: the byte range [offset, end) of the block's lines; ROS 2 bag: the first and last receive
+        time (ns) of the block's messages (no other block has a message received at those times).
     line : CSV only, the number (1-based) of the block's first line.
     """
 
@@ -241,7 +245,8 @@ def index_file(
         raise DataError(f"{label}: block_rows must be a positive number of rows, not {block_rows!r}", source=label)
     p = Path(path)
     stat = _stat(label)
-    builder = {"csv": _index_csv, "parquet": _index_parquet, "mdf": _index_mdf, "mat": _index_mat}[fmt]
+    builder = {"csv": _index_csv, "parquet": _index_parquet, "mdf": _index_mdf, "mat": _index_mat,
+               "rosbag": _index_rosbag}[fmt]
     index = builder(p, label, options, int(block_rows), stat)
     if channels is not None:
         asked = list(channels)
@@ -323,6 +328,11 @@ def time_bases(index: FileIndex, channels: Sequence[str]) -> list[TimeBase]:
     names = _asked(index, channels)
     if index.format == "parquet" and _parquet_dense(index, names):
         return [(names, _parquet_stamps(index), None)]
+    if index.format == "rosbag":  # every channel on the messages' stamps, kept by the index's pass in this process
+        with _lock:
+            hit = _cache.get(_key(index, "stamps"))
+        if hit is not None:
+            return [(names, hit[0], None)]
     # partition refinement: the channels start as one base, split in each block by their stamps there (a channel
     # without samples in a block has the empty stamps), so a base is the channels sharing their stamps everywhere
     bases: list[tuple[list[str], list, list]] = [(list(names), [], [])]
@@ -411,6 +421,8 @@ def _stat(path: str) -> tuple[int, int]:
     0 when it reports none: then only a change of size is seen).
     """
     where = _where(path)
+    if where is None and rosbag_format.is_bag_folder(path):
+        return rosbag_format.bag_stat(path)
     if where is None:
         try:
             st = regular_file(path)  # a named pipe would block the index for ever, /dev/zero never end
@@ -619,7 +631,12 @@ def _block_recording(
     block = index.blocks[i]
     time_name = index.time_column
     wanted = ([time_name] if time_name is not None else []) + [n for n in names if n != time_name]
-    if index.format == "csv":
+    if index.format == "rosbag":  # every channel of the index decoded at once: q's and tau's windows share it
+        lines = None
+        columns = _cached(_key(index, i), lambda: _bag_block(index, block), _columns_nbytes, store)
+        by_name = {c.name: c for c in columns}
+        cols = [by_name[n] for n in wanted]
+    elif index.format == "csv":
         columns, lines = _cached(_key(index, i), lambda: _csv_block(index, block), _columns_nbytes, store)
         by_name = {c.name: c for c in columns}
         cols = [by_name[n] for n in wanted]
@@ -1157,3 +1174,27 @@ def _index_h5(
         except (FileFormatError, KeyError, TypeError, ValueError):
             return None
     return replace(index, blocks=tuple(blocks))
+
+
+# ROS 2 bags ----------------------------------------------------------------------------------------------------------
+
+
+def _index_rosbag(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
+    """One pass over the bag's JointState topic (`rosbag_format.scan_bag`): blocks of messages, their stamps' spans."""
+    scan = rosbag_format.scan_bag(label, topic=options.get("topic"), block_rows=block_rows)
+    channels = tuple((rosbag_format.channel_name(j, f), "") for j in scan.joints for f in scan.fields[j])
+    blocks = tuple(Block(b.first, b.rows, b.t_min, b.t_max, b.increasing, group=int(b.one_layout), offset=b.log_lo,
+                         end=b.log_hi) for b in scan.blocks)
+    metadata = (("format", "rosbag"), ("topic", scan.topic), ("time.start_ns", str(scan.t0_ns)))
+    extra = (("topic", scan.topic), ("t0_ns", scan.t0_ns), ("joints", scan.joints))
+    index = FileIndex(label, "rosbag", *stat, tuple(sorted(options.items())), channels, blocks, metadata, (), "time",
+                      extra)
+    if scan.stamps is not None:  # for `time_bases` (a planner's next step), without a second pass over the bag
+        _cached(_key(index, "stamps"), lambda: scan.stamps, lambda a: a.nbytes)
+    return index
+
+
+def _bag_block(index: FileIndex, block: Block) -> list[Column]:
+    b = rosbag_format.BagBlock(block.row0, block.rows, block.offset, block.end, block.t_min, block.t_max,
+                               block.increasing, bool(block.group))
+    return rosbag_format.block_columns(index.path, index.info("topic"), b, index.info("t0_ns"), index.names)

@@ -19,6 +19,12 @@
     end = 58.0
     max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
     files = { q = "pos.csv", tau = "torques.csv" }   # or current = "currents.csv" (with [channels] current)
+                                     # or file = "run.mcap": one file holding q and tau. A ROS 2 bag (a folder
+                                     # with metadata.yaml, or its .db3/.mcap) reads sensor_msgs/JointState and
+                                     # takes topic = "/joint_states" (default: the bag's only JointState topic)
+                                     # and ignore_joints = ["gripper"] (joints the model does not have); its q
+                                     # and tau are each model joint's position and effort, matched by the names
+                                     # of the model's [joints] table: [channels] is not needed for it
     payload = { mass_kg = 2.0, com_m = [0, 0, 0.05], inertia_kg_m2 = [0.004, 0.004, 0.002, 0, 0, 0] }
                                      # optional: a known payload fixed to the last link during this test (its
                                      # centre of mass in that link's frame; its inertia about the centre of mass,
@@ -143,6 +149,8 @@ class TestSpec:
     end: float | None = None
     max_gap: float = 10.0  # sample periods: a longer hole in the time stamps is refused
     payload: Payload | None = None  # a robot test's known payload on its last link
+    topic: str | None = None  # a ROS 2 bag's JointState topic (None: the bag's only one)
+    ignore_joints: tuple[str, ...] = ()  # a bag's joints the model does not have, left out
 
 
 @dataclass(frozen=True)
@@ -247,7 +255,8 @@ _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identific
 _COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
 _MODEL_OPTIONS = ("joints",)  # a robot's: the identified joints, by name (the others are held still)
-_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap", "payload")
+_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "file", "topic", "ignore_joints", "start", "end", "max_gap",
+                    "payload")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
 _ROBOT_QUANTITIES = ("q", "tau", "current")
 _EFFORTS = ("tau", "current")  # a robot test's effort channels: joint torques, or motor currents with [drive] gains
@@ -303,7 +312,9 @@ def load_config(path: str | Path) -> IdentifyConfig:
     # a car's [channels] and [uncertainty] name channels of the suite its vehicle has (read only when named)
     suite = _VehicleChannels(vehicle or "peugeot406", err) if is_car else None
     car = _car_settings(data, err, suite) if is_car else None
-    tests = _tests(data.get("tests", []), here, is_car, err)
+    channels_raw = data.get("channels", {})
+    effort = "current" if isinstance(channels_raw, dict) and "current" in channels_raw else "tau"
+    tests = _tests(data.get("tests", []), here, is_car, err, effort)
     channels = _channels(data.get("channels", {}), err, suite)
     transmission = _transmission(data.get("transmission", {}), err)
     drive = None if is_car else _drive(data, channels, tests, err)
@@ -531,13 +542,12 @@ def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None
     return (here / value if key == "file" else value), None
 
 
-def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, ...]:
+def _tests(raw: object, here: Path, is_car: bool, err: Err, effort: str = "tau") -> tuple[TestSpec, ...]:
     tests: list[TestSpec] = []
     seen: dict[str, int] = {}
     valid = _CAR_TEST_KEYS if is_car else _ROBOT_TEST_KEYS
     notes = ({"files": "a robot test's key; a car test reads one logger file: file = \"test.csv\""} if is_car else
-             {"file": "a car test's key; a robot test reads files = { q = \"...\", tau = \"...\" }",
-              "truth": "a car test's key: the simulator's sidecar"})
+             {"truth": "a car test's key: the simulator's sidecar"})
     for i, t in enumerate(raw, start=1):  # a list: checked in _sections
         where = _test_label(i, t)
         if not isinstance(t, dict):
@@ -556,8 +566,16 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
             if not isinstance(t.get("file"), str):
                 raise err(where, "needs file = \"test.csv\" (one logger file with the sensor suite's channels)")
             files = {"channels": here / t["file"]}
+        elif "file" in t:
+            if "files" in t:
+                raise err(where, "has file and files: give file = \"run.mcap\" (one file holding q and tau) or "
+                                 "files = { q = \"...\", tau = \"...\" }, not both")
+            if not isinstance(t["file"], str):
+                raise err(where, f"file = {t['file']!r}; give a file name (a string, relative to this config)")
+            files = {"q": here / t["file"], effort: here / t["file"]}  # effort: tau, or current with [drive]
         else:
             files = _test_files(t.get("files"), here, where, err)
+        bag = _bag_options(t, files, where, err) if not is_car else (None, ())
         for q, f in files.items():
             if not f.exists():
                 raise err(where, f"file for {q!r} not found: {f}")
@@ -583,10 +601,27 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
             if not truth.exists():
                 raise err(where, f"truth file not found: {truth}")
         tests.append(TestSpec(name, role, files, None if fs is None else float(fs), truth,
-                              *(None if v is None else float(v) for v in window.values()), float(max_gap), payload))
+                              *(None if v is None else float(v) for v in window.values()), float(max_gap), payload,
+                              *bag))
     if not any(t.role == "identify" for t in tests):
         raise err("[[tests]]", "at least one test must have role = \"identify\"")
     return tuple(tests)
+
+
+def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple[str | None, tuple[str, ...]]:
+    """A robot test's topic and ignore_joints, which only a ROS 2 bag takes."""
+    from ..io.rosbag_format import is_bag
+
+    topic, ignore = t.get("topic"), t.get("ignore_joints", [])
+    if ("topic" in t or "ignore_joints" in t) and not all(is_bag(f) for f in files.values()):
+        key = "topic" if "topic" in t else "ignore_joints"
+        raise err(where, f"{key} is for a ROS 2 bag (a .db3 or .mcap file, or a bag folder); this test reads "
+                         f"{', '.join(sorted({f.name for f in files.values()}))}: remove it")
+    if topic is not None and (not isinstance(topic, str) or not topic.strip()):
+        raise err(where, f"topic = {topic!r}; give the JointState topic's name, e.g. \"/joint_states\"")
+    if not isinstance(ignore, list) or not all(isinstance(j, str) for j in ignore):
+        raise err(where, f"ignore_joints = {ignore!r}; give a list of joint names, e.g. [\"panda_finger_joint1\"]")
+    return topic, tuple(ignore)
 
 
 def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Path]:

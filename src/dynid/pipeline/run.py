@@ -143,10 +143,12 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
 
 
 def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
+    from ..io.rosbag_format import is_bag
+
     for quantity in ("q", cfg.effort):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
-        if quantity not in cfg.channels:
+        if quantity not in cfg.channels and not is_bag(spec.files[quantity]):  # a bag's: its joints' names
             raise ConfigError(f"{cfg.path}: [channels] has no {quantity!r} = {{ channels = [...], unit = ... }}")
     return spec
 

@@ -16,6 +16,7 @@ its slice of the uniform clock from the samples around it (a margin of several s
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Callable, Iterator, Sequence
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 
 from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
 from ..io.align import InterpSpec
+from ..io.rosbag_format import is_bag
 from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, time_bases
 from .config import ConfigError, IdentifyConfig, TestSpec
@@ -341,18 +343,22 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
     timed = True
     reported: set[tuple[Path, tuple[str, ...]]] = set()
-    quantities = ("q", cfg.effort)
+    bag = _bag_channels(cfg, spec, say) if is_bag(spec.files["q"]) or is_bag(spec.files[cfg.effort]) else None
+    quantities = ("q", cfg.effort) if bag is None else ("q", "tau")
+    chans = {q: tuple(cfg.channels[q].channels) for q in quantities} if bag is None else bag[1]
+    if bag is not None:
+        by_file[spec.files["q"]] = bag[0]
     for quantity in quantities:
         path = spec.files[quantity]
-        names = list(cfg.channels[quantity].channels)
+        names = list(chans[quantity])
         if path not in by_file:
-            wanted = [n for q in quantities if spec.files[q] == path for n in cfg.channels[q].channels]
+            wanted = [n for q in quantities if spec.files[q] == path for n in chans[q]]
             by_file[path], timed = opened(lambda fs, p=path, w=wanted: index_file(p, channels=list(dict.fromkeys(w)),
                                                                                  fs=fs),
                                           path, spec.fs, spec.name, cfg.path)
         index = indexes[quantity] = by_file[path]
         bases, _ = _time_bases(index, list(dict.fromkeys(n for q in quantities if spec.files[q] == path
-                                                         for n in cfg.channels[q].channels)), spec.name)
+                                                         for n in chans[q])), spec.name)
         streams[quantity] = []
         for members, t, lines in bases:
             if not set(members) & set(names):
@@ -369,7 +375,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
                 f"{cfg.path}: test {spec.name!r} gives fs = {spec.fs:g} Hz but the time column of {s.source} says "
                 f"{1 / s.h:.6g} Hz (step {s.h * 1e3:.6g} ms): remove fs from the test (the time column is used), or "
                 "correct it (a time column in ms needs its unit in the header, e.g. \"time [ms]\")", source=s.source)
-    first_q = cfg.channels["q"].channels[0]
+    first_q = chans["q"][0]
     ref = next(s for m, s in streams["q"] if first_q in m)
     clock = _test_clock(ref, every, cfg, spec, "the record", "in every file", lambda: (
         "the files do not overlap in time: " + "; ".join(f"{q} ({spec.files[q]}) covers {s.t[0]:.6g}..{s.t[-1]:.6g} s"
@@ -384,10 +390,72 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
     fs = _rate(ref.h) if ref.timed or spec.fs is None else spec.fs
     _below_nyquist(cfg, spec, cfg.conditioning.cutoff, fs, ref.timed, str(spec.files["q"]))
-    units = {q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
-                      for n in cfg.channels[q].channels) for q in quantities}
-    return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in quantities},
-                         units, clock, fs, timed, spec.max_gap, window_margin(spec.max_gap, [s.h for s in every]))
+    units = bag[2] if bag is not None else {
+        q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
+                 for n in cfg.channels[q].channels) for q in quantities}
+    return RobotTestPlan(spec.name, spec.role, indexes, chans, units, clock, fs, timed, spec.max_gap,
+                         window_margin(spec.max_gap, [s.h for s in every]))
+
+
+def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
+                  ) -> tuple[FileIndex, dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
+    """A ROS 2 bag test's index, and its q and tau channels: each model joint's position and effort, matched by the
+    names of the model's [joints] table, in SI by the joint's type (REP 103: rad or m, N·m or N)."""
+    from ..model.tree import PRISMATIC
+    from .reduce import robot_setup
+
+    path = spec.files["q"]
+    label = str(path)
+    if cfg.effort == "current":
+        raise ConfigError(f"{cfg.path}: test {spec.name!r} reads the ROS 2 bag {label}, whose JointState effort is "
+                          "the joint torque (REP 103), but the config reads motor currents ([channels] current): "
+                          "remove [channels] current and [drive], or give the currents in a table file")
+    if spec.files.get("tau") != path:
+        raise ConfigError(f"{cfg.path}: test {spec.name!r} reads q from {spec.files['q']} and tau from "
+                          f"{spec.files.get('tau')}; a ROS 2 bag holds both: give file = \"{path.name}\"")
+    index = index_file(path, topic=spec.topic)
+    topic = index.info("topic")
+    say(f"{spec.name}: {path.name}, topic {topic}: {index.rows} messages")
+    setup = robot_setup(cfg)
+    tree, columns = setup.joints.tree, setup.joints.columns  # the joints the data give, in column order
+    model = cfg.model if isinstance(cfg.model, str) else Path(cfg.model).name
+    in_bag = index.info("joints")
+    unnamed = [j for j in columns if j not in tree.joint_names]
+    if unnamed:
+        raise ConfigError(f"{cfg.path}: test {spec.name!r} reads the bag {label}, whose joints go by name, but the "
+                          f"model {model} names no joint for frame(s) {', '.join(map(str, unnamed))}: add a [joints] "
+                          f"table to it (1 = \"{in_bag[0] if in_bag else 'joint name'}\", ...)")
+    names = [tree.joint_names[j] for j in columns]
+    known = set(tree.joint_names.values()) | set(tree.frozen)  # a joint held still may be in the messages
+    ignored = set(spec.ignore_joints)
+    extra = [j for j in in_bag if j not in known and j not in ignored]
+    if extra:
+        raise ConfigError(f"{cfg.path}: test {spec.name!r}: joint {extra[0]!r} of {label} (topic {topic}) is not a "
+                          f"joint of the model {model} (its joints: {', '.join(names)}); add ignore_joints = "
+                          f"{_toml_list(extra)} to the test, or name it in the model's [joints] table")
+    missing = [j for j in names if j not in in_bag]
+    if missing:
+        raise ConfigError(f"{cfg.path}: test {spec.name!r}: the model {model}'s joint {missing[0]!r} is not in the "
+                          f"messages of {label} (topic {topic}; joints there: {', '.join(in_bag)}); make the "
+                          "model's [joints] table use the bag's names, record that joint, or choose the identified "
+                          "joints with [model] joints = [...] (the others are held still)")
+    have = set(index.names)
+    for field, quantity in (("position", "q"), ("effort", "tau")):
+        lacking = [j for j in names if f"{j}.{field}" not in have]
+        if lacking:
+            raise ConfigError(f"{cfg.path}: test {spec.name!r}: the messages of {label} (topic {topic}) have no "
+                              f"{field} for joint {lacking[0]!r} (its {field} arrays are empty); {quantity} needs "
+                              f"it: record a JointState with {field}")
+    chans = {"q": tuple(f"{j}.position" for j in names), "tau": tuple(f"{j}.effort" for j in names)}
+    prismatic = [tree.frames[j - 1].sigma == PRISMATIC for j in columns]
+    units = {"q": tuple("m" if p else "rad" for p in prismatic), "tau": tuple("N" if p else "N*m" for p in prismatic)}
+    keep = set(chans["q"]) | set(chans["tau"])
+    index = dataclasses.replace(index, channels=tuple((n, u) for n, u in index.channels if n in keep))
+    return index, chans, units
+
+
+def _toml_list(names: Sequence[str]) -> str:
+    return "[" + ", ".join(f'"{n}"' for n in names) + "]"
 
 
 def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
