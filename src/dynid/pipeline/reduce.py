@@ -36,10 +36,9 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
-from ..model.tree import ModelError, Tree
 from .config import IdentifyConfig
-from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
-from .sources import RobotTestPlan, SegmentWindow, driven, gain_names, read_robot_window
+from .robot import GroupedSystem, chunk_rows, to_frames
+from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window
 
 if TYPE_CHECKING:
     from ..vehicle.estimate import CarTrajectory
@@ -326,15 +325,7 @@ class RobotSetup:
         from ..dynamics import load_model
         from .config import ConfigError
 
-        tree = load_model(cfg.model).tree
-        k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
-             else len(cfg.channels["q"].channels) if "q" in cfg.channels else _bag_joints(cfg, tree))
-        # a transmission's rows are the joints it gives: name it when its count is the one that does not match
-        source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
-        try:  # the joints the data give; the others (a gripper not logged) held still
-            self.joints = data_joints(tree, k, cfg.joints, source)
-        except ModelError as exc:
-            raise ConfigError(str(exc)) from None
+        self.joints = config_joints(cfg, load_model(cfg.model).tree)
         self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
         # the estimated parameters: the base parameters, then the drive gains when identified
@@ -351,24 +342,6 @@ class RobotSetup:
                     raise ConfigError(f"{cfg.path}: test {t.name!r}: payload frame = {j}; model {self.model.name!r} "
                                       f"has frames 1 to {self.model.n}: name the link that carries it")
                 self.payloads[t.name] = (j, t.payload.standard())
-
-
-def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
-    """The joint columns a config's ROS 2 bags give (a robot config without [channels]): the selected joints'
-    count, else the model's joints with an equation that its first bag's first message names. When that is all
-    of them less the joints others mimic (a gripper not logged), those are held still; any other count reads all
-    of them, and the bag's test says which one the messages lack (`sources.plan_robot_test`)."""
-    from ..io.rosbag_format import first_joints, is_bag
-
-    bag = next((t for t in cfg.tests if is_bag(t.files["q"])), None)
-    if bag is None:
-        return tree.n
-    if cfg.joints is not None:
-        return len(cfg.joints)
-    named = set(first_joints(bag.files["q"], topic=bag.topic))
-    k = sum(tree.joint_names.get(j) in named for j in tree.equations)
-    masters = {m.master for m in tree.mimic.values()}
-    return k if k == len(tree.equations) - len(masters) else len(tree.equations)
 
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:

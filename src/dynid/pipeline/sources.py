@@ -32,7 +32,9 @@ from ..io.align import InterpSpec
 from ..io.rosbag_format import is_bag
 from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, time_bases
+from ..model.tree import ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .robot import DataJoints, data_joints
 from .timebase import RATE_TOLERANCE, _rate, opened, stream
 
 Progress = Callable[[str], None]
@@ -397,12 +399,44 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
                          window_margin(spec.max_gap, [s.h for s in every]))
 
 
+def config_joints(cfg: IdentifyConfig, tree: Tree) -> DataJoints:
+    """The joints a robot config's data give (`robot.data_joints`): as many as its [transmission] q has rows, else
+    its [channels] q has channels, else its ROS 2 bags name (`_bag_joints`); the others (a gripper not logged)
+    held still."""
+    k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
+         else len(cfg.channels["q"].channels) if "q" in cfg.channels else _bag_joints(cfg, tree))
+    # a transmission's rows are the joints it gives: name it when its count is the one that does not match
+    source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
+    try:
+        return data_joints(tree, k, cfg.joints, source)
+    except ModelError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
+    """The joint columns a config's ROS 2 bags give (a robot config without [channels]): the selected joints'
+    count, else the model's joints with an equation that its first bag's first message names. When that is all
+    of them less the joints others mimic (a gripper not logged), those are held still; any other count reads all
+    of them, and the bag's test says which one the messages lack (`sources.plan_robot_test`)."""
+    from ..io.rosbag_format import first_joints, is_bag
+
+    bag = next((t for t in cfg.tests if is_bag(t.files["q"])), None)
+    if bag is None:
+        return tree.n
+    if cfg.joints is not None:
+        return len(cfg.joints)
+    named = set(first_joints(bag.files["q"], topic=bag.topic))
+    k = sum(tree.joint_names.get(j) in named for j in tree.equations)
+    masters = {m.master for m in tree.mimic.values()}
+    return k if k == len(tree.equations) - len(masters) else len(tree.equations)
+
+
 def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
                   ) -> tuple[FileIndex, dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
     """A ROS 2 bag test's index, and its q and tau channels: each model joint's position and effort, matched by the
     names of the model's [joints] table, in SI by the joint's type (REP 103: rad or m, N·m or N)."""
+    from ..dynamics import load_model
     from ..model.tree import PRISMATIC
-    from .reduce import robot_setup
 
     path = spec.files["q"]
     label = str(path)
@@ -416,8 +450,8 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
     index = index_file(path, topic=spec.topic)
     topic = index.info("topic")
     say(f"{spec.name}: {path.name}, topic {topic}: {index.rows} messages")
-    setup = robot_setup(cfg)
-    tree, columns = setup.joints.tree, setup.joints.columns  # the joints the data give, in column order
+    joints = config_joints(cfg, load_model(cfg.model).tree)
+    tree, columns = joints.tree, joints.columns  # the joints the data give, in column order
     model = cfg.model if isinstance(cfg.model, str) else Path(cfg.model).name
     in_bag = index.info("joints")
     unnamed = [j for j in columns if j not in tree.joint_names]
