@@ -27,7 +27,7 @@ from dynid.symbolic.blocks import LANES, aligned_zeros, block_model
 from dynid.symbolic.generated import GeneratedRegressor
 from dynid.vehicle import car_template
 from dynid.vehicle.equations import identified
-from dynid.vehicle.template import EQUATION_ROWS
+from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names
 
 pytest.importorskip("numba")
 

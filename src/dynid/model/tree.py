@@ -43,8 +43,8 @@ gear ratios of the joints it drives.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import math
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -366,8 +366,6 @@ def _validate(tree: Tree) -> None:
         lo, hi = law
         if not (lo < 0.0 < hi) or math.isnan(lo) or math.isnan(hi):
             raise ModelError(f"{where}, frame {j}: knees (v-, v+) = {law!r} need v- < 0 < v+ (m/s or rad/s)")
-        if not set(tree.joint_terms.get(j, ())) & set(CURVE_TERMS):
-            raise ModelError(f"{where}, frame {j}: knees need a viscous curve term ({', '.join(CURVE_TERMS)})")
     for j, terms in tree.joint_terms.items():
         lo, hi = tree.knee(j)
         for t, v, side in (("FVPH", hi, "v+"), ("FVNH", lo, "v-")):

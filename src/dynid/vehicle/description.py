@@ -97,7 +97,8 @@ from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, car_template, l
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
 SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "steering": dict, "imu": dict,
-            "sensors": dict, "dampers": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
+            "sensors": dict, "dampers": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict,
+            "known": dict}
 REQUIRED = ("name", "axles", "wheels", "a_priori")
 # plausible passenger-car ranges: outside them the number is a unit slip or a typo, not a car
 RANGES = {"wheelbase_m": (1.5, 4.5), "ratio": (8.0, 30.0), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
@@ -316,7 +317,7 @@ def _curves(values: dict[str, float], law: str, knees: dict[int, tuple[float, fl
         lo, hi = knees[d]
         h = out.pop(f"FV{d}", 0.0)
         for n in _curve_names(d):
-            high = n.startswith("FVPH") and math.isfinite(hi) or n.startswith("FVNH") and math.isfinite(lo)
+            high = (n.startswith("FVPH") and math.isfinite(hi)) or (n.startswith("FVNH") and math.isfinite(lo))
             if n.startswith(("FVPL", "FVNL")) or high:
                 out[n] = values.get(n, h)
             elif n in values:

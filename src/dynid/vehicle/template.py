@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.tree import CURVE_TERMS, PRISMATIC, REVOLUTE, Coupling, Frame, Tree
+from ..model.tree import PRISMATIC, REVOLUTE, Coupling, Frame, Tree
 from .geometry import CarGeometry, side
 
 CORNERS = ("rear left", "rear right", "front left", "front right")
