@@ -183,3 +183,36 @@ def test_bilinear_dampers_from_noise_free_files(tmp_path):
     # σ per slope: the slopes are parameters of the result, with their standard deviations
     std = dict(zip(run.result.names, run.result.std, strict=True))
     assert all(0 < std[n] < 0.02 * run.result.truth[n] for n in slopes)
+
+
+class _Result:
+    """A result's names, values and covariance (what vehicle.dampers reads)."""
+
+    def __init__(self, values: dict[str, float], cov: np.ndarray) -> None:
+        self.names = tuple(values)
+        self.values = np.array(list(values.values()))
+        self.full_covariance = cov
+
+
+def test_curve_band_against_its_closed_form():
+    """Force = the curve by hand; σ at a velocity past the bump knee = sqrt(vb² σ_bl² + (v - vb)² σ_bh²
+    + 2 vb (v - vb) cov(bl, bh)), on one piece |v| σ; the slopes with their σ and ranges."""
+    from dynid.vehicle.dampers import damper_curve, damper_slopes
+
+    values = {"K9": 2e4, **{f"{t}9": x for t, x in SLOPES.items()}}
+    sd = np.array([100.0, 20.0, 30.0, 40.0, 50.0])
+    corr = np.eye(5)
+    corr[1, 2] = corr[2, 1] = -0.6
+    result = _Result(values, corr * np.outer(sd, sd))
+    force, sigma = damper_curve(result, 9, VELOCITIES, KNEES)
+    assert np.allclose(force, [by_hand(v) for v in VELOCITIES], rtol=1e-14, atol=1e-12)
+    vb, v = KNEES[1], VELOCITIES[-1]
+    expected = math.sqrt(vb**2 * 20.0**2 + (v - vb) ** 2 * 30.0**2 + 2 * vb * (v - vb) * (-0.6 * 20.0 * 30.0))
+    assert sigma[-1] == pytest.approx(expected, rel=1e-12)
+    assert sigma[6] == pytest.approx(0.05 * 20.0, rel=1e-12) and sigma[4] == 0.0
+    slopes = damper_slopes(result, 9, KNEES)
+    assert [(s.label, s.value, s.std) for s in slopes] == [
+        ("hbl9", 2000.0, 20.0), ("hbh9", 900.0, 30.0), ("hrl9", 4100.0, 40.0), ("hrh9", 1700.0, 50.0)]
+    assert slopes[1].range == (0.1, math.inf) and slopes[1].meaning == "bump, high speed"
+    with pytest.raises(KeyError, match="no viscous term of damper 18"):
+        damper_curve(result, 18, VELOCITIES)
