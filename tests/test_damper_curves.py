@@ -183,6 +183,12 @@ def test_bilinear_dampers_from_noise_free_files(tmp_path):
     # σ per slope: the slopes are parameters of the result, with their standard deviations
     std = dict(zip(run.result.names, run.result.std, strict=True))
     assert all(0 < std[n] < 0.02 * run.result.truth[n] for n in slopes)
+    # the report's section: per damper its four slopes with the truth, and the figure
+    from dynid.report.build import damper_section
+
+    section, png = damper_section(run)
+    assert [len(t.rows) for t in section.tables] == [4] * 4 and png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert section.tables[0].rows[1][0].text == "hbh9 (bump, high speed)"
 
 
 class _Result:
