@@ -1,6 +1,6 @@
 """Benchmark of URDF import: a 7-axis arm (target <= 1 s) and a 77-joint mobile manipulator.
 
-Run: python benchmarks/bench_urdf.py   (needs example-robot-data: pip install 'dynid[test]')
+Run: python benchmarks/bench_urdf.py   (needs example-robot-data: pip install -e '.[test]' in the clone)
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ def main() -> int:
         root = Path(str(metadata.distribution("example-robot-data").locate_file(
             "cmeel.prefix/share/example-robot-data/robots")))
     except metadata.PackageNotFoundError:
-        print("example-robot-data is not installed (pip install 'dynid[test]')")
+        print("example-robot-data is not installed (pip install -e '.[test]' in the clone)")
         return 1
     for name, rel in ROBOTS.items():
         text = re.sub(r"<mimic[^>]*/>", "", (root / rel).read_text(encoding="utf-8"))  # dynid refuses mimic joints

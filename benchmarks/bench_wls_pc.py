@@ -5,7 +5,7 @@ and their ratio (the target: wls-pc <= 10 s). Not a timed test: run it by hand,
 
 It times the estimator alone (the same conditioned, decimated rows for both) and the whole `identify` pipeline
 (reading, conditioning, estimation and the physical-consistency verdict). Needs ../shared/data/tx40 and the pc
-extra (pip install 'dynid[pc]')."""
+extra (pip install cvxpy clarabel)."""
 
 from __future__ import annotations
 

@@ -6,12 +6,20 @@ joint placement SE3 built with Pinocchio's own algebra), never from dynid's kine
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from dynid.model import Frame, Tree
+from dynid.model import INERTIAL, Frame, Tree
 
 pin = pytest.importorskip("pinocchio")
+
+
+def rigid(tree: Tree) -> Tree:
+    """The tree without joint terms and couplings (Pinocchio models neither)."""
+    values = {k: v for k, v in tree.values.items() if k.rstrip("0123456789") in INERTIAL}
+    return dataclasses.replace(tree, couplings=(), joint_terms={}, values=values)
 
 
 def mdh_placement(f: Frame) -> pin.SE3:

@@ -121,6 +121,8 @@ def _cell(line: int, col: int, value: str) -> Callable[[str], str]:
     return edit
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_baseline_runs(base, tmp_path, capsys):
     """The oracle for every case below: without the mistake, the same files identify (exit 0)."""
     work = tmp_path / "w"
@@ -384,6 +386,8 @@ def test_the_shipped_vehicles_and_examples_are_in_range():
 
 @pytest.mark.parametrize("code_, words", [("ENOSPC", ["No space left", "free space", "--out"]),
                                           ("EFBIG", ["too large", "ulimit -f", "--out"])], ids=["disk full", "EFBIG"])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_full_disk_names_the_output(base, tmp_path, capsys, monkeypatch, code_, words):
     """A write refused for want of room whose OSError names no file (as write() gives it) names --out."""
     import errno
@@ -401,6 +405,8 @@ def test_a_full_disk_names_the_output(base, tmp_path, capsys, monkeypatch, code_
     assert_one_line_error(code, err, str(work / "out"), *words)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_config_named_like_the_campaign_table_keeps_both(base, tmp_path, capsys):
     """campaign.csv.toml's folder and the campaign table campaign.csv no longer replace each other."""
     work = tmp_path / "w"
@@ -635,6 +641,7 @@ def test_fuzz_csv_reader(tmp_path, raw):
 
 @pytest.mark.skipif(os.name != "posix", reason="named pipes and /dev/zero")
 @pytest.mark.parametrize("kind", ["fifo", "dev_zero", "folder"])
+@pytest.mark.slow
 def test_a_data_file_that_is_no_file_is_refused_before_it_is_read(tmp_path, capsys, kind):
     """A named pipe blocks its reader for ever and a link to /dev/zero never ends (it grew one process to 20 GB):
     neither is opened, the one line names it and what it is (issue 30). A test run in a child with a timeout, so

@@ -4,6 +4,7 @@ import csv
 import re
 
 import numpy as np
+import pytest
 from oracles import random_states, random_tree
 
 from dynid import Model, load_model
@@ -37,6 +38,7 @@ def test_tx40_regrouping_has_the_published_structure(tx40_data):
             assert abs(mine[k] - pub[k]) <= 5e-6 * max(1, abs(pub[k])), (k, mine[k], pub[k])
 
 
+@pytest.mark.slow
 def test_rank_and_base_set_do_not_depend_on_the_samples():
     for m in (load_model("puma560"), load_model("floating_tree"), Model(random_tree(seed=41, n=18))):
         sets = {m.base_parameters(seed=s).names for s in (0, 1, 2)}

@@ -17,6 +17,9 @@ from dynid.pipeline.demo import simulate_tests, write_demo
 from dynid.pipeline.run import identify
 from dynid.vehicle.description import vehicle_path
 
+# Two quick demo simulations and identifications (about 10 s).
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
 SHIPPED_IMU = "position_m = [0.0, 0.0, 0.0]"
 
 

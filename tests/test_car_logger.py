@@ -37,6 +37,9 @@ from dynid.io import DataError, GapError, TimeBaseError
 from dynid.pipeline.config import ConfigError, load_config
 from dynid.pipeline.run import identify, load_car_channels
 
+# Every test identifies the quick demo's car from re-timed logger files (about 25 s in all).
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
 FS = 625.0  # the demo's logger
 H = 1 / FS
 B = 20.0  # Hz: the band limit of the truth

@@ -129,6 +129,8 @@ def cluster():
         signal.alarm(0)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_local_cluster_gives_the_threads_result(car_config, threads_run, cluster):
     run, said = threads_run
     segments = [m for m in said if m.startswith("segments done")]
@@ -142,6 +144,8 @@ def test_a_local_cluster_gives_the_threads_result(car_config, threads_run, clust
     assert done[-1].startswith(f"segments done {total}/{total} on Dask cluster local (2 worker(s))"), done
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_worker_killed_mid_run_changes_nothing(car_config, threads_run, cluster):
     client = cluster.client
     pids = client.run(os.getpid)  # {worker address: pid}
@@ -157,6 +161,8 @@ def test_a_worker_killed_mid_run_changes_nothing(car_config, threads_run, cluste
     _same(threads_run[0], other)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_campaign_gives_each_config_its_own_result(car_config, threads_run, cluster, tmp_path):
     from dynid.pipeline.campaign import campaign_names, identify_campaign, summary
 
@@ -183,6 +189,8 @@ def test_a_campaign_gives_each_config_its_own_result(car_config, threads_run, cl
         assert value == pytest.approx(run.result.value("M6") + 140.0, rel=1e-5)  # the wheels: 4 x 35 kg, known
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_robot_on_the_cluster_gives_the_threads_result(cluster, tmp_path, monkeypatch):
     """A robot's chunks (read from its file by the workers) stack into the same rows, hence the same estimate."""
     from test_robot_memory import robot_log
@@ -198,6 +206,8 @@ def test_a_robot_on_the_cluster_gives_the_threads_result(cluster, tmp_path, monk
     assert other.errors["direct"] == pytest.approx(threads.errors["direct"], rel=REL)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_broken_config_does_not_lose_the_campaign(car_config, threads_run, tmp_path, capsys):
     """One config's file is cut short: the others' folders and campaign.csv are written, its error is in the table
     and on stderr, and the command exits with 2."""

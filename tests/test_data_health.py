@@ -89,6 +89,8 @@ def the_one(found: list, kind: str, channel: str):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_demo_files_give_no_finding(demo, seed):
     """Zero false positives on the six tests of two seeds; the lane change's camera notes are the only output."""
     every = findings(demo[seed] / "identify.toml")
@@ -105,6 +107,8 @@ def test_the_demo_files_give_no_finding(demo, seed):
     ("sine.csv", "wft_fl_Fz", 60),       # the tester's: ZZ6 = -110; the flat tops broken by the noise
     ("braking.csv", "wft_fl_Fz", 60),
 ])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_channel_clipped_at_a_percentile_stops_the_run(demo, tmp_path, file, channel, percentile):
     def clip(ch):
         x = ch[channel].values
@@ -117,6 +121,8 @@ def test_a_channel_clipped_at_a_percentile_stops_the_run(demo, tmp_path, file, c
     assert f.share == pytest.approx(1 - percentile / 100, abs=0.02)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_spike_is_found_where_it_is(demo, tmp_path):
     """One sample of a wheel load 3 kN off (120 times the transducer's noise, within its range): a warning at
     its time; the tester's 1e6 N: beyond the transducer's 20 kN range, an error."""
@@ -136,6 +142,8 @@ def test_a_spike_is_found_where_it_is(demo, tmp_path):
         assert not others, others
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_dead_channel_stops_the_run(demo, tmp_path):
     file, channel = "sine.csv", "imu_yaw_rate"
 
@@ -153,6 +161,8 @@ def test_a_dead_channel_stops_the_run(demo, tmp_path):
     ("braking.csv", ("wft_fl_Fz", "wft_rr_Fz")),  # no lateral acceleration: the mean loads and the pitch transfer
     ("spiral.csv", ("wft_rl_Fz", "wft_rr_Fz")),   # left and right: the lateral transfer alone
 ])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_two_wheel_loads_swapped_are_named(demo, tmp_path, file, pair):
     a, b = pair
 
@@ -167,6 +177,8 @@ def test_two_wheel_loads_swapped_are_named(demo, tmp_path, file, pair):
     assert f.t_start <= before[a].time[0] and f.t_end >= before[a].time[-1]
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_vertical_accelerometer_upside_down(demo, tmp_path):
     file = "braking.csv"
     config, *_ = injected(demo[SEEDS[0]], tmp_path, file, lambda ch: replaced(ch, "imu_az", -ch["imu_az"].values))
@@ -199,6 +211,8 @@ def test_channel_scan_judges_each_block_alone():
     assert kinds["spike"].t_start == t[3000]
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_identify_stops_with_one_line_and_status_2(demo, tmp_path, capsys):
     file, channel = "lane.csv", "imu_yaw_rate"
 
@@ -219,6 +233,8 @@ def test_identify_stops_with_one_line_and_status_2(demo, tmp_path, capsys):
         identify(load_config(config))
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_data_health_warn_says_the_errors_and_runs_on(demo, tmp_path, capsys):
     """[identification] data_health = "warn": the same dead channel is said (and kept in results.json as an
     error), the run goes on; the stop's one line names the other errors' channels and this setting."""
@@ -247,6 +263,8 @@ def test_data_health_warn_says_the_errors_and_runs_on(demo, tmp_path, capsys):
     assert 'data_health = \'ignore\'; give "stop"' in capsys.readouterr().err
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_clean_files_keep_their_answer_and_list_the_notes(demo, tmp_path, monkeypatch):
     """The check reads the files beside the identification and changes nothing: the estimates with and without it
     are the same numbers; results.json carries the findings (here the lane change's camera notes)."""
@@ -308,6 +326,8 @@ def robot_log(folder, clip: float | None = None, noise: float = 0.0) -> None:
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.5])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_robot_torque_clipped_on_40_percent_stops_the_run(tmp_path, capsys, noise):
     """The tester's: tau2 clipped on 40 % of its samples identified with a 0.23 % residual. Now exit status 2, one
     line naming the file, tau2 and a span covering every clipped sample; the same log unclipped identifies with

@@ -7,10 +7,8 @@ the answer is known (dependent columns, noise-free data, a parameter whose true 
 
 from __future__ import annotations
 
-import ast
 import json
 import os
-import pathlib
 import sys
 from pathlib import Path
 
@@ -20,7 +18,6 @@ import statsmodels.api as sm
 from scipy import stats
 
 import dynid.atomic
-from dynid import estimation
 from dynid.estimation import (
     EstimationWarning,
     IdentificationError,
@@ -393,29 +390,6 @@ def test_bad_input_is_reported():
         ols(np.eye(3), np.ones(3), ["a", "b", "c"], known={"z": 1.0})
     with pytest.raises(IdentificationError, match="more rows than parameters"):
         ols(np.eye(3), np.ones(3), ["a", "b", "c"])
-
-
-def _dynid_imports(tree):
-    """Modules of the dynid package imported by an estimation source file, relative to dynid ("model.tree")."""
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            yield from (a.name.removeprefix("dynid.") for a in node.names if a.name.startswith("dynid."))
-        elif isinstance(node, ast.ImportFrom):
-            module = node.module or ""
-            if node.level == 0 and not (module == "dynid" or module.startswith("dynid.")):
-                continue
-            bases = {0: module.removeprefix("dynid"), 1: f"estimation.{module}".rstrip("."), 2: module}
-            base = bases.get(node.level, "?")
-            yield from (f"{base}.{a.name}".strip(".") for a in node.names)
-
-
-def test_estimation_layer_imports_no_model_layers():
-    """The layer sits above model/kinematics/dynamics but needs nothing from them. Checked statically:
-    the package's own ``dynid/__init__`` imports dynamics, so sys.modules cannot tell."""
-    package = pathlib.Path(estimation.__file__).parent
-    for path in package.glob("*.py"):
-        for mod in _dynid_imports(ast.parse(path.read_text())):
-            assert mod.split(".")[0] not in ("model", "kinematics", "dynamics"), f"{path.name} imports {mod}"
 
 
 # ---------------------------------------------------------------- sensor offsets (systematic uncertainty)

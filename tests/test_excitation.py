@@ -103,7 +103,7 @@ def planar():
 # ---------------------------------------------------------------- the design
 
 
-@pytest.mark.parametrize("which, factor", [("tx40", 5.0), ("planar", 1.5)])
+@pytest.mark.parametrize("which, factor", [pytest.param("tx40", 5.0, marks=pytest.mark.slow), ("planar", 1.5)])
 def test_optimised_condition_number_beats_random_fourier_trajectories(which, factor, request):
     """Against the median of five random Fourier trajectories scaled to touch the same limits (the strongest
     random baseline). The TX40 (60 base parameters) gains more than 5x. The planar arm's 11 base parameters
@@ -184,6 +184,7 @@ def test_design_is_deterministic_for_a_seed(planar):
 # ---------------------------------------------------------------- expected %sigma against a Monte-Carlo
 
 
+@pytest.mark.slow
 def test_expected_sigma_matches_a_monte_carlo_of_weighted_least_squares(tx40):
     """tau = W X_B + noise (sigma per joint) on the designed trajectory sampled at fs for two periods; 200
     weighted least-squares estimates. The relative standard error of a standard deviation estimated from

@@ -474,7 +474,7 @@ def test_mat_v73_without_h5py_says_resave_or_install(tmp_path: Path, monkeypatch
     with pytest.raises(MissingDependencyError) as info:
         read_recording(path)
     msg = str(info.value)
-    assert "new.mat" in msg and "v7.3" in msg and "h5py" in msg and "dynid[mat73]" in msg and "-v7" in msg
+    assert "new.mat" in msg and "v7.3" in msg and "pip install h5py (dynid's 'mat73' extra)" in msg and "-v7" in msg
 
 
 def test_missing_optional_package_names_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -484,9 +484,9 @@ def test_missing_optional_package_names_the_extra(tmp_path: Path, monkeypatch: p
         raise ImportError(f"No module named {name!r}")
 
     monkeypatch.setattr(_optional.importlib, "import_module", nothing)
-    with pytest.raises(MissingDependencyError, match=r"Parquet.*pyarrow.*dynid\[parquet\]"):
+    with pytest.raises(MissingDependencyError, match=r"Parquet.*pip install pyarrow \(dynid's 'parquet' extra\)"):
         write_recording(multirate(), tmp_path / "x.parquet")
-    with pytest.raises(MissingDependencyError, match=r"MDF.*asammdf.*dynid\[mdf\]"):
+    with pytest.raises(MissingDependencyError, match=r"MDF.*pip install asammdf \(dynid's 'mdf' extra\)"):
         write_recording(multirate(), tmp_path / "x.mf4")
     assert list(tmp_path.iterdir()) == []
 
@@ -729,3 +729,44 @@ def test_recording_rejects_inconsistent_channels() -> None:
     t = np.arange(3.0)
     with pytest.raises(DataError, match="two channels are named 'a'"):
         Recording.from_channels([Channel("a", "m", t, t), Channel("a", "m", t, t)])
+
+
+@pytest.mark.parametrize("whole", [True, False])
+def test_a_line_without_end_is_refused_at_the_bound(tmp_path: Path, monkeypatch, whole: bool) -> None:
+    """A reader bounds a line before it knows its length (issue 30): a file whose line runs past the bound (here
+    lowered to 4 kB; 16 MiB by default) is refused naming that line, by the whole-file and the window readers."""
+    from dynid.io import csv_format
+    from dynid.io.windows import index_file
+
+    monkeypatch.setattr(csv_format, "MAX_LINE", 4096)
+    rows = "\n".join(f"{k / 100},{k}" for k in range(50))
+    for where, text in ((1, "t," + "x" * 5000 + "\n" + rows + "\n"), (20, "t,a\n" + rows[:200] + "1" * 5000 + "\n")):
+        path = tmp_path / f"long{where}.csv"
+        path.write_text(text)
+        with pytest.raises(FileFormatError) as exc:
+            read_recording(path) if whole else index_file(path)
+        msg = str(exc.value)
+        assert "\n" not in msg and "longer than 4,096 characters" in msg, msg
+        assert f"line {where if where == 1 else 2 + rows[:200].count(chr(10))}" in msg, msg
+
+
+@pytest.mark.parametrize("bound", ["MAX_ROW_GROUPS", "MAX_FOOTER"])
+def test_a_parquet_file_past_its_index_bounds_is_refused(tmp_path: Path, monkeypatch, bound: str) -> None:
+    """Opening a Parquet file holds its footer (every row group's metadata) and indexes each row group: a file past
+    either bound (lowered here: 10 row groups, a 100-byte footer) is refused with one line before that, by the
+    whole-file and the window readers."""
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    from dynid.io import parquet_format
+    from dynid.io.windows import index_file
+
+    path = tmp_path / "groups.parquet"
+    t = np.arange(200) / 100.0
+    pq.write_table(pa.table({"time": t, "a": np.sin(t)}), path, row_group_size=10)  # 20 row groups
+    read_recording(path)  # within the default bounds
+    monkeypatch.setattr(parquet_format, bound, 10 if bound == "MAX_ROW_GROUPS" else 100)
+    for read in (read_recording, index_file):
+        with pytest.raises(FileFormatError) as exc:
+            read(path)
+        msg = str(exc.value)
+        assert "\n" not in msg and str(path) in msg and "fewer, larger row groups" in msg, msg

@@ -13,6 +13,9 @@ misfits once the spiral is in (their parameters are then not results).
 import pytest
 from mujoco_car import identify, mujoco_truth
 
+# The MuJoCo car's files through `dynid identify`, three configurations (about 15 s).
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
 TIRE_PARAMETERS = {f"{term}{tire}" for term in ("K", "OFF") for tire in (15, 24, 33, 42)}
 
 

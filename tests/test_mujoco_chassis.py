@@ -25,6 +25,9 @@ the set of tests (-3.3 % sine + braking, +1.3 % spiral + braking on an earlier f
 import pytest
 from mujoco_car import identify, mujoco_truth
 
+# The MuJoCo car's files through `dynid identify`, two test sets (about 15 s).
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
 NON_SPINNING_AXLE_INERTIA = 2 * 0.81 + 2 * 1.01  # kg.m2: truth.json's notes on ZZ14 .. ZZ41
 
 

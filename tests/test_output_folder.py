@@ -455,6 +455,8 @@ def identify_again(work: Path, capsys) -> str:
     (signal.SIGKILL, "swap"), (signal.SIGTERM, "+0.3 s"), (signal.SIGKILL, "+0.6 s"),
 ], ids=["TERM before the 4th file", "Ctrl-C before the first file", "TERM at the swap", "KILL before the 3rd file",
         "KILL at the swap", "TERM 0.3 s into writing", "KILL 0.6 s into writing"])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_killed_run_leaves_the_old_set_or_the_new_one(work, capsys, sig, point):
     out = work / "out"
     before = snapshot(out)
@@ -491,6 +493,8 @@ def test_a_killed_run_leaves_the_old_set_or_the_new_one(work, capsys, sig, point
 
 
 @posix_only
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_second_run_into_a_busy_folder_is_refused(work, capsys):
     out = work / "out"
     before = snapshot(out)
@@ -504,6 +508,8 @@ def test_a_second_run_into_a_busy_folder_is_refused(work, capsys):
     assert code == 143 and snapshot(out) == before and leftovers(out) == [], output
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_full_disk_while_writing_keeps_the_old_set(work, capsys, monkeypatch):
     import dynid.pipeline.run as run
 
@@ -524,6 +530,8 @@ def test_a_full_disk_while_writing_keeps_the_old_set(work, capsys, monkeypatch):
     assert snapshot(out) == before and leftovers(out) == []
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_users_files_stop_identify_before_computing(work, capsys):
     (work / "out" / "my notes.txt").write_text("mine")
     assert main(["identify", str(work / "robot.toml"), "--out", str(work / "out")]) == 2
@@ -537,6 +545,8 @@ def test_users_files_stop_identify_before_computing(work, capsys):
 # ------------------------------------------------------------------ the demo: everything staged
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_the_demo_is_staged_and_names_its_final_folder(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0

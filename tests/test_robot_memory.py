@@ -30,6 +30,7 @@ def _test(n: int) -> JointTest:
 
 
 @pytest.mark.parametrize("segment_bytes", [2**20, 3 * 2**20 + 12345], ids=["1 MiB", "odd size"])
+@pytest.mark.slow
 def test_segmented_rows_equal_the_whole_records(segment_bytes):
     model = load_model("tx40")
     base = model.base_parameters()
@@ -42,6 +43,7 @@ def test_segmented_rows_equal_the_whole_records(segment_bytes):
     assert np.max(np.abs(parts.Y - whole.Y)) <= 1e-9 * np.max(np.abs(whole.Y))
 
 
+@pytest.mark.slow
 def test_memory_does_not_grow_with_the_full_rate_regressor():
     """100 s at 1 kHz: the full-rate W of the TX40's 60 base columns would be 275 MiB; built in 16 MiB segments,
     the peak stays under half of it (measured 80 MiB: the conditioned joint signals, one segment's W and its
@@ -92,6 +94,7 @@ def robot_log(folder, n: int = 30000):
     return cfg
 
 
+@pytest.mark.slow
 def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_path, monkeypatch):
     """The identification reads a robot's file a chunk at a time (each chunk's window with the filter's and the
     decimation's transients around it): its rows equal those of the whole record read at once, to the filters'
@@ -117,6 +120,7 @@ def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_p
     assert np.max(np.abs(parts.Y - whole.Y)) <= 1e-9 * np.max(np.abs(whole.Y))
 
 
+@pytest.mark.slow
 def test_a_bad_sample_deep_in_a_chunked_file_is_named_by_the_tests_sample(tmp_path, monkeypatch):
     """A chunk counts its samples from 0; the error names the test's sample (and its time), as the whole read did."""
     from dynid.io import Channel, DataError, Recording, read_recording, write_recording

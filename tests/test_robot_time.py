@@ -143,6 +143,8 @@ def test_clean_log_recovers_the_true_parameters(logs, clean):
     ("q.csv", "tau.csv", "fs = 1000.0"),           # two files with time columns, fs in the config
     ("q.csv", "tau.csv", ""),                      # two files, no fs
 ])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_every_time_column_layout_gives_the_estimate_of_the_plain_file(logs, clean, q, tau, extra):
     d, _ = logs
     values, _, said = estimate(config(d, "layout", q=q, tau=tau, extra=extra))
@@ -164,6 +166,8 @@ def test_irregular_stamps_are_resampled_and_reported(logs, clean):
     assert "resampled onto a uniform clock" in text
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_start_and_end_give_the_estimate_of_a_file_cut_by_hand(logs):
     d, _ = logs
     windowed = estimate(config(d, "window", q="clean.csv", extra="start = 3.0\nend = 20.0"))[0]
@@ -190,6 +194,8 @@ def test_time_going_back_is_one_line_naming_file_and_sample(tmp_path, capsys):
     assert "sort the rows" in last.lower()
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_long_hole_is_one_line_naming_file_and_sample(tmp_path, capsys):
     model = dynid.load_model("puma560")
     t = np.arange(6000) / FS
@@ -221,6 +227,8 @@ def test_files_that_do_not_overlap_are_refused(tmp_path, capsys):
     assert "do not overlap" in last and "q.csv" in last and "tau.csv" in last
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_tau_on_its_own_clock_is_interpolated_onto_q(logs, clean, tmp_path):
     """tau logged by another clock (500 Hz, 0.37 ms late, starting later): same estimate within the noise."""
     d, info = logs

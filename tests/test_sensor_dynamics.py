@@ -172,6 +172,8 @@ def _identify(tmp_path: Path, dynamics: str | None, capsys) -> tuple[dict, dict[
     return json.loads((out / "results.json").read_text()), eng, text.out + text.err
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_ideal_files_declared_aligned_give_the_yaw_inertia_and_zero_delays(tmp_path, capsys):
     """ideal/ holds the true channel values: declared "none", the yaw inertia at the centre of gravity is right
     (truth 2100 kg·m²) and the estimated delays are zero within a sample, without a warning."""
@@ -187,6 +189,8 @@ def test_ideal_files_declared_aligned_give_the_yaw_inertia_and_zero_delays(tmp_p
     assert not res["delays"]["warnings"] and "WARNING" not in text
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_ideal_files_with_table1_dynamics_report_the_mismatch_and_flag_what_it_moves(tmp_path, capsys):
     """The same files with the default (Table-1) dynamics: the inertial unit is advanced by its Table-1 delay
     (24.2 ms against the transducers) though the files are aligned. The run must find it (the difference within

@@ -72,6 +72,8 @@ def estimated_errors(result) -> dict[str, float]:
             for i, n in enumerate(result.names) if n not in result.known}
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_gnss_vehicle_maps_its_velocity_from_a_channel_of_another_name(simulated, tmp_path):
     """A vehicle whose file says [sensors] correvit = false: its logger writes the GNSS/INS forward velocity as
     "GPS_Vel_X" in km/h; the config maps gnss_vx to it and declares its zero offset (0.03 m/s, in the suite's
@@ -124,6 +126,8 @@ def test_a_channel_the_vehicle_has_not_is_refused(tmp_path, section, words):
         assert w in str(exc.value), (w, str(exc.value))
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_without_uncertainty_the_vehicle_suites_offsets_make_sigma_total(noisy, tmp_path):
     """The tutorial's config (no [uncertainty]) on the simulated 406 with the suite's noise and zero offsets:
     σ total carries the 406's sensor suite's zero offsets (every channel with a `bias`), names them and their
@@ -151,6 +155,8 @@ def test_without_uncertainty_the_vehicle_suites_offsets_make_sigma_total(noisy, 
     ('offsets = "none"', "none", set()),
     ("offsets = {}", "none", set()),
 ])
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_explicit_offsets_replace_the_suites_and_none_turns_them_off(noisy, uncertainty, source, channels):
     """[uncertainty] offsets = { ... } replaces the vehicle suite's (only those channels move the estimates);
     offsets = "none", or an empty table, propagates none: σ total is σ."""
@@ -168,6 +174,8 @@ def test_explicit_offsets_replace_the_suites_and_none_turns_them_off(noisy, unce
         assert "No sensor zero offsets propagated" in run.notes
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_a_wheel_force_offset_moves_the_loads_alone(noisy):
     """The wheel-force channels' offsets are propagated without re-estimating the joints (`CarSetup.load_only`),
     the others' without undoing the sensor dynamics again (`CarSetup.compensated`): the rows' change equals the

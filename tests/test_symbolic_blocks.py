@@ -221,6 +221,7 @@ def test_c_block_regressor_matches_engine_and_pinocchio(N, tmp_path):
         close(W[:, pm.cols][:, :, moving_columns(pm, tree)], pinocchio_regressor(pm, tree, q, qd, qdd))
 
 
+@pytest.mark.slow
 def test_c_block_of_the_puma_and_the_car(tmp_path):
     """The benchmark's two identification models, with joint terms (sign()) and far angles (libm lanes)."""
     for stem, tree, opts in (("puma", dynid.load_model("puma560").tree, {}),

@@ -21,7 +21,7 @@ import pytest
 from dynid import Model
 from dynid.cli.main import main
 from dynid.cli.model_io_cmds import standard_from_base
-from dynid.model import INERTIAL, ModelError, load_tree, save_tree, tree_from_dict, tree_to_toml
+from dynid.model import INERTIAL, Mimic, ModelError, load_tree, save_tree, tree_from_dict, tree_to_toml
 from dynid.model.urdf import UrdfError, export_urdf, import_urdf, mdh_rows, row_transform, urdf_with_parameters
 
 pin = pytest.importorskip("pinocchio")
@@ -68,7 +68,7 @@ def robots_dir() -> Path | None:
 
 
 ROBOTS = {
-    "panda": "panda_description/urdf/panda.urdf",  # 7-axis arm + prismatic fingers (mimic removed)
+    "panda": "panda_description/urdf/panda.urdf",  # 7-axis arm + prismatic fingers (robot_text: mimic removed)
     "ur5": "ur_description/urdf/ur5_robot.urdf",
     "xarm7": "xarm_description/urdf/xarm7.urdf",  # 7-axis arm
     "kinova": "kinova_description/robots/kinova.urdf",  # continuous joints
@@ -80,7 +80,7 @@ ROBOTS = {
 def robot_text(name: str) -> str:
     d = robots_dir()
     if d is None:
-        pytest.skip("example-robot-data is not installed (pip install 'dynid[test]')")
+        pytest.skip("example-robot-data is not installed (pip install -e '.[test]' in the clone)")
     return re.sub(r"<mimic[^>]*/>", "", (d / ROBOTS[name]).read_text(encoding="utf-8"))
 
 
@@ -90,12 +90,163 @@ def test_robot_matches_pinocchio(name):
     assert e_tau <= TOL and e_w <= TOL, (e_tau, e_w)
 
 
-def test_panda_mimic_is_refused():
+# ------------------------------------------------------------------------------------------ mimic and frozen joints
+def robot_file(name: str) -> Path:
     d = robots_dir()
     if d is None:
-        pytest.skip("example-robot-data is not installed")
-    with pytest.raises(UrdfError, match=r'panda_finger_joint2.*mimic.*remove its <mimic>'):
-        import_urdf(d / ROBOTS["panda"])
+        pytest.skip("example-robot-data is not installed (pip install 'dynid[test]')")
+    return d / ROBOTS[name]
+
+
+def states(n: int, samples: int = 8, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-2, 2, (samples, n)), rng.normal(size=(samples, n)), rng.normal(size=(samples, n))
+
+
+def mimic_errors(text: str, tree) -> dict[str, float]:
+    """Max relative errors of dynid's inverse dynamics, regressor @ X and inertia matrix on a tree with mimic joints
+    against two oracles on the same URDF text: Pinocchio's own mimic joints (buildModelFromXML(mimic=True): rnea,
+    crba), and the generalized-force projection tau_master = tau_1 + ratio tau_2 of Pinocchio's rnea on the model
+    with every joint independent, at q_follower = ratio q_master + offset (virtual work for a linear constraint)."""
+    pm, pfull = pin.buildModelFromXML(text, mimic=True), pin.buildModelFromXML(text)
+    data, dfull = pm.createData(), pfull.createData()
+    frame = {name: j for j, name in tree.joint_names.items()}
+    actuated = [frame[pm.names[i]] - 1 for i in range(1, pm.njoints) if pm.joints[i].nv > 0]
+    every = [frame[pfull.names[i]] - 1 for i in range(1, pfull.njoints)]
+    assert sorted(actuated) == [j - 1 for j in tree.equations]
+    q, qd, qdd = states(tree.n)
+    model = Model(tree)
+    tau, WX = model.inverse_dynamics(q, qd, qdd), model.regressor(q, qd, qdd) @ tree.parameters
+    M = model.inertia_matrix(q)
+    err = dict.fromkeys(("pin mimic", "projection", "regressor", "crba", "follower"), 0.0)
+    for s in range(q.shape[0]):
+        qs, qds, qdds = q[s].copy(), qd[s].copy(), qdd[s].copy()
+        ref = pin.rnea(pm, data, qs[actuated], qds[actuated], qdds[actuated])
+        err["pin mimic"] = max(err["pin mimic"], rel(tau[s, actuated], ref))
+        err["regressor"] = max(err["regressor"], rel(WX[s, actuated], ref))
+        Mp = pin.crba(pm, data, qs[actuated])
+        Mp = np.triu(Mp) + np.triu(Mp, 1).T
+        err["crba"] = max(err["crba"], rel(M[s][np.ix_(actuated, actuated)], Mp))
+        for j, m in tree.mimic.items():  # the follower's motion is its master's
+            qs[j - 1] = m.ratio * qs[m.master - 1] + m.offset
+            qds[j - 1], qdds[j - 1] = m.ratio * qds[m.master - 1], m.ratio * qdds[m.master - 1]
+        full = np.zeros(tree.n)
+        full[every] = pin.rnea(pfull, dfull, qs[every], qds[every], qdds[every])
+        for j, m in tree.mimic.items():
+            full[m.master - 1] += m.ratio * full[j - 1]
+            err["follower"] = max(err["follower"], abs(tau[s, j - 1]))
+        err["projection"] = max(err["projection"], rel(tau[s, actuated], full[actuated]))
+    return err
+
+
+def test_panda_imports_unedited_with_its_mimic_finger():
+    """example-robot-data's panda.urdf as shipped: panda_finger_joint2 mimics panda_finger_joint1. Inverse dynamics,
+    regressor and inertia matrix equal Pinocchio's mimic model and the projection of its independent-joint model."""
+    path = robot_file("panda")
+    tree = import_urdf(path).tree
+    fingers = tree.frame_of("panda_finger_joint1"), tree.frame_of("panda_finger_joint2")
+    assert tree.mimic == {fingers[1]: Mimic(fingers[0], 1.0, 0.0)} and len(tree.equations) == 8
+    err = mimic_errors(path.read_text(encoding="utf-8"), tree)
+    assert max(err.values()) <= TOL, err
+
+
+def test_mimic_with_ratio_and_offset_matches_pinocchio():
+    """A revolute joint following another at ratio -1.7 and offset 0.3 rad, on a branch and behind a fixed joint."""
+    text = robot(link("base"), link("a"), link("b", 1.5), link("c", 0.8), link("flange", 0.3), link("d", 0.6),
+                 joint("j1", "revolute", "base", "a"), joint("j2", "revolute", "a", "b", axis="1 0 0"),
+                 joint("f", "fixed", "b", "flange", axis=None),
+                 joint("j3", "revolute", "flange", "c", axis="0 1 0",
+                       extra='<mimic joint="j2" multiplier="-1.7" offset="0.3"/>'),
+                 joint("j4", "prismatic", "a", "d", axis="0 0.6 0.8", extra='<mimic joint="j1" multiplier="0.05"/>'))
+    tree = import_urdf(text).tree
+    f = tree.frame_of
+    assert tree.mimic == {f("j3"): Mimic(f("j2"), -1.7, 0.3), f("j4"): Mimic(f("j1"), 0.05, 0.0)}
+    err = mimic_errors(text, tree)
+    assert max(err.values()) <= TOL, err
+    base = Model(tree).base_parameters()  # the followers' bodies regroup into what their masters' equations see
+    assert base.rank > 0
+
+
+@pytest.mark.parametrize("how", ["joints", "freeze open", "freeze closed"])
+def test_panda_fingers_frozen_match_pinocchio_reduced_model(how, tmp_path):
+    """The gripper held still (--joints naming the arm's 7, or --freeze): the arm's inverse dynamics equal
+    Pinocchio's model reduced with the fingers locked (buildReducedModel) at the same opening."""
+    path = robot_file("panda")
+    arm = [f"panda_joint{i}" for i in range(1, 8)]
+    opening = {"joints": 0.0, "freeze open": 0.035, "freeze closed": 0.0}[how]
+    kw = {"joints": arm} if how == "joints" else {"freeze": {"panda_finger_joint1": opening}}
+    tree = import_urdf(path, **kw).tree
+    assert tree.n == 7 and not tree.mimic
+    assert tree.frozen == {"panda_finger_joint1": opening, "panda_finger_joint2": opening}
+    full = pin.buildModelFromXML(path.read_text(encoding="utf-8"))
+    locked = [full.getJointId(f"panda_finger_joint{k}") for k in (1, 2)]
+    q_ref = pin.neutral(full)
+    for jid in locked:
+        q_ref[full.idx_qs[jid]] = opening
+    pm = pin.buildReducedModel(full, locked, q_ref)
+    data = pm.createData()
+    cols = [tree.frame_of(pm.names[i]) - 1 for i in range(1, pm.njoints)]
+    q, qd, qdd = states(7)
+    tau = Model(tree).inverse_dynamics(q, qd, qdd)
+    e = max(rel(tau[s, cols], pin.rnea(pm, data, q[s, cols], qd[s, cols], qdd[s, cols])) for s in range(8))
+    assert e <= TOL
+    # the model file keeps what was frozen, so that an export finds the same frames in the same URDF
+    save_tree(tree, tmp_path / "arm.toml")
+    back = load_tree(tmp_path / "arm.toml")
+    assert back.frozen == tree.frozen
+    out, _ = urdf_with_parameters(back, path)
+    assert rel(import_urdf(out, freeze=tree.frozen).tree.parameters, tree.parameters) < 1e-12
+
+
+def test_ur5_imports_unedited():
+    path = robot_file("ur5")
+    e_tau, e_w = pin_errors(path.read_text(encoding="utf-8"))
+    assert e_tau <= TOL and e_w <= TOL
+    assert not import_urdf(path).tree.mimic
+
+
+def test_mimic_model_file_round_trip(tmp_path):
+    tree = import_urdf(robot_file("panda")).tree
+    save_tree(tree, tmp_path / "panda.toml")
+    back = load_tree(tmp_path / "panda.toml")
+    assert back.mimic == tree.mimic and back.frames == tree.frames
+    assert '[mimic]\n9 = { follows = 8, ratio = 1.0, offset = 0.0 }' in (tmp_path / "panda.toml").read_text()
+
+
+MIMIC_BAD = {
+    "no master": ('<mimic joint="j9"/>', None, None, r'<joint name="j2">: <mimic joint="j9">: no such joint'),
+    "fixed master": ('<mimic joint="f"/>', None, None, r'<mimic joint="f">: that joint is fixed'),
+    "freeze follower alone": ('<mimic joint="j1"/>', {"j2": 0.1}, None, r"--freeze 'j2': it mimics 'j1', which moves"),
+    "freeze unknown": ("", {"j22": 0.0}, None, r"--freeze 'j22': no such joint; did you mean 'j2'"),
+    "freeze fixed": ("", {"f": 0.0}, None, r"--freeze 'f': the joint is fixed"),
+    "select follower": ('<mimic joint="j1"/>', None, ["j2"], r"--joints 'j2': it mimics 'j1'; select that joint"),
+    "select unknown": ("", None, ["j1", "jx"], r"--joints 'jx': no such joint"),
+}
+
+
+@pytest.mark.parametrize("name", list(MIMIC_BAD))
+def test_mimic_and_freeze_errors_are_one_line(name):
+    extra, freeze, joints, pattern = MIMIC_BAD[name]
+    text = robot(link("base"), link("a"), link("b"), link("c"), joint("j1", "revolute", "base", "a"),
+                 joint("j2", "revolute", "a", "b", extra=extra), joint("f", "fixed", "a", "c", axis=None))
+    with pytest.raises(UrdfError, match=pattern) as info:
+        import_urdf(text, freeze=freeze, joints=joints)
+    assert "\n" not in str(info.value)
+
+
+def test_cli_import_freeze_and_joints(tmp_path, capsys):
+    path = robot_file("panda")
+    out = tmp_path / "arm.toml"
+    assert main(["model", "import", str(path), "--out", str(out), "--freeze", "panda_finger_joint1=0.02"]) == 0
+    said = capsys.readouterr().out
+    assert "7 moving joints" in said and "frozen: panda_finger_joint1 = 0.02, panda_finger_joint2 = 0.02" in said
+    bad = ["--freeze", "panda_finger_joint1=x"]
+    assert main(["model", "import", str(path), "--out", str(tmp_path / "b.toml"), *bad]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--freeze 'panda_finger_joint1=x'" in err
+    assert main(["model", "import", str(path), "--out", str(tmp_path / "c.toml"), "--joints",
+                 ",".join(f"panda_joint{i}" for i in range(1, 8))]) == 0
+    assert load_tree(tmp_path / "c.toml").n == 7
 
 
 def test_talos_uses_helper_frames_and_names_moving_ones():
@@ -187,7 +338,8 @@ def test_mdh_rows_reproduce_random_transforms():
 # ------------------------------------------------------------------------------------------ errors
 BAD = {
     "mimic": (robot(link("base"), link("a"), link("b"), joint("j1", "revolute", "base", "a"),
-                    joint("j2", "revolute", "a", "b", extra='<mimic joint="j1"/>')), r'<joint name="j2">.*mimic'),
+                    joint("j2", "revolute", "a", "b", extra='<mimic joint="j3"/>')),
+              r'<joint name="j2">: <mimic joint="j3">: no such joint'),
     "floating": (robot(link("base"), link("a"), joint("free", "floating", "base", "a")),
                  r'<joint name="free">: type="floating"'),
     "planar": (robot(link("base"), link("a"), joint("pl", "planar", "base", "a")), r'<joint name="pl">: type="planar"'),
@@ -370,3 +522,30 @@ def test_cli_export_params_toml_and_errors(tmp_path, capsys):
     (tmp_path / "typo.toml").write_text("MM1 = 1.0\n")
     assert main([*args, "--params", str(tmp_path / "typo.toml")]) == 2
     assert "'MM1' is not a parameter" in capsys.readouterr().err
+
+
+def test_mimic_kinematics_match_pinocchio():
+    """The Panda's right finger (a mimic) placed and its Jacobian taken as Pinocchio's mimic model does: the
+    finger's column of q is ignored, and its motion is in the first finger's column (J G)."""
+    path = robot_file("panda")
+    tree = import_urdf(path).tree
+    pm = pin.buildModelFromXML(path.read_text(encoding="utf-8"), mimic=True)
+    data = pm.createData()
+    frame = {name: j for j, name in tree.joint_names.items()}
+    actuated = [frame[pm.names[i]] - 1 for i in range(1, pm.njoints) if pm.joints[i].nv > 0]
+    right = tree.frame_of("panda_finger_joint2")
+    jid = pm.getJointId("panda_finger_joint2")
+    q = states(tree.n)[0]
+    q[:, right - 1] = 123.0  # ignored
+    model = Model(tree)
+    T, J = model.transforms(q), model.jacobian(q, right)
+    assert np.all(J[:, :, right - 1] == 0.0)
+    for s in range(q.shape[0]):
+        pin.forwardKinematics(pm, data, q[s, actuated])
+        M = data.oMi[jid]
+        # dynid's frame has the URDF link frame's origin; its z is the joint axis (0 -1 0 in the link frame)
+        assert np.abs(T[s, right][:3, 3] - M.translation).max() < 1e-12
+        assert np.abs(T[s, right][:3, 2] - M.rotation @ np.array([0.0, -1.0, 0.0])).max() < 1e-12
+        pin.computeJointJacobians(pm, data, q[s, actuated])
+        Jp = pin.getJointJacobian(pm, data, jid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        assert np.abs(J[s][:, actuated] - Jp).max() < 1e-12

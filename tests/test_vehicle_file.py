@@ -185,6 +185,12 @@ BAD = [  # (change, words in the one-line error)
     (lambda s: s.replace("[wheels]", '[wheels]\ntire_law = "quadratic"'), ["[wheels] tire_law = 'quadratic'",
                                                                           "paper, progressive"]),
     (lambda s: s.replace("[wheels]", '[wheels]\ntire_law = "progressive"'), None),
+    (lambda s: s.replace("[axles.front]", '[axles.front]\ndamper_friction = "tanh"'),
+     ["[axles.front] damper_friction = 'tanh'", "vs_m_s"]),
+    (lambda s: s.replace("[axles.rear]", '[axles.rear]\ndamper_friction = { shape = "tanh", vs_m_s = 2.0 }'),
+     ["[axles.rear] damper_friction vs_m_s = 2.0", "(0, 0.5]"]),
+    (lambda s: s.replace("[axles.rear]", '[axles.rear]\ndamper_friction = { shape = "sigmoid", vs_m_s = 0.002 }'),
+     None),
 ]
 
 

@@ -2,9 +2,30 @@
 
 from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from ._version import __version__
-from .dynamics import BaseParameters, Model, Wrench, load_model
-from .model import EXAMPLES, ModelError, Tree, example_path, load_tree, save_tree
+
+if TYPE_CHECKING:
+    from .dynamics import BaseParameters, Model, Wrench, load_model
+    from .model import EXAMPLES, ModelError, Tree, example_path, load_tree, save_tree
+
+# each public name and the sub-package it comes from, imported on first use: `import dynid` (and so
+# `dynid --version`, `dynid --help`) loads no NumPy, SciPy or Numba
+_LAZY = {
+    "BaseParameters": "dynamics", "Model": "dynamics", "Wrench": "dynamics", "load_model": "dynamics",
+    "EXAMPLES": "model", "ModelError": "model", "Tree": "model", "example_path": "model", "load_tree": "model",
+    "save_tree": "model",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module 'dynid' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value  # later look-ups find it directly
+    return value
 
 
 def identify(config, progress=None, scheduler=None):

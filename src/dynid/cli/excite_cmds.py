@@ -115,7 +115,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     tree = model.tree
-    moving = [f for f in tree.frames if f.sigma != 2]
+    moving = [tree.frames[j - 1] for j in tree.equations]  # neither fixed frames nor mimic joints
     if args.limits is None:
         limits = Limits.default([f.sigma == 1 for f in moving])
         print("dynid: no --limits: using the stand-ins ±2.5 rad, 1.5 rad/s, 5 rad/s² (prismatic ±0.25 m, "
@@ -125,8 +125,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
     if len(noise) not in (1, len(moving)):
         raise ExcitationError(f"--noise: give one value or {len(moving)} (one per moving joint), got {len(noise)}")
 
-    def say(msg: str) -> None:
-        print(f"· {msg}", file=sys.stderr)
+    from .progress import report as say  # the starts as a bar with its time left on a terminal
 
     d = design_excitation(model, limits, period=args.period, harmonics=args.harmonics, samples=args.samples,
                           scale=args.scale, starts=args.starts, optimise=args.refine, maxiter=args.maxiter,

@@ -6,36 +6,18 @@ import argparse
 import errno
 import sys
 from collections.abc import Sequence
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .._version import __version__
-from ..model import ModelError, Tree
+from .model_table import format_table
 
-SIGMA = {0: "R", 1: "P", 2: "F"}
+if TYPE_CHECKING:  # the model layer (NumPy) is imported by the commands that use it: --help and --version stay quick
+    from ..model import Tree
 
 DESCRIPTION = """\
 dynid identifies the dynamic parameters of robots and cars (masses, inertias, friction,
 springs) from measurements with the inverse dynamic identification model and least squares,
 and reports them with their uncertainty, validation and physical consistency."""
-
-
-def format_table(tree: Tree) -> str:
-    """The geometric table in SYMORO's layout (angles in degrees where that reads better)."""
-    head = f"{'j':>3} {'a(j)':>4} {'sigma':>5} {'gamma':>9} {'b':>8} {'alpha':>9} {'d':>8} {'theta':>9} {'r':>8}"
-    lines = [head]
-    for f in tree.frames:
-        th = f"q{f.j}" + (f"{np.degrees(f.theta):+.4g}°" if f.theta else "") if f.sigma == 0 else _deg(f.theta)
-        r = f"q{f.j}" + (f"{f.r:+.4g}" if f.r else "") if f.sigma == 1 else f"{f.r:.4g}"
-        lines.append(
-            f"{f.j:>3} {f.ant:>4} {SIGMA[f.sigma]:>5} {_deg(f.gamma):>9} {f.b:>8.4g} {_deg(f.alpha):>9} "
-            f"{f.d:>8.4g} {th:>9} {r:>8}"
-        )
-    return "\n".join(lines)
-
-
-def _deg(a: float) -> str:
-    return f"{np.degrees(a):.4g}°" if a else "0"
 
 
 def format_parameters(tree: Tree) -> str:
@@ -53,6 +35,7 @@ def format_parameters(tree: Tree) -> str:
 
 def cmd_model_show(args: argparse.Namespace) -> int:
     from ..dynamics import load_model
+    from ..model import ModelError
 
     if args.template:
         from .vehicle_cmds import show_template
@@ -85,8 +68,11 @@ def cmd_model_show(args: argparse.Namespace) -> int:
 
 def _say(msg: str) -> None:
     from ..atomic import final_text
+    from ..progress import Count
+    from .progress import report
 
-    print(f"· {final_text(msg)}", file=sys.stderr)  # the output folder's name, never its staging folder's
+    # the output folder's name, never its staging folder's; a count (segments) is drawn as a bar on a terminal
+    report(msg if isinstance(msg, Count) else final_text(msg))
 
 
 def _print_run(run, validation_title: str) -> None:
@@ -101,6 +87,8 @@ def _print_run(run, validation_title: str) -> None:
     print(validation_table(run.errors, run.not_excited))
     if run.delays is not None:
         print(f"\n{run.delays.text()}")
+    if getattr(run, "tires", None) is not None:
+        print(f"\n{run.tires.text()}")
 
 
 def _positive_int(text: str) -> int:
@@ -275,7 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "(default: dynid-out)")
     ident.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="where the segments run: \"local\" (a Dask LocalCluster on this machine) or a Dask "
-                            "scheduler's address (tcp://host:8786; needs pip install 'dynid[dask]'); default: the "
+                            "scheduler's address (tcp://host:8786; needs pip install distributed); default: the "
                             "config's [compute] scheduler, else this machine's threads")
     ident.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                        help="threads, or a LocalCluster's worker processes (default: the config's, else 2); a remote "
@@ -295,6 +283,7 @@ def _user_errors() -> tuple[type[Exception], ...]:
     from ..atomic import OutputError
     from ..estimation.errors import IdentificationError
     from ..io.errors import DataError, MissingDependencyError
+    from ..model import ModelError
     from ..signals.errors import SignalError
     from ..symbolic.expr import SymbolicError
     from ..textfiles import TextEncodingError
@@ -328,6 +317,12 @@ def _os_error_text(exc: OSError, out: object) -> str:
     return f"{where}{what}"
 
 
+def _end_bars() -> None:
+    from .progress import report
+
+    report.close()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from ..atomic import Terminated, final_text
     from .usage import check_options
@@ -336,7 +331,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         check_options(args)
-        return int(args.func(args) or 0)
+        try:
+            return int(args.func(args) or 0)
+        finally:  # a bar an error interrupted is ended (its line finished) before the error's line
+            _end_bars()
     except _user_errors() as exc:
         print(f"dynid: error: {final_text(str(exc))}", file=sys.stderr)
         return 2

@@ -6,9 +6,12 @@ import argparse
 import json
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..atomic import add_force, refuse_overwrite
-from ..model import INERTIAL, ModelError, Tree
+
+if TYPE_CHECKING:  # the model layer (NumPy) is imported where used: `dynid --help` stays quick
+    from ..model import Tree
 
 _STANDARD = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FV|FS|OFF|K)(\d+)$")
 
@@ -26,6 +29,15 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
     imp.add_argument("urdf", help="the URDF file (expanded, not .xacro), e.g. robot.urdf")
     imp.add_argument("--out", required=True, help="model file to write (TOML), e.g. --out robot.toml")
     imp.add_argument("--name", default=None, help="model name (default: the URDF's robot name), e.g. --name panda")
+    imp.add_argument("--joints", default=None,
+                     help="the identified chain: the moving joints to keep, comma-separated; every other one is "
+                          "frozen (held still, at its --freeze value or 0) with the joints that mimic it, e.g. "
+                          "--joints panda_joint1,panda_joint2,panda_joint3,panda_joint4,panda_joint5,panda_joint6,"
+                          "panda_joint7")
+    imp.add_argument("--freeze", default=None,
+                     help="moving joints to hold still, comma-separated NAME or NAME=VALUE (rad or m, default 0), "
+                          "merged into the body they hang from; a joint that mimics a frozen one follows it, e.g. "
+                          "--freeze panda_finger_joint1=0.04")
     add_force(imp)
     imp.set_defaults(func=cmd_import)
     exp = command(
@@ -52,7 +64,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     from ..model.urdf import import_urdf
 
     refuse_overwrite([args.out], args.force)
-    imp = import_urdf(args.urdf, name=args.name)
+    freeze = _freeze_option(args.freeze, args.urdf)
+    joints = None if args.joints is None else [j.strip() for j in args.joints.split(",") if j.strip()]
+    imp = import_urdf(args.urdf, name=args.name, freeze=freeze, joints=joints)
     tree = imp.tree
     _write(lambda: save_tree(tree, args.out), args.out)
     moving = len(tree.joint_names)
@@ -60,13 +74,37 @@ def cmd_import(args: argparse.Namespace) -> int:
     merged = sum(len(v) for v in imp.merged.values())
     print(f"{args.urdf}: {tree.name}, {moving} moving joints"
           + (f", {helpers} fixed frame(s) inserted for nearly parallel offset axes" if helpers else "")
-          + (f", {merged} link(s) merged through fixed joints" if merged else ""))
+          + (f", {merged} link(s) merged through fixed joints" if merged else "")
+          + (f", {len(tree.mimic)} mimic joint(s) following their master ("
+             + ", ".join(f"{tree.joint_names[j]} = {m.ratio:g} {tree.joint_names[m.master]} + {m.offset:g}"
+                         for j, m in sorted(tree.mimic.items())) + ")" if tree.mimic else "")
+          + (f", frozen: {', '.join(f'{k} = {v:g}' for k, v in tree.frozen.items())}" if tree.frozen else ""))
     print(f"wrote {args.out} ({tree.n} frames, {tree.p} parameters)")
     return 0
 
 
+def _freeze_option(text: str | None, where: str) -> dict[str, float] | None:
+    """--freeze a,b=0.01 -> {a: 0.0, b: 0.01}."""
+    from ..model import ModelError
+
+    if text is None:
+        return None
+    out = {}
+    for item in (x.strip() for x in text.split(",")):
+        if not item:
+            continue
+        name, _, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value) if value.strip() else 0.0
+        except ValueError:
+            raise ModelError(f"{where}: --freeze {item!r}: the value after = must be a number (rad or m), like "
+                             f"--freeze {name.strip()}=0.04") from None
+    return out
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from ..dynamics import load_model
+    from ..model import ModelError
     from ..model.urdf import export_urdf
 
     refuse_overwrite([args.out], args.force)
@@ -74,17 +112,64 @@ def cmd_export(args: argparse.Namespace) -> int:
     if not tree.joint_names:
         raise ModelError(f"{args.model}: has no [joints] table, so its frames cannot be matched to URDF joints; "
                          f"make it with dynid model import")
-    values = None if args.params is None else read_parameters(args.params, tree)
+    plausible = _plausible(args.params, tree) if args.params else None
+    if plausible is not None:
+        values = plausible.values
+    else:
+        values = None if args.params is None else read_parameters(args.params, tree)
     what = args.params or args.model
     notes: list[str] = []
     _write(lambda: notes.extend(export_urdf(tree, args.urdf, args.out, values, what=what)), args.out)
     for note in notes:
         print(f"note: {note}")
+    if plausible is not None:
+        name, z = plausible.worst
+        print(f"the standard set closest to {args.model} in each link's units that is physically plausible "
+              f"(pseudo-inertia positive definite with a margin, centre of mass inside the link) reproduces the "
+              f"estimate to chi-square {plausible.chi2:.3g} (σ² units; the base parameter moved most: {name}, "
+              f"{z:+.2f} σ). How far each link moved from {args.model}:")
+        for line in plausible.moves:
+            print(f"  {line}")
+        for line in plausible.warnings:
+            print(f"warning: {line}: more than the file's 10 % prior; the data moved it there (weigh the link, or "
+                  "excite it)")
     print(f"wrote {args.out} (inertials of {len(tree.joint_names)} links from {what})")
     return 0
 
 
+def _plausible(params: str, tree: Tree):
+    """For an identification's results.json (base parameters with their σ) and the pc extra installed: the
+    physically plausible standard set closest to the model file (pipeline.run.plausible_export); else None."""
+    p = Path(params)
+    if p.suffix.lower() != ".json":
+        return None
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+        import cvxpy  # noqa: F401  (the pc extra)
+    except (OSError, json.JSONDecodeError, ImportError):
+        return None  # read_parameters says what is wrong with the file; without cvxpy the exact regrouping
+    if not isinstance(data, dict) or "base_parameters" not in data or not isinstance(data.get("parameters"), list):
+        return None
+    from ..dynamics import Model
+    from ..estimation.errors import IdentificationError
+    from ..model import ModelError
+    from ..pipeline.run import plausible_export
+
+    rows = [r for r in data["parameters"] if isinstance(r, dict) and "name" in r]
+    values = {str(r["name"]): float(r["value"]) for r in rows}
+    std = {str(r["name"]): float(r.get("std") or 0.0) for r in rows}
+    base = Model(tree).base_parameters()
+    if set(values) != set(base.names):
+        return None  # read_parameters names the mismatch
+    try:
+        return plausible_export(tree, base, values, std)
+    except IdentificationError as exc:
+        raise ModelError(f"{params}: {exc}") from None
+
+
 def _write(action, out: str) -> None:
+    from ..model import ModelError
+
     try:
         action()
     except OSError as exc:
@@ -93,6 +178,8 @@ def _write(action, out: str) -> None:
 
 def read_parameters(path: str, tree: Tree) -> dict[str, float]:
     """Standard parameter values from a results.json (base parameters) or a TOML parameter file."""
+    from ..model import ModelError
+
     p = Path(path)
     if p.suffix.lower() == ".json":
         try:
@@ -130,6 +217,8 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
 
 
 def _json_table(data: object, p: Path) -> dict[str, float]:
+    from ..model import ModelError
+
     params = data.get("parameters") if isinstance(data, dict) else None
     if isinstance(params, list):
         out = {}
@@ -144,6 +233,8 @@ def _json_table(data: object, p: Path) -> dict[str, float]:
 
 
 def _standard(table: dict[str, float], tree: Tree, where: str) -> dict[str, float]:
+    from ..model import ModelError
+
     out = {}
     for k, v in table.items():
         try:
@@ -158,6 +249,7 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
     standard parameter X_1 takes X_B - beta X_2 with the regrouped X_2 at the model's (a priori) values.
     Only the inertial parameters are returned (a URDF has no joint terms)."""
     from ..dynamics import Model
+    from ..model import ModelError
 
     base = Model(tree).base_parameters()  # as the identification computed it (deterministic samples)
     unknown = [k for k in base_values if k not in base.names]
@@ -175,6 +267,8 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
 
 
 def _is_inertial(name: str) -> bool:
+    from ..model import INERTIAL
+
     m = _STANDARD.match(name)
     return bool(m) and m.group(1) in INERTIAL
 

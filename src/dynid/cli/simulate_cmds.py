@@ -17,10 +17,13 @@ import time
 
 from ..atomic import add_force, refuse_overwrite
 
+# the names of vehicle.sim.manoeuvres.DEFAULTS, spelt out because importing the simulator for `dynid --help` costs a
+# second; tests/test_cli.py holds the two equal
+MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "static")
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `simulate` to the top-level `dynid` sub-commands."""
-    from ..vehicle.sim.manoeuvres import DEFAULTS
     from .usage import command
 
     p = command(subparsers, "simulate", help="simulate a test-track manoeuvre and write the sensor file",
@@ -33,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                           "dynid simulate spiral --duration 30 --truth --out spiral.mf4"],
                 notes="The first run compiles the car's models (up to a minute); later runs load them from the "
                       "cache.")
-    p.add_argument("manoeuvre", help=f"one of {', '.join(DEFAULTS)}")
+    p.add_argument("manoeuvre", help=f"one of {', '.join(MANOEUVRES)}")
     p.add_argument("--speed", type=float, default=None, help="speed, km/h (default: the manoeuvre's)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the manoeuvre's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
@@ -50,41 +53,38 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def progress_bar(total: float):
-    """A progress bar on stderr for `total` simulated seconds: (report(t), close())."""
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        state = {"last": -1}
-
-        def report(t: float) -> None:
-            pct = int(100 * t / total)
-            if pct // 10 != state["last"] // 10:
-                print(f"  simulated {t:.0f} / {total:.0f} s", file=sys.stderr)
-                state["last"] = pct
-        return report, lambda: None
-    bar = tqdm(total=round(total, 3), unit="s", desc="simulating", file=sys.stderr, leave=False)
-    done = {"t": 0.0}
+    """Simulated seconds out of `total`: a bar on a terminal, a line every tenth otherwise: (report(t), close())."""
+    from ..progress import Count
+    from .progress import report as show
 
     def report(t: float) -> None:
-        bar.update(round(t - done["t"], 3))
-        done["t"] = t
-    return report, bar.close
+        show(Count("simulating", round(t, 3), round(total, 3), f"simulated {t:.0f} / {total:.0f} s", unit="s"))
+
+    return report, lambda: show.close("simulating")
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from ..atomic import OutputError
-    from ..pipeline.demo import simulated_car
+    from ..pipeline.demo import GENERATING, SLOW_BUILD_S, compile_pending, simulated_car
+    from ..progress import notice_if_slow
     from ..vehicle.description import load_vehicle
     from ..vehicle.sim import ManoeuvreError, SimulationError, manoeuvre
     from ..vehicle.sim.recording import check_output, write_test
+    from .progress import report as report_line
 
     try:
         m = manoeuvre(args.manoeuvre, speed=args.speed, duration=args.duration)
         path, _ = check_output(args.out, args.format)
         refuse_overwrite([path, path.with_suffix(".json")], args.force)
         t0 = time.perf_counter()
-        print("dynid: building the car (a first run compiles its models: up to a minute)", file=sys.stderr)
-        sim = simulated_car(args.vehicle)
+        say = report_line
+        say("building the car")
+        with notice_if_slow(SLOW_BUILD_S, GENERATING, say):
+            sim = simulated_car(args.vehicle)
+        pending = compile_pending(sim)
+        if pending is not False:  # numba compiles at the first call: a silent minute unless announced
+            say("compiling the simulator's models (first run only, up to a minute; cached for later runs)"
+                if pending else "loading the simulator's compiled models (up to a minute if they are not cached)")
         report, close = progress_bar(m.duration)
         t1 = time.perf_counter()
         try:

@@ -6,25 +6,26 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from ..atomic import add_force, refuse_overwrite
-from ..model import ModelError
-from ..model.consistency import check_physical
-from .main import format_table
+from .model_table import format_table
 
 TEMPLATES = ("peugeot406",)
 
 
 def show_template(name: str) -> str:
     """The full text for a template: MDH table, the three parameter sets, consistency, base parameters."""
+    import numpy as np
+
+    from ..model import ModelError
+    from ..model.consistency import check_physical
+
     if name not in TEMPLATES:
         raise ModelError(f"no car template {name!r}; templates: {', '.join(TEMPLATES)}")
     from ..vehicle import parameters as params
     from ..vehicle.equations import car_base_parameters
     from ..vehicle.geometry import CarGeometry
     from ..vehicle.statics import rest_state
-    from ..vehicle.template import CORNERS, WHEELS, car_template, paper_parameter_names, role
+    from ..vehicle.template import CHASSIS, CORNERS, WHEELS, car_template, corner_of, paper_parameter_names, role
 
     geometry = CarGeometry()
     sets = [params.a_priori(), params.paper_estimates(), params.truth(geometry)]
@@ -45,7 +46,7 @@ def show_template(name: str) -> str:
     lines = format_table(tree).splitlines()
     add(f"{lines[0]}  role")
     for fr, line in zip(tree.frames, lines[1:], strict=True):
-        where = "" if fr.j <= 6 else f", {CORNERS[(fr.j - 7) // 9]}"
+        where = "" if fr.j <= CHASSIS else f", {CORNERS[corner_of(fr.j)]}"
         add(f"{line}  {role(fr.j)}{where}{' (chassis)' if fr.j == 6 else ''}")
     add("Constant joints (half track, half wheelbase) keep their value in r; their q is 0.")
     add("")
@@ -133,13 +134,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from ..vehicle.description import load_vehicle, shipped_vehicles
+    import tomllib
+    from importlib.util import find_spec
 
-    for name in shipped_vehicles():
-        v = load_vehicle(name)
-        g = v.geometry
-        print(f"{name:<14} {v.name}: wheelbase {g.wheelbase:.3g} m, tracks {2 * g.front.half_track:.3g} / "
-              f"{2 * g.rear.half_track:.3g} m, {'with' if v.truth else 'no'} simulation truth")
+    # the shipped files are read as TOML, not loaded as vehicles: loading one builds its tables and template
+    # (NumPy, SciPy: two seconds) for three numbers; tests/test_vehicle_file.py loads every shipped vehicle.
+    # find_spec locates dynid.vehicle without running its __init__ (which imports all of it).
+    spec = find_spec("dynid.vehicle")
+    folder = Path(next(iter(spec.submodule_search_locations))) / "vehicles"  # type: ignore[union-attr]
+    for path in sorted(folder.glob("*.toml")):
+        v = tomllib.loads(path.read_text(encoding="utf-8"))
+        axles = v["axles"]
+        print(f"{path.stem:<14} {v['name']}: wheelbase {axles['wheelbase_m']:.3g} m, tracks "
+              f"{2 * axles['front']['half_track_m']:.3g} / {2 * axles['rear']['half_track_m']:.3g} m, "
+              f"{'with' if 'truth' in v else 'no'} simulation truth")
     return 0
 
 
@@ -153,8 +161,8 @@ def cmd_new(args: argparse.Namespace) -> int:
     refuse_overwrite([out], args.force)
     head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
             "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
-    lines = [line for line in vehicle_path("peugeot406").read_text(encoding="utf-8").splitlines()
-             if not line.startswith("# ")]
+    source = vehicle_path("peugeot406")
+    lines = [line for line in source.read_text(encoding="utf-8").splitlines() if not line.startswith("# ")]
     for i, line in enumerate(lines):  # JSON's string escapes are TOML's
         if line.startswith("name = "):
             lines[i] = f"name = {json.dumps(args.name)}"
@@ -162,9 +170,22 @@ def cmd_new(args: argparse.Namespace) -> int:
             lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
         elif line.startswith("unloaded_radius_known = "):  # the 406 is simulated; a real tire's radius is not known
             lines[i] = "unloaded_radius_known = false  # true only if radius_m is the unloaded radius to 0.1 mm"
-    write_atomic(out, "\n".join(head + lines).rstrip() + "\n")
+    write_atomic(out, "\n".join(head + lines).rstrip() + "\n" + _sheet_hint(source))
     print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")
     return 0
+
+
+def _sheet_hint(source: Path) -> str:
+    """A commented [a_priori.chassis]: the a priori chassis of the file a new one starts from, as a data sheet
+    gives it."""
+    from ..vehicle.description import chassis_sheet_keys, load_vehicle
+
+    v = load_vehicle(source)
+    keys = chassis_sheet_keys(v.a_priori.values, v.geometry)
+    keys.pop("cog_above_wheel_centres_m")
+    return ("\n# The chassis can be given as a data sheet gives it, instead of XX6 ... M6 (remove those):"
+            "\n# CoG and inertia at the CoG in ISO 8855 axes (x forward, y left, z up; docs/engineering.md)\n"
+            "# [a_priori.chassis]\n" + "".join(f"# {k} = {x:.4g}\n" for k, x in keys.items()))
 
 
 def cmd_show(args: argparse.Namespace) -> int:
@@ -174,11 +195,31 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def chassis_sheet_text(v) -> list[str]:
+    """The chassis of each parameter set as a data sheet gives it, under the keys of [a_priori.chassis] (13
+    significant digits: they read back to XX6..M6 to 1e-12)."""
+    from ..vehicle.description import CHASSIS_PARAMETERS, chassis_sheet_keys
+
+    sets = [("a priori", v.a_priori.values)]
+    sets += [("truth", v.truth.values)] if v.truth is not None else []
+    sets += [("known", v.known)] if all(n in v.known for n in CHASSIS_PARAMETERS) else []
+    sheets = [(name, chassis_sheet_keys(values, v.geometry)) for name, values in sets]
+    out = ["The chassis (sprung mass) as a data sheet gives it: CoG ahead of the rear axle, above the ground at design "
+           "ride height (or the wheel centres), to the left; inertia at the CoG in ISO 8855 axes (x forward, y left, "
+           "z up), products as the matrix's entries (-∫xz dm). [a_priori.chassis] (and [truth.chassis], "
+           "[known.chassis]) take these keys in place of XX6..M6:",
+           f"  {'key':<26}" + "".join(f" {name:>20}" for name, _ in sheets)]
+    for key in sheets[0][1]:
+        out.append(f"  {key:<26}" + "".join(f" {d[key]:>20.13g}" for _, d in sheets))
+    return out
+
+
 def show_vehicle(v) -> str:
     """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
+    from ..model.consistency import check_physical
     from ..model.tree import CURVE_TERMS
     from ..vehicle.equations import car_base_parameters, identified
-    from ..vehicle.template import CORNERS, WHEELS, paper_parameter_names, role
+    from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, meaning, paper_parameter_names, role
 
     tree = v.template()
     g = v.geometry
@@ -196,16 +237,18 @@ def show_vehicle(v) -> str:
     lines = format_table(tree).splitlines()
     out.append(f"{lines[0]}  role")
     for fr, line in zip(tree.frames, lines[1:], strict=True):
-        where = "" if fr.j <= 6 else f", {CORNERS[(fr.j - 7) // 9]}"
+        where = "" if fr.j <= CHASSIS else f", {CORNERS[corner_of(fr.j)]}"
         out.append(f"{line}  {role(fr.j)}{where}")
-    out += ["", f"  {'parameter':>9} {'a priori':>12} {'truth':>12} {'known':>10}"]
+    out += ["", f"  {'parameter':>9} {'a priori':>12} {'truth':>12} {'known':>10}  {'unit':<6}  corner, quantity"]
     # a damper's h, or its curve's slopes (a priori with [dampers] law = "curve", truth with a curve in [truth])
     names = [m for n in paper_parameter_names()
              for m in ((n,) if not n.startswith("FV") else (n, *(f"{t}{n[2:]}" for t in CURVE_TERMS)))]
     sets = [v.a_priori.values, {} if v.truth is None else v.truth.values, v.known]
     for n in (n for n in names if any(n in s for s in sets)):
         a, t, k = (f"{s[n]:.6g}" if n in s else "" for s in sets)
-        out.append(f"  {tree.label(n):>9} {a:>12} {t:>12} {k:>10}")
+        m = meaning(n)
+        what = f"  {m.unit:<6}  {m.text()}" if m is not None else ""
+        out.append(f"  {tree.label(n):>9} {a:>12} {t:>12} {k:>10}{what}")
     known = tree.with_values(v.known).with_known(set(v.known)) if v.known else tree
     base = car_base_parameters(known, "car")
     out += ["", f"Base parameters with the car's own motion (constant and tabulated joints still): {base.rank} "
@@ -214,6 +257,7 @@ def show_vehicle(v) -> str:
     for n, e in zip(base.names, base.expressions, strict=True):
         if e != n:
             out.append(f"    {tree.label(n):>6} = {e}")
+    out += ["", *chassis_sheet_text(v)]
     bad = check_physical(v.a_priori.values, frames=[6, *WHEELS])
     out += ["", "A priori chassis and wheels: " + ("physically realisable" if not bad else "NOT realisable:")]
     out += [f"  {b.message}" for b in bad]

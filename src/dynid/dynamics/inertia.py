@@ -28,6 +28,13 @@ def inertia_matrix(tree: Tree, q: Array, X: Array | None = None, *, backend: str
     backend: "numba", "numpy" or None (see newton_euler.resolve_backend).
     """
     X = tree.parameters if X is None else check_parameters(tree, X)
+    if tree.mimic:  # G^T M G on the followed posture: a follower's row and column are 0, its master's carry it
+        from .mimic import follow, project
+
+        qf = follow(tree, q, q, q)[0]
+        M = inertia_matrix(tree.unconstrained, qf, X, backend=backend)
+        every = range(1, tree.n + 1)
+        return project(tree, project(tree, M, every, axis=-1), every, axis=-2)
     if resolve_backend(backend) == "numba":
         M, single = _compiled_columns(tree, q, X)
     else:
@@ -81,7 +88,7 @@ def forward_dynamics(
     M = inertia_matrix(tree, q, X, backend=backend)
     if single:
         M, h = M[None], h[None]
-    move = tree.sigma[1:] != FIXED
+    move = np.isin(np.arange(1, tree.n + 1), tree.equations)  # not fixed frames, nor mimic joints
     Mm = M[:, move][:, :, move]
     rhs = (taus.T - h)[:, move]
     try:
@@ -95,4 +102,6 @@ def forward_dynamics(
         ) from None
     qdd = np.zeros((Mm.shape[0], tree.n))
     qdd[:, move] = sol
+    for j, m in tree.mimic.items():
+        qdd[:, j - 1] = m.ratio * qdd[:, m.master - 1]
     return qdd[0] if single else qdd

@@ -20,6 +20,7 @@ from ..model.tree import Tree
 from . import base as _base
 from . import inertia, newton_euler
 from . import regressor as _regressor
+from .mimic import follow, project
 from .newton_euler import Wrench
 
 Array = np.ndarray
@@ -56,18 +57,26 @@ class Model:
 
     # geometric and kinematic models
     def transforms(self, q: Array) -> Array:
-        """0T_j of all frames, (N, n+1, 4, 4)."""
+        """0T_j of all frames, (N, n+1, 4, 4); a mimic joint's column of q is ignored (it follows its master)."""
+        if self.tree.mimic:
+            q = follow(self.tree, q, q, q)[0]
         return forward.transforms(self.tree, q)
 
     def jacobian(self, q: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0) -> Array:
-        """Jacobian (N, 6, n) of a point fixed in `frame`: rows (linear, angular)."""
-        return forward.jacobian(self.tree, q, frame, point, expressed_in)
+        """Jacobian (N, 6, n) of a point fixed in `frame`: rows (linear, angular). A mimic joint's column is 0 and
+        its master's carries both (J G for the constraint qd_mimic = ratio qd_master)."""
+        if not self.tree.mimic:
+            return forward.jacobian(self.tree, q, frame, point, expressed_in)
+        J = forward.jacobian(self.tree.unconstrained, follow(self.tree, q, q, q)[0], frame, point, expressed_in)
+        return project(self.tree, J, range(1, self.n + 1), axis=-1)
 
     def jdot_qdot(
         self, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0
     ) -> Array:
-        """J-dot qd (N, 6) of the same point."""
-        return motion.jdot_qdot(self.tree, q, qd, frame, point, expressed_in)
+        """J-dot qd (N, 6) of the same point (a mimic joint's columns of q and qd follow its master)."""
+        if self.tree.mimic:
+            q, qd, _ = follow(self.tree, q, qd, qd)
+        return motion.jdot_qdot(self.tree.unconstrained, q, qd, frame, point, expressed_in)
 
     # dynamic models; backend: "numba" (compiled, the default when numba is installed) or "numpy"
     # (the batched reference engine), see dynamics.newton_euler.resolve_backend

@@ -254,8 +254,15 @@ def inverse_dynamics(
     """Joint forces/torques (N, n) that produce qdd at (q, qd) under gravity and the wrenches.
 
     tau = M(q) qdd + H(q, qd) + joint terms - J^T F_ext; X defaults to the model's values.
-    Fixed frames get 0. backend: "numba", "numpy" or None (see `resolve_backend`).
+    Fixed frames get 0, and so do mimic joints, whose force is in their master's (see `mimic`; their columns of
+    q, qd, qdd are ignored). backend: "numba", "numpy" or None (see `resolve_backend`).
     """
+    if tree.mimic:
+        from .mimic import follow, project
+
+        q, qd, qdd = follow(tree, q, qd, qdd)
+        tau = inverse_dynamics(tree.unconstrained, q, qd, qdd, wrenches, X, backend=backend)
+        return project(tree, tau, range(1, tree.n + 1), axis=-1)
     if resolve_backend(backend) == "numba":
         return _compiled_inverse_dynamics(tree, q, qd, qdd, wrenches, X)
     qs, single = joint_array(q, tree, "q")

@@ -135,7 +135,10 @@ def regressor(
     zeros. Without out, W is a new zeroed array.
     backend: "numba", "numpy" or None (see newton_euler.resolve_backend). The numba engine
     returns C-contiguous arrays; the numpy engine a view whose memory keeps samples last.
+    A mimic joint's row is 0 and its master's carries both (see `mimic`).
     """
+    if tree.mimic:
+        return _mimic_regressor(tree, q, qd, qdd, wrenches, rows, cols, out, backend)
     if resolve_backend(backend) == "numba":
         return _compiled_regressor(tree, q, qd, qdd, wrenches, rows, cols, out)
     W = _numpy_regressor(tree, q, qd, qdd, wrenches, rows, cols)
@@ -145,6 +148,27 @@ def regressor(
     check_out(out, Wn.shape)
     np.copyto(out, Wn)
     return (out, W[1]) if isinstance(W, tuple) else out
+
+
+def _mimic_regressor(tree: Tree, q, qd, qdd, wrenches, rows, cols, out, backend) -> Array | tuple[Array, Array]:
+    """The regressor of a tree with mimic joints: the unconstrained one on the followed motion, on the rows asked
+    for and the followers of their masters, projected (mimic.project), then the rows asked for."""
+    from .mimic import follow, project, rows_needed
+
+    R = resolve_rows(tree, rows)
+    need = rows_needed(tree, R)
+    q, qd, qdd = follow(tree, q, qd, qdd)
+    got = regressor(tree.unconstrained, q, qd, qdd, wrenches, need, cols, backend=backend)
+    W, Q = got if isinstance(got, tuple) else (got, None)
+    pick = [need.index(j) for j in R]
+    W = np.take(project(tree, W, need, axis=-2), pick, axis=-2)
+    if Q is not None:
+        Q = np.take(project(tree, Q, need, axis=-1), pick, axis=-1)
+    if out is not None:
+        check_out(out, W.shape)
+        np.copyto(out, W)
+        W = out
+    return (W, Q) if Q is not None else W
 
 
 def check_out(out: object, shape: tuple[int, ...]) -> None:

@@ -14,13 +14,23 @@ from .fit import FIT_RATIO, ModelFit, fit_note, misfit_parameters, model_fits
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .ols import ols
-from .quality import POOR_FACTOR, nrmse, poorly_identified, relative_errors, relative_std_percent
+from .quality import (
+    EXCITED_FACTOR,
+    POOR_FACTOR,
+    not_excited,
+    nrmse,
+    poorly_identified,
+    relative_errors,
+    relative_std_percent,
+    residual_rms,
+)
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
 from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
 
 __all__ = [
+    "EXCITED_FACTOR",
     "FIT_RATIO",
     "POOR_FACTOR",
     "RESIDUAL_TOL",
@@ -45,12 +55,14 @@ __all__ = [
     "iv",
     "misfit_parameters",
     "model_fits",
+    "not_excited",
     "nrmse",
     "ols",
     "poorly_identified",
     "propagate",
     "relative_errors",
     "relative_std_percent",
+    "residual_rms",
     "solve_lsq",
     "wls",
 ]

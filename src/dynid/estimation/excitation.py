@@ -51,6 +51,7 @@ import numpy as np
 import scipy.optimize
 from threadpoolctl import threadpool_limits
 
+from ..progress import Count
 from ..textfiles import read_toml
 from .errors import IdentificationError
 
@@ -332,7 +333,8 @@ class _Problem:
                  scale: str, smooth: float, rest: bool, margin: float) -> None:
         tree = model.tree
         self.model, self.limits, self.period, self.L = model, limits, float(period), int(harmonics)
-        self.joints = tuple(f.j for f in tree.frames if f.sigma != 2)
+        # the joints with an equation: neither fixed frames nor mimic joints (which follow their master's series)
+        self.joints = tuple(getattr(tree, "equations", None) or (f.j for f in tree.frames if f.sigma != 2))
         self.n, self.m = tree.n, len(self.joints)
         if limits.m != self.m:
             raise ExcitationError(f"the limits are for {limits.m} joints; model {tree.name!r} has {self.m} "
@@ -563,17 +565,31 @@ def _design(model: ModelLike, limits: Limits, period: float, harmonics: int, sam
     say(f"{starts} random starts: best condition number {conds[order[0]]:.4g}")
     cons = pb.constraints()
     best_C, best_f, iterations, messages = candidates[order[0]], math.log(conds[order[0]]), 0, []
+    refined = min(optimise, starts)
+    what = "optimising the best starts"
+    say(Count(what, 0, refined, f"optimising the best {refined} start(s) (SLSQP)", unit="start"))
     for rank, i in enumerate(order[:optimise]):
+        # a start takes many seconds: its iterations are counted as they run (a second apart at most), so that a
+        # bar shows life and its time left before the first start ends
+        tick = {"nit": 0, "said": time.perf_counter()}
+
+        def step(_x, rank=rank, tick=tick) -> None:
+            tick["nit"] += 1
+            if time.perf_counter() - tick["said"] >= 1.0:
+                tick["said"] = time.perf_counter()
+                say(Count(what, rank, refined, f"start {rank + 1}/{refined}: iteration {tick['nit']}", unit="start",
+                          note=f"start {rank + 1}: iteration {tick['nit']}"))
+
         res = scipy.optimize.minimize(pb.log_cond_grad, pb.variables(candidates[i]), jac=True, method="SLSQP",
-                                      constraints=cons, options={"maxiter": maxiter, "ftol": 1e-7})
+                                      constraints=cons, options={"maxiter": maxiter, "ftol": 1e-7}, callback=step)
         iterations += int(res.nit)
         messages.append(str(res.message))
         C = pb.coeffs(res.x)
         # judged on the exact criterion and the limits; SLSQP may stop slightly outside them
         C = pb.fit_to_limits(C, pb.S) if pb.limits.violation(*pb.states(C)) > 0 else C
         f = math.log(pb.cond(C))
-        say(f"start {rank + 1}/{min(optimise, starts)}: condition number {math.exp(f):.4g} "
-            f"({res.nit} iterations, {res.message})")
+        say(Count(what, rank + 1, refined, f"start {rank + 1}/{refined}: condition number {math.exp(f):.4g} "
+                  f"({res.nit} iterations, {res.message})", unit="start", note=f"start {rank + 1}: {math.exp(f):.4g}"))
         if f < best_f:
             best_C, best_f = C, f
     # verification on a grid ten times denser; between grid points the series may overshoot a little

@@ -21,7 +21,7 @@ I the inertia matrix about O_j in frame j (XX XY XZ; XY YY YZ; XZ YZ ZZ). J ⪰ 
 non-negative mass distribution has these moments; J ≻ 0 is exactly `model.consistency.check_body`'s three
 conditions (M > 0, inertia at the centre of mass positive definite, strict triangle inequalities).
 
-Solved with cvxpy and Clarabel (interior point), an optional extra: ``pip install 'dynid[pc]'``.
+Solved with cvxpy and Clarabel (interior point), the optional `pc` extra: ``pip install cvxpy clarabel``.
 This module works on arrays and names (K, the positions of each body's ten parameters, the non-negative
 ones); `pipeline.run` builds them from a tree and its base parameters.
 """
@@ -67,8 +67,8 @@ less than 1e-4 moves the estimate by less than 1e-2 σ (||L Δb||² <= Δchi² f
 convex set), so it does not matter; and the interior-point solution's duals of inactive constraints are
 complementary-slackness noise, about its gap (1e-8 relative) over the slack, far below."""
 
-_SOLVER_ERROR = ("method \"wls-pc\" needs the optional extra with cvxpy and the Clarabel solver: "
-                 "pip install 'dynid[pc]'")
+_SOLVER_ERROR = ("method \"wls-pc\" needs cvxpy and the Clarabel solver (dynid's optional 'pc' extra): "
+                 "pip install cvxpy clarabel")
 
 
 def require_cvxpy() -> Any:
@@ -381,6 +381,108 @@ _PRIOR_FLOOR = {"M": 0.1, "MX": 0.01, "MY": 0.01, "MZ": 0.01, "XX": 1e-3, "YY": 
                 "KQ": 1.0, "FVPL": 1e-2, "FVPH": 1e-2, "FVNL": 1e-2, "FVNH": 1e-2}
 
 
+PRIOR_SPREAD = 0.1
+"""`plausible_standard`'s prior: a body's pseudo-inertia in its own units (mass m0, second moments m0 L²,
+first moments m0 L) is trusted to this fraction, the 1-σ of a file's mass, of its centre of mass over the link's
+size and of its second moments. The data's χ² and these terms are then in the same σ² units."""
+
+PLAUSIBLE_MARGIN = 1e-3
+"""`plausible_standard`'s body margin, relative: J_j ⪰ 1e-3 · m0 · diag(L², L², L², 1), every body at least
+0.1 % of its a priori mass and of m0 L² about every axis (not a point, a rod or a plate of zero thickness)."""
+
+
+@dataclass(frozen=True)
+class Plausible:
+    """The standard set an export writes: `standard` ({name: value}); chi2 : how far its base values K s are
+    from the estimate, Σ ((K s - b) / σ)² over the estimated base parameters; worst : the base parameter moved
+    most, in σ, and that number; status : the solver's."""
+
+    standard: dict[str, float]
+    chi2: float
+    worst: tuple[str, float]
+    status: str
+
+
+def plausible_standard(structure: ConsistencyStructure, base_values: Mapping[str, float],
+                       base_std: Mapping[str, float], prior: Mapping[str, float],
+                       bodies: Mapping[int, tuple[float, float, np.ndarray, np.ndarray]], *,
+                       spread: float = PRIOR_SPREAD, margin: float = PLAUSIBLE_MARGIN,
+                       solver: str = "CLARABEL") -> Plausible:
+    """The physically plausible standard set closest to a model file's (`prior`) that reproduces an estimate
+    within its uncertainty: the maximum a posteriori set of a Gaussian prior on each body and the estimate's
+    Gaussian likelihood, under constraints,
+
+        min_s  Σ_k ((K s - b)_k / σ_k)²  +  Σ_j ||D_j (J_j(s) - J_j(s0)) D_j||_F² / (spread m0_j)²  +  (joint terms)
+        s.t.   J_j(s) ⪰ margin m0_j diag(L_j², L_j², L_j², 1),   lo_j m_j <= h_j <= hi_j m_j,   IA, FV, FS >= 0
+
+    with D_j = diag(1/L_j, 1/L_j, 1/L_j, 1): each body's pseudo-inertia difference in its own units (kg, m), so
+    that a kilogram on a 10 kg link and a centimetre on a 0.4 m one weigh by what they are to that link, not
+    by their raw numbers; and the box [lo_j, hi_j] (m, frame j) the link's extent, where its centre of mass
+    must lie. bodies: frame -> (m0 kg, L m, lo (3,), hi (3,)), from the model file; a body with m0 = 0 gets
+    neither prior nor box. A base parameter with σ = 0 (known) is held exactly; a joint term that is a base
+    parameter on its own follows the estimate, one that regroups (IA_j into ZZ_j) is held to the prior too
+    (relative to its size, `_PRIOR_FLOOR`).
+    Where the data determine a body well, the estimate wins; where they cannot see it, the file's values
+    stay; an estimate that no plausible body reproduces is met as closely as the σ allow (chi2, worst)."""
+    cp = require_cvxpy()
+    names = structure.standard_names
+    b = np.array([float(base_values[n]) for n in structure.base_names])
+    sd = np.array([float(base_std.get(n, 0.0)) for n in structure.base_names])
+    s0 = np.array([float(prior.get(n, 0.0)) for n in names])
+    import scipy.linalg
+
+    K = structure.base_map
+    held = sd <= 0
+    # s = s_p + N z: the held base values exact to round-off (an equality constraint would hold them only to the
+    # solver's tolerance)
+    s_p = np.linalg.lstsq(K[held], b[held], rcond=None)[0] if held.any() else np.zeros(len(names))
+    N = scipy.linalg.null_space(K[held]) if held.any() else np.eye(len(names))
+    z = cp.Variable(N.shape[1])
+    s = s_p + N @ z
+    terms = [cp.sum_squares(cp.multiply(1.0 / sd[~held], K[~held] @ s - b[~held]))] if (~held).any() else []
+    cons = []
+    in_body = np.zeros(len(names), dtype=bool)
+    for j, idx in structure.bodies.items():
+        J = cp.reshape(_T @ s[list(idx)], (4, 4), order="C")
+        J = 0.5 * (J + J.T)
+        m0, L, lo, hi = bodies.get(j, (0.0, 0.0, None, None))
+        if m0 > 0 and L > 0:
+            in_body[list(idx)] = True
+            D = np.diag([1 / L, 1 / L, 1 / L, 1.0])
+            J0 = pseudo_inertia(s0[list(idx)])
+            terms.append(cp.sum_squares(D @ (J - J0) @ D) / (spread * m0) ** 2)
+            cons.append(J - margin * m0 * np.diag([L * L, L * L, L * L, 1.0]) >> 0)
+            h, m = s[list(idx)[6:9]], s[idx[9]]
+            cons += [h - lo * m >= 0, hi * m - h >= 0]
+        else:
+            cons.append(J - MARGIN * np.eye(4) >> 0)
+    alone = np.zeros(len(names), dtype=bool)  # a base parameter on its own: the estimate fixes it, no prior
+    for row in K[np.count_nonzero(K, axis=1) == 1]:
+        alone |= row != 0
+    rest = ~in_body & ~alone
+    if rest.any():  # regrouped joint terms and bodies without a prior: near the file where the data leave them
+        floor = np.array([_PRIOR_FLOOR.get(n.rstrip("0123456789"), 1e-3) for n in names])
+        scale = np.maximum(np.abs(s0), floor)[rest]
+        terms.append(cp.sum_squares(cp.multiply(1.0 / (spread * scale), s[rest] - s0[rest])))
+    if structure.nonnegative:
+        cons.append(s[list(structure.nonnegative)] >= 0)
+    prob = cp.Problem(cp.Minimize(cp.sum(cp.hstack(terms)) if terms else 0), cons)
+    _solve(prob, solver, None)
+    if z.value is None or prob.status not in ("optimal", "optimal_inaccurate"):
+        raise IdentificationError(f"no physically plausible standard set: {solver} says {prob.status} (the "
+                                  "centres of mass may not fit in the links' boxes, or a known value contradicts "
+                                  "them)")
+    sv = s_p + N @ np.asarray(z.value, dtype=float)
+    if structure.nonnegative:
+        nn = list(structure.nonnegative)
+        sv[nn] = np.maximum(sv[nn], 0.0)
+    z = np.zeros(len(b))
+    z[~held] = (K[~held] @ sv - b[~held]) / sd[~held]
+    k = int(np.argmax(np.abs(z)))
+    return Plausible(dict(zip(names, sv.tolist(), strict=True)), float(z @ z),
+                     (structure.base_names[k], float(z[k])), str(prob.status))
+
+
 @dataclass(frozen=True)
 class Feasibility:
     """Whether some standard set reproduces given base values and is physically realisable.
@@ -428,5 +530,6 @@ def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str,
                        str(prob.status))
 
 
-__all__ = ["ACTIVE_PRICE", "MARGIN", "ConsistencyStructure", "Feasibility", "PhysicalFit", "feasible_standard",
-           "pseudo_inertia", "require_cvxpy", "wls_pc"]
+__all__ = ["ACTIVE_PRICE", "MARGIN", "PLAUSIBLE_MARGIN", "PRIOR_SPREAD", "ConsistencyStructure", "Feasibility",
+           "PhysicalFit", "Plausible", "feasible_standard", "plausible_standard", "pseudo_inertia", "require_cvxpy",
+           "wls_pc"]

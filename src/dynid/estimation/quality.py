@@ -13,6 +13,10 @@ from .errors import IdentificationError
 POOR_FACTOR = 20.0
 """Paper §7.2: a parameter whose %σ exceeds 20 times the smallest %σ is poorly identified."""
 
+EXCITED_FACTOR = 2.0
+"""A test excites an equation group when the RMS of its Y is at least this many times the identification's
+residual RMS in that group (the noise floor): below it, a relative error compares noise with noise."""
+
 
 def relative_std_percent(values: ArrayLike, std: ArrayLike) -> np.ndarray:
     """``100 * std / |value|`` (%), elementwise; inf for a zero estimate with std > 0, 0 when both are 0."""
@@ -36,6 +40,14 @@ def poorly_identified(rel_std_percent: Mapping[str, float], factor: float = POOR
         return list(rel_std_percent)
     limit = factor * min(finite)
     return [n for n, v in rel_std_percent.items() if not np.isfinite(v) or v > limit]
+
+
+def not_excited(signal_rms: Mapping[str, float], noise_rms: Mapping[str, float],
+                factor: float = EXCITED_FACTOR) -> list[str]:
+    """The groups a test barely moves, in `signal_rms`'s order: RMS of the test's Y (per group) below `factor`
+    times the identification's residual RMS there (`noise_rms`; a group without one is never called not
+    excited). Their relative error ||Y - W X|| / ||Y|| is noise over noise: say "not excited", not a percentage."""
+    return [g for g, rms in signal_rms.items() if rms < factor * noise_rms.get(g, 0.0)]
 
 
 def relative_errors(
@@ -74,6 +86,19 @@ def nrmse(
     out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(spread[name])) for name, idx in rows.items()}
     out["overall"] = norm_ratio(np.linalg.norm(res), np.sqrt(sum(float(s @ s) for s in spread.values())))
     return out
+
+
+def residual_rms(
+    W: ArrayLike,
+    Y: ArrayLike,
+    X: ArrayLike | Mapping[str, float],
+    groups: ArrayLike,
+    names: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """RMS of the residual ``Y_g - W_g X`` per equation group (no "overall"): on the identification rows, the
+    noise floor `not_excited` compares a test's signal with. Arguments as for `relative_errors`."""
+    res, _, rows = _residuals(W, Y, X, groups, names)
+    return {name: float(np.sqrt(np.mean(res[idx] ** 2))) for name, idx in rows.items()}
 
 
 def _residuals(W, Y, X, groups, names) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:

@@ -22,7 +22,8 @@ def require(module: str, what: str) -> ModuleType:
         return importlib.import_module(module)
     except ImportError as exc:
         package, extra = PACKAGES.get(module, (module.split(".")[0], None))
-        how = f"pip install 'dynid[{extra}]' (or pip install {package})" if extra else f"pip install {package}"
+        # the package itself: dynid is not on the package index, so 'dynid[extra]' is no install line
+        how = f"pip install {package} (dynid's {extra!r} extra)" if extra else f"pip install {package}"
         raise MissingDependencyError(f"{what} needs the optional package {package!r}, not installed: {how}") from exc
 
 

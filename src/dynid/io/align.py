@@ -25,7 +25,7 @@ from .checks import check_channel, locate
 from .errors import DataError, TimeBaseError
 
 if TYPE_CHECKING:
-    from .recording import Channel
+    from .channel import Channel
 
 KINDS = ("cubic", "linear")
 

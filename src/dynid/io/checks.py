@@ -29,7 +29,7 @@ from ..signals import SignalError, border_samples
 from .errors import GapError, MissingChannelError, RecordTooShortError, SaturationWarning, TimeBaseError
 
 if TYPE_CHECKING:
-    from .recording import Channel
+    from .channel import Channel
 
 _SHOWN = 5  # offending samples or spans listed in a message
 

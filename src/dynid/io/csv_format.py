@@ -21,7 +21,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import islice
@@ -35,21 +34,9 @@ from ..textfiles import encoding_problem
 from ._table import TIME_NAMES, Column, Grid, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording
+from .units import split_unit  # the header's "name [unit]": the rule every format's reader shares
 
 BLOCK_LINES = 65536  # lines parsed per NumPy call
-_HEADER_UNIT = re.compile(r"^(?P<name>.*?\S)\s*(?:\[(?P<u1>[^\[\]]*)\]|\((?P<u2>[^()]*)\))\s*$")
-
-
-def split_header_cell(cell: str) -> tuple[str, str]:
-    """'roll [deg]' -> ('roll', 'deg'); 'speed (km/h)' -> ('speed', 'km/h'); 'Fz' -> ('Fz', '')."""
-    cell = cell.strip()
-    m = _HEADER_UNIT.match(cell)
-    if m is None:
-        return cell, ""
-    unit = m.group("u1") if m.group("u1") is not None else m.group("u2")
-    return m.group("name").strip(), unit.strip()
-
-
 def _is_number(cell: str, decimal: str) -> bool:
     s = cell.strip()
     if decimal == ",":
@@ -69,8 +56,30 @@ def _guess_delimiter(header: str, path: Path) -> str:
     return best if counts[best] > 0 else ","
 
 
-def _numbered_lines(fh: io.TextIOBase, start: int) -> Iterator[tuple[int, str]]:
-    for number, line in enumerate(fh, start=start):
+# the longest line read: 10 000 channels of 25 characters is 250 kB; a file with no line end (a binary file named
+# .csv, one giant line) is refused at this length instead of held whole
+MAX_LINE = 16 * 2**20
+
+
+def bounded_lines(fh, label: str, start: int = 1, limit: int | None = None) -> Iterator[tuple[int, str | bytes]]:
+    """(number, line) of a text or binary file, each line with its end, none longer than `limit` characters (bytes,
+    default MAX_LINE): a longer one is a FileFormatError naming the line, read no further than the limit."""
+    limit = MAX_LINE if limit is None else limit
+    number = start
+    while True:
+        line = fh.readline(limit + 1)
+        if not line:
+            return
+        if len(line) > limit:
+            raise FileFormatError(f"{label}, line {number}: longer than {limit:,} characters (no line end found): "
+                                  "not a CSV of samples; check the file (a binary file named .csv?) and its line ends",
+                                  source=label, line=number)
+        yield number, line
+        number += 1
+
+
+def _numbered_lines(fh: io.TextIOBase, start: int, label: str = "") -> Iterator[tuple[int, str]]:
+    for number, line in bounded_lines(fh, label, start):
         yield number, line.rstrip("\r\n")
 
 
@@ -130,7 +139,7 @@ class CsvHeader:
 def _read_csv(path: Path, label: str, fs: float | None, time: str | None, delimiter: str | None, decimal: str,
               units_row: bool | None, units_in_header: bool, encoding: str) -> Recording:
     with open(path, encoding=encoding, newline="") as fh:
-        lines = _numbered_lines(fh, 1)
+        lines = _numbered_lines(fh, 1, label)
         head = read_header(lines, path, label, time, delimiter, decimal, units_row, units_in_header)
         data, present, line_numbers = parse_rows(
             _chain(head.pending, lines), len(head.names), head.names, head.delimiter, decimal, label
@@ -169,7 +178,7 @@ def read_header(lines: Iterator[tuple[int, str]], path: Path, label: str, time: 
     names: list[str] = []
     units: list[str] = []
     for j, cell in enumerate(cells):
-        name, unit = split_header_cell(cell) if units_in_header else (cell.strip(), "")
+        name, unit = split_unit(cell) if units_in_header else (cell.strip(), "")
         if not name:
             raise FileFormatError(
                 f"{label}, line {header_no}, column {j + 1}: empty column name in the header",
@@ -345,7 +354,7 @@ def _header_cell(name: str, unit: str) -> str:
     if unit:
         return f"{name} [{unit}]"
     # A name that would read back as "name [unit]" gets an explicit empty unit.
-    return f"{name} []" if split_header_cell(name)[1] or name != split_header_cell(name)[0] else name
+    return f"{name} []" if split_unit(name)[1] or name != split_unit(name)[0] else name
 
 
 def write_csv(recording: Recording, path: str | os.PathLike[str], *, delimiter: str = ",") -> Path:

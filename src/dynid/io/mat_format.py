@@ -8,7 +8,9 @@ Layouts read (and written):
   `data`), and optionally `unit`;
 - an optional struct `units` with one char field per channel (units.roll = 'deg',
   units.time = 's' for the time vector);
-- an optional struct `metadata` of char fields.
+- an optional struct `metadata` of char fields;
+- a unit in a variable's name ("j1 [deg]", which scipy.io.savemat writes from a pandas
+  column) read as a CSV header's (io.units.name_and_unit).
 
 Scalars go to the metadata; text, matrices and cells are not read (listed in
 `Recording.skipped` with the reason). Without a time vector, the caller gives the
@@ -31,6 +33,7 @@ from ._optional import require
 from ._table import TIME_NAMES, time_in_seconds, uniform_time
 from .errors import FileFormatError
 from .recording import Channel, Recording
+from .units import channel_names
 
 _VALID_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 _RESERVED = {"time", "units", "metadata"}
@@ -135,6 +138,13 @@ def read_mat(path: str | os.PathLike[str], *, fs: float | None = None, time: str
         for k, v in variables.pop("metadata").items():
             text = _text(v)
             metadata[k] = text if text is not None else repr(v)
+    # a unit written in a variable's name ("j1 [deg]", as scipy.io.savemat writes a pandas column) as in a CSV
+    # header; MATLAB's own names never hold one
+    stored = {k: _text(v.get("unit", v.get("units", ""))) or "" if isinstance(v, Mapping) else units.get(k, "")
+              for k, v in variables.items()}
+    named = channel_names(list(stored.items()), label)
+    units.update({name: unit for name, unit in named if unit})
+    variables = {name: v for (name, _), v in zip(named, variables.values(), strict=True)}
     time_name = time if time is not None else next((n for n in TIME_NAMES if n in variables), None)
     if time is not None and time not in variables:
         raise FileFormatError(f"{label}: no variable {time!r} to use as time; variables: {', '.join(variables)}")

@@ -2,7 +2,9 @@
 
 Every channel keeps the time base of its channel group (the group's time master), so
 multi-rate loggers come out as they were recorded. Values are physical (the file's
-conversions applied); units come from each channel's unit field. Text channels, array
+conversions applied); units come from each channel's unit field, or from its name as in
+a CSV header ("imu_yaw_rate [deg/s]" is imu_yaw_rate in deg/s; io.units.name_and_unit,
+a contradiction between the two an error). Text channels, array
 channels and groups whose master is not time (angle, distance) are not read (listed
 in `Recording.skipped`). A name that occurs in several groups is read as
 "name@group" for each group. The header's comment is read as metadata (a JSON
@@ -24,6 +26,7 @@ from ..atomic import atomic_path
 from ._optional import require
 from .errors import FileFormatError
 from .recording import Channel, Recording
+from .units import name_and_unit
 
 _TIME_SYNC = 1  # MDF4 sync type of a time master
 
@@ -36,11 +39,11 @@ def read_mdf(path: str | os.PathLike[str]) -> Recording:
     with mdf:
         metadata = {"format": "mdf", "mdf_version": str(mdf.version)}
         _header_metadata(mdf, metadata)
-        wanted, skipped = channel_places(mdf)
+        wanted, skipped = channel_places(mdf, label)
         channels = {}
         # Group by group (less memory at once), one time array per group shared by its channels.
         for group in sorted({g for _, _, g, _ in wanted}):
-            channels.update(group_channels(mdf, [w for w in wanted if w[2] == group], skipped))
+            channels.update(group_channels(mdf, [w for w in wanted if w[2] == group], skipped, source=label))
     if not channels:
         raise FileFormatError(f"{label}: no numeric channel in the file; not read: {skipped}", source=label)
     return Recording(path, channels, metadata, skipped)
@@ -57,18 +60,24 @@ def open_mdf(path: Path, label: str) -> Any:
         raise FileFormatError(f"{label}: not a readable MDF file ({type(exc).__name__}: {exc})", source=label) from None
 
 
-def channel_places(mdf: Any) -> tuple[list[tuple[str, str, int, int]], dict[str, str]]:
-    """The channels read: (key, name, group, index) each, key "name@group" for a name in several groups.
+def channel_places(mdf: Any, label: str = "") -> tuple[list[tuple[str, str, int, int]], dict[str, str]]:
+    """The channels read: (key, name, group, index) each, key the channel's name without a unit written in it
+    (`name_and_unit`), "key@group" for a name in several groups.
 
     Also the channels not read with the reason (groups whose master is not time).
     """
     masters = dict(mdf.masters_db)
     wanted, skipped = [], {}
+    seen: dict[str, str] = {}
     for name, places in mdf.channels_db.items():
         for group, index in places:
             if masters.get(group) == index:
                 continue
-            key = name if len(places) == 1 else f"{name}@{group}"
+            bare = name_and_unit(name, "")[0]
+            key = bare if len(places) == 1 else f"{bare}@{group}"
+            if seen.setdefault(key, name) != name:
+                raise FileFormatError(f"{label}: the channels {seen[key]!r} and {name!r} both give the channel "
+                                      f"{key!r}; rename one", source=label, channel=key)
             if not _time_master(mdf, group, masters):
                 skipped[key] = "its group's master channel is not time (angle or distance based)"
                 continue
@@ -82,12 +91,14 @@ def group_channels(
     skipped: dict[str, str],
     record_offset: int = 0,
     record_count: int | None = None,
+    source: str = "",
 ) -> dict[str, Channel]:
     """The channels `members` (all of one group) as `Channel`s, on the group's master as time base.
 
     `record_offset` / `record_count` read a run of the group's records only (asammdf
     decodes each record the same way whatever the run, so pieces equal the whole).
-    Channels whose samples are not numeric vectors go to `skipped`.
+    Channels whose samples are not numeric vectors go to `skipped`. A unit in a channel's name contradicting
+    its unit field is an error naming `source`.
     """
     channels = {}
     signals = mdf.select(
@@ -97,7 +108,7 @@ def group_channels(
         record_count=record_count,
     )
     base = None
-    for (key, _, _, _), sig in zip(members, signals, strict=True):
+    for (key, name, _, _), sig in zip(members, signals, strict=True):
         samples = np.asarray(sig.samples)
         if samples.ndim != 1 or samples.dtype.kind not in "fiub":
             skipped[key] = f"samples of type {samples.dtype} and shape {samples.shape}, not numbers"
@@ -105,7 +116,8 @@ def group_channels(
         stamps = np.asarray(sig.timestamps, dtype=np.float64)
         if base is None or (stamps is not base and not np.array_equal(base, stamps)):
             base = stamps
-        channels[key] = Channel(key, str(sig.unit or ""), samples.astype(np.float64, copy=False), base)
+        unit = name_and_unit(name, str(sig.unit or ""), source)[1]
+        channels[key] = Channel(key, unit, samples.astype(np.float64, copy=False), base)
     return channels
 
 

@@ -3,7 +3,9 @@
 A table with a time column (time, t, Time or TIME, or `time=`; float seconds, or a
 timestamp column, then made relative to its first row with the start kept in the
 metadata) or a sample rate from the caller, and one numeric column per channel.
-Units come from each field's metadata, key b"unit" (or b"units"); the recording's
+Units come from each field's metadata, key b"unit" (or b"units"), or from the column's
+name as in a CSV header: "imu_yaw_rate [deg/s]" is the channel imu_yaw_rate in deg/s
+(what pandas gives after reading dynid's own CSV; io.units.name_and_unit); the recording's
 metadata from the schema metadata key b"dynid.metadata" (JSON object of strings).
 Nulls mean "no sample at this row" (multi-rate channels in one table); NaN values
 are samples whose value is NaN. Text and other non-numeric columns are not read
@@ -25,6 +27,7 @@ from ._optional import require
 from ._table import TIME_NAMES, Column, grid_of, recording_from_columns
 from .errors import FileFormatError
 from .recording import Recording
+from .units import channel_names, name_and_unit
 
 META_KEY = b"dynid.metadata"
 ROW_GROUP_ROWS = 65536
@@ -35,6 +38,12 @@ def _unit_of(field: Any) -> str:
     meta = field.metadata or {}
     raw = meta.get(b"unit", meta.get(b"units", b""))
     return raw.decode("utf-8", errors="replace") if isinstance(raw, bytes) else str(raw)
+
+
+def field_channels(fields: Sequence[Any], label: str) -> list[tuple[str, str]]:
+    """The (channel name, unit) of each field: a unit written in the name taken as a CSV header's, agreeing with
+    the field's unit metadata if it has one; two fields giving one channel are an error."""
+    return channel_names([(f.name, _unit_of(f)) for f in fields], label)
 
 
 def read_parquet(
@@ -63,8 +72,8 @@ def read_parquet(
     metadata = schema_metadata(schema)
     columns, skipped = [], {}
     wanted = None if channels is None else set(channels) | {time, *TIME_NAMES} - {None}
-    for field in schema:
-        if wanted is not None and field.name not in wanted:
+    for field, (name, _) in zip(schema, field_channels(list(schema), label), strict=True):
+        if wanted is not None and name not in wanted and field.name not in wanted:
             skipped[field.name] = "not among the channels asked for"
             continue
         if not is_numeric(pa, field.type):
@@ -76,24 +85,60 @@ def read_parquet(
             start = col[0].as_py() if len(col) else None
             if start is not None:
                 metadata.setdefault(f"{field.name}.start", start.isoformat())
-        columns.append(convert_column(pa, field, col, first_tick(pa, col)))
+        columns.append(convert_column(pa, field, col, first_tick(pa, col), label))
         del col
     if not columns:
         raise FileFormatError(f"{label}: no numeric column in the file", source=label)
     return recording_from_columns(path, columns, time=time, fs=fs, metadata=metadata, skipped=skipped)
 
 
+# bounds on what opening a file holds before its data are read: the footer (every row group's metadata, read whole
+# by pyarrow) and the row groups (one index entry and one read each). An hour of 60 channels at 625 Hz is a footer of
+# tens of kB in a few row groups; a file appended row by row can have millions
+MAX_FOOTER = 64 * 2**20
+MAX_ROW_GROUPS = 100_000
+
+
+def _footer_length(path: Any, filesystem: Any) -> int | None:
+    """The footer's length from the file's last 8 bytes (length, b"PAR1"); None when it cannot be read so (another
+    filesystem, a short file: pyarrow then says what is wrong)."""
+    if filesystem is not None:
+        return None
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(0, os.SEEK_END)
+            if fh.tell() < 12:
+                return None
+            fh.seek(-8, os.SEEK_END)
+            tail = fh.read(8)
+    except OSError:
+        return None
+    return int.from_bytes(tail[:4], "little") if tail[4:] == b"PAR1" else None
+
+
 def open_parquet(path: Any, label: str, filesystem: Any = None) -> Any:
-    """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet is a one-line `FileFormatError`."""
+    """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet, or whose footer or row-group count passes the
+    bounds (MAX_FOOTER, MAX_ROW_GROUPS), is a one-line `FileFormatError`."""
     pa = require("pyarrow", "Reading Parquet files")
     pq = require("pyarrow.parquet", "Reading Parquet files")
+    footer = _footer_length(path, filesystem)
+    if footer is not None and footer > MAX_FOOTER:
+        raise FileFormatError(f"{label}: its Parquet footer is {footer:,} bytes (more than {MAX_FOOTER:,}): too many "
+                              "row groups or columns to index; rewrite it with fewer, larger row groups (pyarrow's "
+                              "row_group_size of 100 000 rows or more)", source=label)
     try:
-        return pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
+        pfile = pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
     except (pa.ArrowInvalid, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         raise FileFormatError(f"{label}: not a readable Parquet file ({' '.join(str(exc).split())})",
                               source=label) from None
+    groups = pfile.metadata.num_row_groups
+    if groups > MAX_ROW_GROUPS:
+        raise FileFormatError(f"{label}: {groups:,} row groups (more than {MAX_ROW_GROUPS:,}); rewrite it with "
+                              "fewer, larger row groups (pyarrow's row_group_size of 100 000 rows or more)",
+                              source=label)
+    return pfile
 
 
 def read_columns(pfile: Any, label: str, columns: list[str], group: int | None = None) -> Any:
@@ -142,15 +187,16 @@ def first_tick(pa: Any, col: Any) -> int | None:
     return int(col.slice(0, 1).cast(pa.int64()).fill_null(0).to_numpy()[0])
 
 
-def convert_column(pa: Any, field: Any, col: Any, tick0: int | None) -> Column:
+def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str = "") -> Column:
     """One numeric Arrow column (or a run of its rows) as a `Column` of float64 samples.
 
     A timestamp column becomes seconds since `tick0`, the integer tick of the FILE's
     first row (exact integer difference, then one division: epoch ns do not fit a
     float64), so rows converted in pieces equal the whole column bit for bit. Integers
-    and booleans are cast to float64; nulls are rows without a sample.
+    and booleans are cast to float64; nulls are rows without a sample. The column is named by its channel
+    ("yaw_rate [deg/s]" is yaw_rate, in deg/s); `label` names the file in an error.
     """
-    unit = _unit_of(field)
+    name, unit = name_and_unit(field.name, _unit_of(field), label)
     kind = field.type
     if pa.types.is_timestamp(kind):
         ticks = np.asarray(col.cast(pa.int64()).fill_null(0).to_numpy(), dtype=np.int64)
@@ -162,7 +208,7 @@ def convert_column(pa: Any, field: Any, col: Any, tick0: int | None) -> Column:
     else:
         values = np.asarray(col.cast(pa.float64()).to_numpy(), dtype=np.float64)
     present = ~np.asarray(col.is_null().to_numpy(), dtype=bool) if col.null_count else None
-    return Column(field.name, unit, values if present is None else values[present], present)
+    return Column(name, unit, values if present is None else values[present], present)
 
 
 def write_parquet(recording: Recording, path: str | os.PathLike[str], *, compression: str = "snappy") -> Path:

@@ -3,7 +3,7 @@
 The table is multiplicative: value_SI = factor * value (no unit here needs an offset;
 temperatures are not in it). The SI unit strings returned are plain ASCII:
 
-    rad, rad/s, rad/s^2, m, m/s, m/s^2, N, N*m, kg, s, Hz, Pa, 1 (dimensionless)
+    rad, rad/s, rad/s^2, m, m/s, m/s^2, N, N*m, kg, A, s, Hz, Pa, 1 (dimensionless)
 
 Spelling is forgiving where it cannot be ambiguous: surrounding brackets ("[deg]"),
 superscripts ("m/s²" = "m/s^2" = "m/s2"), product signs ("N·m" = "N.m" = "N*m" =
@@ -20,11 +20,12 @@ from __future__ import annotations
 import difflib
 import math
 import re
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import UnknownUnitError
+from .errors import FileFormatError, UnknownUnitError
 
 STANDARD_GRAVITY = 9.80665  # m/s^2, by definition (3rd CGPM, 1901)
 
@@ -67,6 +68,7 @@ _GROUPS: dict[str, dict[str, float]] = {
     "N": {"N": 1.0, "kN": 1e3, "daN": 10.0},
     "N*m": {"N*m": 1.0, "Nm": 1.0, "kN*m": 1e3, "kNm": 1e3, "daN*m": 10.0, "N*mm": 1e-3, "Nmm": 1e-3},
     "kg": {"kg": 1.0},
+    "A": {"A": 1.0, "mA": 1e-3},  # a motor's current (drive gains: tau_m = g i)
     "s": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0, "h": 3600.0},
     "Hz": {"Hz": 1.0, "kHz": 1e3},
     "Pa": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2},
@@ -130,7 +132,7 @@ def _known_text() -> str:
 # what a quantity's SI unit is called in an error message
 _KIND = {"rad": "an angle", "rad/s": "an angular rate", "rad/s^2": "an angular acceleration", "m": "a length",
          "m/s": "a speed", "m/s^2": "an acceleration", "N": "a force", "N*m": "a torque", "kg": "a mass",
-         "s": "a time", "Hz": "a frequency", "Pa": "a pressure", "1": "a pure number"}
+         "A": "a current", "s": "a time", "Hz": "a frequency", "Pa": "a pressure", "1": "a pure number"}
 
 
 def unit_factor(
@@ -208,6 +210,54 @@ def same_unit(a: str, b: str) -> bool:
     """True if both spellings are known and mean the same unit (same SI unit and factor)."""
     fa, fb = _lookup(a), _lookup(b)
     return fa is not None and fa == fb
+
+
+# "name [unit]" or "name (unit)": how dynid's CSV header writes a unit, and what pandas keeps as the column name
+_NAME_UNIT = re.compile(r"^(?P<name>.*?\S)\s*(?:\[(?P<u1>[^\[\]]*)\]|\((?P<u2>[^()]*)\))\s*$")
+
+
+def split_unit(label: str) -> tuple[str, str]:
+    """A column name and the unit written in it: 'roll [deg]' -> ('roll', 'deg'); 'speed (km/h)' -> ('speed',
+    'km/h'); 'Fz' -> ('Fz', ''). The one rule for a unit in a name, in every file format."""
+    label = label.strip()
+    m = _NAME_UNIT.match(label)
+    if m is None:
+        return label, ""
+    unit = m.group("u1") if m.group("u1") is not None else m.group("u2")
+    return m.group("name").strip(), unit.strip()
+
+
+def name_and_unit(raw: str, stored: str, source: str = "") -> tuple[str, str]:
+    """The channel of a column or channel named `raw` whose file gives the unit `stored` ("" if none): its name
+    and unit, a unit written in the name (`split_unit`) taken as a CSV header's is.
+
+    In formats whose names also carry indices and notes (MDF array elements "x[0]", "acc (filtered)"), a bracket
+    counts as a unit only if it holds a known unit that is not an integer; otherwise it stays part of the name.
+    A unit in the name that contradicts the file's own unit for it is a `FileFormatError` naming both."""
+    name, written = split_unit(raw)
+    if not written or written.isdigit() or _lookup(written) is None:
+        return raw.strip(), stored.strip()
+    if stored.strip() and written != stored.strip() and not same_unit(written, stored):
+        raise FileFormatError(
+            f"{_where(source, raw)}its name says the unit is {written!r} but the file gives {stored.strip()!r} for "
+            f"it; rename the column (or channel) to {name!r} or fix the unit it is stored with",
+            source=source or None, channel=raw)
+    return name, stored.strip() or written
+
+
+def channel_names(columns: Sequence[tuple[str, str]], source: str = "") -> list[tuple[str, str]]:
+    """`name_and_unit` of each (raw name, stored unit), checking that no two columns give the same channel
+    ('yaw [deg]' and 'yaw'): a `FileFormatError` naming both."""
+    out: list[tuple[str, str]] = []
+    seen: dict[str, str] = {}
+    for raw, stored in columns:
+        name, unit = name_and_unit(raw, stored, source)
+        if name in seen:
+            raise FileFormatError(f"{_where(source, None)}the columns {seen[name]!r} and {raw!r} both give the "
+                                  f"channel {name!r}; rename one", source=source or None, channel=name)
+        seen[name] = raw
+        out.append((name, unit))
+    return out
 
 
 def _where(source: str | None, channel: str | None) -> str:

@@ -353,10 +353,11 @@ def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
     pfile = _open_parquet(index.path)
     meta = pfile.metadata
     where = {pfile.schema_arrow.names[i]: i for i in range(meta.num_columns)}
+    columns = index.info("columns", {})
     for g in range(meta.num_row_groups):
         rg = meta.row_group(g)
         for n in names:
-            st = rg.column(where[n]).statistics
+            st = rg.column(where[columns.get(n, n)]).statistics
             if st is None or not st.has_null_count or st.null_count:
                 return False
     return True
@@ -779,10 +780,14 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
                 number = 0
                 while True:
                     pos = fh.tell()
-                    raw = fh.readline()
+                    raw = fh.readline(csv_format.MAX_LINE + 1)
                     if not raw:
                         return
                     number += 1
+                    if len(raw) > csv_format.MAX_LINE:
+                        raise FileFormatError(f"{label}, line {number}: longer than {csv_format.MAX_LINE:,} "
+                                              "characters (no line end found): not a CSV of samples; check the file",
+                                              source=label, line=number)
                     offsets[number] = pos
                     yield number, _lines_of(raw, number, first_enc if pos == 0 else rest_enc, label)[0][1]
 
@@ -795,7 +800,7 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
             line, row0 = head.data_line, 0
             time_name = find_time_column(head.names, options.get("time"), options.get("fs"), label)
             while True:
-                raw_lines = list(islice(fh, block_rows))
+                raw_lines = [x for _, x in islice(csv_format.bounded_lines(fh, label, line), block_rows)]
                 if not raw_lines:
                     break
                 raw = b"".join(raw_lines)
@@ -833,7 +838,9 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     skipped = {f.name: f"column of type {f.type}, not numeric" for f in schema if f not in fields}
     if not fields:
         raise FileFormatError(f"{label}: no numeric column in the file", source=label)
-    time_name = find_time_column([f.name for f in fields], options.get("time"), options.get("fs"), label)
+    named = parquet_format.field_channels(fields, label)  # "yaw_rate [deg/s]" is the channel yaw_rate
+    raw = {name: f.name for f, (name, _) in zip(fields, named, strict=True)}
+    time_name = find_time_column(list(raw), options.get("time"), options.get("fs"), label)
     meta = pfile.metadata
     groups = range(meta.num_row_groups)
     first = next((g for g in groups if meta.row_group(g).num_rows), None)
@@ -848,12 +855,12 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
             if start is not None:
                 metadata.setdefault(f"{f.name}.start", start.isoformat())
     blocks, row0 = [], 0
-    tfield = next((f for f in fields if f.name == time_name), None)
+    tfield = next((f for f in fields if f.name == raw.get(time_name)), None)
     for g in groups:
         rows = meta.row_group(g).num_rows
         if tfield is not None:
-            col = parquet_format.read_columns(pfile, label, [time_name], g).column(0)
-            column = parquet_format.convert_column(pa, tfield, col, ticks.get(time_name))
+            col = parquet_format.read_columns(pfile, label, [tfield.name], g).column(0)
+            column = parquet_format.convert_column(pa, tfield, col, ticks.get(tfield.name), label)
             t = table_time([column], time_name, None, label, None, row0)
         else:
             t = uniform_time(rows, options.get("fs"), label, row0)
@@ -862,11 +869,11 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
         row0 += rows
     if time_name is None:
         metadata.setdefault("fs", repr(float(options["fs"])))
-    channels = tuple((f.name, "s" if pa.types.is_timestamp(f.type) else parquet_format._unit_of(f))
-                     for f in fields if f.name != time_name)
+    channels = tuple((name, "s" if pa.types.is_timestamp(f.type) else unit)
+                     for f, (name, unit) in zip(fields, named, strict=True) if name != time_name)
     return FileIndex(
         label, "parquet", *stat, tuple(sorted(options.items())), channels, tuple(blocks),
-        tuple(metadata.items()), tuple(skipped.items()), time_name, (("first_ticks", ticks),),
+        tuple(metadata.items()), tuple(skipped.items()), time_name, (("first_ticks", ticks), ("columns", raw)),
     )
 
 
@@ -876,9 +883,10 @@ def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any]
         if not opened:
             opened.append(_open_parquet(index.path))
         pfile = opened[0]
-        field = pfile.schema_arrow.field(name)
-        col = parquet_format.read_columns(pfile, index.path, [name], block.group).column(0)
-        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(name))
+        column = index.info("columns", {}).get(name, name)  # the file's name of the channel
+        field = pfile.schema_arrow.field(column)
+        col = parquet_format.read_columns(pfile, index.path, [column], block.group).column(0)
+        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path)
 
     return _cached(_key(index, block.group, name), make, _columns_nbytes, store)
 
@@ -908,7 +916,7 @@ def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, st
         with mdf:
             metadata = {"format": "mdf", "mdf_version": str(mdf.version)}
             mdf_format._header_metadata(mdf, metadata)
-            wanted, skipped = mdf_format.channel_places(mdf)
+            wanted, skipped = mdf_format.channel_places(mdf, label)
             channels: list[tuple[str, str]] = []
             places: dict[str, tuple[str, int, int]] = {}
             blocks: list[Block] = []
@@ -916,7 +924,7 @@ def _index_mdf(p: Path, label: str, options: dict[str, Any], block_rows: int, st
                 members = [w for w in wanted if w[2] == group]
                 cycles = int(mdf.groups[group].channel_group.cycles_nr)
                 # The channels' kinds and units from one record (or none): what read_mdf would keep.
-                probe = mdf_format.group_channels(mdf, members, skipped, 0, min(cycles, 1))
+                probe = mdf_format.group_channels(mdf, members, skipped, 0, min(cycles, 1), source=label)
                 for key, name, g, idx in members:
                     if key in probe:
                         channels.append((key, probe[key].unit))
@@ -941,7 +949,7 @@ def _mdf_read(mdf: Any, index: FileIndex, group: int, names: list[str], row0: in
     members = [(n, *places[n]) for n in names if places[n][1] == group]
     if not members:
         return {}
-    return mdf_format.group_channels(mdf, members, {}, row0, count)
+    return mdf_format.group_channels(mdf, members, {}, row0, count, source=index.path)
 
 
 def _grouped(index: FileIndex) -> bool:

@@ -15,6 +15,7 @@ from .tree import (
     REVOLUTE,
     Coupling,
     Frame,
+    Mimic,
     ModelError,
     Tree,
 )
@@ -32,6 +33,6 @@ def example_path(name: str) -> Path:
 
 __all__ = [
     "COUPLING_KINDS", "EXAMPLES", "FIXED", "FRICTION_SHAPES", "INERTIAL", "JOINT_TERMS", "PRISMATIC", "REVOLUTE",
-    "Coupling", "Frame", "ModelError", "Tree", "UrdfError", "Violation", "check_physical", "example_path",
+    "Coupling", "Frame", "Mimic", "ModelError", "Tree", "UrdfError", "Violation", "check_physical", "example_path",
     "export_urdf", "import_urdf", "load_tree", "read_urdf", "save_tree", "tree_from_dict", "tree_to_toml",
 ]

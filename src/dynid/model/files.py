@@ -24,6 +24,12 @@
     [joints]                        # frame number -> joint name (a URDF's), for data and exports
     1 = "shoulder_pan_joint"
 
+    [mimic]                         # optional: frame number -> the joint it follows (a URDF <mimic>):
+    9 = { follows = 8, ratio = 1.0, offset = 0.0 }   # q9 = ratio q8 + offset; no data column or equation
+
+    [frozen]                        # URDF joints the import held still (merged, no frame): name = value
+    panda_finger_joint1 = 0.0
+
     [friction]                      # optional: joint terms on every joint, and the Coulomb law
     all = ["FV", "FS"]              # among IA FV FS OFF, declared on every moving joint (value 0
                                     # unless [parameters.j] gives one; merged with its terms)
@@ -65,13 +71,15 @@ from .tree import (
     SIGN_LAW,
     Coupling,
     Frame,
+    Mimic,
     ModelError,
     Tree,
 )
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
 _TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints", "friction",
-             "knees"}
+             "knees", "mimic", "frozen"}
+_MIMIC_KEYS = ("follows", "ratio", "offset")
 _FRICTION_KEYS = ("all", "shape", "vs", "joints")
 _FRICTION_ALL = ("IA", "FV", "FS", "OFF")  # K (stiffness) on every joint is rare: per joint only
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
@@ -213,6 +221,11 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
 
     joint_names = _joint_names(data.get("joints", {}), len(frames), source)
     knees = _knees(data.get("knees", {}), source)
+    mimic = _mimic(data.get("mimic", {}), len(frames), source)
+    frozen = data.get("frozen", {})
+    if not isinstance(frozen, dict):
+        raise ModelError(f"{source}: [frozen] must be a table of joint name = value (rad or m)")
+    frozen = {str(k): parse_number(v, f"{source}: [frozen] {k}") for k, v in frozen.items()}
     gravity = data.get("gravity", [0.0, 0.0, -9.81])
     if not isinstance(gravity, list) or len(gravity) != 3:
         raise ModelError(f"{source}: gravity must be a list of 3 numbers")
@@ -233,6 +246,8 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             joint_names=joint_names,
             friction_shape=friction_shape,
             knees=knees,
+            mimic=mimic,
+            frozen=frozen,
         )
     except ModelError as exc:
         raise ModelError(f"{source}: {exc}") from None
@@ -348,6 +363,30 @@ def _joint_names(table: object, n: int, source: str) -> dict[int, str]:
     return out
 
 
+def _mimic(table: object, n: int, source: str) -> dict[int, Mimic]:
+    """The [mimic] table: frame number -> { follows = master frame, ratio = 1.0, offset = 0.0 }."""
+    example = "9 = { follows = 8, ratio = 1.0, offset = 0.0 }"
+    if not isinstance(table, dict):
+        raise ModelError(f"{source}: [mimic] must be a table of frame number = {{ follows, ratio, offset }}, like "
+                         f"{example}")
+    out: dict[int, Mimic] = {}
+    for key, entry in table.items():
+        where = f"{source}: [mimic] {key}"
+        if not key.strip().isdigit() or not 1 <= int(key) <= n:
+            raise ModelError(f"{where}: keys are frame numbers (1..{n}), like {example}")
+        if not isinstance(entry, dict) or "follows" not in entry:
+            raise ModelError(f"{where}: expected {{ follows = frame number, ratio, offset }}, like {example}")
+        unknown = [k for k in entry if k not in _MIMIC_KEYS]
+        if unknown:
+            raise ModelError(f"{where}: {unknown_keys(unknown, _MIMIC_KEYS)}")
+        master = entry["follows"]
+        if isinstance(master, bool) or not isinstance(master, int):
+            raise ModelError(f"{where}: follows = {_short(master)}; give the frame number of the joint it follows")
+        out[int(key)] = Mimic(master, parse_number(entry.get("ratio", 1.0), f"{where} ratio"),
+                              parse_number(entry.get("offset", 0.0), f"{where} offset"))
+    return out
+
+
 def save_tree(tree: Tree, path: str | os.PathLike[str]) -> None:
     """Write a model file atomically (a crash never leaves half a file)."""
     write_atomic(path, tree_to_toml(tree))
@@ -379,6 +418,11 @@ def tree_to_toml(tree: Tree) -> str:
         lines += ["", "[joints]"] + [f"{j} = {_q(v)}" for j, v in sorted(tree.joint_names.items())]
     if tree.knees:
         lines += ["", "[knees]"] + [f"{j} = [{lo!r}, {hi!r}]" for j, (lo, hi) in sorted(tree.knees.items())]
+    if tree.mimic:
+        lines += ["", "[mimic]"] + [f"{j} = {{ follows = {m.master}, ratio = {m.ratio!r}, offset = {m.offset!r} }}"
+                                    for j, m in sorted(tree.mimic.items())]
+    if tree.frozen:
+        lines += ["", "[frozen]"] + [f"{_q(k)} = {v!r}" for k, v in tree.frozen.items()]
     return "\n".join(lines) + "\n"
 
 

@@ -92,6 +92,17 @@ class Coupling:
 
 
 @dataclass(frozen=True)
+class Mimic:
+    """A joint that follows another (a URDF <mimic>): q_slave = ratio * q_master + offset, so qd_slave = ratio *
+    qd_master and qdd_slave = ratio * qdd_master. It has no actuator of its own: by virtual work its generalized
+    force is carried by the master's, tau_master + ratio * tau_slave, and its own is 0 (as a fixed frame's)."""
+
+    master: int
+    ratio: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
 class Tree:
     """A modified-DH tree with its named parameter vector.
 
@@ -105,6 +116,10 @@ class Tree:
     "tanh" or "sigmoid" (see the module doc); joints not listed use sign;
     knees: frame number -> (v-, v+), v- < 0 < v+ (rad/s or m/s, either may be infinite), the knee
     velocities of its viscous curve terms (CURVE_TERMS); joints not listed have none (NO_KNEES).
+    mimic: frame number -> the `Mimic` it follows (a kinematic constraint: its data column is
+    ignored, its motion is the master's, its force is added into the master's equation);
+    frozen: the moving joints of the description it was imported from (a URDF's) that the import
+    held still, name -> value (rad or m), merged into the body they hang from: no frame.
     """
 
     name: str
@@ -118,6 +133,8 @@ class Tree:
     joint_names: dict[int, str] = field(default_factory=dict)
     friction_shape: dict[int, tuple[str, float]] = field(default_factory=dict)
     knees: dict[int, tuple[float, float]] = field(default_factory=dict)
+    mimic: dict[int, Mimic] = field(default_factory=dict)
+    frozen: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -156,6 +173,16 @@ class Tree:
     @cached_property
     def depth(self) -> np.ndarray:
         return np.array([len(a) for a in self.ancestors])
+
+    @cached_property
+    def equations(self) -> tuple[int, ...]:
+        """The frames that have an equation of their own: moving joints that follow no other (mimic)."""
+        return tuple(f.j for f in self.frames if f.sigma != FIXED and f.j not in self.mimic)
+
+    @cached_property
+    def unconstrained(self) -> Tree:
+        """This tree with its mimic joints as independent joints (what the engine recurses over)."""
+        return _replace(self, mimic={}) if self.mimic else self
 
     # ----- constant geometry -----------------------------------------------------
     @cached_property
@@ -266,6 +293,45 @@ class Tree:
         return _replace(self, known=frozenset(self.parameter_names[self.column(k)] for k in known))
 
 
+def freeze(tree: Tree, frames: dict[int, float]) -> Tree:
+    """The tree with the moving joints `frames` (frame -> value, rad or m) held still: fixed frames (sigma = 2)
+    whose constant theta (revolute) or r (prismatic) includes the value, their joint terms dropped, their names
+    moved from `joint_names` to `frozen`. A joint that mimics a frozen one is frozen with it, at its mimic's value.
+    Their bodies stay (their parameters regroup into what the moving joints see). A coupling on a frozen joint is
+    refused: it would act on a joint that no longer moves."""
+    held = dict(frames)
+    for j, m in tree.mimic.items():
+        if m.master in held:
+            held.setdefault(j, m.ratio * held[m.master] + m.offset)
+    for j in held:
+        if not 1 <= j <= tree.n or tree.frames[j - 1].sigma == FIXED:
+            raise ModelError(f"model {tree.name!r}: frame {j} is not a moving joint; it cannot be frozen")
+        if j in tree.mimic and tree.mimic[j].master not in held:
+            raise ModelError(f"model {tree.name!r}: frame {j} follows frame {tree.mimic[j].master}, which moves; "
+                             "freeze that joint (its mimics follow it)")
+    for c in tree.couplings:
+        bad = [j for j in c.coeffs if j in held]
+        if bad:
+            raise ModelError(f"model {tree.name!r}: coupling {c.name!r} acts on joint {bad[0]}, which is frozen")
+    new_frames = []
+    for f in tree.frames:
+        if f.j in held:
+            v = held[f.j]
+            theta, r = (f.theta + v, f.r) if f.sigma == REVOLUTE else (f.theta, f.r + v)
+            f = Frame(f.j, f.ant, FIXED, f.gamma, f.b, f.alpha, f.d, theta, r)
+        new_frames.append(f)
+    gone = {f"{t}{j}" for j in held for t in tree.joint_terms.get(j, ())}
+    names = {j: n for j, n in tree.joint_names.items() if j not in held}
+    frozen = dict(tree.frozen) | {tree.joint_names.get(j, f"frame {j}"): held[j] for j in sorted(held)}
+    return _replace(tree, frames=tuple(new_frames),
+                    joint_terms={j: t for j, t in tree.joint_terms.items() if j not in held},
+                    values={k: v for k, v in tree.values.items() if k not in gone},
+                    known=frozenset(k for k in tree.known if k not in gone),
+                    joint_names=names, mimic={j: m for j, m in tree.mimic.items() if j not in held},
+                    friction_shape={j: law for j, law in tree.friction_shape.items() if j not in held},
+                    frozen=frozen)
+
+
 def _replace(tree: Tree, **changes: object) -> Tree:
     import dataclasses
 
@@ -342,6 +408,25 @@ def _validate(tree: Tree) -> None:
         if name in seen_names:
             raise ModelError(f"{where}: frames {seen_names[name]} and {j} are both named {name!r}")
         seen_names[name] = j
+    for j, m in tree.mimic.items():
+        w = f"{where}, frame {j}"
+        if not isinstance(m, Mimic):
+            raise ModelError(f"{w}: a mimic is Mimic(master, ratio, offset), got {m!r}")
+        if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n or tree.frames[j - 1].sigma == FIXED:
+            raise ModelError(f"{where}: mimic given for frame {j!r}, which is not a moving joint (1..{n})")
+        if not isinstance(m.master, int) or not 1 <= m.master <= n or tree.frames[m.master - 1].sigma == FIXED:
+            raise ModelError(f"{w} follows frame {m.master!r}, which is not a moving joint (1..{n})")
+        if m.master == j or m.master in tree.mimic:
+            raise ModelError(f"{w} follows frame {m.master}, which follows another joint or is itself: name the "
+                             "joint that is actuated (a chain q3 = a q2 + b, q2 = c q1 + d is q3 = a c q1 + a d + b)")
+        if not (np.isfinite(m.ratio) and np.isfinite(m.offset)) or m.ratio == 0.0:
+            raise ModelError(f"{w}: mimic ratio {m.ratio!r} must be finite and non-zero, offset {m.offset!r} finite")
+    for jname, v in tree.frozen.items():
+        if not isinstance(jname, str) or not jname or isinstance(v, bool) or not isinstance(v, int | float) \
+                or not np.isfinite(v):
+            raise ModelError(f"{where}: frozen joint {jname!r} = {v!r}: a joint name and a finite value (rad or m)")
+        if jname in tree.joint_names.values():
+            raise ModelError(f"{where}: joint {jname!r} is both frozen and frame {tree.frame_of(jname)}")
     for j, law in tree.friction_shape.items():
         if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n:
             raise ModelError(f"{where}: friction shape given for frame {j!r}, which does not exist (1..{n})")

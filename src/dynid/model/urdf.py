@@ -44,7 +44,7 @@ import math
 import os
 import pyexpat
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,7 +53,7 @@ import numpy as np
 from ..atomic import write_atomic
 from ..textfiles import TextEncodingError, read_utf8
 from .consistency import check_body
-from .tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, Frame, ModelError, Tree, _rotx, _rotz
+from .tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, Frame, Mimic, ModelError, Tree, _rotx, _rotz
 
 _MOVING = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC}
 # a length or angle below this is round-off of the transform algebra (a few ulps of 1 m or 1 rad)
@@ -250,13 +250,33 @@ def row_transform(f: Frame) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------------- import
 def import_urdf(path_or_text: str | os.PathLike[str], name: str | None = None,
-                source: str | None = None) -> UrdfImport:
+                source: str | None = None, freeze: Mapping[str, float] | Sequence[str] | None = None,
+                joints: Sequence[str] | None = None) -> UrdfImport:
     """Read a URDF (a path, or the XML text) into a tree with one frame per moving joint (module doc).
 
-    Refused with a one-line UrdfError naming the element: mimic, floating and planar joints,
-    closed loops, missing links, non-numeric or non-finite numbers, negative masses."""
+    Mimic joints (<mimic joint= multiplier= offset=>) become `Tree.mimic` entries: q = multiplier q_master +
+    offset, no data column or equation of their own, their force carried by the master's.
+    freeze: moving joints to hold still, by name, at a value (rad or m; a sequence of names: at 0), merged into
+    the body they hang from as a fixed joint is; a joint that mimics a frozen one is frozen with it, at its
+    mimic's value. joints: the identified chain: every moving joint not named (nor mimicking a named one) is
+    frozen (at its `freeze` value, else 0). The tree records what was frozen (`Tree.frozen`), so that an export
+    into the same URDF finds the same frames.
+
+    Refused with a one-line UrdfError naming the element: floating and planar joints, closed loops, missing
+    links, non-numeric or non-finite numbers, negative masses, a mimic of a joint that is not a moving one, a
+    frozen or selected joint the file does not have, a mimic frozen without its master or selected without it."""
     doc, src = _parse(path_or_text, source)
-    return _import(doc, src, name)
+    return _import(doc, src, name, _as_values(freeze), None if joints is None else tuple(joints))
+
+
+def _as_values(freeze: Mapping[str, float] | Sequence[str] | None) -> dict[str, float]:
+    if freeze is None:
+        return {}
+    if isinstance(freeze, Mapping):
+        return {str(k): float(v) for k, v in freeze.items()}
+    if isinstance(freeze, str):
+        raise TypeError("freeze takes joint names as a list or {name: value}, not one string")
+    return dict.fromkeys(freeze, 0.0)
 
 
 def read_urdf(path_or_text: str | os.PathLike[str], name: str | None = None) -> Tree:
@@ -264,7 +284,8 @@ def read_urdf(path_or_text: str | os.PathLike[str], name: str | None = None) -> 
     return import_urdf(path_or_text, name).tree
 
 
-def _import(doc: ET.ElementTree, src: str, name: str | None) -> UrdfImport:
+def _import(doc: ET.ElementTree, src: str, name: str | None, freeze: Mapping[str, float] | None = None,
+            select: tuple[str, ...] | None = None) -> UrdfImport:
     robot = doc.getroot()
     links: dict[str, ET.Element] = {}
     for el in robot.findall("link"):
@@ -291,9 +312,6 @@ def _import(doc: ET.ElementTree, src: str, name: str | None) -> UrdfImport:
                             f"joints (see the floating_tree example) or make it fixed")
         if kind not in (*_MOVING, "fixed"):
             raise UrdfError(f'{where}: unknown type="{kind}"; URDF types: revolute, continuous, prismatic, fixed')
-        if el.find("mimic") is not None:
-            raise UrdfError(f'{where}: mimics joint "{el.find("mimic").get("joint")}"; dynid models every joint as '
-                            f"independent: remove its <mimic> element (or make it fixed)")
         ends = {}
         for end in ("parent", "child"):
             e = el.find(end)
@@ -318,6 +336,9 @@ def _import(doc: ET.ElementTree, src: str, name: str | None) -> UrdfImport:
         raise UrdfError(f"{src}: links {', '.join(repr(r) for r in roots[:4])} have no parent joint; a URDF tree has "
                         f"one root: connect them with joints")
 
+    kinds = {el.get("name"): el.get("type") for el in robot.findall("joint")}
+    mimics = _mimics(robot, kinds, src)
+    frozen = _frozen(kinds, mimics, dict(freeze or {}), select, src)
     frames: list[Frame] = []
     values: dict[str, float] = {}
     names: dict[int, str] = {}
@@ -350,6 +371,10 @@ def _import(doc: ET.ElementTree, src: str, name: str | None) -> UrdfImport:
             norm = float(np.linalg.norm(axis))
             if norm < 1e-12:
                 raise UrdfError(f'{jwhere}: <axis xyz="{el.find("axis").get("xyz")}"> is zero')
+            if jname in frozen:  # held at its value: a fixed joint whose origin includes the motion
+                merged.setdefault(place.frame, []).append(child)
+                todo.append((child, Placement(place.frame, origin @ _motion(kind, axis / norm, frozen[jname]))))
+                continue
             Ra = transform(_axis_rotation(axis / norm), np.zeros(3))
             rows = mdh_rows(origin @ Ra)
             ant = place.frame
@@ -365,14 +390,107 @@ def _import(doc: ET.ElementTree, src: str, name: str | None) -> UrdfImport:
     if lost:
         raise UrdfError(f"{src}: links {', '.join(repr(k) for k in lost[:4])} are not connected to the root link "
                         f"{root!r}: their joints form a closed loop; cut it")
+    frame_of = {v: k for k, v in names.items()}
+    mimic = {frame_of[s]: Mimic(frame_of[m], r, o) for s, (m, r, o) in mimics.items() if s not in frozen}
     try:
         tree = Tree(name=name or robot.get("name") or Path(src).stem, frames=tuple(frames), values=values,
-                    joint_names=names)
+                    joint_names=names, mimic=mimic, frozen=frozen)
     except ModelError as exc:
         raise UrdfError(f"{src}: {exc}") from None
     if not frames:
         raise UrdfError(f"{src}: no moving joint (revolute, continuous or prismatic): nothing to identify")
     return UrdfImport(tree, placements, frame_link, {k: v for k, v in merged.items() if k > 0}, src)
+
+
+def _mimics(robot: ET.Element, kinds: dict[str, str | None], src: str) -> dict[str, tuple[str, float, float]]:
+    """joint -> (the moving joint it follows in the end, multiplier, offset), chains of mimics composed."""
+    direct: dict[str, tuple[str, float, float]] = {}
+    for el in robot.findall("joint"):
+        mim = el.find("mimic")
+        if mim is None:
+            continue
+        jname = el.get("name")
+        where = f'{src}: <joint name="{jname}">: <mimic joint="{mim.get("joint")}">'
+        master = mim.get("joint")
+        if kinds.get(jname) == "fixed":
+            continue  # a fixed joint has no motion to mimic with
+        if master not in kinds:
+            raise UrdfError(f"{where}: no such joint; name the joint it follows")
+        if kinds[master] not in _MOVING:
+            raise UrdfError(f'{where}: that joint is {kinds[master]}; a mimic must follow a moving joint (remove '
+                            "the <mimic> or make this joint fixed)")
+        ratio = float(_floats(mim, "multiplier", 1, (1.0,), where)[0])
+        offset = float(_floats(mim, "offset", 1, (0.0,), where)[0])
+        if ratio == 0.0:
+            raise UrdfError(f'{where}: multiplier="0" holds it still: make the joint fixed instead')
+        direct[jname] = (master, ratio, offset)
+    out = {}
+    for jname in direct:
+        master, ratio, offset, seen = *direct[jname], [jname]
+        while master in direct:  # q = r (r2 q2' + o2) + o
+            if master in seen:
+                raise UrdfError(f'{src}: <joint name="{jname}">: its <mimic> chain {" -> ".join(seen)} -> {master} is '
+                                "a loop; one of them must be actuated")
+            seen.append(master)
+            m2, r2, o2 = direct[master]
+            master, ratio, offset = m2, ratio * r2, ratio * o2 + offset
+        out[jname] = (master, ratio, offset)
+    return out
+
+
+def _frozen(kinds: dict[str, str | None], mimics: dict[str, tuple[str, float, float]], freeze: dict[str, float],
+            select: tuple[str, ...] | None, src: str) -> dict[str, float]:
+    """The moving joints held still -> their value: those named, those not selected, and the mimics of frozen ones."""
+    from difflib import get_close_matches
+
+    moving = [k for k, t in kinds.items() if t in _MOVING]
+    for what, named in (("--freeze", list(freeze)), ("--joints", list(select or ()))):
+        for jname in named:
+            if jname not in kinds:
+                close = get_close_matches(jname, moving, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else f" (moving joints: {', '.join(moving[:8])})"
+                raise UrdfError(f"{src}: {what} {jname!r}: no such joint{hint}")
+            if kinds[jname] not in _MOVING:
+                raise UrdfError(f"{src}: {what} {jname!r}: the joint is {kinds[jname]}, not a moving one")
+            if not math.isfinite(freeze.get(jname, 0.0)):
+                raise UrdfError(f"{src}: --freeze {jname}={freeze[jname]}: not a finite number")
+    if select is not None:
+        for jname in select:
+            if jname in mimics:
+                raise UrdfError(f"{src}: --joints {jname!r}: it mimics {mimics[jname][0]!r}; select that joint "
+                                "(its mimics follow it)")
+            if jname in freeze:
+                raise UrdfError(f"{src}: {jname!r} is both selected (--joints) and frozen (--freeze)")
+        keep = set(select)
+        for jname in moving:
+            followed = mimics[jname][0] if jname in mimics else jname
+            if followed not in keep:
+                freeze.setdefault(jname, 0.0)
+    out = {}
+    for jname in moving:
+        if jname in mimics:
+            master, ratio, offset = mimics[jname]
+            if master in freeze:
+                value = ratio * freeze[master] + offset
+                if jname in freeze and select is None and not math.isclose(freeze[jname], value, abs_tol=1e-12):
+                    raise UrdfError(f"{src}: --freeze {jname}={freeze[jname]:g}: it mimics {master!r}, frozen at "
+                                    f"{freeze[master]:g}, so it is at {value:g}; give only {master!r}")
+                out[jname] = value
+            elif jname in freeze:
+                raise UrdfError(f"{src}: --freeze {jname!r}: it mimics {master!r}, which moves; freeze {master!r} "
+                                "too (its mimics follow it)")
+        elif jname in freeze:
+            out[jname] = freeze[jname]
+    return out
+
+
+def _motion(kind: str | None, axis: np.ndarray, value: float) -> np.ndarray:
+    """The joint's motion Motion(axis, value) as a 4x4 transform: a rotation about the unit axis, or a translation
+    along it."""
+    if kind == "prismatic":
+        return transform(np.eye(3), value * axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return transform(np.eye(3) + math.sin(value) * K + (1.0 - math.cos(value)) * (K @ K), np.zeros(3))
 
 
 # ---------------------------------------------------------------------------------------------- export
@@ -393,7 +511,7 @@ def urdf_with_parameters(tree: Tree, urdf: str | os.PathLike[str], values: Mappi
                          what: str = "parameters") -> tuple[str, list[str]]:
     """The text of `urdf` with new inertials (see export_urdf) and the notes."""
     doc, src = _parse(urdf)
-    imp = _import(doc, src, tree.name)
+    imp = _import(doc, src, tree.name, tree.frozen)
     _check_same(tree, imp.tree, src)
     X = tree.parameters if values is None else tree.with_values(dict(values)).parameters
     block = tree.inertial_block(X)

@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from ..progress import Count
 from .config import IdentifyConfig
 from .run import IdentificationRun, identify
 from .schedulers import LocalScheduler, Scheduler
@@ -49,7 +50,9 @@ def identify_campaign(cfgs: Sequence[IdentifyConfig], scheduler: Scheduler | Non
 
     def one(k: int) -> IdentificationRun | Exception:
         try:
-            return identify(cfgs[k], progress=lambda m: say(f"[{names[k]}] {m}"), scheduler=scheduler)
+            tag = f"[{names[k]}] "  # a count keeps its numbers (a bar per config), prefixed as every message
+            return identify(cfgs[k], progress=lambda m: say(m.prefixed(tag) if isinstance(m, Count) else tag + m),
+                            scheduler=scheduler)
         except errors as exc:
             say(f"[{names[k]}] failed: {exc}")
             return exc

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
+from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
 from ..signals import decimate_parallel
 from ..vehicle import DAMPERS, WHEELS, Aerodynamics, aero_wrench, car_identification
@@ -64,14 +65,14 @@ def car_system(
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
                             regressor=regressor)
-    W, Y = _decimated(eq, traj.qd, fs, k, rest, decimate)
+    W, Y = _decimated(eq, traj.qd, fs, k, rest, decimate, model.tree)
     Z, sim = None, traj
     if instruments is not None:
         sim = _simulated_suspensions(model.tree, traj, coarse, eq, instruments)
         sc = _every(sim, k)
         sim_eq = car_identification(model, sc.q, sc.qd, sc.qdd, coarse.wheel_wrenches, aw, base=base,
                                     regressor=regressor)
-        Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate)
+        Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate, model.tree)
     rows, n = len(eq.rows), W.shape[0]
     step = k * (int(np.prod(rest)) if rest else 1)
     t = traj.t[::step][:n]
@@ -102,9 +103,11 @@ def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
                          None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
 
 
-def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...], decimate: tuple[int, ...]):
+def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...], decimate: tuple[int, ...],
+               tree) -> tuple[np.ndarray, np.ndarray]:
     """W (n, rows, p) and Y (n, rows) of equations computed on every k-th sample, decimated by `rest` (W's
-    live entries and Y through one parallel filter); the dry-friction columns from the full-rate qd_full."""
+    live entries and Y through one parallel filter); the dry-friction columns from the full-rate qd_full, each by
+    its joint's Coulomb law (`tree.friction_law`)."""
     rows, p = len(eq.rows), eq.per_sample.shape[2]
     W3 = eq.per_sample  # (N, rows, p)
     N = W3.shape[0]
@@ -119,11 +122,11 @@ def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...]
     W = np.zeros((both.shape[0], rows, p))
     W[:, live_r, live_c] = both[:, : live_r.size]
     Y = both[:, live_r.size :]
-    if k > 1:  # sign(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
+    if k > 1:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            signs = np.sign(qd_full[:, [j - 1 for _, _, j in fs_cols]])
+            signs = np.stack([coulomb(qd_full[:, j - 1], tree.friction_law(j)) for _, _, j in fs_cols], axis=1)
             dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
             for i, (c, r, _) in enumerate(fs_cols):

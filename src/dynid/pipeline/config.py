@@ -6,6 +6,9 @@
                                      # or template = "peugeot406" (a car: see below),
                                      # or vehicle = "peugeot406" (a car described by a vehicle file: a shipped
                                      # vehicle's name, or a path ending in .toml relative to this config)
+    joints = ["joint1", "joint2"]    # optional, a robot: the identified joints (the model file's [joints] names;
+                                     # the others are held still at 0). Without it, data that lack the joints
+                                     # others mimic (a gripper) hold those still, and say so
 
     [[tests]]
     name = "exciting trajectory"
@@ -15,11 +18,22 @@
     start = 2.0                      # optional: s, the part of the test used (the files' time base)
     end = 58.0
     max_gap = 10                     # optional: longest hole in the time stamps, sample periods (default 10)
-    files = { q = "pos.csv", tau = "torques.csv" }
+    files = { q = "pos.csv", tau = "torques.csv" }   # or current = "currents.csv" (with [channels] current)
+    payload = { mass_kg = 2.0, com_m = [0, 0, 0.05], inertia_kg_m2 = [0.004, 0.004, 0.002, 0, 0, 0] }
+                                     # optional: a known payload fixed to the last link during this test (its
+                                     # centre of mass in that link's frame; its inertia about the centre of mass,
+                                     # [xx, yy, zz, xy, xz, yz]; frame = 6 names another link): its torque is known
 
-    [channels]                       # quantity (q, tau) -> channels, one per joint, with the file's unit
+    [channels]                       # quantity (q, tau or current) -> channels, one per joint, with the file's unit
     q = { channels = ["Joint_1", "Joint_2"], unit = "rad" }
     tau = { channels = ["Joint_1", "Joint_2"], unit = "N.m" }
+                                     # or current = { channels = ["I_1", "I_2"], unit = "A" }: motor currents
+
+    # [drive]                        # with current channels: the motor torque is gain x current (tau_m = g i,
+    # gains = [0.35, 0.35]           # N.m/A motor side, one per current channel; [transmission] tau maps it)
+    # identify_gains = true          # optional: the gains are parameters (the values above their a priori); or
+                                     # the channels whose gain is identified, identify_gains = ["I_1"]. Every gain
+                                     # identified needs a test with a known payload (the scale is free otherwise)
 
     [transmission]                   # optional: joint = matrix @ channels (+ offset)
     q = [["1/32", 0], [0, "1/32"]]
@@ -35,7 +49,7 @@
 
     [identification]
     method = "wls"                   # or "ols", or "wls-pc": WLS with every body physically consistent
-                                     # (needs pip install 'dynid[pc]'; docs/robot.md)
+                                     # (needs pip install cvxpy clarabel; docs/robot.md)
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
@@ -76,6 +90,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     iv_passes = 2                    # last estimate, driven by the measured loads (vehicle.instruments)
     base = "generic"                 # "generic" (the paper's 48) or "car" (44, see vehicle.equations)
     aero = true                      # the aerodynamic wrench of the template's tables in Y
+    tire_curves = true               # the tires' cornering and slip stiffness and lateral Magic Formula from
+                                     # the wheel wrenches and slips (vehicle.tire_curves); false: not fitted
 
     [uncertainty]                    # optional: the sensors' zero offsets propagated to the estimates (%σ
                                      # total). Default: the vehicle's sensor suite's (each channel's `bias`);
@@ -87,7 +103,7 @@ Either kind may say where its work runs (the command line's --scheduler and --wo
 
     [compute]
     scheduler = "local"              # a Dask LocalCluster on this machine, or a Dask scheduler's address
-                                     # ("tcp://10.0.0.5:8786"; needs pip install 'dynid[dask]'); default: this
+                                     # ("tcp://10.0.0.5:8786"; needs pip install distributed); default: this
                                      # machine's threads. The workers read the files themselves: give paths
                                      # every worker reaches (a shared file system)
     workers = 2                      # threads, or a LocalCluster's single-threaded worker processes
@@ -126,12 +142,48 @@ class TestSpec:
     start: float | None = None  # s, in the files' time base: the part of the test used
     end: float | None = None
     max_gap: float = 10.0  # sample periods: a longer hole in the time stamps is refused
+    payload: Payload | None = None  # a robot test's known payload on its last link
+
+
+@dataclass(frozen=True)
+class Payload:
+    """A known rigid payload fixed to a link during a test (Gautier's method for drive gains): its mass (kg), its
+    centre of mass (m, in the link's frame) and its inertia about the centre of mass (kg.m2, in the link's axes,
+    [xx, yy, zz, xy, xz, yz]); frame: the link's frame (None: the last joint's link)."""
+
+    mass: float
+    com: tuple[float, float, float]
+    inertia: tuple[float, float, float, float, float, float]
+    frame: int | None = None
+
+    def standard(self) -> np.ndarray:
+        """(10,) its standard parameters about the link frame's origin, in Khalil's order XX XY XZ YY YZ ZZ MX MY MZ M
+        (the parallel-axis theorem: I_O = I_G + m (|c|^2 1 - c c^T))."""
+        xx, yy, zz, xy, xz, yz = self.inertia
+        c = np.array(self.com)
+        I_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) + self.mass * (c @ c * np.eye(3) - np.outer(c, c))
+        return np.array([I_o[0, 0], I_o[0, 1], I_o[0, 2], I_o[1, 1], I_o[1, 2], I_o[2, 2], *(self.mass * c),
+                         self.mass])
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """[drive]: the current channels' gains (N.m/A, motor side, one per channel in [channels] current's order) and
+    which are identified (their gains the a priori values)."""
+
+    gains: tuple[float, ...]
+    identify: tuple[bool, ...]
+
+    @property
+    def identified(self) -> bool:
+        return any(self.identify)
 
 
 @dataclass(frozen=True)
 class ChannelSpec:
     channels: tuple[str, ...]
     unit: str | None
+    unit_over_file: bool = False  # the config's unit wins over a file that says another (its header is wrong)
 
 
 @dataclass(frozen=True)
@@ -152,6 +204,7 @@ class CarSettings:
     offsets: dict[str, float] | None = None
     offset_segments: int = 2
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
+    tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
 
 
 @dataclass(frozen=True)
@@ -171,29 +224,41 @@ class IdentifyConfig:
     car: CarSettings | None = None
     # [model] vehicle: a vehicle file (resolved Path: the value ended in .toml) or a shipped vehicle's name
     vehicle: str | Path | None = None
+    joints: tuple[str, ...] | None = None  # [model] joints: a robot's identified joints, by name
     scheduler: str | None = None  # [compute]: None (this machine's threads), "local" or a Dask scheduler's address
     workers: int | None = None
+    drive: DriveSpec | None = None  # a robot logging motor currents: [drive] gains (identified or known)
 
     @property
     def kind(self) -> str:
         return "car" if self.car is not None else "robot"
+
+    @property
+    def effort(self) -> str:
+        """The robot's effort quantity: "current" (motor currents, with [drive] gains) or "tau" (joint torques)."""
+        return "current" if "current" in self.channels else "tau"
 
 
 Err = Callable[[str, str], ConfigError]  # (where, e.g. "[model]", message) -> the error naming the file
 
 # the keys each section reads; a car and a robot read different ones (see the module doc)
 _TOP = ("model", "tests", "channels", "transmission", "conditioning", "identification", "reference", "uncertainty",
-        "compute")
+        "compute", "drive")
 _COMPUTE_KEYS = ("scheduler", "workers")
 _MODEL_KEYS = ("example", "file", "template", "vehicle")
-_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap")
+_MODEL_OPTIONS = ("joints",)  # a robot's: the identified joints, by name (the others are held still)
+_ROBOT_TEST_KEYS = ("name", "role", "fs", "files", "start", "end", "max_gap", "payload")
 _CAR_TEST_KEYS = ("name", "role", "fs", "file", "truth", "start", "end", "max_gap")
-_ROBOT_QUANTITIES = ("q", "tau")
+_ROBOT_QUANTITIES = ("q", "tau", "current")
+_EFFORTS = ("tau", "current")  # a robot test's effort channels: joint torques, or motor currents with [drive] gains
+_DRIVE_KEYS = ("gains", "identify_gains")
+_PAYLOAD_KEYS = ("mass_kg", "com_m", "inertia_kg_m2", "frame")
 _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
 _ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health")
+_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
+                       "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
 _UNCERTAINTY_KEYS = ("offsets", "segments")
@@ -225,7 +290,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
     if "uncertainty" in data and not is_car:
         raise err("[uncertainty]", "sensor offsets are propagated for the car template only ([model] template or "
                                    "vehicle); remove the section")
-    for name in ("transmission", "reference"):
+    for name in ("transmission", "reference", "drive"):
         if name in data and is_car:
             raise err(f"[{name}]", "is for a robot's joint files; a car reads its sensor suite's channels: remove "
                                    "the section")
@@ -241,6 +306,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
     tests = _tests(data.get("tests", []), here, is_car, err)
     channels = _channels(data.get("channels", {}), err, suite)
     transmission = _transmission(data.get("transmission", {}), err)
+    drive = None if is_car else _drive(data, channels, tests, err)
     cond = Conditioning() if is_car else _robot_conditioning(data.get("conditioning", {}), err)
 
     method = ident.get("method", "wls")
@@ -259,9 +325,113 @@ def load_config(path: str | Path) -> IdentifyConfig:
         conditioning=cond, method=method, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
         data_health=_data_health(ident, err), reference=_reference(data.get("reference"), here, err), car=car,
-        vehicle=vehicle,
-        **_compute(data.get("compute", {}), err),
+        vehicle=vehicle, joints=_model_joints(data.get("model", {}), is_car, err),
+        **_compute(data.get("compute", {}), err), drive=drive,
     )
+
+
+def _drive(data: dict, channels: dict[str, ChannelSpec], tests: Sequence[TestSpec], err: Err) -> DriveSpec | None:
+    """A robot's effort channels and [drive]: torques or currents (not both); current channels need a gain each
+    (known, or identified with a payload test or a known gain to fix the scale); every test reads the effort."""
+    raw = data.get("drive")
+    if "tau" in channels and "current" in channels:
+        raise err("[channels]", "gives both tau and current: give one effort per joint, tau (joint torques) or "
+                                "current (motor currents, with [drive] gains)")
+    effort = "current" if "current" in channels else "tau"
+    for i, t in enumerate(tests, start=1):
+        other = next((q for q in _EFFORTS if q != effort and q in t.files), None)
+        if other is not None or effort not in t.files:
+            what = f"files has {other!r}, but [channels] reads {effort}" if other else \
+                f"files has no {effort!r}, which [channels] reads"
+            raise err(f'[[tests]] #{i} ("{t.name}")', f"{what}: give files = {{ q = \"...\", {effort} = \"...\" }}")
+    if effort == "tau":
+        if raw is not None:
+            raise err("[drive]", "gives the gains of motor current channels; [channels] has tau (joint torques): "
+                                 "remove [drive], or read currents with [channels] current = { channels = [...], "
+                                 "unit = \"A\" }")
+        return None
+    names = channels["current"].channels
+    if raw is None or "gains" not in raw:
+        raise err("[channels.current]", f"channel {names[0]!r} has no drive gain: give [drive] gains = [...] (N.m/A, "
+                                        f"motor side, one per current channel: {len(names)})")
+    _keys(raw, _DRIVE_KEYS, "[drive]", err)
+    gains = raw["gains"]
+    if not isinstance(gains, list):
+        raise err("[drive]", f"gains = {gains!r}; give a list of gains, one per current channel (N.m/A, motor side)")
+    if len(gains) < len(names):
+        raise err("[drive]", f"gains has {len(gains)} values for {len(names)} current channels: channel "
+                             f"{names[len(gains)]!r} has no gain; give one per channel of [channels] current")
+    if len(gains) > len(names):
+        raise err("[drive]", f"gains has {len(gains)} values for {len(names)} current channels; give one per channel "
+                             "of [channels] current")
+    values = []
+    for name, g in zip(names, gains, strict=True):
+        try:
+            v = parse_number(g, f"gains ({name})")
+        except ModelError as exc:
+            raise err("[drive]", f"{exc} (N.m/A, motor side)") from None
+        if not np.isfinite(v) or v == 0 or abs(v) > MAX_KNOWN:
+            raise err("[drive]", f"gains: {name} = {g!r}; give the motor's torque constant in N.m/A (finite, not 0)")
+        values.append(v)
+    which = raw.get("identify_gains", False)
+    if isinstance(which, bool):
+        identify = (which,) * len(names)
+    elif isinstance(which, list) and which and all(isinstance(n, str) for n in which):
+        unknown = [n for n in which if n not in names]
+        if unknown:
+            raise err("[drive]", f"identify_gains: {unknown[0]!r} is not a current channel;"
+                                 f"{did_you_mean(unknown[0], list(names))} channels: {', '.join(names)}")
+        identify = tuple(n in which for n in names)
+    else:
+        raise err("[drive]", f"identify_gains = {which!r}; give true (every gain identified), false (the gains "
+                             "known) or the channels whose gain is identified: [\"I_1\", ...]")
+    if all(identify) and not any(t.payload is not None for t in tests if t.role == "identify"):
+        raise err("[drive]", "identify_gains: every gain identified and no identification test carries a known "
+                             "payload, so the gains and the inertial parameters are free to a common scale: add a "
+                             "[[tests]] entry with the robot carrying payload = { mass_kg = ..., com_m = [...], "
+                             "inertia_kg_m2 = [...] } (Gautier's method), or give one gain as known (identify_gains "
+                             "= [the other channels])")
+    return DriveSpec(tuple(values), identify)
+
+
+def _payload(raw: object, where: str, err: Err) -> Payload:
+    """[[tests]] payload = { mass_kg, com_m = [x, y, z], inertia_kg_m2 = [xx, yy, zz, xy, xz, yz], frame }: a real
+    body (mass > 0, inertia about its centre of mass positive definite, triangle inequalities)."""
+    where = f"{where} payload:"
+    expected = ("payload = { mass_kg = 2.0, com_m = [0, 0, 0.05], inertia_kg_m2 = [xx, yy, zz, xy, xz, yz] } (its "
+                "centre of mass in the link's frame, its inertia about it)")
+    if not isinstance(raw, dict):
+        raise err(where, f"= {raw!r}; give {expected}")
+    _keys(raw, _PAYLOAD_KEYS, where, err)
+    missing = [k for k in _PAYLOAD_KEYS[:3] if k not in raw]
+    if missing:
+        raise err(where, f"has no {missing[0]}; give {expected}")
+    mass = raw["mass_kg"]
+    if not _number(mass, lambda v: v > 0):
+        raise err(where, f"mass_kg = {mass!r}; give the payload's mass in kg (> 0)")
+
+    def numbers(key: str, n: int) -> tuple[float, ...]:
+        v = raw[key]
+        if not isinstance(v, list) or len(v) != n or not all(_number(x) for x in v):
+            raise err(where, f"{key} = {v!r}; give {n} numbers" + (" (m, in the link's frame)" if n == 3 else
+                             " (kg.m2 about the centre of mass: xx, yy, zz, xy, xz, yz)"))
+        return tuple(float(x) for x in v)
+
+    com, inertia = numbers("com_m", 3), numbers("inertia_kg_m2", 6)
+    xx, yy, zz, xy, xz, yz = inertia
+    moments = np.linalg.eigvalsh(np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]))
+    if moments[0] <= 0:
+        raise err(where, f"inertia_kg_m2 = {list(inertia)} is not positive definite (principal moments "
+                         f"{', '.join(f'{m:.4g}' for m in moments)} kg.m2): no body has it; give the inertia about the "
+                         "payload's centre of mass, [xx, yy, zz, xy, xz, yz] (products with their sign: -sum m x y)")
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise err(where, f"inertia_kg_m2 = {list(inertia)}: principal moments {', '.join(f'{m:.4g}' for m in moments)}"
+                         " kg.m2 break the triangle inequality (the two smaller must sum to at least the largest): no "
+                         "body has it; check the values")
+    frame = raw.get("frame")
+    if frame is not None and (isinstance(frame, bool) or not isinstance(frame, int) or frame < 1):
+        raise err(where, f"frame = {frame!r}; give the link's frame number (from 1), or leave it out (the last link)")
+    return Payload(float(mass), com, inertia, frame)
 
 
 def _data_health(ident: dict, err: Err) -> str:
@@ -317,14 +487,27 @@ def _sections(data: dict, path: Path) -> None:
                               "and its keys below")
 
 
+def _model_joints(m: dict, is_car: bool, err: Err) -> tuple[str, ...] | None:
+    """[model] joints = ["joint1", ...]: a robot's identified joints (the model file's [joints] names)."""
+    if "joints" not in m:
+        return None
+    joints = m["joints"]
+    if is_car:
+        raise err("[model]", "joints = [...] chooses a robot's identified joints; a car's equations are its template's")
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
+        raise err("[model]", f"joints = {joints!r}; give the identified joints' names, like joints = [\"joint1\", "
+                  "\"joint2\"] (the model file's [joints] table)")
+    return tuple(joints)
+
+
 def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None]:
     """[model]: the model (a shipped name or a robot file's path) and the vehicle (a car's vehicle file: a
     resolved Path, or a shipped vehicle's name; None for a robot or the template alone)."""
     where = "[model]"
-    unknown = [k for k in m if k not in _MODEL_KEYS]
+    unknown = [k for k in m if k not in (*_MODEL_KEYS, *_MODEL_OPTIONS)]
     if unknown:  # e.g. wheelbase: a car's dimensions are its vehicle file's
-        raise err(where, unknown_keys(unknown, _MODEL_KEYS) + " (a car's geometry, tables and known values are "
-                         "its vehicle file's: vehicle = \"my_car.toml\")")
+        raise err(where, unknown_keys(unknown, (*_MODEL_KEYS, *_MODEL_OPTIONS)) + " (a car's geometry, tables and "
+                         "known values are its vehicle file's: vehicle = \"my_car.toml\")")
     given = [k for k in _MODEL_KEYS if k in m]
     if not given:
         raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "
@@ -391,6 +574,7 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
         if not _number(max_gap, lambda v: v >= 1):
             raise err(where, f"max_gap = {max_gap!r}; give the longest hole allowed in the time stamps, in sample "
                              "periods (a number >= 1)")
+        payload = None if is_car or "payload" not in t else _payload(t["payload"], where, err)
         truth = t.get("truth")
         if truth is not None:
             if not isinstance(truth, str):
@@ -399,25 +583,29 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err) -> tuple[TestSpec, .
             if not truth.exists():
                 raise err(where, f"truth file not found: {truth}")
         tests.append(TestSpec(name, role, files, None if fs is None else float(fs), truth,
-                              *(None if v is None else float(v) for v in window.values()), float(max_gap)))
+                              *(None if v is None else float(v) for v in window.values()), float(max_gap), payload))
     if not any(t.role == "identify" for t in tests):
         raise err("[[tests]]", "at least one test must have role = \"identify\"")
     return tuple(tests)
 
 
 def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Path]:
-    """A robot test's files = { q = "positions.csv", tau = "torques.csv" } (one file may hold both)."""
+    """A robot test's files = { q = "positions.csv", tau = "torques.csv" } (one file may hold both; current in place
+    of tau: motor currents)."""
     if not isinstance(files, dict) or not files:
         raise err(where, "needs files = { q = \"positions.csv\", tau = \"torques.csv\" } (a table of quantity = "
                          "file; one file may hold both)")
     unknown = [q for q in files if q not in _ROBOT_QUANTITIES]
     if unknown:
         raise err(where, "files: " + unknown_keys(unknown, _ROBOT_QUANTITIES, what="quantity"))
-    for q in _ROBOT_QUANTITIES:
-        if q not in files:
-            raise err(where, f"files has no {q!r}: give files = {{ q = \"...\", tau = \"...\" }}")
+    if "tau" in files and "current" in files:
+        raise err(where, "files has both tau and current: give the one [channels] reads")
+    for q in files:
         if not isinstance(files[q], str):
             raise err(where, f"files: {q} = {files[q]!r}; give a file name (a string, relative to this config)")
+    for q in ("q", "tau"):
+        if q not in files and (q == "q" or "current" not in files):
+            raise err(where, f"files has no {q!r}: give files = {{ q = \"...\", tau = \"...\" }}")
     return {q: here / f for q, f in files.items()}
 
 
@@ -428,10 +616,10 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
     if is_car:
         for q in raw:
             suite.check(q, "[channels]")
-        inner = ("channel", "unit")
+        inner = ("channel", "unit", "unit_over_file")
         expected = "{ channel = \"name in the file\", unit = \"...\" }"
     else:
-        inner = ("channels", "unit")
+        inner = ("channels", "unit", "unit_over_file")
         expected = "{ channels = [\"name in the file\", ...], unit = \"...\" } (one channel per joint)"
         unknown = [q for q in raw if q not in _ROBOT_QUANTITIES]
         if unknown:
@@ -453,7 +641,11 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
-        channels[q] = ChannelSpec(tuple(names), unit)
+        over = spec.get("unit_over_file", False)
+        if not isinstance(over, bool) or (over and unit is None):
+            raise err(where, f"unit_over_file = {over!r}; true (with a unit) when the file's own unit is wrong and "
+                             "the config's is right, else leave it out")
+        channels[q] = ChannelSpec(tuple(names), unit, over)
     if is_car:  # two sensors read from one logger channel: a copy-paste slip, never a car's wiring
         seen: dict[str, str] = {}
         for q, c in channels.items():
@@ -585,6 +777,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
+        tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
 
 

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..atomic import write_atomic
+from ..progress import notice_if_slow
 from .config import load_config
 from .run import IdentificationRun, identify
 
@@ -74,6 +75,13 @@ def simulated_car(vehicle: str = "peugeot406"):
                         damper_knees=v.damper_knees)
 
 
+# a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
+# them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
+SLOW_BUILD_S = 3.0
+GENERATING = ("generating the car's models (once per vehicle and dynid version, up to half a minute; cached for "
+              "later runs)")
+
+
 def compile_pending(sim) -> bool | None:
     """Whether the simulator's first call will compile its kernel: numba has no cache index for it yet (True),
     has one (False), or cannot tell (None: numba absent, or its internals changed)."""
@@ -87,8 +95,9 @@ def simulate_tests(quick: bool = False, progress: Progress | None = None, simula
                    vehicle: str = "peugeot406") -> dict:
     """The demo's tests driven by the simulated car: file key -> SimulationResult (noise-free motion)."""
     say = progress or (lambda _m: None)
-    say("building the simulated car (a first run generates its models: up to 30 s)")
-    sim = simulated_car(vehicle)
+    say("building the simulated car")
+    with notice_if_slow(SLOW_BUILD_S, GENERATING, say):
+        sim = simulated_car(vehicle)
     pending = compile_pending(sim)
     if pending is not False:  # numba compiles at the first call: a silent minute unless announced
         say("compiling the simulator's models (first run only, up to a minute; cached for later runs)"

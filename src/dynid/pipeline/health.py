@@ -264,8 +264,8 @@ def robot_health(plan: RobotTestPlan) -> list[Finding]:
     t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
     still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
     scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)))
-             for q in ("q", "tau") for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
-    for q in ("q", "tau"):
+             for q in ("q", plan.effort) for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
+    for q in ("q", plan.effort):
         a = t0
         while a <= t1:
             b = min(a + WINDOW_S, t1)
@@ -285,7 +285,8 @@ def robot_health(plan: RobotTestPlan) -> list[Finding]:
 def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
     """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
     (`ConfigError`, one line), the rest is said and returned as dicts."""
-    return _reported(cfg, [(plan.test, str(plan.indexes["tau" if f.channel in plan.channels["tau"] else "q"].path), f)
+    e = plan.effort
+    return _reported(cfg, [(plan.test, str(plan.indexes[e if f.channel in plan.channels[e] else "q"].path), f)
                            for f in robot_health(plan)], say)
 
 

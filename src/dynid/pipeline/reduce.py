@@ -36,12 +36,14 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
+from ..model.tree import ModelError
 from .config import IdentifyConfig
-from .robot import GroupedSystem, chunk_rows
-from .sources import RobotTestPlan, SegmentWindow, read_robot_window, transmitted
+from .robot import GroupedSystem, chunk_rows, data_joints, to_frames
+from .sources import RobotTestPlan, SegmentWindow, driven, gain_names, read_robot_window
 
 if TYPE_CHECKING:
     from ..vehicle.estimate import CarTrajectory
+    from ..vehicle.tire_curves import TireSamples
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,7 @@ class Partial:
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
+    tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -90,7 +93,8 @@ def combine(a: Partial, b: Partial) -> Partial:
         return y if x is None else x if y is None else x.merge(y)
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
-                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts))
+                   a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
+                   both(a.tires, b.tires))
 
 
 class CarSetup:
@@ -221,6 +225,13 @@ def reduce_car_segment(job: CarJob) -> Partial:
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    if setup.settings.tire_curves and job.instruments is None and not job.lags:
+        from ..vehicle.tire_curves import tire_samples
+
+        # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
+        step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
+        part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
+                                  step)
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
@@ -313,24 +324,55 @@ class RobotSetup:
 
     def __init__(self, cfg: IdentifyConfig) -> None:
         from ..dynamics import load_model
+        from .config import ConfigError
 
-        self.model = load_model(cfg.model)
+        tree = load_model(cfg.model).tree
+        k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
+             else len(cfg.channels["q"].channels) if "q" in cfg.channels else tree.n)
+        # a transmission's rows are the joints it gives: name it when its count is the one that does not match
+        source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
+        try:  # the joints the data give; the others (a gripper not logged) held still
+            self.joints = data_joints(tree, k, cfg.joints, source)
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
+        self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
+        # the estimated parameters: the base parameters, then the drive gains when identified
+        self.names = [*self.base.names, *gain_names(cfg)]
+        clash = sorted(set(self.base.names) & set(gain_names(cfg)))
+        if clash:
+            raise ConfigError(f"{cfg.path}: [drive] the gain {clash[0]!r} has the name of a parameter of the model; "
+                              "rename that parameter (a coupling) in the model file")
+        self.payloads: dict[str, tuple[int, np.ndarray]] = {}  # test -> (frame, its standard parameters)
+        for t in cfg.tests:
+            if t.payload is not None:
+                j = max(self.joints.columns) if t.payload.frame is None else t.payload.frame
+                if not 1 <= j <= self.model.n:
+                    raise ConfigError(f"{cfg.path}: test {t.name!r}: payload frame = {j}; model {self.model.name!r} "
+                                      f"has frames 1 to {self.model.n}: name the link that carries it")
+                self.payloads[t.name] = (j, t.payload.standard())
 
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
     """The config's robot setup (see `_setup`)."""
-    return _setup(("robot", cfg.path, cfg.model), lambda: RobotSetup(cfg))
+    return _setup(("robot", cfg.path, cfg.model, cfg.tests, cfg.drive), lambda: RobotSetup(cfg))
 
 
 def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
-    """The chunk's samples read, through the channel map and transmission, to its decimated rows."""
+    """The chunk's samples read, through the channel map, drive gains and transmission, to its decimated rows (with
+    the drive gains' columns when they are identified, and the test's payload torque taken off)."""
     setup = robot_setup(job.cfg)
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
-    q, tau = transmitted(job.cfg, arrays["q"], arrays["tau"], setup.model.n)
+    columns, n = setup.joints.columns, setup.model.n
+    q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
+    q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
+    if gains is not None and len(columns) != n:  # the joints without data: no rows, zero columns
+        full = np.zeros((gains.shape[0], n, gains.shape[2]))
+        full[:, np.asarray(columns) - 1, :] = gains
+        gains = full
     return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
-                      job.n_samples)
+                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
 
 
 def stack_rows(a: GroupedSystem, b: GroupedSystem) -> GroupedSystem:

@@ -53,6 +53,11 @@ class ReferenceRow:
     wls: float
     wls_rel_std: float
 
+    def published(self, method: str) -> tuple[float, float]:
+        """(value, %σ) of the published column to compare an estimate of `method` with (a result's method: "OLS",
+        "WLS", "WLS-PC", "IV"): the weighted column for every weighted estimator, the OLS column for OLS."""
+        return (self.ols, self.ols_rel_std) if method.upper() == "OLS" else (self.wls, self.wls_rel_std)
+
 
 def reference_text(path: str | Path) -> str:
     """The text of a reference table; a file that cannot be read, is binary or is not UTF-8 raises a `ModelError`

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
+from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
 
 Array = np.ndarray
@@ -67,6 +68,63 @@ class GroupedSystem:
         return GroupedSystem(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("W", "Y", "groups", "t")), Z)
 
 
+@dataclass(frozen=True)
+class DataJoints:
+    """Which joints a robot's data files give: the model (with the joints the data do not give frozen), the frame
+    of each data column, in order, and a note saying what was frozen ("" if nothing)."""
+
+    tree: Tree
+    columns: tuple[int, ...]
+    note: str = ""
+
+
+def data_joints(tree: Tree, k: int, selection: Sequence[str] | None = None, source: str = "") -> DataJoints:
+    """The joints k data columns are, in frame order:
+
+    - with a selection (joint names: the identified chain, the config's [model] joints), those joints; every
+      other moving joint is frozen at 0 with the joints that mimic it (`model.tree.freeze`);
+    - else k = n: one column per frame (as the model file's frames; the columns of fixed frames and mimic joints
+      are not read); k = the joints with an equation (`Tree.equations`: neither fixed nor mimic); or k = those
+      less the joints that others mimic (a gripper's): those are frozen at 0 with their mimics, and said so.
+    Anything else is a one-line ModelError naming the counts and the joints."""
+    where = f"{source}: " if source else ""
+    if selection is not None:
+        frames = [tree.frame_of(name) for name in selection]
+        followers = [j for j in frames if j in tree.mimic]
+        if followers:
+            j = followers[0]
+            raise ModelError(f"{where}[model] joints: {tree.joint_names.get(j, j)!r} mimics "
+                             f"{tree.joint_names.get(tree.mimic[j].master)!r}; select that joint (its mimics follow)")
+        held = {j: 0.0 for j in tree.equations if j not in frames}
+        out = freeze(tree, held) if held else tree
+        note = (f"joints not selected in [model] joints, held still at 0: {', '.join(out.frozen)}" if held else "")
+        if k != len(out.equations):
+            raise ModelError(f"{where}the data give {k} joint columns; [model] joints selects {len(out.equations)}")
+        return DataJoints(out, out.equations, note)
+    if k == tree.n:
+        return DataJoints(tree, tuple(range(1, tree.n + 1)))
+    if k == len(tree.equations):
+        return DataJoints(tree, tree.equations)
+    masters = sorted({m.master for m in tree.mimic.values()})
+    if masters and k == len(tree.equations) - len(masters):
+        out = freeze(tree, dict.fromkeys(masters, 0.0))
+        return DataJoints(out, out.equations, f"not in the data (the data give {k} joints), held still at 0 with "
+                                              f"the joints that mimic them: {', '.join(out.frozen)}")
+    named = ", ".join(tree.joint_names.get(j, str(j)) for j in tree.equations)
+    raise ModelError(f"{where}the data give {k} joint columns; model {tree.name!r} has {tree.n} frames, "
+                     f"{len(tree.equations)} of them joints with an equation ({named}): give one column per joint, "
+                     "or choose the identified joints with [model] joints = [...] (the others are held still)")
+
+
+def to_frames(a: Array, columns: Sequence[int], n: int) -> Array:
+    """(N, k) data columns as (N, n) frame columns (0 in the frames without data: fixed, mimic or frozen)."""
+    if len(columns) == n:
+        return a
+    out = np.zeros((a.shape[0], n))
+    out[:, np.asarray(columns) - 1] = a
+    return out
+
+
 def condition(test: JointTest, c: Conditioning) -> tuple[Array, Array, Array, Array, slice]:
     """Filtered q, qd, qdd and the kept slice (borders trimmed), tau on the same samples."""
     q, qd, qdd = filtered_derivatives(test.q, test.fs, c.cutoff, order=c.order, nderiv=2)
@@ -90,7 +148,7 @@ def joint_system(
     A record whose full-rate W would exceed `segment_bytes` is done in segments that overlap by the decimation
     filter's transient: each segment's decimated rows are those a whole-record decimation gives, to the
     filter's tail beyond the overlap (1e-9 of the signal), so the result does not depend on the segmenting."""
-    rows = list(range(1, model.n + 1)) if rows is None else list(rows)
+    rows = list(model.tree.equations) if rows is None else list(rows)
     q, qd, qdd, tau, keep = condition(test, c)
     Y = tau[:, np.array(rows) - 1]
     t = (np.arange(test.q.shape[0])[keep] / test.fs)
@@ -137,12 +195,17 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
 
 
 def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
-               chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None) -> GroupedSystem:
+               chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
+               payload: tuple[int, Array] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
-    own outputs kept (on the whole record's decimation grid), the slow rows dropped."""
-    rows = list(range(1, model.n + 1)) if rows is None else list(rows)
+    own outputs kept (on the whole record's decimation grid), the slow rows dropped.
+
+    gains: (len(q), n, k) columns appended to W on the same samples (drive gains identified: `sources.driven`),
+    filtered and decimated as W's. payload: (frame, its 10 standard parameters about the frame's origin): a known
+    body fixed to that link, whose torque (the link's regressor columns times them) is taken off the torques."""
+    rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     qf, qdf, qddf = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=2)
     b, D = _border(fs, c), int(np.prod(c.decimate))
@@ -150,7 +213,14 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
     w = slice(lo - first, hi - first)
     W = np.ascontiguousarray(model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=list(base.columns)))
-    Wd, Yd = decimate_parallel(W, tau[w][:, np.array(rows) - 1], c.decimate, fs, order=DECIMATION_ORDER)
+    Y = tau[w][:, np.array(rows) - 1]
+    if payload is not None:
+        j, Xp = payload
+        Wp = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=[f"{k}{j}" for k in INERTIAL])
+        Y = Y - Wp @ Xp
+    if gains is not None:
+        W = np.concatenate([W, gains[w][:, np.array(rows) - 1, :]], axis=2)
+    Wd, Yd = decimate_parallel(W, Y, c.decimate, fs, order=DECIMATION_ORDER)
     del W
     speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
@@ -181,3 +251,110 @@ def _decimation_transient(fs: float, factors: Sequence[int]) -> int:
         pad += border_samples(rate, 0.8 * rate / (2.0 * f), DECIMATION_ORDER, tol=1e-9) * before + f * before
         rate, before = rate / f, before * f
     return -(-pad // D) * D
+
+
+PRODUCTS = ("XY", "XZ", "YZ")
+FIRST_MOMENTS = ("MX", "MY", "MZ")
+
+
+def link_length(tree: Tree, j: int, X: Array | None = None) -> float:
+    """A link's size (m) from the model file's a priori values and geometry: the largest of the distance from
+    O_j to its centre of mass, the distances from O_j to its children's origins (the joint-to-joint lengths of
+    the MDH table) and its radius of gyration about the centre of mass (sqrt(tr I_G / 2m), the RMS distance of
+    its mass from the centre of mass). 0 for a link without a priori mass and children."""
+    block = tree.inertial_block(X)[j]
+    m, ms = block[9], block[6:9]
+    sizes = [0.0]
+    if m > 0:
+        com = ms / m
+        I_o = _inertia(block)
+        I_g = I_o - m * (float(com @ com) * np.eye(3) - np.outer(com, com))
+        sizes += [float(np.linalg.norm(com)), float(np.sqrt(max(np.trace(I_g), 0.0) / (2.0 * m)))]
+    for k in tree.children[j]:
+        f = tree.frames[k - 1]
+        p = np.array([f.d, -f.r * np.sin(f.alpha), f.b + f.r * np.cos(f.alpha)])  # |Rz(gamma) p| = |p|
+        sizes.append(float(np.linalg.norm(p)))
+    return max(sizes)
+
+
+def link_box(tree: Tree, j: int, X: Array | None = None) -> tuple[Array, Array]:
+    """The extent of link j (m, in frame j) where its centre of mass must lie: the box spanning O_j, its children's
+    origins and its a priori centre of mass, widened on every side by its radius of gyration about that centre
+    of mass and by a tenth of its size (`link_length`)."""
+    block = tree.inertial_block(X)[j]
+    m = block[9]
+    points = [np.zeros(3)]
+    pad = 0.1 * link_length(tree, j, X)
+    if m > 0:
+        com = block[6:9] / m
+        points.append(com)
+        I_g = _inertia(block) - m * (float(com @ com) * np.eye(3) - np.outer(com, com))
+        pad += float(np.sqrt(max(np.trace(I_g), 0.0) / (2.0 * m)))
+    for k in tree.children[j]:
+        f = tree.frames[k - 1]
+        points.append(_rz(f.gamma) @ np.array([f.d, -f.r * np.sin(f.alpha), f.b + f.r * np.cos(f.alpha)]))
+    P = np.array(points)
+    return P.min(axis=0) - pad, P.max(axis=0) + pad
+
+
+def _rz(t: float) -> Array:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def standard_scales(tree: Tree, X: Array | None = None) -> Array:
+    """(p,) the engineering scale of each standard parameter from the values X (default the model file's a priori
+    set), all about O_j in frame j as the parameters are:
+
+    - a product of inertia XY_j against sqrt(XX_j YY_j) (XZ, YZ alike): the largest |XY_j| that a real body with
+      those moments can have (the inertia is positive semidefinite), so the scale of the product's possible size.
+      For a thin link (a forearm: moments 0.19, 0.19 and 0.004 kg.m2 about its long axis) it lies between the
+      smallest principal moment, which would call a 0.1 degree tilt of its principal axes uncertain, and the
+      largest, which would hide a product as large as the thin axis' moment;
+    - a first moment MX_j against the link's mass times its size (`link_length`), so that 5 % of it (the flag's
+      95 % interval at 2.5 %) is a centre-of-mass shift of 1/20 of the link;
+    - every other parameter against its own |value|.
+
+    0 where X says nothing (no mass, no inertia)."""
+    X = tree.parameters if X is None else np.asarray(X, dtype=float)
+    out = np.abs(X).astype(float)
+    blocks = tree.inertial_block(X)
+    for f in tree.frames:
+        if f.sigma == FIXED and not np.any(blocks[f.j]):
+            continue
+        i0 = tree.index[f"XX{f.j}"]
+        xx, yy, zz = np.abs(blocks[f.j, [0, 3, 5]])
+        bound = {"XY": np.sqrt(xx * yy), "XZ": np.sqrt(xx * zz), "YZ": np.sqrt(yy * zz)}
+        for k, kind in enumerate(("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")):
+            if kind in PRODUCTS:
+                out[i0 + k] = bound[kind]
+            elif kind in FIRST_MOMENTS:
+                out[i0 + k] = abs(blocks[f.j, 9]) * link_length(tree, f.j, X)
+    return out
+
+
+def robot_scales(tree: Tree, base: BaseParameters, values: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The engineering scale of each base parameter, against which the "uncertain" flag judges its σ.
+
+    A base parameter X_B = X_k + sum_i beta_i X_i regroups standard parameters, each with its own scale s
+    (`standard_scales`, from the model file's a priori values and geometry), so its scale is
+    s_k + sum_i |beta_i| s_i: the size its value would have if every part it sums had its own size, whatever
+    cancels (XX_jR = XX_j - YY_j + ... is near zero for a symmetric link, its σ is not measured against that).
+    A parameter is never judged against less than its own estimate, |value| (values: the estimates by base
+    name): a scale of 0 (nothing a priori) leaves the default, |value|."""
+    s = standard_scales(tree)
+    out = {}
+    for r, (name, col) in enumerate(zip(base.names, base.columns, strict=True)):
+        scale = float(s[col])
+        if base.regrouped_columns:
+            scale += float(np.abs(base.beta[r]) @ s[list(base.regrouped_columns)])
+        if values is not None and name in values:
+            scale = max(scale, abs(float(values[name])))
+        if scale > 0:
+            out[name] = scale
+    return out
+
+
+def _inertia(block: Array) -> Array:
+    xx, xy, xz, yy, yz, zz = block[:6]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])

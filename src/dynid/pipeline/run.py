@@ -25,12 +25,15 @@ from ..estimation import (
     IdentificationResult,
     StreamingLS,
     fit_note,
+    group_noise,
     misfit_parameters,
     model_fits,
+    not_excited,
     nrmse,
     ols,
     propagate,
     relative_errors,
+    residual_rms,
     wls,
 )
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
@@ -52,7 +55,7 @@ from .reduce import (
     stack_rows,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks
+from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
 from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
     plan_car_test,
@@ -80,6 +83,8 @@ class IdentificationRun:
     sections: list[tuple[str, list[str]]] | None = None  # how the parameter tables are grouped
     notes: str = ""  # printed under the tables (e.g. the physical-consistency verdict)
     not_excited: dict[str, list[str]] = field(default_factory=dict)  # kind -> groups whose Y is mostly noise
+    # the identification's residual RMS per equation group: the noise floor of `estimation.not_excited`
+    residual_rms: dict[str, float] = field(default_factory=dict)
     systems: dict[str, GroupedSystem] = field(default_factory=dict)  # test name -> its rows (the report's plots)
     config: IdentifyConfig | None = None  # what was run (the report's traceability)
     vehicle: Any = None  # a car's vehicle description (its geometry for the report's engineering figures)
@@ -87,9 +92,24 @@ class IdentificationRun:
     offsets: dict | None = None  # a car's sensor zero offsets (car.SensorOffsets.to_dict), for results.json
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
+    tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
 
     def summary(self) -> str:
-        text = parameter_table(self.result, self.sections)
+        """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
+        sheet, then the notes."""
+        meanings = None
+        if self.vehicle is not None:
+            from ..vehicle.template import meaning
+
+            found = {n: meaning(n) for n in self.result.names}
+            meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
+        text = parameter_table(self.result, self.sections, meanings=meanings)
+        if self.vehicle is not None:
+            from ..report.build import car_engineering
+            from ..report.tables import engineering_block
+
+            quantities, kind, _, _ = car_engineering(self)
+            text += "\n\n" + engineering_block(quantities, kind)
         return f"{text}\n\n{self.notes}" if self.notes else text
 
     def reference_table(self) -> str:
@@ -97,10 +117,9 @@ class IdentificationRun:
         r = self.result
         names = list(r.names)
         cov = r.full_covariance
-        use_wls = r.method == "WLS"
         lines = [f"{'published':>10} {'ours':>12} {'ours %σ':>8} {'published':>12} {'pub. %σ':>8} {'gap/σ_pub':>9}  as"]
         for m in self.reference:
-            pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+            pub, pub_rel = m.row.published(r.method)
             ours = m.value(names, r.values)
             ours_rel = 100 * m.std(names, cov) / abs(ours) if ours else float("nan")
             gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
@@ -116,12 +135,15 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
     and transmission. The identification reads a chunk at a time instead; this is for looking at a test."""
     plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), progress)
     arrays = read_robot_window(plan, 0, plan.samples)
-    q, tau = transmitted(cfg, arrays["q"], arrays["tau"], n)
+    effort = arrays[plan.effort]
+    if plan.effort == "current":  # the motor torques by the config's gains (an identified gain's a priori value)
+        effort = effort * np.array(cfg.drive.gains)
+    q, tau = transmitted(cfg, arrays["q"], effort, n)
     return JointTest(spec.name, float(plan.fs), q, tau)
 
 
 def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
-    for quantity in ("q", "tau"):
+    for quantity in ("q", cfg.effort):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
         if quantity not in cfg.channels:
@@ -141,7 +163,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
         if health is not None:
             health += found
-        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels["tau"]))), model.n)
+        transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels[plan.effort]))),
+                    len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
@@ -336,18 +359,35 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
+    run.residual_rms = ident.group_rms(result)
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
         # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
         # relative error of noise over noise: marked, not hidden
-        noise = ident.group_rms(result)
-        moved = validate.group_rms()
-        run.not_excited["cross"] = [g for g, rms in moved.items() if rms < 2 * noise.get(g, 0.0)]
+        run.not_excited["cross"] = not_excited(validate.group_rms(), run.residual_rms)
     result.validation.update(run.errors)
+    if settings.tire_curves:
+        run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _tire_curves(parts: dict, vehicle, say: Progress):
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    from ..vehicle.tire_curves import fit_tire_curves
+
+    samples = [p.tires for p in parts.values() if p.tires is not None]
+    if not samples:
+        return None
+    merged = samples[0]
+    for s in samples[1:]:
+        merged = merged.merge(s)
+    curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
+        + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
+    return curves
 
 
 def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, result, scheduler: Scheduler,
@@ -440,17 +480,22 @@ def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, Gr
     result = run.result
     ident = run.identify
     run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
+    run.residual_rms = residual_rms(ident.W, ident.Y, result.values, ident.groups)
     cross = [t for t in cfg.tests if t.role == "validate"]
     if cross:
         val = GroupedSystem.stack([systems[t.name] for t in cross])
         run.validate = {t.name: systems[t.name] for t in cross}
         run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
+        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
+        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
     # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
     # ||Y|| makes the relative error look small whatever the dynamics
     run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
     if cross:
         run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
     result.validation.update(run.errors)
+    if any(run.not_excited.values()):
+        result.validation["not_excited"] = run.not_excited
     return run
 
 
@@ -472,17 +517,33 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         return _identify_car(cfg, say, scheduler)
     setup = robot_setup(cfg)
     model, base = setup.model, setup.base
-    names = list(base.names)
+    if setup.joints.note:
+        say(setup.joints.note)
+    names = list(setup.names)  # the base parameters, then the drive gains when identified
+    gains = names[len(base.names):]
     bad = [k for k in cfg.known if k not in names]
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
+    if gains and cfg.method == "wls-pc":
+        raise ConfigError(f"{cfg.path}: [identification] method = \"wls-pc\" does not take identified drive gains "
+                          "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
+                          "known ([drive] identify_gains = false)")
     health: list[dict] = []
     systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
     ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
-    a_priori = dict(zip(names, base.values(model.parameters), strict=True))
-    say(f"estimating {len(names)} base parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
-    kw = dict(a_priori=a_priori, known=cfg.known or None, poor_factor=cfg.poor_factor)
+    a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
+    known = dict(cfg.known)
+    if gains:  # the data sheet's gains are their a priori values; those not identified are known
+        a_priori |= dict(zip(gains, cfg.drive.gains, strict=True))
+        known |= {g: v for g, v, free in zip(gains, cfg.drive.gains, cfg.drive.identify, strict=True) if not free}
+        free = [g for g, f in zip(gains, cfg.drive.identify, strict=True) if f]
+        scale = [w for w, has in (("the payload test(s)", any(t.payload for t in cfg.tests if t.role == "identify")),
+                                  ("the known gain(s)", len(free) < len(gains))) if has]
+        say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
+            f"{' and '.join(scale)})")
+    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
+    kw = dict(a_priori=a_priori, known=known or None, poor_factor=cfg.poor_factor)
     structure = consistency_structure(model.tree, base)
     fit = None
     try:
@@ -491,13 +552,23 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                          standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)), **kw)
             result = fit.result
         else:
-            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls"
+            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls" and not gains
+                      else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method == "wls"
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}") from None
-    result = dataclasses.replace(result, flag_percent=cfg.flag_percent)
-    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health),
-                    systems)
+    # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
+    result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
+        model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
+    sections = None
+    if gains:  # the rows in joint torques with the estimated gains, for the validation and its plots
+        systems = {k: torques_with_gains(s, len(base.names), result.values[len(base.names):])
+                   for k, s in systems.items()}
+        ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+        sections = [(f"{result.method} estimates of the base parameters", list(base.names)),
+                    ("drive gains (N·m/A, motor side)", gains)]
+    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health,
+                                           sections=sections), systems)
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
@@ -509,6 +580,32 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
             say(f"{len(unmatched)} published rows match none of our base parameters: "
                 + "; ".join(r.expression for r in unmatched[:3]))
     return run
+
+
+def _wls_with_gains(ident: GroupedSystem, names: list[str], p: int, a_priori: dict[str, float], kw: dict
+                    ) -> IdentificationResult:
+    """Gautier's WLS with identified drive gains. A joint's equation alone cannot fix its gain's scale (without a
+    payload its rows are homogeneous, W_j X - Nt diag(i) g = 0, and solve exactly at X = g = 0), so each joint's
+    noise level sigma_j (paper eq. (8)) is taken from its rows in joint torques through given gains: first the
+    data sheet's, then the estimate's (one pass more: sigma_j is the final model's residual per joint)."""
+    gains = np.array([a_priori[n] for n in names[p:]])
+    known = {k: v for k, v in (kw.get("known") or {}).items() if k in names[:p]} or None
+    result = None
+    for _ in range(2):
+        s = torques_with_gains(ident, p, gains)
+        fits = group_noise(s.W[:, :p], s.Y, s.groups, names[:p], known=known)
+        result = wls(ident.W, ident.Y, ident.groups, names, group_sigmas={g: f.sigma for g, f in fits.items()}, **kw)
+        gains = result.values[p:]
+    return result
+
+
+def torques_with_gains(s: GroupedSystem, p: int, gains: np.ndarray) -> GroupedSystem:
+    """Rows [W | G] [X; g] = Y of identified drive gains (G = -Nt diag(i) decimated) as joint-torque rows: the
+    measured torque Y - G g (the currents through the estimated gains, the payload's torque off) against W X, the
+    gains' columns zeroed (so W @ [X; g] is the prediction)."""
+    W = s.W.copy()
+    W[:, p:] = 0.0
+    return GroupedSystem(W, s.Y - s.W[:, p:] @ gains, s.groups, s.t)
 
 
 def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
@@ -534,6 +631,62 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     return ConsistencyStructure(tuple(names), tuple(base.names), K, bodies, nonneg)
 
 
+@dataclass(frozen=True)
+class PlausibleExport:
+    """What `plausible_export` chose: the standard values, the links' moves from the model file (one line each:
+    frame, joint, mass, centre of mass and inertia changes) and the lines to warn about (a link moved more than
+    its prior spread), and how closely the estimate is reproduced (chi2, worst base parameter in σ)."""
+
+    values: dict[str, float]
+    moves: list[str]
+    warnings: list[str]
+    chi2: float
+    worst: tuple[str, float]
+
+
+def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], base_std: dict[str, float]
+                     ) -> PlausibleExport:
+    """The standard set a URDF export writes for an identified base estimate (`estimation.physical.
+    plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
+    scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
+    file in each link's own units, the estimate reproduced within its σ."""
+    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
+    from .robot import link_box, link_length
+
+    structure = consistency_structure(tree, base)
+    bodies = {}
+    for j in structure.bodies:
+        m0 = float(tree.values.get(f"M{j}", 0.0))
+        lo, hi = link_box(tree, j)
+        bodies[j] = (m0, link_length(tree, j), lo, hi)
+    prior = dict(zip(tree.parameter_names, tree.parameters, strict=True))
+    fit = plausible_standard(structure, base_values, base_std, prior, bodies)
+    moves, warn = [], []
+    for j in sorted(structure.bodies):
+        m0, L, _, _ = bodies[j]
+        if m0 <= 0:
+            continue
+        old = np.array([prior.get(f"{k}{j}", 0.0) for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        new = np.array([fit.standard[f"{k}{j}"] for k in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")])
+        dm, shift = new[9] - old[9], float(np.linalg.norm(new[6:9] / new[9] - old[6:9] / old[9]))
+        I_old, I_new = _inertia_at_com(old), _inertia_at_com(new)
+        dI = float(np.linalg.norm(I_new - I_old) / max(np.linalg.norm(I_old), 1e-300))
+        who = f"frame {j} ({tree.joint_names.get(j, 'link')})"
+        line = (f"{who}: mass {old[9]:.4g} -> {new[9]:.4g} kg ({100 * dm / old[9]:+.1f} %), centre of mass moved "
+                f"{1000 * shift:.1f} mm ({100 * shift / L:.1f} % of the link's {L:.3g} m), inertia at it "
+                f"{100 * dI:.1f} %")
+        moves.append(line)
+        if abs(dm) > PRIOR_SPREAD * old[9] or shift > PRIOR_SPREAD * L:
+            warn.append(line)
+    return PlausibleExport(fit.standard, moves, warn, fit.chi2, fit.worst)
+
+
+def _inertia_at_com(p: np.ndarray) -> np.ndarray:
+    xx, xy, xz, yy, yz, zz = p[:6]
+    c = p[6:9] / p[9]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - p[9] * (c @ c * np.eye(3) - np.outer(c, c))
+
+
 def robot_consistency(result: IdentificationResult, structure: ConsistencyStructure, tree,
                       fit: PhysicalFit | None = None) -> dict:
     """A robot estimate's physical-consistency verdict, by the car's check (`check_physical`):
@@ -554,13 +707,13 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
         violations = check_physical(fit.standard, frames=bodies) + check_joint_terms(fit.standard, couplings)
     else:
         K, std = structure.base_map, structure.standard_names
-        single = {n: float(v) for n, v, row in zip(structure.base_names, result.values, K, strict=True)
+        values = dict(zip(result.names, (float(v) for v in result.values), strict=True))  # drive gains aside
+        single = {n: values[n] for n, row in zip(structure.base_names, K, strict=True)
                   if np.count_nonzero(row) == 1 and n in std and row[std.index(n)] == 1.0}
         violations = check_base_singletons(single, couplings)
         checked_on = "the base parameters that are one standard parameter each"
         try:
-            feas = feasible_standard(structure, dict(zip(result.names, (float(v) for v in result.values),
-                                                         strict=True)))
+            feas = feasible_standard(structure, values)
         except IdentificationError:  # no pc extra: say what is left unchecked
             unchecked = [f"body {j}: mass, inertia at the centre of mass, triangle inequalities (its parameters "
                          "regroup)" for j in bodies if any(std[i] not in single for i in structure.bodies[j])]
@@ -588,7 +741,7 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
                 f"triangle inequalities hold; IA, FV, FS >= 0), checked on {checked_on}.")
     else:
         text = ("IA, FV, FS >= 0 and the moments readable on the base set hold; not checked on the regrouped "
-                "set (pip install 'dynid[pc]' for the check, or method = \"wls-pc\"):\n"
+                "set (pip install cvxpy clarabel, the 'pc' extra, for the check, or method = \"wls-pc\"):\n"
                 + "\n".join(f"  {u}" for u in unchecked))
     return {"realisable": realisable, "checked_on": checked_on,
             "violations": [{"body": v.body, "condition": v.condition, "message": v.message} for v in violations],
@@ -611,8 +764,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         p.update(report.per_parameter.get(p["name"], {}))
     data["base_parameters"] = dict(zip(run.base.names, run.base.expressions, strict=True))
     if run.reference:
-        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value": m.row.wls
-                              if r.method == "WLS" else m.row.ols, "ours": m.value(list(r.names), r.values)}
+        data["reference"] = [{"published": m.row.expression, "label": m.label, "published_value":
+                              m.row.published(r.method)[0], "ours": m.value(list(r.names), r.values)}
                              for m in run.reference]
     if getattr(run, "consistency", None) is not None:  # a robot's physical-consistency verdict
         data["consistency"] = run.consistency
@@ -620,6 +773,8 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
+        data["tires"] = run.tires.to_dict()
     data.update(report.data)
     # the files a run read in its staging folder (a demo's tests) named where they will be (atomic.final_text)
     text = final_text(json.dumps(_finite(data), indent=2, allow_nan=False, default=_json))

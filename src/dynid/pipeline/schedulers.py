@@ -22,6 +22,7 @@ from typing import Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
+from ..progress import Count
 from .heap import trim_heap
 
 J = TypeVar("J")
@@ -90,11 +91,11 @@ class LocalScheduler:
                 for f in finished:
                     results[running.pop(f)] = f.result()
                     done += 1
-                    say(f"segments done {done}/{len(jobs)}")
+                    say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
             for f in list(running):
                 results[running.pop(f)] = f.result()
                 done += 1
-                say(f"segments done {done}/{len(jobs)}")
+                say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
         return {k: tree_fold([results[i] for i in idx], combine) for k, idx in _by_key(jobs, key).items()}
 
 
@@ -109,7 +110,7 @@ class DaskScheduler:
             from ..io.errors import MissingDependencyError
 
             raise MissingDependencyError("Running on a Dask cluster needs dask.distributed: "
-                                         "pip install 'dynid[dask]'") from None
+                                         "pip install distributed (dynid's 'dask' extra)") from None
         self.address = address
         from .dask_worker import MallocTuning
 
@@ -153,7 +154,7 @@ class DaskScheduler:
             out[k] = level[0]
         where = repr(self)
         for done, _ in enumerate(as_completed(futures), 1):
-            say(f"segments done {done}/{len(jobs)} on {where}")
+            say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)} on {where}", unit="segment"))
         return dict(zip(out, self.client.gather(list(out.values())), strict=True))
 
 

@@ -16,6 +16,7 @@ its slice of the uniform clock from the samples around it (a margin of several s
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -27,6 +28,7 @@ from numpy.typing import NDArray
 
 from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
 from ..io.align import InterpSpec
+from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, time_bases
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .timebase import RATE_TOLERANCE, _rate, opened, stream
@@ -122,6 +124,30 @@ def _test_clock(ref, streams: Sequence, cfg: IdentifyConfig, spec: TestSpec, rec
     return clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
 
 
+def channel_unit(cfg: IdentifyConfig, quantity: str, channel: str, file_unit: str, source: str) -> str:
+    """The unit a channel is read in: the config's [channels] unit, else the file's. A config unit that contradicts
+    the file's own is refused (deg over a file's rad scaled a robot's inertias by 57 with a 0.02 % residual), unless
+    the entry says unit_over_file = true (the file's header is what is wrong)."""
+    spec = cfg.channels.get(quantity)
+    if spec is None or spec.unit is None:
+        return file_unit
+    if file_unit.strip() and not spec.unit_over_file and _contradict(file_unit, spec.unit):
+        raise ConfigError(f"{source}: channel {channel!r} is in {file_unit!r} by the file, in {spec.unit!r} by "
+                          f"{cfg.path} [channels.{quantity}]: remove that unit to read the file's, or, if the file's "
+                          "header is what is wrong, add unit_over_file = true to that entry")
+    return spec.unit
+
+
+def _contradict(a: str, b: str) -> bool:
+    """Two known units of one kind that differ (deg and rad); unknown or of different kinds (the config's unit is
+    then checked against the quantity, with its own message): no."""
+    try:
+        (fa, sa), (fb, sb) = unit_factor(a), unit_factor(b)
+    except DataError:
+        return False
+    return sa == sb and not same_unit(a, b) and not math.isclose(fa, fb, rel_tol=1e-12)
+
+
 def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], units: dict[str, str],
                   segment_s: float | None, border: Callable[[float], int], progress: Progress | None = None
                   ) -> CarTestPlan:
@@ -170,7 +196,7 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
     factors = {}
     for q, name in in_file.items():
-        unit = renamed.get(q, (None, None))[1] or file_units.get(name, "")
+        unit = channel_unit(cfg, q, name, file_units.get(name, ""), label)
         expect = (unit_factor(units[q])[1],) if q in units else None
         factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
     fs = 1.0 / float(np.median(np.diff(clock)))
@@ -281,8 +307,8 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
 # -------------------------------------------------------------------------------------------------- a robot's test
 @dataclass(frozen=True)
 class RobotTestPlan:
-    """One robot test's files (q and tau, one file or two) and their clock (q's); cut to the samples a chunk reads
-    (`first` onwards), what a chunk's job carries."""
+    """One robot test's files (q and its effort, tau or current; one file or two) and their clock (q's); cut to the
+    samples a chunk reads (`first` onwards), what a chunk's job carries."""
 
     test: str
     role: str
@@ -300,6 +326,11 @@ class RobotTestPlan:
     def samples(self) -> int:
         return int(self.clock.size)
 
+    @property
+    def effort(self) -> str:
+        """'current' (motor currents) or 'tau' (joint torques)."""
+        return "current" if "current" in self.channels else "tau"
+
 
 def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None) -> RobotTestPlan:
     """The robot test's files indexed and its clock planned (`timebase`'s rules: q's stamps set the clock, cut to
@@ -310,16 +341,17 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
     timed = True
     reported: set[tuple[Path, tuple[str, ...]]] = set()
-    for quantity in ("q", "tau"):
+    quantities = ("q", cfg.effort)
+    for quantity in quantities:
         path = spec.files[quantity]
         names = list(cfg.channels[quantity].channels)
         if path not in by_file:
-            wanted = [n for q in ("q", "tau") if spec.files[q] == path for n in cfg.channels[q].channels]
+            wanted = [n for q in quantities if spec.files[q] == path for n in cfg.channels[q].channels]
             by_file[path], timed = opened(lambda fs, p=path, w=wanted: index_file(p, channels=list(dict.fromkeys(w)),
                                                                                  fs=fs),
                                           path, spec.fs, spec.name, cfg.path)
         index = indexes[quantity] = by_file[path]
-        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in ("q", "tau") if spec.files[q] == path
+        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in quantities if spec.files[q] == path
                                                          for n in cfg.channels[q].channels)), spec.name)
         streams[quantity] = []
         for members, t, lines in bases:
@@ -352,9 +384,9 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
     fs = _rate(ref.h) if ref.timed or spec.fs is None else spec.fs
     _below_nyquist(cfg, spec, cfg.conditioning.cutoff, fs, ref.timed, str(spec.files["q"]))
-    units = {q: tuple(cfg.channels[q].unit or indexes[q].units.get(n, "") for n in cfg.channels[q].channels)
-             for q in ("q", "tau")}
-    return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in ("q", "tau")},
+    units = {q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
+                      for n in cfg.channels[q].channels) for q in quantities}
+    return RobotTestPlan(spec.name, spec.role, indexes, {q: tuple(cfg.channels[q].channels) for q in quantities},
                          units, clock, fs, timed, spec.max_gap, window_margin(spec.max_gap, [s.h for s in every]))
 
 
@@ -379,14 +411,42 @@ def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> 
     return q, tau
 
 
+def driven(cfg: IdentifyConfig, q: np.ndarray, effort: np.ndarray, n: int
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The joints' q, the joint torques known from the effort channels (SI) and, with identified drive gains, each
+    gain's column on the joint side, (N, n, channels):
+
+    - torques: tau = Nt tau_file (`transmitted`), no columns;
+    - currents with known gains: the motor torques g * i, then tau = Nt (g * i), no columns;
+    - currents with a gain identified: the joint torque Nt diag(i) g is linear in the gains, so every channel's gain
+      is a parameter with the column -Nt[:, k] i_k (W X - Nt diag(i) g = 0); the known gains' columns are moved to
+      the right-hand side by the estimator (`known`), and the torque known here is 0."""
+    if cfg.effort != "current":
+        return (*transmitted(cfg, q, effort, n), None)
+    gains = np.array(cfg.drive.gains)
+    if not cfg.drive.identified:
+        return (*transmitted(cfg, q, effort * gains, n), None)
+    q, tau = transmitted(cfg, q, np.zeros_like(effort), n)
+    Nt = cfg.transmission.get("tau", np.eye(effort.shape[1]))
+    return q, tau, -effort[:, None, :] * Nt[None, :, :]
+
+
+def gain_names(cfg: IdentifyConfig) -> list[str]:
+    """The drive gains' parameter names, G1.. in the order of [channels] current (empty without identified gains)."""
+    if cfg.drive is None or not cfg.drive.identified:
+        return []
+    return [f"G{k}" for k in range(1, len(cfg.drive.gains) + 1)]
+
+
 def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArray[np.float64]]:
-    """{"q": (hi - lo, channels), "tau": ...} in SI: the clock samples lo..hi of the test, each channel from its
-    file's samples around them, interpolated where not on the clock (cubic for q, linear for tau)."""
+    """{"q": (hi - lo, channels), "tau" or "current": ...} in SI: the clock samples lo..hi of the test, each channel
+    from its file's samples around them, interpolated where not on the clock (cubic for q, linear for the effort)."""
     from ..io import to_si
 
     clock = plan.clock[lo:hi]
     out = {}
-    for quantity, kind, expect in (("q", "cubic", ("rad", "m")), ("tau", "linear", ("N*m", "N"))):
+    effort = ("current", "linear", ("A",)) if plan.effort == "current" else ("tau", "linear", ("N*m", "N"))
+    for quantity, kind, expect in (("q", "cubic", ("rad", "m")), effort):
         index, names = plan.indexes[quantity], list(plan.channels[quantity])
         al = _resampled(index, names, clock, plan.margin, plan.timed, plan.first + lo, lambda _n, k=kind: k)
         out[quantity] = np.stack([to_si(al[n], u, channel=n, source=str(index.path), expect=expect)[0]

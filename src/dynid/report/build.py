@@ -18,9 +18,12 @@ from typing import Any
 
 import numpy as np
 
+from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
+from .axes import CHASSIS_AXES, ISO_TEXT, axis_label, to_iso
 from .figures import (
+    NOT_EXCITED,
     CogPoint,
     DamperCurve,
     ParameterRow,
@@ -30,10 +33,17 @@ from .figures import (
     validation_grid,
 )
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
-from .html import Cell, Section, Table, esc, render_html
+from .html import Cell, Section, Table, esc, render_html, table_html
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
 CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
+# the one place the report keeps the paper's axes: its chassis parameters are defined in them
+FRAME6_TEXT = ("The chassis parameters are the paper's, about the origin of its chassis frame 6 (on the rear axle, "
+               "midway between the rear wheel centres, at their height) in that frame's axes: x6 up, y6 right, z6 "
+               "forward. So XX6 is the yaw inertia, YY6 the pitch and ZZ6 the roll one, about that point; MX6, MY6 "
+               "and MZ6 are M6 times the centre of gravity's height above the wheel centres, its offset to the right "
+               "and its distance ahead of the rear axle. \"The car in engineering terms\" gives them about the centre "
+               "of gravity in ISO 8855 axes.")
 
 
 @dataclass
@@ -66,22 +76,40 @@ def _num(x: float | None, d: int | None) -> Cell:
     return Cell(fixed(float(x), d) if ok else "", float(x) if ok else None)
 
 
+def meanings(run) -> dict[str, tuple[str, str]]:
+    """A car's parameters' (corner, quantity) by name (`vehicle.template.meaning`); {} for a robot."""
+    if not _is_car(run):
+        return {}
+    from ..vehicle.template import meaning
+
+    found = {n: meaning(n) for n in run.result.names}
+    return {n: (m.corner, m.quantity) for n, m in found.items() if m is not None}
+
+
+def _is_car(run) -> bool:
+    r = run.result
+    return getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+
+
 def parameter_tables(run) -> list[Table]:
     """One table per section of the run (the paper's tables): unit, a priori, truth, estimate and σ total
-    rounded to σ total, σ, %σ, %σ total, 95 % interval, flag and the paper's rule."""
+    rounded to σ total, σ, %σ, %σ total, 95 % interval and the flag (the paper's rule: `paper_rule_details`)."""
     r, tree = run.result, run.model.tree
     has_truth, has_sys = bool(r.truth), r.systematic is not None
     total, flags, rel_total = r.std_total, r.uncertainty_flags, r.rel_std_total_percent
-    head = ["parameter", "unit", "a priori"] + (["truth"] if has_truth else []) + ["estimate", "σ total", "σ"]
-    head += ["%σ"] + (["%σ total"] if has_sys else []) + ["95 % interval", "flag", "paper rule"]
-    tips = ["the parameter (paper's label)", "SI unit", "the a priori value (vehicle file or model)"]
+    what = meanings(run)
+    head = ["parameter"] + (["corner, quantity"] if what else []) + ["unit", "a priori"]
+    head += (["truth"] if has_truth else []) + ["estimate", "σ total", "σ"]
+    head += ["%σ"] + (["%σ total"] if has_sys else []) + ["95 % interval", "flag"]
+    tips = ["the parameter (paper's label)"] + (["which corner of the car, and what the parameter is"] if what
+                                                 else []) + ["SI unit", "the a priori value (vehicle file or model)"]
     tips += ["the simulator's value"] if has_truth else []
     tips += ["estimate, rounded to two significant digits of σ total",
              "total standard uncertainty: statistical and the declared sensor offsets" if has_sys
              else "standard uncertainty (statistical)", "the paper's statistical standard deviation (eq. 9)",
              "100 σ / |estimate| (the paper's)"]
     tips += ["100 σ total / |estimate|"] if has_sys else []
-    tips += ["estimate ± 1.96 σ total", "uncertain: act on it (see the legend)", "the paper's 20× rule"]
+    tips += ["estimate ± 1.96 σ total", "uncertain: act on it (see the legend)"]
     tables = []
     for title, names in _sections(run):
         rows = []
@@ -91,8 +119,10 @@ def parameter_tables(run) -> list[Table]:
             d = decimals(st)
             lo, hi = interval95(v, st)
             label = r.labels.get(n, n)
-            row = [Cell(label, title=n if label != n else "", cls="t"), Cell(parameter_unit(n, tree), cls="t nowrap"),
-                   _num(r.a_priori.get(n), d)]
+            row = [Cell(label, title=n if label != n else "", cls="t")]
+            if what:
+                row.append(Cell(", ".join(reversed(what[n])) if n in what else "", cls="t"))
+            row += [Cell(parameter_unit(n, tree), cls="t nowrap"), _num(r.a_priori.get(n), d)]
             if has_truth:
                 row.append(_num(r.truth.get(n), d))
             vs, ss = round_to_uncertainty(v, st)
@@ -105,11 +135,19 @@ def parameter_tables(run) -> list[Table]:
                             else None, cls="nowrap"))
             f = flags[i]
             rank = {FLAG_MISFIT: 3, FLAG_UNCERTAIN: 2, FLAG_KNOWN: 0}.get(f, 1)
-            row += [Cell(f, rank, cls=f"t flag-{f}" if f else "t"),
-                    Cell(r.flags[i] if r.flags[i] != FLAG_KNOWN else "", cls="t")]
-            rows.append(row)
-        tables.append(Table(head, rows, caption=title, tips=tips, cls="params"))
+            rows.append([*row, Cell(f, rank, cls=f"t flag-{f}" if f else "t")])
+        tables.append(Table(head, rows, caption=title, tips=tips, cls="params", pin=("corner, quantity", "estimate")))
     return tables
+
+
+def _scale_rule(run) -> str:
+    """How the flag's scales were chosen, for the legend: the car's chassis rule or the robot's per-link rule."""
+    if getattr(run.config, "kind", None) == "car":
+        return "; the smallest principal moment for a product of inertia, M6 × 0.2 m for a first moment"
+    return ("; for a product of inertia XY_j the largest a real body with the link's a priori moments can have, "
+            "sqrt(XX_j YY_j); for a first moment the link's mass × its size (centre-of-mass distance, joint-to-joint "
+            "length or radius of gyration, the largest); a base parameter that regroups several sums their scales, "
+            "and none is judged against less than its own value")
 
 
 def flag_legend(run) -> str:
@@ -119,8 +157,7 @@ def flag_legend(run) -> str:
     labels = ", ".join(r.labels.get(n, n) for n in uncertain)
     items = [
         (FLAG_UNCERTAIN, f"the total standard uncertainty exceeds {r.flag_percent:g} % of the parameter's "
-         "engineering scale (its value" + ("; the smallest principal moment for a product of inertia, M6 × 0.2 m "
-                                           "for a first moment" if r.scales else "")
+         "engineering scale (its value" + (_scale_rule(run) if r.scales else "")
          + f"): its 95 % interval is wider than ±{2 * r.flag_percent:g} %. "
          "What to do: do not use the value as is; add a test that excites it, fix it from a bench measurement "
          "(declare it known), or carry its interval into what you use it for."
@@ -134,9 +171,9 @@ def flag_legend(run) -> str:
          + (f" Flagged here: {', '.join(r.labels.get(n, n) for n in r.misfit)}." if r.misfit
             else " None flagged here.")),
         (FLAG_KNOWN, "fixed from a bench or the config, not identified (no σ)."),
-        ("paper rule: poor", f"the paper's rule (§7.2): %σ above {r.poor_factor:g} × the smallest %σ. Shown for "
-         "comparison; it depends on the best-identified parameter and ignores the sensors' offsets, so act on "
-         "the flag instead."),
+        ("paper rule: poor", f"the paper's rule (§7.2): %σ above {r.poor_factor:g} × the smallest %σ. Listed under "
+         "the legend (folded) and in parameters.csv (paper_rule) for comparison; it depends on the "
+         "best-identified parameter and ignores the sensors' offsets, so act on the flag instead."),
         ("rounding", "estimates, intervals, a priori and truth are rounded to two significant digits of σ total; "
          "the unrounded numbers are in results.json and parameters.csv."),
     ]
@@ -148,6 +185,30 @@ def flag_legend(run) -> str:
         if hint:
             out += "<p>" + "<br>".join(esc(line.strip()) for line in hint.split("\n")) + "</p>"
     return out
+
+
+def paper_rule_details(run) -> str:
+    """The paper's rule (§7.2: %σ above poor_factor × the smallest %σ) folded away under the legend: which
+    parameters it calls poor beside our flag, for comparison with the paper; parameters.csv has it per row."""
+    r = run.result
+    rel = np.asarray(r.rel_std_percent, dtype=float)
+    est = [i for i, f in enumerate(r.flags) if f != FLAG_KNOWN]
+    finite = [i for i in est if np.isfinite(rel[i])]
+    poor = [i for i in est if r.flags[i]]
+    if not finite:
+        return ""
+    best = min(finite, key=lambda i: rel[i])
+    flags = r.uncertainty_flags
+    rows = [[Cell(r.labels.get(r.names[i], r.names[i]), cls="t"), _num(float(rel[i]), 2),
+             Cell(flags[i], cls=f"t flag-{flags[i]}" if flags[i] else "t")] for i in poor]
+    table = Table(["parameter", "%σ", "flag"], rows, cls="rule")
+    best_label = r.labels.get(r.names[best], r.names[best])
+    summary = (f"The paper's rule (§7.2): {len(poor)} of {len(est)} estimated parameters \"poor\" (%σ above "
+               f"{r.poor_factor:g} × {rel[best]:.3g} %, that of {best_label})")
+    why = ("For comparison with the paper only: the rule depends on the best-identified parameter and ignores the "
+           "sensors' offsets; the flag column is the one to act on.")
+    return (f'<details class="rule"><summary>{esc(summary)}</summary><p>{esc(why)}</p>'
+            + (table_html(table) if rows else "") + "</details>")
 
 
 def _parameter_rows(run) -> list[tuple[str, list[ParameterRow]]]:
@@ -197,7 +258,10 @@ def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
     vehicle = _vehicle(run)
     values = {**tree.values, **r.estimates}
     C, kind = _covariance(r)
-    return engineering_figures(values, vehicle.geometry, list(r.estimated_names), C), kind, vehicle, values
+    quantities = engineering_figures(values, vehicle.geometry, list(r.estimated_names), C)
+    if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves), σ of their fit
+        quantities += run.tires.quantities()
+    return quantities, kind, vehicle, values
 
 
 @dataclass(frozen=True)
@@ -255,7 +319,7 @@ def damper_section(run) -> tuple[Section, bytes] | None:
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
-    from ..vehicle.engineering import car_quantities
+    from ..vehicle.engineering import car_quantities, damper_vertical
 
     r = run.result
     truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
@@ -273,8 +337,8 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
         lo, hi = interval95(q.value, q.std)
         row = [Cell(q.label, cls="t"), Cell(q.unit, cls="t nowrap"), Cell(vs, q.value), Cell(ss, q.std),
                Cell(f"[{fixed(lo, d)}, {fixed(hi, d)}]" if np.isfinite(lo) else "", cls="nowrap")]
-        row += [_num(prior[q.key], d)] if prior else []
-        row += [_num(truth[q.key], d)] if truth else []
+        row += [_num(prior.get(q.key), d)] if prior else []
+        row += [_num(truth.get(q.key), d)] if truth else []
         rows.append([*row, Cell(q.note, cls="t")])
     if rows:
         tables.append(Table(head, rows, caption=group, sortable=False, cls="eng"))
@@ -294,8 +358,17 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
         + "; bench-known parameters count as exact. Heights are above flat ground at design ride height (wheel "
         f"centres at the unloaded tire radius, {vehicle.geometry.wheel_radius:g} m). Inertia is about the centre "
         "of gravity in ISO 8855 vehicle axes (x forward, y left, z up), products as the inertia matrix's entries "
-        "(Ixz = −∫xz dm). Roll stiffness: springs and anti-roll bar at the wheels, K = (ks_l + ks_r + 4 k_ar) t²/c² "
-        "(t the half track, c the vertical component of the damper axis), tires in series not counted.")
+        "(Ixz = −∫xz dm). The springs act along the damper axes (the template's slides): with c the vertical "
+        "component of an axle's damper axis "
+        f"(front {damper_vertical(vehicle.geometry, True):.4f}, rear {damper_vertical(vehicle.geometry, False):.4f}), "
+        "a vertical wheel travel z moves the damper z/c, so the wheel rate is ks/c², the anti-roll bar's in roll "
+        "2 k_ar/c² (one wheel alone: half) and the damping h/c². Ride frequency and damping ratio per axle: the "
+        "wheel rates in series with the tires, on the axle's share of the sprung mass, one degree of freedom "
+        "(unsprung masses and dry friction left out). Roll stiffness: springs and anti-roll bar at the wheels, "
+        "K = (ks_l + ks_r + 4 k_ar) t²/c² (t the half track), tires not counted; the roll gradient counts them in "
+        "series and turns about the slides' roll axis (roll centres t·tan(damper lateral tilt) below the ground); "
+        "the pitch gradient turns about the ground (no anti-dive). Corner weights: on a level scale with no "
+        "diagonal preload. Each formula and its assumptions: docs/engineering.md.")
     return Section("The car in engineering terms", text, tables=tables, anchor="engineering")
 
 
@@ -386,19 +459,37 @@ def validation_signals(run) -> dict[str, dict[str, dict[str, tuple[np.ndarray, n
 def validation_csv(signals, tree) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["validation", "test", "equation", "unit", "t_s", "measured", "predicted"])
+    w.writerow(["validation", "test", "equation", "quantity", "unit", "t_s", "measured", "predicted"])
     for kind, tests in signals.items():
         for test, groups in tests.items():
             for g, (t, Y, WX) in groups.items():
-                unit = group_unit(g, tree)
-                for row in zip(t, Y, WX, strict=True):
-                    w.writerow([kind, test, g, unit, *(f"{v:.9g}" for v in row)])
+                unit, label = group_unit(g, tree), axis_label(g)
+                for row in zip(t, *to_iso(g, Y, WX), strict=True):  # the report's signs: ISO 8855 for the chassis
+                    w.writerow([kind, test, g, label, unit, *(f"{v:.9g}" for v in row)])
     return buf.getvalue()
 
 
-def validation_figures(signals, tree) -> list[tuple[str, bytes]]:
+def panel_corners(signals, noise: dict[str, float]) -> dict[tuple[str, str], str]:
+    """What each validation panel (equation's label, test) says in its corner: the relative error ||Y - W X||/||Y||,
+    or "not excited" where the test barely moves that equation by the rule that marks the cross-validation table
+    (`estimation.not_excited`: RMS of the test's Y against the identification's residual RMS, `noise`)."""
+    out = {}
+    for tests in signals.values():
+        for test, per in tests.items():
+            quiet = set(not_excited({g: float(np.sqrt(np.mean(np.square(Y)))) if len(Y) else 0.0
+                                     for g, (_, Y, _) in per.items()}, noise))
+            for g, (_, Y, WX) in per.items():
+                err = np.linalg.norm(Y - WX) / max(float(np.linalg.norm(Y)), 1e-300)
+                out[(axis_label(g), test)] = NOT_EXCITED if g in quiet else f"{100 * err:.1f} %"
+    return out
+
+
+def validation_figures(signals, tree, noise: dict[str, float] | None = None) -> list[tuple[str, bytes]]:
     """One figure per equation section (the car: chassis, suspensions, tires; a robot: its joints), the direct
-    and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each."""
+    and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each. The chassis
+    equations in ISO 8855 axes (`axes`); noise: the identification's residual RMS per group (the run's
+    `residual_rms`), under which a panel says "not excited" instead of a relative error of noise over noise."""
+    corners = panel_corners(signals, noise or {})
     tests = [(kind, test, per) for kind, by_test in signals.items() for test, per in by_test.items()]
     groups = list(dict.fromkeys(g for _, _, per in tests for g in per))
     paper = {"chassis": "4 and 7", "suspensions": "5 and 8", "tires": "6"}
@@ -407,14 +498,15 @@ def validation_figures(signals, tree) -> list[tuple[str, bytes]]:
                     max(float(v[0][-1]) for v in per.values() if len(v[0])))
              for _, test, per in tests if any(len(v[0]) for v in per.values())}
     figs = []
+    data = {(axis_label(g), test): (per[g][0], *to_iso(g, *per[g][1:])) for _, test, per in tests for g in per}
     for section, gs in _equation_sections(groups):
-        data = {(g, test): per[g] for _, test, per in tests for g in per}
         caption = (f"Validation, {section}: measured Y and model W X per equation and test, direct (identification "
                    "tests) then cross (tests not used for the estimate)"
                    + (f"; the paper's Figures {paper[section]}" if section in paper else ""))
         figs.append((caption, validation_grid(f"{section}: measured and predicted forces",
-                                              [(g, group_unit(g, tree)) for g in gs], [t for _, t, _ in tests],
-                                              data, kinds=[k for k, _, _ in tests], spans=spans)))
+                                              [(axis_label(g), group_unit(g, tree)) for g in gs],
+                                              [t for _, t, _ in tests], data, kinds=[k for k, _, _ in tests],
+                                              spans=spans, corners=corners)))
     return figs
 
 
@@ -427,7 +519,9 @@ def validation_table(run) -> Table | None:
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
     rows = []
     for g in groups:
-        row = [Cell(g, cls="t"), Cell(group_unit(g, run.model.tree), cls="t")]
+        axis = CHASSIS_AXES.get(g)
+        row = [Cell(axis_label(g), title=f"the paper's {axis.paper}" if axis else "", cls="t"),
+               Cell(group_unit(g, run.model.tree), cls="t")]
         for k in kinds:
             e = errors[k].get(g)
             text = "" if e is None else f"{100 * e:.2f} %" + (" *" if g in marked[k] else "")
@@ -448,10 +542,9 @@ def reference_table(run) -> Table:
     r = run.result
     names = list(r.names)
     cov = r.full_covariance
-    use_wls = r.method == "WLS"
     rows = []
     for m in run.reference:
-        pub, pub_rel = (m.row.wls, m.row.wls_rel_std) if use_wls else (m.row.ols, m.row.ols_rel_std)
+        pub, pub_rel = m.row.published(r.method)
         ours = m.value(names, r.values)
         sd = m.std(names, cov)
         gap = abs(ours - pub) / (abs(pub) * pub_rel / 100) if pub and pub_rel else float("nan")
@@ -461,7 +554,7 @@ def reference_table(run) -> Table:
                      _num(100 * sd / abs(ours) if ours else float("nan"), 2), Cell(f"{pub:.6g}", pub),
                      _num(pub_rel, 2), _num(gap, 2), Cell(how, cls="t")])
     return Table(["published", "ours", "σ", "ours %σ", "published value", "published %σ", "gap / σ published",
-                  "as"], rows, caption="Our estimate of each published quantity", cls="ref")
+                  "as"], rows, caption="Our estimate of each published quantity", cls="ref", pin=("ours",))
 
 
 def offsets_section(offsets: dict) -> Section:
@@ -644,15 +737,19 @@ def parameters_csv(run, sections) -> str:
     total, rel_total, uflags = r.std_total, r.rel_std_total_percent, r.uncertainty_flags
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["name", "label", "table", "unit", "a_priori", "truth", "value", "std", "std_total",
-                "rel_std_percent", "rel_std_total_percent", "ci95_low", "ci95_high", "flag", "paper_rule"])
+    what = meanings(run)
+    w.writerow(["name", "label", "corner", "quantity", "table", "unit", "a_priori", "truth", "value", "std",
+                "std_total", "rel_std_percent", "rel_std_total_percent", "ci95_low", "ci95_high", "flag",
+                "paper_rule"])
 
     def g(x):
         return "" if x is None or not np.isfinite(x) else f"{float(x):.10g}"
 
     for i, n in enumerate(r.names):
         lo, hi = interval95(float(r.values[i]), float(total[i]))
-        w.writerow([n, r.labels.get(n, n), where.get(n, ""), parameter_unit(n, tree), g(r.a_priori.get(n)),
+        corner, quantity = what.get(n, ("", ""))
+        w.writerow([n, r.labels.get(n, n), corner, quantity, where.get(n, ""), parameter_unit(n, tree),
+                    g(r.a_priori.get(n)),
                     g(r.truth.get(n)) if r.truth else "", g(r.values[i]), g(r.std[i]), g(total[i]),
                     g(r.rel_std_percent[i]), g(rel_total[i]), g(lo), g(hi), uflags[i], r.flags[i]])
     return buf.getvalue()
@@ -662,15 +759,18 @@ def build_report(run, title: str) -> Report:
     """Everything but the writing: the page, the CSV files and figures (file name -> content), the additions
     to results.json."""
     r, tree = run.result, run.model.tree
-    is_car = getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+    is_car = _is_car(run)
     sections_list = _sections(run)
     files: dict[str, str | bytes] = {}
     data: dict[str, Any] = {}
     per: dict[str, dict[str, Any]] = {}
     total = r.std_total
+    what = meanings(run)
     for i, n in enumerate(r.names):
         lo, hi = interval95(float(r.values[i]), float(total[i]))
         per[n] = {"unit": parameter_unit(n, tree), "interval_95": [lo, hi]}
+        if n in what:
+            per[n].update(zip(("corner", "quantity"), what[n], strict=True))
     res = r.residual
     n_known = len(r.names) - len(r.estimated_names)
     summary = (f"{r.method}: {len(r.estimated_names)} parameters estimated from {res.n_rows} rows"
@@ -693,11 +793,11 @@ def build_report(run, title: str) -> Report:
             for q in quantities]}
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(["key", "group", "quantity", "unit", "value", "std", "ci95_low", "ci95_high"])
+        w.writerow(["key", "group", "quantity", "unit", "value", "std", "ci95_low", "ci95_high", "note"])
         for q in quantities:
             lo, hi = interval95(q.value, q.std)
             w.writerow([q.key, q.group, q.label, q.unit, f"{q.value:.10g}", f"{q.std:.6g}", f"{lo:.10g}",
-                        f"{hi:.10g}"])
+                        f"{hi:.10g}", q.note])
         files["engineering.csv"] = buf.getvalue()
         dampers = damper_section(run)
         if dampers is not None:
@@ -705,11 +805,18 @@ def build_report(run, title: str) -> Report:
                                  "estimate, its 95 % band, the truth where known, the knees", dampers[1]))
             out_sections.append(Section(dampers[0].heading, dampers[0].text, figures=[figs_written[-1][1:]],
                                         tables=dampers[0].tables, anchor=dampers[0].anchor))
+    if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
+        from .tires import tire_section
+
+        section, tire_files = tire_section(run.tires)
+        out_sections.append(section)
+        files.update(tire_files)
     pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
-    out_sections.append(Section("Estimated parameters", "", tables=parameter_tables(run),
-                                html=flag_legend(run), figures=[figs_written[-1][1:]], anchor="parameters"))
+    out_sections.append(Section("Estimated parameters", FRAME6_TEXT if is_car else "", tables=parameter_tables(run),
+                                html=flag_legend(run) + paper_rule_details(run), figures=[figs_written[-1][1:]],
+                                anchor="parameters"))
     if run.offsets is not None:
         out_sections.append(offsets_section(run.offsets))
     if run.reference:
@@ -718,16 +825,20 @@ def build_report(run, title: str) -> Report:
     out_sections.append(consistency_section(run))
     signals = validation_signals(run)
     vt = validation_table(run)
-    vfigs = validation_figures(signals, tree)
+    vfigs = validation_figures(signals, tree, run.residual_rms)
     for k, (caption, png) in enumerate(vfigs, start=1):
         figs_written.append((f"figure_validation{k}.png", caption, png))
     vtext = ("Y is the measured side of each equation (forces from the sensors), W X the model's prediction with "
              "the estimate. Direct: the identification tests; cross: tests the estimate never saw.")
+    rule = (f"RMS of its Y below {EXCITED_FACTOR:g} × the identification's residual RMS in that equation: its "
+            "relative error would compare noise with noise")
     if any(run.not_excited.values()):
-        vtext += ("\n* the test barely moves this equation (RMS of Y below twice the identification's residual RMS "
-                  "there): its relative error mostly compares noise with a small signal.")
+        vtext += f"\n* the cross-validation tests barely move this equation ({rule})."
+    vtext += f"\nA plot's panel says \"{NOT_EXCITED}\" instead of its relative error where its test barely moves its "
+    vtext += f"equation ({rule})."
     if is_car:
-        vtext += "\nThe plots show the first segment of each test (the CSV has the same rows)."
+        vtext += ("\nThe plots show the first segment of each test (validation.csv has the same rows, in the same "
+                  "signs, with the paper's equation name beside the ISO one).\n\n" + ISO_TEXT)
     out_sections.append(Section("Validation", vtext, tables=[vt] if vt else [], figures=vfigs, anchor="validation"))
     ds = delays_section(run)
     if ds is not None:

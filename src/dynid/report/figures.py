@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+NOT_EXCITED = "not excited"  # a panel's corner when the test barely moves its equation (estimation.not_excited)
 
 
 def _pyplot():
@@ -61,9 +63,16 @@ def residual_histograms(Y: np.ndarray, WX: np.ndarray, groups: np.ndarray, title
     return _png(fig, plt)
 
 
-def _png(fig, plt, dpi: int = 90) -> bytes:
+CSS_DPI = 96.0
+"""CSS pixels per inch: the HTML report shows a figure at its drawn size (`html.figure_html` reads the PNG's
+resolution), so a font of p points is p × 96 / 72 CSS pixels on any screen; the report's figures use 7 points
+and more (9.3 px and more)."""
+REPORT_DPI = CSS_DPI  # one pixel per CSS pixel: 1.25 was 0.1 s slower and 30 % larger for a little sharpness
+
+
+def _png(fig, plt, dpi: float = 90) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=dpi)  # the resolution is kept in the PNG (pHYs)
     plt.close(fig)
     return buf.getvalue()
 
@@ -125,7 +134,7 @@ def parameter_figure(groups: Sequence[tuple[str, Sequence[ParameterRow]]], limit
     # hspace is a fraction of the mean panel height: 0.45 inch between panels, for the group's title
     fig.subplots_adjust(left=0.12, right=0.98, top=1 - 0.3 / total, bottom=0.55 / total,
                         hspace=0.45 / (sum(heights) / len(heights)))
-    return _png(fig, plt, 80)
+    return _png(fig, plt, REPORT_DPI)
 
 
 def _with_holes(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -148,10 +157,12 @@ def _nice_step(span: float, n: int = 3) -> float:
 def validation_grid(title: str, rows: Sequence[tuple[str, str]], tests: Sequence[str],
                     data: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]],
                     max_points: int = 600, kinds: Sequence[str] = (),
-                    spans: dict[str, tuple[float, float]] | None = None) -> bytes:
+                    spans: dict[str, tuple[float, float]] | None = None,
+                    corners: Mapping[tuple[str, str], str] | None = None) -> bytes:
     """PNG like the paper's Figures 4-8: one row per equation (name, unit of its force), one panel per test
     side by side (each with its own time axis, s, from the test's first sample shown); measured Y and
-    predicted W X, the relative error in each panel's corner. data[(group, test)] = (t, Y, WX); long signals
+    predicted W X, in each panel's corner corners[(group, test)] (default: the relative error; grey when it is
+    "not excited"). data[(group, test)] = (t, Y, WX); long signals
     are thinned to max_points per line (a picture: the CSV has every sample). kinds: per test, "direct" or
     "cross" (a heavier line where they change, the kind over the test's name); spans: each test's time range
     (default: its rows' in this figure). A hole in a signal (rows left out) is left blank. The panels of a row share one
@@ -176,7 +187,7 @@ def validation_grid(title: str, rows: Sequence[tuple[str, str]], tests: Sequence
         for v in np.arange(np.ceil(a / step) * step, b + 1e-9, step):
             ticks.append(v + offset[test])
             labels.append(f"{v:g}")
-    fig_w = min(12.0, max(8.0, 2.0 + 2.4 * len(tests)))
+    fig_w = min(11.5, max(8.0, 2.0 + 2.4 * len(tests)))  # at most 1104 CSS px: a laptop's page shows it whole
     height = 0.75 + 1.0 * len(rows)
     fig, axes = plt.subplots(len(rows), 1, figsize=(fig_w, height), squeeze=False)
     for (g, unit), ax in zip(rows, axes[:, 0], strict=True):
@@ -195,13 +206,16 @@ def validation_grid(title: str, rows: Sequence[tuple[str, str]], tests: Sequence
             x, y1, y2 = _with_holes(t[::step] + offset[test], Y[::step], WX[::step])
             ax.plot(x, y1, lw=0.8, color="#1f4e99", label="measured Y" if k == 0 else None)
             ax.plot(x, y2, lw=0.8, ls="--", color="#d62728", label="model W X" if k == 0 else None)
-            err = np.linalg.norm(Y - WX) / max(np.linalg.norm(Y), 1e-300)
-            ax.text(k * (width_s + gap) + width_s, 0.95, f"{100 * err:.1f} %", transform=trans, ha="right",
-                    va="top", fontsize=7, bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
+            note = (corners or {}).get((g, test))
+            if note is None:
+                note = f"{100 * np.linalg.norm(Y - WX) / max(np.linalg.norm(Y), 1e-300):.1f} %"
+            ax.text(k * (width_s + gap) + width_s, 0.95, note, transform=trans, ha="right", va="top", fontsize=7,
+                    color="0.45" if note == NOT_EXCITED else "0.0", style="italic" if note == NOT_EXCITED else "normal",
+                    bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
                                                 "alpha": 0.7})
-        ax.set_ylabel(f"{g} [{unit}]", fontsize=7.5)
+        ax.set_ylabel(f"{g}\n[{unit}]", fontsize=7.5)  # two lines: a name as long as "pitch moment" fits a row
         ax.yaxis.set_major_locator(MaxNLocator(3))
-        ax.tick_params(labelsize=6.5, length=2)
+        ax.tick_params(labelsize=7, length=2)
         ax.set_xlim(-gap / 4, len(tests) * (width_s + gap) - gap * 0.75)
         ax.xaxis.set_major_locator(NullLocator())  # time ticks on the bottom row only: each tick is artists
     top = axes[0, 0]
@@ -216,11 +230,11 @@ def validation_grid(title: str, rows: Sequence[tuple[str, str]], tests: Sequence
     bottom.xaxis.set_major_locator(FixedLocator(ticks))
     bottom.xaxis.set_major_formatter(FixedFormatter(labels))
     bottom.set_xlabel("time in each test [s]", fontsize=7.5)
-    top.legend(fontsize=6.5, loc="lower left", framealpha=0.8, ncols=2)
+    top.legend(fontsize=7, loc="lower left", framealpha=0.8, ncols=2)
     fig.suptitle(title, fontsize=9.5, x=0.01, y=0.995, ha="left", va="top")
-    fig.subplots_adjust(left=0.75 / fig_w + 0.03, right=0.99, top=1 - 0.75 / height, bottom=0.45 / height,
+    fig.subplots_adjust(left=0.85 / fig_w + 0.03, right=0.99, top=1 - 0.75 / height, bottom=0.45 / height,
                         hspace=0.15)
-    return _png(fig, plt, 75)
+    return _png(fig, plt, REPORT_DPI)
 
 
 @dataclass(frozen=True)
@@ -304,7 +318,7 @@ def centre_of_gravity_figure(front: float, rear: float, half_track_front: float,
     handles, names = side.get_legend_handles_labels()
     fig.legend(handles, names, fontsize=7.5, loc="lower center", ncols=len(names), frameon=False)
     fig.subplots_adjust(left=0.07, right=0.98, top=0.94, bottom=0.15, wspace=0.25, hspace=0.4)
-    return _png(fig, plt, 80)
+    return _png(fig, plt, REPORT_DPI)
 
 
 # ------------------------------------------------------------------ damper curves

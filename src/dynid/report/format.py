@@ -17,6 +17,8 @@ _INERTIAL_UNITS = {"XX": "kg·m²", "XY": "kg·m²", "XZ": "kg·m²", "YY": "kg�
 _JOINT_UNITS = {"IA": ("kg·m²", "kg"), "FV": ("N·m·s/rad", "N·s/m"), "FS": ("N·m", "N"), "OFF": ("N·m", "N"),
                 "K": ("N·m/rad", "N/m"), "KQ": ("N·m/rad²", "N/m²"),
                 **dict.fromkeys(("FVPL", "FVPH", "FVNL", "FVNH"), ("N·m·s/rad", "N·s/m"))}
+_GAIN = re.compile(r"^G\d+$")  # a drive gain of a current channel (pipeline.sources.gain_names): motor side
+GAIN_UNIT = "N·m/A"
 _NAME = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FVPL|FVPH|FVNL|FVNH|FV|FS|OFF|KQ|K)(\d+)$")
 
 
@@ -62,6 +64,8 @@ def round_to_uncertainty(value: float | None, sigma: float | None, digits: int =
 def parameter_unit(name: str, tree=None) -> str:
     """The SI unit of a (base) parameter from its kind and its joint's type (revolute or prismatic); a
     coupling's from its kind and its first joint. "" when unknown (e.g. a name of no standard form)."""
+    if _GAIN.match(name):
+        return GAIN_UNIT
     m = _NAME.match(name)
     if m:
         kind, j = m.group(1), int(m.group(2))

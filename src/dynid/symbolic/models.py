@@ -685,6 +685,11 @@ def build(tree: Tree, model: str, **options) -> Program:
     fn = {"dgm": dgm, "idm": idm, "regressor": regressor, "inertia": inertia}.get(model)
     if fn is None:
         raise SymbolicError(f"unknown model {model!r}; choose one of {', '.join(MODELS)}")
+    if tree.mimic:
+        j = min(tree.mimic)
+        raise SymbolicError(f"model {tree.name!r} has mimic joints (frame {j} follows frame {tree.mimic[j].master}), "
+                            "which the symbolic models do not project; use the numeric engine, or freeze them "
+                            "(dynid model import --freeze)")
     import inspect
 
     allowed = set(inspect.signature(fn).parameters) - {"tree"}

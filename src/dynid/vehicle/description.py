@@ -75,7 +75,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.files import did_you_mean, read_toml, unknown_keys
-from ..model.tree import ModelError, Tree
+from ..model.tree import FRICTION_SHAPES, ModelError, Tree
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
@@ -95,7 +95,7 @@ from .tables import load_tables as load_table_file
 from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
-             "caster_deg", "kingpin_offset_m", "anti_roll_bar"}
+             "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
 SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "steering": dict, "imu": dict,
             "sensors": dict, "dampers": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict,
             "known": dict}
@@ -134,6 +134,8 @@ class Vehicle:
     # [dampers] knees per damper frame, (v-, v+) m/s (bump is q' > 0): the identification's curves ("curve") and
     # the truth's (a [truth] curve slope); {} when the file gives none
     damper_knees: dict[int, tuple[float, float]] = field(default_factory=dict)
+    # [axles.*] damper_friction: damper frame -> (shape, vs) of its dry friction's law; absent: sign(qd)
+    damper_friction: dict[int, tuple[str, float]] = field(default_factory=dict)
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
     defaulted_tables: tuple[str, ...] = ()
     dynamics: LoggerDynamics | None = None  # [sensors.dynamics]; None: the suite's Table-1 sensors
@@ -142,7 +144,8 @@ class Vehicle:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
         return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
                             tire_offsets=self.tire_offsets, tire_law=self.tire_law,
-                            damper_knees=self.damper_knees if self.damper_law == "curve" else None)
+                            damper_knees=self.damper_knees if self.damper_law == "curve" else None,
+                            damper_friction=self.damper_friction)
 
     @property
     def suite(self) -> SensorSuite:
@@ -205,9 +208,9 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
     damper_law, knees = _dampers(data.get("dampers", {}), where)
-    a_priori = _curves(_parameters(data["a_priori"], names, where, "a_priori", complete=True), damper_law, knees,
-                       where, "a_priori")
-    known = _parameters(data.get("known", {}), names, where, "known", complete=False)
+    a_priori = _curves(_parameters(data["a_priori"], names, where, "a_priori", complete=True, geometry=geometry),
+                       damper_law, knees, where, "a_priori")
+    known = _parameters(data.get("known", {}), names, where, "known", complete=False, geometry=geometry)
     _check_known_dampers(known, damper_law, where)
     for axle, bar in (("front", "karf"), ("rear", "karr")):
         if not data["axles"][axle].get("anti_roll_bar", True):
@@ -235,20 +238,23 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
         raise VehicleError(f"{where}: [wheels] unloaded_radius_known must be true or false; got {known_radius!r}")
     # without lasers the deflections come from the loads through the bench's kt: there is no offset to identify
     tire_offsets = fitted["lasers"] and not known_radius
+    damper_friction = {d: law for axle, pair in (("rear", DAMPERS[:2]), ("front", DAMPERS[2:]))
+                       if (law := _damper_friction(data["axles"][axle], where, f"[axles.{axle}]")) for d in pair}
     tire_law = data["wheels"].get("tire_law", "paper")
     if tire_law not in TIRE_LAWS:
         raise VehicleError(f"{where}: [wheels] tire_law = {tire_law!r}; give one of {', '.join(TIRE_LAWS)} "
                            "(docs/vehicle.md, 'The tire equation')")
     truth = None
     if "truth" in data:
-        given = _parameters(data["truth"], names, where, "truth", complete=False)
+        given = _parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry)
         truth = _truth(given, a_priori, known, geometry, tables, where, knees)
     name = data["name"].strip()
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
-                   truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law, **fitted,
-                   defaulted_tables=defaulted, dynamics=dynamics, damper_law=damper_law, damper_knees=knees)
+                   truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law,
+                   damper_friction=damper_friction, **fitted, defaulted_tables=defaulted, dynamics=dynamics,
+                   damper_law=damper_law, damper_knees=knees)
 
 
 DAMPER_LAWS = ("linear", "curve")
@@ -335,6 +341,23 @@ def _check_known_dampers(known: dict[str, float], law: str, where: str) -> None:
                                f"h: give {', '.join(lab[n] for n in _curve_names(d))}")
         if law != "curve" and any(n in known for n in _curve_names(d)):
             raise VehicleError(f"{where}: [known] gives a curve slope of damper {d} but [dampers] law is \"linear\"")
+
+
+def _damper_friction(t: dict, where: str, sec: str) -> tuple[str, float] | None:
+    """damper_friction = "sign" (the default: fs sign(qd)) or { shape = "tanh" | "sigmoid", vs_m_s = ... }: the dry
+    friction of the axle's dampers as a smooth law of the clearance rate (`model.tree.FRICTION_SHAPES`)."""
+    raw = t.get("damper_friction", "sign")
+    if raw == "sign":
+        return None
+    smooth = [s for s in FRICTION_SHAPES if s != "sign"]
+    if not isinstance(raw, dict) or set(raw) != {"shape", "vs_m_s"} or raw["shape"] not in smooth:
+        raise VehicleError(f"{where}: {sec} damper_friction = {raw!r}; give \"sign\" or {{ shape = \"tanh\" or "
+                           f"\"sigmoid\", vs_m_s = the rate (m/s) below which the friction is not developed }}")
+    vs = raw["vs_m_s"]
+    if isinstance(vs, bool) or not isinstance(vs, int | float) or not 0.0 < vs <= 0.5:
+        raise VehicleError(f"{where}: {sec} damper_friction vs_m_s = {vs!r}; give a rate in m/s in (0, 0.5], e.g. "
+                           "0.002")
+    return raw["shape"], float(vs)
 
 
 def _sensors(t: dict, where: str) -> dict:
@@ -567,7 +590,82 @@ def parameter_range(name: str) -> tuple[float, float, str, str]:
             "karr": (0.0, 1e6, "N/m", "an anti-roll bar's stiffness")}.get(kind, (-math.inf, math.inf, "", ""))
 
 
-def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool) -> dict[str, float]:
+# [a_priori.chassis], [truth.chassis], [known.chassis]: the chassis as a data sheet gives it, in place of XX6..M6.
+# key -> (low, high, unit, what); the CoG's position ahead of the rear axle is checked against the wheelbase
+CHASSIS_SHEET = {
+    "mass_kg": (300.0, 4000.0, "kg", "the chassis's (sprung) mass, wheels apart"),
+    "cog_ahead_of_rear_axle_m": (0.0, math.inf, "m", "the chassis's CoG ahead of the rear axle, between the axles"),
+    "cog_above_ground_m": (0.15, 1.5, "m", "the chassis's CoG above the ground at design ride height"),
+    "cog_above_wheel_centres_m": (-0.3, 1.2, "m", "the chassis's CoG above the wheel centres at design"),
+    "cog_left_m": (-0.3, 0.3, "m", "the chassis's CoG left of the centreline (ISO y)"),
+    "Ixx_kg_m2": (50.0, 2e4, "kg·m²", "roll inertia at the CoG (ISO x forward)"),
+    "Iyy_kg_m2": (200.0, 5e4, "kg·m²", "pitch inertia at the CoG (ISO y left)"),
+    "Izz_kg_m2": (200.0, 5e4, "kg·m²", "yaw inertia at the CoG (ISO z up)"),
+    "Ixy_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry xy at the CoG, -∫xy dm"),
+    "Ixz_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry xz at the CoG, -∫xz dm"),
+    "Iyz_kg_m2": (-1e4, 1e4, "kg·m²", "inertia matrix entry yz at the CoG, -∫yz dm"),
+}
+CHASSIS_PARAMETERS = ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "MX6", "MY6", "MZ6", "M6")
+
+
+def _chassis_sheet(t: object, g: CarGeometry, where: str, section: str) -> dict[str, float]:
+    """XX6..M6 from a [section.chassis] data sheet (`engineering.chassis_from_data_sheet`), every key checked."""
+    from .engineering import chassis_from_data_sheet
+
+    sec = f"[{section}.chassis]"
+    if not isinstance(t, dict):
+        raise VehicleError(f"{where}: {sec} must be a table (mass_kg, cog_ahead_of_rear_axle_m, cog_above_ground_m, "
+                           f"Ixx_kg_m2, ...); got {t!r}")
+    _keys(t, set(CHASSIS_SHEET), where, sec)
+    heights = [k for k in ("cog_above_ground_m", "cog_above_wheel_centres_m") if k in t]
+    missing = [k for k in ("mass_kg", "cog_ahead_of_rear_axle_m", "Ixx_kg_m2", "Iyy_kg_m2", "Izz_kg_m2") if k not in t]
+    if len(heights) != 1:
+        missing.append("cog_above_ground_m (or cog_above_wheel_centres_m)" if not heights else
+                       "not both: cog_above_ground_m and cog_above_wheel_centres_m, only one")
+    if missing:
+        raise VehicleError(f"{where}: {sec}: missing {', '.join(missing)}")
+    x: dict[str, float] = {}
+    for k, v in t.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise VehicleError(f"{where}: {sec} {k} = {v!r} must be a finite number (the unit is in the key)")
+        lo, hi, unit, what = CHASSIS_SHEET[k]
+        hi = g.wheelbase if k == "cog_ahead_of_rear_axle_m" else hi
+        if not lo <= v <= hi:
+            raise VehicleError(f"{where}: {sec} {k} = {v:g} is outside {lo:g}..{hi:g} {unit} for a passenger car "
+                               f"({what}); is the unit right?")
+        x[k] = float(v)
+    above = (x["cog_above_ground_m"] if heights[0] == "cog_above_ground_m"
+             else x["cog_above_wheel_centres_m"] + g.wheel_radius)
+    J = np.array([[x["Ixx_kg_m2"], x.get("Ixy_kg_m2", 0.0), x.get("Ixz_kg_m2", 0.0)],
+                  [x.get("Ixy_kg_m2", 0.0), x["Iyy_kg_m2"], x.get("Iyz_kg_m2", 0.0)],
+                  [x.get("Ixz_kg_m2", 0.0), x.get("Iyz_kg_m2", 0.0), x["Izz_kg_m2"]]])
+    return chassis_from_data_sheet(x["mass_kg"], x["cog_ahead_of_rear_axle_m"], above, x.get("cog_left_m", 0.0), J, g)
+
+
+def chassis_sheet_keys(values: dict[str, float], g: CarGeometry) -> dict[str, float]:
+    """The [*.chassis] keys of a parameter set's XX6..M6 (`engineering.chassis_data_sheet`): what `dynid vehicle
+    show` prints, and what reads back to the same XX6..M6."""
+    from .engineering import chassis_data_sheet
+
+    d = chassis_data_sheet(values, g)
+    tiny = 1e-13 * max(abs(d["Ixx"]), abs(d["Iyy"]), abs(d["Izz"]))  # a product that is round-off of 0 reads 0
+    d = {k: 0.0 if k.startswith("I") and abs(x) < tiny else x for k, x in d.items()}
+    return {"mass_kg": d["mass_sprung"], "cog_ahead_of_rear_axle_m": d["cgs_ahead_rear"],
+            "cog_above_ground_m": d["cgs_height"], "cog_above_wheel_centres_m": d["cgs_height"] - g.wheel_radius,
+            "cog_left_m": d["cgs_lateral"], "Ixx_kg_m2": d["Ixx"], "Iyy_kg_m2": d["Iyy"], "Izz_kg_m2": d["Izz"],
+            "Ixy_kg_m2": d["Ixy"], "Ixz_kg_m2": d["Ixz"], "Iyz_kg_m2": d["Iyz"]}
+
+
+def _parameters(t: dict, names: dict[str, str], where: str, section: str, complete: bool,
+                geometry: CarGeometry | None = None) -> dict[str, float]:
+    t = dict(t)
+    sheet: dict[str, float] = {}
+    if "chassis" in t and geometry is not None:
+        given = [k for k in t if names.get(k) in CHASSIS_PARAMETERS]
+        if given:
+            raise VehicleError(f"{where}: [{section}] gives {', '.join(given)} and [{section}.chassis]: give the "
+                               "chassis one way, its data sheet or the frame-6 parameters XX6..M6")
+        sheet = _chassis_sheet(t.pop("chassis"), geometry, where, section)
     out: dict[str, float] = {}
     for k, v in t.items():
         if k not in names:
@@ -581,6 +679,7 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
         if n in out:
             raise VehicleError(f"{where}: [{section}] {n} is given twice (as a name and as a label)")
         out[n] = float(v)
+    out.update(sheet)
     for n, v in out.items():
         kind = n.rstrip("0123456789")
         if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr", *CURVE_LABELS)) and v < 0:

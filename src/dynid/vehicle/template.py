@@ -96,17 +96,22 @@ CONSTANT_JOINTS = tuple(j for k in range(4) for j in (base(k), base(k) + 1))
 EQUATION_ROWS = (*FREE_JOINTS, *DAMPERS, *TIRES)
 
 
+CORNER_FRAMES = len(ROLES)  # frames per corner
+
+
 def corner_of(frame: int) -> int:
-    if not 7 <= frame <= FRAMES:
-        raise ValueError(f"frame {frame} is not in a corner (7..42)")
-    return (frame - 7) // 9
+    """The corner (index into CORNERS) a frame belongs to."""
+    for k in range(len(CORNERS)):
+        if base(k) <= frame < base(k) + CORNER_FRAMES:
+            return k
+    raise ValueError(f"frame {frame} is not in a corner ({base(0)}..{FRAMES})")
 
 
 def role(frame: int) -> str:
     """What a frame is: 'x', 'roll', 'damper', 'wheel', ..."""
-    if frame <= 6:
-        return ("x", "y", "z", "yaw", "pitch", "roll")[frame - 1]
-    return ROLES[(frame - 7) % 9]
+    if frame <= CHASSIS:
+        return CHASSIS_GROUPS[frame - 1]
+    return ROLES[frame - base(corner_of(frame))]
 
 
 def paper_parameter_names() -> tuple[str, ...]:
@@ -136,6 +141,60 @@ def labels() -> dict[str, str]:
     for t in TIRES:
         out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}"})
     return out
+
+
+# what each parameter is, in a chassis engineer's words: the quantity by the kind of parameter and the role of its
+# frame, the corner from the frame (the anti-roll bars: the axle of the dampers they couple)
+_CHASSIS_AXES = {"XX": "yaw inertia about O6", "YY": "pitch inertia about O6", "ZZ": "roll inertia about O6",
+                 "XY": "product of inertia xy6", "XZ": "product of inertia xz6", "YZ": "product of inertia yz6"}
+_QUANTITY = {
+    ("damper", "K"): ("spring", "N/m"), ("damper", "FV"): ("damping", "N·s/m"),
+    ("damper", "FS"): ("dry friction", "N"), ("damper", "OFF"): ("spring preload (offset)", "N"),
+    ("tire", "K"): ("tire vertical stiffness", "N/m"), ("tire", "OFF"): ("tire load offset", "N"),
+    ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
+    ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
+    ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
+}
+
+
+@dataclass(frozen=True)
+class Meaning:
+    """What a parameter of the car is: its corner ("rear left", ..., "front axle", "chassis"), the quantity
+    ("spring", "damper", "tire vertical stiffness", "chassis inertia, yaw (about x6, up)", ...) and its SI unit."""
+
+    corner: str
+    quantity: str
+    unit: str
+
+    def text(self) -> str:
+        """ "spring, rear left" """
+        return f"{self.quantity}, {self.corner}"
+
+
+def meaning(name: str) -> Meaning | None:
+    """The corner, quantity and unit of a parameter of the car template (dynid name or the paper's label); None for
+    a name that is not one (a robot's, a base parameter's combination)."""
+    name = {label: n for n, label in labels().items()}.get(name, name)
+    for bar, couples in (("karr", (0, 1)), ("karf", (2, 3))):
+        if name == bar:
+            axle = CORNERS[couples[0]].split()[0]
+            return Meaning(f"{axle} axle", "anti-roll bar", "N/m")
+    kind = name.rstrip("0123456789")
+    if not kind or kind == name:
+        return None
+    j = int(name[len(kind):])
+    if j == CHASSIS:
+        if kind == "M":
+            return Meaning("chassis", "sprung mass", "kg")
+        if kind in ("MX", "MY", "MZ"):
+            return Meaning("chassis", f"first moment {kind[1].lower()}6", "kg·m")
+        if kind in _CHASSIS_AXES:
+            return Meaning("chassis", _CHASSIS_AXES[kind], "kg·m²")
+        return None
+    if not base(0) <= j <= FRAMES:
+        return None
+    found = _QUANTITY.get((role(j), kind))
+    return None if found is None else Meaning(CORNERS[corner_of(j)], *found)
 
 
 # ----- design poses and their MDH rows -------------------------------------------------
@@ -274,6 +333,7 @@ def car_template(
     tire_offsets: bool = False,
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
+    damper_friction: dict[int, tuple[str, float]] | None = None,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -293,6 +353,7 @@ def car_template(
     hrh (rebound, above and below v-), each its own parameter (model.tree's FVPL FVPH FVNL FVNH); an infinite knee
     drops that side's high-speed slope (one slope per direction); the other dampers keep h. A curved damper's h in
     `values` is the value of each of its slopes that `values` does not give.
+    damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
     """
     from .parameters import a_priori
     from .statics import rest_state
@@ -313,7 +374,8 @@ def car_template(
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
     tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81),
-                knees={d: (float(lo), float(hi)) for d, (lo, hi) in knees.items()})
+                knees={d: (float(lo), float(hi)) for d, (lo, hi) in knees.items()},
+                friction_shape=dict(damper_friction or {}))
     values = dict(a_priori().values if values is None else values)
     for d in knees:  # a curved damper's h (the paper's a priori, say): the value of each slope not given
         h = [values.pop(n) for n in (f"FV{d}", f"h{d}") if n in values]

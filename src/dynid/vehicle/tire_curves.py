@@ -1,0 +1,817 @@
+"""Tire characteristics from the track tests: cornering and longitudinal slip stiffness against vertical load, and
+the lateral Magic-Formula curve where the tests reach its nonlinear range (issue 31, the paper's "further work").
+
+Input: the estimated joints and the filtered wheel wrenches of `estimate.estimate_joints` (a `CarTrajectory`).
+Per wheel and sample (`tire_samples`):
+
+- the ISO wheel (W) axes: x along the line where the wheel plane meets the road (z0 = 0, flat), z the road's
+  normal, y = z × x (left). Tire characteristics are given in these axes (a flat-track machine's), not in the
+  wheel's own frame: on the MuJoCo car the body roll tilts the wheels 4.3° to the road in the spiral, and the
+  wheel frame's Fy then holds sin(4.3°) of Fz: +16 % against the pure-slip curve at the same slip angle, where
+  the W axes agree to 0.5 %;
+- slip angle α = atan2(v_y, max(|v_x|, 1 m/s)) and slip ratio κ = (v_x - R ω) / max(|v_x|, 1 m/s) (> 0 braking)
+  of the wheel centre's velocity in W axes (`kinematics.forward.point_velocity`), ω the wheel's spin rate, R the
+  vehicle file's wheel radius; the free-rolling slip κ0 the fit finds gives the effective rolling radius
+  R (1 - κ0);
+- Fx, Fy, Fz: the ground's force on the wheel in W axes, γ the wheel's inclination to the road.
+
+Sign conventions of the results (SAE/ISO practice): Fy = -F(α), Fx = -F(κ): a positive slip angle (the wheel
+centre moving to the left of its heading) gives a force to the right; cornering stiffness and slip stiffness are
+given positive, in N/rad (SI, results.json) and in N/deg and N per unit slip (the sheet's units).
+
+The fits (`fit_tire_curves`), per axle (both wheels together: the load transfer spreads their loads) and per
+tire where the data allow:
+
+- lateral, pure slip: samples with |κ - κ free rolling| <= KAPPA_PURE (the spiral's front inner wheel spins up
+  to κ = -0.07 driving, and combined slip then lowers its Fy), speed >= MIN_SPEED (the slips' noise grows as 1/v). The
+  Magic Formula Fy = -D sin(C atan(B x - E (B x - atan(B x)))), x = α + Sh, with the load dependence
+  D = μ Fz, μ = μ0 (1 + pD2 dfz), cornering stiffness K = B C D = k0 Fz (1 + pK2 dfz), dfz = Fz / Fz0 - 1,
+  Fz0 the axle's mean load in the tests. Fitted when the tests reach the nonlinear range (the largest |Fy| is
+  below NONLINEAR of the linear law's there), else the linear law K α alone on |α| <= LINEAR_ALPHA (over larger
+  slips a line is the curve's secant: -7.8 % on the quick demo's rear axle at 3.7°). E is fitted only when the
+  tests pass the curve's peak (it shapes the curve beyond it), else fixed at 0; a load term only when the loads
+  spread over LOAD_SPREAD of Fz0.
+- longitudinal: samples with |α| <= ALPHA_PURE and speed >= MIN_SPEED: Fx = -Kx (κ - κ0), Kx = kx0 Fz
+  (1 + pKx2 dfz), fitted as κ = κ0 - Fx / Kx (the slip is the noisy side: `fit_longitudinal`). Straight-line
+  braking holds one slip for seconds (about 0.03 at 6 m/s²): Kx is the secant to that slip, not the slope at
+  zero, and no Magic Formula is fitted (its peak is not reached; an ABS stop would).
+
+Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
+[MF_C_BOUNDS] and E <= 1, from a few starts). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
+s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of
+consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
+consecutive residuals are not independent. It assumes the model right (no bias: combined slip, camber thrust,
+relaxation length and the filters' lag are not modelled), the slips and loads exact (errors in α and κ bias
+slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor files), the residual stationary with one
+variance, and the solution inside its bounds (a parameter at a bound gets no σ).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..kinematics.forward import forward_kinematics, joint_array, point_velocity
+from .template import WHEELS, tire
+
+Array = np.ndarray
+
+CORNER_TAGS = ("rl", "rr", "fl", "fr")
+AXLES = {"front": (2, 3), "rear": (0, 1)}
+MIN_SPEED = 10.0  # m/s: the slips' noise grows as 1/v (a 0.05 m/s speed error is a slip of 0.012 at 15 km/h)
+KAPPA_PURE = 0.01  # |κ| at most for pure lateral slip: the MuJoCo car's Fy is then within 0.5 % of pure slip
+ALPHA_PURE = math.radians(0.5)  # |α| at most for pure longitudinal slip
+LINEAR_ALPHA = math.radians(2.0)  # the linear range of the per-tire cornering stiffness
+NONLINEAR = 0.95  # the tests reach the nonlinear range when |Fy| at the largest slips is below 95 % of K |α|
+LOAD_SPREAD = 0.3  # a load term is fitted only when the loads spread over 30 % of the nominal load
+MF_C_BOUNDS = (1.0, 2.0)
+MIN_POINTS = 20
+DEG = math.pi / 180.0
+
+
+class TireCurveError(ValueError):
+    """The tire data cannot give the asked curve (too few samples, no slip, a bad option)."""
+
+
+# ------------------------------------------------------------------------------------------------------- samples
+@dataclass(frozen=True)
+class TireSamples:
+    """Per-wheel samples of the tests (N,) each: test name, corner index (0 rl, 1 rr, 2 fl, 3 fr), time (s, in
+    the test), the slips, the wheel's inclination to the road γ (rad), the wheel centre's forward speed (m/s)
+    and the ground's force on the wheel in ISO wheel (W) axes (N)."""
+
+    test: Array
+    corner: Array
+    t: Array
+    alpha: Array
+    kappa: Array
+    gamma: Array
+    vx: Array
+    fx: Array
+    fy: Array
+    fz: Array
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def merge(self, other: TireSamples) -> TireSamples:
+        """self's samples then other's."""
+        return TireSamples(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in _FIELDS))
+
+    def select(self, mask: Array) -> TireSamples:
+        return TireSamples(*(getattr(self, f)[mask] for f in _FIELDS))
+
+
+_FIELDS = ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")
+
+
+def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
+    """The slips and W-axis forces of the four wheels on every `step`-th sample of `traj` (a `CarTrajectory` of the
+    42-frame template; its wheel_wrenches the ground's wrench on each wheel in the tire frame: x forward in the
+    wheel plane, y left, z up). t0: the trajectory's first sample's time in the test (s); wheel_radius (m): the
+    radius the slip ratio is counted with."""
+    if not wheel_radius > 0:
+        raise TireCurveError(f"wheel_radius = {wheel_radius!r} m: give the wheel's radius (> 0)")
+    if step < 1:
+        raise TireCurveError(f"step = {step!r}: give a whole number >= 1")
+    q, qd = np.asarray(traj.q)[::step], np.asarray(traj.qd)[::step]
+    F = np.asarray(traj.wheel_wrenches)[::step, :, :3]
+    n = len(q)
+    tires = [tire(k) for k in range(4)]
+    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=tires)
+    out = []
+    for k, (w, f) in enumerate(zip(WHEELS, tires, strict=True)):
+        R = np.stack([np.asarray(np.broadcast_to(c, (3, n))) for c in st.Rc[f]], axis=1)  # (3, 3, n) columns
+        R = np.moveaxis(R, -1, 0)  # (n, 3, 3): 0R_tire
+        v, _ = point_velocity(model.tree, q, qd, w)  # wheel centre, frame 0 (the spin leaves it unmoved)
+        y_wheel = R[:, :, 1]
+        x_w = np.cross(y_wheel, [0.0, 0.0, 1.0])  # the wheel plane's line on the road
+        x_w /= np.linalg.norm(x_w, axis=1)[:, None]
+        y_w = np.cross([0.0, 0.0, 1.0], x_w)
+        force = np.einsum("nij,nj->ni", R, F[:, k])  # frame 0
+        vx, vy = np.einsum("ni,ni->n", v, x_w), np.einsum("ni,ni->n", v, y_w)
+        den = np.maximum(np.abs(vx), 1.0)
+        omega = qd[:, w - 1]
+        out.append(TireSamples(
+            np.full(n, test, dtype=object), np.full(n, k), t0 + np.asarray(traj.t)[::step],
+            np.arctan2(vy, den), (vx - wheel_radius * omega) / den, np.arcsin(np.clip(y_wheel[:, 2], -1, 1)), vx,
+            np.einsum("ni,ni->n", force, x_w), np.einsum("ni,ni->n", force, y_w), force[:, 2]))
+    s = out[0]
+    for o in out[1:]:
+        s = s.merge(o)
+    return s
+
+
+def empty_samples() -> TireSamples:
+    return TireSamples(np.empty(0, dtype=object), *(np.empty(0) for _ in _FIELDS[1:]))
+
+
+# --------------------------------------------------------------------------------------------- Magic Formula
+def magic_formula(x: Array, B: Array | float, C: Array | float, D: Array | float, E: Array | float) -> Array:
+    """Pacejka's pure-slip curve D sin(C atan(B x - E (B x - atan(B x)))) (its slope at 0 is B C D)."""
+    bx = B * x
+    return D * np.sin(C * np.arctan(bx - E * (bx - np.arctan(bx))))
+
+
+def peak_slip(B: float, C: float, E: float) -> float:
+    """The slip of the curve's peak: C atan(u) = π/2 with u = B x - E (B x - atan(B x)); inf when C <= 1 (no peak)."""
+    if C <= 1.0:
+        return math.inf
+    u = math.tan(math.pi / (2 * C))
+    lo, hi = 0.0, 1.0
+    f = lambda z: z - E * (z - math.atan(z)) - u  # noqa: E731 (increasing in z for E <= 1)
+    while f(hi) < 0:
+        hi *= 2
+        if hi > 1e6:
+            return math.inf
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+    return 0.5 * (lo + hi) / B
+
+
+@dataclass
+class Fit:
+    """A least-squares fit: names, values, covariance (its assumptions in the module doc), residual RMS, the
+    residual's autocorrelation factor τ, the number of samples, parameters held fixed (name -> value) and those
+    that ended at a bound (no σ)."""
+
+    names: list[str]
+    values: Array
+    cov: Array
+    rms: float
+    tau: float
+    n: int
+    fixed: dict[str, float] = field(default_factory=dict)
+    at_bound: list[str] = field(default_factory=list)
+
+    @property
+    def std(self) -> Array:
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    def value(self, name: str) -> float:
+        if name in self.fixed:
+            return self.fixed[name]
+        return float(self.values[self.names.index(name)])
+
+    def sigma(self, name: str) -> float:
+        if name in self.fixed:
+            return 0.0
+        return float(self.std[self.names.index(name)])
+
+    def propagate(self, f, eps: float = 1e-6) -> tuple[float, float]:
+        """f(params dict) and its first-order σ (central differences on the fitted values)."""
+        x = np.asarray(self.values, dtype=float)
+
+        def at(v: Array) -> float:
+            return float(f({**self.fixed, **dict(zip(self.names, v, strict=True))}))
+
+        g = np.zeros(len(x))
+        for i in range(len(x)):
+            h = eps * max(abs(x[i]), 1e-3)
+            up, dn = x.copy(), x.copy()
+            up[i] += h
+            dn[i] -= h
+            g[i] = (at(up) - at(dn)) / (2 * h)
+        return at(x), float(math.sqrt(max(g @ self.cov @ g, 0.0)))
+
+
+def autocorrelation_factor(r: Array, runs: Array | None = None, max_lag: int = 200) -> float:
+    """τ = 1 + 2 Σ ρ_k of the residual r over its runs of consecutive samples (runs: a label per sample, each run's
+    samples contiguous; a lag never crosses two runs), the sum stopped at the first ρ_k <= 0 (at least 1)."""
+    r = np.asarray(r, dtype=float)
+    labels = np.zeros(len(r)) if runs is None else np.asarray(runs)
+    r = r - r.mean()
+    var = float(r @ r)
+    if var == 0.0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, min(max_lag, len(r) - 1)):
+        ok = labels[:-k] == labels[k:]  # runs are contiguous: both ends in one run
+        rho = float(r[:-k][ok] @ r[k:][ok]) / var
+        if rho <= 0:
+            break
+        tau += 2 * rho
+    return tau
+
+
+def _least_squares(fun, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
+                   runs: Array | None, fixed: dict[str, float]) -> Fit:
+    """The best of the starts, and its covariance (module doc)."""
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    best = None
+    for x0 in starts:
+        x0 = np.clip(np.asarray(x0, dtype=float), lower + margin, upper - margin)
+        try:
+            r = least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac", max_nfev=200)
+        except ValueError:
+            continue
+        if np.all(np.isfinite(r.fun)) and (best is None or r.cost < best.cost):
+            best = r
+    if best is None:
+        raise TireCurveError("the tire curve fit found no finite solution from any start")
+    n, p = len(best.fun), len(best.x)
+    if n <= p:
+        raise TireCurveError(f"the tire curve fit has {n} samples for {p} parameters")
+    s2 = float(best.fun @ best.fun) / (n - p)
+    tau = autocorrelation_factor(best.fun, runs)
+    J = best.jac
+    tol = 1e3 * margin
+    near = np.isfinite(span) & ((best.x - lower <= tol) | (upper - best.x <= tol))
+    cov = np.full((p, p), np.nan)
+    free = ~near
+    if free.any():
+        Jf = J[:, free]
+        try:
+            cf = np.linalg.pinv(Jf.T @ Jf) * s2 * tau
+        except np.linalg.LinAlgError:
+            cf = np.full((free.sum(), free.sum()), np.nan)
+        idx = np.flatnonzero(free)
+        cov[np.ix_(idx, idx)] = cf
+    cov[near, :] = 0.0
+    cov[:, near] = 0.0
+    return Fit(names, best.x, cov, math.sqrt(float(best.fun @ best.fun) / n), tau, n, fixed,
+               [nm for nm, b in zip(names, near, strict=True) if b])
+
+
+def fit_magic_formula(x: Array, F: Array, runs: Array | None = None, E: float | None = None) -> Fit:
+    """B, C, D, E of F = magic_formula(x, B, C, D, E) by nonlinear least squares, σ as the module doc says
+    (runs: see `autocorrelation_factor`; None: independent samples). E: held at this value when given."""
+    x, F = np.asarray(x, dtype=float), np.asarray(F, dtype=float)
+    if x.shape != F.shape or x.ndim != 1:
+        raise TireCurveError(f"slips and forces must be two 1-D arrays of one length; got {x.shape} and {F.shape}")
+    if len(x) < MIN_POINTS or not np.all(np.isfinite(x)) or not np.all(np.isfinite(F)):
+        raise TireCurveError(f"the Magic Formula needs at least {MIN_POINTS} finite samples; got {len(x)}")
+    if np.ptp(x) == 0:
+        raise TireCurveError("the slips do not vary: no curve can be fitted")
+    i = np.argsort(np.abs(x))[: max(5, len(x) // 10)]
+    slope = float(np.polyfit(x[i], F[i], 1)[0]) if np.ptp(x[i]) > 0 else 1.0
+    Dm = float(np.max(np.abs(F))) * math.copysign(1.0, slope)
+    names = ["B", "C", "D"] + ([] if E is not None else ["E"])
+    fixed = {} if E is None else {"E": float(E)}
+
+    def fun(p: Array) -> Array:
+        B, C, D = p[:3]
+        return magic_formula(x, B, C, D, p[3] if E is None else E) - F
+
+    lower = np.array([1e-6, 0.5, -np.inf] + ([] if E is not None else [-10.0]))
+    upper = np.array([np.inf, 3.0, np.inf] + ([] if E is not None else [1.0]))
+    starts = []
+    for C0 in (1.3, 1.6, 1.9):
+        for E0 in ((0.0, -1.0, 0.5) if E is None else (E,)):
+            B0 = abs(slope / (C0 * Dm)) if Dm else 10.0
+            starts.append([B0, C0, Dm] + ([] if E is not None else [E0]))
+    return _least_squares(fun, starts, lower, upper, names, runs, fixed)
+
+
+# ------------------------------------------------------------------------------------------------- the curves
+@dataclass
+class LateralCurve:
+    """One axle's or tire's lateral law: the fit (parameters k0 [N/rad per N], mu0, C, E, Sh [rad], pK2, pD2 as
+    fitted or fixed), the nominal load Fz0 (N), whether the Magic Formula was fitted (else linear), and the
+    ranges of the samples used."""
+
+    fit: Fit
+    fz0: float
+    magic: bool
+    alpha_range: tuple[float, float]
+    fz_range: tuple[float, float]
+    peak_reached: bool
+    fz_mean: float = float("nan")  # the samples' mean load (N)
+
+    def force(self, alpha: Array, fz: Array) -> Array:
+        return lateral_force(self.fit_params(), self.fz0, np.asarray(alpha, float), np.asarray(fz, float),
+                             self.magic)
+
+    def fit_params(self) -> dict[str, float]:
+        return {**self.fit.fixed, **dict(zip(self.fit.names, (float(v) for v in self.fit.values), strict=True))}
+
+    def stiffness(self, fz: float) -> tuple[float, float]:
+        """Cornering stiffness (N/rad) at load fz (N) and its σ."""
+        return self.fit.propagate(lambda p: _stiffness(p, self.fz0, fz))
+
+    def coefficients(self, fz: float) -> dict[str, tuple[float, float]]:
+        """B (1/rad), C, D (N), E at load fz with their σ (the Magic Formula only)."""
+        out = {}
+        for name, f in (("B", lambda p: _stiffness(p, self.fz0, fz) / (p["C"] * _mu(p, self.fz0, fz) * fz)),
+                        ("C", lambda p: p["C"]), ("D", lambda p: _mu(p, self.fz0, fz) * fz), ("E", lambda p: p["E"])):
+            out[name] = self.fit.propagate(f)
+        return out
+
+
+def _mu(p: Mapping[str, float], fz0: float, fz: Array | float) -> Array | float:
+    return p["mu0"] * (1 + p.get("pD2", 0.0) * (np.asarray(fz) / fz0 - 1))
+
+
+def _stiffness(p: Mapping[str, float], fz0: float, fz: Array | float) -> Array | float:
+    return p["k0"] * np.asarray(fz) * (1 + p.get("pK2", 0.0) * (np.asarray(fz) / fz0 - 1))
+
+
+def lateral_force(p: Mapping[str, float], fz0: float, alpha: Array, fz: Array, magic: bool = True) -> Array:
+    """Fy (N, ground on wheel, W axes) at slip angle alpha (rad) and load fz (N): -K x (linear) or the Magic
+    Formula with K = B C D, x = alpha + Sh (parameters: `LateralCurve`)."""
+    x = alpha + p.get("Sh", 0.0)
+    K = _stiffness(p, fz0, fz)
+    if not magic:
+        return -K * x
+    D = _mu(p, fz0, fz) * fz
+    C = p["C"]
+    return -magic_formula(x, K / (C * D), C, D, p["E"])
+
+
+@dataclass
+class LongitudinalLaw:
+    """One axle's or tire's longitudinal law Fx = -Kx (κ - κ0), Kx = kx0 Fz (1 + pKx2 dfz): the fit (kx0 per N,
+    kappa0, pKx2), the nominal load, the sample ranges."""
+
+    fit: Fit
+    fz0: float
+    kappa_range: tuple[float, float]
+    fz_range: tuple[float, float]
+
+    def stiffness(self, fz: float) -> tuple[float, float]:
+        return self.fit.propagate(lambda p: p["kx0"] * fz * (1 + p.get("pKx2", 0.0) * (fz / self.fz0 - 1)))
+
+
+def _runs(s: TireSamples) -> Array:
+    """A label per sample of its wheel's run of consecutive samples (a test's wheel; a gap in time starts anew)."""
+    key = np.array([f"{t}/{c}" for t, c in zip(s.test, s.corner, strict=True)], dtype=object)
+    out = np.zeros(len(s), dtype=int)
+    if len(s) == 0:
+        return out
+    dt = np.diff(s.t)
+    step = np.median(np.abs(dt)) if len(dt) else 1.0
+    new = np.r_[True, (key[1:] != key[:-1]) | (np.abs(dt - step) > 0.5 * step)]
+    return np.cumsum(new)
+
+
+def _ordered(s: TireSamples) -> TireSamples:
+    """The samples sorted by test, wheel and time (segments arrive in any order from the workers)."""
+    order = np.lexsort((s.t, s.corner, s.test.astype(str)))
+    return s.select(order)
+
+
+def free_rolling_slip(s: TireSamples) -> Array:
+    """Per sample, its wheel's free-rolling slip ratio: the median κ where |Fx| <= 2 % of Fz at speed (0 when
+    the wheel never rolls free). The wheel radius the slips are counted with is the geometric one; a tire rolls
+    on a larger effective radius (dynid's 406: about -0.02 of slip), and pure slip is about that."""
+    out = np.zeros(len(s))
+    for k in np.unique(s.corner):
+        m = s.corner == k
+        free = m & (np.abs(s.fx) <= 0.02 * np.abs(s.fz)) & (s.vx >= MIN_SPEED)
+        if free.any():
+            out[m] = float(np.median(s.kappa[free]))
+    return out
+
+
+def pure_lateral(s: TireSamples) -> TireSamples:
+    """The samples in pure lateral slip: |κ - κ free rolling| <= KAPPA_PURE, at speed, loaded."""
+    return s.select((np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE) & (s.vx >= MIN_SPEED) & (s.fz > 0))
+
+
+def pure_longitudinal(s: TireSamples) -> TireSamples:
+    return s.select((np.abs(s.alpha) <= ALPHA_PURE) & (s.vx >= MIN_SPEED) & (s.fz > 0))
+
+
+def fit_lateral(s: TireSamples, magic: bool | None = None) -> LateralCurve:
+    """The lateral law of these (pure lateral) samples: the Magic Formula with load dependence when the samples
+    reach the nonlinear range (magic None: decided from the data, module doc), else linear."""
+    if len(s) < MIN_POINTS:
+        raise TireCurveError(f"{len(s)} pure-slip samples: the lateral law needs at least {MIN_POINTS}")
+    a, fz, fy = s.alpha, s.fz, s.fy
+    if np.ptp(a) < 0.2 * DEG:
+        raise TireCurveError(f"the slip angle spans {np.degrees(np.ptp(a)):.2f}°: no cornering in these tests")
+    fz0 = float(np.mean(fz))
+    spread = float(np.ptp(fz) / fz0)
+    load = spread >= LOAD_SPREAD
+    runs = _runs(s)
+    # the linear law on the linear range: the start of the Magic Formula and the nonlinearity test
+    lin = np.abs(a) <= LINEAR_ALPHA
+    if lin.sum() < MIN_POINTS:
+        lin = np.abs(a) <= np.quantile(np.abs(a), 0.5)
+    linear = _fit_linear(a[lin], fz[lin], fy[lin], fz0, load, runs[lin])
+    p = {**linear.fixed, **dict(zip(linear.names, linear.values, strict=True))}
+    K_all = _stiffness(p, fz0, fz)
+    big = np.abs(a) >= np.quantile(np.abs(a), 0.95)
+    ratio = float(np.sum(np.abs(fy[big])) / np.sum(np.abs(K_all[big] * (a[big] + p["Sh"]))))
+    if magic is None:
+        magic = ratio < NONLINEAR
+    if not magic:  # the slope at zero from the linear range: over larger slips a line is the curve's secant
+        return LateralCurve(linear, fz0, False, (float(a[lin].min()), float(a[lin].max())),
+                            (float(fz[lin].min()), float(fz[lin].max())), False, fz0)
+    fit = _fit_magic_lateral(a, fz, fy, fz0, load, runs, p, E=0.0)
+    q = {**fit.fixed, **dict(zip(fit.names, fit.values, strict=True))}
+    Bn = q["k0"] / (q["C"] * q["mu0"])
+    peak = peak_slip(Bn, q["C"], q["E"])
+    reached = bool(np.max(np.abs(a + q["Sh"])) >= 1.1 * peak)
+    if reached:  # beyond the peak: E shapes the curve there, and the data say it
+        fit = _fit_magic_lateral(a, fz, fy, fz0, load, runs, q, E=None)
+    return LateralCurve(fit, fz0, True, (float(a.min()), float(a.max())), (float(fz.min()), float(fz.max())),
+                        reached, fz0)
+
+
+def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
+    """One tire's lateral law: the axle's curve shape (C, mu0, E, pD2 of its Magic Formula) with the tire's own
+    cornering stiffness (k0, Sh, and pK2 when its loads spread); linear on |alpha| <= LINEAR_ALPHA when the axle
+    has no Magic Formula."""
+    if axle is None or not axle.magic:
+        return fit_lateral(s.select(np.abs(s.alpha) <= LINEAR_ALPHA), magic=False)
+    if len(s) < MIN_POINTS:
+        raise TireCurveError(f"{len(s)} pure-slip samples: the lateral law needs at least {MIN_POINTS}")
+    a, fz, fy = s.alpha, s.fz, s.fy
+    load = float(np.ptp(fz) / axle.fz0) >= LOAD_SPREAD
+    shape = {n: axle.fit.value(n) for n in ("C", "mu0", "E", "pD2")}
+    names = ["k0", "Sh"] + (["pK2"] if load else [])
+    fixed = shape | ({} if load else {"pK2": 0.0})
+
+    def fun(v: Array) -> Array:
+        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a, fz) - fy
+
+    start = [axle.fit.value("k0"), axle.fit.value("Sh")] + ([axle.fit.value("pK2")] if load else [])
+    fit = _least_squares(fun, [start], np.array([1e-3, -0.1] + ([-0.9] if load else [])),
+                         np.array([200.0, 0.1] + ([5.0] if load else [])), names, _runs(s), fixed)
+    return LateralCurve(fit, axle.fz0, True, (float(a.min()), float(a.max())), (float(fz.min()), float(fz.max())),
+                        axle.peak_reached, float(np.mean(fz)))
+
+
+def _fit_linear(a: Array, fz: Array, fy: Array, fz0: float, load: bool, runs: Array) -> Fit:
+    names = ["k0", "Sh"] + (["pK2"] if load else [])
+    fixed = {} if load else {"pK2": 0.0}
+
+    def fun(v: Array) -> Array:
+        p = dict(zip(names, v, strict=True))
+        return lateral_force({**fixed, **p}, fz0, a, fz, magic=False) - fy
+
+    k0 = float(-np.sum(fy * a * fz) / max(np.sum((a * fz) ** 2), 1e-12))
+    start = [k0, 0.0] + ([0.0] if load else [])
+    lower = np.array([-np.inf, -0.1] + ([-0.9] if load else []))
+    upper = np.array([np.inf, 0.1] + ([5.0] if load else []))
+    return _least_squares(fun, [start], lower, upper, names, runs, fixed)
+
+
+def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, runs: Array,
+                       start: Mapping[str, float], E: float | None) -> Fit:
+    names = ["k0", "mu0", "C", "Sh"] + ([] if E is not None else ["E"]) + (["pK2", "pD2"] if load else [])
+    fixed = ({} if E is None else {"E": E}) | ({} if load else {"pK2": 0.0, "pD2": 0.0})
+
+    def fun(v: Array) -> Array:
+        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz) - fy
+
+    lo = {"k0": 1e-3, "mu0": 0.05, "C": MF_C_BOUNDS[0], "Sh": -0.1, "E": -10.0, "pK2": -0.9, "pD2": -0.9}
+    hi = {"k0": 200.0, "mu0": 5.0, "C": MF_C_BOUNDS[1], "Sh": 0.1, "E": 1.0, "pK2": 5.0, "pD2": 5.0}
+    mu_seen = float(np.max(np.abs(fy) / fz))
+    starts = []
+    for C0 in (1.2, 1.4, 1.7):
+        for m in (1.05, 1.3):
+            for E0 in ((0.0, -1.0) if E is None else (E,)):
+                x = {**dict(start), "mu0": max(m * mu_seen, 0.1), "C": C0, "E": E0}
+                x.setdefault("pK2", 0.0)
+                x.setdefault("pD2", 0.0)
+                starts.append([x.get(n, 0.0) for n in names])
+    return _least_squares(fun, starts, np.array([lo[n] for n in names]), np.array([hi[n] for n in names]), names,
+                          runs, fixed)
+
+
+def fit_longitudinal(s: TireSamples) -> LongitudinalLaw:
+    """Fx = -Kx (κ - κ0) on these (pure longitudinal) samples (module doc)."""
+    if len(s) < MIN_POINTS:
+        raise TireCurveError(f"{len(s)} pure-slip samples: the longitudinal law needs at least {MIN_POINTS}")
+    k, fz, fx = s.kappa, s.fz, s.fx
+    if np.ptp(k) < 0.005:
+        raise TireCurveError(f"the slip ratio spans {np.ptp(k):.4f}: no braking or traction in these tests")
+    fz0 = float(np.mean(fz))
+    load = float(np.ptp(fz) / fz0) >= LOAD_SPREAD
+    names = ["kx0", "kappa0"] + (["pKx2"] if load else [])
+    fixed = {} if load else {"pKx2": 0.0}
+
+    # regressed the other way round, slip on force: the slip ratio is the noisy side (a speed sensor's 1 km/h is a
+    # slip of 0.014 at 20 m/s, a third of a braking's), the filtered force's noise a few N. Forward, the noise in
+    # the regressor halves the stiffness (the MuJoCo car's sensor files); reversed, it is the residual's. Each
+    # residual weighted by the speed over 20 m/s: the slip's noise goes as 1/v
+    weight = s.vx / 20.0
+
+    def fun(v: Array) -> Array:
+        p = {**fixed, **dict(zip(names, v, strict=True))}
+        return (p["kappa0"] - fx / (p["kx0"] * fz * (1 + p["pKx2"] * (fz / fz0 - 1))) - k) * weight
+
+    k0 = float(-np.sum(fx * k * fz) / max(np.sum((k * fz) ** 2), 1e-12))
+    fit = _least_squares(fun, [[k0, 0.0] + ([0.0] if load else [])],
+                         np.array([1e-3, -0.1] + ([-0.9] if load else [])),
+                         np.array([1e3, 0.1] + ([5.0] if load else [])), names, _runs(s), fixed)
+    return LongitudinalLaw(fit, fz0, (float(k.min()), float(k.max())), (float(fz.min()), float(fz.max())))
+
+
+# ------------------------------------------------------------------------------------------------- the result
+@dataclass
+class TireCurves:
+    """The tire characteristics of one identification: per axle the lateral curve and the longitudinal law, per
+    tire the linear cornering stiffness, per test and wheel the slip ranges reached, what could not be fitted and
+    why, and the wheel radius the slip ratios are counted with."""
+
+    wheel_radius: float
+    lateral: dict[str, LateralCurve] = field(default_factory=dict)
+    longitudinal: dict[str, LongitudinalLaw] = field(default_factory=dict)
+    per_tire: dict[str, LateralCurve] = field(default_factory=dict)
+    longitudinal_per_tire: dict[str, LongitudinalLaw] = field(default_factory=dict)
+    reach: list[dict] = field(default_factory=list)
+    missing: dict[str, str] = field(default_factory=dict)
+    samples: TireSamples | None = None  # the pure-slip samples, for the report's figure
+    seconds: float = 0.0  # the fit's wall time
+    cpu_seconds: float = 0.0  # and its processor time (the machine's other loads left out)
+
+    def to_dict(self) -> dict:
+        """results.json's "tires" (SI: N/rad, N per unit slip, rad; and the sheet's N/deg)."""
+        out: dict = {"conventions": ("ISO wheel (W) axes: x the wheel plane's line on the road, z the road's "
+                                     "normal, y left; Fy = -F(alpha), Fx = -F(kappa); alpha = atan2(vy, max(|vx|, "
+                                     "1 m/s)), kappa = (vx - R omega) / max(|vx|, 1 m/s) > 0 braking, of the wheel "
+                                     "centre"), "wheel_radius_m": self.wheel_radius,
+                     "selection": {"min_speed_m_s": MIN_SPEED, "lateral_max_abs_kappa": KAPPA_PURE,
+                                   "longitudinal_max_abs_alpha_deg": math.degrees(ALPHA_PURE)},
+                     "lateral": {}, "longitudinal": {}, "per_tire": {}, "reach": self.reach,
+                     "not_fitted": self.missing, "fit_seconds": self.seconds,
+                     "fit_cpu_seconds": self.cpu_seconds}
+        for name, c in self.lateral.items():
+            out["lateral"][name] = _lateral_dict(c)
+        for name, c in self.per_tire.items():
+            out["per_tire"][name] = _lateral_dict(c)
+        out["longitudinal_per_tire"] = {}
+        for key, laws in (("longitudinal", self.longitudinal), ("longitudinal_per_tire", self.longitudinal_per_tire)):
+            for name, law in laws.items():
+                out[key][name] = self._longitudinal_dict(law)
+        return out
+
+    def _longitudinal_dict(self, law: LongitudinalLaw) -> dict:
+        kx, skx = law.stiffness(law.fz0)
+        k0, sk0 = law.fit.value("kappa0"), law.fit.sigma("kappa0")
+        return {"model": "linear (secant over the slip range)", "fz0_N": law.fz0,
+                "slip_stiffness_N_per_unit_slip": kx, "slip_stiffness_std": skx,
+                "free_rolling_slip": k0, "free_rolling_slip_std": sk0,
+                "effective_rolling_radius_m": self.wheel_radius * (1 - k0),
+                "effective_rolling_radius_std": self.wheel_radius * sk0,
+                "kappa_range": list(law.kappa_range), "fz_range_N": list(law.fz_range),
+                "parameters": _params(law.fit), "rms_N": law.fit.rms, "samples": law.fit.n, "tau": law.fit.tau,
+                "stiffness_vs_load": [{"fz_N": f, "value": v, "std": s}
+                                      for f in _loads(law.fz0) for v, s in [law.stiffness(f)]]}
+
+    def rows(self) -> list[list]:
+        """tires.csv's rows: key, axle or tire, quantity, unit, value, std."""
+        rows = []
+        for curves in (self.lateral, self.per_tire):
+            for name, c in curves.items():
+                for f in _loads(c.fz0):
+                    v, s = c.stiffness(f)
+                    rows.append([f"cornering_stiffness_{name}_{f:.0f}N", name, f"cornering stiffness at {f:.0f} N",
+                                 "N/deg", v * DEG, s * DEG])
+                if c.magic:
+                    for k, (v, s) in c.coefficients(c.fz0).items():
+                        unit = {"B": "1/rad", "C": "", "D": "N", "E": ""}[k]
+                        rows.append([f"mf_{k}_{name}", name, f"Magic Formula {k} at {c.fz0:.0f} N", unit, v, s])
+                    for k in ("mu0", "pK2", "pD2"):
+                        rows.append([f"mf_{k}_{name}", name, k, "", c.fit.value(k), c.fit.sigma(k)])
+                rows.append([f"alpha_offset_{name}", name, "slip angle offset Sh", "deg",
+                             math.degrees(c.fit.value("Sh")), math.degrees(c.fit.sigma("Sh"))])
+        for name, law in {**self.longitudinal, **self.longitudinal_per_tire}.items():
+            for f in _loads(law.fz0):
+                v, s = law.stiffness(f)
+                rows.append([f"slip_stiffness_{name}_{f:.0f}N", name, f"longitudinal slip stiffness at {f:.0f} N",
+                             "N per unit slip", v, s])
+            k0, sk0 = law.fit.value("kappa0"), law.fit.sigma("kappa0")
+            rows.append([f"rolling_radius_{name}", name, "effective rolling radius", "m",
+                         self.wheel_radius * (1 - k0), self.wheel_radius * sk0])
+        return rows
+
+    def quantities(self) -> list:
+        """The engineering sheet's tire figures (`vehicle.engineering.Quantity`): per axle the cornering stiffness
+        (N/deg) and the longitudinal slip stiffness (N per unit slip) at the axle's nominal load, with σ."""
+        from .engineering import Quantity
+
+        out = []
+        for name, c in self.lateral.items():
+            v, s = c.stiffness(c.fz0)
+            out.append(Quantity(f"cornering_stiffness_{name}", "tires", f"cornering stiffness, {name} axle", "N/deg",
+                                v * DEG, s * DEG, f"per tire, at {c.fz0:.0f} N (tires.csv: other loads, each tire)"))
+        for name, law in self.longitudinal.items():
+            v, s = law.stiffness(law.fz0)
+            out.append(Quantity(f"slip_stiffness_{name}", "tires", f"longitudinal slip stiffness, {name} axle",
+                                "N per unit slip", v, s, f"per tire, at {law.fz0:.0f} N (secant over the slips "
+                                f"reached, up to {max(abs(x) for x in law.kappa_range):.3f})"))
+        return out
+
+    def csv(self) -> str:
+        """tires.csv (`rows`)."""
+        import csv
+        import io
+
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["key", "axle_or_tire", "quantity", "unit", "value", "std"])
+        for key, who, q, unit, v, s in self.rows():
+            w.writerow([key, who, q, unit, f"{v:.8g}", f"{s:.4g}"])
+        return buf.getvalue()
+
+    def text(self) -> str:
+        """The terminal's compact block."""
+        lines = [f"Tire characteristics (ISO wheel axes; fitted in {self.seconds:.2f} s, {self.cpu_seconds:.2f} s "
+                 "of processor):"]
+        for name, c in self.lateral.items():
+            v, s = c.stiffness(c.fz0)
+            a0, a1 = np.degrees(c.alpha_range)
+            line = (f"  {name:<5} cornering stiffness {v * DEG:8.1f} ± {s * DEG:.1f} N/deg at {c.fz0:.0f} N; "
+                    f"alpha {a0:+.1f}..{a1:+.1f} deg")
+            if c.magic:
+                co = c.coefficients(c.fz0)
+                line += ("; MF B {:.2f} C {:.3f} D {:.0f} N E {:.2f}".format(*(co[k][0] for k in "BCDE"))
+                         + ("" if c.peak_reached else " (peak not reached: D extrapolated, E fixed)"))
+            lines.append(line)
+        for name, law in self.longitudinal.items():
+            v, s = law.stiffness(law.fz0)
+            k0 = law.fit.value("kappa0")
+            lines.append(f"  {name:<5} slip stiffness {v:9.0f} ± {s:.0f} N per unit slip at {law.fz0:.0f} N "
+                         f"(secant to kappa {law.kappa_range[1]:.3f}); rolling radius "
+                         f"{self.wheel_radius * (1 - k0):.4f} m")
+        for name, c in self.per_tire.items():
+            fz = c.fz_mean
+            v, s = c.stiffness(fz)
+            how = "the axle's curve shape" if c.magic else f"|alpha| <= {math.degrees(LINEAR_ALPHA):g} deg"
+            lines.append(f"  tire {name:<2} cornering stiffness {v * DEG:7.1f} ± {s * DEG:.1f} N/deg at {fz:.0f} N "
+                         f"({how})")
+        if self.longitudinal_per_tire:
+            lines.append("  slip stiffness per tire (N per unit slip, at its mean load): " + "; ".join(
+                f"{name} {law.stiffness(law.fz0)[0]:.0f} ± {law.stiffness(law.fz0)[1]:.0f} at {law.fz0:.0f} N"
+                for name, law in self.longitudinal_per_tire.items()))
+        tests: dict[str, list[str]] = {}
+        for r in self.reach:
+            if "lateral_regime" in r and r["wheel"] in ("rl", "fl"):  # one wheel per axle: the pair is symmetric
+                use = f", {100 * r['peak_force_used']:.0f} % of peak" if "peak_force_used" in r else ""
+                tests.setdefault(r["test"], []).append(
+                    f"{'front' if r['wheel'] == 'fl' else 'rear'} {r['alpha_deg'][0]:+.1f}..{r['alpha_deg'][1]:+.1f}"
+                    f" deg ({r['lateral_regime']}{use})")
+        for test, parts in tests.items():
+            lines.append(f"  reach, {test}: " + "; ".join(parts))
+        for what, why in self.missing.items():
+            lines.append(f"  {what}: not fitted ({why})")
+        return "\n".join(lines)
+
+
+def _loads(fz0: float) -> list[float]:
+    return [0.5 * fz0, fz0, 1.5 * fz0]
+
+
+def _params(fit: Fit) -> list[dict]:
+    out = [{"name": n, "value": float(v), "std": float(s), "at_bound": n in fit.at_bound}
+           for n, v, s in zip(fit.names, fit.values, fit.std, strict=True)]
+    out += [{"name": n, "value": float(v), "std": 0.0, "fixed": True} for n, v in fit.fixed.items()]
+    return out
+
+
+def _lateral_dict(c: LateralCurve) -> dict:
+    k, sk = c.stiffness(c.fz_mean)
+    out = {"model": "magic formula" if c.magic else "linear", "fz0_N": c.fz0, "mean_load_N": c.fz_mean,
+           "cornering_stiffness_N_per_rad": k, "cornering_stiffness_std": sk,
+           "cornering_stiffness_N_per_deg": k * DEG, "cornering_stiffness_N_per_deg_std": sk * DEG,
+           "alpha_range_deg": [math.degrees(x) for x in c.alpha_range], "fz_range_N": list(c.fz_range),
+           "peak_reached": c.peak_reached, "parameters": _params(c.fit), "rms_N": c.fit.rms, "samples": c.fit.n,
+           "tau": c.fit.tau,
+           "stiffness_vs_load": [{"fz_N": f, "N_per_deg": v * DEG, "std": s * DEG}
+                                 for f in _loads(c.fz0) for v, s in [c.stiffness(f)]]}
+    if c.magic:
+        out["coefficients_at_fz0"] = {k: {"value": v, "std": s} for k, (v, s) in c.coefficients(c.fz0).items()}
+        q = c.fit_params()
+        out["peak_slip_angle_deg"] = math.degrees(peak_slip(q["k0"] / (q["C"] * q["mu0"]), q["C"], q["E"]))
+    return out
+
+
+def slip_reach(s: TireSamples) -> list[dict]:
+    """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads."""
+    out = []
+    fast = s.select(s.vx >= MIN_SPEED)
+    for test in dict.fromkeys(fast.test.tolist()):
+        for k, tag in enumerate(CORNER_TAGS):
+            m = (fast.test == test) & (fast.corner == k)
+            if not m.any():
+                continue
+            out.append({"test": test, "wheel": tag,
+                        "alpha_deg": [float(np.degrees(fast.alpha[m].min())), float(np.degrees(fast.alpha[m].max()))],
+                        "kappa": [float(fast.kappa[m].min()), float(fast.kappa[m].max())],
+                        "fz_N": [float(fast.fz[m].min()), float(fast.fz[m].max())],
+                        "inclination_deg": float(np.degrees(np.max(np.abs(fast.gamma[m]))))})
+    return out
+
+
+def _regime(curves: TireCurves, row: dict) -> dict:
+    """Which part of its axle's lateral curve a test's wheel reached: "linear" (|Fy| within 5 % of K |α| at the
+    largest |α|), "nonlinear" or "beyond the peak", and the share of the peak force used (Magic Formula only)."""
+    axle = next((a for a, ks in AXLES.items() if CORNER_TAGS.index(row["wheel"]) in ks), None)
+    c = curves.lateral.get(axle)
+    if c is None:
+        return {}
+    a = math.radians(max(abs(x) for x in row["alpha_deg"]))
+    fz = float(np.mean(row["fz_N"]))
+    p = c.fit_params()
+    fy = abs(float(c.force(np.array([-a]), np.array([fz]))[0]))
+    linear = abs(float(_stiffness(p, c.fz0, fz))) * a
+    out: dict = {"lateral_regime": "linear" if linear == 0 or fy >= 0.95 * linear else "nonlinear"}
+    if c.magic:
+        D = float(_mu(p, c.fz0, fz)) * fz
+        out["peak_force_used"] = fy / D
+        if a > peak_slip(float(_stiffness(p, c.fz0, fz)) / (p["C"] * D), p["C"], p["E"]):
+            out["lateral_regime"] = "beyond the peak"
+    return out
+
+
+def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
+    """Every curve the samples support (module doc); what they do not is said in `missing`. BLAS on one thread:
+    the problems are a few thousand rows by a few columns, where threads cost more than they give (on a loaded
+    machine, 3 s of wall time against 0.4 s)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _fit_tire_curves(samples, wheel_radius)
+
+
+def _fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
+    import time
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    s = _ordered(samples)
+    out = TireCurves(wheel_radius, reach=slip_reach(s))
+    lat, lon = pure_lateral(s), pure_longitudinal(s)
+    keep = []
+    for axle, corners in AXLES.items():
+        m = np.isin(lat.corner, corners)
+        try:
+            out.lateral[axle] = fit_lateral(lat.select(m))
+            keep.append(m)
+        except TireCurveError as exc:
+            out.missing[f"{axle} lateral"] = str(exc)
+        try:
+            out.longitudinal[axle] = fit_longitudinal(lon.select(np.isin(lon.corner, corners)))
+        except TireCurveError as exc:
+            out.missing[f"{axle} longitudinal"] = str(exc)
+        for k in corners:
+            m = lat.corner == k
+            try:
+                out.per_tire[CORNER_TAGS[k]] = fit_tire(lat.select(m), out.lateral.get(axle))
+            except TireCurveError as exc:
+                out.missing[f"tire {CORNER_TAGS[k]} lateral"] = str(exc)
+            try:
+                out.longitudinal_per_tire[CORNER_TAGS[k]] = fit_longitudinal(lon.select(lon.corner == k))
+            except TireCurveError as exc:
+                out.missing[f"tire {CORNER_TAGS[k]} longitudinal"] = str(exc)
+    for r in out.reach:
+        r.update(_regime(out, r))
+    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
+    out.samples = s.select((pure_y | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
+    out.seconds, out.cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
+    return out
+
+
+__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw", "TireCurveError",
+           "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples", "fit_lateral", "fit_longitudinal",
+           "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula", "peak_slip", "slip_reach",
+           "tire_samples"]
