@@ -249,3 +249,18 @@ def test_instruments_simulate_the_curve(tmp_path):
     h = {**{n: x for n, x in values.items() if n in linear.index}, **{f"FV{d}": 3000.0 for d in DAMPERS}}
     q_h, _, _ = suspension_response(linear, h, run.time, load, run.time, run.q[0, cols], run.qd[0, cols])
     assert np.abs(q_h - run.q[:, cols]).max() > 1e-4
+
+
+def test_sheet_damping_ratio_of_a_curve(tmp_path):
+    """The engineer's sheet: a damper curve's ride damping ratio is that of h = (hbl + hrl) / 2 (its small-amplitude
+    linear equivalent), the same car with that h giving the same figure."""
+    from dynid.vehicle.engineering import car_quantities
+
+    v = load_vehicle(curve_vehicle(tmp_path))
+    curve = dict(v.truth.values)
+    linear = {n: x for n, x in curve.items() if not n.startswith(("FVP", "FVN"))}
+    linear.update({f"FV{d}": 0.5 * (a + c) for d, (a, _, c, _) in TRUTH_SLOPES.items()})
+    for key in ("damping_ratio_front", "damping_ratio_rear"):
+        assert car_quantities(curve, v.geometry)[key] == pytest.approx(car_quantities(linear, v.geometry)[key],
+                                                                       rel=1e-12)
+        assert car_quantities(curve, v.geometry)[key] > 0.1

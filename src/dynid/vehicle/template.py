@@ -154,6 +154,7 @@ _QUANTITY = {
     ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
     ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
     ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
+    **{("damper", t): (f"damping slope, {m}", "N·s/m") for t, m in CURVE_MEANINGS.items()},
 }
 
 
