@@ -98,10 +98,12 @@ def full_model(name: str) -> Model:
     tree = load_model(name).tree
     rng = np.random.default_rng(3)
     moving = [f.j for f in tree.frames if f.sigma != 2]
-    terms = {j: ("IA", "FV", "FS", "OFF", "K", "KQ") for j in moving}
+    terms = {j: ("IA", "FV", "FS", "OFF", "K", "KQ", "FVPL", "FVPH", "FVNL", "FVNH") for j in moving}
+    # knees inside the random velocities' range (N(0, 1)), so that every piece of the viscous curve is visited
+    knees = {j: (-float(rng.uniform(0.1, 0.8)), float(rng.uniform(0.1, 0.8))) for j in moving}
     a, b = moving[1], moving[-1]
     couplings = tuple(dynid.model.Coupling(f"c{k}", k, {a: 1.5, b: -0.7}) for k in ("K", "IA", "FV", "FS"))
-    t = dataclasses.replace(tree, joint_terms=terms, couplings=couplings, values={})
+    t = dataclasses.replace(tree, joint_terms=terms, couplings=couplings, values={}, knees=knees)
     return Model(dataclasses.replace(t, values=dict(zip(t.parameter_names, rng.normal(size=t.p), strict=True))))
 
 

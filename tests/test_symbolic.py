@@ -9,6 +9,7 @@ C compiler for the generated C. No test compares the generator with itself.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import os
 import subprocess
@@ -79,10 +80,25 @@ def evaluate(prog, tree):
     return ns["evaluate"]
 
 
-CASES = ["puma560", "tx40", "floating_tree", "random42"]
+CASES = ["puma560", "tx40", "floating_tree", "random42", "tx40_curves"]
+
+
+def with_curves(tree: Tree) -> Tree:
+    """Every moving joint with a viscous curve besides its other terms (four slopes about knees inside the states'
+    N(0, 1) velocities, one joint without a rebound knee), random slopes."""
+    rng = np.random.default_rng(11)
+    moving = [f.j for f in tree.frames if f.sigma != 2]
+    knees = {j: (-float(rng.uniform(0.1, 0.8)), float(rng.uniform(0.1, 0.8))) for j in moving}
+    knees[moving[0]] = (-math.inf, knees[moving[0]][1])
+    curve = {j: ("FVPL", "FVPH", "FVNL", *(("FVNH",) if j != moving[0] else ())) for j in moving}
+    terms = {j: (*tree.joint_terms.get(j, ()), *curve[j]) for j in moving}
+    t = dataclasses.replace(tree, joint_terms=terms, knees=knees)
+    return t.with_values({f"{c}{j}": float(rng.uniform(0.5, 2.0)) for j in moving for c in curve[j]})
 
 
 def get_tree(name: str) -> Tree:
+    if name == "tx40_curves":
+        return with_curves(dynid.load_model("tx40").tree)
     return random42() if name == "random42" else dynid.load_model(name).tree
 
 

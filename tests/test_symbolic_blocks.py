@@ -26,6 +26,7 @@ from dynid.symbolic import WrenchSite, build
 from dynid.symbolic.blocks import LANES, aligned_zeros, block_model
 from dynid.symbolic.generated import GeneratedRegressor
 from dynid.vehicle import car_template
+from dynid.vehicle.equations import identified
 from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names
 
 pytest.importorskip("numba")
@@ -104,18 +105,21 @@ def test_block_idm_with_parameters_and_wrench_matches_engine():
     close(tau, np.einsum("nij,j->ni", W, X) - Q)
 
 
-@pytest.mark.parametrize("law", ["paper", "progressive"])
+@pytest.mark.parametrize("law", ["paper", "progressive", "curve"])
 @pytest.mark.parametrize("N", SIZES)
 def test_car_identification_model_through_generated_regressor(N, law):
     """The pipeline's call: the 14 equations, the paper's 48 columns (and the tires' offsets and second-order terms
-    KQ q² of the progressive law), wheel wrenches; W and Q."""
-    tree = car_template(tire_offsets=law != "paper", tire_law=law)
+    KQ q² of the progressive law; the dampers' curve slopes in place of h), wheel wrenches; W and Q."""
+    # curve: knees inside the random clearance rates (N(0, 1)), one damper without its rebound knee
+    knees = {9: (-0.1, 0.1), 18: (-0.3, 0.2), 27: (-0.5, 0.05), 36: (-np.inf, 0.4)} if law == "curve" else None
+    tree = car_template(tire_offsets=law == "progressive", tire_law="progressive" if law == "progressive" else "paper",
+                        damper_knees=knees)
     m = Model(tree)
     q, qd, qdd = random_states(tree, N, seed=N + 2)
     rng = np.random.default_rng(N)
     wrenches = [Wrench(t, rng.normal(size=(N, 6)), (0.0, 0.1, -0.2), frame=t) for t in (15, 24, 33, 42)]
-    extra = [f"{p}{t}" for p in ("OFF", "KQ") for t in (15, 24, 33, 42)] if law != "paper" else []
-    rows, cols = list(EQUATION_ROWS), [*paper_parameter_names(), *extra]
+    extra = [f"{p}{t}" for p in ("OFF", "KQ") for t in (15, 24, 33, 42)] if law == "progressive" else []
+    rows, cols = list(EQUATION_ROWS), [*identified(tree), *extra]
     W, Q = GeneratedRegressor(tree)(q, qd, qdd, wrenches, rows, cols)
     We, Qe = m.regressor(q, qd, qdd, wrenches, rows=rows, cols=cols)
     close(W, We)

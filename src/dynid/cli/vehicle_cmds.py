@@ -217,6 +217,7 @@ def chassis_sheet_text(v) -> list[str]:
 def show_vehicle(v) -> str:
     """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
     from ..model.consistency import check_physical
+    from ..model.tree import CURVE_TERMS
     from ..vehicle.equations import car_base_parameters, identified
     from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, meaning, paper_parameter_names, role
 
@@ -239,12 +240,15 @@ def show_vehicle(v) -> str:
         where = "" if fr.j <= CHASSIS else f", {CORNERS[corner_of(fr.j)]}"
         out.append(f"{line}  {role(fr.j)}{where}")
     out += ["", f"  {'parameter':>9} {'a priori':>12} {'truth':>12} {'known':>10}  {'unit':<6}  corner, quantity"]
-    for n in paper_parameter_names():
-        t = "" if v.truth is None else f"{v.truth.values[n]:.6g}"
-        k = f"{v.known[n]:.6g}" if n in v.known else ""
+    # a damper's h, or its curve's slopes (a priori with [dampers] law = "curve", truth with a curve in [truth])
+    names = [m for n in paper_parameter_names()
+             for m in ((n,) if not n.startswith("FV") else (n, *(f"{t}{n[2:]}" for t in CURVE_TERMS)))]
+    sets = [v.a_priori.values, {} if v.truth is None else v.truth.values, v.known]
+    for n in (n for n in names if any(n in s for s in sets)):
+        a, t, k = (f"{s[n]:.6g}" if n in s else "" for s in sets)
         m = meaning(n)
         what = f"  {m.unit:<6}  {m.text()}" if m is not None else ""
-        out.append(f"  {tree.label(n):>9} {v.a_priori.values[n]:>12.6g} {t:>12} {k:>10}{what}")
+        out.append(f"  {tree.label(n):>9} {a:>12} {t:>12} {k:>10}{what}")
     known = tree.with_values(v.known).with_known(set(v.known)) if v.known else tree
     base = car_base_parameters(known, "car")
     out += ["", f"Base parameters with the car's own motion (constant and tabulated joints still): {base.rank} "

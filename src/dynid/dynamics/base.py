@@ -62,13 +62,19 @@ class BaseParameters:
 
 
 def random_states(tree: Tree, samples: int, seed: int = 0) -> tuple[Array, Array, Array]:
-    """Random (q, qd, qdd), (samples, n): angles over the full turn, lengths around 0 +- 1 m."""
+    """Random (q, qd, qdd), (samples, n): angles over the full turn, lengths around 0 +- 1 m; the velocity of a
+    joint with knees (Tree.knees) on their scale (standard deviation twice the larger finite knee)."""
     rng = np.random.default_rng(seed)
     n = tree.n
     q = rng.normal(size=(samples, n))
     q[:, tree.sigma[1:] == REVOLUTE] = rng.uniform(-np.pi, np.pi, size=(samples, int((tree.sigma == REVOLUTE).sum())))
     q[:, tree.sigma[1:] == PRISMATIC] *= 0.5
-    return q, rng.normal(size=(samples, n)), rng.normal(size=(samples, n))
+    qd = rng.normal(size=(samples, n))
+    for j, knees in tree.knees.items():  # a viscous curve's pieces all visited: velocities on its knees' scale
+        finite = [abs(v) for v in knees if np.isfinite(v)]
+        if finite:
+            qd[:, j - 1] *= 2.0 * max(finite)
+    return q, qd, rng.normal(size=(samples, n))
 
 
 def base_parameters(

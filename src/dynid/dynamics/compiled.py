@@ -36,7 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..kinematics.forward import frame_plan, joint_array
-from ..model.tree import FIXED, INERTIAL, REVOLUTE, Tree
+from ..model.tree import CURVE_TERMS, FIXED, INERTIAL, REVOLUTE, Tree
 
 try:  # numba is a runtime dependency, but an install without it must still work
     from numba import njit as _njit
@@ -46,8 +46,9 @@ except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
 Array = np.ndarray
-_TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4, "KQ": 5}
-_SMOOTH_FS = 6  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
+# FVPL FVPH FVNL FVNH: the viscous curve's slopes (model.tree), the knee in the regressor kernel's t_w
+_TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4, "KQ": 5, "FVPL": 6, "FVPH": 7, "FVNL": 8, "FVNH": 9}
+_SMOOTH_FS = 10  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
 _COUPLING_CODE = {"K": 0, "IA": 1, "FV": 2, "FS": 3}
 # fused multiply-add only: no reassociation (the sincos reduction relies on the order of operations)
 _FASTMATH = {"contract"}
@@ -142,14 +143,32 @@ def _local_rotation(R, E, j, revolute, th):
 
 
 @_inline
-def _joint_terms(tau_row, q, qd, qdd, jt, has_jt, fs_w):
-    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² added to tau_row (one sample); s = sign where fs_w[j] is 0,
-    else tanh(qd / fs_w[j]) (fs_w: vs for tanh, 2 vs for sigmoid, see _friction_widths)."""
+def _curve(kind, v, knee):
+    """The viscous curve's column of kind 6 FVPL clip(v, 0, knee), 7 FVPH max(v - knee, 0), 8 FVNL
+    clip(v, knee, 0) or 9 FVNH min(v - knee, 0) (knee: v+ for 6 and 7, v- for 8 and 9)."""
+    if kind == 6:
+        return min(max(v, 0.0), knee)
+    if kind == 7:
+        return max(v - knee, 0.0)
+    if kind == 8:
+        return max(min(v, 0.0), knee)
+    return min(v - knee, 0.0)
+
+
+@_inline
+def _joint_terms(tau_row, q, qd, qdd, jt, has_jt, fs_w, knee):
+    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² + the viscous curve added to tau_row (one sample); s = sign
+    where fs_w[j] is 0, else tanh(qd / fs_w[j]) (fs_w: vs for tanh, 2 vs for sigmoid, see _friction_widths);
+    knee[j]: (v-, v+) of the curve (_curve)."""
     for j in range(1, jt.shape[0]):
         if has_jt[j]:
             x, v, a = q[j - 1], qd[j - 1], qdd[j - 1]
             c = _sign(v) if fs_w[j] == 0.0 else math.tanh(v / fs_w[j])
             tau_row[j - 1] += jt[j, 0] * a + jt[j, 1] * v + jt[j, 2] * c + jt[j, 3] + (jt[j, 4] + jt[j, 5] * x) * x
+            if jt[j, 6] != 0.0 or jt[j, 7] != 0.0 or jt[j, 8] != 0.0 or jt[j, 9] != 0.0:
+                lo, hi = knee[j, 0], knee[j, 1]
+                tau_row[j - 1] += (jt[j, 6] * _curve(6, v, hi) + jt[j, 7] * _curve(7, v, hi)
+                                   + jt[j, 8] * _curve(8, v, lo) + jt[j, 9] * _curve(9, v, lo))
 
 
 @_inline
@@ -181,7 +200,7 @@ def _world_rotations(R, Rw, ant, world, n):
 
 @_jit
 def _idm_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, inert, todo, massive, world,
-                jt, has_jt, fs_w, cp_ptr, cp_joint, cp_coef, cp_kind, cp_val,
+                jt, has_jt, fs_w, knee, cp_ptr, cp_joint, cp_coef, cp_kind, cp_val,
                 w_link, w_frame, w_point, w_vals, tau):
     """Newton-Euler per sample into tau (N, n); joint terms and couplings included.
 
@@ -285,7 +304,7 @@ def _idm_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, inert, todo, massive, 
                 m[a, 0] += ma0 + c0
                 m[a, 1] += ma1 + c1
                 m[a, 2] += ma2 + c2
-        _joint_terms(tau[s], q[s], qd[s], qdd[s], jt, has_jt, fs_w)
+        _joint_terms(tau[s], q[s], qd[s], qdd[s], jt, has_jt, fs_w, knee)
         for c in range(cp_kind.shape[0]):
             x = cp_val[c] * _coupling_value(cp_kind[c], cp_ptr[c], cp_ptr[c + 1], cp_joint, cp_coef,
                                             q[s], qd[s], qdd[s])
@@ -460,6 +479,8 @@ def _reg_kernel(q, qd, qdd, ant, sigma, E, u, th0, r0, g, todo, motion, axis, re
                 x = q[s, j]
             elif kind == 5:
                 x = q[s, j] * q[s, j]
+            elif kind <= 9:  # the viscous curve, t_w: its knee
+                x = _curve(kind, qd[s, j], t_w[t])
             else:  # _SMOOTH_FS
                 x = math.tanh(qd[s, j] / t_w[t])
             W[s, t_rpos[t], t_cpos[t]] = x
@@ -525,7 +546,8 @@ def geometry(tree: Tree) -> dict:
         xx = np.array([tree.index[f"XX{j}"] for j in range(1, tree.n + 1)], dtype=np.intp)
         geo = {"ant": _i64(np.maximum(tree.ant, 0)), "sigma": _i64(tree.sigma), "E": _f64(E), "u": _f64(u),
                "th0": _f64(th0), "r0": _f64(tree.r0), "g": _f64(tree.gravity), "anc": anc,
-               "inertial": xx[:, None] + np.arange(10), "fs_w": _friction_widths(tree)}
+               "inertial": xx[:, None] + np.arange(10), "fs_w": _friction_widths(tree),
+               "knee": _f64([tree.knee(j) for j in range(tree.n + 1)], (tree.n + 1, 2))}
         tree.__dict__["_compiled_geometry"] = geo
     return geo
 
@@ -580,7 +602,7 @@ def inverse_dynamics(tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, chec
     tau = np.empty((N, n))
     _idm_kernel(q, qd, qdd, geo["ant"], geo["sigma"], geo["E"], geo["u"], geo["th0"], geo["r0"],
                 geo["g"] if gravity else np.zeros(3), xa["inert"], todo, xa["massive"], world,
-                xa["jt"], xa["has_jt"], geo["fs_w"], *xa["couplings"], wl, we, wp, wv, tau)
+                xa["jt"], xa["has_jt"], geo["fs_w"], geo["knee"], *xa["couplings"], wl, we, wp, wv, tau)
     return tau
 
 
@@ -666,7 +688,9 @@ def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
             j = int(name[len(kind):])
             if j in row_pos:
                 code = _SMOOTH_FS if kind == "FS" and widths[j] != 0.0 else _TERM_CODE[kind]
-                terms.append((j, code, row_pos[j], pos, widths[j]))
+                # the term's width: the Coulomb law's, or the curve's knee (v+ for FVP*, v- for FVN*)
+                w = tree.knee(j)[kind.startswith("FVP")] if kind in CURVE_TERMS else widths[j]
+                terms.append((j, code, row_pos[j], pos, w))
     C = len(Cols)
     links = [k for k in sorted(entries) if any(j in row_pos and tree.sigma[j] != FIXED for j in tree.ancestors[k])]
     colmap = np.full((len(links), 10), C, dtype=np.int64)  # unasked parameters go to the spare column C

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..kinematics.forward import forward_kinematics, joint_array, to_local, to_world
 from ..kinematics.motion import Motion, Vec, local_motion, matvec, scale, umul, vadd, vcross
-from ..model.tree import FIXED, PRISMATIC, REVOLUTE, SIGN_LAW, ModelError, Tree
+from ..model.tree import FIXED, NO_KNEES, PRISMATIC, REVOLUTE, SIGN_LAW, ModelError, Tree
 
 Array = np.ndarray
 CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache (1-2k measured best)
@@ -154,15 +154,16 @@ def backward_recursion(tree: Tree, mo: Motion, F: list, M: list) -> Array:
 
 
 def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inertia_only: bool = False) -> Array:
-    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² per joint (s: the joint's Coulomb law), plus the couplings,
-    (n, N)."""
+    """IA qdd + FV qd + FS s(qd) + OFF + K q + KQ q² + the viscous curve per joint (s: the joint's Coulomb law;
+    the curve: model.tree's module doc), plus the couplings, (n, N)."""
     tau = np.zeros_like(q)
     idx = tree.index
     for j, terms in tree.joint_terms.items():
         for t in terms:
             x = X[idx[f"{t}{j}"]]
             if x != 0.0 and (t == "IA" or not inertia_only):
-                tau[j - 1] += x * joint_term_column(t, q[j - 1], qd[j - 1], qdd[j - 1], tree.friction_law(j))
+                tau[j - 1] += x * joint_term_column(t, q[j - 1], qd[j - 1], qdd[j - 1], tree.friction_law(j),
+                                                    tree.knee(j))
     for c in tree.couplings:
         x = X[idx[c.name]]
         if x == 0.0 or (inertia_only and c.kind != "IA"):
@@ -172,9 +173,10 @@ def joint_terms(tree: Tree, X: Array, q: Array, qd: Array, qdd: Array, *, inerti
 
 
 def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
-                      law: tuple[str, float] = SIGN_LAW) -> Array:
-    """Generalized force of joint j per unit of its term IA, FV, FS, OFF, K or KQ, (N,); law: the (shape, vs)
-    of its FS term (Tree.friction_law)."""
+                      law: tuple[str, float] = SIGN_LAW, knees: tuple[float, float] = NO_KNEES) -> Array:
+    """Generalized force of joint j per unit of its term IA, FV, FS, OFF, K, KQ or a viscous curve slope FVPL,
+    FVPH, FVNL, FVNH, (N,); law: the (shape, vs) of its FS term (Tree.friction_law); knees: (v-, v+) of its
+    curve (Tree.knee)."""
     match term:
         case "IA":
             return qdd
@@ -188,6 +190,14 @@ def joint_term_column(term: str, q: Array, qd: Array, qdd: Array,
             return q
         case "KQ":
             return q * q
+        case "FVPL":  # the slope on 0 < qd < v+
+            return np.clip(qd, 0.0, knees[1])
+        case "FVPH":  # beyond v+
+            return np.maximum(qd - knees[1], 0.0)
+        case "FVNL":  # on v- < qd < 0
+            return np.clip(qd, knees[0], 0.0)
+        case "FVNH":  # below v-
+            return np.minimum(qd - knees[0], 0.0)
     raise ModelError(f"unknown joint term {term!r}")
 
 

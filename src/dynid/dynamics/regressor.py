@@ -286,7 +286,8 @@ def _fill(tree: Tree, plan: dict, q: Array, qd: Array, qdd: Array, W: Array, R: 
     row_pos = plan["row_pos"]
     for pos, j, term in plan["terms"]:
         if j in row_pos:
-            W[row_pos[j], pos] = joint_term_column(term, q[j - 1], qd[j - 1], qdd[j - 1], tree.friction_law(j))
+            W[row_pos[j], pos] = joint_term_column(term, q[j - 1], qd[j - 1], qdd[j - 1], tree.friction_law(j),
+                                                   tree.knee(j))
     idx = np.array(R) - 1
     for pos, c in plan["couplings"]:
         W[:, pos] = coupling_column(c, q, qd, qdd, tree.n)[idx]

@@ -378,7 +378,7 @@ def _closest_to_prior(cp: Any, structure: ConsistencyStructure, margin: float, f
 # a parameter kind's small size (SI), below which its prior's own size no longer scales the distance
 _PRIOR_FLOOR = {"M": 0.1, "MX": 0.01, "MY": 0.01, "MZ": 0.01, "XX": 1e-3, "YY": 1e-3, "ZZ": 1e-3, "XY": 1e-3,
                 "XZ": 1e-3, "YZ": 1e-3, "IA": 1e-3, "FV": 1e-2, "FS": 1e-2, "OFF": 1e-2, "K": 1.0,
-                "KQ": 1.0}
+                "KQ": 1.0, "FVPL": 1e-2, "FVPH": 1e-2, "FVNL": 1e-2, "FVNH": 1e-2}
 
 
 PRIOR_SPREAD = 0.1

@@ -37,6 +37,9 @@
     vs = 0.01                       # velocity scale (rad/s or m/s), > 0; tanh and sigmoid only
     joints = { 6 = { vs = 0.02 }, 1 = { shape = "sign" } }   # per frame: shape and/or vs
 
+    [knees]                         # optional: the knees (v-, v+) of a joint's viscous curve
+    9 = [-0.1, 0.1]                 # (FVPL FVPH FVNL FVNH in [parameters.9]; v- < 0 < v+, inf allowed)
+
 (or on one line: friction = { all = ["FV", "FS"], shape = "tanh", vs = 0.01 }). The laws:
 sign: FS sign(qd); tanh: FS tanh(qd / vs); sigmoid: FS (2 / (1 + exp(-qd / vs)) - 1), which
 equals FS tanh(qd / (2 vs)): choose by the convention of the vs you have. A per-joint entry
@@ -75,7 +78,7 @@ from .tree import (
 
 COLUMNS = ("j", "ant", "sigma", "gamma", "b", "alpha", "d", "theta", "r")
 _TOP_KEYS = {"name", "gravity", "known", "frames", "parameters", "couplings", "labels", "joints", "friction",
-             "mimic", "frozen"}
+             "knees", "mimic", "frozen"}
 _MIMIC_KEYS = ("follows", "ratio", "offset")
 _FRICTION_KEYS = ("all", "shape", "vs", "joints")
 _FRICTION_ALL = ("IA", "FV", "FS", "OFF")  # K (stiffness) on every joint is rare: per joint only
@@ -217,6 +220,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
     friction_shape = _friction_shapes(friction, joint_terms, frames, source)
 
     joint_names = _joint_names(data.get("joints", {}), len(frames), source)
+    knees = _knees(data.get("knees", {}), source)
     mimic = _mimic(data.get("mimic", {}), len(frames), source)
     frozen = data.get("frozen", {})
     if not isinstance(frozen, dict):
@@ -241,6 +245,7 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             gravity=tuple(g),
             joint_names=joint_names,
             friction_shape=friction_shape,
+            knees=knees,
             mimic=mimic,
             frozen=frozen,
         )
@@ -316,6 +321,23 @@ def _friction_shapes(friction: dict, joint_terms: dict[int, tuple[str, ...]], fr
                              f"friction.all or [parameters.{j}])")
         laws[j] = _friction_law(table, default, w)
     return {j: law for j, law in sorted(laws.items()) if law[0] != "sign"}
+
+
+def _knees(table: object, source: str) -> dict[int, tuple[float, float]]:
+    """The [knees] table: frame number -> [v-, v+] (Tree.knees checks the values against the joint terms)."""
+    where = f"{source}: [knees]"
+    if not isinstance(table, dict):
+        raise ModelError(f"{where} must be a table of frame number = [v-, v+], like 9 = [-0.1, 0.1]")
+    out: dict[int, tuple[float, float]] = {}
+    for key, v in table.items():
+        if not key.strip().isdigit():
+            raise ModelError(f"{where}: keys are frame numbers, like 9 = [-0.1, 0.1]; got {key!r}")
+        if not isinstance(v, list) or len(v) != 2 or any(isinstance(x, bool) or not isinstance(x, int | float)
+                                                         for x in v):
+            raise ModelError(f"{where}: {key} = {_short(v)}; give [v-, v+], two numbers with v- < 0 < v+ (m/s or "
+                             "rad/s; inf for no knee), like [-0.1, 0.1]")
+        out[int(key)] = (float(v[0]), float(v[1]))
+    return out
 
 
 def _joint_names(table: object, n: int, source: str) -> dict[int, str]:
@@ -394,6 +416,8 @@ def tree_to_toml(tree: Tree) -> str:
         lines += ["", "[labels]"] + [f"{k} = {_q(v)}" for k, v in tree.labels.items()]
     if tree.joint_names:
         lines += ["", "[joints]"] + [f"{j} = {_q(v)}" for j, v in sorted(tree.joint_names.items())]
+    if tree.knees:
+        lines += ["", "[knees]"] + [f"{j} = [{lo!r}, {hi!r}]" for j, (lo, hi) in sorted(tree.knees.items())]
     if tree.mimic:
         lines += ["", "[mimic]"] + [f"{j} = {{ follows = {m.master}, ratio = {m.ratio!r}, offset = {m.offset!r} }}"
                                     for j, m in sorted(tree.mimic.items())]

@@ -12,7 +12,8 @@ constant part (an offset for the variable one).
 Parameters, in a stable order that every result carries by name:
   per frame j: XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj (about O_j, in frame j), then
   the joint terms declared for it among IAj (rotor inertia), FVj (viscous), FSj
-  (Coulomb), OFFj (constant offset), Kj (stiffness of an elastic joint);
+  (Coulomb), OFFj (constant offset), Kj (stiffness of an elastic joint), KQj (its
+  second-order term), FVPLj FVPHj FVNLj FVNHj (a piecewise-linear viscous curve, below);
   then the couplings, each named by the model.
 
 The generalized force of joint j (what an actuator must supply) is
@@ -20,10 +21,19 @@ The generalized force of joint j (what an actuator must supply) is
     tau_j = (rigid-body terms) + IA qdd + FV qd + FS s_j(qd) + OFF + K q
             + sum over couplings c of  c_j * value_c * f_kind(c . q)
 
+            + FVPL clip(qd, 0, v+) + FVPH max(qd - v+, 0) + FVNL clip(qd, v-, 0) + FVNH min(qd - v-, 0)
+
 where s_j is joint j's Coulomb law (`friction_shape`, still linear in FS): sign(qd) by
 default, tanh(qd / vs) ("tanh") or 2 / (1 + exp(-qd / vs)) - 1 = tanh(qd / (2 vs))
 ("sigmoid"), vs > 0 in the joint's velocity unit (rad/s or m/s). Couplings of kind FS
 always use sign.
+
+The four curve terms make the viscous force a continuous piecewise-linear function of qd, still
+linear in its coefficients, which ARE its slopes: FVPL on 0 < qd < v+, FVPH beyond v+, FVNL on
+v- < qd < 0, FVNH below v- (a valved damper: bump and rebound, low and high speed). The knee
+velocities (v-, v+), v- < 0 < v+, are joint j's `knees` (default (-inf, inf): a joint with FVPL and
+FVNL but no knee has one slope per direction); FVPH needs a finite v+, FVNH a finite v-. With FV
+too, FV adds to all four slopes (the constant part of the curve).
 
 where a coupling is a linear combination c . q of joint variables with a kind:
 K (spring: c.q), IA (inertia: c.qdd), FV (viscous: c.qd) or FS (Coulomb: sign(c.qd)).
@@ -33,6 +43,7 @@ gear ratios of the joints it drives.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -41,7 +52,11 @@ import numpy as np
 INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
 # KQ: a spring's second-order term KQ q^2 (with K and OFF, a quadratic law about any reference: a tire whose load
 # rises faster than its deflection)
-JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K", "KQ")
+# FVPL FVPH FVNL FVNH: the slopes of a piecewise-linear viscous curve (positive/negative velocity, low/high
+# speed about the joint's knees: see the module doc and Tree.knees)
+CURVE_TERMS = ("FVPL", "FVPH", "FVNL", "FVNH")
+JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K", "KQ", *CURVE_TERMS)
+NO_KNEES: tuple[float, float] = (-math.inf, math.inf)
 FRICTION_SHAPES = ("sign", "tanh", "sigmoid")
 SIGN_LAW: tuple[str, float] = ("sign", 0.0)
 COUPLING_KINDS = ("K", "IA", "FV", "FS")
@@ -99,6 +114,8 @@ class Tree:
     joint names, kept so that data columns and exports can be matched by name);
     friction_shape: frame number -> (shape, vs) of its FS term when not sign, shape
     "tanh" or "sigmoid" (see the module doc); joints not listed use sign;
+    knees: frame number -> (v-, v+), v- < 0 < v+ (rad/s or m/s, either may be infinite), the knee
+    velocities of its viscous curve terms (CURVE_TERMS); joints not listed have none (NO_KNEES).
     mimic: frame number -> the `Mimic` it follows (a kinematic constraint: its data column is
     ignored, its motion is the master's, its force is added into the master's equation);
     frozen: the moving joints of the description it was imported from (a URDF's) that the import
@@ -115,6 +132,7 @@ class Tree:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     joint_names: dict[int, str] = field(default_factory=dict)
     friction_shape: dict[int, tuple[str, float]] = field(default_factory=dict)
+    knees: dict[int, tuple[float, float]] = field(default_factory=dict)
     mimic: dict[int, Mimic] = field(default_factory=dict)
     frozen: dict[str, float] = field(default_factory=dict)
 
@@ -222,6 +240,10 @@ class Tree:
     def friction_law(self, j: int) -> tuple[str, float]:
         """(shape, vs) of joint j's Coulomb term: ("sign", 0.0) unless `friction_shape` says otherwise."""
         return self.friction_shape.get(j, SIGN_LAW)
+
+    def knee(self, j: int) -> tuple[float, float]:
+        """(v-, v+) of joint j's viscous curve: NO_KNEES unless `knees` says otherwise."""
+        return self.knees.get(j, NO_KNEES)
 
     def label(self, name: str) -> str:
         return self.labels.get(name, name)
@@ -420,3 +442,18 @@ def _validate(tree: Tree) -> None:
                 raise ModelError(f"{where}, frame {j}: vs = {vs!r} has no meaning for the sign law (0.0 or omit)")
         elif isinstance(vs, bool) or not isinstance(vs, int | float) or not (np.isfinite(vs) and vs > 0.0):
             raise ModelError(f"{where}, frame {j}: {shape} friction needs vs > 0 (m/s or rad/s), got {vs!r}")
+    for j, law in tree.knees.items():
+        if not isinstance(j, int) or isinstance(j, bool) or not 1 <= j <= n:
+            raise ModelError(f"{where}: knees given for frame {j!r}, which does not exist (1..{n})")
+        if not isinstance(law, tuple) or len(law) != 2 or any(isinstance(v, bool) or not isinstance(v, int | float)
+                                                               for v in law):
+            raise ModelError(f"{where}, frame {j}: knees must be (v-, v+), two numbers; got {law!r}")
+        lo, hi = law
+        if not (lo < 0.0 < hi) or math.isnan(lo) or math.isnan(hi):
+            raise ModelError(f"{where}, frame {j}: knees (v-, v+) = {law!r} need v- < 0 < v+ (m/s or rad/s)")
+    for j, terms in tree.joint_terms.items():
+        lo, hi = tree.knee(j)
+        for t, v, side in (("FVPH", hi, "v+"), ("FVNH", lo, "v-")):
+            if t in terms and not math.isfinite(v):
+                raise ModelError(f"{where}, frame {j}: the high-speed slope {t} needs a finite knee {side} "
+                                 "(Tree.knees; a vehicle file's [dampers] knee_bump_m_s / knee_rebound_m_s)")

@@ -22,7 +22,16 @@ from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
 from .axes import CHASSIS_AXES, ISO_TEXT, axis_label, to_iso
-from .figures import NOT_EXCITED, CogPoint, ParameterRow, centre_of_gravity_figure, parameter_figure, validation_grid
+from .figures import (
+    NOT_EXCITED,
+    CogPoint,
+    DamperCurve,
+    ParameterRow,
+    centre_of_gravity_figure,
+    damper_curve_figure,
+    parameter_figure,
+    validation_grid,
+)
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
 from .html import Cell, Section, Table, esc, render_html, table_html
 
@@ -253,6 +262,60 @@ def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
     if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves), σ of their fit
         quantities += run.tires.quantities()
     return quantities, kind, vehicle, values
+
+
+@dataclass(frozen=True)
+class _Estimates:
+    """names, values and a covariance over them (vehicle.dampers reads these)."""
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    full_covariance: np.ndarray
+
+
+def damper_section(run) -> tuple[Section, bytes] | None:
+    """The dampers' curves (template.car_template(damper_knees=...)): each corner's slopes with σ and 95 %
+    interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
+    from ..vehicle.dampers import damper_curve, damper_slopes
+    from ..vehicle.template import CORNERS, DAMPERS
+
+    r, tree = run.result, run.model.tree
+    curved = [d for d in DAMPERS if f"FVPL{d}" in r.names]
+    if not curved:
+        return None
+    names = tuple(r.names)
+    C = np.zeros((len(names), len(names)))
+    idx = [names.index(n) for n in r.estimated_names]
+    C[np.ix_(idx, idx)] = _covariance(r)[0]
+    est = _Estimates(names, np.asarray(r.values, dtype=float), C)
+    truth = (_Estimates(names, np.array([r.truth.get(n, np.nan) for n in names]), np.zeros_like(C))
+             if r.truth and all(f"FVPL{d}" in r.truth for d in curved) else None)
+    head = ["slope", "range (m/s)", "unit", "estimate", "σ", "95 % interval"] + (["truth"] if truth else [])
+    tables, curves = [], []
+    for d in curved:
+        knees = tree.knee(d)
+        rows = []
+        for sl in damper_slopes(est, d, knees, tree.labels):
+            dd = decimals(sl.std)
+            vs, ss = round_to_uncertainty(sl.value, sl.std)
+            lo, hi = interval95(sl.value, sl.std)
+            span = " to ".join(f"{x:+g}" if np.isfinite(x) else ("+∞" if x > 0 else "−∞") for x in sl.range)
+            row = [Cell(f"{sl.label} ({sl.meaning})", cls="t"), Cell(span, cls="t nowrap"), Cell("N·s/m", cls="t"),
+                   Cell(vs, sl.value), Cell(ss, sl.std), Cell(f"[{fixed(lo, dd)}, {fixed(hi, dd)}]", cls="nowrap")]
+            rows.append(row + ([_num(truth.values[names.index(sl.name)], dd)] if truth else []))
+        corner = CORNERS[DAMPERS.index(d)]
+        tables.append(Table(head, rows, caption=f"damper {d}, {corner}", sortable=False, cls="eng"))
+        finite = [abs(k) for k in knees if np.isfinite(k)]
+        top = max(0.3, 3.0 * max(finite, default=0.1))
+        v = np.linspace(-top, top, 241)
+        force, std = damper_curve(est, d, v, knees)
+        curves.append(DamperCurve(f"damper {d} ({corner})", v, force, std,
+                                  None if truth is None else damper_curve(truth, d, v, knees)[0], knees))
+    text = ("Each damper's viscous force is a piecewise-linear curve of its clearance rate (bump, the wheel moving "
+            "towards the body, is positive): four slopes identified in place of h, below and above the knees of the "
+            "vehicle file's [dampers]. The dry friction fs is its own row of the suspension table. The band is the "
+            "estimate's 95 % interval at each rate (the slopes' covariance included).")
+    return Section("Damper curves", text, tables=tables, anchor="dampers"), damper_curve_figure(curves)
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
@@ -736,6 +799,12 @@ def build_report(run, title: str) -> Report:
             w.writerow([q.key, q.group, q.label, q.unit, f"{q.value:.10g}", f"{q.std:.6g}", f"{lo:.10g}",
                         f"{hi:.10g}", q.note])
         files["engineering.csv"] = buf.getvalue()
+        dampers = damper_section(run)
+        if dampers is not None:
+            figs_written.append(("figure_dampers.png", "The dampers' force against their clearance rate: the "
+                                 "estimate, its 95 % band, the truth where known, the knees", dampers[1]))
+            out_sections.append(Section(dampers[0].heading, dampers[0].text, figures=[figs_written[-1][1:]],
+                                        tables=dampers[0].tables, anchor=dampers[0].anchor))
     if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
         from .tires import tire_section
 

@@ -319,3 +319,46 @@ def centre_of_gravity_figure(front: float, rear: float, half_track_front: float,
     fig.legend(handles, names, fontsize=7.5, loc="lower center", ncols=len(names), frameon=False)
     fig.subplots_adjust(left=0.07, right=0.98, top=0.94, bottom=0.15, wspace=0.25, hspace=0.4)
     return _png(fig, plt, REPORT_DPI)
+
+
+# ------------------------------------------------------------------ damper curves
+
+@dataclass(frozen=True)
+class DamperCurve:
+    """One damper's identified force against its clearance rate (bump > 0), m/s and N: the estimate, its σ, the
+    truth's curve (None when unknown) and the knees (v-, v+; infinite: none)."""
+
+    title: str
+    velocity: np.ndarray
+    force: np.ndarray
+    std: np.ndarray
+    truth: np.ndarray | None
+    knees: tuple[float, float]
+
+
+def damper_curve_figure(curves: Sequence[DamperCurve]) -> bytes:
+    """PNG: one panel per damper, the estimated curve with its 95 % band, the truth dashed, the knees dotted."""
+    plt = _pyplot()
+    cols = min(2, len(curves))
+    rows = -(-len(curves) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.0 * rows), squeeze=False)
+    for ax in axes.ravel()[len(curves):]:
+        ax.axis("off")
+    for ax, c in zip(axes.ravel(), curves, strict=False):
+        ax.fill_between(c.velocity, c.force - 1.96 * c.std, c.force + 1.96 * c.std, color="C0", alpha=0.25,
+                        lw=0, label="95 % band")
+        ax.plot(c.velocity, c.force, color="C0", lw=1.2, label="estimate")
+        if c.truth is not None:
+            ax.plot(c.velocity, c.truth, color="k", lw=0.9, ls="--", label="truth")
+        for k in c.knees:
+            if np.isfinite(k):
+                ax.axvline(k, color="0.5", lw=0.7, ls=":")
+        ax.axhline(0.0, color="0.8", lw=0.6)
+        ax.axvline(0.0, color="0.8", lw=0.6)
+        ax.set_title(c.title, fontsize=9)
+        ax.set_xlabel("clearance rate (m/s), bump > 0", fontsize=8)
+        ax.set_ylabel("force (N)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    return _png(fig, plt)

@@ -18,6 +18,7 @@ equations; see expr.py for the zero/one bookkeeping.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -244,7 +245,28 @@ class Builder:
                 return g.q(j)
             case "KQ":
                 return mul(g.q(j), g.q(j))
+            case "FVPL" | "FVPH" | "FVNL" | "FVNH":
+                return self.curve_column(term, j)
         raise SymbolicError(f"unknown joint term {term!r}")
+
+    def curve_column(self, term: str, j: int) -> Poly:
+        """A viscous curve slope's column (model.tree) from hinges max(x, 0) = (x + x sign(x)) / 2 and
+        min(x, 0) = (x - x sign(x)) / 2: clip(qd, 0, v+) = max(qd, 0) - max(qd - v+, 0), and its mirror."""
+        lo, hi = self.tree.knee(j)
+        qd = self.geo.qd(j)
+        positive = term.startswith("FVP")
+        knee = hi if positive else lo
+        side = 1.0 if positive else -1.0
+
+        def hinge(x: Poly, tag: str) -> Poly:  # max(x, 0) (positive side) or min(x, 0)
+            s = self.prog.function(f"SGN{tag}{j}", "sign", x)
+            return self.prog.define(f"HNG{tag}{j}", scale(add(x, scale(mul(x, s), side)), 0.5))
+
+        beyond = hinge(self.prog.define(f"QDK{'P' if positive else 'N'}{j}", sub(qd, const(knee))),
+                       "KP" if positive else "KN") if math.isfinite(knee) else ZERO
+        if term in ("FVPH", "FVNH"):
+            return beyond
+        return sub(hinge(qd, "P" if positive else "N"), beyond)
 
     def coupling_value(self, ci: int) -> Poly:
         """f_kind of coupling ci: sum c_i q_i (K), qdd (IA), qd (FV), sign(sum c_i qd_i) (FS)."""

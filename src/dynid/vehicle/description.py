@@ -46,6 +46,12 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     rho_kg_m3 = 1.225
     area_m2 = 2.0
     length_m = 2.70
+    [dampers]                               # optional: the dampers' law (docs/vehicle.md, "Damper curves")
+    law = "curve"                           # "linear" (default: the paper's h q') or "curve": per damper
+    knee_bump_m_s = 0.1                     # four slopes hbl hbh (bump) hrl hrh (rebound) about these knees
+    knee_rebound_m_s = 0.1                  # (clearance rates, > 0; "inf": no knee on that side)
+    [dampers.front]                         # optional: an axle's own knees
+    knee_bump_m_s = 0.15
     [a_priori]                              # the parameters' a priori values (names or the paper's labels)
     XX6 = 6810.44
     [truth]                                 # optional: the set a simulation drives with; a damper offset left
@@ -86,12 +92,13 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
+from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
 SECTIONS = {"name": str, "description": str, "axles": dict, "wheels": dict, "steering": dict, "imu": dict,
-            "sensors": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict, "known": dict}
+            "sensors": dict, "dampers": dict, "tables": dict, "aero": dict, "a_priori": dict, "truth": dict,
+            "known": dict}
 REQUIRED = ("name", "axles", "wheels", "a_priori")
 # plausible passenger-car ranges: outside them the number is a unit slip or a typo, not a car
 RANGES = {"wheelbase_m": (1.5, 4.5), "ratio": (8.0, 30.0), "half_track_m": (0.4, 1.1), "radius_m": (0.2, 0.6),
@@ -123,6 +130,10 @@ class Vehicle:
     correvit: bool = True
     tire_offsets: bool = True
     tire_law: str = "paper"  # [wheels] tire_law: template.TIRE_LAWS
+    damper_law: str = "linear"  # [dampers] law: DAMPER_LAWS
+    # [dampers] knees per damper frame, (v-, v+) m/s (bump is q' > 0): the identification's curves ("curve") and
+    # the truth's (a [truth] curve slope); {} when the file gives none
+    damper_knees: dict[int, tuple[float, float]] = field(default_factory=dict)
     # [axles.*] damper_friction: damper frame -> (shape, vs) of its dry friction's law; absent: sign(qd)
     damper_friction: dict[int, tuple[str, float]] = field(default_factory=dict)
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
@@ -133,6 +144,7 @@ class Vehicle:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
         return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
                             tire_offsets=self.tire_offsets, tire_law=self.tire_law,
+                            damper_knees=self.damper_knees if self.damper_law == "curve" else None,
                             damper_friction=self.damper_friction)
 
     @property
@@ -195,8 +207,11 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     tables, defaulted = _tables(data.get("tables", {}), geometry, ratio, path)
     aero = _aero(data.get("aero", {}), geometry, path)
     names = _parameter_names()
-    a_priori = _parameters(data["a_priori"], names, where, "a_priori", complete=True, geometry=geometry)
+    damper_law, knees = _dampers(data.get("dampers", {}), where)
+    a_priori = _curves(_parameters(data["a_priori"], names, where, "a_priori", complete=True, geometry=geometry),
+                       damper_law, knees, where, "a_priori")
     known = _parameters(data.get("known", {}), names, where, "known", complete=False, geometry=geometry)
+    _check_known_dampers(known, damper_law, where)
     for axle, bar in (("front", "karf"), ("rear", "karr")):
         if not data["axles"][axle].get("anti_roll_bar", True):
             if known.get(bar, 0.0) != 0.0:
@@ -231,16 +246,101 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
                            "(docs/vehicle.md, 'The tire equation')")
     truth = None
     if "truth" in data:
-        truth = _truth(_parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry), a_priori,
-                       known, geometry,
-                       tables, where)
+        given = _parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry)
+        truth = _truth(given, a_priori, known, geometry, tables, where, knees)
     name = data["name"].strip()
     if not name:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
                    truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law,
-                   damper_friction=damper_friction, **fitted,
-                   defaulted_tables=defaulted, dynamics=dynamics)
+                   damper_friction=damper_friction, **fitted, defaulted_tables=defaulted, dynamics=dynamics,
+                   damper_law=damper_law, damper_knees=knees)
+
+
+DAMPER_LAWS = ("linear", "curve")
+_KNEE_KEYS = ("knee_bump_m_s", "knee_rebound_m_s")
+
+
+def _dampers(t: dict, where: str) -> tuple[str, dict[int, tuple[float, float]]]:
+    """[dampers]: the law and the knees per damper frame ((v-, v+), m/s; {} when none are given)."""
+    _keys(t, {"law", *_KNEE_KEYS, "front", "rear"}, where, "[dampers]")
+    law = t.get("law", "linear")
+    if law not in DAMPER_LAWS:
+        raise VehicleError(f"{where}: [dampers] law = {law!r}; give one of {', '.join(DAMPER_LAWS)} "
+                           "(docs/vehicle.md, 'Damper curves')")
+    knees: dict[int, tuple[float, float]] = {}
+    for axle, corners in (("rear", (0, 1)), ("front", (2, 3))):
+        sub = t.get(axle, {})
+        if not isinstance(sub, dict):
+            raise VehicleError(f"{where}: [dampers] {axle} must be a table [dampers.{axle}] of {', '.join(_KNEE_KEYS)}")
+        _keys(sub, set(_KNEE_KEYS), where, f"[dampers.{axle}]")
+        pair = []
+        for key in _KNEE_KEYS:
+            v, sec = (sub[key], f"[dampers.{axle}]") if key in sub else (t.get(key), "[dampers]")
+            if v is None:
+                break
+            if isinstance(v, str) and v.strip().lower() == "inf":
+                v = math.inf
+            if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0.0:
+                raise VehicleError(f"{where}: {sec} {key} = {v!r}: give the knee's speed in m/s, a number > 0 "
+                                   "(\"inf\": no knee on that side), like 0.1")
+            if math.isfinite(v) and not 0.005 <= v <= 2.0:
+                raise VehicleError(f"{where}: {sec} {key} = {v:g} m/s is outside 0.005..2 m/s for a damper's knee; "
+                                   "is the unit right? (m/s of the clearance)")
+            pair.append(float(v))
+        if len(pair) == 2:
+            for k in corners:
+                knees[DAMPERS[k]] = (-pair[1], pair[0])
+        elif law == "curve":
+            raise VehicleError(f"{where}: [dampers] law = \"curve\" needs the knees of the {axle} dampers: give "
+                               f"knee_bump_m_s and knee_rebound_m_s in [dampers] (or [dampers.{axle}]), like 0.1 m/s")
+    return law, knees
+
+
+def _curve_names(d: int) -> list[str]:
+    return [f"{t}{d}" for t in CURVE_LABELS]
+
+
+def _curves(values: dict[str, float], law: str, knees: dict[int, tuple[float, float]], where: str,
+            section: str) -> dict[str, float]:
+    """A parameter set with each curved damper's four slopes in place of its h (a slope not given is h), where the
+    law (a priori) or the set itself (truth: a slope given) says the damper has a curve."""
+    out = dict(values)
+    for d in DAMPERS:
+        given = [n for n in _curve_names(d) if n in values]
+        if law != "curve" and section == "a_priori":
+            if given:
+                lab = labels()
+                raise VehicleError(f"{where}: [{section}] {lab[given[0]]} is a damper curve's slope, but [dampers] law "
+                                   "is \"linear\": set law = \"curve\" (with its knees), or give h only")
+            continue
+        if section == "truth" and not given:
+            continue
+        if d not in knees:
+            lab = labels()
+            raise VehicleError(f"{where}: [{section}] {lab[given[0]]} is a damper curve's slope: give its knees, "
+                               "knee_bump_m_s and knee_rebound_m_s in [dampers]")
+        lo, hi = knees[d]
+        h = out.pop(f"FV{d}", 0.0)
+        for n in _curve_names(d):
+            high = (n.startswith("FVPH") and math.isfinite(hi)) or (n.startswith("FVNH") and math.isfinite(lo))
+            if n.startswith(("FVPL", "FVNL")) or high:
+                out[n] = values.get(n, h)
+            elif n in values:
+                raise VehicleError(f"{where}: [{section}] {labels()[n]} is a high-speed slope, but that side's knee is "
+                                   "\"inf\" (no knee): remove it, or give the knee")
+    return out
+
+
+def _check_known_dampers(known: dict[str, float], law: str, where: str) -> None:
+    """[known] of a damper's viscous term: h with the linear law, the slopes with the curve."""
+    lab = labels()
+    for d in DAMPERS:
+        if law == "curve" and f"FV{d}" in known:
+            raise VehicleError(f"{where}: [known] h{d}: with [dampers] law = \"curve\" the damper has four slopes, not "
+                               f"h: give {', '.join(lab[n] for n in _curve_names(d))}")
+        if law != "curve" and any(n in known for n in _curve_names(d)):
+            raise VehicleError(f"{where}: [known] gives a curve slope of damper {d} but [dampers] law is \"linear\"")
 
 
 def _damper_friction(t: dict, where: str, sec: str) -> tuple[str, float] | None:
@@ -453,6 +553,9 @@ def _parameter_names() -> dict[str, str]:
     lab = labels()
     out = {n: n for n in paper_parameter_names()}
     out.update({lab[n]: n for n in paper_parameter_names() if n in lab})
+    for d in DAMPERS:  # the dampers' curve slopes ([dampers] law = "curve", or a curve in [truth])
+        out.update({n: n for n in _curve_names(d)})
+        out.update({lab[n]: n for n in _curve_names(d)})
     return out
 
 
@@ -477,6 +580,8 @@ def parameter_range(name: str) -> tuple[float, float, str, str]:
         return {"M": (1.0, 200.0, "kg", "a wheel's mass")}.get(kind, (0.0, 50.0, "kg·m²", "a wheel's inertia"))
     if j in TIRE_FRAMES:
         return (1e4, 5e6, "N/m", "a tire's vertical stiffness kt")
+    if kind in CURVE_LABELS:
+        return 0.0, 1e5, "N·s/m", "a damper curve's slope"
     return {"K": (1e3, 1e6, "N/m", "a suspension spring's stiffness ks"),
             "FV": (0.0, 1e5, "N·s/m", "a damper's viscous coefficient h"),
             "FS": (0.0, 1e4, "N", "a damper's dry friction fs"),
@@ -577,7 +682,7 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
     out.update(sheet)
     for n, v in out.items():
         kind = n.rstrip("0123456789")
-        if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr")) and v < 0:
+        if (kind == "M" or kind in ("K", "FV", "FS", "karf", "karr", *CURVE_LABELS)) and v < 0:
             raise VehicleError(f"{where}: [{section}] {n} = {v}: a mass, stiffness, damping or friction is >= 0")
     given = {names[k]: k for k in t}
     for n, v in out.items():
@@ -592,19 +697,29 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
         if absent:
             raise VehicleError(f"{where}: [{section}] lacks {', '.join(absent[:8])}{' ...' if len(absent) > 8 else ''}"
                                " (every parameter needs an a priori value; fs and off may be left out: 0)")
-        out = {n: out.get(n, 0.0) for n in paper_parameter_names()}
+        out = {**{n: out.get(n, 0.0) for n in paper_parameter_names()}, **out}
     return out
 
 
 def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
-           tables: KinematicTables, where: str) -> ParameterSet:
+           tables: KinematicTables, where: str, knees: dict[int, tuple[float, float]]) -> ParameterSet:
     """The simulation's set: the file's [truth], the known values and the a priori values for the rest; a damper
-    offset not given is the static preload that holds the damper at its design position."""
+    offset not given is the static preload that holds the damper at its design position. A damper whose curve
+    slopes [truth] gives drives with that curve (a slope not given: the truth's h); the others with h (the a
+    priori's when the a priori set has a curve)."""
     from ..model.consistency import check_physical
     from .statics import design_preloads
     from .template import WHEELS
 
+    curved = {d for d in DAMPERS if any(n in given for n in _curve_names(d))}
     values = {**a_priori, **known, **given}
+    for d in DAMPERS:
+        slopes = [n for n in _curve_names(d) if n in values]
+        if f"FV{d}" not in values and slopes:  # an a priori curve: its low-speed slopes' mean stands for h
+            values[f"FV{d}"] = 0.5 * (values[f"FVPL{d}"] + values[f"FVNL{d}"])
+        for n in slopes if d not in curved else [n for n in slopes if n not in given]:
+            del values[n]  # the truth's curve is its own, a slope it leaves out is its h (_curves)
+    values = _curves(values, "linear", knees, where, "truth")
     sources = {n: f"{where} [truth]" if n in given else f"{where} [known]" if n in known else f"{where} [a_priori]"
                for n in values}
     problems = check_physical(values, frames=[6, *WHEELS])
@@ -614,7 +729,8 @@ def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str,
     offsets = [d for d in DAMPERS if f"OFF{d}" not in given]
     if offsets:
         try:
-            tree = car_template(g, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}})
+            tree = car_template(g, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
+                                damper_knees={d: knees[d] for d in curved})
             preloads = design_preloads(tree, tables)
         except GeometryError as exc:
             raise VehicleError(f"{where}: [truth]: {exc}") from None

@@ -112,7 +112,8 @@ QUANTITIES: dict[str, tuple[str, str, str, str]] = {
     "ride_frequency_front": ("Ride (per axle, tires in series)", "ride frequency, front", "Hz",
                              "on the axle's share of the sprung mass"),
     "ride_frequency_rear": ("Ride (per axle, tires in series)", "ride frequency, rear", "Hz", ""),
-    "damping_ratio_front": ("Ride (per axle, tires in series)", "damping ratio, front", "", "viscous h only"),
+    "damping_ratio_front": ("Ride (per axle, tires in series)", "damping ratio, front", "",
+                            "viscous h only (damper curves: (hbl + hrl) / 2)"),
     "damping_ratio_rear": ("Ride (per axle, tires in series)", "damping ratio, rear", "", ""),
     "roll_front": ("Roll stiffness (springs + anti-roll bar)", "front axle", "N·m/deg", "tires not counted"),
     "roll_rear": ("Roll stiffness (springs + anti-roll bar)", "rear axle", "N·m/deg", "tires not counted"),
@@ -239,7 +240,9 @@ def car_quantities(values: Mapping[str, float], geometry: CarGeometry) -> dict[s
         corners = axle_corners(axle)
         ks = [p(f"K{damper(k)}") for k in corners]
         kt = [p(f"K{tire(k)}") for k in corners]
-        h = [p(f"FV{damper(k)}") for k in corners]
+        # a damper curve's linear equivalent at small amplitude: the mean of its low-speed bump and rebound slopes
+        h = [0.5 * (p(f"FVPL{damper(k)}") + p(f"FVNL{damper(k)}")) if f"FVPL{damper(k)}" in v
+             else p(f"FV{damper(k)}") for k in corners]
         bar = p(BARS[axle])
         for k, kk in zip(corners, ks, strict=True):
             out[f"wheel_rate_{_key(CORNERS[k])}"] = kk / cv**2

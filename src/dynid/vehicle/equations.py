@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import BaseParameters, Model, Wrench
-from ..model.tree import FIXED, ModelError, Tree
+from ..model.tree import CURVE_TERMS, FIXED, ModelError, Tree
 from .template import (
     CHASSIS_GROUPS,
     CONSTANT_JOINTS,
@@ -99,9 +99,13 @@ def _cached(tree: Tree, key: tuple, make):
 
 
 def identified(tree: Tree) -> list[str]:
-    """The paper's parameters not listed as known, in the paper's order, then the tires' offsets and progressive
-    stiffnesses where the tree has them (`car_template(tire_offsets=True, tire_law="progressive")`)."""
-    names = [*paper_parameter_names(), *(f"{p}{t}" for p in ("OFF", "KQ") for t in TIRES if f"{p}{t}" in tree.index)]
+    """The paper's parameters not listed as known, in the paper's order (a damper's curve slopes in place of its h,
+    `car_template(damper_knees=...)`), then the tires' offsets and progressive stiffnesses where the tree has them
+    (`car_template(tire_offsets=True, tire_law="progressive")`)."""
+    paper = [c for n in paper_parameter_names()
+             for c in ((n,) if n in tree.index or not n.startswith("FV")
+                       else tuple(f"{t}{n[2:]}" for t in CURVE_TERMS if f"{t}{n[2:]}" in tree.index))]
+    names = [*paper, *(f"{p}{t}" for p in ("OFF", "KQ") for t in TIRES if f"{p}{t}" in tree.index)]
     return [n for n in names if n not in tree.known]
 
 

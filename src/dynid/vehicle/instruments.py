@@ -8,6 +8,10 @@ its damper equation with everything the measured loads and the chassis motion gi
 
     m_d qdd_d + h_d qd_d + fs_d tanh(qd_d / v_s) + ks_d q_d + off_d + Σ_bars kar (q_d - q_opposite) = S_d(t)
 
+(h_d qd_d: the damper's curve where it has one, template.car_template(damper_knees=...): its columns are
+nonlinear in the rate, so the cameras' noise biases least squares on them more than on h; the instruments
+remove that bias as they do h's).
+
 S_d = Y_d - (the row's other terms at the estimate) + m_d qdd_d,measured: the projection of the measured
 wheel wrench and of the wheel's inertial load from the chassis motion (the wheel mass column of the row
 is m_d (qdd_d + a(t)), a from the chassis and tabulated joints; its qdd_d part stays on the left, so that
@@ -31,7 +35,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..model.tree import ModelError, Tree
+from ..model.tree import CURVE_TERMS, ModelError, Tree
 from .equations import CarEquations
 from .template import DAMPERS, WHEELS
 
@@ -46,8 +50,9 @@ except ImportError:  # pragma: no cover - exercised only without numba
 
 
 def _spring_columns(tree: Tree, d: int) -> set[str]:
-    """The names of damper d's own terms (K, FV, FS, OFF) and of the anti-roll bars that act on it."""
-    own = {f"K{d}", f"FV{d}", f"FS{d}", f"OFF{d}"}
+    """The names of damper d's own terms (K, FV or its curve's slopes, FS, OFF) and of the anti-roll bars that act
+    on it."""
+    own = {f"K{d}", f"FV{d}", f"FS{d}", f"OFF{d}", *(f"{t}{d}" for t in CURVE_TERMS)}
     return own | {c.name for c in tree.couplings if c.kind == "K" and d in c.coeffs}
 
 
@@ -78,13 +83,21 @@ def suspension_response(tree: Tree, values: Mapping[str, float], t_load: np.ndar
     driven by `load` (S_d sampled at t_load, interpolated by a cubic spline), from q0, qd0 (4,) at t[0].
     RK4 on the clock t (uniform)."""
     ks = np.array([_value(values, tree, f"K{d}") for d in DAMPERS])
-    h = np.array([_value(values, tree, f"FV{d}") for d in DAMPERS])
+    # each damper's curve: slopes (bump low, bump high, rebound low, rebound high) about its knees (v-, v+); h is
+    # the curve of four equal slopes without knees, h qd computed exactly (h min(qd, inf) + h max(qd - inf, 0))
+    slopes = np.array([[_value(values, tree, f"{t}{d}") for t in CURVE_TERMS] if f"FVPL{d}" in tree.index
+                       else [_value(values, tree, f"FV{d}")] * 4 for d in DAMPERS])
+    knees = np.array([tree.knee(d) for d in DAMPERS])
+    h = slopes.max(axis=1)
     fs = np.array([_value(values, tree, f"FS{d}") for d in DAMPERS])
     off = np.array([_value(values, tree, f"OFF{d}") for d in DAMPERS])
     mass = np.array([_wheel_mass(tree, values, k) for k in range(len(DAMPERS))])
-    if not (np.all(mass > 0) and np.all(h > 0) and np.all(fs >= 0)):
-        raise ModelError("the suspension simulation for the instruments needs wheel masses > 0, damping > 0 and "
-                         f"dry friction >= 0; the estimate has M {mass}, h {h}, fs {fs}: use method = \"wls\"")
+    present = np.array([[f"{t}{d}" in tree.index for t in CURVE_TERMS] if f"FVPL{d}" in tree.index else [True] * 4
+                        for d in DAMPERS])
+    if not (np.all(mass > 0) and np.all(slopes[present] > 0) and np.all(fs >= 0)):
+        raise ModelError("the suspension simulation for the instruments needs wheel masses > 0, damping > 0 (each "
+                         f"slope of a curve) and dry friction >= 0; the estimate has M {mass}, h {slopes.tolist()}, fs "
+                         f"{fs}: use method = \"wls\"")
     K = np.diag(ks)
     for c in tree.couplings:
         if c.kind == "K" and all(j in DAMPERS for j in c.coeffs):
@@ -100,8 +113,8 @@ def suspension_response(tree: Tree, values: Mapping[str, float], t_load: np.ndar
     q = np.empty((len(t), 4))
     qd = np.empty((len(t), 4))
     qdd = np.empty((len(t), 4))
-    _integrate(np.ascontiguousarray(S), np.asarray(q0, float), np.asarray(qd0, float), K, h, fs, off, mass,
-               FRICTION_SPEED, dt / sub, sub, q, qd, qdd)
+    _integrate(np.ascontiguousarray(S), np.asarray(q0, float), np.asarray(qd0, float), K, slopes, knees, fs, off,
+               mass, FRICTION_SPEED, dt / sub, sub, q, qd, qdd)
     return q, qd, qdd
 
 
@@ -109,8 +122,9 @@ def _value(values: Mapping[str, float], tree: Tree, name: str) -> float:
     return float(values.get(name, tree.values.get(name, 0.0)))
 
 
-def _integrate(S, q0, qd0, K, h, fs, off, m, vs, dt, sub, q, qd, qdd):  # pragma: no cover - compiled
-    """RK4 of m qdd + h qd + fs tanh(qd / vs) + K q + off = S(t); S on a grid of half steps."""
+def _integrate(S, q0, qd0, K, P, kn, fs, off, m, vs, dt, sub, q, qd, qdd):  # pragma: no cover - compiled
+    """RK4 of m qdd + c(qd) + fs tanh(qd / vs) + K q + off = S(t); S on a grid of half steps; c the curve of
+    slopes P (n, 4: bump low, bump high, rebound low, rebound high) about the knees kn (n, 2: v-, v+)."""
     n = q.shape[0]
     nc = q0.shape[0]
     x = q0.copy()
@@ -119,7 +133,12 @@ def _integrate(S, q0, qd0, K, h, fs, off, m, vs, dt, sub, q, qd, qdd):  # pragma
 
     def accel(x, v, s, out):
         for i in range(nc):
-            f = s[i] - off[i] - h[i] * v[i] - fs[i] * np.tanh(v[i] / vs)
+            c = v[i]
+            if c >= 0.0:
+                damp = P[i, 0] * min(c, kn[i, 1]) + P[i, 1] * max(c - kn[i, 1], 0.0)
+            else:
+                damp = P[i, 2] * max(c, kn[i, 0]) + P[i, 3] * min(c - kn[i, 0], 0.0)
+            f = s[i] - off[i] - damp - fs[i] * np.tanh(v[i] / vs)
             for j in range(nc):
                 f -= K[i, j] * x[j]
             out[i] = f / m[i]

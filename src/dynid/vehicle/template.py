@@ -49,6 +49,8 @@ Links 1-5 and 7-13, 15 are massless (their parameters exist but are zero and not
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,10 +125,19 @@ def paper_parameter_names() -> tuple[str, ...]:
     return (*names, "karf", "karr")
 
 
+# a damper's curve (car_template(damper_knees=...)): its four slopes, model.tree's viscous curve terms on the
+# clearance, whose positive direction is BUMP (q > 0 compresses the suspension): FVPL / FVPH the bump slopes below /
+# above the bump knee, FVNL / FVNH the rebound slopes below / above the rebound knee (in speed)
+CURVE_LABELS = {"FVPL": "hbl", "FVPH": "hbh", "FVNL": "hrl", "FVNH": "hrh"}
+CURVE_MEANINGS = {"FVPL": "bump, low speed", "FVPH": "bump, high speed", "FVNL": "rebound, low speed",
+                  "FVNH": "rebound, high speed"}
+
+
 def labels() -> dict[str, str]:
     out: dict[str, str] = {}
     for d in DAMPERS:
         out.update({f"K{d}": f"ks{d}", f"FV{d}": f"h{d}", f"FS{d}": f"fs{d}", f"OFF{d}": f"off{d}"})
+        out.update({f"{t}{d}": f"{lab}{d}" for t, lab in CURVE_LABELS.items()})
     for t in TIRES:
         out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}"})
     return out
@@ -143,6 +154,7 @@ _QUANTITY = {
     ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
     ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
     ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
+    **{("damper", t): (f"damping slope, {m}", "N·s/m") for t, m in CURVE_MEANINGS.items()},
 }
 
 
@@ -321,6 +333,7 @@ def car_template(
     check_rest: bool = True,
     tire_offsets: bool = False,
     tire_law: str = "paper",
+    damper_knees: Mapping[int, tuple[float, float]] | None = None,
     damper_friction: dict[int, tuple[str, float]] | None = None,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
@@ -336,6 +349,11 @@ def car_template(
     tire_law: "paper" (kt q = the load along the wheel's vertical) or "progressive" (kt q + ktq q² (+ off), ktq15
     ... ktq42: the Magic Formula's vertical law Fz = (qFz1 rho / R0 + qFz2 (rho / R0)^2) Fz0 of the deflection rho
     from the unloaded radius, written about dynid's q = rho + R0 - R: a tire stiffens as its contact patch grows).
+    damper_knees: damper frame -> (v-, v+) (m/s of the clearance, v- < 0 < v+; bump is q' > 0): those dampers'
+    viscous term h q' becomes a piecewise-linear curve of four slopes, hbl hbh (bump, below and above v+) and hrl
+    hrh (rebound, above and below v-), each its own parameter (model.tree's FVPL FVPH FVNL FVNH); an infinite knee
+    drops that side's high-speed slope (one slope per direction); the other dampers keep h. A curved damper's h in
+    `values` is the value of each of its slopes that `values` does not give.
     damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
     """
     from .parameters import a_priori
@@ -345,14 +363,27 @@ def car_template(
     if tire_law not in TIRE_LAWS:
         raise ValueError(f"tire_law must be one of {TIRE_LAWS}; got {tire_law!r}")
     geometry = CarGeometry() if geometry is None else geometry
+    knees = dict(damper_knees or {})
+    if set(knees) - set(DAMPERS):
+        raise ValueError(f"damper_knees: keys must be damper frames {DAMPERS}; got {sorted(knees)}")
     terms = {d: ("FV", "FS", "OFF", "K") for d in DAMPERS}
+    for d, (lo, hi) in knees.items():  # an infinite knee: no high-speed slope on that side
+        terms[d] = ("FS", "OFF", "K", "FVPL", *(("FVPH",) if math.isfinite(hi) else ()), "FVNL",
+                    *(("FVNH",) if math.isfinite(lo) else ()))
     tire_terms = ("OFF", "K") if tire_offsets else ("K",)
     terms.update({t: (*tire_terms, "KQ") if tire_law == "progressive" else tire_terms for t in TIRES})
     couplings = (Coupling("karr", "K", {damper(0): 1.0, damper(1): -1.0}),
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
     tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81),
+                knees={d: (float(lo), float(hi)) for d, (lo, hi) in knees.items()},
                 friction_shape=dict(damper_friction or {}))
-    tree = tree.with_values(a_priori().values if values is None else dict(values))
+    values = dict(a_priori().values if values is None else values)
+    for d in knees:  # a curved damper's h (the paper's a priori, say): the value of each slope not given
+        h = [values.pop(n) for n in (f"FV{d}", f"h{d}") if n in values]
+        for t in terms[d][3:]:
+            if h and f"{t}{d}" not in values and f"{CURVE_LABELS[t]}{d}" not in values:
+                values[f"{t}{d}"] = h[-1]
+    tree = tree.with_values(values)
     if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
         rest_state(tree, default_tables(geometry), fix_dampers=True)
     return tree.with_known(set(known)) if known else tree

@@ -29,13 +29,13 @@ import dataclasses
 import hashlib
 import inspect
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ...model.tree import PRISMATIC, Tree
+from ...model.tree import CURVE_TERMS, PRISMATIC, Tree
 from ...resources import memory_budget
 from ...symbolic import numba_backend as nb
 from ...symbolic.expr import ZERO, add, cross
@@ -89,12 +89,19 @@ class SimSettings:
 
 
 def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometry | None = None,
-             tire_damping: float = 100.0) -> Tree:
-    """The car template with the parameter set and FV (tire damping) on the tire joints."""
+             tire_damping: float = 100.0, damper_knees: Mapping[int, tuple[float, float]] | None = None) -> Tree:
+    """The car template with the parameter set and FV (tire damping) on the tire joints; a damper whose curve
+    slopes the set gives (hbl9 ...) drives with that curve about its damper_knees (car_template), the generated
+    inverse dynamics applying it like any joint term."""
     if parameters is None:
         parameters = truth(geometry)
     values = dict(parameters if isinstance(parameters, dict) else parameters.values)
-    tree = car_template(geometry, values, name="Peugeot 406 (simulated truth)", check_rest=False)
+    curved = {d for d in DAMPERS if any(f"{t}{d}" in values for t in CURVE_TERMS)}
+    missing = sorted(curved - set(damper_knees or {}))
+    if missing:
+        raise ValueError(f"the parameter set gives a curve for dampers {missing}: damper_knees needs their knees")
+    tree = car_template(geometry, values, name="Peugeot 406 (simulated truth)", check_rest=False,
+                        damper_knees={d: damper_knees[d] for d in curved} if damper_knees else None)
     terms = dict(tree.joint_terms)
     for t in TIRES:
         terms[t] = ("FV", "K")
@@ -203,6 +210,7 @@ class CarSimulator:
         tires: MagicFormula | tuple[MagicFormula, ...] | None = None,
         settings: SimSettings | None = None,
         steering_ratio: float = STEERING_RATIO,
+        damper_knees: Mapping[int, tuple[float, float]] | None = None,
     ) -> None:
         self.geometry = CarGeometry() if geometry is None else geometry
         self.steering_ratio = float(steering_ratio)  # the driver robot's: steering-wheel angle per wheel angle
@@ -212,7 +220,7 @@ class CarSimulator:
         self.tires = tuple(tires) if isinstance(tires, tuple) else (tires,) * 4
         self.settings = SimSettings() if settings is None else settings
         self.parameters = truth(self.geometry, self.tables) if parameters is None else parameters
-        self.tree = sim_tree(self.parameters, self.geometry, self.settings.tire_damping)
+        self.tree = sim_tree(self.parameters, self.geometry, self.settings.tire_damping, damper_knees)
         self.rest = rest_state(self.tree, self.tables)
         self.mass = sum(self.tree.values.get(f"M{j}", 0.0) for j in range(1, 43))
         self.radius = self.geometry.wheel_radius

@@ -89,8 +89,8 @@ def sidecar(result, seed: int | None, noise: bool, truth: bool, names: list[str]
     tree = result.tree
     sources = getattr(sim.parameters, "sources", {})
     params = [{"name": n, "label": tree.label(n), "value": float(tree.values.get(n, 0.0)),
-               "source": sources.get(n, "simulator: tire damping c_t (FV on the tire joint)" if n.startswith("FV")
-                                     and int(n[2:]) in TIRES else "")}
+               "source": sources.get(n, "simulator: tire damping c_t (FV on the tire joint)"
+                                     if n.rstrip("0123456789") == "FV" and int(n[2:]) in TIRES else "")}
               for n in tree.parameter_names if tree.values.get(n, 0.0) != 0.0]
     suite = paper_suite(sim.geometry) if suite is None else suite
     return _json_safe({
@@ -100,6 +100,8 @@ def sidecar(result, seed: int | None, noise: bool, truth: bool, names: list[str]
         "sample_time": float(sim.settings.dt), "samples": int(result.time.size),
         "settings": dataclasses.asdict(sim.settings),
         "damper_dry_friction": "fs * tanh(qd / v_s), v_s = settings.friction_speed (m/s): fs sign(qd) past a few v_s",
+        # the knees (v-, v+) in m/s of the dampers that drive with a curve (hbl hbh hrl hrh in true_parameters)
+        "damper_knees": {str(j): list(k) for j, k in sorted(tree.knees.items())},
         "tires": [t.as_dict() for t in sim.tires],
         "tree": tree.name,
         "true_parameters": params,
