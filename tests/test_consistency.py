@@ -7,7 +7,7 @@ import pytest
 
 from dynid.model.consistency import check_body, check_physical
 from dynid.vehicle import parameters as params
-from dynid.vehicle.template import car_template
+from dynid.vehicle.car_model import car_template
 
 
 def body_from_points(masses, points):

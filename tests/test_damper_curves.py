@@ -18,8 +18,9 @@ from dynid.dynamics import Model
 from dynid.dynamics.newton_euler import joint_term_column
 from dynid.model import Frame, Tree
 from dynid.model.tree import ModelError
+from dynid.vehicle.car_model import car_template
 from dynid.vehicle.description import VehicleError, load_vehicle, vehicle_path
-from dynid.vehicle.template import DAMPERS, car_template
+from dynid.vehicle.template import DAMPERS
 
 SLOPES = {"FVPL": 2000.0, "FVPH": 900.0, "FVNL": 4100.0, "FVNH": 1700.0}
 KNEES = (-0.15, 0.1)  # rebound knee at -0.15 m/s, bump knee at +0.1 m/s

@@ -13,11 +13,12 @@ from dynid import Model, Wrench
 from dynid.model import ModelError
 from dynid.vehicle import parameters as params
 from dynid.vehicle.aero import aero_wrench
+from dynid.vehicle.car_model import car_template
 from dynid.vehicle.equations import car_base_parameters, car_identification
 from dynid.vehicle.geometry import AxleGeometry, CarGeometry, GeometryError
 from dynid.vehicle.statics import rest_state
 from dynid.vehicle.tables import default_tables
-from dynid.vehicle.template import DAMPERS, EQUATION_ROWS, TIRES, WHEELS, car_template, paper_parameter_names
+from dynid.vehicle.template import DAMPERS, EQUATION_ROWS, TIRES, WHEELS, paper_parameter_names
 
 ROWS = np.array(EQUATION_ROWS) - 1
 

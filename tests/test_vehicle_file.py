@@ -18,9 +18,10 @@ from dynid.cli.main import main
 from dynid.dynamics import Model
 from dynid.model.tree import INERTIAL
 from dynid.vehicle import parameters as sets
+from dynid.vehicle.car_model import car_template
 from dynid.vehicle.description import VehicleError, load_vehicle, shipped_vehicles, vehicle_path
 from dynid.vehicle.geometry import CarGeometry
-from dynid.vehicle.template import DAMPERS, TIRES, WHEELS, car_template, tabulated
+from dynid.vehicle.template import DAMPERS, TIRES, WHEELS, tabulated
 
 SHIPPED = vehicle_path("peugeot406").read_text(encoding="utf-8")
 

@@ -9,8 +9,9 @@ from dynid import Model
 from dynid.cli.vehicle_cmds import show_template
 from dynid.model import ModelError
 from dynid.vehicle.aero import AeroError, aero_wrench
+from dynid.vehicle.car_model import car_template
 from dynid.vehicle.tables import KinematicTable, KinematicTableError, default_tables, load_table_csv, load_tables
-from dynid.vehicle.template import DAMPERS, car_template
+from dynid.vehicle.template import DAMPERS
 
 U = np.linspace(-0.1, 0.1, 9)
 H = np.linspace(-2.0, 2.0, 7)

@@ -22,10 +22,11 @@ def show_template(name: str) -> str:
     if name not in TEMPLATES:
         raise ModelError(f"no car template {name!r}; templates: {', '.join(TEMPLATES)}")
     from ..vehicle import parameters as params
+    from ..vehicle.car_model import car_template
     from ..vehicle.equations import car_base_parameters
     from ..vehicle.geometry import CarGeometry
     from ..vehicle.statics import rest_state
-    from ..vehicle.template import CHASSIS, CORNERS, WHEELS, car_template, corner_of, paper_parameter_names, role
+    from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, paper_parameter_names, role
 
     geometry = CarGeometry()
     sets = [params.a_priori(), params.paper_estimates(), params.truth(geometry)]

@@ -274,7 +274,7 @@ class _Estimates:
 
 
 def damper_section(run) -> tuple[Section, bytes] | None:
-    """The dampers' curves (template.car_template(damper_knees=...)): each corner's slopes with σ and 95 %
+    """The dampers' curves (car_model.car_template(damper_knees=...)): each corner's slopes with σ and 95 %
     interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
     from ..vehicle.dampers import damper_curve, damper_slopes
     from ..vehicle.template import CORNERS, DAMPERS

@@ -2,12 +2,13 @@
 the identification equations and their base parameters (frame conventions: template.py)."""
 
 from .aero import Aerodynamics, AeroError, aero_wrench
+from .car_model import car_template
 from .equations import CarEquations, car_base_parameters, car_identification
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet, a_priori, paper_estimates, truth
 from .statics import RestState, design_preloads, rest_state
 from .tables import KinematicTable, KinematicTableError, KinematicTables, default_tables, load_table_csv, load_tables
-from .template import CORNERS, DAMPERS, EQUATION_ROWS, TIRES, WHEELS, car_template, paper_parameter_names
+from .template import CORNERS, DAMPERS, EQUATION_ROWS, TIRES, WHEELS, paper_parameter_names
 
 __all__ = [
     "CORNERS", "DAMPERS", "EQUATION_ROWS", "TIRES", "WHEELS", "AeroError", "Aerodynamics", "AxleGeometry",

@@ -1,7 +1,7 @@
 """An identified damper's force-velocity curve with its band, and its slopes in an engineer's terms.
 
 The damper's viscous force is linear in its parameters: h q' (the paper's law) or the curve of four slopes
-hbl hbh hrl hrh about the knees (template.car_template(damper_knees=...), docs/vehicle.md 'Damper curves'); bump
+hbl hbh hrl hrh about the knees (car_model.car_template(damper_knees=...), docs/vehicle.md 'Damper curves'); bump
 is q' > 0. So at a velocity v the force is phi(v) . x, phi the engine's own columns (newton_euler.joint_term_column)
 and x the estimates, and its variance is phi(v)^T C phi(v), C their covariance: the band is exact to first order
 (it is linear), correlations between the slopes included. The dry friction fs sign(q') is left out: a damper

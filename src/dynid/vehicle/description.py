@@ -78,6 +78,7 @@ from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import FRICTION_SHAPES, ModelError, Tree
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
+from .car_model import car_template
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
@@ -92,7 +93,7 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, car_template, labels, paper_parameter_names
+from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}

@@ -8,7 +8,7 @@ its damper equation with everything the measured loads and the chassis motion gi
 
     m_d qdd_d + h_d qd_d + fs_d tanh(qd_d / v_s) + ks_d q_d + off_d + Σ_bars kar (q_d - q_opposite) = S_d(t)
 
-(h_d qd_d: the damper's curve where it has one, template.car_template(damper_knees=...): its columns are
+(h_d qd_d: the damper's curve where it has one, car_model.car_template(damper_knees=...): its columns are
 nonlinear in the rate, so the cameras' noise biases least squares on them more than on h; the instruments
 remove that bias as they do h's).
 

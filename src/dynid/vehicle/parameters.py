@@ -119,8 +119,9 @@ def truth(geometry=None, tables=None) -> ParameterSet:
     geometry, tables: those of the simulated car (defaults: the 406's); the offsets depend
     on them through the rest attitude.
     """
+    from .geometry import CarGeometry
     from .statics import design_preloads
-    from .template import car_template
+    from .template import car_tree
 
     est = paper_estimates()
     apr = a_priori()
@@ -130,7 +131,7 @@ def truth(geometry=None, tables=None) -> ParameterSet:
     sources["YY6"] = (f"a priori YY at the centre of mass ({yy_g:.1f}) moved to O6 with the estimated first "
                       "moments (the estimated YY6 is not realisable)")
     _chassis(values, sources)
-    tree = car_template(geometry, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}})
+    tree = car_tree(CarGeometry() if geometry is None else geometry, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}})
     preloads = design_preloads(tree, tables)
     for d, f in zip(DAMPERS, preloads, strict=True):
         values[f"OFF{d}"] = float(f)

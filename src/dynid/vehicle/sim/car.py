@@ -41,11 +41,12 @@ from ...symbolic import numba_backend as nb
 from ...symbolic.expr import ZERO, add, cross
 from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
 from ..aero import Aerodynamics, reference_point
+from ..car_model import car_template
 from ..geometry import CarGeometry
 from ..parameters import ParameterSet, truth
 from ..statics import rest_state
 from ..tables import STEERING_RATIO, KinematicTables, default_tables
-from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, car_template
+from ..template import CHASSIS, DAMPERS, TIRES, WHEELS
 from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
 from .bicycle import Bicycle, Car, bicycle, cornering_bicycle
 from .interp import pack_aero, pack_tables

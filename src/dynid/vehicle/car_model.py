@@ -1,0 +1,55 @@
+"""The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the paper's
+a priori values by default, and its rest on flat ground checked (`statics.rest_state`).
+
+Above the template, the parameter sets and the statics, so that none of them needs another to describe the car.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ..model.tree import Tree
+from .geometry import CarGeometry
+from .parameters import a_priori
+from .statics import rest_state
+from .tables import default_tables
+from .template import TIRES, car_tree
+
+
+def car_template(
+    geometry: CarGeometry | None = None,
+    values: dict[str, float] | None = None,
+    name: str = "Peugeot 406 (paper's car)",
+    known: set[str] | frozenset[str] = frozenset(),
+    check_rest: bool = True,
+    tire_offsets: bool = False,
+    tire_law: str = "paper",
+    damper_knees: Mapping[int, tuple[float, float]] | None = None,
+    damper_friction: dict[int, tuple[str, float]] | None = None,
+) -> Tree:
+    """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
+
+    values: parameter name or label -> value (e.g. `parameters.truth().values`); known:
+    parameters taken as known rather than identified (moved to Y by `car_identification`).
+    check_rest: when the set has masses and tire stiffnesses, solve the rest state with the
+    dampers at their design position and raise GeometryError if a wheel would float.
+    tire_offsets: each tire equation gets a constant, off15 ... off42: kt * q + off = Fz. A real tire's
+    unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
+    is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
+    equation (R is the unloaded radius).
+    tire_law: "paper" (kt q = the load along the wheel's vertical) or "progressive" (kt q + ktq q² (+ off), ktq15
+    ... ktq42: the Magic Formula's vertical law Fz = (qFz1 rho / R0 + qFz2 (rho / R0)^2) Fz0 of the deflection rho
+    from the unloaded radius, written about dynid's q = rho + R0 - R: a tire stiffens as its contact patch grows).
+    damper_knees: damper frame -> (v-, v+) (m/s of the clearance, v- < 0 < v+; bump is q' > 0): those dampers'
+    viscous term h q' becomes a piecewise-linear curve of four slopes, hbl hbh (bump, below and above v+) and hrl
+    hrh (rebound, above and below v-), each its own parameter (model.tree's FVPL FVPH FVNL FVNH); an infinite knee
+    drops that side's high-speed slope (one slope per direction); the other dampers keep h. A curved damper's h in
+    `values` is the value of each of its slopes that `values` does not give.
+    damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
+    """
+    geometry = CarGeometry() if geometry is None else geometry
+    tree = car_tree(geometry, a_priori().values if values is None else values, name, tire_offsets, tire_law,
+                    damper_knees, damper_friction)
+    if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
+        rest_state(tree, default_tables(geometry), fix_dampers=True)
+    return tree.with_known(set(known)) if known else tree
