@@ -182,6 +182,7 @@ class Case:
     words: list[str] = field(default_factory=list)  # in the error line (an error case) or in stdout (ok)
     ok: bool = False  # a harmless quirk: the run succeeds
     check: Callable[[Path], None] | None = None  # the result's oracle for an ok case
+    open: str = ""  # not fixed yet: why (the case runs as a strict xfail, so that its fix is noticed)
 
 
 def R(a: str, b: str) -> Callable[[str], str]:
@@ -226,8 +227,10 @@ def car(edit: Callable[[str], str] | None = None, files: dict | None = None) -> 
     return setup
 
 
-def cli(*argv: str, files: dict | None = None) -> Callable[[Path], list[str]]:
+def cli(*argv: str, files: dict | None = None, links: dict | None = None) -> Callable[[Path], list[str]]:
     def setup(w: Path) -> list[str]:
+        for name, target in (links or {}).items():
+            os.symlink(target, w / name)
         for name, content in (files or {}).items():
             path = w / name
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -339,15 +342,25 @@ def to_mdf(edit: Callable[[np.ndarray, list[str]], tuple] | None = None) -> Call
         data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1)
         t, chans = edit(data, names) if edit else (data[:, 0], {n: data[:, i] for i, n in enumerate(names) if i})
         mdf = MDF(version="4.10")
-        mdf.append([Signal(samples=v, timestamps=t, name=n) for n, v in chans.items()])
+        mdf.append([Signal(samples=v, timestamps=t, name=n, encoding="utf-8" if v.dtype.kind == "S" else None)
+                    for n, v in chans.items()])
         mdf.save(w / "l.mf4", overwrite=True)
-        (w / "robot.toml").write_text(ROBOT.replace('q = "log.csv", tau = "log.csv"', 'q = "l.mf4", tau = "l.mf4"'))
+        cfg = UNITS(ROBOT).replace('q = "log.csv", tau = "log.csv"', 'q = "l.mf4", tau = "l.mf4"')
+        (w / "robot.toml").write_text(cfg)
         return ["identify", "robot.toml", "--out", "out"]
     return setup
 
 
-PQ = R('q = "log.csv", tau = "log.csv"', 'q = "l.parquet", tau = "l.parquet"')
-MAT = R('q = "log.csv", tau = "log.csv"', 'q = "l.mat", tau = "l.mat"')
+UNITS = R(f"q = {{ channels = [{QS}] }}\ntau = {{ channels = [{TAUS}] }}",
+          f'q = {{ channels = [{QS}], unit = "rad" }}\ntau = {{ channels = [{TAUS}], unit = "N.m" }}')
+
+
+def PQ(t: str) -> str:
+    return UNITS(t).replace('q = "log.csv", tau = "log.csv"', 'q = "l.parquet", tau = "l.parquet"')
+
+
+def MAT(t: str) -> str:
+    return UNITS(t).replace('q = "log.csv", tau = "log.csv"', 'q = "l.mat", tau = "l.mat"')
 
 
 def _with(names: list[str], data: np.ndarray, replace: dict) -> dict:
@@ -362,8 +375,8 @@ CASES: list[Case] = []
 
 
 def case(id_: str, kind: str, setup: Callable[[Path], list[str]], *words: str, ok: bool = False,
-         check: Callable[[Path], None] | None = None) -> None:
-    CASES.append(Case(id_, kind, setup, list(words), ok, check))
+         check: Callable[[Path], None] | None = None, open: str = "") -> None:
+    CASES.append(Case(id_, kind, setup, list(words), ok, check, open))
 
 
 # robot config: wrong types, absurd values, missing and extra keys
@@ -383,14 +396,14 @@ case("border nan", K, robot(R("order = 4", "order = 4\nborder = nan")), "robot.t
 case("min_speed a number for a robot", K, robot(R("order = 4", "order = 4\nmin_speed = 0.1")), "robot.toml",
      "min_speed", "joint")
 case("min_speed drops every row", K, robot(R("order = 4", "order = 4\nmin_speed = { 1 = 1e6 }")),
-     "min_speed", "1")
+     "robot.toml", "min_speed = { 1 = 1e+06 }", "lower it")
 case("min_speed key not a joint", K, robot(R("order = 4", 'order = 4\nmin_speed = { a = 0.1 }')), "robot.toml",
-     "min_speed", "'a'")
+     "min_speed", "a = 0.1", "joint numbers")
 case("method a number", K, robot(R('method = "wls"', "method = 3")), "robot.toml", "method", "wls")
 case("method empty", K, robot(R('method = "wls"', 'method = ""')), "robot.toml", "method", "wls")
 case("known value text", K, robot(add('known = { FV1 = "x" }\n')), "robot.toml", "FV1", "number")
 case("known nan", K, robot(add("known = { FV1 = nan }\n")), "robot.toml", "FV1", "finite")
-case("known a list", K, robot(add('known = ["FV1"]\n')), "robot.toml", "known", "FV1 = ")
+case("known a list", K, robot(add('known = ["FV1"]\n')), "robot.toml", "known = ['FV1']", "IA1 = 0.36")
 case("poor_factor negative", K, robot(add("poor_factor = -1.0\n")), "robot.toml", "poor_factor")
 case("poor_factor zero", K, robot(add("poor_factor = 0\n")), "robot.toml", "poor_factor")
 case("flag_percent text", K, robot(add('flag_percent = "2.5"\n')), "robot.toml", "flag_percent", "number")
@@ -398,15 +411,16 @@ case("flag_percent negative", K, robot(add("flag_percent = -1.0\n")), "robot.tom
 case("data_health unknown", K, robot(add('data_health = "maybe"\n')), "robot.toml", "data_health", '"warn"')
 case("tests empty", K, robot(lambda t: "tests = []\n" + t.split("[[tests]]")[0] + "[channels]"
                              + t.split("[channels]")[1]), "robot.toml", "tests", "identify")
-case("test without a name", K, robot(R('name = "a"\n', "")), "robot.toml", "name")
+case("test without a name", K, robot(R('name = "a"\n', "")), ok=True)  # named "test 1"
 case("test name empty", K, robot(R('name = "a"', 'name = ""')), "robot.toml", "name")
-case("test name a number", K, robot(R('name = "a"', "name = 3")), "robot.toml", "name", "text")
-case("test name a path", K, robot(R('name = "a"', 'name = "../../escape"')), "robot.toml", "name", "'../../escape'")
+case("test name a number", K, robot(R('name = "a"', "name = 3")), "robot.toml", "name = 3", "a string")
+case("test name a path", K, robot(R('name = "a"', 'name = "../../escape"')), ok=True,  # a name, never a file's
+     check=lambda w: {p.name for p in w.parent.iterdir()} == {"w"} or pytest.fail("wrote beside the folder"))
 case("files a string", K, robot(R('files = { q = "log.csv", tau = "log.csv" }', 'files = "log.csv"')),
      "robot.toml", "files", "q =")
 case("file name a number", K, robot(R('q = "log.csv"', "q = 3")), "robot.toml", "q = 3", "file name")
-case("file name empty", K, robot(R('q = "log.csv"', 'q = ""')), "robot.toml", "file name")
-case("file a folder", K, robot(R('q = "log.csv"', 'q = "."')), "a folder")
+case("file name empty", K, robot(R('q = "log.csv"', 'q = ""')), "robot.toml", "empty name", "give the file's name")
+case("file a folder", K, robot(R('q = "log.csv"', 'q = "."')), "robot.toml", "is a folder", "give a data file")
 case("tau file missing from files", K, robot(R(', tau = "log.csv" }', " }")), "robot.toml", "tau")
 case("fs zero", K, robot(R('role = "identify"', 'role = "identify"\nfs = 0')), "robot.toml", "fs", "Hz")
 case("fs contradicts the time column", K, robot(R('role = "identify"', 'role = "identify"\nfs = 1000.0')),
@@ -415,71 +429,77 @@ case("fs absurd", K, robot(R('role = "identify"', 'role = "identify"\nfs = 1e15'
 case("start text", K, robot(R('role = "identify"', 'role = "identify"\nstart = "2"')), "robot.toml", "start", "s")
 case("start nan", K, robot(R('role = "identify"', 'role = "identify"\nstart = nan')), "robot.toml", "start")
 case("window of a few samples", K, robot(R('role = "identify"', 'role = "identify"\nstart = 1.0\nend = 1.01')),
-     "start", "end")
+     "robot.toml", "test 'a' has 3 samples", "widen its window (start, end)")
 case("max_gap zero", K, robot(R('role = "identify"', 'role = "identify"\nmax_gap = 0')), "robot.toml", "max_gap")
-case("max_gap fractional", K, robot(R('role = "identify"', 'role = "identify"\nmax_gap = 1.5')), "robot.toml",
-     "max_gap")
-case("channels a list", K, robot(R(f"q = {{ channels = [{QS}] }}", f"q = [{QS}]")), "robot.toml", "[channels]",
-     "channels =")
+case("max_gap fractional", K, robot(R('role = "identify"', 'role = "identify"\nmax_gap = 1.5')), ok=True)
+case("channels a list", K, robot(R(f"q = {{ channels = [{QS}] }}", f"q = [{QS}]")), "robot.toml", "[channels.q]",
+     "channels = [")
 case("channels empty", K, robot(R(f"q = {{ channels = [{QS}] }}", "q = { channels = [] }")), "robot.toml",
-     "[channels]", "6")
-case("five channels for six joints", K, robot(R(', "q6"]', "]")), "robot.toml", "q", "6 joints")
-case("seven channels for six joints", K, robot(R(', "q6"]', ', "q6", "tau1"]')), "robot.toml", "q", "6 joints")
+     "[channels.q]", "one channel per joint")
+case("five channels for six joints", K, robot(R(', "q6"]', "]")), "robot.toml", "[channels.q] (5 channels)",
+     "6 of them joints", "one column per joint")
+case("seven channels for six joints", K, robot(R(', "q6"]', ', "q6", "tau1"]')), "robot.toml",
+     "[channels.q] (7 channels)", "6 of them joints", "one column per joint")
 case("unit degrees over a [rad] header", K, robot(R(f"channels = [{QS}] }}", f'channels = [{QS}], unit = "deg" }}')),
-     "log.csv", "deg", "rad")
-case("unit empty", K, robot(R(f"channels = [{QS}] }}", f'channels = [{QS}], unit = "" }}')), "robot.toml", "unit")
+     "log.csv", "channel 'q1'", "'rad'", "'deg'", "[channels.q]", "remove that unit")
+case("unit empty", K, robot(R(f"channels = [{QS}] }}", f'channels = [{QS}], unit = "" }}')), "robot.toml",
+     "[channels.q]", 'unit = ""', "leave unit out")
 case("q_offset nan", K, robot(add("\n[transmission]\nq_offset = [nan, 0, 0, 0, 0, 0]\n")), "robot.toml",
      "q_offset", "finite")
 case("transmission tau all zero", K, robot(add("\n[transmission]\ntau = [" + ", ".join(
-    ["[0, 0, 0, 0, 0, 0]"] * 6) + "]\n")), "robot.toml", "[transmission] tau", "singular")
+    ["[0, 0, 0, 0, 0, 0]"] * 6) + "]\n")), "robot.toml", "[transmission]", "tau is singular",
+     "row 1 is all zeros")
 case("transmission 1e300", K, robot(add("\n[transmission]\nq = [" + ", ".join(
     "[" + ", ".join("1e300" if i == j else "0" for j in range(6)) + "]" for i in range(6)) + "]\n")),
-     "robot.toml", "[transmission] q")
-case("model file missing", K, robot(R('example = "tx40"', 'file = "missing.toml"')), "robot.toml",
-     "missing.toml", "not found")
+     "robot.toml", "[transmission]", "1e+300", "unit or exponent slip")
+case("model file missing", K, robot(R('example = "tx40"', 'file = "missing.toml"')), "missing.toml",
+     "cannot read the model file", "No such file")
 case("model file is the log", K, robot(R('example = "tx40"', 'file = "log.csv"')), "log.csv", "TOML")
-case("example empty", K, robot(R('example = "tx40"', 'example = ""')), "robot.toml", "example", "tx40")
-case("example a number", K, robot(R('example = "tx40"', "example = 40")), "robot.toml", "example", "tx40")
+case("example empty", K, robot(R('example = "tx40"', 'example = ""')), "robot.toml", "example = ''", "give a name")
+case("example a number", K, robot(R('example = "tx40"', "example = 40")), "robot.toml", "example = 40", "give a name")
 case("joints unknown", K, robot(R('example = "tx40"', 'example = "tx40"\njoints = ["elbow"]')), "robot.toml",
-     "joints", "'elbow'")
+     "joints", "'elbow'", "named joints")
 case("joints a string", K, robot(R('example = "tx40"', 'example = "tx40"\njoints = "j1"')), "robot.toml",
-     "joints", "list")
+     "joints = 'j1'", 'joints = ["joint1", "joint2"]')
 case("reference file missing", K, robot(add('\n[reference]\nfile = "nope.csv"\n')), "robot.toml", "[reference]",
      "nope.csv")
 case("reference file empty", K, robot(add('\n[reference]\nfile = "ref.csv"\n'), files={"ref.csv": ""}),
-     "[reference]", "ref.csv")
+     "[reference]", "ref.csv", "no row")
 case("workers text", K, robot(add('\n[compute]\nworkers = "two"\n')), "robot.toml", "workers", "whole number")
-case("workers huge", K, robot(add("\n[compute]\nworkers = 1000000000\n")), "robot.toml", "workers")
+case("workers huge", K, robot(add("\n[compute]\nworkers = 1000000000\n")), ok=True)  # as many as there are
 case("top-level key unknown", K, robot(lambda t: "version = 1\n" + t), "robot.toml", "version")
 case("uncertainty in a robot config", K, robot(add("\n[uncertainty]\noffsets = { q1 = 0.1 }\n")), "robot.toml",
      "[uncertainty]", "car")
 case("config is a folder", K, cli("identify", ".", "--out", "out"), "a folder")
-case("config missing", K, cli("identify", "nothere.toml", "--out", "out"), "nothere.toml", "not found")
+case("config missing", K, cli("identify", "nothere.toml", "--out", "out"), "nothere.toml",
+     "cannot read the config", "No such file")
 case("config in JSON", K, cli("identify", "r.json", "--out", "out", files={"r.json": '{"model": {"example": "tx40"}}'}),
      "r.json", "TOML")
-case("the same config twice", K, cli("identify", "robot.toml", "robot.toml", "--out", "out"), "robot.toml", "twice")
+case("the same config twice", K, cli("identify", "robot.toml", "robot.toml", "--out", "out"), ok=True)  # 2 runs
 
 # robot CSV logs
 K = "robot CSV"
-case("semicolon delimiter", K, robot(files={"log.csv": lambda t: t.replace(",", ";")}), "log.csv", "delimiter")
+case("semicolon delimiter", K, robot(files={"log.csv": lambda t: t.replace(",", ";")}), ok=True)  # sniffed
 case("decimal comma", K, robot(files={"log.csv": lambda t: t.replace(",", ";").replace(".", ",")}), "log.csv",
-     "decimal")
-case("tab delimiter", K, robot(files={"log.csv": lambda t: t.replace(",", "\t")}), "log.csv", "delimiter")
+     "line 2", "'q2'", "decimal comma")
+case("tab delimiter", K, robot(files={"log.csv": lambda t: t.replace(",", "\t")}), ok=True)
 case("old Mac line ends", K, robot(files={"log.csv": lambda t: t.replace("\n", "\r")}), "log.csv", "line")
 case("blank line in the middle", K, robot(files={"log.csv": rows(lambda r: [*r[:700], "", *r[700:]])}), ok=True)
-case("trailing comma on every row", K, robot(files={"log.csv": rows(lambda r: [x + "," for x in r])}), ok=True)
-case("empty cell", K, robot(files={"log.csv": cell(1200, 4, "")}), "log.csv", "line 1200", "'q4'")
-case("quoted numbers", K, robot(files={"log.csv": column(2, lambda _i, c: f'"{c}"')}), "log.csv", "line 2", "'q2'")
-case("a repeated row", K, robot(files={"log.csv": rows(lambda r: [*r[:800], r[799], *r[800:]])}), "log.csv",
-     "line 801", "time")
+case("trailing comma on every row", K, robot(files={"log.csv": rows(lambda r: [x + "," for x in r])}), "log.csv",
+     "line 1, column 14", "empty column name")
+case("empty cell", K, robot(files={"log.csv": cell(1200, 4, "")}), ok=True)  # no sample there: interpolated
+case("quoted numbers", K, robot(files={"log.csv": column(2, lambda _i, c: f'"{c}"')}), ok=True)
+case("a repeated row", K, robot(files={"log.csv": rows(lambda r: [*r[:800], r[799], *r[800:]])}), ok=True)
 case("rows in reverse", K, robot(files={"log.csv": rows(lambda r: [r[0], *r[:0:-1]])}), "log.csv", "line 3",
      "time")
 case("a NaN run", K, robot(files={"log.csv": column(9, lambda _i, c: "NaN", 900, 1000)}), "log.csv", "line 900",
-     "'tau2'")
+     "'tau3'", "Cut the record")
 case("-inf", K, robot(files={"log.csv": cell(1300, 7, "-inf")}), "log.csv", "line 1300", "'tau1'")
 case("1e999 overflows", K, robot(files={"log.csv": cell(1300, 7, "1e999")}), "log.csv", "line 1300", "'tau1'")
-case("a 1e300 spike", K, robot(files={"log.csv": cell(900, 3, "1e300")}), "log.csv", "'q2'")
-case("a 1e6 torque spike", K, robot(files={"log.csv": cell(900, 9, "1e6")}), "'tau2'", "spike")
+case("a 1e300 spike", K, robot(files={"log.csv": cell(900, 3, "1e300")}), "log.csv", "'q3'", "spike",
+     "t = 3.592 s", "fix or remove the sample")
+case("a 1e6 torque spike", K, robot(files={"log.csv": cell(900, 9, "1e6")}), "log.csv", "'tau3'", "spike",
+     "t = 3.592 s", "fix or remove the sample")
 case("version-like text", K, robot(files={"log.csv": cell(1100, 1, "1.0.0")}), "log.csv", "line 1100", "'q1'")
 case("hexadecimal", K, robot(files={"log.csv": cell(1100, 1, "0x10")}), "log.csv", "line 1100", "'q1'")
 case("digit grouping with underscores", K, robot(files={"log.csv": cell(1100, 7, "1_000")}), "log.csv",
@@ -489,24 +509,25 @@ case("Arabic-Indic digits", K, robot(files={"log.csv": cell(1100, 7, "\u0661\u06
 case("spaces around numbers", K, robot(files={"log.csv": column(3, lambda _i, c: f" {c} ")}), ok=True)
 case("one data row", K, robot(files={"log.csv": lambda t: "\n".join(t.splitlines()[:2]) + "\n"}), "log.csv",
      "1 sample")
-case("two data rows", K, robot(files={"log.csv": lambda t: "\n".join(t.splitlines()[:3]) + "\n"}), "log.csv",
-     "2 samples")
-case("time constant", K, robot(files={"log.csv": column(0, lambda _i, _c: "0")}), "log.csv", "time")
+case("two data rows", K, robot(files={"log.csv": lambda t: "\n".join(t.splitlines()[:3]) + "\n"}), "robot.toml",
+     "test 'a' has 2 samples", "record longer")
+case("time constant", K, robot(files={"log.csv": column(0, lambda _i, _c: "0")}), "log.csv", "line 2",
+     "does not advance", "give the test's fs")
 case("time in ns under [s]", K, robot(files={"log.csv": column(0, lambda i, _c: str((i - 2) * 4_000_000))}),
-     "log.csv", "time", "ns")
+     "log.csv", "time column", "time [ms]")
 case("time in epoch seconds", K, robot(files={"log.csv": column(0, lambda i, _c: f"{1.7e9 + (i - 2) / FS:.6f}")}),
      ok=True)
 case("names with trailing spaces", K, robot(files={"log.csv": lambda t: t.replace("q1 [rad]", "q1  [rad] ", 1)}),
      ok=True)
-case("unit in parentheses", K, robot(files={"log.csv": lambda t: t.replace("q1 [rad]", "q1 (rad)", 1)}),
-     "log.csv", "'q1'", "q1 (rad)")
+case("unit in parentheses", K, robot(files={"log.csv": lambda t: t.replace("q1 [rad]", "q1 (rad)", 1)}), ok=True)
 case("two time columns", K, robot(files={"log.csv": lambda t: t.replace("q6 [rad]", "time [s]", 1)}), "log.csv",
      "time")
 case("no time and no fs", K, robot(files={"log.csv": rows(lambda r: [x.split(",", 1)[1] for x in r])}), "log.csv",
      "fs")
-case("header in a comment only", K, robot(files={"log.csv": lambda t: "# " + t}), "log.csv", "header")
+case("header in a comment only", K, robot(files={"log.csv": lambda t: "# " + t}), "log.csv", "line 2",
+     "commented out")
 case("a line of a million characters", K, robot(files={"log.csv": cell(600, 2, "1" + " " * 1_000_000)}),
-     "log.csv", "line 600")
+     ok=True)  # spaces around a number
 case("a 40 MB line without end", K, robot(files={"log.csv": b"1," * 20_000_000}), "log.csv", "line 1")
 case("10000 columns", K, robot(files={"log.csv": rows(lambda r: [x + "," + ",".join(
     (f"x{k}" if i == 0 else "0") for k in range(10_000)) for i, x in enumerate(r)])}), ok=True)
@@ -516,32 +537,35 @@ case("NUL bytes in the data", K, robot(files={"log.csv": lambda t: t.encode().re
      "log.csv", "line")
 case("gzipped log", K, robot(R('q = "log.csv", tau = "log.csv"', 'q = "log.csv.gz", tau = "log.csv.gz"'),
                              files={"log.csv.gz": lambda t: __import__("gzip").compress(t.encode())}),
-     "log.csv.gz", "gunzip")
+     "log.csv.gz", "compressed", "gunzip")
 case("upper-case extension", K, robot(R('q = "log.csv", tau = "log.csv"', 'q = "LOG.CSV", tau = "LOG.CSV"'),
                                       files={"LOG.CSV": lambda t: t}), ok=True)
 case("a text extension", K, robot(R('q = "log.csv", tau = "log.csv"', 'q = "log.txt", tau = "log.txt"'),
-                                  files={"log.txt": lambda t: t}), "log.txt", ".csv")
+                                  files={"log.txt": lambda t: t}), ok=True)
 def _self_link(w: Path) -> list[str]:
     (w / "log.csv").unlink()
     os.symlink("log.csv", w / "log.csv")
     return ["identify", "robot.toml", "--out", "out"]
 
 
-case("a link to itself", K, _self_link, "log.csv", "link")
-case("a dead q channel", K, robot(files={"log.csv": column(3, lambda _i, _c: "0.25")}), "'q3'", "constant")
+case("a link to itself", K, _self_link, "robot.toml", "log.csv", "symbolic link", "leads nowhere")
+case("a dead q channel", K, robot(files={"log.csv": column(3, lambda _i, _c: "0.25")}), "robot.toml", "'q3'",
+     "never change", "check the sensor")
 case("a torque with its sign flipped", K, robot(files={"log.csv": column(8, lambda _i, c: str(-float(c)))}),
-     "'tau2'", "sign")
+     "'tau2'", "sign", open="no check compares a joint torque's sign with the gravity load while the joint moves")
 case("q in degrees under [rad]", K, robot(files={"log.csv": column(2, lambda _i, c: str(np.degrees(float(c))))}),
-     "'q2'", "deg")
+     "'q2'", "deg", open="no check finds positions in degrees under a [rad] header (28 rad amplitudes are "
+     "plausible for a continuous joint)")
 
 # Parquet, MAT, MDF4 robot logs
 K = "Parquet/MAT/MDF4"
 case("Parquet numbers as text", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": [str(x) for x in d[:, 3]]}))}), "l.parquet", "'q3'", "number")
-case("Parquet integers", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "tau6": np.zeros(len(d), dtype=np.int32)}))}), ok=True)
+    "q3": [str(x) for x in d[:, 3]]}))}), "l.parquet", "'q3'", "not numeric")
+case("Parquet float32", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
+    "tau6": d[:, 12].astype(np.float32)}))}), ok=True)
 case("Parquet booleans", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": d[:, 3] > 0}))}), "l.parquet", "'q3'")
+    "q3": d[:, 3] > 0}))}), "l.parquet", "'q3'", "boolean",
+     open="a boolean column is read as 0/1 (digital channels); a joint position logged as booleans goes through")
 case("Parquet nested column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
     "q3": [[x, x] for x in d[:, 3]]}))}), "l.parquet", "'q3'")
 case("Parquet struct column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
@@ -549,22 +573,25 @@ case("Parquet struct column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n:
 case("Parquet empty table", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d[:0], {}))}),
      "l.parquet", "empty")
 case("Parquet nulls", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": [None if 500 <= i < 510 else x for i, x in enumerate(d[:, 3])]}))}), "l.parquet", "'q3'", "500")
+    "q3": [None if 500 <= i < 510 else x for i, x in enumerate(d[:, 3])]}))}), "l.parquet", "sample 500", "max_gap")
 case("Parquet timestamps for time", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
     "time": (d[:, 0] * 1e9).astype("datetime64[ns]")}))}), ok=True)
 case("Parquet float16", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
     "q3": d[:, 3].astype(np.float16)}))}), ok=True)
 case("Parquet dictionary column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": __import__("pyarrow").array(d[:, 3]).dictionary_encode()}))}), "l.parquet", "'q3'")
+    "q3": __import__("pyarrow").array(d[:, 3]).dictionary_encode()}))}), ok=True)
 case("Parquet decimal column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": __import__("pyarrow").array([__import__("decimal").Decimal(f"{x:.6f}") for x in d[:, 3]])}))}), ok=True)
+    "q3": __import__("pyarrow").array([__import__("decimal").Decimal(f"{x:.6f}") for x in d[:, 3]])}))}),
+     "l.parquet", "'q3'", "decimal128", "not numeric")
 case("Parquet 1-row row groups", K, robot(PQ, {"l.parquet": to_parquet(row_group_size=1)}), "l.parquet",
      "row groups")
 case("Parquet without a channel", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: {
     k: v for k, v in _with(n, d, {}).items() if k != "q4"})}), "l.parquet", "'q4'")
 case("MAT struct variable", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {"log": {k: d[:, i] for i, k in
-                                                                                enumerate(n)}})}), "l.mat", "'q1'")
-case("MAT one matrix", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {"data": d})}), "l.mat", "'q1'")
+                                                                                enumerate(n)}})}),
+     "l.mat", "'log'", "struct")
+case("MAT one matrix", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {"data": d})}), "l.mat", "'data'",
+     "one vector per channel")
 case("MAT empty arrays", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {k: np.zeros(0) for k in n})}), "l.mat",
      "empty")
 case("MAT text variable", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {**{k: d[:, i] for i, k in enumerate(n)},
@@ -579,16 +606,17 @@ case("MAT 2-D channel", K, robot(MAT, {"l.mat": to_mat(lambda d, n: {**{k: d[:, 
      "l.mat", "'q3'")
 case("MAT v7.3 empty HDF5", K, robot(MAT, {"l.mat": b"\x89HDF\r\n\x1a\n" + b"\x00" * 600}), "l.mat")
 case("MDF4 text channel", K, to_mdf(lambda d, n: (d[:, 0], {**{k: d[:, i] for i, k in enumerate(n) if i},
-                                                            "q3": np.array([b"x"] * len(d))})), "l.mf4", "'q3'")
+                                                            "q3": np.array([b"x"] * len(d), dtype="S1")})),
+     "l.mf4", "'q3'")
 case("MDF4 empty", K, to_mdf(lambda d, n: (d[:0, 0], {k: d[:0, i] for i, k in enumerate(n) if i})), "l.mf4",
      "empty")
 case("MDF4 nan run", K, to_mdf(lambda d, n: (d[:, 0], {**{k: d[:, i] for i, k in enumerate(n) if i},
                                                       "q3": np.where(np.arange(len(d)) > 700, np.nan, d[:, 3])})),
      "l.mf4", "'q3'")
-case("MDF4 integer channel", K, to_mdf(lambda d, n: (d[:, 0], {**{k: d[:, i] for i, k in enumerate(n) if i},
-                                                              "tau6": np.zeros(len(d), dtype=np.int16)})), ok=True)
+case("MDF4 float32 channel", K, to_mdf(lambda d, n: (d[:, 0], {**{k: d[:, i] for i, k in enumerate(n) if i},
+                                                               "tau6": d[:, 12].astype(np.float32)})), ok=True)
 case("MDF4 repeated stamps", K, to_mdf(lambda d, n: (np.where(np.arange(len(d)) == 600, d[599, 0], d[:, 0]),
-                                                     {k: d[:, i] for i, k in enumerate(n) if i})), "l.mf4", "time")
+                                                     {k: d[:, i] for i, k in enumerate(n) if i})), ok=True)  # averaged
 
 # car config and logs
 K = "car"
@@ -633,7 +661,7 @@ case("car channel key unknown", K, car(add('\n[channels]\nyaw_rat = { channel = 
      "yaw_rat")
 case("car log without a wheel load", K, car(files={"sine.csv": lambda t: "\n".join(
     ln.replace("wft_fl_Fz", "wft_fl_Fq") for ln in t.splitlines()) + "\n"}), "sine.csv", "wft_fl_Fz")
-case("car log semicolons", K, car(files={"sine.csv": lambda t: t.replace(",", ";")}), "sine.csv", "delimiter")
+case("car log semicolons", K, car(files={"sine.csv": lambda t: t.replace(",", ";")}), ok=True)
 case("car log one row", K, car(files={"sine.csv": lambda t: "\n".join(t.splitlines()[:4]) + "\n"}), "sine.csv",
      "1 sample")
 case("car wheel load dead", K, car(files={"sine.csv": car_column("wft_rr_Fz", lambda _i, _c: "0.0")}),
@@ -695,14 +723,18 @@ case("mass 1e30", K, model(MODEL.replace("M = 2.0", "M = 1e30")), "m.toml", "M =
 case("known a string", K, model('known = "M2"\n' + MODEL), "m.toml", "known")
 case("coupling without coefficients", K, model(MODEL + '\n[[couplings]]\nname = "c"\nkind = "FV"\ncoeffs = {}\n'),
      "m.toml", "coeffs")
+# a model file's values are a priori values, often partial (ZZ alone for a planar arm): no realisability check
 case("inertia breaking the triangle inequality", K, model(MODEL.replace("M = 2.0",
                                                                         "M = 2.0\nXX = 1.0\nYY = 1.0\nZZ = 5.0")),
-     "m.toml", "[parameters.2]", "triangle")
-case("a URDF given to model show", K, cli("model", "show", "arm.urdf"), "arm.urdf", "model import")
+     ok=True)
+case("a URDF given to model show", K, cli("model", "show", "arm.urdf"), "arm.urdf", "a URDF",
+     "dynid model import")
 case("a model file as Latin-1", K, model(("# r\xe9glage\n" + MODEL).encode("latin-1")), "m.toml", "UTF-8")
 case("joints of an unknown frame", K, model(MODEL + "\n[joints]\n7 = \"elbow\"\n"), "m.toml", "joints")
 case("codegen into a user's file", K, cli("model", "codegen", "tx40", "--lang", "text", "--model", "dgm", "--out",
                                           "log.csv"), "log.csv", "not a folder")
+case("codegen columns unknown", K, cli("model", "codegen", "tx40", "--lang", "text", "--model", "regressor", "--cols",
+                                       "ZZ1,QQ9", "--out", "gen"), "--cols", "'QQ9'", "parameter names")
 case("codegen rows of a missing frame", K, cli("model", "codegen", "tx40", "--lang", "text", "--model",
                                                "regressor", "--rows", "99", "--out", "gen"), "--rows", "99")
 
@@ -714,7 +746,7 @@ case("URDF root not robot", K, urdf(URDF.replace("<robot", "<world").replace("</
      "<robot>")
 case("URDF joint to a missing link", K, urdf(URDF.replace('<child link="l3"/>', '<child link="l9"/>')), "r.urdf",
      "l9")
-case("URDF cycle", K, urdf(URDF.replace("</robot>", _joint("j4", "l3", "base") + "</robot>")), "r.urdf", "base")
+case("URDF cycle", K, urdf(URDF.replace("</robot>", _joint("j4", "l3", "base") + "</robot>")), "r.urdf", "closed loop")
 case("URDF two roots", K, urdf(URDF.replace("</robot>", _link("orphan") + "</robot>")), "r.urdf", "orphan")
 case("URDF link without inertial", K, urdf(URDF.replace(_link("l2"), '  <link name="l2"/>\n')), ok=True)
 case("URDF mass NaN", K, urdf(URDF.replace(_link("l2"), _link("l2", mass="nan"))), "r.urdf", "l2", "mass")
@@ -728,10 +760,12 @@ case("URDF inertia missing a term", K, urdf(URDF.replace(_link("l2"), _link("l2"
 case("URDF inertia negative", K, urdf(URDF.replace(_link("l2"), _link("l2", inertia='ixx="-1" ixy="0" ixz="0" '
                                                                                    'iyy="1" iyz="0" izz="1"'))),
      "r.urdf", "l2", "ixx")
+# published URDFs have such inertias on small links (Tiago's antennas): imported with a warning naming the link
 case("URDF inertia breaking the triangle", K, urdf(URDF.replace(_link("l2"), _link(
-    "l2", inertia='ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"'))), "r.urdf", "l2", "triangle")
+    "l2", inertia='ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"'))), ok=True,
+     check=lambda w: (w / "r.toml").is_file() or pytest.fail("no model written"))
 case("URDF origin of two numbers", K, urdf(URDF.replace('xyz="0 0 0.3"', 'xyz="0 0.3"', 1)), "r.urdf", "j1",
-     "3 numbers")
+     "expected 3 finite numbers")
 case("URDF origin NaN", K, urdf(URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 nan"', 1)), "r.urdf", "j1", "finite")
 case("URDF origin 1e300", K, urdf(URDF.replace('xyz="0 0 0.3"', 'xyz="0 0 1e300"', 1)), "r.urdf", "j1", "m")
 case("URDF axis zero", K, urdf(URDF.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>', 1)), "r.urdf", "j2", "zero")
@@ -751,9 +785,9 @@ case("URDF xacro", K, urdf(URDF.replace('<robot name="arm">', '<robot name="arm"
                                                               'xmlns:xacro="http://www.ros.org/wiki/xacro">')
                            .replace("</robot>", '<xacro:property name="p" value="1"/></robot>')), "r.urdf", "xacro")
 case("URDF UTF-16", K, urdf(URDF.replace('<?xml version="1.0"?>', '<?xml version="1.0" encoding="UTF-16"?>')
-                            .encode("utf-16")), ok=True)
+                            .encode("utf-16")), "r.urdf", "UTF-16", "save it as UTF-8")
 case("URDF a chain of 3000 links", K, urdf('<robot name="long">' + _link("l0") + "".join(
-    _link(f"l{i}") + _joint(f"j{i}", f"l{i - 1}", f"l{i}") for i in range(1, 3001)) + "</robot>"), "r.urdf", "3000")
+    _link(f"l{i}") + _joint(f"j{i}", f"l{i - 1}", f"l{i}") for i in range(1, 3001)) + "</robot>"), ok=True)
 case("URDF --joints unknown", K, urdf(URDF, "--joints", "j1,j7"), "j7", "no such joint")
 case("URDF --freeze not a number", K, urdf(URDF, "--freeze", "j2=abc"), "--freeze", "j2=abc")
 case("URDF --freeze everything", K, urdf(URDF, "--freeze", "j1,j2,j3"), "r.urdf", "moving")
@@ -761,7 +795,8 @@ case("URDF import over a user's model", K, cli("model", "import", "arm.urdf", "-
      "--force")
 case("URDF import into a folder", K, cli("model", "import", "arm.urdf", "--out", "."), "folder")
 case("URDF --name empty", K, urdf(URDF, "--name", ""), "--name")
-case("URDF missing", K, cli("model", "import", "none.urdf", "--out", "n.toml"), "none.urdf", "not found")
+case("URDF missing", K, cli("model", "import", "none.urdf", "--out", "n.toml"), "none.urdf",
+     "cannot read the URDF", "No such file")
 
 # model export
 K = "model export"
@@ -773,7 +808,8 @@ def _imported(w: Path) -> bytes:
 
 
 case("export params missing", K, cli("model", "export", "arm.toml", "--params", "p.json", "--urdf", "arm.urdf",
-                                     "--out", "o.urdf", files={"arm.toml": _imported}), "p.json", "not found")
+                                     "--out", "o.urdf", files={"arm.toml": _imported}), "p.json", "cannot read",
+     "No such file")
 case("export params not JSON", K, cli("model", "export", "arm.toml", "--params", "p.json", "--urdf", "arm.urdf",
                                       "--out", "o.urdf", files={"arm.toml": _imported, "p.json": "{x"}), "p.json",
      "JSON")
@@ -789,27 +825,34 @@ case("export negative mass", K, cli("model", "export", "arm.toml", "--params", "
 case("export over the source URDF", K, cli("model", "export", "arm.toml", "--urdf", "arm.urdf", "--out", "arm.urdf",
                                            files={"arm.toml": _imported}), "arm.urdf", "--force")
 case("export a model not from a URDF", K, cli("model", "export", "tx40", "--urdf", "arm.urdf", "--out", "o.urdf"),
-     "arm.urdf", "frames")
+     "tx40", "no [joints] table", "dynid model import")
 case("export params a CSV", K, cli("model", "export", "arm.toml", "--params", "log.csv", "--urdf", "arm.urdf",
-                                   "--out", "o.urdf", files={"arm.toml": _imported}), "log.csv", "results.json")
+                                   "--out", "o.urdf", files={"arm.toml": _imported}), "log.csv", "a CSV table", "TOML")
 
 # simulate
 K = "simulate"
 case("manoeuvre misspelt", K, cli("simulate", "sin", "--out", "s.csv"), "sin", "sine")
-case("speed negative", K, cli("simulate", "sine", "--speed", "-10", "--out", "s.csv"), "--speed", "km/h")
-case("speed zero", K, cli("simulate", "sine", "--speed", "0", "--out", "s.csv"), "--speed", "km/h")
-case("speed of a plane", K, cli("simulate", "sine", "--speed", "1e6", "--out", "s.csv"), "--speed", "km/h")
-case("speed nan", K, cli("simulate", "sine", "--speed", "nan", "--out", "s.csv"), "--speed")
-case("duration zero", K, cli("simulate", "sine", "--duration", "0", "--out", "s.csv"), "--duration")
-case("duration negative", K, cli("simulate", "sine", "--duration", "-3", "--out", "s.csv"), "--duration")
-case("duration nan", K, cli("simulate", "sine", "--duration", "nan", "--out", "s.csv"), "--duration")
-case("duration inf", K, cli("simulate", "sine", "--duration", "inf", "--out", "s.csv"), "--duration")
+case("speed negative", K, cli("simulate", "sine", "--speed", "-10", "--out", "s.csv"), "speed = -10", "10..180 km/h")
+case("speed zero", K, cli("simulate", "sine", "--speed", "0", "--out", "s.csv"), "speed = 0", "10..180 km/h")
+case("speed of a plane", K, cli("simulate", "sine", "--speed", "1e6", "--out", "s.csv"), "speed = 1000000",
+     "10..180 km/h")
+case("speed nan", K, cli("simulate", "sine", "--speed", "nan", "--out", "s.csv"), "speed = nan", "--speed")
+case("duration zero", K, cli("simulate", "sine", "--duration", "0", "--out", "s.csv"), "duration = 0",
+     "positive")
+case("duration negative", K, cli("simulate", "sine", "--duration", "-3", "--out", "s.csv"), "duration = -3",
+     "positive")
+case("duration nan", K, cli("simulate", "sine", "--duration", "nan", "--out", "s.csv"), "duration = nan",
+     "--duration")
+case("duration inf", K, cli("simulate", "sine", "--duration", "inf", "--out", "s.csv"), "duration = inf",
+     "--duration")
 case("vehicle file missing", K, cli("simulate", "sine", "--vehicle", "no.toml", "--out", "s.csv"), "no.toml")
 case("over a user's log", K, cli("simulate", "sine", "--duration", "1", "--out", "log.csv"), "log.csv", "--force")
 case("over a user's sidecar", K, cli("simulate", "sine", "--duration", "1", "--out", "notes.csv",
                                      files={"notes.json": '{"mine": 1}'}), "notes.json", "--force")
 case("out with spaces and unicode", K, cli("simulate", "static", "--duration", "1", "--out", "my runs é/s 1.csv",
                                            files={"my runs é/.keep": ""}), ok=True)
+case("out inside a file", K, cli("simulate", "static", "--duration", "1", "--out", "log.csv/s.csv"), "log.csv",
+     "not a folder")
 case("format parquet into .mf4", K, cli("simulate", "sine", "--format", "parquet", "--out", "s.mf4"), "s.mf4",
      "--format parquet")
 
@@ -841,8 +884,9 @@ case("limits nan", K, excite(limits=LIMITS.replace("qd_max = [1.5, 1.5]", "qd_ma
      "qd_max")
 case("samples huge", K, excite("--samples", "1000000000"), "--samples")
 case("duration huge", K, excite("--duration", "1e9"), "--duration")
+case("period huge", K, excite("--period", "1e9"), "--period 1e+09 s", "GiB", "lower --fs")
 case("starts zero", K, excite("--starts", "0"), "--starts")
-case("refine more than starts", K, excite("--refine", "5"), "--refine", "--starts")
+case("refine more than starts", K, excite("--refine", "5"), ok=True)  # refines all the starts there are
 case("excite over a user's file", K, cli(
     "excite", "model.toml", "--out", "log.csv", "--starts", "1", "--refine", "1", "--maxiter", "2"), "log.csv",
      "--force")
@@ -856,9 +900,8 @@ case("out under a file", K, cli("identify", "robot.toml", "--out", "log.csv/out"
 case("out a folder of the user's", K, cli("identify", "robot.toml", "--out", "mine", files={"mine/notes.txt": "x"}),
      "mine", "notes.txt")
 case("out a symlink to the user's folder", K, cli("identify", "robot.toml", "--out", "link",
-                                                  files={"mine/notes.txt": "x",
-                                                         "link": lambda w: os.symlink("mine", w / "link") or b""}),
-     "link")
+                                                  files={"mine/notes.txt": "x"}, links={"link": "mine"}),
+     "link", "notes.txt")
 case("demo into a user's folder", K, cli("demo", "--quick", "--out", "mine", files={"mine/notes.txt": "x"}), "mine",
      "notes.txt")
 case("demo into a file", K, cli("demo", "--quick", "--out", "log.csv"), "log.csv", "not a folder")
@@ -872,7 +915,9 @@ def _without_truth(_w: Path) -> str:
 case("demo with a vehicle without truth", K, cli("demo", "--quick", "--vehicle", "v.toml", "--out", "d",
                                                  files={"v.toml": _without_truth}), "v.toml", "[truth]")
 case("codegen into a user's folder", K, cli("model", "codegen", "tx40", "--lang", "text", "--model", "dgm",
-                                            "--out", "mine", files={"mine/tx40_dgm.txt": "mine"}), "--force")
+                                            "--out", "mine", files={"mine/staubli_tx40_dgm.txt": "mine"}),
+     "staubli_tx40_dgm.txt",
+     "--force")
 
 # command-line misuse
 K = "CLI"
@@ -891,7 +936,8 @@ case("seed text", K, cli("simulate", "sine", "--seed", "abc", "--out", "s.csv"),
 case("option misspelt", K, cli("identify", "robot.toml", "--ouput", "o"), "--ouput")
 
 
-@pytest.mark.parametrize("c", CASES, ids=[f"{c.kind}: {c.id}" for c in CASES])
+@pytest.mark.parametrize("c", [pytest.param(c, id=f"{c.kind}: {c.id}", marks=[pytest.mark.xfail(
+    strict=True, reason=c.open)] if c.open else []) for c in CASES])
 def test_bad_input_round2(base, tmp_path, capsys, monkeypatch, c):
     work = tmp_path / "w"
     shutil.copytree(base, work, symlinks=True)
