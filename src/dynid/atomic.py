@@ -85,9 +85,14 @@ def refuse_overwrite(paths: Iterable[str | os.PathLike[str]], force: bool = Fals
     """Before a command computes anything: none of `paths` (the files it is about to write) exists, unless the
     user said --force. dynid cannot prove it wrote a lone file (an output folder has its marker), so an
     existing one is the user's until they say otherwise. Raises OutputError (one line)."""
-    if force:
-        return
     for p in map(Path, paths):
+        parent = p.parent
+        if not parent.is_dir():  # found before computing, and named as the user gave it (not a temporary's name)
+            what = "is a file, not a folder" if parent.exists() else "does not exist"
+            raise OutputError(f"{p}: the folder {parent} {what}; create the folder first (mkdir -p {parent}), or give "
+                              "--out a file in an existing folder")
+        if force:
+            continue
         if os.path.lexists(p):
             what = "a folder" if p.is_dir() else "a link" if p.is_symlink() else "a file"
             raise OutputError(f"{p}: exists ({what}) and dynid does not replace what it cannot prove it wrote; "
@@ -450,6 +455,10 @@ def staged_folder(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLi
     with guard:
         if real.exists() and not real.is_dir():
             raise OutputError(f"{shown}: exists and is not a folder; give --out a folder (new or existing)")
+        above = next((p for p in real.parents if p.exists()), None)
+        if above is not None and not above.is_dir():  # --out log.csv/out: a folder cannot be made in a file
+            raise OutputError(f"{shown}: {above} is a file, not a folder; give --out a folder (new or existing) "
+                              "outside it")
         try:
             real.parent.mkdir(parents=True, exist_ok=True)
             with guard.deferred():

@@ -71,11 +71,27 @@ def encoding_problem(path: str | os.PathLike[str]) -> str:
     return "not UTF-8 text; save it as UTF-8"
 
 
+def _other_format(text: str, what: str) -> str:
+    """What a file that is not TOML looks like instead, and the fix (a URDF given for a model file, JSON, CSV)."""
+    head = text.lstrip()[:2000]
+    first = head.splitlines()[0] if head else ""
+    if head.startswith("<"):
+        fix = ("; import it first: dynid model import FILE.urdf --out FILE.toml" if "<robot" in head else "")
+        return f"; this file is XML{' (a URDF)' if '<robot' in head else ''}, and the {what} is TOML{fix}"
+    if head.startswith(("{", "[{")) and '":' in head:
+        return f"; this file is JSON, and the {what} is TOML (key = value lines)"
+    if first.count(",") >= 2 and "=" not in first:
+        return f"; this file is a CSV table, and the {what} is TOML (key = value lines)"
+    return ""
+
+
 def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -> dict:
     """The table of a TOML file; a missing file or bad TOML raises `error` naming the file (and the line)."""
     path = Path(path)
+    text = ""
     try:
-        return tomllib.loads(read_utf8(path))
+        text = read_utf8(path)
+        return tomllib.loads(text)
     except NotAFileError as exc:
         raise error(f"{exc} (the {what})") from None
     except OSError as exc:
@@ -83,7 +99,7 @@ def read_toml(path: str | os.PathLike[str], what: str, error: type[Exception]) -
     except TextEncodingError as exc:
         raise error(f"{path}: the {what} is {exc}") from None
     except tomllib.TOMLDecodeError as exc:
-        raise error(f"{path}: not valid TOML: {exc}") from None
+        raise error(f"{path}: not valid TOML: {exc}{_other_format(text, what)}") from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
         raise error(f"{path}: the {what} nests arrays or tables hundreds deep, beyond what can be read; no dynid "
                     "file nests more than a few levels: is it the right file? look for a run of '[' or '{'") from None

@@ -80,6 +80,29 @@ def _noise(text: str) -> list[float]:
     return values
 
 
+MAX_HARMONICS = 50  # a finite Fourier series for identification has a few (Swevers: 5); more is a slip
+MAX_SAMPLES = 100_000  # per period on the optimisation grid (verified on ten times that)
+MAX_BYTES = 2 << 30  # the regressor the %σ figures are computed from, over --duration at --fs
+
+
+def _check_sizes(args: argparse.Namespace, joints: int, params: int, error: type[Exception]) -> None:
+    """Sizes refused before any work, with the memory they would take: never an out-of-memory error later."""
+    if args.harmonics > MAX_HARMONICS:
+        raise error(f"--harmonics {args.harmonics}: at most {MAX_HARMONICS} (an exciting trajectory has a few, "
+                    "5 by default)")
+    if args.samples is not None and not 1 <= args.samples <= MAX_SAMPLES:
+        raise error(f"--samples {args.samples}: give 1 to {MAX_SAMPLES} samples per period (default "
+                    "max(100, 20 L + 20))")
+    duration = args.period if args.duration is None else args.duration
+    rows = duration * args.fs
+    need = rows * joints * params * 8.0
+    if need > MAX_BYTES:
+        given = f"--duration {duration:g} s" if args.duration is not None else f"--period {duration:g} s (the duration)"
+        raise error(f"{given} at --fs {args.fs:g} Hz: {rows:.3g} samples, whose regressor would "
+                    f"take {need / 2**30:.3g} GiB (at most {MAX_BYTES / 2**30:g}); give a shorter --duration or a "
+                    "lower --fs")
+
+
 def cmd_excite(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -122,6 +145,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
               "0.25 m/s, 1 m/s²); give the robot's limits for a trajectory to run on it", file=sys.stderr)
     else:
         limits = Limits.from_toml(args.limits, len(moving))
+    _check_sizes(args, len(moving), tree.p, ExcitationError)
     if len(noise) not in (1, len(moving)):
         raise ExcitationError(f"--noise: give one value or {len(moving)} (one per moving joint), got {len(noise)}")
 

@@ -6,7 +6,7 @@ import argparse
 import errno
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from .._version import __version__
 from .model_table import format_table
@@ -196,11 +196,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its usage errors as every other error: one line, naming the option and where the help is
+    (the sub-commands' parsers are of this class too: add_subparsers makes them of the parent's type)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"dynid: error: {self.prog}: {message}; `{self.prog} --help` lists the options\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import excite_cmds, model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
     from .usage import command, overview
 
-    parser = argparse.ArgumentParser(prog="dynid", description=DESCRIPTION,
+    parser = _Parser(prog="dynid", description=DESCRIPTION,
                                      usage="dynid [-h] [--version] [--debug] COMMAND ...",
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"dynid {__version__}",

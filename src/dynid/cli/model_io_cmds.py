@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,6 +64,10 @@ def cmd_import(args: argparse.Namespace) -> int:
     from ..model import save_tree
     from ..model.urdf import import_urdf
 
+    if args.name is not None and not args.name.strip():
+        from .usage import UsageError
+
+        raise UsageError(f"--name {args.name!r}: give the model's name (text), or leave --name out to keep the URDF's")
     refuse_overwrite([args.out], args.force)
     freeze = _freeze_option(args.freeze, args.urdf)
     joints = None if args.joints is None else [j.strip() for j in args.joints.split(",") if j.strip()]
@@ -80,6 +85,8 @@ def cmd_import(args: argparse.Namespace) -> int:
                          for j, m in sorted(tree.mimic.items())) + ")" if tree.mimic else "")
           + (f", frozen: {', '.join(f'{k} = {v:g}' for k, v in tree.frozen.items())}" if tree.frozen else ""))
     print(f"wrote {args.out} ({tree.n} frames, {tree.p} parameters)")
+    for note in imp.notes:  # imported as given (published URDFs have them); the a priori values, not a result
+        print(f"dynid: warning: {note}; imported as given: fix it in the URDF if it is to be trusted", file=sys.stderr)
     return 0
 
 

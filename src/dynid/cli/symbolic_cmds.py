@@ -61,16 +61,35 @@ def _load(args: argparse.Namespace):
     return load_model(args.file).tree
 
 
-def _rows_cols(args: argparse.Namespace) -> dict:
+def _is_column(tree, name: str) -> bool:
+    from ..model import ModelError
+
+    try:
+        tree.column(name)
+    except ModelError:
+        return False
+    return True
+
+
+def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
+    from .usage import UsageError
+
     out: dict = {}
     if args.rows:
         try:
             out["rows"] = [int(x) for x in args.rows.split(",") if x.strip()]
         except ValueError:
-            msg = f"dynid: error: --rows takes frame numbers separated by commas, got {args.rows!r}"
-            raise SystemExit(msg) from None
+            raise UsageError(f"--rows {args.rows}: give frame numbers separated by commas, like --rows 1,2,3") from None
+        bad = [r for r in out["rows"] if tree is not None and not 1 <= r <= tree.n]
+        if bad:
+            raise UsageError(f"--rows {args.rows}: frame {bad[0]} is not in model {tree.name!r} (frames 1..{tree.n}); "
+                             "give its frame numbers, like --rows 1,2,3")
     if args.cols:
         out["cols"] = [x.strip() for x in args.cols.split(",") if x.strip()]
+        bad = [c for c in out["cols"] if tree is not None and not _is_column(tree, c)]
+        if bad:
+            raise UsageError(f"--cols {args.cols}: model {tree.name!r} has no parameter {bad[0]!r}; give "
+                             f"parameter names, like --cols {','.join(tree.parameter_names[:3])}")
     return out
 
 
@@ -84,7 +103,7 @@ def cmd_ops(args: argparse.Namespace) -> int:
         for model in ("dgm", "idm", "regressor", "inertia"):
             opts = {"geometry": args.geometry}
             if model == "regressor":
-                opts.update(_rows_cols(args))
+                opts.update(_rows_cols(args, tree))
             t0 = time.perf_counter()
             prog = build(tree, model, **opts)
             dt = time.perf_counter() - t0
@@ -103,7 +122,7 @@ def cmd_codegen(args: argparse.Namespace) -> int:
     tree = _load(args)
     opts = {"geometry": args.geometry}
     if args.model == "regressor":
-        opts.update(_rows_cols(args))
+        opts.update(_rows_cols(args, tree))
     stem = args.prefix or re.sub(r"[^0-9a-zA-Z]+", "_", tree.name).strip("_").lower() or "model"
     if not stem[0].isalpha():
         stem = "m_" + stem
@@ -117,7 +136,10 @@ def cmd_codegen(args: argparse.Namespace) -> int:
             files = {f"{stem}_{args.model}.h": h, f"{stem}_{args.model}.c": c}
         else:
             files = {f"{stem}_{args.model}.txt": to_text(prog)}
-        refuse_overwrite([out / name for name in files], args.force)
+        if out.exists() and not out.is_dir():
+            raise OutputError(f"{out}: is a file, not a folder; give --out a folder (created if missing)")
+        if out.is_dir():  # a new folder holds nothing to replace
+            refuse_overwrite([out / name for name in files], args.force)
         for name, text in files.items():
             write_atomic(out / name, text)
     except SymbolicError as exc:

@@ -157,6 +157,9 @@ def cmd_new(args: argparse.Namespace) -> int:
     from ..vehicle.description import VehicleError, vehicle_path
 
     out = Path(args.out)
+    if not args.name.strip():
+        raise VehicleError(f"name {args.name!r}: give the car's name (text), as the reports will show it, e.g. "
+                           "dynid vehicle new \"My car\" --out mycar.toml")
     if out.suffix != ".toml":
         raise VehicleError(f"{out}: a vehicle file ends in .toml")
     refuse_overwrite([out], args.force)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import islice
@@ -37,6 +38,7 @@ from .recording import Recording
 from .units import split_unit  # the header's "name [unit]": the rule every format's reader shares
 
 BLOCK_LINES = 65536  # lines parsed per NumPy call
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 def _is_number(cell: str, decimal: str) -> bool:
     s = cell.strip()
     if decimal == ",":
@@ -175,6 +177,11 @@ def read_header(lines: Iterator[tuple[int, str]], path: Path, label: str, time: 
     if decimal == "," and delim == ",":
         raise FileFormatError(f"{label}: decimal ',' needs another delimiter (';' or tab)", source=label)
     cells = next(csv.reader([header], delimiter=delim))
+    if len(cells) > 1 and all(_is_number(c, decimal) for c in cells):
+        raise FileFormatError(
+            f"{label}, line {header_no}: the first line that is not a comment holds numbers, not the columns' names; "
+            "give the header (\"time [s],q1 [rad],...\") as the first line (is it commented out with '#'?)",
+            source=label, line=header_no)
     names: list[str] = []
     units: list[str] = []
     for j, cell in enumerate(cells):
@@ -338,11 +345,16 @@ def _parse_block_slowly(
             if decimal == ",":
                 s = s.replace(",", ".")
             try:
+                if not s.isascii() or "_" in s:  # float() reads '1_000' and other scripts' digits: no logger's
+                    raise ValueError(s)
                 values[i, j] = float(s)
             except ValueError:
+                comma = decimal != "," and _DECIMAL_COMMA.match(s)
+                fix = ("a decimal comma: export the file with '.' as the decimal mark (0.42, not 0,42)" if comma
+                       else "fix the cell, or leave it empty if the channel has no sample at that time")
                 raise FileFormatError(
                     f"{label}, line {number}, column {j + 1} ({names[j]!r}): cannot read {cell!r} as a number; "
-                    "fix the cell, or leave it empty if the channel has no sample at that time",
+                    f"{fix}",
                     source=label,
                     channel=names[j],
                     line=number,

@@ -59,6 +59,10 @@ ALIASES = {"mf4": "mdf", "mdf4": "mdf", "pq": "parquet", "matlab": "mat", "tsv":
            "ros": "rosbag", "ros2": "rosbag", "bag": "rosbag"}
 
 
+_COMPRESSED = {".gz": "gunzip", ".zip": "unzip", ".bz2": "bunzip2", ".xz": "unxz", ".zst": "unzstd",
+               ".7z": "7z x"}
+
+
 def format_of(path: str | os.PathLike[str], format: str | None = None) -> str:
     """The format name for `path` ("csv", "parquet", "mat", "mdf" or "rosbag"), from `format` or the extension (a
     folder with a metadata.yaml is a ROS 2 bag)."""
@@ -70,6 +74,9 @@ def format_of(path: str | os.PathLike[str], format: str | None = None) -> str:
     if is_bag_folder(path):
         return "rosbag"
     suffix = Path(path).suffix.lower()
+    if suffix in _COMPRESSED:
+        raise FileFormatError(f"{path}: a compressed file ({suffix}); decompress it first ({_COMPRESSED[suffix]} "
+                              f"{Path(path).name}) and give the file inside", source=str(path))
     if suffix not in EXTENSIONS:
         raise FileFormatError(
             f"{path}: cannot tell the format from the extension {suffix or '(none)'!r}; pass format= one of "

@@ -54,6 +54,9 @@ WARNING = "warning"  # listed: the answer may be affected near the span
 NOTE = "note"  # listed: the pipeline takes care of it
 SEVERE_SHARE = 0.05  # a channel clipped (or out of range) on this share of its samples or more stops the run
 SPIKE = 5.0  # a spike's two steps, in 99th percentiles of the channel's step sizes
+# a spike farther from its neighbours than this many times the span of the rest of its block is no measurement (a
+# corrupt sample, a logger's error code): an error, not a warning (a 1e6 N.m sample among torques of 10 N.m)
+WILD = 10.0
 KINK = 4.0  # noise deviations between a plateau and the signal a few holds before or after it
 NEAR, REVERSALS = 20, 0.4  # holds beside a plateau read for noise, the share of their steps that turn back
 MANY, SHARE, LEVELS = 20, 0.05, 20  # holds and share of the samples at one extreme, in a channel of so many levels
@@ -151,6 +154,8 @@ class ChannelScan:
         self.at_limit = _Spans()
         self.plateau = _Spans()
         self.spikes = _Spans()
+        self.wild = _Spans()  # spikes beyond any value the rest of the channel has (WILD)
+        self.span = (float("inf"), float("-inf"))  # the rest's extent (0.1 %..99.9 % of each block)
 
     def add(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """One block of the channel: its time stamps (s) and values (the channel's unit), (n,) each."""
@@ -227,9 +232,15 @@ class ChannelScan:
         hit = np.flatnonzero((np.sign(up) == -np.sign(down)) & (np.minimum(np.abs(up), np.abs(down)) > big)
                              & (np.minimum(np.abs(up), np.abs(down)) > 2 * self.resolution))
         ends = np.append(starts[1:], x.size)
+        if hit.size:
+            lo, hi = (float(v) for v in np.quantile(y, [0.001, 0.999]))
+            self.span = (min(self.span[0], lo), max(self.span[1], hi))
+            width = max(hi - lo, self.resolution, np.finfo(float).tiny)
         for k in hit + 1:
             a, b = int(starts[k]), int(ends[k])
             self.spikes.add(float(t[a]), float(t[b - 1]), b - a, float(y[k]))
+            if abs(y[k] - 0.5 * (y[k - 1] + y[k + 1])) > WILD * width:
+                self.wild.add(float(t[a]), float(t[b - 1]), b - a, float(y[k]))
 
     def findings(self) -> list[Finding]:
         """What the blocks fed show (module doc), errors first."""
@@ -270,7 +281,15 @@ class ChannelScan:
                 fix = "short saturations: check the sensor's range; estimates may be biased if they grow"
             out.append(Finding(self.name, kind, ERROR if severe else WARNING, spans.spans[0][0], spans.spans[-1][1],
                                detail, fix, share))
-        if self.spikes.samples:
+        if self.wild.samples:
+            sp = self.wild
+            out.append(Finding(
+                self.name, "spike", ERROR, sp.spans[0][0], sp.spans[-1][1],
+                f"{len(sp.spans)} spike(s) far beyond the rest of the channel ({_listed(sp.spans)}; up to "
+                f"{max(sp.values, key=abs):g}{u}, the rest within {self.span[0]:g}..{self.span[1]:g}{u})",
+                "no sensor reads that: a corrupt sample or a logger's error code; fix or remove the sample in the "
+                "file (its neighbours' mean), or cut the test (start, end) to leave it out", sp.samples / self.n))
+        elif self.spikes.samples:
             sp = self.spikes
             out.append(Finding(
                 self.name, "spike", WARNING, sp.spans[0][0], sp.spans[-1][1],

@@ -209,6 +209,8 @@ def _vector_channel(
     if text is not None:
         metadata.setdefault(name, text)
         return None, "text"
+    if isinstance(value, np.ndarray) and value.dtype.kind == "c":
+        return None, "complex values, not a real vector (store the real part, or magnitude and phase apart)"
     if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub":
         return None, f"{type(value).__name__} (cell or object), not a numeric vector"
     if value.ndim != 1:

@@ -358,6 +358,13 @@ def time_bases(index: FileIndex, channels: Sequence[str]) -> list[TimeBase]:
             for m, t, ln in bases if t]
 
 
+# a Parquet file of more row groups than this, of fewer rows than TINY_ROW_GROUP each on average, is refused: each
+# group is read on its own (a 1500-row file of 1-row groups took 5 minutes), and a logger writes thousands of rows
+# per group (a row group per second of a 1 kHz log is fine)
+MANY_ROW_GROUPS = 256
+TINY_ROW_GROUP = 100
+
+
 def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
     """Every row of every column asked for holds a sample (statistics of every row group say no null)."""
     pfile = _open_parquet(index.path)
@@ -860,6 +867,12 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     time_name = find_time_column(list(raw), options.get("time"), options.get("fs"), label)
     meta = pfile.metadata
     groups = range(meta.num_row_groups)
+    if meta.num_row_groups > MANY_ROW_GROUPS and meta.num_rows < TINY_ROW_GROUP * meta.num_row_groups:
+        raise FileFormatError(
+            f"{label}: {meta.num_row_groups} row groups of {meta.num_rows / meta.num_row_groups:.3g} row(s) on "
+            "average; each is read on its own, so reading it would take minutes: rewrite it with larger row groups "
+            "(pyarrow.parquet.write_table(table, path, row_group_size=65536), or your logger's export setting)",
+            source=label)
     first = next((g for g in groups if meta.row_group(g).num_rows), None)
     ticks: dict[str, int] = {}
     stamps = [f for f in fields if pa.types.is_timestamp(f.type)]

@@ -118,6 +118,7 @@ _NONNEGATIVE = {"XX": "a moment of inertia", "YY": "a moment of inertia", "ZZ": 
 # lengths beyond this are a unit slip (mm written for m: d = 300), and they wreck the base-parameter analysis's
 # precision (1e8 m once gave 4 base parameters instead of 17); no robot arm or car spans 100 m
 MAX_LENGTH_M = 100.0
+MAX_PARAMETER = 1e9  # the same bound as a config's known values
 # m/s^2: gravity beyond this is a unit slip (mm/s^2: -9810, or -9.81e6); the Earth's is 9.81, Jupiter's 24.8
 MAX_GRAVITY = 50.0
 
@@ -141,6 +142,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         raise ModelError(f"{source}: known = {_short(data['known'])}; expected names: known = [\"IA1\"]")
     if not all(isinstance(v, str) for v in data.get("labels", {}).values()):
         raise ModelError(f"{source}: [labels] values are names, like K9 = \"ks9\"")
+    if not data["frames"]:
+        raise ModelError(f"{source}: frames = []: give one row [j, ant, sigma, gamma, b, alpha, d, theta, r] per "
+                         "frame, like frames = [[1, 0, 0, 0, 0, 0, 0, 0, 0]]")
     frames = []
     for i, row in enumerate(data["frames"], start=1):
         if not isinstance(row, list) or len(row) != len(COLUMNS):
@@ -181,6 +185,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
             joint_terms[j] = terms
         for k, v in table.items():
             values[f"{k}{j}"] = parse_number(v, f"{where} {k}")
+            if abs(values[f"{k}{j}"]) > MAX_PARAMETER:  # no arm or car has these: a unit or exponent slip
+                raise ModelError(f"{where}: {k} = {values[f'{k}{j}']:g}; parameters are in SI units (kg, kg.m², "
+                                 f"N.m.s/rad, ...) and within ±{MAX_PARAMETER:g}")
             if k in _NONNEGATIVE and values[f"{k}{j}"] < 0:  # no body or joint has these below zero
                 raise ModelError(f"{where}: {k} = {values[f'{k}{j}']:g} < 0; {_NONNEGATIVE[k]} cannot be negative "
                                  "(a sign or unit slip?)")
@@ -199,6 +206,9 @@ def tree_from_dict(data: dict, source: str = "<dict>") -> Tree:
         if not isinstance(c["coeffs"], dict) or not isinstance(c["name"], str):
             raise ModelError(f"{where}: name is a string and coeffs a table of joint = coefficient, like "
                              "coeffs = { 27 = 1.0, 36 = -1.0 }")
+        if not c["coeffs"]:
+            raise ModelError(f"{where}: coeffs = {{}}: give the joints it combines, like coeffs = {{ 27 = 1.0, "
+                             "36 = -1.0 }")
         coeffs = {}
         for k, v in c["coeffs"].items():
             if not k.isdigit():

@@ -53,6 +53,7 @@ import numpy as np
 from ..atomic import write_atomic
 from ..textfiles import TextEncodingError, read_utf8
 from .consistency import check_body
+from .files import MAX_LENGTH_M, MAX_PARAMETER
 from .tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, Frame, Mimic, ModelError, Tree, _rotx, _rotz
 
 _MOVING = {"revolute": REVOLUTE, "continuous": REVOLUTE, "prismatic": PRISMATIC}
@@ -84,6 +85,7 @@ class UrdfImport:
     frame_link: dict[int, str]  # moving frame -> the child link of its joint
     merged: dict[int, list[str]] = field(default_factory=dict)  # frame -> links merged in by fixed joints
     source: str = "<urdf>"
+    notes: tuple[str, ...] = ()  # links whose inertia no real body has (imported as given: said, not refused)
 
 
 # ---------------------------------------------------------------------------------------------- reading XML
@@ -131,7 +133,11 @@ def _floats(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...]
 
 def _origin(el: ET.Element, where: str) -> np.ndarray:
     o = el.find("origin")
-    return transform(_rpy(_floats(o, "rpy", 3, (0, 0, 0), where)), _floats(o, "xyz", 3, (0, 0, 0), where))
+    xyz = _floats(o, "xyz", 3, (0, 0, 0), where)
+    if np.abs(xyz).max() > MAX_LENGTH_M:  # a unit slip (mm for m) or a placeholder: no link is that long
+        raise UrdfError(f'{where}: <origin xyz="{o.get("xyz")}">: beyond {MAX_LENGTH_M:g} m; URDF lengths are in '
+                        "metres (a unit slip? mm written for m)")
+    return transform(_rpy(_floats(o, "rpy", 3, (0, 0, 0), where)), xyz)
 
 
 def _rpy(rpy: np.ndarray) -> np.ndarray:
@@ -154,6 +160,7 @@ class _Inertial:
     m: float
     T: np.ndarray  # inertial frame in the link frame
     I: np.ndarray  # inertia at the CoM, inertial frame axes
+    problem: str = ""  # why no real body has this inertia (`_inertia_problem`), '' if one may
 
 
 def _inertial(link: ET.Element, where: str) -> _Inertial | None:
@@ -169,12 +176,44 @@ def _inertial(link: ET.Element, where: str) -> _Inertial | None:
         raise UrdfError(f"{where}: <mass> has no value")
     if m < 0.0:
         raise UrdfError(f'{where}: <mass value="{mass.get("value")}">: a mass cannot be negative')
+    if m > MAX_PARAMETER:
+        raise UrdfError(f'{where}: <mass value="{mass.get("value")}">: beyond {MAX_PARAMETER:g} kg; URDF masses are '
+                        "in kg (a unit or exponent slip?)")
     inertia = el.find("inertia")
+    terms = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     if inertia is None:
         raise UrdfError(f"{where}: no <inertia ixx=... ixy=... ixz=... iyy=... iyz=... izz=...>")
-    v = {k: float(_floats(inertia, k, 1, (0.0,), where)[0]) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+    missing = [k for k in terms if inertia.get(k) is None]
+    if missing:
+        raise UrdfError(f"{where}: <inertia> has no {', '.join(missing)}; give all six terms (0 where zero)")
+    v = {k: float(_floats(inertia, k, 1, (0.0,), where)[0]) for k in terms}
     I = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]], [v["ixz"], v["iyz"], v["izz"]]])
-    return _Inertial(m, _origin(el, where), I)
+    return _Inertial(m, _origin(el, where), I, _inertia_problem(I, inertia, where))
+
+
+def _inertia_problem(I: np.ndarray, el: ET.Element, where: str) -> str:
+    """The inertia at the centre of mass of a real body has moments ixx, iyy, izz >= 0 (else refused: the model
+    file written would be refused by the next command) and principal moments >= 0, each at most the sum of the
+    other two (the triangle inequality), within round-off of the largest: a breach of these is returned as a
+    note, not refused, for published URDFs have them on small links (Tiago's antennas: a negative principal
+    moment of 4e-8 kg·m²), and an identification starts from these values only as a priori ones."""
+    lam = np.linalg.eigvalsh(I)
+    tol = 1e-9 * max(float(np.abs(lam).max()), np.finfo(float).tiny)
+    given = " ".join(f'{k}="{el.get(k)}"' for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+    moments = ", ".join(f"{x:.6g}" for x in lam)
+    if np.abs(I).max() > MAX_PARAMETER:
+        raise UrdfError(f"{where}: <inertia {given}>: beyond {MAX_PARAMETER:g} kg·m²; URDF inertias are in kg·m²")
+    if np.diag(I).min() < 0.0:
+        raise UrdfError(f"{where}: <inertia {given}>: a negative moment of inertia; ixx, iyy, izz are >= 0 (a sign "
+                        "slip?)")
+    if lam[0] < -tol:
+        return (f"{where}: <inertia {given}>: principal moments ({moments}) kg·m², one negative: no body has that "
+                "(check the products of inertia)")
+    if lam[2] > lam[0] + lam[1] + tol:
+        return (f"{where}: <inertia {given}>: principal moments ({moments}) kg·m² break the triangle inequality (the "
+                "largest exceeds the sum of the other two): no body has that (a moment in the wrong unit or about "
+                "another point?)")
+    return ""
 
 
 def spatial(inertial: _Inertial, T: np.ndarray) -> np.ndarray:
@@ -345,6 +384,7 @@ def _import(doc: ET.ElementTree, src: str, name: str | None, freeze: Mapping[str
     placements: dict[str, Placement] = {}
     frame_link: dict[int, str] = {}
     merged: dict[int, list[str]] = {}
+    notes: list[str] = []
     root = roots[0]
     stack = [(root, Placement(0, np.eye(4)))]
     while stack:  # depth first, children in file order, so that a(j) < j
@@ -352,6 +392,8 @@ def _import(doc: ET.ElementTree, src: str, name: str | None, freeze: Mapping[str
         placements[lname] = place
         where = f'{src}: <link name="{lname}">'
         inertial = _inertial(links[lname], where)
+        if inertial is not None and inertial.problem:
+            notes.append(inertial.problem)
         if inertial is not None and place.frame > 0:
             p = spatial(inertial, place.T)
             for k, v in zip(INERTIAL, p, strict=True):
@@ -399,7 +441,7 @@ def _import(doc: ET.ElementTree, src: str, name: str | None, freeze: Mapping[str
         raise UrdfError(f"{src}: {exc}") from None
     if not frames:
         raise UrdfError(f"{src}: no moving joint (revolute, continuous or prismatic): nothing to identify")
-    return UrdfImport(tree, placements, frame_link, {k: v for k, v in merged.items() if k > 0}, src)
+    return UrdfImport(tree, placements, frame_link, {k: v for k, v in merged.items() if k > 0}, src, tuple(notes))
 
 
 def _mimics(robot: ET.Element, kinds: dict[str, str | None], src: str) -> dict[str, tuple[str, float, float]]:

@@ -577,8 +577,14 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err, effort: str = "tau")
             files = _test_files(t.get("files"), here, where, err)
         bag = _bag_options(t, files, where, err) if not is_car else (None, ())
         for q, f in files.items():
+            if f.is_symlink() and not f.exists():
+                raise err(where, f"the file for {q!r}, {f}, is a symbolic link that leads nowhere (its target is "
+                                 "missing, or the link leads back to itself); link it to the data file")
             if not f.exists():
                 raise err(where, f"file for {q!r} not found: {f}")
+            if f.is_dir() and not _bag_folder(f):  # a ROS 2 bag is a folder; any other is a slip
+                raise err(where, f"the file for {q!r}, {f}, is a folder; give a data file in it (or a ROS 2 bag's "
+                                 "folder, with its metadata.yaml)")
         fs = t.get("fs")
         if fs is not None and not _number(fs, lambda v: v > 0):
             raise err(where, f"fs = {fs!r}; give the sample rate in Hz (a positive number)")
@@ -624,6 +630,12 @@ def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple
     return topic, tuple(ignore)
 
 
+def _bag_folder(path: Path) -> bool:
+    from ..io.rosbag_format import is_bag_folder
+
+    return is_bag_folder(path)
+
+
 def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Path]:
     """A robot test's files = { q = "positions.csv", tau = "torques.csv" } (one file may hold both; current in place
     of tau: motor currents)."""
@@ -638,6 +650,8 @@ def _test_files(files: object, here: Path, where: str, err: Err) -> dict[str, Pa
     for q in files:
         if not isinstance(files[q], str):
             raise err(where, f"files: {q} = {files[q]!r}; give a file name (a string, relative to this config)")
+        if not files[q].strip():
+            raise err(where, f"the file for {q!r} is an empty name; give the file's name, relative to this config")
     for q in ("q", "tau"):
         if q not in files and (q == "q" or "current" not in files):
             raise err(where, f"files has no {q!r}: give files = {{ q = \"...\", tau = \"...\" }}")
@@ -676,6 +690,9 @@ def _channels(raw: dict, err: Err, suite: _VehicleChannels | None) -> dict[str, 
         unit = spec.get("unit")
         if unit is not None and not isinstance(unit, str):
             raise err(where, f"unit = {unit!r}; give the file's unit as a string (\"rad\", \"deg/s\")")
+        if unit is not None and not unit.strip():
+            raise err(where, "unit = \"\"; give the channels' unit (\"rad\", \"deg/s\"), or leave unit out to read "
+                             "the file's")
         over = spec.get("unit_over_file", False)
         if not isinstance(over, bool) or (over and unit is None):
             raise err(where, f"unit_over_file = {over!r}; true (with a unit) when the file's own unit is wrong and "
@@ -711,6 +728,18 @@ def _transmission(raw: dict, err: Err) -> dict[str, np.ndarray]:
                                for row in v])
         except ModelError as exc:
             raise err(where, str(exc)) from None
+        big = np.flatnonzero(~np.isfinite(out[k].ravel()) | (np.abs(out[k].ravel()) > MAX_KNOWN))
+        if big.size:
+            raise err(where, f"{k}: {out[k].ravel()[big[0]]:g} is not a finite number within ±{MAX_KNOWN:g}; a "
+                             "transmission is a gear ratio or a scale (1/32, 0.0174533), a unit or exponent slip?")
+        if k != "q_offset":
+            rank = np.linalg.matrix_rank(out[k])
+            if rank < out[k].shape[0]:
+                zero = np.flatnonzero(~out[k].any(axis=1))
+                which = f"row {zero[0] + 1} is all zeros" if zero.size else "rows depend on each other"
+                raise err(where, f"{k} is singular ({which}; rank {rank} for {out[k].shape[0]} joints): each "
+                                 "joint must read its own combination of the channels (a gear ratio on the "
+                                 "diagonal, like [[32, 0], [0, 32]])")
     return out
 
 
@@ -807,13 +836,25 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
     return CarSettings(
         cutoff=_cutoff(c, 4.0, where, err),
         order=_whole(c, "order", 4, where, err), decimate=_decimate(c, (5, 10), where, err, empty=True),
-        attitude_crossover=_float(c, "attitude_crossover", 0.2, where, err, "a crossover in Hz (a positive number)"),
+        attitude_crossover=_crossover(c, where, err),
         segment=_float(c, "segment", 60.0, where, err, "a segment length in s (a positive number)"),
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
         tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
+
+
+MAX_CROSSOVER = 10.0  # Hz: inclinometers are trusted below a few tenths of Hz; above this the gyros are not used
+
+
+def _crossover(c: dict, where: str, err: Err) -> float:
+    value = _float(c, "attitude_crossover", 0.2, where, err, "a crossover in Hz (a positive number)")
+    if value > MAX_CROSSOVER:
+        raise err(where, f"attitude_crossover = {value:g} Hz; give the frequency below which the inclinometers are "
+                         f"trusted and above which the integrated gyros are, at most {MAX_CROSSOVER:g} Hz (the paper: "
+                         "0.2 Hz)")
+    return value
 
 
 def _iv_passes(ident: dict, err: Err) -> int:

@@ -116,6 +116,9 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
     wired = all(q in plan.quantity_names for q in (*loads, "imu_ax", "imu_ay"))
     acc = _Loads(np.zeros((3, 3)), np.zeros((3, 4)))
     up = _vertical_axis(vehicle)
+    ground = next((q for q in ("correvit_vx", "gnss_vx") if q in plan.quantity_names), None)
+    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in plan.quantity_names]
+    speeds = [0.0, 0.0, 0]  # sums of v w, w w and the samples, w the wheels' mean rolling speed (m/s)
     a = t0
     while a <= t1:
         b = min(a + WINDOW_S, t1)
@@ -135,6 +138,13 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
         for q in ("imu_ax", "imu_ay"):
             if q in got:
                 acc.move(q, got[q][1])
+        if ground is not None and wheels and all(got[q][0].size > 1 for q in (ground, *wheels)):
+            t_ref = got[ground][0]
+            w = np.mean([_on(*got[q], t_ref) for q in wheels], axis=0) * vehicle.geometry.wheel_radius
+            moving = np.abs(w) > MOVING
+            speeds[0] += float(got[ground][1][moving] @ w[moving])
+            speeds[1] += float(w[moving] @ w[moving])
+            speeds[2] += int(np.count_nonzero(moving))
         if up is not None and up[0] in got:
             acc.up_sum += float(np.sum(got[up[0]][1]))
             acc.up_n += got[up[0]][1].size
@@ -154,6 +164,8 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
             out.append(f)
     if wired and acc.n > 3:
         out += _wiring(acc, vehicle, [plan.quantity_names[q] for q in loads], t0, t1)
+    if speeds[2] > 10 and speeds[1] > 0:
+        out += _speed(speeds[0] / speeds[1], plan.quantity_names[ground], wheels, t0, t1)
     if up is not None and acc.up_n:
         out += _gravity(acc.up_sum / acc.up_n, up, plan.quantity_names.get(up[0], up[0]), t0, t1)
     order = {ERROR: 0, WARNING: 1, NOTE: 2}
@@ -234,6 +246,23 @@ def _vertical_axis(vehicle) -> tuple[str, float] | None:
         return None
     name = ("imu_ax", "imu_ay", "imu_az")[i]
     return (name, G * float(A[i, 0])) if name in vehicle.suite.names else None
+
+
+MOVING = 2.0  # m/s: the wheels' rolling speed above which the speed over ground is compared with it
+SPEED_RATIO = (0.7, 1.4)  # speed over ground / the wheels' rolling speed: slip and radius errors stay inside
+
+
+def _speed(ratio: float, channel: str, wheels: Sequence[str], t0: float, t1: float) -> list[Finding]:
+    """The speed over ground against the wheels' rolling speed (spin rate times the radius): a unit slip (km/h
+    logged as m/s reads 3.6 times slow) or a wrong scale shows as a ratio far from 1."""
+    if SPEED_RATIO[0] <= ratio <= SPEED_RATIO[1]:
+        return []
+    return [Finding(channel, "speed", ERROR, t0, t1,
+                    f"reads {ratio:.3g} times the speed the wheels roll at ({', '.join(wheels)} times the wheel "
+                    "radius), where slip and the radius's error keep it within "
+                    f"{SPEED_RATIO[0]:g}..{SPEED_RATIO[1]:g}",
+                    "a unit slip (km/h and m/s differ by 3.6) or a wrong scale: fix the channel's unit in the file's "
+                    "header or in [channels], or the wheel radius in the vehicle file", 1.0)]
 
 
 def _gravity(mean: float, up: tuple[str, float], channel: str, t0: float, t1: float) -> list[Finding]:

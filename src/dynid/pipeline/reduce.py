@@ -16,8 +16,10 @@ among them, and its validation files read rows), which `stack_rows` folds.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
+import os
 import pickle
 import threading
 import zlib
@@ -25,6 +27,7 @@ from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -207,9 +210,22 @@ def _setup(key: tuple, make: Callable[[], Any]) -> Any:
     return made
 
 
+def _stamp(source: object) -> object:
+    """A setup's source in its key: a file by its absolute path and its version (size, time of change), so that a
+    config or model file edited, or another one of the same relative name (a Python session that changes folder),
+    never gets a setup built from the other; a shipped name as it is."""
+    if isinstance(source, str | os.PathLike):
+        path = Path(source)
+        with contextlib.suppress(OSError):
+            st = path.stat()
+            return (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    return source
+
+
 def car_setup(cfg: IdentifyConfig) -> CarSetup:
     """The config's car setup (see `_setup`)."""
-    return _setup(("car", cfg.path, cfg.model, cfg.vehicle, cfg.known, cfg.car), lambda: CarSetup(cfg))
+    return _setup(("car", _stamp(cfg.path), _stamp(cfg.model), _stamp(cfg.vehicle), cfg.known, cfg.car),
+                  lambda: CarSetup(cfg))
 
 
 def reduce_car_segment(job: CarJob) -> Partial:
@@ -346,7 +362,9 @@ class RobotSetup:
 
 def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
     """The config's robot setup (see `_setup`)."""
-    return _setup(("robot", cfg.path, cfg.model, cfg.tests, cfg.drive), lambda: RobotSetup(cfg))
+    return _setup(("robot", _stamp(cfg.path), _stamp(cfg.model), cfg.tests, cfg.drive, cfg.joints,
+                   {k: v.tolist() for k, v in cfg.transmission.items()},
+                   {k: c.channels for k, c in cfg.channels.items()}), lambda: RobotSetup(cfg))
 
 
 def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:

@@ -100,6 +100,9 @@ def read_reference(path: str | Path) -> list[ReferenceRow]:
                 f"expression a combination like Izz1 + 1.0*Ia1; got {shown}"
             ) from None
         rows.append(row)
+    if not rows:
+        raise ModelError(f"{where}: holds no row; give one line per published base parameter, 'expression, OLS value, "
+                         "OLS %σ, WLS value, WLS %σ', or remove [reference] from the config")
     return rows
 
 

@@ -89,7 +89,11 @@ def data_joints(tree: Tree, k: int, selection: Sequence[str] | None = None, sour
     Anything else is a one-line ModelError naming the counts and the joints."""
     where = f"{source}: " if source else ""
     if selection is not None:
-        frames = [tree.frame_of(name) for name in selection]
+        try:
+            frames = [tree.frame_of(name) for name in selection]
+        except ModelError as exc:
+            raise ModelError(f"{where}[model] joints: {exc}; give names of the model file's [joints] table, or leave "
+                             "joints out") from None
         followers = [j for j in frames if j in tree.mimic]
         if followers:
             j = followers[0]

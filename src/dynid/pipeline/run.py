@@ -170,8 +170,10 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
         if 2 * _border(plan.fs, cfg.conditioning) >= N:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} has {N} samples, fewer than the filter's two borders "
-                              f"({cfg.conditioning.cutoff:g} Hz, order {cfg.conditioning.order}): record longer or "
-                              "raise the cut-off")
+                              f"({cfg.conditioning.cutoff:g} Hz, order {cfg.conditioning.order}): "
+                              + ("widen its window (start, end) or raise the cut-off"
+                                 if spec.start is not None or spec.end is not None
+                                 else "record longer or raise the cut-off"))
         for s, e in robot_chunks(N, plan.fs, model, base, cfg.conditioning):
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
@@ -213,7 +215,17 @@ def read_truth(path: Path, tree) -> dict[str, float]:
     """True parameter values from a simulator's JSON sidecar: a {name or label: value} table under
     "true_parameters", "truth" or "parameters" (a list of {"name", "value"} records is accepted too).
     Parameters the model does not have are left out."""
-    data = json.loads(Path(path).read_text())
+    fix = 'give the simulator\'s sidecar (dynid simulate writes <stem>.json), or leave truth out of the test'
+    try:
+        data = json.loads(Path(path).read_bytes().decode("utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: truth: not UTF-8 text (byte {exc.start}); {fix}") from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path}: truth: not valid JSON ({exc.msg}, line {exc.lineno}, column {exc.colno}); "
+                          f"{fix}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: truth: a JSON {type(data).__name__}, not an object with \"true_parameters\": "
+                          f"{{name: value}}; {fix}")
     for key in ("true_parameters", "truth", "parameters"):
         table = data.get(key)
         if isinstance(table, dict) and all(isinstance(v, int | float) for v in table.values()):
@@ -226,9 +238,12 @@ def read_truth(path: Path, tree) -> dict[str, float]:
     out = {}
     for k, v in table.items():  # terms only the simulator has (its tire damping) are not in this model
         try:
-            out[tree.parameter_names[tree.column(k)]] = float(v)
+            column = tree.column(k)
         except ModelError:
             continue
+        if not isinstance(v, int | float) or isinstance(v, bool) or not np.isfinite(v):
+            raise ConfigError(f"{path}: truth: {k} = {v!r} is not a finite number; {fix}")
+        out[tree.parameter_names[column]] = float(v)
     return out
 
 
@@ -558,7 +573,7 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                       else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method == "wls"
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
-        raise ConfigError(f"{cfg.path}: {exc}") from None
+        raise ConfigError(f"{cfg.path}: {exc}{_rank_hints(cfg, ident, health)}") from None
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
@@ -608,6 +623,23 @@ def torques_with_gains(s: GroupedSystem, p: int, gains: np.ndarray) -> GroupedSy
     W = s.W.copy()
     W[:, p:] = 0.0
     return GroupedSystem(W, s.Y - s.W[:, p:] @ gains, s.groups, s.t)
+
+
+def _rank_hints(cfg: IdentifyConfig, ident: GroupedSystem, health: list[dict]) -> str:
+    """What in the config or the data may have left parameters unidentifiable: a joint whose rows min_speed left
+    out, a channel the health check saw still (said with the error, which names only parameters)."""
+    hints = []
+    for j, v in sorted(cfg.conditioning.min_speed.items()):
+        rows = int(np.count_nonzero(ident.groups == f"joint{j}"))
+        if rows < 10:
+            hints.append(f"[conditioning] min_speed = {{ {j} = {v:g} }} leaves {rows} row(s) of joint {j}: lower it "
+                         "below the joint's speeds")
+    still = sorted({d["channel"] for d in health if d.get("kind") == "dead"})
+    if still:
+        hints.append(f"channel(s) {', '.join(repr(c) for c in still)} never change in the identification tests: "
+                     "a joint that does not move excites none of its parameters (check the sensor, or add a test "
+                     "that moves it)")
+    return f" ({'; '.join(hints)})" if hints else ""
 
 
 def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:

@@ -406,7 +406,8 @@ def config_joints(cfg: IdentifyConfig, tree: Tree) -> DataJoints:
     k = (cfg.transmission["q"].shape[0] if "q" in cfg.transmission
          else len(cfg.channels["q"].channels) if "q" in cfg.channels else _bag_joints(cfg, tree))
     # a transmission's rows are the joints it gives: name it when its count is the one that does not match
-    source = f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission else str(cfg.path)
+    source = (f"{cfg.path}: [transmission] q ({k} rows)" if "q" in cfg.transmission
+              else f"{cfg.path}: [channels.q] ({k} channels)" if "q" in cfg.channels else str(cfg.path))
     try:
         return data_joints(tree, k, cfg.joints, source)
     except ModelError as exc:
@@ -509,7 +510,9 @@ def transmitted(cfg: IdentifyConfig, q: np.ndarray, tau: np.ndarray, n: int) -> 
         tau = tau @ cfg.transmission["tau"].T
     for name, a in (("q", q), ("tau", tau)):
         if a.shape[1] != n:
-            raise ConfigError(f"{cfg.path}: {name} has {a.shape[1]} columns after the transmission; the model has {n}")
+            after = f" after [transmission] {name}" if name in cfg.transmission else ""
+            raise ConfigError(f"{cfg.path}: [channels.{name}] gives {a.shape[1]} channels{after}; the model has {n} "
+                              f"joints: list one channel per joint (or map them with [transmission] {name})")
     return q, tau
 
 

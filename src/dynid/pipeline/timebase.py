@@ -123,6 +123,11 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
         chans = [Channel(c.name, c.unit, merged[:, i], t[first], t_lines) for i, c in enumerate(chans)]
     del up
     tu = chans[0].time
+    if tu.size < 2:  # every row has one stamp: no clock to read a rate from
+        raise TimeBaseError(f"{_where(source, lines, 0, float(t[0]), offset)}: all {t.size} time stamps are "
+                            f"{float(t[0]):.6g} s: the time column does not advance; fix the logger export (is it "
+                            "the right column?), or drop the time column and give the test's fs",
+                            source=source, sample=offset)
     su = np.diff(tu) if repeated else step
     h = float(np.median(su))
     big = np.flatnonzero(su > max_gap * h)

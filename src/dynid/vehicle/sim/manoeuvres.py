@@ -87,7 +87,7 @@ def manoeuvre(name: str, **params: float | None) -> Manoeuvre:
     p = {**DEFAULTS[name], **{k: float(v) for k, v in given.items()}}
     for k, v in p.items():
         if not math.isfinite(v):
-            raise ManoeuvreError(f"manoeuvre {name!r}: {k} = {v} is not a finite number")
+            raise ManoeuvreError(f"manoeuvre {name!r}: {k} = {v} is not a finite number; give a number (--{k})")
     if p["duration"] <= 0:
         raise ManoeuvreError(f"manoeuvre {name!r}: duration = {p['duration']} s must be positive")
     if not 0.0 <= p["speed"] <= 180.0 or (name != "static" and p["speed"] < 10.0):

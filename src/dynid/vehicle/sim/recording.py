@@ -60,7 +60,8 @@ def check_output(path: str | os.PathLike[str], format: str | None = None) -> tup
                           f"{FORMATS[fmt]} or drop --format")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise OutputError(f"{path}: the folder {folder} does not exist; create it or choose another --out")
+        what = "is a file, not a folder" if folder.exists() else "does not exist"
+        raise OutputError(f"{path}: the folder {folder} {what}; create it or choose another --out")
     if not os.access(folder, os.W_OK):
         raise OutputError(f"{path}: the folder {folder} is not writable; choose another --out")
     if path.is_dir():
