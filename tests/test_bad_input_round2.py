@@ -29,6 +29,9 @@ import pytest
 
 from dynid.cli.main import main
 
+# 303 command-line runs, ~75 s: in .ci/run's full run; the quick selection keeps the first round (test_bad_input.py)
+pytestmark = pytest.mark.slow
+
 N, FS, JOINTS = 1500, 250.0, 6
 QS = ", ".join(f'"q{j + 1}"' for j in range(JOINTS))
 TAUS = ", ".join(f'"tau{j + 1}"' for j in range(JOINTS))

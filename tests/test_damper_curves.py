@@ -153,6 +153,8 @@ def test_constant_dampers_stay_the_default():
 
 # ----- the simulated car through its files ---------------------------------------------------------------------------
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_bilinear_dampers_from_noise_free_files(tmp_path):
     """The simulator drives bilinear dampers (knees at 0.1 m/s, rebound slopes twice the bump ones); the demo's
     tests as noise-free logger files through the identification: every slope within 2 % (measured: 0.5 %), the
