@@ -289,8 +289,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
     offsets = sensor_offsets(settings, vehicle)
     moved = tuple(offsets.si().items())
-    say(f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each evaluated on "
-        f"up to {settings.offset_segments} segment(s) per identification test" if moved else
+    say((f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each test's estimated from its own data"
+         if settings.estimate_offsets else f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each "
+         f"evaluated on up to {settings.offset_segments} segment(s) per identification test") if moved else
         "no sensor zero offsets propagated: σ from the noise alone")
 
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True) -> list[CarJob]:
@@ -298,7 +299,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         for plan in plans:
             if instruments is not None and plan.role != "identify":
                 continue
-            picks = picked(len(plan.segments)) if with_offsets and moved and plan.role == "identify" else {}
+            estimating = settings.estimate_offsets and instruments is None
+            picks = ({} if not (with_offsets and moved and plan.role == "identify") else
+                     dict.fromkeys(range(len(plan.segments)), 1.0) if estimating else picked(len(plan.segments)))
             # the sensors' errors' effect on a few segments of each identification test (the model-fit verdict),
             # and the channel delays' on a few
             main = instruments is None and plan.role == "identify"
@@ -308,7 +311,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None, errors=i in errors,
-                                  delays=i in timed))
+                                  delays=i in timed, estimate_offsets=estimating and i in picks))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
@@ -332,7 +335,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
-    if parts["identify"].bias is not None:
+    offset_estimates, zeros, misfits = None, parts["identify"].zeros, ()
+    if zeros is not None:  # each test's offsets estimated with the parameters, from the groups the model fits
+        misfits = tuple(g for g, f in model_fits(ident, errors, result.estimates).items() if not f.fits)
+        result, offset_estimates = ident.with_offsets_estimated(result, zeros, misfits)
+    elif parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
     delays = None
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
@@ -359,7 +366,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
 
     # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
     #    and cross validation; a delay mismatch's shift of the estimates in their σ total
-    fits = model_fits(ident, errors, result.estimates)
+    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out
+    fitted = None
+    if offset_estimates is not None and cfg.method != "iv":
+        fitted = zeros.group_rms([result.value(n) for n in ident.estimated_names], offset_estimates.u, misfits)
+    fits = model_fits(ident, errors, result.estimates, fitted)
     if delays is not None and delays.mismatched:
         result = result.with_systematic(delays.systematic(result.estimated_names, result.systematic))
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
@@ -367,16 +378,23 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result, offsets) + fit_note(fits, result.labels, result.misfit)
+        notes=sensors_note(vehicle) + offsets_note(result, offsets, offset_estimates and offset_estimates.offsets)
+        + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
-        offsets=offsets.to_dict(), health=health)
+        offsets=offsets.to_dict(offset_estimates and offset_estimates.offsets), health=health)
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
     run.residual_rms = ident.group_rms(result)
+    if fitted is not None:  # the model's fit includes the offsets the data read
+        n, y = ident.group_rows, ident.group_rms()
+        run.residual_rms = fitted
+        run.errors["direct"] = {g: fitted[g] / y[g] if y[g] > 0 else float("nan") for g in fitted}
+        run.errors["direct"]["overall"] = float(np.sqrt(sum(fitted[g] ** 2 * n[g] for g in fitted)
+                                                        / sum(y[g] ** 2 * n[g] for g in fitted)))
     if validate is not None:
         run.errors["cross"] = validate.relative_errors(result)
         # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
@@ -464,9 +482,10 @@ def sensors_note(vehicle) -> str:
     return out
 
 
-def offsets_note(result, offsets) -> str:
-    """Which sensor zero offsets were propagated (`car.SensorOffsets`), where they came from, what %σ total means
-    and which offsets weigh most; and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
+def offsets_note(result, offsets, estimates: dict[str, tuple[float, float]] | None = None) -> str:
+    """Which sensor zero offsets were propagated or estimated (`car.SensorOffsets`; estimates: source -> the offset
+    and its σ, in units of its declared σ), where they came from, what %σ total means and which offsets weigh most;
+    and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
     where = {"vehicle": f"from the vehicle's sensor suite ({offsets.vehicle}: each channel's zero offset; "
                         "[uncertainty] offsets = {...} in the config replaces them, offsets = \"none\" turns them off)",
              "config": "from the config's [uncertainty] offsets (they replace the vehicle's sensor suite's)"}
@@ -487,10 +506,34 @@ def offsets_note(result, offsets) -> str:
             channel = source.split(": ")[-1]
             counts[channel] = counts.get(channel, 0) + 1
     top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
+    if estimates:
+        return (f"Each identification test's sensor zero offsets ({len(offsets.values)} channel(s) "
+                f"{where[offsets.source]}: {offsets.listing()}) are estimated with the parameters from the test's own "
+                "data, their declared σ as the prior ([uncertainty] estimate = false propagates them instead); "
+                "%σ is the paper's (least squares, statistical), %σ total adds what the data leave of the offsets' "
+                "effect. " + (f"The offsets that move most estimates (parameters): {top}. " if top else "")
+                + _offsets_read(offsets, estimates) + "\n" + delay_text)
     return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' zero offsets, propagated to "
             f"first order: {len(offsets.values)} channel(s) {where[offsets.source]}, 1 σ each, "
             f"evaluated on up to {offsets.segments} segment(s) per identification test: {offsets.listing()}. "
             + (f"The offsets that move most estimates (parameters): {top}.\n" if top else "\n") + delay_text)
+
+
+def _offsets_read(offsets, estimates: dict[str, tuple[float, float]]) -> str:
+    """The offsets the data read largest (in their channel's unit and in declared σ), and those beyond 3 σ of the
+    declared value: a declared σ too small, or a sensor zeroed badly."""
+    def text(source: str) -> str:
+        u, s = estimates[source]
+        value, unit = offsets.values[source.split(": ")[-1]]
+        return f"{source} {u * value:+.3g} {unit} ({u:+.1f} σ ± {s:.1f})"
+
+    ranked = sorted(estimates, key=lambda k: -abs(estimates[k][0]))
+    out = "The largest read: " + "; ".join(text(k) for k in ranked[:3]) + "."
+    beyond = [k for k in ranked if abs(estimates[k][0]) > 3.0]
+    if beyond:
+        out += (f" {len(beyond)} read beyond 3 σ of the declared zero offset ({', '.join(beyond[:4])}): check that "
+                "sensor's zeroing, or declare its offset larger in the vehicle's [sensors] or [uncertainty] offsets.")
+    return out
 
 
 def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
