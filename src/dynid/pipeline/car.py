@@ -205,14 +205,21 @@ COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is
 
 
 def car_scales(values: Mapping[str, float]) -> dict[str, float]:
-    """The engineering scale of the chassis parameters whose value may be near zero: products of inertia
-    against the smallest principal moment of the chassis inertia about O6, first moments against a
-    centre-of-mass shift (M6 x COM_SCALE). The others are judged against their own value (the default)."""
+    """The engineering scale of the parameters whose value may be near zero: products of inertia against the
+    smallest principal moment of the chassis inertia about O6, first moments against a centre-of-mass shift
+    (M6 x COM_SCALE), a tire's lateral-force term ktfy against kt / (M6 g / 4)². The others are judged against
+    their own value (the default)."""
     v = {n: float(values.get(n, 0.0)) for n in ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "M6")}
     inertia = np.array([[v["XX6"], v["XY6"], v["XZ6"]], [v["XY6"], v["YY6"], v["YZ6"]],
                         [v["XZ6"], v["YZ6"], v["ZZ6"]]])
     out = dict.fromkeys(("XY6", "XZ6", "YZ6"), abs(float(np.linalg.eigvalsh(inertia).min())))
     out.update(dict.fromkeys(("MX6", "MY6", "MZ6"), COM_SCALE * abs(v["M6"])))
+    # a tire's lateral-force term (-ktfy Fy² q), near 0 on a tire that keeps its stiffness: against the ktfy that
+    # takes its whole kt away at a lateral force of a quarter of the sprung weight (the Magic Formula's qFcy = 1)
+    load = abs(v["M6"]) * 9.81 / 4
+    for n in values:
+        if n.startswith("KFY") and load > 0:
+            out[n] = abs(float(values.get(f"K{n[3:]}", 0.0))) / load**2
     return {n: s for n, s in out.items() if n in values}
 
 
