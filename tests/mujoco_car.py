@@ -23,16 +23,18 @@ def mujoco_truth() -> dict:
 
 
 def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
-             tire_law: str = "paper") -> tuple[dict, dict]:
-    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` in its
-    [wheels]) on `tests` of `folder`."""
+             tire_law: str = "paper", lateral_force: bool = False) -> tuple[dict, dict]:
+    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` and, when
+    lateral_force, `tire_lateral_force = true` in its [wheels]) on `tests` of `folder`."""
     vehicle = EXAMPLE / "vehicle.toml"
     if tire_law != "paper":
         text = vehicle.read_text()
         assert text.count("[wheels]") == 1
+        lines = f'tire_law = "{tire_law}"' + "\ntire_lateral_force = true" * lateral_force
+        tire_law += "_fy" * lateral_force  # the file's and the config's names
         vehicle = tmp / f"vehicle_{tire_law}.toml"
         (tmp / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
-        vehicle.write_text(text.replace("[wheels]", f'[wheels]\ntire_law = "{tire_law}"'))
+        vehicle.write_text(text.replace("[wheels]", f"[wheels]\n{lines}"))
     lines = ['[model]', f'vehicle = "{vehicle.as_posix()}"']
     for t in tests:
         lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',

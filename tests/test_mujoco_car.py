@@ -113,6 +113,31 @@ def test_a_progressive_tire_fits_the_spiral_s_load_range_better(ideal_all, ideal
 
 
 @pytest.fixture(scope="module")
+def ideal_lateral(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine", "spiral", "braking"], compensate_delays=False,
+                    tire_law="progressive", lateral_force=True)
+
+
+def test_the_lateral_force_term_brings_every_tire_group_below_two_percent(ideal_progressive, ideal_lateral):
+    """[wheels] tire_lateral_force = true: kt q + ktq q² + off - ktfy Fy² q = Fz, Fy the transducer's lateral force
+    (the Magic Formula's qFcy form, its sign free). Issue 24's bound for the tire groups on ideal/ is 2 %; the
+    progressive law alone leaves 2.1 and 3.2 % at the rear (measured), mostly the spiral's outer wheels. With the
+    term: 1.46, 0.81, 0.82, 0.32 % (measured), each group at most its progressive residual. The tire equations
+    share no parameter with the others: every other estimate is the progressive law's."""
+    law, lat = ({p["label"]: p for p in r["parameters"]} for r in (ideal_progressive[0], ideal_lateral[0]))
+    before, after = ({t: r[0]["validation"]["direct"][f"tire{t}"] for t in (15, 24, 33, 42)}
+                     for r in (ideal_progressive, ideal_lateral))
+    for tire in (15, 24, 33, 42):
+        assert after[tire] < 0.02 and after[tire] <= before[tire], (tire, before, after)
+        assert lat[f"ktfy{tire}"]["unit"] == "1/(N·m)" and lat[f"ktfy{tire}"]["a_priori"] == 0.0
+        assert ideal_lateral[0]["validation"]["fit"][f"tire{tire}"]["fits"]
+    tire = {f"{p}{t}" for p in ("kt", "off", "ktq") for t in (15, 24, 33, 42)}
+    for name, p in law.items():
+        if name not in tire:
+            assert lat[name]["value"] == pytest.approx(p["value"], rel=1e-7, abs=1e-6), name
+
+
+@pytest.fixture(scope="module")
 def noise_all(truth, tmp_path_factory):
     return identify(tmp_path_factory.mktemp("mj"), "noise", ["sine", "spiral", "braking"], compensate_delays=True)
 

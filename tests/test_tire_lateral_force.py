@@ -1,4 +1,4 @@
-"""The progressive tire law's lateral-force term ([wheels] tire_fy_softening: kt q + ktq q² + off - ktfy Fy² q = Fz,
+"""The progressive tire law's lateral-force term ([wheels] tire_lateral_force: kt q + ktq q² + off - ktfy Fy² q = Fz,
 the Magic Formula's vertical stiffness falling with the lateral force, qFcy): a load term of the tree (model.tree),
 whose column car_identification builds from the measured wrench in every engine the car rows use.
 
@@ -20,7 +20,7 @@ N = 40
 
 
 def _tree(fy: bool = True):
-    return car_template(tire_offsets=True, tire_law="progressive", tire_fy_softening=fy)
+    return car_template(tire_offsets=True, tire_law="progressive", tire_lateral_force=fy)
 
 
 def _states(tree, seed: int = 3):
@@ -82,7 +82,7 @@ def test_least_squares_recovers_the_coefficients_of_loads_made_with_the_law():
 
 def test_without_the_progressive_law_the_option_is_refused():
     with pytest.raises(ValueError, match="progressive"):
-        car_template(tire_offsets=True, tire_law="paper", tire_fy_softening=True)
+        car_template(tire_offsets=True, tire_law="paper", tire_lateral_force=True)
 
 
 def test_engines_give_a_load_term_no_column_of_their_own():

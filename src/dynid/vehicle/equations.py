@@ -102,7 +102,7 @@ def identified(tree: Tree) -> list[str]:
     """The paper's parameters not listed as known, in the paper's order (a damper's curve slopes in place of its h,
     `car_template(damper_knees=...)`), then the tires' offsets and progressive stiffnesses where the tree has them
     (`car_template(tire_offsets=True, tire_law="progressive")`) and their lateral-force terms
-    (`tire_fy_softening=True`)."""
+    (`tire_lateral_force=True`)."""
     paper = [c for n in paper_parameter_names()
              for c in ((n,) if n in tree.index or not n.startswith("FV")
                        else tuple(f"{t}{n[2:]}" for t in CURVE_TERMS if f"{t}{n[2:]}" in tree.index))]
