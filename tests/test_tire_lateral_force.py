@@ -93,3 +93,13 @@ def test_engines_give_a_load_term_no_column_of_their_own():
     for backend in ("numpy", "numba"):
         W = m.regressor(q, qd, qdd, rows=list(TIRES), cols=[f"KFY{t}" for t in TIRES], backend=backend)
         assert not np.asarray(W).any()
+
+
+def test_a_model_file_refuses_a_tree_with_load_terms():
+    """A model file cannot say which measured wrench a load term reads: saving one is refused, not silently dropped."""
+    from dynid.model.files import tree_to_toml
+    from dynid.model.tree import ModelError
+
+    with pytest.raises(ModelError, match="load terms on frames \\[15, 24, 33, 42\\]"):
+        tree_to_toml(_tree())
+    assert "KQ = " in tree_to_toml(_tree(fy=False))
