@@ -23,9 +23,10 @@ def mujoco_truth() -> dict:
 
 
 def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
-             tire_law: str = "paper", lateral_force: bool = False) -> tuple[dict, dict]:
+             tire_law: str = "paper", lateral_force: bool = False, conditioning: str = "") -> tuple[dict, dict]:
     """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` and, when
-    lateral_force, `tire_lateral_force = true` in its [wheels]) on `tests` of `folder`."""
+    lateral_force, `tire_lateral_force = true` in its [wheels]) on `tests` of `folder`; conditioning: more lines of
+    the config's [conditioning] (TOML)."""
     vehicle = EXAMPLE / "vehicle.toml"
     if tire_law != "paper":
         text = vehicle.read_text()
@@ -40,9 +41,9 @@ def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
         lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
                   f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
-              f"compensate_delays = {'true' if compensate_delays else 'false'}",
+              f"compensate_delays = {'true' if compensate_delays else 'false'}", conditioning,
               "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
-    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}.toml"
+    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}{'_c' if conditioning else ''}.toml"
     cfg.write_text("\n".join(lines) + "\n")
     out = tmp / cfg.stem
     assert main(["identify", str(cfg), "--out", str(out)]) == 0

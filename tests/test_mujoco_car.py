@@ -138,6 +138,32 @@ def test_the_lateral_force_term_brings_every_tire_group_below_two_percent(ideal_
 
 
 @pytest.fixture(scope="module")
+def ideal_friction_lowpass(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine", "spiral", "braking"], compensate_delays=False,
+                    conditioning="friction_lowpass = true\nmin_speed = 0.02")
+
+
+def test_friction_columns_through_the_loads_low_pass_give_the_suspensions_within_one_percent(
+        truth, ideal_all, ideal_friction_lowpass):
+    """[conditioning] friction_lowpass = true: the dampers' dry-friction columns through the loads' low-pass (W and Y
+    through the same filters). With min_speed 0.02 m/s every spring, damper and bar is within issue 24's 1 % on
+    ideal/ and the dry friction within 5 % (measured: ks <= 0.51 %, h <= 0.68 %, fs <= 0.93 %, bars <= 0.47 %;
+    the defaults miss by up to 2.7 %), and every suspension group's residual falls below half the defaults'
+    (measured 0.06 / 0.06 / 0.04 / 0.05 % against 0.24 / 0.25 / 0.15 / 0.14 %)."""
+    res, _ = ideal_friction_lowpass
+    values = {p["label"]: p["value"] for p in res["parameters"]}
+    true = {p["label"]: p["value"] for p in truth["true_parameters"]}
+    for corner in (9, 18, 27, 36):
+        for kind in ("ks", "h"):
+            assert values[f"{kind}{corner}"] == pytest.approx(true[f"{kind}{corner}"], rel=0.01), (kind, corner)
+        assert values[f"fs{corner}"] == pytest.approx(true[f"fs{corner}"], rel=0.05)
+        group = f"susp{corner}"
+        assert res["validation"]["direct"][group] < 0.5 * ideal_all[0]["validation"]["direct"][group]
+    for bar in ("karf", "karr"):
+        assert values[bar] == pytest.approx(true[bar], rel=0.01)
+
+
+@pytest.fixture(scope="module")
 def noise_all(truth, tmp_path_factory):
     return identify(tmp_path_factory.mktemp("mj"), "noise", ["sine", "spiral", "braking"], compensate_delays=True)
 
