@@ -189,7 +189,7 @@ class CarSetup:
         s = self.settings
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
-                          equations=self.equations)[0]
+                          equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
 
     def load_only(self, channel: str) -> bool:
         """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
