@@ -325,8 +325,8 @@ def test_knees_from_noise_free_files(tmp_path):
     """The simulator's bilinear dampers (knees at 0.1 m/s); the demo's tests and a 1 Hz sine steer (which moves the
     dampers past the knees in a quarter of its samples: the demo's tests alone put 2-9 rows of a side past them)
     as noise-free logger files, identified with a vehicle file that gives no knee: every chosen knee within 1 % of
-    0.1 m/s (measured 0.02-0.5 %), every slope within 2 % of the truth (measured 1.6 %), the results' note names
-    the knees. Cutoff 10 Hz (the docs' advice for curves)."""
+    0.1 m/s (measured 0.02-0.5 %), every slope within 2 % of the truth (measured 1.6 %), the results' note and
+    results.json name the knees. Cutoff 10 Hz."""
     from test_car_truth import judged
 
     from dynid.pipeline.config import load_config
@@ -355,3 +355,59 @@ def test_knees_from_noise_free_files(tmp_path):
     bad = {n: f"{100 * errors[n]:+.2f} %" for n in slopes if abs(errors[n]) > 0.02}
     assert not bad, bad
     assert "Damper knees chosen from the data" in run.notes
+    from dynid.pipeline.run import write_outputs
+
+    write_outputs(run, tmp_path / "out", "knees from the data")
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert data["damper_knees_from_data"] == list(DAMPERS)
+    assert data["damper_knees"] == {str(d): list(k) for d, k in knees.items()}
+
+
+# ----- the sensor suite, ten seeds -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def curve_seeds(tmp_path_factory):
+    """The bilinear dampers' car through the demo's tests and a 1 Hz sine steer (its own seed: 100 + seed), the
+    sensor suite's noise and zero offsets, cutoff 10 Hz, WLS: {seed: {slope: (error / truth, σ total / truth)}}."""
+    from test_car_truth import SEEDS, judged
+
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.demo import simulate_tests, simulated_car, write_demo
+    from dynid.pipeline.run import identify
+    from dynid.vehicle.sim.recording import write_test
+
+    root = tmp_path_factory.mktemp("curves")
+    vehicle = curve_vehicle(root)
+    results = simulate_tests(vehicle=vehicle)
+    sine = simulated_car(vehicle).run("sine", duration=20.0, frequency=1.0, lateral_acceleration=5.0)
+    suite = load_vehicle(vehicle).suite
+    out = {}
+    for seed in SEEDS:
+        folder = root / f"seed{seed}"
+        config = write_demo(folder, results, seed=seed, fmt="parquet", vehicle=vehicle)
+        write_test(sine, folder / "data" / "sine1hz.parquet", seed=seed + 100, noise=True, suite=suite)
+        text = config.read_text().replace("cutoff = 4.0", "cutoff = 10.0")
+        config.write_text(text + '\n[[tests]]\nname = "sine 1 Hz"\nrole = "identify"\nfile = "data/sine1hz.parquet"\n')
+        judged_ = judged(identify(load_config(config)).result)
+        out[seed] = {n: judged_[n][:2] for n in judged_ if n.startswith(tuple(SLOPES))}
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_ten_seeds_slopes_and_their_sigma(curve_seeds):
+    """With the sensor suite (noise and per-test zero offsets), ten seeds: every low-speed slope within 10 % of the
+    truth in at least 9 of 10 (measured 10 of 10), and every slope's σ total honest: the RMS of (estimate - truth)
+    / σ total over the seeds within 0.5-2 (measured 0.57-1.91). The high-speed slopes are NOT within 10 % in 9 of
+    10 (measured 3 to 10 of 10): the wheel forces' vertical zero offsets, drawn anew at each test's zeroing (10 N),
+    move them by 9-14 % each, through the two sine steers (docs/vehicle.md, 'Damper curves'); σ total says so."""
+    seeds = list(curve_seeds)
+    names = list(curve_seeds[seeds[0]])
+    assert len(names) == 16
+    low = [n for n in names if n.startswith(("FVPL", "FVNL"))]
+    misses = {n: [s for s in seeds if abs(curve_seeds[s][n][0]) > 0.10] for n in low}
+    assert all(len(m) <= 1 for m in misses.values()), misses
+    rms = {n: float(np.sqrt(np.mean([(curve_seeds[s][n][0] / curve_seeds[s][n][1]) ** 2 for s in seeds])))
+           for n in names}
+    off = {n: round(r, 2) for n, r in rms.items() if not 0.5 <= r <= 2.0}
+    assert not off, off

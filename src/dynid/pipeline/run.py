@@ -838,6 +838,10 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if getattr(run.model.tree, "knees", None) and run.config is not None and hasattr(run.config, "car"):
+        # a car's damper curves: the knees (v-, v+) m/s per damper, and which the search chose from the data
+        data["damper_knees"] = {str(d): list(k) for d, k in run.model.tree.knees.items()}
+        data["damper_knees_from_data"] = [d for d, *_ in run.config.car.knees]
     if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
         data["tires"] = run.tires.to_dict()
     data.update(report.data)
