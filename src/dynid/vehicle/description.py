@@ -49,7 +49,8 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     [dampers]                               # optional: the dampers' law (docs/vehicle.md, "Damper curves")
     law = "curve"                           # "linear" (default: the paper's h q') or "curve": per damper
     knee_bump_m_s = 0.1                     # four slopes hbl hbh (bump) hrl hrh (rebound) about these knees
-    knee_rebound_m_s = 0.1                  # (clearance rates, > 0; "inf": no knee on that side)
+    knee_rebound_m_s = 0.1                  # (clearance rates, > 0; "inf": no knee on that side; an axle
+                                            # given neither: the identification chooses them from the data)
     [dampers.front]                         # optional: an axle's own knees
     knee_bump_m_s = 0.15
     [a_priori]                              # the parameters' a priori values (names or the paper's labels)
