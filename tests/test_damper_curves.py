@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -126,7 +127,7 @@ def test_vehicle_file_curves(tmp_path):
 
 @pytest.mark.parametrize("law, knees, extra, message", [
     ("valved", "", "", "law = 'valved'; give one of linear, curve"),
-    ("curve", "knee_bump_m_s = 0.1", "", "needs the knees of the rear dampers"),
+    ("curve", "knee_bump_m_s = 0.1", "", "rear dampers have knee_bump_m_s but no knee_rebound_m_s"),
     ("curve", "knee_bump_m_s = 100\nknee_rebound_m_s = 0.1", "", "knee_bump_m_s = 100 m/s is outside"),
     ("curve", "knee_bump_m_s = -0.1\nknee_rebound_m_s = 0.1", "", "a number > 0"),
     ("linear", "", "hbl9 = 3000.0", "hbl9 is a damper curve's slope, but \\[dampers\\] law"),
@@ -267,3 +268,152 @@ def test_sheet_damping_ratio_of_a_curve(tmp_path):
         assert car_quantities(curve, v.geometry)[key] == pytest.approx(car_quantities(linear, v.geometry)[key],
                                                                        rel=1e-12)
         assert car_quantities(curve, v.geometry)[key] > 0.1
+
+
+# ----- knees from the data (issue 31: "knee velocities chosen by the user or from the data's velocity range") -------
+
+def test_knee_search_finds_the_knees_of_a_synthetic_damper():
+    """KneeSearch on rows written by hand: Y = K q + off + the curve of knees (-0.135, 0.087) + fs sign(q') + noise,
+    the linear law's columns (q, q', sign, 1) as W; the knees come back within 1 % (the grid is 4 % apart and
+    neither knee is within 1 % of a grid point: the parabola's refinement brings them there), the rows added in
+    three chunks merged."""
+    from dynid.vehicle.dampers import KNEE_GRID, KneeSearch
+
+    rng = np.random.default_rng(7)
+    N = 6000
+    lo, hi = -0.135, 0.087
+    assert all(np.min(np.abs(np.log(KNEE_GRID / k))) > 0.01 for k in (hi, -lo))
+    qd = 0.12 * rng.standard_normal(N)
+    q = 0.02 * rng.standard_normal(N)
+    curve = np.array([2000 * min(v, hi) + 900 * max(v - hi, 0) if v >= 0 else 4100 * max(v, lo) + 1700 * min(v - lo, 0)
+                      for v in qd])
+    Y = 22000 * q + 300.0 + curve + 40 * np.sign(qd) + rng.normal(scale=5.0, size=N)
+    W = np.column_stack([q, qd, np.sign(qd), np.ones(N)])
+    parts = []
+    for rows in np.array_split(np.arange(N), 3):
+        s = KneeSearch()
+        s.add(9, W[rows], Y[rows], s.hinges(qd[rows]), qd[rows])
+        parts.append(s)
+    found = parts[0].merge(parts[1]).merge(parts[2]).knees()[9]
+    assert found[0] == pytest.approx(lo, rel=0.01) and found[1] == pytest.approx(hi, rel=0.01), found
+
+
+def test_vehicle_without_knees_takes_them_from_the_data(tmp_path):
+    """law = "curve" without knees: those dampers are the search's (knees_from_data), with h until then; with_knees
+    gives the curve the knees and the a priori slopes h (an "inf" side: no high-speed slope)."""
+    v = load_vehicle(curve_vehicle(tmp_path, knees="", truth=False))
+    assert v.knees_from_data == DAMPERS and v.damper_knees == {}
+    tree = v.template()
+    assert "FV9" in tree.index and "FVPL9" not in tree.index and not tree.knees
+    chosen = v.with_knees({d: (-0.12, 0.09) for d in DAMPERS[:3]} | {36: (-math.inf, 0.2)})
+    assert chosen.knees_from_data == () and chosen.damper_knees[36] == (-math.inf, 0.2)
+    tree = chosen.template()
+    assert tree.knees[9] == (-0.12, 0.09)
+    assert [tree.values[f"{t}9"] for t in SLOPES] == [4200.0] * 4
+    assert "FVNH36" not in tree.index and tree.values["FVPH36"] == 3200.0
+    # the front axle's knees given, the rear's from the data
+    v = load_vehicle(curve_vehicle(tmp_path, knees="[dampers.front]\nknee_bump_m_s = 0.1\nknee_rebound_m_s = 0.2",
+                                   truth=False))
+    assert v.knees_from_data == (9, 18) and v.damper_knees[27] == (-0.2, 0.1)
+    with pytest.raises(VehicleError, match="damper 27's knees are the file's"):
+        v.with_knees({27: (-0.1, 0.1)})
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_knees_from_noise_free_files(tmp_path):
+    """The simulator's bilinear dampers (knees at 0.1 m/s); the demo's tests and a 1 Hz sine steer (which moves the
+    dampers past the knees in a quarter of its samples: the demo's tests alone put 2-9 rows of a side past them)
+    as noise-free logger files, identified with a vehicle file that gives no knee: every chosen knee within 1 % of
+    0.1 m/s (measured 0.02-0.5 %), every slope within 2 % of the truth (measured 1.6 %), the results' note and
+    results.json name the knees. Cutoff 10 Hz."""
+    from test_car_truth import judged
+
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.demo import simulate_tests, simulated_car, write_demo
+    from dynid.pipeline.run import identify
+    from dynid.vehicle.sim.recording import write_test
+
+    vehicle = curve_vehicle(tmp_path)
+    results = simulate_tests(vehicle=vehicle)
+    sine = simulated_car(vehicle).run("sine", duration=20.0, frequency=1.0, lateral_acceleration=5.0)
+    config = write_demo(tmp_path, results, noise=False, vehicle=vehicle)
+    write_test(sine, tmp_path / "data" / "sine1hz.csv", noise=False, suite=load_vehicle(vehicle).suite)
+    (tmp_path / "auto").mkdir()
+    auto = curve_vehicle(tmp_path / "auto", knees="", truth=False)  # the truth's curves come from the sidecar
+    text = config.read_text().replace("cutoff = 4.0", "cutoff = 10.0").replace(
+        json.dumps(str(Path(vehicle).resolve().as_posix())), json.dumps(str(Path(auto).resolve().as_posix())))
+    assert auto in text
+    config.write_text(text + '\n[[tests]]\nname = "sine 1 Hz"\nrole = "identify"\nfile = "data/sine1hz.csv"\n')
+    run = identify(load_config(config))
+    knees = {d: (lo, hi) for d, lo, hi in run.config.car.knees}
+    assert set(knees) == set(DAMPERS) and run.model.tree.knees == knees
+    off = {d: k for d, k in knees.items() if not (abs(k[0] + 0.1) < 1e-3 and abs(k[1] - 0.1) < 1e-3)}
+    assert not off, off
+    errors = {n: e for n, (e, *_rest) in judged(run.result).items()}
+    slopes = [f"{t}{d}" for d in DAMPERS for t in SLOPES]
+    bad = {n: f"{100 * errors[n]:+.2f} %" for n in slopes if abs(errors[n]) > 0.02}
+    assert not bad, bad
+    assert "Damper knees chosen from the data" in run.notes
+    from dynid.pipeline.run import write_outputs
+
+    write_outputs(run, tmp_path / "out", "knees from the data")
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert data["damper_knees_from_data"] == list(DAMPERS)
+    assert data["damper_knees"] == {str(d): list(k) for d, k in knees.items()}
+
+
+# ----- the sensor suite, ten seeds -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def curve_seeds(tmp_path_factory):
+    """The bilinear dampers' car through the demo's tests and a 1 Hz sine steer (its own seed: 100 + seed), the
+    sensor suite's noise and zero offsets, cutoff 6 Hz (docs/vehicle.md's advice for curves with WLS), WLS:
+    {seed: {slope: (error / truth, σ total / truth)}}."""
+    from test_car_truth import SEEDS, judged
+
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.demo import simulate_tests, simulated_car, write_demo
+    from dynid.pipeline.run import identify
+    from dynid.vehicle.sim.recording import write_test
+
+    root = tmp_path_factory.mktemp("curves")
+    vehicle = curve_vehicle(root)
+    results = simulate_tests(vehicle=vehicle)
+    sine = simulated_car(vehicle).run("sine", duration=20.0, frequency=1.0, lateral_acceleration=5.0)
+    suite = load_vehicle(vehicle).suite
+    out = {}
+    for seed in SEEDS:
+        folder = root / f"seed{seed}"
+        config = write_demo(folder, results, seed=seed, fmt="parquet", vehicle=vehicle)
+        write_test(sine, folder / "data" / "sine1hz.parquet", seed=seed + 100, noise=True, suite=suite)
+        text = config.read_text().replace("cutoff = 4.0", "cutoff = 6.0")
+        config.write_text(text + '\n[[tests]]\nname = "sine 1 Hz"\nrole = "identify"\nfile = "data/sine1hz.parquet"\n')
+        judged_ = judged(identify(load_config(config)).result)
+        out[seed] = {n: judged_[n][:2] for n in judged_ if n.startswith(tuple(SLOPES))}
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_ten_seeds_slopes_and_their_sigma(curve_seeds):
+    """With the sensor suite (noise and per-test zero offsets), ten seeds: every low-speed slope within 10 % of the
+    truth in at least 9 of 10 (measured 10 of 10) and without the rate noise's bias: its mean error over the seeds
+    within 3 % (measured 1.2 %; three standard errors of a mean of ten with the largest spread, 2.8 %; at 10 Hz the
+    noise biased them up to 4.3 %); every slope's σ total honest: the RMS of (estimate - truth) / σ total over the
+    seeds within 0.5-2 (measured 0.61-1.17). The high-speed slopes are NOT within 10 % in 9 of 10 (measured 3 to 10
+    of 10): the wheel forces' vertical zero offsets, drawn anew at each test's zeroing (10 N), move them by 9-14 %
+    each through the two sine steers (docs/vehicle.md, 'Damper curves'); σ total says so."""
+    seeds = list(curve_seeds)
+    names = list(curve_seeds[seeds[0]])
+    assert len(names) == 16
+    low = [n for n in names if n.startswith(("FVPL", "FVNL"))]
+    misses = {n: [s for s in seeds if abs(curve_seeds[s][n][0]) > 0.10] for n in low}
+    assert all(len(m) <= 1 for m in misses.values()), misses
+    mean = {n: float(np.mean([curve_seeds[s][n][0] for s in seeds])) for n in low}
+    biased = {n: f"{100 * m:+.1f} %" for n, m in mean.items() if abs(m) > 0.03}
+    assert not biased, biased
+    rms = {n: float(np.sqrt(np.mean([(curve_seeds[s][n][0] / curve_seeds[s][n][1]) ** 2 for s in seeds])))
+           for n in names}
+    off = {n: round(r, 2) for n, r in rms.items() if not 0.5 <= r <= 2.0}
+    assert not off, off

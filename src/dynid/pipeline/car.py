@@ -11,7 +11,9 @@ from ..dynamics import BaseParameters, Model
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
 from ..signals import decimate_parallel, lowpass
-from ..vehicle import DAMPERS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle.dampers import KneeSearch
+from ..vehicle.equations import group_name
 from ..vehicle.estimate import CarTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
 from ..vehicle.sensors import CORNER_TAGS
@@ -57,15 +59,7 @@ def car_system(
     through the same filters. None: not (the columns are s(qd) decimated only).
     """
     decimate = tuple(decimate or ())
-    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
-    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
-    total = int(np.prod(decimate)) if decimate else 1
-    k = None
-    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
-        needed = max(5 * cutoff, spin / 0.9)
-        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
-    # W there, the rest of the decimation in one stage
-    k, rest = (1, decimate) if k is None else (k, (total // k,))
+    k, rest = _stride(traj, fs, decimate, cutoff)
     coarse = _every(traj, k)
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
@@ -100,6 +94,39 @@ def car_system(
     sys = GroupedSystem(stacked(W), Y.T.reshape(-1)[keep], np.repeat(labels, n)[keep], np.tile(t, rows)[keep],
                         stacked(Z), keep)
     return sys, eq.base
+
+
+def _stride(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
+            ) -> tuple[int, tuple[int, ...]]:
+    """(k, rest): W computed on every k-th sample, then decimated by `rest` (car_system's doc)."""
+    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
+    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
+    total = int(np.prod(decimate)) if decimate else 1
+    k = None
+    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
+        needed = max(5 * cutoff, spin / 0.9)
+        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
+    # W there, the rest of the decimation in one stage
+    return (1, decimate) if k is None else (k, (total // k,))
+
+
+def knee_rows(sys: GroupedSystem, traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None,
+              search: KneeSearch, dampers: Sequence[int]) -> None:
+    """Add to `search` each damper's group rows of `sys` (car_system's rows of traj, the linear law) with the
+    candidate curves' columns (`KneeSearch.hinges`) computed and decimated as W is, and the rows' rates."""
+    decimate = tuple(decimate or ())
+    k, rest = _stride(traj, fs, decimate, cutoff)
+    rate = traj.qd[::k][:, [d - 1 for d in dampers]]
+    cols = np.concatenate([rate, *(search.hinges(rate[:, i]) for i in range(len(dampers)))], axis=1)
+    if rest:
+        cols, _ = decimate_parallel(cols, None, rest, fs / k)
+    rows = len(sys.kept) // cols.shape[0] if sys.kept is not None else None
+    width = 1 + 2 * search.grid.size
+    for i, d in enumerate(dampers):
+        sel = sys.groups == group_name(d)
+        mask = sys.kept.reshape(rows, -1)[EQUATION_ROWS.index(d)]
+        H = cols[:, len(dampers) + i * width: len(dampers) + (i + 1) * width][mask]
+        search.add(d, sys.W[sel], sys.Y[sel], H, cols[mask, i])
 
 
 def _every(traj: CarTrajectory, k: int) -> CarTrajectory:

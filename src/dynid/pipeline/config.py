@@ -219,6 +219,9 @@ class CarSettings:
     estimate_offsets: bool = True  # each test's offsets estimated with the parameters (estimation.offsets)
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
     tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
+    # the damper curves' knees chosen from the data ((damper, v-, v+) m/s, pipeline.run): the vehicle file's
+    # dampers without knees (Vehicle.knees_from_data) take these; () until the search ran
+    knees: tuple[tuple[int, float, float], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,7 @@ from .robot import GroupedSystem, chunk_rows, to_frames
 from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window
 
 if TYPE_CHECKING:
+    from ..vehicle.dampers import KneeSearch
     from ..vehicle.estimate import CarTrajectory
     from ..vehicle.tire_curves import TireSamples
 
@@ -69,6 +70,7 @@ class CarJob:
     delays: bool = False
     lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
     estimate_offsets: bool = False  # the offsets' rows kept for their estimate (estimation.offsets), weight 1
+    knees: bool = False  # the knees' search alone (vehicle.dampers.KneeSearch): the dampers' rows and candidates
 
     @property
     def test(self) -> str:
@@ -90,6 +92,7 @@ class Partial:
     shifts: ShiftSums | None = None
     tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
+    knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -99,7 +102,7 @@ def combine(a: Partial, b: Partial) -> Partial:
 
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
-                   both(a.tires, b.tires), both(a.zeros, b.zeros))
+                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees))
 
 
 class CarSetup:
@@ -114,7 +117,10 @@ class CarSetup:
         from ..vehicle.estimate import CarConditioning
 
         settings = self.settings = cfg.car
-        vehicle = self.vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+        vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+        if settings.knees:  # the knees the search chose from the data (pipeline.run)
+            vehicle = vehicle.with_knees({d: (lo, hi) for d, lo, hi in settings.knees})
+        self.vehicle = vehicle
         tree = vehicle.template()
         # the bench values of the vehicle file, then the config's (a config may fix more, or other values)
         known = {**vehicle.known, **{tree.parameter_names[tree.column(k)]: v for k, v in cfg.known.items()}}
@@ -248,6 +254,14 @@ def reduce_car_segment(job: CarJob) -> Partial:
     compensated = setup.compensated(channels, w.fs, lags)
     traj = setup.trajectory(channels, w.fs, lags, compensated)
     sys = setup.rows(traj, w.fs, job.instruments)
+    if job.knees:
+        from ..vehicle.dampers import KneeSearch
+        from .car import knee_rows
+
+        search = KneeSearch()
+        knee_rows(sys, traj, w.fs, setup.settings.decimate, setup.conditioning.cutoff, search,
+                  setup.vehicle.knees_from_data)
+        return Partial(StreamingLS(setup.names), knees=search)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})

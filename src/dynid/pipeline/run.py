@@ -262,15 +262,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     scheduler = scheduler or LocalScheduler()
     settings = cfg.car
     setup = car_setup(cfg)
-    vehicle, tree, names = setup.vehicle, setup.tree, setup.names
-    truth = next((read_truth(t.truth, tree) for t in cfg.tests if t.truth is not None), {})
-
-    def base_values(values: dict[str, float]) -> dict[str, float]:
-        X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
-        return dict(zip(names, setup.base.values(X), strict=True))
-
-    kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
-              truth=true_base_values(truth, tree, setup.base) if truth else None, poor_factor=cfg.poor_factor)
+    vehicle = setup.vehicle
 
     # 1. plan: each test's file indexed, its clock and segments (a pass over the time stamps only)
     wanted = required_channels(spin=False, suite=vehicle.suite)
@@ -284,6 +276,21 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
     health = check_car_tests(cfg, plans, vehicle, say)  # the data's health: an error stops the run here
+    knees_note = ""
+    if vehicle.knees_from_data:  # the damper curves' knees from the data: a search pass, then the curves' setup
+        cfg, knees_note = _knees_from_data(cfg, setup, plans, scheduler, say)
+        setup = car_setup(cfg)
+        vehicle = setup.vehicle
+    tree, names = setup.tree, setup.names
+    truth = next((read_truth(t.truth, tree) for t in cfg.tests if t.truth is not None), {})
+
+    def base_values(values: dict[str, float]) -> dict[str, float]:
+        X = np.array([values.get(n, 0.0) for n in tree.parameter_names])
+        return dict(zip(names, setup.base.values(X), strict=True))
+
+    kw = dict(labels={n: tree.label(n) for n in names}, a_priori=base_values(vehicle.a_priori.values),
+              truth=true_base_values(truth, tree, setup.base) if truth else None, poor_factor=cfg.poor_factor)
+
 
     # 2. map every segment to its factors (the offsets' effect on a few of each identification test's), fold per
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
@@ -385,7 +392,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + offsets_note(result, offsets, offset_estimates and offset_estimates.offsets)
+        notes=sensors_note(vehicle) + knees_note
+        + offsets_note(result, offsets, offset_estimates and offset_estimates.offsets)
         + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
@@ -414,6 +422,29 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, say: Progress
+                     ) -> tuple[IdentifyConfig, str]:
+    """The knees of the dampers the vehicle file gives none (`vehicle.dampers.KneeSearch` on every identification
+    segment's rows): the config that carries them, and the results' note saying what was chosen."""
+    from ..vehicle.sensors import CORNER_TAGS
+    from ..vehicle.template import DAMPERS
+
+    dampers = setup.vehicle.knees_from_data
+    say(f"choosing the knees of {len(dampers)} damper curve(s) from the data's clearance rates")
+    jobs = [CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1, knees=True)
+            for plan in plans if plan.role == "identify" for i, (lo, hi) in enumerate(plan.segments)]
+    search = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.role, combine, say)["identify"].knees
+    knees = search.knees()
+    chosen = tuple((d, *knees[d]) for d in dampers)
+    words = "; ".join(f"{CORNER_TAGS[DAMPERS.index(d)]} (h{d}) bump {hi:.3g}, rebound {-lo:.3g}"
+                      for d, lo, hi in chosen)
+    note = (f"Damper knees chosen from the data (m/s; the vehicle file gives none): {words}. Each is where the "
+            "damper's slope changes: the least residual of its own equation over candidate knees 4 % apart, both "
+            "pieces holding at least 1 % of that side's rows and 10 rows (vehicle.dampers.KneeSearch).\n")
+    say(note.rstrip())
+    return dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, knees=chosen)), note
 
 
 def _tire_curves(parts: dict, vehicle, say: Progress):
@@ -857,6 +888,10 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
         data["sensor_offsets"] = run.offsets
     if run.health is not None:  # the data health findings (pipeline.health)
         data["health"] = run.health
+    if getattr(run.model.tree, "knees", None) and run.config is not None and hasattr(run.config, "car"):
+        # a car's damper curves: the knees (v-, v+) m/s per damper, and which the search chose from the data
+        data["damper_knees"] = {str(d): list(k) for d, k in run.model.tree.knees.items()}
+        data["damper_knees_from_data"] = [d for d, *_ in run.config.car.knees]
     if run.tires is not None:  # the tire characteristics (vehicle.tire_curves)
         data["tires"] = run.tires.to_dict()
     data.update(report.data)

@@ -49,7 +49,8 @@ that has a unit carries it in its name (`_m`, `_deg`, `_kg_m3`, `_m2`); paramete
     [dampers]                               # optional: the dampers' law (docs/vehicle.md, "Damper curves")
     law = "curve"                           # "linear" (default: the paper's h q') or "curve": per damper
     knee_bump_m_s = 0.1                     # four slopes hbl hbh (bump) hrl hrh (rebound) about these knees
-    knee_rebound_m_s = 0.1                  # (clearance rates, > 0; "inf": no knee on that side)
+    knee_rebound_m_s = 0.1                  # (clearance rates, > 0; "inf": no knee on that side; an axle
+                                            # given neither: the identification chooses them from the data)
     [dampers.front]                         # optional: an axle's own knees
     knee_bump_m_s = 0.15
     [a_priori]                              # the parameters' a priori values (names or the paper's labels)
@@ -68,7 +69,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
@@ -141,6 +143,25 @@ class Vehicle:
     # the kinematic tables the file did not give ("front_left.caster", ...): dynid's defaults stand in for them
     defaulted_tables: tuple[str, ...] = ()
     dynamics: LoggerDynamics | None = None  # [sensors.dynamics]; None: the suite's Table-1 sensors
+
+    @property
+    def knees_from_data(self) -> tuple[int, ...]:
+        """The dampers whose curve's knees the identification chooses from the data (law "curve", no knees in
+        the file): until then they have h (`with_knees`)."""
+        return tuple(d for d in DAMPERS if self.damper_law == "curve" and d not in self.damper_knees)
+
+    def with_knees(self, knees: Mapping[int, tuple[float, float]]) -> Vehicle:
+        """This vehicle with the knees of dampers in `knees_from_data` ((v-, v+) m/s each), their a priori
+        curves starting from h (each slope = h)."""
+        values = dict(self.a_priori.values)
+        for d, (lo, hi) in knees.items():
+            if d not in self.knees_from_data:
+                raise VehicleError(f"{self.source or self.name}: damper {d}'s knees are the file's, not the data's")
+            h = values.pop(f"FV{d}")
+            values.update({f"{t}{d}": h for t, finite in (("FVPL", True), ("FVPH", math.isfinite(hi)),
+                                                         ("FVNL", True), ("FVNH", math.isfinite(lo))) if finite})
+        return replace(self, damper_knees={**self.damper_knees, **knees},
+                       a_priori=replace(self.a_priori, values=values))
 
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
@@ -301,9 +322,10 @@ def _dampers(t: dict, where: str) -> tuple[str, dict[int, tuple[float, float]]]:
         if len(pair) == 2:
             for k in corners:
                 knees[DAMPERS[k]] = (-pair[1], pair[0])
-        elif law == "curve":
-            raise VehicleError(f"{where}: [dampers] law = \"curve\" needs the knees of the {axle} dampers: give "
-                               f"knee_bump_m_s and knee_rebound_m_s in [dampers] (or [dampers.{axle}]), like 0.1 m/s")
+        elif pair:
+            raise VehicleError(f"{where}: [dampers] the {axle} dampers have {_KNEE_KEYS[0]} but no {_KNEE_KEYS[1]}: "
+                               "give both knees, or neither (law = \"curve\" then chooses them from the data, "
+                               "docs/vehicle.md 'Damper curves')")
     return law, knees
 
 
@@ -326,6 +348,8 @@ def _curves(values: dict[str, float], law: str, knees: dict[int, tuple[float, fl
             continue
         if section == "truth" and not given:
             continue
+        if d not in knees and section == "a_priori" and not given:
+            continue  # its knees come from the data (Vehicle.with_knees): h until then
         if d not in knees:
             lab = labels()
             raise VehicleError(f"{where}: [{section}] {lab[given[0]]} is a damper curve's slope: give its knees, "
