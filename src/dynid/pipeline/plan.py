@@ -27,12 +27,14 @@ import time
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..estimation import StreamingLS
-from ..estimation.systematic import BiasAccumulator, propagate
+from ..estimation.systematic import BiasAccumulator
 from .config import ConfigError, load_config
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
 from .schedulers import LocalScheduler
@@ -267,6 +269,20 @@ class Piece:
     bias: BiasAccumulator | None
     noisy: StreamingLS
 
+    @cached_property
+    def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+        """The offsets' sums as arrays (`systematic.propagate`'s bracket a - B x per source and group): the groups,
+        a (sources, groups, q), B (sources, groups, q, q); zeros where a source leaves a group alone."""
+        groups = tuple(self.ls.group_rows)
+        q = len(self.ls.estimated_names)
+        terms = self.bias.terms if self.bias is not None else {}
+        a = np.zeros((len(terms), len(groups), q))
+        B = np.zeros((len(terms), len(groups), q, q))
+        for i, per in enumerate(terms.values()):
+            for g, (ag, Bg) in per.items():
+                a[i, groups.index(g)], B[i, groups.index(g)] = ag, Bg
+        return groups, a, B
+
 
 def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float]) -> str:
     """The identification config of these tests (name -> file), all identified, with the demo's conditioning."""
@@ -274,7 +290,8 @@ def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[st
 
     from .demo import conditioning_toml
 
-    lines = ["# dynid plan's candidate tests", "", "[model]", f"vehicle = {json.dumps(vehicle)}", ""]
+    lines = ["# dynid plan's tests: rerun with `dynid identify identify.toml --out DIR`", "", "[model]",
+             f"vehicle = {json.dumps(vehicle)}", ""]
     for name, path in files.items():
         lines += ["[[tests]]", f"name = {json.dumps(name)}", 'role = "identify"', f"file = {json.dumps(path)}", ""]
     return "\n".join(lines + conditioning_toml(dict(offsets)))
@@ -351,40 +368,29 @@ class Prediction:
         return np.sqrt(self.std_stat**2 + self.std_sys**2)
 
 
-def renamed(bias: BiasAccumulator, run: int) -> BiasAccumulator:
-    """The offsets' sums of a test's `run`-th repetition: its own sources (zeroed anew), the same sums."""
-    if run == 1:
-        return bias
-    return dataclasses.replace(bias, terms={f"{s} #{run}": per for s, per in bias.terms.items()})
-
-
 def predict(pieces: Sequence[Piece]) -> Prediction:
     """The σ total `dynid identify` would report on these tests (module doc); a test may appear more than once
-    (each a new zeroing and a new noise draw)."""
+    (each a new zeroing and a new noise draw: its offsets are new sources)."""
     import warnings
 
     from scipy.linalg import solve_triangular
 
     from ..estimation.errors import EstimationWarning
 
-    ls, noisy, bias = pieces[0].ls, pieces[0].noisy, pieces[0].bias
-    runs = {id(pieces[0]): 1}
+    noisy = pieces[0].noisy
     for p in pieces[1:]:
-        runs[id(p)] = runs.get(id(p), 0) + 1
-        ls, noisy = ls.merge(p.ls), noisy.merge(p.noisy)
-        if p.bias is not None:
-            b = renamed(p.bias, runs[id(p)])
-            bias = b if bias is None else bias.merge(b)
+        noisy = noisy.merge(p.noisy)
     with warnings.catch_warnings():  # a group the tests do not move has its noise floored: said by the σ it gives
         warnings.simplefilter("ignore", EstimationWarning)
         sigmas = noisy.group_sigmas()
-    names = ls.estimated_names
+    names = pieces[0].ls.estimated_names
     q = len(names)
 
-    def stacked(acc: StreamingLS) -> np.ndarray:
-        return np.linalg.qr(np.vstack([acc.group_factor(g) / sigmas[g] for g in sigmas]), mode="r")
+    def stacked(factors: list[np.ndarray]) -> np.ndarray:
+        return np.linalg.qr(np.vstack(factors), mode="r")
 
-    R = stacked(ls)
+    # the weighted factor of every test's rows at once (one QR, not a merge per test)
+    R = stacked([p.ls.group_factor(g) / sigmas[g] for p in pieces for g in p.ls.group_rows])
     d = np.abs(np.diag(R[:q, :q]))
     rank = int(np.count_nonzero(d > 1e-10 * d.max()))
     if rank < q:
@@ -392,12 +398,20 @@ def predict(pieces: Sequence[Piece]) -> Prediction:
         return Prediction(names, np.full(q, np.nan), inf, inf, np.full((q, q), np.inf), rank)
     x = solve_triangular(R[:q, :q], R[:q, q])
     Rinv = solve_triangular(R[:q, :q], np.eye(q))
-    Ainv = Rinv @ Rinv.T
     # s²: the weighted residual of the noisy rows over their degrees of freedom (paper eq. (9)), about 1
-    s2 = float(stacked(noisy)[q, q] ** 2 / max(noisy.n_rows - q, 1))
-    C = s2 * Ainv
-    C_sys = np.zeros((q, q)) if bias is None else propagate(R[:q, :q].T @ R[:q, :q], bias, x, names, sigmas).covariance
-    return Prediction(names, x, np.sqrt(np.diag(C)), np.sqrt(np.clip(np.diag(C_sys), 0, None)), C + C_sys, rank)
+    s2 = float(stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])[q, q] ** 2 / max(noisy.n_rows - q, 1))
+    C = s2 * (Rinv @ Rinv.T)
+    # every test's offsets, independent sources (systematic.propagate, all sources at once): the shifts
+    # ΔX_k = A⁻¹ Σ_g (a_kg - B_kg x) / σ_g², their covariance Σ_k ΔX_k ΔX_kᵀ
+    g = []
+    for p in pieces:
+        groups, a, B = p.offsets
+        w = np.array([sigmas[k] ** -2.0 for k in groups])
+        g.append(np.einsum("sgq,g->sq", a - B @ x, w))
+    G = np.vstack(g)
+    shifts = Rinv @ (Rinv.T @ G.T)  # (q, sources)
+    C_sys = shifts @ shifts.T
+    return Prediction(names, x, np.sqrt(np.diag(C)), np.sqrt(np.diag(C_sys)), C + C_sys, rank)
 
 
 @dataclass(frozen=True)
@@ -523,6 +537,28 @@ class TestPlan:
     without: dict[str, Prediction]  # test key -> the plan without it (one repetition fewer)
     evaluations: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
+    results: dict[str, object] = field(default_factory=dict, repr=False)  # key -> SimulationResult (noise-free)
+
+    def rehearsal(self, folder: Path, seed: int = 406) -> Path:
+        """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
+        noise and zero offsets (seed + its index; a repeat is a new draw) in `folder`/data, and `folder`/
+        identify.toml identifying on all of them (the demo's conditioning); returns the config's path."""
+        from ..atomic import write_atomic
+        from ..vehicle.description import load_vehicle
+        from ..vehicle.sim.recording import write_test
+
+        suite = load_vehicle(self.vehicle).suite
+        (folder / "data").mkdir(parents=True, exist_ok=True)
+        files, runs = {}, {}
+        for i, k in enumerate(self.plan):
+            runs[k] = runs.get(k, 0) + 1
+            stem = k if runs[k] == 1 else f"{k}-{runs[k]}"
+            path, _ = write_test(self.results[k], folder / "data" / f"{stem}.csv", seed=seed + i, suite=suite)
+            name = self.candidates[k].name + (f" (repeat {runs[k]})" if runs[k] > 1 else "")
+            files[name] = path.relative_to(folder).as_posix()
+        where = Path(self.vehicle).resolve().as_posix() if self.vehicle.endswith(".toml") else self.vehicle
+        return write_atomic(folder / "identify.toml", plan_config_text(files, where, {c.name: c.bias for c in suite
+                                                                                     if c.bias}))
 
     @property
     def duration(self) -> float:
@@ -681,26 +717,79 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
     with tempfile.TemporaryDirectory(prefix="dynid-plan-") as tmp:
         pieces, setup = reduce_candidates(results, vehicle, Path(work or tmp), seed, say)
     lap("reducing")
-    names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
-    tree = setup.tree
-    labels = {n: tree.label(n) for n in names}
-    everything = predict(list(pieces.values()))
-    values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
-    from ..vehicle.engineering import car_quantities
+    # the evaluations are small dense problems, hundreds of them: one BLAS thread each is many times faster than a
+    # pool of threads contending for a loaded machine's cores (measured 27 ms against 500 ms per combination)
+    with threadpool_limits(limits=1, user_api="blas"):
+        names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
+        tree = setup.tree
+        labels = {n: tree.label(n) for n in names}
+        everything = predict(list(pieces.values()))
+        values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
+        from ..vehicle.engineering import car_quantities
 
-    quantities = car_quantities(values, setup.vehicle.geometry)
-    targets = targets_for(spec, names, values, quantities, labels)
-    score = scorer(names, values, targets, setup.vehicle.geometry)
-    say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
-    durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-    plan, evaluations = search(pieces, durations, score, repeats)
-    prediction = predict([pieces[k] for k in plan])
-    without = {}
-    for k in dict.fromkeys(plan):
-        rest = list(plan)
-        rest.remove(k)
-        without[k] = predict([pieces[t] for t in rest]) if rest else dataclasses.replace(
-            prediction, rank=0, std_stat=np.full(len(names), np.inf))
+        quantities = car_quantities(values, setup.vehicle.geometry)
+        targets = targets_for(spec, names, values, quantities, labels)
+        score = scorer(names, values, targets, setup.vehicle.geometry)
+        say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
+        durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
+        plan, evaluations = search(pieces, durations, score, repeats)
+        prediction = predict([pieces[k] for k in plan])
+        without = {}
+        for k in dict.fromkeys(plan):
+            rest = list(plan)
+            rest.remove(k)
+            without[k] = predict([pieces[t] for t in rest]) if rest else dataclasses.replace(
+                prediction, rank=0, std_stat=np.full(len(names), np.inf))
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
-                    labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds)
+                    labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
+                    {k: results[k] for k in dict.fromkeys(plan)})
+
+
+# ----------------------------------------------------------------------------------------------- honesty check
+@dataclass(frozen=True)
+class SeedCheck:
+    """The plan identified on `seeds` noisy rehearsals through `identify`: per parameter the predicted σ total, the
+    spread of the estimates over the seeds (sample standard deviation), the mean estimate; per seed whether the σ
+    total it reported met every target; seconds per identification."""
+
+    names: tuple[str, ...]
+    predicted: np.ndarray
+    spread: np.ndarray
+    mean: np.ndarray
+    met: tuple[bool, ...]
+    seconds: float
+
+    def text(self, labels: Mapping[str, str] | None = None) -> str:
+        labels = labels or {}
+        ratio = self.spread / self.predicted
+        lines = [f"{len(self.met)} seeds through identify ({self.seconds:.1f} s each): spread / predicted σ total per "
+                 f"parameter (median {np.median(ratio):.2f}, RMS {np.sqrt(np.mean(ratio ** 2)):.2f}); targets met "
+                 f"(σ total reported) in {sum(self.met)} of {len(self.met)} seeds"]
+        for n, p, s in zip(self.names, self.predicted, self.spread, strict=True):
+            lines.append(f"  {labels.get(n, n):<8} predicted {p:11.4g}  spread {s:11.4g}  ratio {s / p:5.2f}")
+        return "\n".join(lines)
+
+
+def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Progress | None = None) -> SeedCheck:
+    """`plan.rehearsal` for each seed identified by `identify` (the demo's procedure: files through the normal
+    pipeline); the spread of its estimates against the predicted σ total (module doc)."""
+    from ..report.build import car_engineering
+    from .run import identify
+
+    say = progress or (lambda _m: None)
+    names = plan.prediction.names
+    estimates, met = [], []
+    t0 = time.perf_counter()
+    for s in seeds:
+        say(f"seed {s}: identifying the plan's rehearsal")
+        run = identify(plan.rehearsal(folder / f"seed{s}", seed=1000 * s), progress=None)
+        r = run.result
+        estimates.append([r.value(n) for n in names])
+        total = dict(zip(r.names, r.std_total, strict=True))
+        figures = {q.key: q.std for q in car_engineering(run)[0]}
+        met.append(all((total[t.key] if t.kind == "parameter" else figures[t.key]) <= t.limit
+                       for t in plan.score.targets))
+    X = np.array(estimates)
+    return SeedCheck(tuple(names), plan.prediction.std_total, X.std(axis=0, ddof=1), X.mean(axis=0), tuple(met),
+                     (time.perf_counter() - t0) / len(seeds))
