@@ -53,7 +53,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
                         "(default: peugeot406)")
     p.add_argument("--targets", default=None, help="targets file (TOML; default: bench parity)")
-    p.add_argument("--out", default=None, help="folder for plan.txt and plan.json (default: print only)")
+    p.add_argument("--out", default=None,
+                   help="folder for plan.txt, plan.json and a rehearsal of the plan on the simulated car (its tests' "
+                        "noisy logger files in data/ and identify.toml: `dynid identify DIR/identify.toml` tries it); "
+                        "default: print only")
+    p.add_argument("--seed", type=int, default=406, help="seed of the rehearsal's sensor noise (default 406)")
     p.add_argument("--repeats", type=int, default=2, help="runs of one test the plan may hold, each a new zeroing "
                                                            "of the sensors (default 2)")
     p.set_defaults(func=cmd_plan)
@@ -81,6 +85,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         if stage is not None:
             write_atomic(stage / "plan.txt", text + "\n")
             write_atomic(stage / "plan.json", json.dumps(plan.to_dict(), indent=1, allow_nan=False))
+            plan.rehearsal(stage, args.seed)
     if out:
-        print(f"\nwrote {out / 'plan.txt'} and {out / 'plan.json'}", file=sys.stderr)
+        print(f"\nwrote {out / 'plan.txt'}, {out / 'plan.json'} and the plan's rehearsal ({out / 'data'}, "
+              f"{out / 'identify.toml'}: dynid identify {out / 'identify.toml'} --out DIR)", file=sys.stderr)
     return 0

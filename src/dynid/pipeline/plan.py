@@ -749,16 +749,19 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
 # ----------------------------------------------------------------------------------------------- honesty check
 @dataclass(frozen=True)
 class SeedCheck:
-    """The plan identified on `seeds` noisy rehearsals through `identify`: per parameter the predicted σ total, the
-    spread of the estimates over the seeds (sample standard deviation), the mean estimate; per seed whether the σ
-    total it reported met every target; seconds per identification."""
+    """The plan identified on `seeds` noisy rehearsals through `identify`: per parameter the predicted σ total and
+    each seed's estimate (`spread`: their sample standard deviation); per seed whether the σ total it reported met
+    every target; seconds per identification."""
 
     names: tuple[str, ...]
     predicted: np.ndarray
-    spread: np.ndarray
-    mean: np.ndarray
+    estimates: np.ndarray  # (seeds, parameters)
     met: tuple[bool, ...]
     seconds: float
+
+    @property
+    def spread(self) -> np.ndarray:
+        return self.estimates.std(axis=0, ddof=1)
 
     def text(self, labels: Mapping[str, str] | None = None) -> str:
         labels = labels or {}
@@ -791,5 +794,4 @@ def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Pr
         met.append(all((total[t.key] if t.kind == "parameter" else figures[t.key]) <= t.limit
                        for t in plan.score.targets))
     X = np.array(estimates)
-    return SeedCheck(tuple(names), plan.prediction.std_total, X.std(axis=0, ddof=1), X.mean(axis=0), tuple(met),
-                     (time.perf_counter() - t0) / len(seeds))
+    return SeedCheck(tuple(names), plan.prediction.std_total, X, tuple(met), (time.perf_counter() - t0) / len(seeds))
