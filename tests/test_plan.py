@@ -32,7 +32,7 @@ def _piece(rng: np.random.Generator, W: np.ndarray, groups: np.ndarray, x0: np.n
     noisy = StreamingLS(names)
     e = np.array([noise[g] for g in groups]) * rng.standard_normal(len(groups))
     noisy.add(W, Y + e, groups)
-    return planner.Piece(ls, bias, noisy)
+    return planner.Piece(ls, bias, (noisy,))
 
 
 def _problem(rng: np.random.Generator, n: int = 600):
@@ -106,7 +106,7 @@ def test_search_finds_the_shortest_plan_and_drops_what_is_not_needed():
     import itertools
 
     feasible = [c for r in (1, 2, 3) for c in itertools.combinations(pieces, r)
-                if score.shortfall(planner.predict([pieces[k] for k in c])) == 0]
+                if score.shortfall(planner.predict_all([pieces[k] for k in c])) == 0]
     best = min(sum(durations[k] for k in c) for c in feasible)
     assert sum(durations[k] for k in plan) == best, (plan, feasible)
 
@@ -237,7 +237,7 @@ def test_the_offsets_of_a_combination_as_the_identification_propagates_them():
     pieces = [_piece(rng, *_problem(rng)[:2], x0, *_problem(rng)[2:], f"t{i}") for i in range(2)]
     plan = [pieces[0], pieces[1], pieces[1]]
     pred = planner.predict(plan)
-    sigmas = pieces[0].noisy.merge(pieces[1].noisy).merge(pieces[1].noisy).group_sigmas()
+    sigmas = pieces[0].noisy[0].merge(pieces[1].noisy[0]).merge(pieces[1].noisy[0]).group_sigmas()
     merged = pieces[0].bias.merge(pieces[1].bias).merge(
         type(pieces[1].bias)(pieces[1].bias.columns, pieces[1].bias.known_columns, pieces[1].bias.known_values,
                              {f"{s} again": v for s, v in pieces[1].bias.terms.items()}))
