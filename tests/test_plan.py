@@ -293,3 +293,11 @@ def test_which_test_identifies_what_in_the_report_is_the_identification_without_
     assert set(run.without_test) == {t.name for t in cfg.tests if t.role == "identify"}
     for n, v in want.items():
         assert got[n] == pytest.approx(v, rel=1e-6), n
+
+
+def test_student_quantiles():
+    """Oracle: scipy.stats (the table saves its import)."""
+    from scipy.stats import t
+
+    for df, q in planner.T90.items():
+        assert q == pytest.approx(t.ppf(0.9, df), abs=5e-5)
