@@ -1,21 +1,23 @@
 """`dynid plan`: the shortest set of track tests whose identification meets an engineer's targets (issue 29).
 
-Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written twice through
-its sensor suite: noise-free, and with one seeded draw of the suite's noise and zero offsets. Each file is reduced
-once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free rows
-give the normal matrix and the zero offsets' sensitivities (`BiasAccumulator`), the noisy rows each equation
-group's noise level (paper eq. (8): `StreamingLS.group_sigmas`). A combination of tests is then evaluated without
-simulating or reading anything again: the factors of its tests combine (`reduce.combine`), the weights σ_g come
-from the combined noisy rows, and
+Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
+sensor suite noise-free and with a few (DRAWS) seeded draws of the suite's noise and zero offsets. Each file is
+reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
+rows give the normal matrix and the zero offsets' sensitivities (`BiasAccumulator`), each noisy draw the equation
+groups' noise levels (paper eq. (8): `StreamingLS.group_sigmas`). A combination of tests is then evaluated without
+simulating or reading anything again: with the weights σ_g of each draw's combined noisy rows,
 
     σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ),   A = Σ_g W_gᵀ W_g / σ_g²
 
 (statistical, paper eq. (9)-(10), plus every test's offsets propagated as independent sources: each test is
 zeroed anew; `estimation.systematic`), as `dynid identify` computes it. A repeated test costs nothing more: its
-rows are the same, its offsets a new draw (its sources renamed), its noise a new draw (its noisy rows again).
+rows are the same, its offsets new sources, its noise a new draw.
 
-The search is greedy (add the test that removes most of the targets' shortfall per second of driving) with a
-backward pass (drop every test the targets do not need, longest first).
+The weights come from residuals the offsets dominate, so the σ total an identification reports scatters from seed
+to seed: the plan's σ is the draws' root mean square (what the estimates' spread over seeds is), and each target is
+held against the 90 % prediction bound of the reported σ from the draws (`Scorer.reported`). The search evaluates
+every plan of one or two tests, then goes on greedily from the best three (adding the test that removes most
+shortfall per second of driving, a pair when no single test helps), and drops every test the targets do not need.
 """
 
 from __future__ import annotations
