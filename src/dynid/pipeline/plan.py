@@ -384,9 +384,16 @@ def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
 
     from ..estimation.errors import EstimationWarning
 
-    noisy = pieces[0].noisy[draw]
-    for p in pieces[1:]:
-        noisy = noisy.merge(p.noisy[draw])
+    # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
+    # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their differences)
+    seen: dict[int, int] = {}
+    rows = []
+    for p in pieces:
+        seen[id(p)] = seen.get(id(p), -1) + 1
+        rows.append(p.noisy[(draw + seen[id(p)]) % len(p.noisy)])
+    noisy = rows[0]
+    for r in rows[1:]:
+        noisy = noisy.merge(r)
     with warnings.catch_warnings():  # a group the tests do not move has its noise floored: said by the σ it gives
         warnings.simplefilter("ignore", EstimationWarning)
         sigmas = noisy.group_sigmas()
