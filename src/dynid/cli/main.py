@@ -205,7 +205,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import excite_cmds, model_io_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
+    from . import excite_cmds, model_io_cmds, plan_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
     from .usage import command, overview
 
     parser = _Parser(prog="dynid", description=DESCRIPTION,
@@ -282,7 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
     simulate_cmds.register(sub)
     excite_cmds.register(sub)
     vehicle_cmds.register(sub)
-    parser.epilog = overview(sub, order=("demo", "identify", "simulate", "excite", "model", "vehicle"))
+    plan_cmds.register(sub)
+    parser.epilog = overview(sub, order=("demo", "identify", "plan", "simulate", "excite", "model", "vehicle"))
     return parser
 
 

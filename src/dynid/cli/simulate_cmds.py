@@ -19,7 +19,7 @@ from ..atomic import add_force, refuse_overwrite
 
 # the names of vehicle.sim.manoeuvres.DEFAULTS, spelt out because importing the simulator for `dynid --help` costs a
 # second; tests/test_cli.py holds the two equal
-MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "static")
+MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "accel", "fishhook", "random", "static")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

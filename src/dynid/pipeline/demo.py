@@ -45,7 +45,6 @@ TEST_PLAN = (
 
 
 def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) -> str:
-    offsets_text = ", ".join(f"{k} = {v!r}" for k, v in offsets.items())
     lines = ["# The simulated Peugeot 406 of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
              "# Identified on the sine, spiral, braking (its heave separates the springs from the anti-roll bars)",
              "# and a lane change, cross-validated on a step steer and a gentler braking.",
@@ -54,12 +53,17 @@ def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) 
     for (name, key, _, _, role, _, _), path in zip(TESTS, files.values(), strict=True):
         lines += ["[[tests]]", f'name = "{name}"', f'role = "{role}"', f'file = "{path}"']
         lines += [f'truth = "{Path(path).with_suffix(".json").as_posix()}"', ""] if key == "sine" else [""]
-    lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2", "",
-              "[identification]", 'method = "wls"', 'base = "generic"', "",
-              "[uncertainty]",
-              "# the sensors' zero offsets (1 sigma, channel units: the suite's figures), propagated to %σ total",
-              f"offsets = {{ {offsets_text} }}", ""]
-    return "\n".join(lines)
+    return "\n".join(lines + conditioning_toml(offsets))
+
+
+def conditioning_toml(offsets: dict[str, float]) -> list[str]:
+    """The demo's conditioning, method and zero offsets (channel -> 1 σ, channel units) as a config's lines."""
+    offsets_text = ", ".join(f"{k} = {v!r}" for k, v in offsets.items())
+    return ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2", "",
+            "[identification]", 'method = "wls"', 'base = "generic"', "",
+            "[uncertainty]",
+            "# the sensors' zero offsets (1 sigma, channel units: the suite's figures), propagated to %σ total",
+            f"offsets = {{ {offsets_text} }}", ""]
 
 
 def simulated_car(vehicle: str = "peugeot406"):

@@ -56,7 +56,7 @@ from .reduce import (
 )
 from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
-from .schedulers import LocalScheduler, Scheduler, scheduler_for
+from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
     plan_car_test,
     plan_robot_test,
@@ -93,6 +93,8 @@ class IdentificationRun:
     delays: Any = None  # a car's channel delays estimated against the declared ones (pipeline.delays.DelayCheck)
     health: list[dict] | None = None  # a car's data health findings that did not stop the run (pipeline.health)
     tires: Any = None  # a car's tire characteristics (vehicle.tire_curves.TireCurves), when fitted
+    # a car's "which test identifies what": {test: {parameter: σ total without that test}} (without_each_test)
+    without_test: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def summary(self) -> str:
         """The parameter tables (a car's: each parameter's corner, quantity and unit), a car's ride-and-handling
@@ -328,7 +330,12 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         return {int(i): n_segments / len(pick) for i in pick}
 
     say(f"joints and equations on {scheduler}")
-    parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: j.role, combine, say)
+    # each identification test folded apart (what the report's "which test identifies what" leaves out), then together
+    parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: (j.role, j.test if j.role == "identify" else ""),
+                                 combine, say)
+    per_test = {t: p for (role, t), p in parts.items() if role == "identify"}
+    parts = {role: tree_fold([p for (r, _), p in parts.items() if r == role], combine)
+             for role in dict.fromkeys(r for r, _ in parts)}
     ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
     errors = parts["identify"].errors
     validate = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
@@ -402,6 +409,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
+    run.without_test = without_each_test(names, kw, per_test)
     run.errors["direct"] = ident.relative_errors(result)
     run.residual_rms = ident.group_rms(result)
     if fitted is not None:  # the model's fit includes the offsets the data read
@@ -445,6 +453,26 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
             "pieces holding at least 1 % of that side's rows and 10 rows (vehicle.dampers.KneeSearch).\n")
     say(note.rstrip())
     return dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, knees=chosen)), note
+
+
+def without_each_test(names: list[str], kw: dict, per_test: dict) -> dict[str, dict[str, float]]:
+    """Which test identifies what: {test: {parameter: σ total (WLS, noise and zero offsets) of the identification
+    without that test}} (inf where the others cannot identify it); empty with a single identification test. The
+    rows are those already reduced: a WLS solve per test, no pass over the data."""
+    if len(per_test) < 2:
+        return {}
+    out = {}
+    for test in per_test:
+        rest = tree_fold([p for t, p in per_test.items() if t != test], combine)
+        ls = StreamingLS(names, **kw).merge(rest.ls)
+        try:
+            r = ls.solve_weighted()
+            if rest.bias is not None:
+                r = ls.with_systematic(r, rest.bias)
+            out[test] = {n: float(s) for n, s in zip(r.names, r.std_total, strict=True)}
+        except IdentificationError:
+            out[test] = dict.fromkeys(names, float("inf"))
+    return out
 
 
 def _tire_curves(parts: dict, vehicle, say: Progress):

@@ -602,6 +602,41 @@ def _declared(offsets: dict, estimate: dict) -> float:
     return next(c["value"] for c in offsets["channels"] if c["channel"] == estimate["channel"])
 
 
+def which_test_rows(run) -> tuple[list[str], list[tuple[str, float, list[float]]]]:
+    """The identification tests and, per parameter, (label, σ total %, [σ total % without each test]), in % of the
+    parameter's engineering scale (the flag's: `IdentificationResult.scale`); inf where the others cannot tell."""
+    r = run.result
+    tests = list(run.without_test)
+    std, scale = dict(zip(r.names, r.std_total, strict=True)), dict(zip(r.names, r.scale, strict=True))
+    def pct(s: float, n: str) -> float:
+        return 100 * s / abs(scale[n]) if scale[n] else float("nan")
+
+    rows = [(r.labels.get(n, n), pct(std[n], n), [pct(run.without_test[t][n], n) for t in tests])
+            for n in r.estimated_names]
+    return tests, rows
+
+
+def which_test_section(run) -> Section | None:
+    """Which test identifies what (issue 29): each parameter's σ total with all the identification tests and
+    without each one, from the partial sums the identification already reduced (no new pass over the data)."""
+    if not getattr(run, "without_test", None):
+        return None
+    tests, rows = which_test_rows(run)
+
+    def cell(v: float) -> Cell:
+        return Cell("—" if not np.isfinite(v) else f"{v:.2f}", v if np.isfinite(v) else 1e300)
+
+    table = Table(["parameter", "all tests", *[f"without {t}" for t in tests]],
+                  [[Cell(label, cls="t"), cell(a), *map(cell, w)] for label, a, w in rows],
+                  caption="σ total (noise and zero offsets, WLS) in % of each parameter's scale; — : the other tests "
+                          "cannot identify every parameter", pin=("parameter",))
+    text = ("What each identification test buys: every parameter's σ total with all of them, and without each one "
+            "(its rows and its zeroing's offsets left out, the weights re-estimated). A column far above \"all "
+            "tests\" marks what that test identifies; one below it, a test whose zeroing costs more than its rows "
+            "bring. `dynid plan` predicts the same table before the car goes to the track.")
+    return Section("Which test identifies what", text, tables=[table], anchor="which-test")
+
+
 def regrouping_text(run) -> str:
     base = run.base
     regrouped = [(n, e) for n, e in zip(base.names, base.expressions, strict=True) if e.replace(" ", "") != n]
@@ -837,6 +872,9 @@ def build_report(run, title: str) -> Report:
                                 anchor="parameters"))
     if run.offsets is not None:
         out_sections.append(offsets_section(run.offsets))
+    which = which_test_section(run)
+    if which is not None:
+        out_sections.append(which)
     if run.reference:
         out_sections.append(Section("Comparison with the published identification", tables=[reference_table(run)],
                                     anchor="reference"))
@@ -862,6 +900,8 @@ def build_report(run, title: str) -> Report:
     if ds is not None:
         out_sections.append(ds)
         data["delays"] = run.delays.to_dict()
+    if getattr(run, "without_test", None):  # σ total without each identification test (which_test_section)
+        data["without_test"] = run.without_test
     _, other = split_notes(run.notes)
     if other:
         out_sections.append(Section("Notes", "\n\n".join(other), anchor="notes"))

@@ -262,7 +262,13 @@ class CarSimulator:
     def car_constants(self) -> dict[str, float]:
         return {"mass": self.mass, "radius": self.radius, "ratio": self.steering_ratio,
                 "wheelbase": self.geometry.wheelbase, "understeer": self.bicycle.understeer, "mu": self.mu,
-                "bicycle": self.bicycle}
+                "bicycle": self.bicycle, "front_share": self._front_share()}
+
+    def _front_share(self) -> float:
+        """The front axle's static share of the sprung weight (its CoG ahead of the rear axle, z6, over the
+        wheelbase): what a front-wheel drive can pull with."""
+        v = self.tree.values
+        return float(np.clip(v.get("MZ6", 0.0) / v["M6"] / self.geometry.wheelbase, 0.0, 1.0))
 
     def _par(self) -> np.ndarray:
         s, a = self.settings, self.aero

@@ -59,7 +59,7 @@ NPAR = 28
 # recorded per sample (REC): h, hd, hdd, spin torques 4, contact flags 4, slips kappa 4, alpha 4
 NREC = 19
 # manoeuvre kinds
-M_CONST, M_SINE, M_BRAKE, M_SPIRAL, M_STEP, M_LANE = 0, 1, 2, 3, 4, 5
+M_CONST, M_SINE, M_BRAKE, M_SPIRAL, M_STEP, M_LANE, M_ACCEL, M_FISHHOOK, M_RANDOM = 0, 1, 2, 3, 4, 5, 6, 7, 8
 # status codes
 S_OK, S_TABLE, S_NONFINITE = 0, 1, 2
 
@@ -84,6 +84,35 @@ def path_offset(man, s):
     if s < s4:
         return D * (1.0 - smoothstep((s - s3) / (s4 - s3)))
     return 0.0
+
+
+def fishhook_angle(man, t):
+    """The fishhook's steering-wheel angle t s after its start: up to A, a dwell, down to -A, held, back to 0, each
+    move at the mean rate man[4] (a quintic: no step in the robot's acceleration)."""
+    A, rate, dwell, hold = man[3], man[4], man[5], man[6]
+    t1 = A / rate
+    t2 = t1 + dwell
+    t3 = t2 + 2.0 * A / rate
+    t4 = t3 + hold
+    if t < t1:
+        return A * smoothstep(t / t1)
+    if t < t2:
+        return A
+    if t < t3:
+        return A * (1.0 - 2.0 * smoothstep((t - t2) / (t3 - t2)))
+    if t < t4:
+        return -A
+    return -A * (1.0 - smoothstep((t - t4) / t1))
+
+
+def random_angle(man, t):
+    """The random steer's steering-wheel angle t s after its start: man[5] sines at k f_max / n (k = 1..n) with
+    Schroeder's phases (a flat spectrum up to f_max of low crest factor), RMS man[3], faded in over a second."""
+    n = int(man[5])
+    h = 0.0
+    for k in range(1, n + 1):
+        h += math.sin(2.0 * math.pi * k * man[4] / n * t - math.pi * k * (k - 1) / n)
+    return man[3] * math.sqrt(2.0 / n) * h * smoothstep(t)
 
 
 def driver(t, y, v, par, man, out):
@@ -120,9 +149,17 @@ def driver(t, y, v, par, man, out):
         py = y[1] + Lp * math.cos(psi)
         e = path_offset(man, py) + px
         h_ref = par[P_RATIO] * (par[P_WB] + par[P_US] * v * v) * 2.0 * e / (Lp * Lp)
-    err = vref - v
+    elif kind == M_FISHHOOK and t > t0:
+        h_ref = fishhook_angle(man, t - t0)
+    elif kind == M_RANDOM and t > t0:
+        h_ref = random_angle(man, t - t0)
     mR = par[P_MASS] * par[P_R0]
     ff = (par[P_MASS] * par[P_G] * 0.012 + 0.5 * par[P_RHO] * par[P_AREA] * 0.31 * v * v * par[P_AERO_ON]) * par[P_R0]
+    if kind == M_ACCEL and t > t0:  # the speed target ramps at man[3] m/s^2 up to man[4] m/s, its force fed forward
+        ramp = smoothstep((t - t0) / man[5])
+        vref = min(vref + man[3] * max(t - t0 - 0.5 * man[5], 0.0), man[4])
+        ff += mR * man[3] * ramp * smoothstep((man[4] - v) / 1.0)
+    err = vref - v
     td = ff + mR * (par[P_KP] * err + par[P_KI] * y[Y_INT])
     td = min(max(td, par[P_TDMIN]), par[P_TDMAX]) * drive_on
     out[0] = h_ref
@@ -433,4 +470,5 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
 car_kin = car_idm = car_inertia = None
 
 
-JITTED = ("smoothstep", "path_offset", "driver", "reduced_inertia", "lu_solve", "derivative", "simulate")
+JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "driver",
+          "reduced_inertia", "lu_solve", "derivative", "simulate")

@@ -21,6 +21,16 @@ manoeuvre's target through a steering robot (2nd-order, 8 Hz, damping 0.8).
            of each lane to the next, offset 3.52 m (the standard's lane offset for a 1.78 m
            wide car). The standard is run near the limit with drivers using the lane widths;
            this smooth path needs 0.0058 v^2 m/s^2 peak lateral acceleration (50 km/h: 6.3).
+  accel    straight-line acceleration (after ISO 21994's straight line, driven): from `speed` 30 km/h, the
+           speed target ramps at `acceleration` 3 m/s^2 (over `ramp` 0.3 s) from 2 s up to `final_speed`
+           100 km/h, the force m a fed forward to the PI controller; front-wheel drive; 12 s.
+  fishhook after the NHTSA fishhook (roll-rate feedback replaced by a fixed dwell): 80 km/h, steering wheel
+           to the angle giving `lateral_acceleration` 5 m/s^2 in steady state at `rate` 720 deg/s, held
+           `dwell` 0.25 s, to the opposite angle at the same rate, held `hold` 3 s, back to 0; from 2 s; 10 s.
+  random   random steer (ISO 7401's random input): 80 km/h, `components` 20 sines at k `frequency` / 20
+           (k = 1..20, `frequency` 2 Hz the highest) with Schroeder's phases (a flat spectrum of low crest
+           factor), RMS steering-wheel angle giving `lateral_acceleration` 3 m/s^2 RMS in steady state; from
+           2 s; 20 s.
   static   standing still (speed 0): settling under gravity.
 
 Speeds and accelerations a manoeuvre cannot reach on the tires (beyond 0.8 of the peak
@@ -34,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernel import M_BRAKE, M_CONST, M_LANE, M_SINE, M_SPIRAL, M_STEP
+from .kernel import M_ACCEL, M_BRAKE, M_CONST, M_FISHHOOK, M_LANE, M_RANDOM, M_SINE, M_SPIRAL, M_STEP
 
 NMAN = 10
 
@@ -50,11 +60,17 @@ DEFAULTS: dict[str, dict[str, float]] = {
     "spiral": {"speed": 70.0, "duration": 30.0, "rate": 4.0, "max_angle": 200.0, "start": 2.0},
     "step": {"speed": 80.0, "duration": 8.0, "lateral_acceleration": 4.0, "rise": 0.15, "start": 2.0},
     "lane": {"speed": 50.0, "duration": 8.0, "offset": 3.52, "preview": 0.6, "start": 2.0},
+    "accel": {"speed": 30.0, "duration": 12.0, "acceleration": 3.0, "final_speed": 100.0, "ramp": 0.3, "start": 2.0},
+    "fishhook": {"speed": 80.0, "duration": 10.0, "lateral_acceleration": 5.0, "rate": 720.0, "dwell": 0.25,
+                 "hold": 3.0, "start": 2.0},
+    "random": {"speed": 80.0, "duration": 20.0, "lateral_acceleration": 3.0, "frequency": 2.0, "components": 20.0,
+               "start": 2.0},
     "static": {"speed": 0.0, "duration": 3.0, "start": 0.0},
 }
 UNITS = {"speed": "km/h", "duration": "s", "frequency": "Hz", "lateral_acceleration": "m/s^2", "start": "s",
          "deceleration": "m/s^2", "front_share": "1", "ramp": "s", "release_speed": "km/h", "rate": "deg/s",
-         "max_angle": "deg", "rise": "s", "offset": "m", "preview": "s"}
+         "max_angle": "deg", "rise": "s", "offset": "m", "preview": "s", "acceleration": "m/s^2",
+         "final_speed": "km/h", "dwell": "s", "hold": "s", "components": "1"}
 LANE_SECTIONS = (12.0, 13.5, 11.0, 12.5, 12.0)
 
 
@@ -93,6 +109,15 @@ def manoeuvre(name: str, **params: float | None) -> Manoeuvre:
     if not 0.0 <= p["speed"] <= 180.0 or (name != "static" and p["speed"] < 10.0):
         raise ManoeuvreError(f"manoeuvre {name!r}: speed = {p['speed']} km/h; use 10..180 km/h "
                              "(0 only for 'static')")
+    positive = [k for k in ("acceleration", "ramp", "rate", "frequency", "components") if k in p and p[k] <= 0]
+    if positive:
+        raise ManoeuvreError(f"manoeuvre {name!r}: {positive[0]} = {p[positive[0]]:g} {UNITS[positive[0]]} must be "
+                             "positive")
+    if name == "random" and (p["components"] != round(p["components"]) or p["components"] > 100):
+        raise ManoeuvreError(f"random: components = {p['components']:g}; give a whole number 1..100")
+    if name == "accel" and not p["speed"] < p["final_speed"] <= 180.0:
+        raise ManoeuvreError(f"accel: final_speed = {p['final_speed']:g} km/h must be above speed = {p['speed']:g} "
+                             "km/h and at most 180")
     if name == "braking" and not 0.0 <= p["front_share"] <= 1.0:
         raise ManoeuvreError(f"braking: front_share = {p['front_share']} must be within 0..1")
     return Manoeuvre(name, p)
@@ -141,6 +166,21 @@ def pack(m: Manoeuvre, car: dict[str, float]) -> np.ndarray:
         out[0], out[3], out[4] = M_SPIRAL, math.radians(p["rate"]), math.radians(p["max_angle"])
     elif name == "step":
         out[0], out[3], out[4] = M_STEP, steady_angle(p["lateral_acceleration"]), p["rise"]
+    elif name == "accel":
+        # front-wheel drive: the front axle's static share of the weight at 0.8 of the peak friction
+        front = limit * car["front_share"]
+        if p["acceleration"] > front:
+            raise ManoeuvreError(
+                f"accel: an acceleration of {p['acceleration']:g} m/s^2 is beyond the front tires' adhesion "
+                f"({front:.2f} m/s^2 with the front axle's share of the weight); lower acceleration")
+        out[0], out[3], out[4], out[5] = M_ACCEL, p["acceleration"], p["final_speed"] / 3.6, p["ramp"]
+    elif name == "fishhook":
+        out[0], out[3], out[4] = M_FISHHOOK, steady_angle(p["lateral_acceleration"]), math.radians(p["rate"])
+        out[5], out[6] = p["dwell"], p["hold"]
+    elif name == "random":
+        steady_angle(p["lateral_acceleration"])
+        out[0], out[3] = M_RANDOM, steady_angle(p["lateral_acceleration"])
+        out[4], out[5] = p["frequency"], p["components"]
     elif name == "lane":
         s1, s2, s3, s4 = lane_path(p["offset"], v * p["start"])
         peak = 10.0 / math.sqrt(3.0) * p["offset"] * v**2 / min(s2 - s1, s4 - s3) ** 2

@@ -1,0 +1,92 @@
+"""`dynid plan --vehicle FILE`: the shortest test plan whose identification meets the engineer's targets.
+
+    dynid plan --vehicle peugeot406
+    dynid plan --vehicle my_car.toml --targets targets.toml --out plan
+
+A targets file (TOML) overrides the default targets (bench parity) and the driver's and track's limits:
+
+    [targets]            # cog: mm; the others: % (products: % of the smallest moment); false: no target
+    cog = 2.5
+    moments = 2.0
+    products = 2.0
+    springs = 3.0        # springs and anti-roll bars
+    dampers = 5.0
+    dry_friction = 10.0
+    tires = 5.0
+    [targets.parameters] # one parameter (dynid name or the paper's label) = %
+    ks27 = 2.0
+    [targets.quantities] # one engineering quantity (engineering.csv's keys) = % (mm for cg_*)
+    Ixx = 1.5
+    [limits]
+    lateral_acceleration = 7.0       # m/s²
+    longitudinal_acceleration = 7.0  # m/s²
+    speed = 130.0                    # km/h
+    length = 1000.0                  # m, one run
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add `plan` to the top-level `dynid` sub-commands."""
+    from .usage import command
+
+    p = command(
+        subparsers, "plan", help="the shortest track-test plan whose identification meets the targets",
+        description="Simulate the standard track tests (ISO 7401 step and sine steer, ISO 3888-2 lane change, "
+                    "ISO 4138 spiral, straight-line braking, ...) with the vehicle's [truth] set and sensor suite "
+                    "within the driver's and track's limits, predict the σ total (noise and the sensors' zero "
+                    "offsets) of every parameter and engineering quantity for any combination of them, and print "
+                    "the shortest plan meeting the targets (default: bench parity: CoG 2.5 mm, moments of "
+                    "inertia 2 %, products 2 % of the smallest moment, springs and bars 3 %, dampers 5 %, dry "
+                    "friction 10 %, tires 5 %) with a table of what each test identifies.",
+        examples=["dynid plan --vehicle peugeot406", "dynid plan --vehicle car.toml --targets targets.toml --out plan"],
+        notes="A targets file has [targets] (cog, moments, products, springs, dampers, dry_friction, tires), "
+              "[targets.parameters], [targets.quantities] and [limits] (lateral_acceleration, "
+              "longitudinal_acceleration, speed, length); `python -m pydoc dynid.cli.plan_cmds` shows an example.")
+    p.add_argument("--vehicle", default="peugeot406",
+                   help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
+                        "(default: peugeot406)")
+    p.add_argument("--targets", default=None, help="targets file (TOML; default: bench parity)")
+    p.add_argument("--out", default=None,
+                   help="folder for plan.txt, plan.json and a rehearsal of the plan on the simulated car (its tests' "
+                        "noisy logger files in data/ and identify.toml: `dynid identify DIR/identify.toml` tries it); "
+                        "default: print only")
+    p.add_argument("--seed", type=int, default=406, help="seed of the rehearsal's sensor noise (default 406)")
+    p.add_argument("--repeats", type=int, default=2, help="runs of one test the plan may hold, each a new zeroing "
+                                                           "of the sensors (default 2)")
+    p.set_defaults(func=cmd_plan)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..atomic import staged_folder, write_atomic
+    from ..pipeline.plan import load_targets, plan_tests
+    from ..vehicle.description import load_vehicle
+    from .progress import report as say
+    from .usage import UsageError
+
+    if args.repeats < 1:
+        raise UsageError(f"--repeats {args.repeats}: give a whole number >= 1")
+    spec = load_targets(args.targets)  # bad input refused before anything is simulated
+    load_vehicle(args.vehicle)
+    out = Path(args.out) if args.out else None
+    # the output folder is checked (and staged) before the minute of simulation, swapped in at the end
+    with staged_folder(out) if out else contextlib.nullcontext() as stage:
+        plan = plan_tests(args.vehicle, spec, repeats=args.repeats, progress=say)
+        text = plan.text()
+        print(text)
+        if stage is not None:
+            write_atomic(stage / "plan.txt", text + "\n")
+            write_atomic(stage / "plan.json", json.dumps(plan.to_dict(), indent=1, allow_nan=False))
+            plan.rehearsal(stage, args.seed)
+    if out:
+        print(f"\nwrote {out / 'plan.txt'}, {out / 'plan.json'} and the plan's rehearsal ({out / 'data'}, "
+              f"{out / 'identify.toml'}: dynid identify {out / 'identify.toml'} --out DIR)", file=sys.stderr)
+    return 0

@@ -1,0 +1,869 @@
+"""`dynid plan`: the shortest set of track tests whose identification meets an engineer's targets (issue 29).
+
+Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
+sensor suite noise-free and with a few (DRAWS) seeded draws of the suite's noise and zero offsets. Each file is
+reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
+rows give the normal matrix and the zero offsets' sensitivities (`BiasAccumulator`), each noisy draw the equation
+groups' noise levels (paper eq. (8): `StreamingLS.group_sigmas`). A combination of tests is then evaluated without
+simulating or reading anything again: with the weights σ_g of each draw's combined noisy rows,
+
+    σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ),   A = Σ_g W_gᵀ W_g / σ_g²
+
+(statistical, paper eq. (9)-(10), plus every test's offsets propagated as independent sources: each test is
+zeroed anew; `estimation.systematic`), as `dynid identify` computes it. A repeated test costs nothing more: its
+rows are the same, its offsets new sources, its noise a new draw.
+
+The weights come from residuals the offsets dominate, so the σ total an identification reports scatters from seed
+to seed: the plan's σ is the draws' root mean square (what the estimates' spread over seeds is), and each target is
+held against the 90 % prediction bound of the reported σ from the draws (`Scorer.reported`). The search evaluates
+every plan of one or two tests, then goes on greedily from the best three (adding the test that removes most
+shortfall per second of driving, a pair when no single test helps), and drops every test the targets do not need.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tempfile
+import time
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ..estimation import StreamingLS
+from ..estimation.systematic import BiasAccumulator
+from .config import ConfigError, load_config
+from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
+from .schedulers import LocalScheduler
+
+Progress = Callable[[str], None]
+
+
+# ------------------------------------------------------------------------------------------------ the candidates
+@dataclass(frozen=True)
+class Candidate:
+    """A test a proving ground runs: the simulator's manoeuvre, its parameters (manoeuvres.UNITS) and duration."""
+
+    key: str
+    name: str
+    standard: str
+    manoeuvre: str
+    params: Mapping[str, float] = field(default_factory=dict)
+    duration: float = 10.0
+
+
+CANDIDATES: tuple[Candidate, ...] = (
+    Candidate("sine90", "sine steer 0.5 Hz, 90 km/h, 4 m/s²", "ISO 7401 (sinusoidal)", "sine", {}, 20.0),
+    Candidate("sine90f", "sine steer 1 Hz, 90 km/h, 3 m/s²", "ISO 7401 (sinusoidal)", "sine",
+              {"frequency": 1.0, "lateral_acceleration": 3.0}, 12.0),
+    Candidate("sine60", "sine steer 0.3 Hz, 60 km/h, 4 m/s²", "ISO 7401 (sinusoidal)", "sine",
+              {"speed": 60.0, "frequency": 0.3}, 20.0),
+    Candidate("sine120", "sine steer 0.5 Hz, 120 km/h, 4 m/s²", "ISO 7401 (sinusoidal)", "sine",
+              {"speed": 120.0}, 16.0),
+    Candidate("step80", "step steer 80 km/h, 4 m/s²", "ISO 7401 (step)", "step", {}, 8.0),
+    Candidate("step100", "step steer 100 km/h, 5 m/s²", "ISO 7401 (step)", "step",
+              {"speed": 100.0, "lateral_acceleration": 5.0}, 8.0),
+    Candidate("random80", "random steer 80 km/h, 0.1-2 Hz, 3 m/s² RMS", "ISO 7401 (random input)", "random", {},
+              20.0),
+    Candidate("fishhook80", "fishhook 80 km/h, 5 m/s², 720 deg/s", "NHTSA fishhook (fixed dwell)", "fishhook", {},
+              10.0),
+    Candidate("lane50", "double lane change 50 km/h", "ISO 3888-2", "lane", {}, 8.0),
+    Candidate("circle70", "spiral 70 km/h to 55 deg, then steady circle", "ISO 4138 (constant speed)", "spiral",
+              {"max_angle": 55.0}, 20.0),
+    Candidate("spiral70", "spiral 70 km/h to the limit of adhesion", "ISO 4138 (constant speed)", "spiral", {}, 30.0),
+    Candidate("brake100", "straight-line braking from 100 km/h at 6 m/s²", "ISO 21994 (straight-line braking)",
+              "braking", {}, 10.0),
+    Candidate("brake80", "straight-line braking from 80 km/h at 4 m/s²", "ISO 21994 (straight-line braking)",
+              "braking", {"speed": 80.0, "deceleration": 4.0, "front_share": 0.65}, 8.0),
+    Candidate("accel", "straight-line acceleration 30-100 km/h at 3 m/s²", "straight line, driven", "accel", {},
+              12.0),
+)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a driver and a track allow: peak lateral and longitudinal acceleration (m/s²), speed (km/h), the run's
+    length (m)."""
+
+    lateral_acceleration: float = 7.0
+    longitudinal_acceleration: float = 7.0
+    speed: float = 130.0
+    length: float = 1000.0
+
+    def text(self) -> str:
+        return (f"lateral acceleration <= {self.lateral_acceleration:g} m/s², longitudinal <= "
+                f"{self.longitudinal_acceleration:g} m/s², speed <= {self.speed:g} km/h, run length <= "
+                f"{self.length:g} m")
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """What a simulated run reached: peak lateral and longitudinal acceleration (m/s², in the road plane, in the
+    car's heading), peak speed (km/h), distance driven (m)."""
+
+    lateral: float
+    longitudinal: float
+    speed: float
+    length: float
+
+    def violations(self, limits: Limits) -> list[str]:
+        out = []
+        for what, got, lim, unit in (("lateral acceleration", self.lateral, limits.lateral_acceleration, "m/s²"),
+                                     ("longitudinal acceleration", self.longitudinal,
+                                      limits.longitudinal_acceleration, "m/s²"),
+                                     ("speed", self.speed, limits.speed, "km/h"),
+                                     ("run length", self.length, limits.length, "m")):
+            if got > lim:
+                out.append(f"{what} {got:.3g} {unit} > {lim:g}")
+        return out
+
+
+def envelope(result) -> Envelope:
+    """The run's peaks from the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), filtered at 2 Hz
+    (a driver's and a standard's reading of acceleration, not the tire's vibration)."""
+    from ..signals import lowpass
+
+    fs = 1.0 / float(result.time[1] - result.time[0])
+    qd, qdd, yaw = result.qd[:, 0:2], result.qdd[:, 0:2], result.q[:, 3]
+    c, s = np.cos(yaw), np.sin(yaw)
+    # q1, q2 translate along x0, y0 in the road plane; the heading at yaw q4 is (-sin, cos) (y0 forward at rest)
+    a_head = lowpass(-qdd[:, 0] * s + qdd[:, 1] * c, fs, 2.0, 2)
+    a_side = lowpass(qdd[:, 0] * c + qdd[:, 1] * s, fs, 2.0, 2)
+    speed = np.hypot(qd[:, 0], qd[:, 1])
+    return Envelope(float(np.max(np.abs(a_side))), float(np.max(np.abs(a_head))), float(3.6 * speed.max()),
+                    float(np.sum(speed) / fs))
+
+
+# --------------------------------------------------------------------------------------------------- the targets
+TARGET_KEYS = {  # [targets] key -> what it bounds, unit of the number
+    "cog": ("the centre of gravity of the whole car (ahead of the rear axle, height, lateral)", "mm"),
+    "moments": ("the sprung mass's moments of inertia at its CoG (roll, pitch, yaw)", "%"),
+    "products": ("its products of inertia at the CoG", "% of the smallest moment"),
+    "springs": ("the springs and anti-roll bars", "%"),
+    "dampers": ("the dampers (viscous h, damper-curve slopes)", "%"),
+    "dry_friction": ("the dampers' dry friction", "%"),
+    "tires": ("the tires' vertical stiffness", "%"),
+}
+DEFAULT_TARGETS = {"cog": 2.5, "moments": 2.0, "products": 2.0, "springs": 3.0, "dampers": 5.0,
+                   "dry_friction": 10.0, "tires": 5.0}  # bench parity (issue 29)
+COG = ("cg_ahead_rear", "cg_height", "cg_lateral")
+MOMENTS = ("Ixx", "Iyy", "Izz")
+PRODUCTS = ("Ixz", "Ixy", "Iyz")
+_PARAMETER_KINDS = {"K": "springs", "FV": "dampers", "FVPL": "dampers", "FVPH": "dampers", "FVNL": "dampers",
+                    "FVNH": "dampers", "FS": "dry_friction"}
+
+
+@dataclass(frozen=True)
+class Target:
+    """A bound on one σ total: a parameter's or an engineering quantity's (key), `limit` in the quantity's unit
+    (SI), `text` as the engineer gave it."""
+
+    kind: str  # "parameter" or "quantity"
+    key: str
+    limit: float
+    text: str
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """The engineer's targets (category -> number, None: no target; per-name overrides) and the track's limits."""
+
+    categories: Mapping[str, float | None] = field(default_factory=lambda: dict(DEFAULT_TARGETS))
+    parameters: Mapping[str, float] = field(default_factory=dict)  # name or label -> %
+    quantities: Mapping[str, float] = field(default_factory=dict)  # engineering key -> % (mm for cg_*)
+    limits: Limits = Limits()
+    source: str = "bench parity (the defaults)"
+
+
+def load_targets(path: str | Path | None) -> TargetSpec:
+    """A targets file (TOML): [targets] categories (TARGET_KEYS; false: none), [targets.parameters] name = %,
+    [targets.quantities] key = % (mm for a cg_* key), [limits] (Limits' fields). None: the defaults."""
+    if path is None:
+        return TargetSpec()
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the targets file ({exc.strerror}); give a TOML file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc}); see `dynid plan --help` for the format") from None
+    unknown = sorted(set(data) - {"targets", "limits"})
+    if unknown:
+        raise ConfigError(f"{path}: unknown table [{unknown[0]}]; a targets file has [targets] and [limits]")
+    t = dict(data.get("targets", {}))
+    per_param, per_quantity = t.pop("parameters", {}), t.pop("quantities", {})
+    categories: dict[str, float | None] = dict(DEFAULT_TARGETS)
+    for k, v in t.items():
+        if k not in TARGET_KEYS:
+            raise ConfigError(f"{path}: [targets] {k}: not a target; targets: {', '.join(TARGET_KEYS)} (and the "
+                              "tables [targets.parameters], [targets.quantities])")
+        categories[k] = None if v is False else _positive(path, f"[targets] {k}", v)
+    from ..vehicle.engineering import QUANTITIES
+
+    for k, v in per_quantity.items():
+        if k not in QUANTITIES:
+            raise ConfigError(f"{path}: [targets.quantities] {k}: not an engineering quantity; e.g. "
+                              f"{', '.join((*COG, *MOMENTS, *PRODUCTS))}")
+        _positive(path, f"[targets.quantities] {k}", v)
+    for k, v in per_param.items():
+        _positive(path, f"[targets.parameters] {k}", v)
+    lim = data.get("limits", {})
+    fields = {f.name for f in dataclasses.fields(Limits)}
+    bad = sorted(set(lim) - fields)
+    if bad:
+        raise ConfigError(f"{path}: [limits] {bad[0]}: unknown; limits: {', '.join(sorted(fields))}")
+    limits = Limits(**{k: _positive(path, f"[limits] {k}", v) for k, v in lim.items()})
+    return TargetSpec(categories, dict(per_param), dict(per_quantity), limits, str(path))
+
+
+def _positive(path: Path, where: str, v: object) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+        raise ConfigError(f"{path}: {where} = {v!r}: give a positive number")
+    return float(v)
+
+
+def targets_for(spec: TargetSpec, names: Sequence[str], values: Mapping[str, float], quantities: Mapping[str, float],
+                labels: Mapping[str, str]) -> list[Target]:
+    """The bounds the spec puts on these estimated parameters (values: a priori) and engineering quantities."""
+    out: list[Target] = []
+    cat = spec.categories
+    by_label = {labels.get(n, n): n for n in names}
+    overrides = {by_label.get(k, k): v for k, v in spec.parameters.items()}
+    missing = sorted(set(overrides) - set(names))
+    if missing:
+        raise ConfigError(f"{spec.source}: [targets.parameters] {missing[0]}: not an estimated parameter of this "
+                          f"vehicle; e.g. {', '.join(labels.get(n, n) for n in names[:6])}")
+    for n in names:
+        kind = n.rstrip("0123456789")
+        j = int(n[len(kind):]) if kind != n else None
+        category = ("springs" if n in ("karf", "karr") or (kind == "K" and j in (9, 18, 27, 36))
+                    else "tires" if kind == "K" else _PARAMETER_KINDS.get(kind))
+        pct = overrides.get(n, cat.get(category) if category else None)
+        if pct is not None:
+            out.append(Target("parameter", n, pct / 100 * abs(values[n]), f"{pct:g} %"))
+    smallest = min(abs(quantities[k]) for k in MOMENTS)
+    for keys, category, limit in ((COG, "cog", lambda k, v: v / 1000),
+                                  (MOMENTS, "moments", lambda k, v: v / 100 * abs(quantities[k])),
+                                  (PRODUCTS, "products", lambda k, v: v / 100 * smallest)):
+        for k in keys:
+            v = spec.quantities.get(k, cat.get(category))
+            if v is not None:
+                unit = "mm" if category == "cog" else "%" if category == "moments" else "% of the smallest moment"
+                out.append(Target("quantity", k, limit(k, v), f"{v:g} {unit}"))
+    for k, v in spec.quantities.items():
+        if k not in (*COG, *MOMENTS, *PRODUCTS):
+            out.append(Target("quantity", k, v / 100 * abs(quantities[k]), f"{v:g} %"))
+    return out
+
+
+# ------------------------------------------------------------------------------------ one reduction per candidate
+@dataclass
+class Piece:
+    """A candidate's reduced rows: noise-free (least squares' factors and the zero offsets' sums) and noisy (the
+    factors of each draw of the sensors' noise and zero offsets: the equation groups' noise levels)."""
+
+    ls: StreamingLS
+    bias: BiasAccumulator | None
+    noisy: tuple[StreamingLS, ...]
+
+    @cached_property
+    def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+        """The offsets' sums as arrays (`systematic.propagate`'s bracket a - B x per source and group): the groups,
+        a (sources, groups, q), B (sources, groups, q, q); zeros where a source leaves a group alone."""
+        groups = tuple(self.ls.group_rows)
+        q = len(self.ls.estimated_names)
+        terms = self.bias.terms if self.bias is not None else {}
+        a = np.zeros((len(terms), len(groups), q))
+        B = np.zeros((len(terms), len(groups), q, q))
+        for i, per in enumerate(terms.values()):
+            for g, (ag, Bg) in per.items():
+                a[i, groups.index(g)], B[i, groups.index(g)] = ag, Bg
+        return groups, a, B
+
+
+def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float]) -> str:
+    """The identification config of these tests (name -> file), all identified, with the demo's conditioning."""
+    import json
+
+    from .demo import conditioning_toml
+
+    lines = ["# dynid plan's tests: rerun with `dynid identify identify.toml --out DIR`", "", "[model]",
+             f"vehicle = {json.dumps(vehicle)}", ""]
+    for name, path in files.items():
+        lines += ["[[tests]]", f"name = {json.dumps(name)}", 'role = "identify"', f"file = {json.dumps(path)}", ""]
+    return "\n".join(lines + conditioning_toml(dict(offsets)))
+
+
+NOISY = " (noisy)"
+
+
+DRAWS = 4  # noisy draws per candidate: the weights' seed-to-seed scatter (`predictions`)
+
+
+def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path, seed: int = 2900,
+                      say: Progress | None = None, scheduler=None, draws: int = DRAWS
+                      ) -> tuple[dict[str, Piece], object]:
+    """Each simulated test (key -> SimulationResult) written noise-free and with `draws` draws of the suite's noise
+    and zero offsets (seeds seed + 100 d + its index) into `folder`, each file reduced once by the identification's
+    map; returns key -> Piece and the car setup (names, tree, vehicle)."""
+    from ..signals import border_samples
+    from ..vehicle.description import load_vehicle
+    from ..vehicle.estimate import required_channels
+    from ..vehicle.sim.recording import write_test
+    from .car import sensor_offsets
+    from .sources import plan_car_test, segment_window
+
+    say = say or (lambda _m: None)
+    suite = load_vehicle(vehicle).suite
+    data = folder / "data"
+    data.mkdir(parents=True, exist_ok=True)
+    files = {}
+    for i, (key, result) in enumerate(results.items()):
+        for d in range(-1, draws):  # -1: noise-free
+            path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.csv", seed=seed + 100 * d + i,
+                                 noise=d >= 0, suite=suite)
+            files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
+    offsets = {c.name: c.bias for c in suite if c.bias}
+    where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
+    cfg_path = folder / "candidates.toml"
+    cfg_path.write_text(plan_config_text(files, where, offsets), encoding="utf-8")
+    cfg = load_config(cfg_path)
+    cfg = dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, tire_curves=False))
+    setup = car_setup(cfg)
+    moved = tuple(sensor_offsets(cfg.car, setup.vehicle).si().items())
+    wanted = required_channels(spin=False, suite=setup.vehicle.suite)
+    cond = setup.conditioning
+    jobs = []
+    for spec in cfg.tests:
+        plan = plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
+                             lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
+        n = len(plan.segments)
+        picks = np.unique(np.linspace(0, n - 1, min(cfg.car.offset_segments, n)).round()).astype(int)
+        for i, (lo, hi) in enumerate(plan.segments):
+            with_offsets = NOISY not in spec.name and i in picks
+            jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1,
+                               moved if with_offsets else (), n / len(picks) if with_offsets else 1.0))
+    say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
+        f"{draws} noisy draws each)")
+    scheduler = scheduler or LocalScheduler()
+    parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
+    pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)))
+              for k in results}
+    return pieces, setup
+
+
+# ------------------------------------------------------------------------------- a combination, without the data
+@dataclass(frozen=True)
+class Prediction:
+    """σ of the estimates of a combination of tests (order `names`): statistical, from the zero offsets, total; the
+    noise-free estimate x; the total covariance; rank: the number of parameters the rows identify."""
+
+    names: tuple[str, ...]
+    x: np.ndarray
+    std_stat: np.ndarray
+    std_sys: np.ndarray
+    covariance: np.ndarray
+    rank: int
+
+    @property
+    def std_total(self) -> np.ndarray:
+        return np.sqrt(self.std_stat**2 + self.std_sys**2)
+
+
+def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
+    """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc);
+    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources)."""
+    import warnings
+
+    from scipy.linalg import solve_triangular
+
+    from ..estimation.errors import EstimationWarning
+
+    # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
+    # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their differences)
+    seen: dict[int, int] = {}
+    rows = []
+    for p in pieces:
+        seen[id(p)] = seen.get(id(p), -1) + 1
+        rows.append(p.noisy[(draw + seen[id(p)]) % len(p.noisy)])
+    noisy = rows[0]
+    for r in rows[1:]:
+        noisy = noisy.merge(r)
+    with warnings.catch_warnings():  # a group the tests do not move has its noise floored: said by the σ it gives
+        warnings.simplefilter("ignore", EstimationWarning)
+        sigmas = noisy.group_sigmas()
+    names = pieces[0].ls.estimated_names
+    q = len(names)
+
+    def stacked(factors: list[np.ndarray]) -> np.ndarray:
+        return np.linalg.qr(np.vstack(factors), mode="r")
+
+    # the weighted factor of every test's rows at once (one QR, not a merge per test)
+    R = stacked([p.ls.group_factor(g) / sigmas[g] for p in pieces for g in p.ls.group_rows])
+    d = np.abs(np.diag(R[:q, :q]))
+    rank = int(np.count_nonzero(d > 1e-10 * d.max()))
+    if rank < q:
+        inf = np.full(q, np.inf)
+        return Prediction(names, np.full(q, np.nan), inf, inf, np.full((q, q), np.inf), rank)
+    x = solve_triangular(R[:q, :q], R[:q, q])
+    Rinv = solve_triangular(R[:q, :q], np.eye(q))
+    # s²: the weighted residual of the noisy rows over their degrees of freedom (paper eq. (9)), about 1. The noisy
+    # rows' own normal matrix gives the same σ within 1.5 % (the 406's plan, fs9 the most): the noise-free one is kept
+    Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
+    s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
+    C = s2 * (Rinv @ Rinv.T)
+    # every test's offsets, independent sources (systematic.propagate, all sources at once): the shifts
+    # ΔX_k = A⁻¹ Σ_g (a_kg - B_kg x) / σ_g², their covariance Σ_k ΔX_k ΔX_kᵀ
+    g = []
+    for p in pieces:
+        groups, a, B = p.offsets
+        w = np.array([sigmas[k] ** -2.0 for k in groups])
+        g.append(np.einsum("sgq,g->sq", a - B @ x, w))
+    G = np.vstack(g)
+    shifts = Rinv @ (Rinv.T @ G.T)  # (q, sources)
+    C_sys = shifts @ shifts.T
+    return Prediction(names, x, np.sqrt(np.diag(C)), np.sqrt(np.diag(C_sys)), C + C_sys, rank)
+
+
+# Student's t 90 % quantile by degrees of freedom (scipy.stats.t.ppf(0.9, df); its import costs a second)
+T90 = {2: 1.8856, 3: 1.6377, 4: 1.5332, 5: 1.4759, 6: 1.4398, 7: 1.4149, 8: 1.3968, 9: 1.3830, 10: 1.3722}
+
+
+def predict_all(pieces: Sequence[Piece]) -> list[Prediction]:
+    """`predict` with each noisy draw's weights. The weights σ_g (eq. (8)) come from residuals the zero offsets
+    dominate, so they, and the σ total an identification reports, change from one set of offsets to the next (MX6's
+    offsets part by 3x between two seeds of the 406's plan): the draws sample that scatter."""
+    return [predict(pieces, d) for d in range(len(pieces[0].noisy))]
+
+
+def typical(draws: Sequence[Prediction]) -> Prediction:
+    """The draws' mean covariance (their σ as root mean squares): what the spread of the estimates over seeds is."""
+    p = draws[0]
+    if min(d.rank for d in draws) < len(p.names):
+        return min(draws, key=lambda d: d.rank)
+
+    def rms(a: list[np.ndarray]) -> np.ndarray:
+        return np.sqrt(np.mean(np.square(a), axis=0))
+
+    return Prediction(p.names, p.x, rms([d.std_stat for d in draws]), rms([d.std_sys for d in draws]),
+                      np.mean([d.covariance for d in draws], axis=0), p.rank)
+
+
+@dataclass(frozen=True)
+class Scorer:
+    """The targets' σ from a prediction: the parameters' directly, the engineering quantities' through their
+    Jacobian at the a priori car (computed once: the quantities are smooth in the parameters)."""
+
+    names: tuple[str, ...]
+    targets: tuple[Target, ...]
+    keys: tuple[str, ...]  # the engineering quantities the targets bound
+    J: np.ndarray  # (len(keys), q)
+
+    def sigmas(self, p: Prediction) -> np.ndarray:
+        """(len(targets),) σ total of each target's quantity."""
+        if p.rank < len(self.names):
+            return np.full(len(self.targets), np.inf)
+        sq = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", self.J, p.covariance, self.J), 0, None))
+        std = p.std_total
+        return np.array([std[self.names.index(t.key)] if t.kind == "parameter" else sq[self.keys.index(t.key)]
+                         for t in self.targets])
+
+    def reported(self, draws: Sequence[Prediction]) -> np.ndarray:
+        """(len(targets),) the σ total an identification reports in 9 seeds of 10: the draws' σ taken as
+        log-normal, the 90 % prediction bound of one more draw from n of them, exp(mean + t(0.9, n-1) sqrt(1 + 1/n)
+        sd) of their logarithms (their largest with fewer than three draws)."""
+        s = np.array([self.sigmas(d) for d in draws])
+        if not np.all(np.isfinite(s)):
+            return np.full(len(self.targets), np.inf)
+        n = len(draws)
+        if n < 3:
+            return s.max(axis=0)
+        logs = np.log(s)
+        k = T90.get(n - 1, 1.2816) * math.sqrt(1 + 1 / n)
+        return np.exp(logs.mean(axis=0) + k * logs.std(axis=0, ddof=1))
+
+    def shortfall(self, draws: Sequence[Prediction]) -> float:
+        """Σ over the targets of log(σ reported in 9 seeds of 10 / bound) where above it: 0 when every target is
+        met; the parameters the rows cannot identify count 100 each."""
+        rank = min(d.rank for d in draws)
+        if rank < len(self.names):
+            return 100.0 * (len(self.names) - rank) + 100.0
+        limits = np.array([t.limit for t in self.targets])
+        return float(np.sum(np.log(np.maximum(self.reported(draws) / limits, 1.0))))
+
+
+def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[Target], geometry) -> Scorer:
+    """The Scorer of these targets at `values` (every parameter of the tree: the estimated at their a priori)."""
+    from ..vehicle.engineering import car_quantities, jacobian
+
+    keys = tuple(dict.fromkeys(t.key for t in targets if t.kind == "quantity"))
+    x = np.array([values[n] for n in names])
+    J = (jacobian(lambda v: car_quantities(v, geometry), values, list(names), list(keys), np.abs(x) + 1.0)
+         if keys else np.zeros((0, len(names))))
+    return Scorer(tuple(names), tuple(targets), keys, J)
+
+
+def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int = 2,
+           max_tests: int = 10, starts: int = 3) -> tuple[list[str], int]:
+    """The shortest plan found (test keys, a repetition listed again) and the evaluations it took.
+
+    Every plan of one or two tests is evaluated: the shortest that meets the targets wins. Otherwise the greedy
+    goes on from the `starts` best of them: each step adds the test that removes most shortfall per second of
+    driving. Adding a test is not always better: its zeroing brings offsets the others' do not cancel (two tests'
+    constant clearance offsets leak into the springs, where one test's is taken by the damper offset off), so when
+    no single test helps, the best pair is tried before stopping. The best plan reached (met in the least time,
+    else the least shortfall) then drops every test the targets do not need, longest first."""
+    cache: dict[tuple[str, ...], float] = {}
+
+    def cost(plan: Sequence[str]) -> float:
+        k = tuple(sorted(plan))
+        if k not in cache:
+            cache[k] = score.shortfall(predict_all([pieces[t] for t in k])) if k else math.inf
+        return cache[k]
+
+    def seconds(plan: Sequence[str]) -> float:
+        return sum(durations[k] for k in plan)
+
+    def allowed(plan: Sequence[str]) -> bool:
+        return len(plan) <= max_tests and all(plan.count(k) <= repeats for k in plan)
+
+    keys = list(pieces)
+    small = [[k] for k in keys] + [[a, b] for i, a in enumerate(keys) for b in keys[i:] if allowed([a, b])]
+
+    def rank(plan: Sequence[str]) -> tuple:
+        return (cost(plan) > 0, seconds(plan) if cost(plan) == 0 else cost(plan))
+
+    found = sorted(small, key=rank)
+    ends = [found[0]] if cost(found[0]) == 0 else [_greedy(list(p), keys, cost, seconds, allowed)
+                                                   for p in found[:starts]]
+    plan = min(ends, key=rank)
+    goal = cost(plan)
+    for k in sorted(set(plan), key=lambda k: -durations[k]):
+        while k in plan:
+            fewer = list(plan)
+            fewer.remove(k)
+            if fewer and cost(fewer) <= goal:
+                plan = fewer
+            else:
+                break
+    return plan, len(cache)
+
+
+def _greedy(plan: list[str], keys: Sequence[str], cost, seconds, allowed) -> list[str]:
+    """`search`'s greedy steps from `plan` until the targets are met or nothing helps."""
+    while cost(plan) > 0:
+        now = cost(plan)
+        steps = [[k] for k in keys if allowed([*plan, k])]
+        if not any(cost([*plan, *s]) < now for s in steps):
+            steps = [[a, b] for i, a in enumerate(keys) for b in keys[i:] if allowed([*plan, a, b])]
+        steps = [s for s in steps if cost([*plan, *s]) < now]
+        if not steps:
+            break
+        if math.isinf(now):
+            best = min(steps, key=lambda s: (cost([*plan, *s]), seconds(s)))
+        else:
+            best = max(steps, key=lambda s: ((now - cost([*plan, *s])) / seconds(s), -seconds(s)))
+        plan = [*plan, *best]
+    return plan
+
+
+# ------------------------------------------------------------------------------------------------------ the plan
+@dataclass
+class TestPlan:
+    """A recommended plan and everything it was chosen from (`text()` prints it)."""
+
+    vehicle: str
+    spec: TargetSpec
+    candidates: dict[str, Candidate]
+    envelopes: dict[str, Envelope]
+    excluded: dict[str, list[str]]  # key -> the limits it broke
+    plan: list[str]
+    prediction: Prediction
+    score: Scorer
+    labels: dict[str, str]
+    values: dict[str, float]  # the a priori (the simulated car's) values of the estimated parameters
+    quantities: dict[str, float]
+    without: dict[str, Prediction]  # test key -> the plan without it (one repetition fewer)
+    evaluations: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)
+    results: dict[str, object] = field(default_factory=dict, repr=False)  # key -> SimulationResult (noise-free)
+    draws: list[Prediction] = field(default_factory=list, repr=False)  # the plan's, per noisy draw's weights
+
+    @property
+    def reported(self) -> np.ndarray:
+        """(targets,) the σ total an identification of the plan reports in 9 seeds of 10 (`Scorer.reported`)."""
+        return self.score.reported(self.draws or [self.prediction])
+
+    def rehearsal(self, folder: Path, seed: int = 406) -> Path:
+        """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
+        noise and zero offsets (seed + its index; a repeat is a new draw) in `folder`/data, and `folder`/
+        identify.toml identifying on all of them (the demo's conditioning); returns the config's path."""
+        from ..atomic import write_atomic
+        from ..vehicle.description import load_vehicle
+        from ..vehicle.sim.recording import write_test
+
+        suite = load_vehicle(self.vehicle).suite
+        (folder / "data").mkdir(parents=True, exist_ok=True)
+        files, runs = {}, {}
+        for i, k in enumerate(self.plan):
+            runs[k] = runs.get(k, 0) + 1
+            stem = k if runs[k] == 1 else f"{k}-{runs[k]}"
+            path, _ = write_test(self.results[k], folder / "data" / f"{stem}.csv", seed=seed + i, suite=suite)
+            name = self.candidates[k].name + (f" (repeat {runs[k]})" if runs[k] > 1 else "")
+            files[name] = path.relative_to(folder).as_posix()
+        where = Path(self.vehicle).resolve().as_posix() if self.vehicle.endswith(".toml") else self.vehicle
+        return write_atomic(folder / "identify.toml", plan_config_text(files, where, {c.name: c.bias for c in suite
+                                                                                     if c.bias}))
+
+    @property
+    def duration(self) -> float:
+        return sum(self.candidates[k].duration for k in self.plan)
+
+    @property
+    def met(self) -> bool:
+        return bool(np.all(self.reported <= np.array([t.limit for t in self.score.targets])))
+
+    def text(self) -> str:
+        from ..vehicle.engineering import QUANTITIES
+
+        c, lines = self.candidates, []
+        lines += [f"Test plan for {self.vehicle}: targets {self.spec.source}", f"Driver and track limits: "
+                  f"{self.spec.limits.text()}", "", "Candidates (simulated with the vehicle's [truth] set; peaks "
+                  "reached: lateral and longitudinal acceleration m/s², speed km/h, run length m):"]
+        for k, cand in c.items():
+            e = self.envelopes[k]
+            bad = self.excluded.get(k)
+            lines.append(f"  {cand.name:<52} {cand.standard:<40} {cand.duration:5.1f} s  ay {e.lateral:4.1f}  ax "
+                         f"{e.longitudinal:4.1f}  v {e.speed:5.1f}  {e.length:6.0f} m"
+                         + (f"  EXCLUDED: {'; '.join(bad)}" if bad else ""))
+        runs: dict[str, int] = {}
+        lines += ["", f"Recommended plan: {len(self.plan)} test(s), {self.duration:g} s of driving, {len(self.plan)} "
+                  "zeroing(s) of the sensors (one before each test: its zero offsets are drawn anew)"
+                  + ("" if self.met else "; it does NOT meet every target (see below): the search found no "
+                     "combination of the candidates within the limits that does (an optimised input, issue 29 "
+                     "item 3, is not built yet)")]
+        for i, k in enumerate(self.plan, 1):
+            runs[k] = runs.get(k, 0) + 1
+            again = f" (repeat {runs[k]})" if runs[k] > 1 else ""
+            lines.append(f"  {i}. {c[k].name}{again}: {c[k].duration:g} s, {c[k].standard}")
+        sig, rep = self.score.sigmas(self.prediction), self.reported
+        p, names = self.prediction, list(self.prediction.names)
+        bound = {t.key: (t, r) for t, r in zip(self.score.targets, rep, strict=True)}
+        lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets, GUM: "
+                  "the spread of the estimates over seeds); the σ total the identification reports changes with each "
+                  "test's offsets (its weights come from residuals they dominate): 'in 9/10' is what it stays below "
+                  "in 9 seeds of 10 (log-normal over the draws' weights), held against the target:",
+                  f"  {'parameter':<10} {'a priori':>12} {'σ noise':>8} {'σ offsets':>9} {'σ total':>8} "
+                  f"{'in 9/10':>8} {'target':>8}  met"]
+        for i, n in enumerate(names):
+            v = self.values[n]
+            rel = [100 * s[i] / abs(v) if v else math.nan for s in (p.std_stat, p.std_sys, p.std_total)]
+            t = bound.get(n)
+            mark = "" if t is None or t[0].kind != "parameter" else ("yes" if t[1] <= t[0].limit else "NO")
+            shown = f"{100 * t[1] / abs(v):.2f}%" if mark and v else ""
+            lines.append(f"  {self.labels.get(n, n):<10} {v:>12.6g} {rel[0]:>7.2f}% {rel[1]:>8.2f}% {rel[2]:>7.2f}% "
+                         f"{shown:>8} {t[0].text if mark else '':>8}  {mark}")
+        lines += ["", "Predicted σ total of the engineering quantities with a target:",
+                  f"  {'quantity':<46} {'a priori':>10} {'σ total':>10} {'in 9/10':>10} {'target':>26}  met"]
+        for t, s, r in zip(self.score.targets, sig, rep, strict=True):
+            if t.kind != "quantity":
+                continue
+            lines.append(f"  {QUANTITIES[t.key][1] + (' (whole car)' if t.key in COG else ''):<46} "
+                         f"{self.quantities[t.key]:>10.4g} {self._shown(t, s):>10} {self._shown(t, r):>10} "
+                         f"{t.text:>26}  {'yes' if r <= t.limit else 'NO'}")
+        lines.append("  (products: % of the smallest moment)")
+        lines += ["", "Which test identifies what: σ total with the whole plan and without each test (parameters: % "
+                  "of their scale, the a priori value or, for the products and first moments, as the identification "
+                  "report's; quantities as above; — : the rest cannot identify every parameter):"]
+        heads = list(self.without)
+        lines.append(f"  {'':<28} {'plan':>8} " + " ".join(f"{'-' + h:>10}" for h in heads))
+        scale = self.scales
+        for i, n in enumerate(names):
+            row = [_percent(w.std_total[i], scale[n]) for w in (p, *self.without.values())]
+            lines.append(f"  {self.labels.get(n, n):<28} {row[0]:>8} " + " ".join(f"{r:>10}" for r in row[1:]))
+        for k, t in enumerate(self.score.targets):
+            if t.kind == "quantity":
+                row = [self._shown(t, self.score.sigmas(w)[k]) for w in (p, *self.without.values())]
+                label = QUANTITIES[t.key][1] + (" (whole car)" if t.key in COG else "")
+                lines.append(f"  {label[:28]:<28} {row[0]:>8} " + " ".join(f"{r:>10}" for r in row[1:]))
+        lines += ["", f"{self.evaluations} combinations evaluated; "
+                  + ", ".join(f"{k} {v:.1f} s" for k, v in self.seconds.items())]
+        return "\n".join(lines)
+
+    @property
+    def scales(self) -> dict[str, float]:
+        """Each parameter's engineering scale (`car.car_scales`: products against the smallest moment, first
+        moments against M6 x 0.2 m; the others their own value)."""
+        from .car import car_scales
+
+        found = car_scales(self.values)
+        return {n: found.get(n, abs(v)) for n, v in self.values.items()}
+
+    def _shown(self, t: Target, s: float) -> str:
+        if not math.isfinite(s):
+            return "—"
+        if t.kind == "quantity" and t.key in COG:
+            return f"{1000 * s:.2f}mm"
+        ref = (min(abs(self.quantities[m]) for m in MOMENTS) if t.key in PRODUCTS
+               else abs(self.quantities[t.key]) if t.kind == "quantity" else abs(self.values[t.key]))
+        return f"{100 * s / ref:.2f}%"
+
+    def to_dict(self) -> dict:
+        sig = self.score.sigmas(self.prediction)
+        return {"vehicle": self.vehicle, "targets_source": self.spec.source,
+                "limits": dataclasses.asdict(self.spec.limits),
+                "plan": [{"key": k, "name": self.candidates[k].name, "standard": self.candidates[k].standard,
+                          "duration_s": self.candidates[k].duration} for k in self.plan],
+                "duration_s": self.duration, "zeroings": len(self.plan), "meets_targets": self.met,
+                "candidates": {k: {"name": c.name, "envelope": dataclasses.asdict(self.envelopes[k]),
+                                   "excluded": self.excluded.get(k, [])} for k, c in self.candidates.items()},
+                "parameters": {n: {"a_priori": self.values[n], "std_noise": _num(a), "std_offsets": _num(b),
+                                   "std_total": _num(np.hypot(a, b))}
+                               for n, a, b in zip(self.prediction.names, self.prediction.std_stat,
+                                                  self.prediction.std_sys, strict=True)},
+                "targets": [{"kind": t.kind, "key": t.key, "bound": t.limit, "as_given": t.text, "std_total": _num(s),
+                             "std_total_9_in_10": _num(r), "met": bool(r <= t.limit),
+                             "without": {h: _num(self.score.sigmas(w)[i]) for h, w in self.without.items()}}
+                            for i, (t, s, r) in enumerate(zip(self.score.targets, sig, self.reported, strict=True))]}
+
+
+def _percent(s: float, scale: float) -> str:
+    return f"{100 * s / scale:.2f}%" if math.isfinite(s) and scale else "—"
+
+
+def _num(v: float) -> float | None:
+    """A number for JSON: None where not finite (a σ the tests cannot bound)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
+               candidates: Sequence[Candidate] = CANDIDATES, repeats: int = 2, seed: int = 2900,
+               progress: Progress | None = None, work: Path | None = None) -> TestPlan:
+    """Simulate the candidates (within the spec's limits), reduce each once, search the shortest plan meeting the
+    targets (module doc). work: where the candidates' files go (default: a temporary folder, removed)."""
+    from .demo import simulated_car
+
+    say = progress or (lambda _m: None)
+    spec = spec or TargetSpec()
+    clock = {"start": time.perf_counter()}
+    seconds: dict[str, float] = {}
+
+    def lap(what: str) -> None:
+        now = time.perf_counter()
+        seconds[what] = now - clock["start"]
+        clock["start"] = now
+
+    say("building the simulated car")
+    sim = simulated_car(vehicle)
+    lap("building the car")
+    results, envelopes, excluded = {}, {}, {}
+    for cand in candidates:
+        say(f"simulating {cand.name} ({cand.duration:g} s)")
+        r = sim.run(cand.manoeuvre, duration=cand.duration, **cand.params)
+        envelopes[cand.key] = envelope(r)
+        bad = envelopes[cand.key].violations(spec.limits)
+        if bad:
+            excluded[cand.key] = bad
+        else:
+            results[cand.key] = r
+    if not results:
+        raise ConfigError(f"no candidate test stays within the limits ({spec.limits.text()}): widen [limits]")
+    lap("simulating")
+    with tempfile.TemporaryDirectory(prefix="dynid-plan-") as tmp:
+        pieces, setup = reduce_candidates(results, vehicle, Path(work or tmp), seed, say)
+    lap("reducing")
+    # the evaluations are small dense problems, hundreds of them: one BLAS thread each is many times faster than a
+    # pool of threads contending for a loaded machine's cores (measured 27 ms against 500 ms per combination)
+    with threadpool_limits(limits=1, user_api="blas"):
+        names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
+        tree = setup.tree
+        labels = {n: tree.label(n) for n in names}
+        everything = predict(list(pieces.values()))  # the noise-free estimate of every test: the a priori car
+        values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
+        from ..vehicle.engineering import car_quantities
+
+        quantities = car_quantities(values, setup.vehicle.geometry)
+        targets = targets_for(spec, names, values, quantities, labels)
+        score = scorer(names, values, targets, setup.vehicle.geometry)
+        say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
+        durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
+        plan, evaluations = search(pieces, durations, score, repeats)
+        draws = predict_all([pieces[k] for k in plan])
+        prediction = typical(draws)
+        without = {}
+        for k in dict.fromkeys(plan):
+            rest = list(plan)
+            rest.remove(k)
+            without[k] = typical(predict_all([pieces[t] for t in rest])) if rest else dataclasses.replace(
+                prediction, rank=0, std_stat=np.full(len(names), np.inf))
+    lap("searching")
+    return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
+                    labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
+                    {k: results[k] for k in dict.fromkeys(plan)}, draws)
+
+
+# ----------------------------------------------------------------------------------------------- honesty check
+@dataclass(frozen=True)
+class SeedCheck:
+    """The plan identified on `seeds` noisy rehearsals through `identify`: per parameter the predicted σ total and
+    each seed's estimate (`spread`: their sample standard deviation); per seed whether the σ total it reported met
+    every target; seconds per identification."""
+
+    names: tuple[str, ...]
+    predicted: np.ndarray
+    estimates: np.ndarray  # (seeds, parameters)
+    reported: np.ndarray  # (seeds, targets): the σ total each seed's identification reported, over the bound
+    seconds: float
+    targets: tuple[str, ...] = ()
+
+    @property
+    def met(self) -> np.ndarray:
+        """(seeds,) whether every target was met."""
+        return np.all(self.reported <= 1.0, axis=1)
+
+    @property
+    def spread(self) -> np.ndarray:
+        return self.estimates.std(axis=0, ddof=1)
+
+    def text(self, labels: Mapping[str, str] | None = None) -> str:
+        labels = labels or {}
+        ratio = self.spread / self.predicted
+        lines = [f"{len(self.met)} seeds through identify ({self.seconds:.1f} s each): spread / predicted σ total per "
+                 f"parameter (median {np.median(ratio):.2f}, RMS {np.sqrt(np.mean(ratio ** 2)):.2f}); targets met "
+                 f"(σ total reported) in {int(self.met.sum())} of {len(self.met)} seeds"]
+        worst = self.reported.max(axis=0)
+        lines.append("  reported σ total / bound, largest over the seeds: " + ", ".join(
+            f"{labels.get(k, k)} {w:.2f}" for k, w in sorted(zip(self.targets, worst, strict=True),
+                                                             key=lambda kw: -kw[1])[:6]))
+        for n, p, s in zip(self.names, self.predicted, self.spread, strict=True):
+            lines.append(f"  {labels.get(n, n):<8} predicted {p:11.4g}  spread {s:11.4g}  ratio {s / p:5.2f}")
+        return "\n".join(lines)
+
+
+def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Progress | None = None) -> SeedCheck:
+    """`plan.rehearsal` for each seed identified by `identify` (the demo's procedure: files through the normal
+    pipeline); the spread of its estimates against the predicted σ total (module doc)."""
+    from ..report.build import car_engineering
+    from .run import identify
+
+    say = progress or (lambda _m: None)
+    names = plan.prediction.names
+    estimates, reported = [], []
+    t0 = time.perf_counter()
+    for s in seeds:
+        say(f"seed {s}: identifying the plan's rehearsal")
+        run = identify(plan.rehearsal(folder / f"seed{s}", seed=1000 * s), progress=None)
+        r = run.result
+        estimates.append([r.value(n) for n in names])
+        total = dict(zip(r.names, r.std_total, strict=True))
+        figures = {q.key: q.std for q in car_engineering(run)[0]}
+        reported.append([(total[t.key] if t.kind == "parameter" else figures[t.key]) / t.limit
+                         for t in plan.score.targets])
+    return SeedCheck(tuple(names), plan.prediction.std_total, np.array(estimates), np.array(reported),
+                     (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets))
