@@ -409,7 +409,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
-    run.without_test = without_each_test(names, kw, per_test)
+    run.without_test = without_each_test(names, kw, per_test, misfits)
     run.errors["direct"] = ident.relative_errors(result)
     run.residual_rms = ident.group_rms(result)
     if fitted is not None:  # the model's fit includes the offsets the data read
@@ -455,7 +455,8 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
     return dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, knees=chosen)), note
 
 
-def without_each_test(names: list[str], kw: dict, per_test: dict) -> dict[str, dict[str, float]]:
+def without_each_test(names: list[str], kw: dict, per_test: dict,
+                      misfits: tuple[str, ...] = ()) -> dict[str, dict[str, float]]:
     """Which test identifies what: {test: {parameter: σ total (WLS, noise and zero offsets) of the identification
     without that test}} (inf where the others cannot identify it); empty with a single identification test. The
     rows are those already reduced: a WLS solve per test, no pass over the data."""
@@ -467,7 +468,9 @@ def without_each_test(names: list[str], kw: dict, per_test: dict) -> dict[str, d
         ls = StreamingLS(names, **kw).merge(rest.ls)
         try:
             r = ls.solve_weighted()
-            if rest.bias is not None:
+            if rest.zeros is not None:  # the offsets estimated, as the identification does (its misfit groups out)
+                r, _ = ls.with_offsets_estimated(r, rest.zeros, misfits)
+            elif rest.bias is not None:
                 r = ls.with_systematic(r, rest.bias)
             out[test] = {n: float(s) for n, s in zip(r.names, r.std_total, strict=True)}
         except IdentificationError:
