@@ -13,6 +13,7 @@ from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_p
 from .fit import FIT_RATIO, ModelFit, fit_note, misfit_parameters, model_fits
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
+from .method import Method
 from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
@@ -44,6 +45,7 @@ __all__ = [
     "IdentificationResult",
     "InstrumentSums",
     "LSQSolution",
+    "Method",
     "ModelFit",
     "ResidualStats",
     "StreamingLS",

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike
 from ._checks import as_groups, group_rows, norm_ratio, prepare
 from .errors import IdentificationError
 from .lsq import LSQSolution
+from .method import Method
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
 from .wls import SIGMA_FLOOR, wls
@@ -309,7 +310,7 @@ def wls_pc(
     inv_gram = Rinv @ Rinv.T
     sol = LSQSolution(x, inv_gram, rss, n, dof, rss / dof, rss / dof * inv_gram, w.condition_number)
     res = build_result(sol, names=pb.names, estimated_names=est, known=pb.split.known, labels=w.labels,
-                       a_priori=w.a_priori, truth=w.truth, method="WLS-PC", weights=w.weights,
+                       a_priori=w.a_priori, truth=w.truth, method=Method.WLS_PC, weights=w.weights,
                        relative_residual=norm_ratio(np.linalg.norm(y - A @ x), np.linalg.norm(pb.Y)),
                        poor_factor=poor_factor)
     chi2 = float(np.sum((L @ (x - b_w)) ** 2))

@@ -39,6 +39,7 @@ from ._checks import (
 from .errors import IdentificationError
 from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
+from .method import Method
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
 from .systematic import BiasAccumulator, propagate
@@ -155,7 +156,7 @@ class StreamingLS:
     def _residual_norm(self, x: np.ndarray, group: str) -> float:
         return float(np.linalg.norm(self._R[group] @ np.append(x, -1.0)))
 
-    def _result(self, sol: LSQSolution, method: str, weights: Mapping[str, float]) -> IdentificationResult:
+    def _result(self, sol: LSQSolution, method: Method, weights: Mapping[str, float]) -> IdentificationResult:
         res2 = sum(self._residual_norm(sol.x, g) ** 2 for g in self._R)
         return build_result(
             sol,
@@ -174,7 +175,7 @@ class StreamingLS:
     def solve(self) -> IdentificationResult:
         """OLS on every row added (same as ``ols`` on the whole stack, to round-off)."""
         self._require_rows()
-        return self._result(self._solve(self._stacked(), "W"), "OLS", {})
+        return self._result(self._solve(self._stacked(), "W"), Method.OLS, {})
 
     def group_fits(self, sigma_floor: float = SIGMA_FLOOR) -> dict[str, GroupFit]:
         """Per-group fits (paper eq. (8)) from the accumulators; warns for floored groups."""
@@ -204,7 +205,7 @@ class StreamingLS:
         self._require_rows()
         given = group_sigmas is not None
         sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
-        return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
+        return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), Method.WLS, sigmas)
 
     def instrument_sums(self) -> InstrumentSums:
         """An accumulator of instruments for rows of this system (``solve_iv``)."""
@@ -238,7 +239,7 @@ class StreamingLS:
         cov = iv_covariance(Ainv, S, s2)
         ls = self._solve(self._stacked(sigmas), "W (weighted)")  # the weighted W's condition number
         sol = LSQSolution(x, cov / s2, float(rss_w), n, n - q, float(s2), cov, ls.condition_number)
-        return self._result(sol, "IV", sigmas)
+        return self._result(sol, Method.IV, sigmas)
 
     def group_rms(self, X: ArrayLike | Mapping[str, float] | IdentificationResult | None = None) -> dict[str, float]:
         """``{group: RMS of Y}`` over the rows added, or of the residual ``Y - W X`` when X is given."""

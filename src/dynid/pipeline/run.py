@@ -36,6 +36,7 @@ from ..estimation import (
     residual_rms,
     wls,
 )
+from ..estimation.method import Method
 from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
 from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
@@ -325,10 +326,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     rows.update(parts["validate"].rows if "validate" in parts else {})
 
     # 3. solve
+    # IV starts from WLS's estimate and weights
     say(f"estimating {len(names)} parameters from {ident.n_rows} rows "
-        f"({'WLS' if cfg.method == 'iv' else cfg.method.upper()})")
+        f"({(Method.WLS if cfg.method is Method.IV else cfg.method).label})")
     try:
-        result = ident.solve() if cfg.method == "ols" else ident.solve_weighted()
+        result = ident.solve_weighted() if cfg.method.weighted else ident.solve()
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
@@ -338,7 +340,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
         delays = _car_delays(cfg, setup, plans, jobs(with_offsets=False), parts["identify"].shifts, result,
                              scheduler, say)
-    for k in range(settings.iv_passes if cfg.method == "iv" else 0):
+    for k in range(settings.iv_passes if cfg.method is Method.IV else 0):
         # instruments from the last estimate on every identification segment (and, on the final pass, on the
         # offsets' segments), then the IV estimate on the same rows (min_speed applies to the simulated rates)
         say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
@@ -542,7 +544,7 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
-    if gains and cfg.method == "wls-pc":
+    if gains and cfg.method is Method.WLS_PC:
         raise ConfigError(f"{cfg.path}: [identification] method = \"wls-pc\" does not take identified drive gains "
                           "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
                           "known ([drive] identify_gains = false)")
@@ -559,18 +561,18 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                                   ("the known gain(s)", len(free) < len(gains))) if has]
         say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
             f"{' and '.join(scale)})")
-    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
+    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.label})")
     kw = dict(a_priori=a_priori, known=known or None, poor_factor=cfg.poor_factor)
     structure = consistency_structure(model.tree, base)
     fit = None
     try:
-        if cfg.method == "wls-pc":
+        if cfg.method is Method.WLS_PC:
             fit = wls_pc(ident.W, ident.Y, ident.groups, names, structure,
                          standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)), **kw)
             result = fit.result
         else:
-            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls" and not gains
-                      else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method == "wls"
+            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method is Method.WLS and not gains
+                      else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method is Method.WLS
                       else ols(ident.W, ident.Y, names, **kw))
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}{_rank_hints(cfg, ident, health)}") from None
