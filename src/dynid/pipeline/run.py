@@ -148,13 +148,20 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
+PLOT_BYTES = 32 * 2**20
+"""Decimated rows of a robot test kept for the report's plots and validation.csv: the first chunks' up to this
+size (20 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole test
+when shorter). The
+estimate and the validation errors come from the factors of every chunk."""
+
+
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
                   health: list[dict] | None = None, all_rows: bool = False) -> dict[str, Partial]:
     """Each test reduced to its per-joint factors of [W | Y] (every column): its files planned from their stamps,
     their data health checked (an error stops here; the other findings appended to `health`), cut into chunks
     read and reduced on the scheduler's workers (`reduce.reduce_robot_chunk`), folded (`reduce.combine`). The
-    rows of each test's first chunk are kept too (the report's plots; every chunk's with all_rows), joint by
-    joint."""
+    rows of each test's first chunks are kept too, up to `PLOT_BYTES` (the report's plots and validation.csv;
+    every chunk's with all_rows), joint by joint."""
     jobs = []
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
@@ -171,10 +178,13 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
                               + ("widen its window (start, end) or raise the cut-off"
                                  if spec.start is not None or spec.end is not None
                                  else "record longer or raise the cut-off"))
+        kept = 0  # bytes of decimated rows kept for the plots so far
+        row_bytes = 8 * len(model.tree.equations) * len(robot_setup(cfg).names) / np.prod(cfg.conditioning.decimate)
         for i, (s, e) in enumerate(robot_chunks(N, plan.fs, model, base, cfg.conditioning)):
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
-            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=all_rows or i == 0))
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=all_rows or i == 0 or kept < PLOT_BYTES))
+            kept += (e - s) * row_bytes
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, combine, say)
     for part in parts.values():
         part.rows = {k: in_joint_order([v]) for k, v in part.rows.items()}
