@@ -1,4 +1,5 @@
-"""Estimation: ordinary and weighted least squares with standard deviations (paper §5),
+"""Estimation: one core over streamed per-group factors of [W | Y] (`StreamingLS`; a batch is one block), the
+estimator as a typed value (`Method`): ordinary and weighted least squares with standard deviations (paper §5),
 instrumental variables (IDIM-IV) against errors in the variables,
 rank checks naming unidentifiable parameters, the %σ rule of thumb and essential parameters
 (§7.2), validation errors, streaming least squares, the sensor offsets' systematic

@@ -66,7 +66,10 @@ Progress = Callable[[str], None]
 
 @dataclass
 class IdentificationRun:
-    """Everything an identification produced: the result, the systems used, validation errors, reference."""
+    """Everything an identification produced: the result, validation errors, reference, and rows to plot: identify
+    and validate hold the identification and validation tests' rows kept for the report (a car's first segment of
+    each test, a robot's first chunks up to `PLOT_BYTES`); the estimate and the errors come from every segment's
+    factors."""
 
     model: Model
     base: BaseParameters
