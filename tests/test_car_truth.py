@@ -19,6 +19,7 @@ import json
 import numpy as np
 import pytest
 
+from dynid.estimation import Method
 from dynid.pipeline.config import load_config
 from dynid.pipeline.demo import simulate_tests, write_demo
 from dynid.pipeline.run import identify
@@ -72,7 +73,7 @@ def test_noise_free_files_recover_the_truth(tmp_path, vehicle, method, estimated
     its four tire stiffnesses are known from a bench, the other 28 are estimated)."""
     files = write_demo(tmp_path, simulated(vehicle), noise=False, vehicle=vehicle)
     run = identify(load_config(with_method(files, method)))
-    assert run.result.method == method.upper()
+    assert run.result.method is Method.parse(method)
     errors = {n: e for n, (e, *_rest) in judged(run.result).items()}
     assert len(errors) == estimated
     bad = {n: f"{100 * e:+.2f} %" for n, e in errors.items() if abs(e) > (0.05 if n.startswith("FS") else 0.01)}

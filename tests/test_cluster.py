@@ -12,7 +12,7 @@ import threading
 import numpy as np
 import pytest
 
-from dynid.estimation import StreamingLS, ols, wls
+from dynid.estimation import Method, StreamingLS, ols, wls
 from dynid.estimation.iv import InstrumentSums
 from dynid.estimation.systematic import BiasAccumulator
 from dynid.pipeline.config import load_config
@@ -180,7 +180,7 @@ def test_a_campaign_gives_each_config_its_own_result(car_config, threads_run, cl
     _same(threads_run[0], runs[0])
     for cfg, run in zip(cfgs[1:], runs[1:], strict=True):
         _same(identify(cfg, scheduler=LocalScheduler(2)), run)
-    assert "ks9" not in runs[1].result.estimated_names and runs[2].result.method == "OLS"
+    assert "ks9" not in runs[1].result.estimated_names and runs[2].result.method is Method.OLS
     head, rows = summary(campaign_names(configs), runs)
     assert [r[0] for r in rows] == ["identify", "bench", "ols"] and "total mass [kg]" in head
     mass = head.index("total mass [kg]")

@@ -21,6 +21,7 @@ import dynid.atomic
 from dynid.estimation import (
     EstimationWarning,
     IdentificationError,
+    Method,
     StreamingLS,
     check_rank,
     essential_parameters,
@@ -61,7 +62,7 @@ def test_ols_matches_statsmodels_estimates_std_and_residual_variance():
     W, Y, _, names = well_conditioned(np.random.default_rng(0))
     res = ols(W, Y, names)
     fit = sm.OLS(Y, W).fit()
-    assert res.names == tuple(names) and res.method == "OLS"
+    assert res.names == tuple(names) and res.method is Method.OLS
     assert rel(res.values, fit.params) < RTOL
     assert rel(res.std, fit.bse) < RTOL
     assert rel(res.residual.sigma**2, fit.scale) < RTOL
@@ -91,7 +92,7 @@ def test_wls_with_given_weights_matches_statsmodels_wls():
     assert rel(res.values, fit.params) < RTOL
     assert rel(res.std, fit.bse) < RTOL
     assert rel(res.residual.sigma**2, fit.scale) < RTOL
-    assert res.weights == sigmas and res.method == "WLS"
+    assert res.weights == sigmas and res.method is Method.WLS
 
 
 def test_group_sigmas_match_statsmodels_per_group_and_wls_follows():
@@ -298,7 +299,7 @@ def test_essential_path_removes_noise_level_parameter_first():
 
     groups = np.array(["g1", "g2"] * (m // 2))
     ess_w = essential_parameters(W, Y, ["a", "b", "c", "d", "e"], groups=groups)
-    assert ess_w.removed == ("e",) and ess_w.result.method == "WLS"
+    assert ess_w.removed == ("e",) and ess_w.result.method is Method.WLS
 
 
 # --------------------------------------------------------------------------- validation

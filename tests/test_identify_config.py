@@ -8,6 +8,7 @@ import pytest
 
 import dynid
 from dynid.cli.main import main
+from dynid.estimation import Method
 
 GOOD = """
 [model]
@@ -176,7 +177,7 @@ def test_car_conditioning_options_are_checked(tmp_path, conditioning, identifica
     c = load_config(cfg)
     assert c.car.min_speed == {9: 0.02, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
     assert c.car.friction_lowpass
-    assert c.method == "iv" and c.car.iv_passes == 3
+    assert c.method is Method.IV and c.car.iv_passes == 3
     cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
     c = load_config(cfg)
     assert c.car.min_speed == {9: 0.01, 18: 0.01, 27: 0.01, 36: 0.01} and c.car.compensate_delays
@@ -374,4 +375,4 @@ def test_the_documented_keys_are_accepted(tmp_path):
     c = config.load_config(cfg)
     assert c.kind == "car" and c.car.attitude_crossover == 0.2 and c.car.offset_segments == 2
     assert c.car.base == "generic"
-    assert c.channels["imu_yaw_rate"].channels == ("GyroZ",) and c.method == "wls"
+    assert c.channels["imu_yaw_rate"].channels == ("GyroZ",) and c.method is Method.WLS

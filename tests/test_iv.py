@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from statsmodels.sandbox.regression.gmm import IV2SLS
 
-from dynid.estimation import IdentificationError, StreamingLS, iv, propagate, wls
+from dynid.estimation import IdentificationError, Method, StreamingLS, iv, propagate, wls
 
 
 def _eiv_system(rng, n=4000, noise=0.5, sigma_y=(0.1, 0.4)):
@@ -44,7 +44,7 @@ def test_iv_matches_statsmodels_iv2sls_with_given_weights():
     ref = IV2SLS(Y * w, W * w[:, None], Z * w[:, None]).fit()
     np.testing.assert_allclose(res.values, ref.params, rtol=1e-10)
     np.testing.assert_allclose(res.std, ref.bse, rtol=1e-9)
-    assert res.method == "IV" and res.weights == sig
+    assert res.method is Method.IV and res.weights == sig
 
 
 def test_iv_removes_the_errors_in_variables_bias_that_least_squares_has():

@@ -26,7 +26,7 @@ import pytest
 cp = pytest.importorskip("cvxpy", reason="the pc extra (pip install cvxpy clarabel) is not installed")
 
 from dynid import load_model  # noqa: E402
-from dynid.estimation import IdentificationError, wls  # noqa: E402
+from dynid.estimation import IdentificationError, Method, wls  # noqa: E402
 from dynid.estimation.physical import MARGIN, pseudo_inertia, require_cvxpy, wls_pc  # noqa: E402
 from dynid.model import check_physical  # noqa: E402
 from dynid.model.consistency import check_joint_terms  # noqa: E402
@@ -273,7 +273,7 @@ def test_the_config_takes_wls_pc_for_a_robot_only(tmp_path):
     text = CONFIG.read_text().replace('method = "wls"', 'method = "wls-pc"')
     text = text.replace("../../../shared", str(CONFIG.parents[3] / "shared"))
     (tmp_path / "robot.toml").write_text(text)
-    assert load_config(tmp_path / "robot.toml").method == "wls-pc"
+    assert load_config(tmp_path / "robot.toml").method is Method.WLS_PC
     (tmp_path / "sine.csv").write_text("time\n0\n")
     (tmp_path / "car.toml").write_text('[model]\ntemplate = "peugeot406"\n[[tests]]\nfile = "sine.csv"\n'
                                        '[identification]\nmethod = "wls-pc"\n')

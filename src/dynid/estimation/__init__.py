@@ -1,4 +1,5 @@
-"""Estimation: ordinary and weighted least squares with standard deviations (paper §5),
+"""Estimation: one core over streamed per-group factors of [W | Y] (`StreamingLS`; a batch is one block), the
+estimator as a typed value (`Method`): ordinary and weighted least squares with standard deviations (paper §5),
 instrumental variables (IDIM-IV) against errors in the variables,
 rank checks naming unidentifiable parameters, the %σ rule of thumb and essential parameters
 (§7.2), validation errors, streaming least squares, the sensor offsets' systematic
@@ -13,6 +14,7 @@ from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_p
 from .fit import FIT_RATIO, ModelFit, fit_note, misfit_parameters, model_fits
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
+from .method import Method
 from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
@@ -44,6 +46,7 @@ __all__ = [
     "IdentificationResult",
     "InstrumentSums",
     "LSQSolution",
+    "Method",
     "ModelFit",
     "ResidualStats",
     "StreamingLS",

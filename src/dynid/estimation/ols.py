@@ -9,6 +9,7 @@ from numpy.typing import ArrayLike
 
 from ._checks import norm_ratio, prepare
 from .lsq import solve_lsq
+from .method import Method
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
 
@@ -50,7 +51,7 @@ def ols(
         labels=pb.labels,
         a_priori=pb.a_priori,
         truth=pb.truth,
-        method="OLS",
+        method=Method.OLS,
         weights={},
         relative_residual=norm_ratio(np.sqrt(sol.rss), np.linalg.norm(pb.Y)),
         poor_factor=poor_factor,

@@ -37,11 +37,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._checks import as_groups, group_rows, norm_ratio, prepare
+from ._checks import as_groups, group_rows, prepare
 from .errors import IdentificationError
 from .lsq import LSQSolution
+from .method import Method
 from .quality import POOR_FACTOR
-from .result import IdentificationResult, build_result
+from .result import IdentificationResult
+from .streaming import StreamingLS
 from .wls import SIGMA_FLOOR, wls
 
 MARGIN = 1e-6
@@ -247,30 +249,72 @@ def wls_pc(
     solver_options: Mapping[str, Any] | None = None,
     standard_prior: Mapping[str, float] | None = None,
 ) -> PhysicalFit:
-    """Weighted least squares subject to physical consistency (see the module doc).
+    """Weighted least squares subject to physical consistency (see the module doc) on a whole system: the rows
+    added to a `StreamingLS` as one block, then `wls_pc_streamed`.
 
     W (m, q) : the base regressor, columns in ``names`` order (every base parameter, known ones too);
     Y, groups, labels, a_priori, truth, known, group_sigmas, rank_tol, sigma_floor, poor_factor : as in
-    ``wls`` (the weights are WLS's: σ_j from eq. (8) on the unconstrained per-group fits); structure :
-    the map to the standard parameters and the constraints (its base_names must be ``names``); margin :
-    see `MARGIN`; solver : a cvxpy solver name (CLARABEL; SCS for an independent check); standard_prior :
-    the standard parameters' a priori values (the model file's), by name: the data fix only the base values,
-    so of the consistent standard sets giving the estimate, `standard` is the one closest to these (a second
-    solve with the base values held); without it, whichever set the solver met first.
+    ``wls``; the other arguments as in `wls_pc_streamed`.
     """
-    cp = require_cvxpy()
-    if tuple(names) != structure.base_names:
-        raise IdentificationError("wls_pc: names must be the structure's base parameters, in its order")
+    ls = StreamingLS(names, labels=labels, a_priori=a_priori, truth=truth, known=known, rank_tol=rank_tol,
+                     poor_factor=poor_factor)
+    ls.add(W, Y, groups)
+    # the weighted rows' factor in one QR of the rows (the same factor as the groups' stacked, to round-off): the
+    # second solve of `_closest_to_prior` is sensitive to the last digits of its input (module doc of that
+    # function), and this keeps a whole system's answer the one it had before the streamed path
     w = wls(W, Y, groups, names, labels=labels, a_priori=a_priori, truth=truth, known=known,
             group_sigmas=group_sigmas, rank_tol=rank_tol, sigma_floor=sigma_floor, poor_factor=poor_factor)
     pb = prepare(W, Y, names, known=known)
-    A, y, est = pb.split.W_est, pb.split.Y_est, pb.split.est_names
-    g = as_groups(groups, A.shape[0])
+    A, y = pb.split.W_est, pb.split.Y_est
     row_sigma = np.empty(A.shape[0])
-    for k, idx in group_rows(g).items():
+    for k, idx in group_rows(as_groups(groups, A.shape[0])).items():
         row_sigma[idx] = w.weights[k]
-    # the weighted system compressed to the triangular factor of [W_p | Y_p]: ||P(Y - W b)|| = ||R [b; -1]||
     R = np.linalg.qr(np.column_stack([A / row_sigma[:, None], y / row_sigma]), mode="r")
+    return _wls_pc(ls, w, R, structure, margin=margin, solver=solver, solver_options=solver_options,
+                   standard_prior=standard_prior)
+
+
+def wls_pc_streamed(
+    ls: StreamingLS,
+    structure: ConsistencyStructure,
+    *,
+    group_sigmas: Mapping[str, float] | None = None,
+    sigma_floor: float = SIGMA_FLOOR,
+    margin: float = MARGIN,
+    solver: str = "CLARABEL",
+    solver_options: Mapping[str, Any] | None = None,
+    standard_prior: Mapping[str, float] | None = None,
+) -> PhysicalFit:
+    """Weighted least squares subject to physical consistency (see the module doc) from the per-group factors of
+    the rows (`StreamingLS`: ||P (Y - W b)||^2 = ||R_w [b; -1]||^2 with R_w the factor of the groups' R_g / σ_g
+    stacked; W is never held).
+
+    ls : the rows' accumulator on the base parameters (its names the structure's base_names; known values, a
+    priori values, labels as it holds them); group_sigmas, sigma_floor : as in `StreamingLS.solve_weighted`
+    (the weights are WLS's: σ_j from eq. (8) on the unconstrained per-group fits); structure : the map to the
+    standard parameters and the constraints; margin : see `MARGIN`; solver : a cvxpy solver name (CLARABEL;
+    SCS for an independent check); standard_prior : the standard parameters' a priori values (the model
+    file's), by name: the data fix only the base values, so of the consistent standard sets giving the
+    estimate, `standard` is the one closest to these (a second solve with the base values held); without it,
+    whichever set the solver met first.
+    """
+    if tuple(ls.names) != structure.base_names:
+        raise IdentificationError("wls_pc: names must be the structure's base parameters, in its order")
+    w = ls.solve_weighted(group_sigmas, sigma_floor)
+    return _wls_pc(ls, w, ls.weighted_factor(w.weights), structure, margin=margin, solver=solver,
+                   solver_options=solver_options, standard_prior=standard_prior)
+
+
+def _wls_pc(ls: StreamingLS, w: IdentificationResult, R: np.ndarray, structure: ConsistencyStructure, *,
+            margin: float, solver: str, solver_options: Mapping[str, Any] | None,
+            standard_prior: Mapping[str, float] | None) -> PhysicalFit:
+    """The constrained estimate from the WLS estimate w of the rows `ls` holds and R, the factor of their weighted
+    rows [W_p | Y_p] (estimated columns): ||P(Y - W b)|| = ||R [b; -1]||."""
+    cp = require_cvxpy()
+    names = ls.names
+    if tuple(names) != structure.base_names:
+        raise IdentificationError("wls_pc: names must be the structure's base parameters, in its order")
+    est = ls.estimated_names
     q = len(est)
     pos = {n: i for i, n in enumerate(names)}
     K_est = structure.base_map[[pos[n] for n in est]]
@@ -280,9 +324,9 @@ def wls_pc(
 
     s, cons, nonneg = _problem(cp, structure, margin)
     constraints = list(cons.values()) + ([nonneg] if nonneg is not None else [])
-    if pb.split.known:
-        K_known = structure.base_map[[pos[n] for n in pb.split.known]]
-        constraints.append(K_known @ s == np.array(list(pb.split.known.values())))
+    if ls.known:
+        K_known = structure.base_map[[pos[n] for n in ls.known]]
+        constraints.append(K_known @ s == np.array(list(ls.known.values())))
     # the objective as L (K s - b_w): zero at WLS, so its value is the chi-square increase itself
     prob = cp.Problem(cp.Minimize(cp.sum_squares((L @ K_est) @ s - L @ b_w)), constraints)
     t0 = time.perf_counter()
@@ -303,15 +347,12 @@ def wls_pc(
         x_std = _closest_to_prior(cp, structure, margin, x_std, standard_prior, solver, solver_options)
     rss = float(np.linalg.norm(R[:, :q] @ x - R[:, q]) ** 2)
     rss_w = float(w.residual.rss)
-    n = A.shape[0]
+    n = ls.n_rows
     dof = n - q
     Rinv = np.linalg.inv(R[:q, :q])
     inv_gram = Rinv @ Rinv.T
     sol = LSQSolution(x, inv_gram, rss, n, dof, rss / dof, rss / dof * inv_gram, w.condition_number)
-    res = build_result(sol, names=pb.names, estimated_names=est, known=pb.split.known, labels=w.labels,
-                       a_priori=w.a_priori, truth=w.truth, method="WLS-PC", weights=w.weights,
-                       relative_residual=norm_ratio(np.linalg.norm(y - A @ x), np.linalg.norm(pb.Y)),
-                       poor_factor=poor_factor)
+    res = ls.result_of(sol, Method.WLS_PC, w.weights)
     chi2 = float(np.sum((L @ (x - b_w)) ** 2))
     # a standard parameter's natural unit: the σ of the estimated base parameter it enters, over its coefficient
     sig = np.array([w.std[w.index(n)] for n in est])
@@ -532,4 +573,4 @@ def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str,
 
 __all__ = ["ACTIVE_PRICE", "MARGIN", "PLAUSIBLE_MARGIN", "PRIOR_SPREAD", "ConsistencyStructure", "Feasibility",
            "PhysicalFit", "Plausible", "feasible_standard", "plausible_standard", "pseudo_inertia", "require_cvxpy",
-           "wls_pc"]
+           "wls_pc", "wls_pc_streamed"]

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from .lsq import LSQSolution
+from .method import Method
 from .quality import POOR_FACTOR, poorly_identified, relative_std_percent
 from .systematic import SystematicUncertainty
 
@@ -67,8 +68,8 @@ class IdentificationResult:
     which an error matters (a product of inertia against a principal moment, a first moment against a
     centimetre of centre-of-mass shift times the mass). flag_percent : `uncertainty_flags` threshold.
     labels, a_priori, truth, known : ``{name: ...}`` (labels default to the names).
-    method : "OLS", "WLS" or "IV" (weighted instrumental variables). weights : ``{group: sigma_j}`` (WLS and
-    IV; {} for OLS).
+    method : the estimator (`Method`; its label, "OLS", "WLS", "IV" or "WLS-PC", is what tables and JSON print).
+    weights : ``{group: sigma_j}`` (every weighted method; {} for OLS).
     condition_number : condition number of the matrix solved (W for OLS, the weighted W for WLS).
     residual : ``ResidualStats``.
     covariance : (q, q) covariance of the estimated parameters, order ``estimated_names``.
@@ -86,7 +87,7 @@ class IdentificationResult:
     a_priori: dict[str, float]
     truth: dict[str, float]
     known: dict[str, float]
-    method: str
+    method: Method
     weights: dict[str, float]
     condition_number: float
     residual: ResidualStats
@@ -213,7 +214,7 @@ class IdentificationResult:
         ]
         return _jsonable(
             {
-                "method": self.method,
+                "method": self.method.label,
                 "parameters": params,
                 "validation": self.validation,
                 "condition_number": self.condition_number,
@@ -356,7 +357,7 @@ def build_result(
     labels: Mapping[str, str],
     a_priori: Mapping[str, float],
     truth: Mapping[str, float],
-    method: str,
+    method: Method,
     weights: Mapping[str, float],
     relative_residual: float,
     poor_factor: float = POOR_FACTOR,

@@ -39,6 +39,7 @@ from ._checks import (
 from .errors import IdentificationError
 from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
+from .method import Method
 from .offsets import OffsetEstimate, OffsetFactors, solve_with_offsets
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
@@ -83,6 +84,7 @@ class StreamingLS:
         self._R: dict[str, np.ndarray] = {}
         self._rows: dict[str, int] = {}
         self._y2: dict[str, float] = {}
+        self._sum: dict[str, np.ndarray] = {}  # column sums of the rows [W | Y] (every column): the groups' means
 
     # ----------------------------------------------------------------- accumulation
     @property
@@ -113,12 +115,14 @@ class StreamingLS:
             self._R[name] = np.linalg.qr(np.vstack([R, block]), mode="r")
             self._rows[name] = self._rows.get(name, 0) + idx.size
             self._y2[name] = self._y2.get(name, 0.0) + float(y[idx] @ y[idx])
+            total = np.append(A[idx].sum(axis=0), y[idx].sum())
+            self._sum[name] = total if name not in self._sum else self._sum[name] + total
 
     def empty(self) -> StreamingLS:
         """An accumulator of the same columns (names, known values, settings) with no rows: a segment's own."""
         out = object.__new__(StreamingLS)
         out.__dict__.update(self.__dict__)
-        out._R, out._rows, out._y2 = {}, {}, {}
+        out._R, out._rows, out._y2, out._sum = {}, {}, {}, {}
         return out
 
     def merge(self, other: StreamingLS) -> StreamingLS:
@@ -132,6 +136,35 @@ class StreamingLS:
             out._R[name] = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
             out._rows[name] = self._rows.get(name, 0) + other._rows.get(name, 0)
             out._y2[name] = self._y2.get(name, 0.0) + other._y2.get(name, 0.0)
+            out._sum[name] = sum((s._sum[name] for s in (self, other) if name in s._sum), np.zeros(len(self.names) + 1))
+        return out
+
+    def reparametrised(self, names: Sequence[str], T: ArrayLike, *, known: Mapping[str, float] | None = None,
+                       labels: Mapping[str, str] | None = None, a_priori: Mapping[str, float] | None = None,
+                       truth: Mapping[str, float] | None = None) -> StreamingLS:
+        """The accumulator of the rows ``[W' | Y'] = [W | Y] T`` (T: (p+1, p'+1), p' = len(names)), with `known`
+        of the new parameters moved to the right-hand side: per group the QR of ``R_g T`` (``[W_g | Y_g] = Q_g
+        R_g``, so ``[W_g | Y_g] T = Q_g (R_g T)``). This accumulator must hold every column (no known values).
+
+        E.g. T = identity and `known`: the same rows with parameters fixed; or identified drive gains g replaced
+        by their values, ``Y' = Y - W_g g``."""
+        if self.known:
+            raise IdentificationError("reparametrised needs the accumulator of every column (no known values)")
+        out = StreamingLS(names, labels=labels, a_priori=a_priori, truth=truth, known=known, rank_tol=self.rank_tol,
+                          poor_factor=self.poor_factor)
+        T = np.asarray(T, dtype=float)
+        if T.shape != (len(self.names) + 1, len(out.names) + 1):
+            raise IdentificationError(f"T has shape {T.shape}, expected {(len(self.names) + 1, len(out.names) + 1)}")
+        # the new rows' estimated columns, then Y' less the known columns times their values
+        est = [out.names.index(n) for n in out.estimated_names]
+        kn = [out.names.index(n) for n in out.known]
+        rhs = T[:, -1] - T[:, kn] @ np.array(list(out.known.values()), dtype=float)
+        Te = np.column_stack([T[:, est], rhs])
+        for g, R in self._R.items():
+            out._R[g] = np.linalg.qr(R @ Te, mode="r")
+            out._rows[g] = self._rows[g]
+            out._y2[g] = float(np.sum((R @ T[:, -1]) ** 2))
+            out._sum[g] = self._sum[g] @ T
         return out
 
     # ----------------------------------------------------------------- solving
@@ -156,7 +189,17 @@ class StreamingLS:
     def _residual_norm(self, x: np.ndarray, group: str) -> float:
         return float(np.linalg.norm(self._R[group] @ np.append(x, -1.0)))
 
-    def _result(self, sol: LSQSolution, method: str, weights: Mapping[str, float]) -> IdentificationResult:
+    def weighted_factor(self, sigmas: Mapping[str, float] | None = None) -> np.ndarray:
+        """The (q+1, q+1) triangular factor of the rows weighted by their group's 1/σ_g, [P W | P Y] (the
+        estimated columns; no weights: the rows as added)."""
+        self._require_rows()
+        return self._stacked(None if sigmas is None else checked_sigmas(sigmas, list(self._R)))
+
+    def result_of(self, sol: LSQSolution, method: Method, weights: Mapping[str, float]) -> IdentificationResult:
+        """A solution on these rows' estimated parameters as a result (names, known values, relative residual)."""
+        return self._result(sol, method, weights)
+
+    def _result(self, sol: LSQSolution, method: Method, weights: Mapping[str, float]) -> IdentificationResult:
         res2 = sum(self._residual_norm(sol.x, g) ** 2 for g in self._R)
         return build_result(
             sol,
@@ -175,7 +218,7 @@ class StreamingLS:
     def solve(self) -> IdentificationResult:
         """OLS on every row added (same as ``ols`` on the whole stack, to round-off)."""
         self._require_rows()
-        return self._result(self._solve(self._stacked(), "W"), "OLS", {})
+        return self._result(self._solve(self._stacked(), "W"), Method.OLS, {})
 
     def group_fits(self, sigma_floor: float = SIGMA_FLOOR) -> dict[str, GroupFit]:
         """Per-group fits (paper eq. (8)) from the accumulators; warns for floored groups."""
@@ -205,7 +248,7 @@ class StreamingLS:
         self._require_rows()
         given = group_sigmas is not None
         sigmas = checked_sigmas(group_sigmas, list(self._R)) if given else self.group_sigmas(sigma_floor)
-        return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), "WLS", sigmas)
+        return self._result(self._solve(self._stacked(sigmas), "W (weighted)"), Method.WLS, sigmas)
 
     def instrument_sums(self) -> InstrumentSums:
         """An accumulator of instruments for rows of this system (``solve_iv``)."""
@@ -239,7 +282,7 @@ class StreamingLS:
         cov = iv_covariance(Ainv, S, s2)
         ls = self._solve(self._stacked(sigmas), "W (weighted)")  # the weighted W's condition number
         sol = LSQSolution(x, cov / s2, float(rss_w), n, n - q, float(s2), cov, ls.condition_number)
-        return self._result(sol, "IV", sigmas)
+        return self._result(sol, Method.IV, sigmas)
 
     def group_rms(self, X: ArrayLike | Mapping[str, float] | IdentificationResult | None = None) -> dict[str, float]:
         """``{group: RMS of Y}`` over the rows added, or of the residual ``Y - W X`` when X is given."""
@@ -283,20 +326,43 @@ class StreamingLS:
         out = self._result(est.solution, result.method, result.weights)
         return out.with_systematic(est.systematic), est
 
-    def relative_errors(self, X: ArrayLike | Mapping[str, float] | IdentificationResult) -> dict[str, float]:
+    def relative_errors(self, X: ArrayLike | Mapping[str, float] | IdentificationResult,
+                        residual: Mapping[str, float] | None = None) -> dict[str, float]:
         """``||Y_g - W_g X|| / ||Y_g||`` per group plus ``"overall"`` on the rows added.
 
         X : (p,) values in names order, ``{name: value}``, or an ``IdentificationResult``; the values
         of known parameters must equal the known ones (they are already in the accumulators).
+        residual : the groups' residual RMS to use instead of the factors' at X (`_residuals`).
         """
         self._require_rows()
-        x = self._estimated_values(X)
-        out = {g: norm_ratio(self._residual_norm(x, g), np.sqrt(self._y2[g])) for g in self._R}
+        res = self._residuals(self._estimated_values(X), residual)
+        out = {g: norm_ratio(res[g], np.sqrt(self._y2[g])) for g in self._R}
         if "overall" in out:
             raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
-        total = np.sqrt(sum(self._residual_norm(x, g) ** 2 for g in self._R))
+        total = np.sqrt(sum(r ** 2 for r in res.values()))
         out["overall"] = norm_ratio(total, np.sqrt(sum(self._y2.values())))
         return out
+
+    def nrmse(self, X: ArrayLike | Mapping[str, float] | IdentificationResult,
+              residual: Mapping[str, float] | None = None) -> dict[str, float]:
+        """``RMS(Y_g - W_g X) / std(Y_g)`` per group plus ``"overall"`` (the residuals' and the spreads' sums of
+        squares pooled), as `quality.nrmse` on the rows added; the spread from the group's sums:
+        ``||Y_g - mean||^2 = ||Y_g||^2 - (sum Y_g)^2 / n_g``. residual: as `relative_errors`."""
+        self._require_rows()
+        res = self._residuals(self._estimated_values(X), residual)
+        spread = {g: max(self._y2[g] - self._sum[g][-1] ** 2 / self._rows[g], 0.0) for g in self._R}
+        out = {g: norm_ratio(res[g], np.sqrt(spread[g])) for g in self._R}
+        if "overall" in out:
+            raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
+        out["overall"] = norm_ratio(np.sqrt(sum(r * r for r in res.values())), np.sqrt(sum(spread.values())))
+        return out
+
+    def _residuals(self, x: np.ndarray, residual: Mapping[str, float] | None) -> dict[str, float]:
+        """Per group ||Y_g - W_g x||, or the norm of the given residual RMS (a residual other than the factors':
+        a car's with the sensor offsets the data read taken out, `offsets.OffsetFactors.group_rms`)."""
+        if residual is None:
+            return {g: self._residual_norm(x, g) for g in self._R}
+        return {g: float(residual[g]) * np.sqrt(self._rows[g]) for g in self._R}
 
     def _estimated_values(self, X: ArrayLike | Mapping[str, float] | IdentificationResult) -> np.ndarray:
         """The estimated parameters' values of X (all p values, by name or in order), known ones checked."""

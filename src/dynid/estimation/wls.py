@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from ._checks import as_groups, group_rows, norm_ratio, prepare
 from .errors import EstimationWarning, IdentificationError
 from .lsq import pivoted_qr, solve_lsq
+from .method import Method
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
 
@@ -208,7 +209,7 @@ def wls(
         labels=pb.labels,
         a_priori=pb.a_priori,
         truth=pb.truth,
-        method="WLS",
+        method=Method.WLS,
         weights=sigmas,
         relative_residual=norm_ratio(np.linalg.norm(y - A @ sol.x), np.linalg.norm(pb.Y)),
         poor_factor=poor_factor,

@@ -133,6 +133,8 @@ from typing import Any
 
 import numpy as np
 
+from ..estimation.errors import IdentificationError
+from ..estimation.method import Method
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
 from .robot import Conditioning
@@ -232,7 +234,7 @@ class IdentifyConfig:
     channels: dict[str, ChannelSpec]
     transmission: dict[str, np.ndarray] = field(default_factory=dict)
     conditioning: Conditioning = field(default_factory=Conditioning)
-    method: str = "wls"
+    method: Method = Method.WLS  # a config's text ("wls", ...) is resolved here, once (`estimation.method`)
     known: dict[str, float] = field(default_factory=dict)
     poor_factor: float = 20.0
     flag_percent: float = 2.5
@@ -245,6 +247,13 @@ class IdentifyConfig:
     scheduler: str | None = None  # [compute]: None (this machine's threads), "local" or a Dask scheduler's address
     workers: int | None = None
     drive: DriveSpec | None = None  # a robot logging motor currents: [drive] gains (identified or known)
+
+    def __post_init__(self) -> None:
+        # the one place a method's text becomes a `Method` (dataclasses.replace(cfg, method="ols") included)
+        try:
+            object.__setattr__(self, "method", Method.parse(self.method, f"{self.path}: [identification] method"))
+        except IdentificationError as exc:
+            raise ConfigError(str(exc)) from None
 
     @property
     def kind(self) -> str:
@@ -330,15 +339,15 @@ def load_config(path: str | Path) -> IdentifyConfig:
     drive = None if is_car else _drive(data, channels, tests, err)
     cond = Conditioning() if is_car else _robot_conditioning(data.get("conditioning", {}), err)
 
-    method = ident.get("method", "wls")
-    if not isinstance(method, str) or method.lower() not in ("ols", "wls", "iv", "wls-pc"):
-        raise err("[identification]", f"method = {method!r}; use \"ols\", \"wls\", \"iv\" (a car) or \"wls-pc\" "
+    text = ident.get("method", "wls")
+    if not isinstance(text, str) or text.lower() not in [m.value for m in Method]:
+        raise err("[identification]", f"method = {text!r}; use \"ols\", \"wls\", \"iv\" (a car) or \"wls-pc\" "
                   "(a robot)")
-    method = method.lower()
-    if method == "wls-pc" and car is not None:
+    method = Method(text.lower())
+    if method is Method.WLS_PC and car is not None:
         raise err("[identification]", "method = \"wls-pc\" (physically consistent WLS) is for a robot; a car's "
                   "identification runs \"wls\", \"ols\" or \"iv\"")
-    if method == "iv" and car is None:
+    if method is Method.IV and car is None:
         raise err("[identification]", "method = \"iv\" takes its instruments from a simulation of the car's "
                   "suspensions driven by the measured loads; a robot has none here: use \"wls\"")
     return IdentifyConfig(

@@ -10,8 +10,10 @@ instrument sums). `combine` is pure and associative to round-off: Partials of an
 the data combine into the whole data's. A scheduler (`schedulers`) maps the first over every
 segment, on this machine's cores or a cluster's workers, and folds with the second.
 
-A robot's chunk (`reduce_robot_chunk`) reduces to its decimated rows (a robot's estimators, wls-pc
-among them, and its validation files read rows), which `stack_rows` folds.
+A robot's chunk (`reduce_robot_chunk`) reduces to the same `Partial`: its rows' per-group factors of [W | Y]
+(every column: the known values and the drive gains are applied to the factors when solving), and for each
+test's first chunk the rows themselves (the report's plots). So a robot's memory is bounded by its factors and
+one chunk, whatever the length of its logs.
 """
 
 from __future__ import annotations
@@ -100,7 +102,9 @@ def combine(a: Partial, b: Partial) -> Partial:
     def both(x, y):
         return y if x is None else x if y is None else x.merge(y)
 
-    return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), {**b.rows, **a.rows},
+    rows = {**b.rows, **a.rows}  # a test's rows kept on both sides (a robot's, all kept): a's then b's
+    rows.update({k: GroupedSystem.stack([a.rows[k], b.rows[k]]) for k in a.rows.keys() & b.rows.keys()})
+    return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), rows,
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
                    both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees))
 
@@ -361,6 +365,7 @@ class RobotJob:
     window: RobotTestPlan  # the plan, its clock cut to the samples read: window.first onwards
     chunk: tuple[int, int]
     n_samples: int
+    keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
 
     @property
     def test(self) -> str:
@@ -400,9 +405,10 @@ def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
                    {k: c.channels for k, c in cfg.channels.items()}), lambda: RobotSetup(cfg))
 
 
-def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
+def reduce_robot_chunk(job: RobotJob) -> Partial:
     """The chunk's samples read, through the channel map, drive gains and transmission, to its decimated rows (with
-    the drive gains' columns when they are identified, and the test's payload torque taken off)."""
+    the drive gains' columns when they are identified, and the test's payload torque taken off), reduced to their
+    per-joint factors (every column: `StreamingLS.reparametrised` applies the known values when solving)."""
     setup = robot_setup(job.cfg)
     w = job.window
     arrays = read_robot_window(w, 0, w.samples)
@@ -413,10 +419,8 @@ def reduce_robot_chunk(job: RobotJob) -> GroupedSystem:
         full = np.zeros((gains.shape[0], n, gains.shape[2]))
         full[:, np.asarray(columns) - 1, :] = gains
         gains = full
-    return chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
-                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
-
-
-def stack_rows(a: GroupedSystem, b: GroupedSystem) -> GroupedSystem:
-    """a's rows then b's."""
-    return GroupedSystem.stack([a, b])
+    sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
+                     job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
+    ls = StreamingLS(setup.names)
+    ls.add(sys.W, sys.Y, sys.groups)
+    return Partial(ls, rows={w.test: sys} if job.keep_rows else {})

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dynamics import BaseParameters
+from ..estimation.method import Method
 from ..model import ModelError
 
 _TERM = re.compile(r"([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)\s*\*\s*)?([A-Za-z_][A-Za-z_0-9]*)")
@@ -53,10 +54,10 @@ class ReferenceRow:
     wls: float
     wls_rel_std: float
 
-    def published(self, method: str) -> tuple[float, float]:
-        """(value, %σ) of the published column to compare an estimate of `method` with (a result's method: "OLS",
-        "WLS", "WLS-PC", "IV"): the weighted column for every weighted estimator, the OLS column for OLS."""
-        return (self.ols, self.ols_rel_std) if method.upper() == "OLS" else (self.wls, self.wls_rel_std)
+    def published(self, method: Method) -> tuple[float, float]:
+        """(value, %σ) of the published column to compare an estimate of `method` with (`Method.reference_column`:
+        the weighted column for every weighted estimator, the OLS column for OLS)."""
+        return (self.ols, self.ols_rel_std) if method.reference_column == "ols" else (self.wls, self.wls_rel_std)
 
 
 def reference_text(path: str | Path) -> str:

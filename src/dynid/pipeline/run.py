@@ -11,7 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,18 +25,13 @@ from ..estimation import (
     IdentificationResult,
     StreamingLS,
     fit_note,
-    group_noise,
     misfit_parameters,
     model_fits,
     not_excited,
-    nrmse,
-    ols,
     propagate,
-    relative_errors,
-    residual_rms,
-    wls,
 )
-from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc
+from ..estimation.method import Method
+from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc_streamed
 from ..estimation.shifts import estimate_shifts
 from ..model import ModelError
 from ..report import parameter_table
@@ -46,13 +41,13 @@ from .health import check_car_tests, check_robot_test, health_note
 from .heap import trim_heap
 from .reduce import (
     CarJob,
+    Partial,
     RobotJob,
     car_setup,
     combine,
     reduce_car_segment,
     reduce_robot_chunk,
     robot_setup,
-    stack_rows,
 )
 from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
@@ -71,7 +66,10 @@ Progress = Callable[[str], None]
 
 @dataclass
 class IdentificationRun:
-    """Everything an identification produced: the result, the systems used, validation errors, reference."""
+    """Everything an identification produced: the result, validation errors, reference, and rows to plot: identify
+    and validate hold the identification and validation tests' rows kept for the report (a car's first segment of
+    each test, a robot's first chunks up to `PLOT_BYTES`); the estimate and the errors come from every segment's
+    factors."""
 
     model: Model
     base: BaseParameters
@@ -155,11 +153,20 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
+PLOT_BYTES = 32 * 2**20
+"""Decimated rows of a robot test kept for the report's plots and validation.csv: the first chunks' up to this
+size (20 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole test
+when shorter). The
+estimate and the validation errors come from the factors of every chunk."""
+
+
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
-                  health: list[dict] | None = None) -> dict[str, GroupedSystem]:
-    """Each test's decimated rows: its files planned from their stamps, their data health checked (an error stops
-    here; the other findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
-    (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
+                  health: list[dict] | None = None, all_rows: bool = False) -> dict[str, Partial]:
+    """Each test reduced to its per-joint factors of [W | Y] (every column): its files planned from their stamps,
+    their data health checked (an error stops here; the other findings appended to `health`), cut into chunks
+    read and reduced on the scheduler's workers (`reduce.reduce_robot_chunk`), folded (`reduce.combine`). The
+    rows of each test's first chunks are kept too, up to `PLOT_BYTES` (the report's plots and validation.csv;
+    every chunk's with all_rows), joint by joint."""
     jobs = []
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
@@ -176,12 +183,17 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
                               + ("widen its window (start, end) or raise the cut-off"
                                  if spec.start is not None or spec.end is not None
                                  else "record longer or raise the cut-off"))
-        for s, e in robot_chunks(N, plan.fs, model, base, cfg.conditioning):
+        kept = 0  # bytes of decimated rows kept for the plots so far
+        row_bytes = 8 * len(model.tree.equations) * len(robot_setup(cfg).names) / np.prod(cfg.conditioning.decimate)
+        for i, (s, e) in enumerate(robot_chunks(N, plan.fs, model, base, cfg.conditioning)):
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
-            jobs.append(RobotJob(cfg, window, (s, e), N))
-    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, stack_rows, say)
-    return {spec.name: in_joint_order([parts[spec.name]]) for spec in cfg.tests}
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=all_rows or i == 0 or kept < PLOT_BYTES))
+            kept += (e - s) * row_bytes
+    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, combine, say)
+    for part in parts.values():
+        part.rows = {k: in_joint_order([v]) for k, v in part.rows.items()}
+    return {spec.name: parts[spec.name] for spec in cfg.tests}
 
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
@@ -338,14 +350,15 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
              for role in dict.fromkeys(r for r, _ in parts)}
     ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
     errors = parts["identify"].errors
-    validate = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
+    cross = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
     rows.update(parts["validate"].rows if "validate" in parts else {})
 
     # 3. solve
+    # IV starts from WLS's estimate and weights
     say(f"estimating {len(names)} parameters from {ident.n_rows} rows "
-        f"({'WLS' if cfg.method == 'iv' else cfg.method.upper()})")
+        f"({(Method.WLS if cfg.method is Method.IV else cfg.method).label})")
     try:
-        result = ident.solve() if cfg.method == "ols" else ident.solve_weighted()
+        result = ident.solve_weighted() if cfg.method.weighted else ident.solve()
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
@@ -366,7 +379,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
         delays = _car_delays(cfg, setup, plans, jobs(with_offsets=False), parts["identify"].shifts, result,
                              scheduler, say)
-    for k in range(settings.iv_passes if cfg.method == "iv" else 0):
+    for k in range(settings.iv_passes if cfg.method is Method.IV else 0):
         # instruments from the last estimate on every identification segment (and, on the final pass, on the
         # offsets' segments), then the IV estimate on the same rows (min_speed applies to the simulated rates)
         say(f"IDIM-IV pass {k + 1}/{settings.iv_passes}: suspensions simulated with the last estimate")
@@ -410,25 +423,12 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
     run.without_test = without_each_test(names, kw, per_test, misfits)
-    run.errors["direct"] = ident.relative_errors(result)
-    run.residual_rms = ident.group_rms(result)
-    if fitted is not None:  # the model's fit includes the offsets the data read
-        n, y = ident.group_rows, ident.group_rms()
-        run.residual_rms = fitted
-        run.errors["direct"] = {g: fitted[g] / y[g] if y[g] > 0 else float("nan") for g in fitted}
-        run.errors["direct"]["overall"] = float(np.sqrt(sum(fitted[g] ** 2 * n[g] for g in fitted)
-                                                        / sum(y[g] ** 2 * n[g] for g in fitted)))
-    if validate is not None:
-        run.errors["cross"] = validate.relative_errors(result)
-        # a group the validation test barely moves (braking: the lateral force, yaw and roll moments) has a
-        # relative error of noise over noise: marked, not hidden
-        run.not_excited["cross"] = not_excited(validate.group_rms(), run.residual_rms)
-    result.validation.update(run.errors)
+    # a group the validation test barely moves (braking: the lateral force, yaw and roll moments): marked; the direct
+    # figures with the offsets the data read taken out when they were estimated (the model's fit includes them)
+    validate(run, ident, cross, residual=fitted)
     if settings.tire_curves:
         run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
-    if run.not_excited:
-        result.validation["not_excited"] = run.not_excited
     return run
 
 
@@ -605,25 +605,29 @@ def _offsets_read(offsets, estimates: dict[str, tuple[float, float]]) -> str:
     return out
 
 
-def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
+def validate(run: IdentificationRun, ident: StreamingLS, cross: StreamingLS | None,
+             values: np.ndarray | None = None, residual: Mapping[str, float] | None = None) -> IdentificationRun:
+    """The direct and cross validation of a robot's or a car's estimate, from the factors of every segment of the
+    identification and the validation tests (`StreamingLS`, the rows never held): per equation group the paper's
+    relative error ||Y - W X|| / ||Y|| and the NRMSE RMS(Y - W X) / std(Y) that robot users compare models by
+    (the static gravity load in ||Y|| makes the relative error look small whatever the dynamics); the
+    identification's residual RMS per group, and the groups a validation test barely moves (noise over noise:
+    marked "not excited", not hidden). Into run.errors, run.residual_rms, run.not_excited and the result's
+    validation. values: the values of the accumulators' parameters (default: the result's); residual: the
+    identification groups' residual RMS when it is not the factors' at the values (a car's, with the sensor
+    offsets the data read taken out: estimation.offsets)."""
     result = run.result
-    ident = run.identify
-    run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
-    run.residual_rms = residual_rms(ident.W, ident.Y, result.values, ident.groups)
-    cross = [t for t in cfg.tests if t.role == "validate"]
-    if cross:
-        val = GroupedSystem.stack([systems[t.name] for t in cross])
-        run.validate = {t.name: systems[t.name] for t in cross}
-        run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
-        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
-        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
-    # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
-    # ||Y|| makes the relative error look small whatever the dynamics
-    run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
-    if cross:
-        run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
+    x = result.values if values is None else values
+    run.errors["direct"] = ident.relative_errors(x, residual)
+    run.residual_rms = ident.group_rms(x) if residual is None else dict(residual)
+    if cross is not None:
+        run.errors["cross"] = cross.relative_errors(x)
+        run.not_excited["cross"] = not_excited(cross.group_rms(), run.residual_rms)
+    run.errors["direct NRMSE"] = ident.nrmse(x, residual)
+    if cross is not None:
+        run.errors["cross NRMSE"] = cross.nrmse(x)
     result.validation.update(run.errors)
-    if any(run.not_excited.values()):
+    if run.not_excited:
         result.validation["not_excited"] = run.not_excited
     return run
 
@@ -654,13 +658,12 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if bad:
         raise ConfigError(f"{cfg.path}: [identification] known names {bad} are not base parameters of "
                           f"{model.name!r}; base parameters: {', '.join(names)}")
-    if gains and cfg.method == "wls-pc":
+    if gains and cfg.method is Method.WLS_PC:
         raise ConfigError(f"{cfg.path}: [identification] method = \"wls-pc\" does not take identified drive gains "
                           "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
                           "known ([drive] identify_gains = false)")
     health: list[dict] = []
-    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
-    ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+    parts = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
     a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
     known = dict(cfg.known)
     if gains:  # the data sheet's gains are their a priori values; those not identified are known
@@ -671,33 +674,45 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                                   ("the known gain(s)", len(free) < len(gains))) if has]
         say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
             f"{' and '.join(scale)})")
-    say(f"estimating {len(names)} parameters from {ident.W.shape[0]} rows ({cfg.method.upper()})")
-    kw = dict(a_priori=a_priori, known=known or None, poor_factor=cfg.poor_factor)
+    # the factors of every column, folded per role; the known values moved to the right-hand side on them
+    full = {role: _folded([parts[t.name].ls for t in cfg.tests if t.role == role]) for role in ("identify", "validate")}
+    same = np.eye(len(names) + 1)
+    ident = full["identify"].reparametrised(names, same, known=known or None, a_priori=a_priori)
+    ident.poor_factor = cfg.poor_factor
+    say(f"estimating {len(names)} parameters from {ident.n_rows} rows ({cfg.method.label})")
     structure = consistency_structure(model.tree, base)
     fit = None
     try:
-        if cfg.method == "wls-pc":
-            fit = wls_pc(ident.W, ident.Y, ident.groups, names, structure,
-                         standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)), **kw)
+        if cfg.method is Method.WLS_PC:
+            fit = wls_pc_streamed(ident, structure,
+                                  standard_prior=dict(zip(model.tree.parameter_names, model.parameters, strict=True)))
             result = fit.result
+        elif cfg.method is Method.WLS:
+            result = _wls_with_gains(full["identify"], ident, names, len(base.names), known) if gains \
+                else ident.solve_weighted()
         else:
-            result = (wls(ident.W, ident.Y, ident.groups, names, **kw) if cfg.method == "wls" and not gains
-                      else _wls_with_gains(ident, names, len(base.names), a_priori, kw) if cfg.method == "wls"
-                      else ols(ident.W, ident.Y, names, **kw))
+            result = ident.solve()
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}{_rank_hints(cfg, ident, health)}") from None
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
+    systems = {name: part.rows[name] for name, part in parts.items()}  # each test's first chunk: the plots
     sections = None
+    checked = {role: None if ls is None else ls.reparametrised(names, same, known=known or None)
+               for role, ls in full.items()}
     if gains:  # the rows in joint torques with the estimated gains, for the validation and its plots
-        systems = {k: torques_with_gains(s, len(base.names), result.values[len(base.names):])
-                   for k, s in systems.items()}
-        ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+        p, values = len(base.names), result.values[len(base.names):]
+        systems = {k: torques_with_gains(s, p, values) for k, s in systems.items()}
+        checked = {role: None if ls is None else torque_rows(ls, names, p, values, known)
+                   for role, ls in full.items()}
         sections = [(f"{result.method} estimates of the base parameters", list(base.names)),
                     ("drive gains (N·m/A, motor side)", gains)]
-    run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health,
-                                           sections=sections), systems)
+    run = IdentificationRun(model, base, result, GroupedSystem.stack(
+        [systems[t.name] for t in cfg.tests if t.role == "identify"]), systems=systems, config=cfg, health=health,
+        sections=sections)
+    run.validate = {t.name: systems[t.name] for t in cfg.tests if t.role == "validate"}
+    validate(run, checked["identify"], checked["validate"], result.values[:len(checked["identify"].names)])
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
@@ -711,21 +726,40 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     return run
 
 
-def _wls_with_gains(ident: GroupedSystem, names: list[str], p: int, a_priori: dict[str, float], kw: dict
+def _folded(parts: list[StreamingLS]) -> StreamingLS | None:
+    """The accumulators' rows in order (None for none)."""
+    if not parts:
+        return None
+    out = parts[0]
+    for other in parts[1:]:
+        out = out.merge(other)
+    return out
+
+
+def _wls_with_gains(full: StreamingLS, ident: StreamingLS, names: list[str], p: int, known: dict[str, float]
                     ) -> IdentificationResult:
     """Gautier's WLS with identified drive gains. A joint's equation alone cannot fix its gain's scale (without a
     payload its rows are homogeneous, W_j X - Nt diag(i) g = 0, and solve exactly at X = g = 0), so each joint's
     noise level sigma_j (paper eq. (8)) is taken from its rows in joint torques through given gains: first the
-    data sheet's, then the estimate's (one pass more: sigma_j is the final model's residual per joint)."""
-    gains = np.array([a_priori[n] for n in names[p:]])
-    known = {k: v for k, v in (kw.get("known") or {}).items() if k in names[:p]} or None
+    data sheet's (the a priori values of `ident`), then the estimate's (one pass more: sigma_j is the final
+    model's residual per joint). full: the factors of every column; ident: with the known values."""
+    gains = np.array([ident.a_priori[n] for n in names[p:]])
     result = None
     for _ in range(2):
-        s = torques_with_gains(ident, p, gains)
-        fits = group_noise(s.W[:, :p], s.Y, s.groups, names[:p], known=known)
-        result = wls(ident.W, ident.Y, ident.groups, names, group_sigmas={g: f.sigma for g, f in fits.items()}, **kw)
+        result = ident.solve_weighted(torque_rows(full, names, p, gains, known).group_sigmas())
         gains = result.values[p:]
     return result
+
+
+def torque_rows(full: StreamingLS, names: list[str], p: int, gains: np.ndarray, known: dict[str, float]
+                ) -> StreamingLS:
+    """The factors of `torques_with_gains`' rows from those of every column [W | G | Y] (`full`): the base
+    parameters' columns W and the measured torque Y - G g (the known base parameters on the right-hand side)."""
+    T = np.zeros((len(names) + 1, p + 1))
+    T[:p, :p] = np.eye(p)
+    T[p:len(names), p] = -np.asarray(gains, dtype=float)
+    T[-1, p] = 1.0
+    return full.reparametrised(names[:p], T, known={k: v for k, v in known.items() if k in names[:p]} or None)
 
 
 def torques_with_gains(s: GroupedSystem, p: int, gains: np.ndarray) -> GroupedSystem:
@@ -737,12 +771,12 @@ def torques_with_gains(s: GroupedSystem, p: int, gains: np.ndarray) -> GroupedSy
     return GroupedSystem(W, s.Y - s.W[:, p:] @ gains, s.groups, s.t)
 
 
-def _rank_hints(cfg: IdentifyConfig, ident: GroupedSystem, health: list[dict]) -> str:
+def _rank_hints(cfg: IdentifyConfig, ident: StreamingLS, health: list[dict]) -> str:
     """What in the config or the data may have left parameters unidentifiable: a joint whose rows min_speed left
     out, a channel the health check saw still (said with the error, which names only parameters)."""
     hints = []
     for j, v in sorted(cfg.conditioning.min_speed.items()):
-        rows = int(np.count_nonzero(ident.groups == f"joint{j}"))
+        rows = ident.group_rows.get(f"joint{j}", 0)
         if rows < 10:
             hints.append(f"[conditioning] min_speed = {{ {j} = {v:g} }} leaves {rows} row(s) of joint {j}: lower it "
                          "below the joint's speeds")
