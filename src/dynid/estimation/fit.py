@@ -77,11 +77,14 @@ class ErrorEffect:
                                      0.0))) for g in clean}
 
 
-def model_fits(rows: StreamingLS, errors: ErrorEffect, x: Mapping[str, float]) -> dict[str, ModelFit]:
+def model_fits(rows: StreamingLS, errors: ErrorEffect, x: Mapping[str, float],
+               residual: Mapping[str, float] | None = None) -> dict[str, ModelFit]:
     """Each group's verdict at the estimate x ({name: value}): `rows` holds [W | Y] of the identification rows,
-    `errors` the same rows of a few segments without and with the sensors' errors. A group none of those segments
-    holds is not judged (left out), rather than called a misfit for want of a noise figure."""
-    residual = rows.group_rms(x)
+    `errors` the same rows of a few segments without and with the sensors' errors; residual: the groups' RMS
+    residual when it is not `rows`' at x (the sensors' zero offsets the data read taken out: estimation.offsets). A
+    group none of those segments holds is not judged (left out), rather than called a misfit for want of a noise
+    figure."""
+    residual = rows.group_rms(x) if residual is None else residual
     explained = errors.explained_rms()
     out = {}
     for g, rms in residual.items():

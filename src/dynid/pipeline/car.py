@@ -195,10 +195,20 @@ class SensorOffsets:
         """channel -> 1 σ in SI (what the channels are read in)."""
         return {q: v * unit_factor(u, channel=q)[0] for q, (v, u) in self.values.items()}
 
-    def to_dict(self) -> dict:
-        """results.json's "sensor_offsets"."""
-        return {"source": self.source, "vehicle": self.vehicle, "segments": self.segments,
-                "channels": [{"channel": q, "value": v, "unit": u} for q, (v, u) in self.values.items()]}
+    def to_dict(self, estimates: dict[str, tuple[float, float]] | None = None) -> dict:
+        """results.json's "sensor_offsets"; estimates: "test: channel" -> the offset the data read and its σ, in
+        units of the declared σ (estimation.offsets), given in the channel's unit."""
+        out = {"source": self.source, "vehicle": self.vehicle, "segments": self.segments,
+               "estimated": bool(estimates),
+               "channels": [{"channel": q, "value": v, "unit": u} for q, (v, u) in self.values.items()]}
+        if estimates:
+            out["estimates"] = []
+            for source, (u, s) in estimates.items():
+                test, channel = source.rsplit(": ", 1)
+                v, unit = self.values[channel]
+                out["estimates"].append({"test": test, "channel": channel, "value": u * v, "std": s * v,
+                                         "unit": unit})
+        return out
 
     def listing(self) -> str:
         """The values grouped by value and unit, the four corners of a channel in one name: "0.5 mm:

@@ -106,6 +106,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     offsets = { imu_az = 0.01, laser_height_rl = 0.5 }   # a table replaces them (1 sigma, in the suite's unit
                                      # of each channel: docs/vehicle.md); offsets = "none" (or {}) turns them off
     segments = 2                     # segments per test on which their effect is evaluated
+    estimate = true                  # each test's offsets estimated with the parameters, their σ as the prior
+                                     # (estimation/offsets.py; every segment evaluated); false: propagated only
 
 Either kind may say where its work runs (the command line's --scheduler and --workers override it):
 
@@ -216,6 +218,7 @@ class CarSettings:
     # None: the vehicle's sensor suite's (each channel's bias), {}: none
     offsets: dict[str, float] | None = None
     offset_segments: int = 2
+    estimate_offsets: bool = True  # each test's offsets estimated with the parameters (estimation.offsets)
     iv_passes: int = 2  # method = "iv": simulate with the last estimate and re-estimate, this many times
     tire_curves: bool = True  # fit the tire characteristics after the identification (vehicle.tire_curves)
     # the damper curves' knees chosen from the data ((damper, v-, v+) m/s, pipeline.run): the vehicle file's
@@ -286,7 +289,7 @@ _CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_p
                        "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
-_UNCERTAINTY_KEYS = ("offsets", "segments")
+_UNCERTAINTY_KEYS = ("offsets", "segments", "estimate")
 _FOR_A_CAR = "a car's key: [model] template or vehicle"
 
 
@@ -858,6 +861,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         friction_lowpass=_flag(c, "friction_lowpass", False, where, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
+        estimate_offsets=_flag(data.get("uncertainty", {}), "estimate", True, "[uncertainty]", err),
         tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),
     )
 

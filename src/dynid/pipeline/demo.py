@@ -56,14 +56,17 @@ def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) 
     return "\n".join(lines + conditioning_toml(offsets))
 
 
-def conditioning_toml(offsets: dict[str, float]) -> list[str]:
-    """The demo's conditioning, method and zero offsets (channel -> 1 σ, channel units) as a config's lines."""
+def conditioning_toml(offsets: dict[str, float], estimate: bool = True) -> list[str]:
+    """The demo's conditioning, method and zero offsets (channel -> 1 σ, channel units) as a config's lines;
+    estimate: each test's offsets estimated from its data (false: propagated only)."""
     offsets_text = ", ".join(f"{k} = {v!r}" for k, v in offsets.items())
+    how = ("estimated from each test's data (their 1 sigma the prior); what the data leave is in %σ total"
+           if estimate else "propagated to %σ total")
     return ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2", "",
             "[identification]", 'method = "wls"', 'base = "generic"', "",
             "[uncertainty]",
-            "# the sensors' zero offsets (1 sigma, channel units: the suite's figures), propagated to %σ total",
-            f"offsets = {{ {offsets_text} }}", ""]
+            f"# the sensors' zero offsets (1 sigma, channel units: the suite's figures), {how}",
+            f"offsets = {{ {offsets_text} }}", *([] if estimate else ["estimate = false"]), ""]
 
 
 def simulated_car(vehicle: str = "peugeot406"):

@@ -296,7 +296,8 @@ def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[st
              f"vehicle = {json.dumps(vehicle)}", ""]
     for name, path in files.items():
         lines += ["[[tests]]", f"name = {json.dumps(name)}", 'role = "identify"', f"file = {json.dumps(path)}", ""]
-    return "\n".join(lines + conditioning_toml(dict(offsets)))
+    # the offsets propagated, as `predict` does (identify's default estimates them: its σ total is then smaller)
+    return "\n".join(lines + conditioning_toml(dict(offsets), estimate=False))
 
 
 NOISY = " (noisy)"

@@ -38,6 +38,7 @@ from ..dynamics import BaseParameters, Model
 from ..estimation import StreamingLS
 from ..estimation.fit import ErrorEffect
 from ..estimation.iv import InstrumentSums
+from ..estimation.offsets import OffsetFactors
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io.units import unit_factor
@@ -70,6 +71,7 @@ class CarJob:
     errors: bool = False  # evaluate the sensors' errors' effect on the rows (the model-fit verdict)
     delays: bool = False
     lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
+    estimate_offsets: bool = False  # the offsets' rows kept for their estimate (estimation.offsets), weight 1
     knees: bool = False  # the knees' search alone (vehicle.dampers.KneeSearch): the dampers' rows and candidates
 
     @property
@@ -91,6 +93,7 @@ class Partial:
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
     tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
+    zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
 
 
@@ -103,7 +106,7 @@ def combine(a: Partial, b: Partial) -> Partial:
     rows.update({k: GroupedSystem.stack([a.rows[k], b.rows[k]]) for k in a.rows.keys() & b.rows.keys()})
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), rows,
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
-                   both(a.tires, b.tires), both(a.knees, b.knees))
+                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees))
 
 
 class CarSetup:
@@ -145,6 +148,14 @@ class CarSetup:
         self.delay_groups = tuple(g for g in ("imu", "clearances") if group_channels(g, vehicle.suite.names))
         # without height lasers the tire deflections come from the loads through the known kt: those rows say nothing
         self.equations = None if vehicle.lasers else [j for j in EQUATION_ROWS if j not in TIRES]
+
+    @cached_property
+    def a_priori(self) -> np.ndarray:
+        """The base parameters' a priori values (the vehicle's), in `names` order: where the offsets' rows are
+        linearised (estimation.offsets)."""
+        tree = self.tree
+        X = np.array([self.vehicle.a_priori.values.get(n, 0.0) for n in tree.parameter_names])
+        return np.asarray(self.base.values(X), dtype=float)
 
     @cached_property
     def regressor(self):
@@ -280,6 +291,7 @@ def reduce_car_segment(job: CarJob) -> Partial:
                         [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
         part.bias = ls.bias_accumulator()
+        moves = []
         for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
             if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
                 moved_traj = shifted_load(traj, q, b)
@@ -291,6 +303,13 @@ def reduce_car_segment(job: CarJob) -> Partial:
             p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
             iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
             part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
+            if job.estimate_offsets:
+                moves.append((p.W - sys.W, p.Y - sys.Y))
+        if job.estimate_offsets:
+            acc = part.bias
+            part.zeros = OffsetFactors(acc.columns, acc.known_columns, acc.known_values, setup.a_priori[acc.columns])
+            part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moves],
+                           [m[1] for m in moves], sys.groups)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []

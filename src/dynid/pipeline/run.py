@@ -11,7 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -310,8 +310,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
     offsets = sensor_offsets(settings, vehicle)
     moved = tuple(offsets.si().items())
-    say(f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each evaluated on "
-        f"up to {settings.offset_segments} segment(s) per identification test" if moved else
+    say((f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each test's estimated from its own data"
+         if settings.estimate_offsets else f"sensor zero offsets ({offsets.source}): {len(moved)} channel(s), each "
+         f"evaluated on up to {settings.offset_segments} segment(s) per identification test") if moved else
         "no sensor zero offsets propagated: σ from the noise alone")
 
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True) -> list[CarJob]:
@@ -319,7 +320,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         for plan in plans:
             if instruments is not None and plan.role != "identify":
                 continue
-            picks = picked(len(plan.segments)) if with_offsets and moved and plan.role == "identify" else {}
+            estimating = settings.estimate_offsets and instruments is None
+            picks = ({} if not (with_offsets and moved and plan.role == "identify") else
+                     dict.fromkeys(range(len(plan.segments)), 1.0) if estimating else picked(len(plan.segments)))
             # the sensors' errors' effect on a few segments of each identification test (the model-fit verdict),
             # and the channel delays' on a few
             main = instruments is None and plan.role == "identify"
@@ -329,7 +332,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None, errors=i in errors,
-                                  delays=i in timed))
+                                  delays=i in timed, estimate_offsets=estimating and i in picks))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
@@ -359,7 +362,18 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     except IdentificationError as exc:
         hint = excitation_hint(list(exc.parameters))
         raise ConfigError(f"{cfg.path}: {exc}\n{hint}" if hint else f"{cfg.path}: {exc}") from None
-    if parts["identify"].bias is not None:
+    offset_estimates, zeros, misfits = None, parts["identify"].zeros, ()
+    if zeros is not None:  # each test's offsets estimated with the parameters, from the groups the model fits
+        plain = result
+        result, offset_estimates = ident.with_offsets_estimated(plain, zeros)
+        # the verdict with the offsets read taken out (on the plain rows a realised offset can pass for a misfit:
+        # a laser's 1 mm made the 406's own tire24 one on a seed); a group that still misfits cannot say what a
+        # sensor's zero is: estimate again without it
+        fitted = zeros.group_rms([result.value(n) for n in ident.estimated_names], offset_estimates.u)
+        misfits = tuple(g for g, f in model_fits(ident, errors, result.estimates, fitted).items() if not f.fits)
+        if misfits:
+            result, offset_estimates = ident.with_offsets_estimated(plain, zeros, misfits)
+    elif parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
     delays = None
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
@@ -386,7 +400,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
 
     # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
     #    and cross validation; a delay mismatch's shift of the estimates in their σ total
-    fits = model_fits(ident, errors, result.estimates)
+    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out
+    fitted = None
+    if offset_estimates is not None and cfg.method != "iv":
+        fitted = zeros.group_rms([result.value(n) for n in ident.estimated_names], offset_estimates.u, misfits)
+    fits = model_fits(ident, errors, result.estimates, fitted)
     if delays is not None and delays.mismatched:
         result = result.with_systematic(delays.systematic(result.estimated_names, result.systematic))
     result = dataclasses.replace(result, scales=car_scales(dict(zip(result.names, result.values, strict=True))),
@@ -394,18 +412,20 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
         [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
-        notes=sensors_note(vehicle) + knees_note + offsets_note(result, offsets)
+        notes=sensors_note(vehicle) + knees_note
+        + offsets_note(result, offsets, offset_estimates and offset_estimates.offsets)
         + fit_note(fits, result.labels, result.misfit)
         + masses_note(result, tree)
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
-        offsets=offsets.to_dict(), health=health)
+        offsets=offsets.to_dict(offset_estimates and offset_estimates.offsets), health=health)
     run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
     run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
     run.delays = delays
-    run.without_test = without_each_test(names, kw, per_test)
-    # a group the validation test barely moves (braking: the lateral force, yaw and roll moments): marked
-    validate(run, ident, cross)
+    run.without_test = without_each_test(names, kw, per_test, misfits)
+    # a group the validation test barely moves (braking: the lateral force, yaw and roll moments): marked; the direct
+    # figures with the offsets the data read taken out when they were estimated (the model's fit includes them)
+    validate(run, ident, cross, residual=fitted)
     if settings.tire_curves:
         run.tires = _tire_curves(parts, vehicle, say)
     result.validation["fit"] = {g: f.as_dict() for g, f in fits.items()}
@@ -435,7 +455,8 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
     return dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, knees=chosen)), note
 
 
-def without_each_test(names: list[str], kw: dict, per_test: dict) -> dict[str, dict[str, float]]:
+def without_each_test(names: list[str], kw: dict, per_test: dict,
+                      misfits: tuple[str, ...] = ()) -> dict[str, dict[str, float]]:
     """Which test identifies what: {test: {parameter: σ total (WLS, noise and zero offsets) of the identification
     without that test}} (inf where the others cannot identify it); empty with a single identification test. The
     rows are those already reduced: a WLS solve per test, no pass over the data."""
@@ -447,7 +468,9 @@ def without_each_test(names: list[str], kw: dict, per_test: dict) -> dict[str, d
         ls = StreamingLS(names, **kw).merge(rest.ls)
         try:
             r = ls.solve_weighted()
-            if rest.bias is not None:
+            if rest.zeros is not None:  # the offsets estimated, as the identification does (its misfit groups out)
+                r, _ = ls.with_offsets_estimated(r, rest.zeros, misfits)
+            elif rest.bias is not None:
                 r = ls.with_systematic(r, rest.bias)
             out[test] = {n: float(s) for n, s in zip(r.names, r.std_total, strict=True)}
         except IdentificationError:
@@ -528,9 +551,10 @@ def sensors_note(vehicle) -> str:
     return out
 
 
-def offsets_note(result, offsets) -> str:
-    """Which sensor zero offsets were propagated (`car.SensorOffsets`), where they came from, what %σ total means
-    and which offsets weigh most; and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
+def offsets_note(result, offsets, estimates: dict[str, tuple[float, float]] | None = None) -> str:
+    """Which sensor zero offsets were propagated or estimated (`car.SensorOffsets`; estimates: source -> the offset
+    and its σ, in units of its declared σ), where they came from, what %σ total means and which offsets weigh most;
+    and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
     where = {"vehicle": f"from the vehicle's sensor suite ({offsets.vehicle}: each channel's zero offset; "
                         "[uncertainty] offsets = {...} in the config replaces them, offsets = \"none\" turns them off)",
              "config": "from the config's [uncertainty] offsets (they replace the vehicle's sensor suite's)"}
@@ -551,29 +575,55 @@ def offsets_note(result, offsets) -> str:
             channel = source.split(": ")[-1]
             counts[channel] = counts.get(channel, 0) + 1
     top = ", ".join(f"{c} ({k})" for c, k in sorted(counts.items(), key=lambda kv: -kv[1])[:4])
+    if estimates:
+        return (f"Each identification test's sensor zero offsets ({len(offsets.values)} channel(s) "
+                f"{where[offsets.source]}: {offsets.listing()}) are estimated with the parameters from the test's own "
+                "data, their declared σ as the prior ([uncertainty] estimate = false propagates them instead); "
+                "%σ is the paper's (least squares, statistical), %σ total adds what the data leave of the offsets' "
+                "effect. " + (f"The offsets that move most estimates (parameters): {top}. " if top else "")
+                + _offsets_read(offsets, estimates) + "\n" + delay_text)
     return ("%σ is the paper's (least squares, statistical); %σ total adds the sensors' zero offsets, propagated to "
             f"first order: {len(offsets.values)} channel(s) {where[offsets.source]}, 1 σ each, "
             f"evaluated on up to {offsets.segments} segment(s) per identification test: {offsets.listing()}. "
             + (f"The offsets that move most estimates (parameters): {top}.\n" if top else "\n") + delay_text)
 
 
+def _offsets_read(offsets, estimates: dict[str, tuple[float, float]]) -> str:
+    """The offsets the data read largest (in their channel's unit and in declared σ), and those beyond 3 σ of the
+    declared value: a declared σ too small, or a sensor zeroed badly."""
+    def text(source: str) -> str:
+        u, s = estimates[source]
+        value, unit = offsets.values[source.split(": ")[-1]]
+        return f"{source} {u * value:+.3g} {unit} ({u:+.1f} σ ± {s:.1f})"
+
+    ranked = sorted(estimates, key=lambda k: -abs(estimates[k][0]))
+    out = "The largest read: " + "; ".join(text(k) for k in ranked[:3]) + "."
+    beyond = [k for k in ranked if abs(estimates[k][0]) > 3.0]
+    if beyond:
+        out += (f" {len(beyond)} read beyond 3 σ of the declared zero offset ({', '.join(beyond[:4])}): check that "
+                "sensor's zeroing, or declare its offset larger in the vehicle's [sensors] or [uncertainty] offsets.")
+    return out
+
+
 def validate(run: IdentificationRun, ident: StreamingLS, cross: StreamingLS | None,
-             values: np.ndarray | None = None) -> IdentificationRun:
+             values: np.ndarray | None = None, residual: Mapping[str, float] | None = None) -> IdentificationRun:
     """The direct and cross validation of a robot's or a car's estimate, from the factors of every segment of the
     identification and the validation tests (`StreamingLS`, the rows never held): per equation group the paper's
     relative error ||Y - W X|| / ||Y|| and the NRMSE RMS(Y - W X) / std(Y) that robot users compare models by
     (the static gravity load in ||Y|| makes the relative error look small whatever the dynamics); the
     identification's residual RMS per group, and the groups a validation test barely moves (noise over noise:
     marked "not excited", not hidden). Into run.errors, run.residual_rms, run.not_excited and the result's
-    validation. values: the values of the accumulators' parameters (default: the result's)."""
+    validation. values: the values of the accumulators' parameters (default: the result's); residual: the
+    identification groups' residual RMS when it is not the factors' at the values (a car's, with the sensor
+    offsets the data read taken out: estimation.offsets)."""
     result = run.result
     x = result.values if values is None else values
-    run.errors["direct"] = ident.relative_errors(x)
-    run.residual_rms = ident.group_rms(x)
+    run.errors["direct"] = ident.relative_errors(x, residual)
+    run.residual_rms = ident.group_rms(x) if residual is None else dict(residual)
     if cross is not None:
         run.errors["cross"] = cross.relative_errors(x)
         run.not_excited["cross"] = not_excited(cross.group_rms(), run.residual_rms)
-    run.errors["direct NRMSE"] = ident.nrmse(x)
+    run.errors["direct NRMSE"] = ident.nrmse(x, residual)
     if cross is not None:
         run.errors["cross NRMSE"] = cross.nrmse(x)
     result.validation.update(run.errors)

@@ -579,9 +579,27 @@ def offsets_section(offsets: dict) -> Section:
     if source == "vehicle" and not rows:
         text = (f"None: the vehicle's sensor suite ({offsets['vehicle']}) declares no zero offsets, so σ total is "
                 "the statistical σ alone.")
-    tables = [Table(["channel", "1 σ", "unit"], rows, caption="Zero offsets propagated (the suite's unit of each "
+    tables = [Table(["channel", "1 σ", "unit"], rows, caption="Zero offsets declared (the suite's unit of each "
                     "channel)", cls="offsets")] if rows else []
+    if offsets.get("estimated"):
+        text = text.replace("propagated to first order on up to", "estimated with the parameters from each test's "
+                            "own data (their declared σ as the prior; [uncertainty] estimate = false propagates "
+                            "them instead), evaluated on every segment, not on up to").replace(
+                            "propagated to first order on", "estimated from the data on")
+        text += (" σ total adds what the data leave of each offset's effect. The table below gives the offsets "
+                 "read largest against their declared σ; results.json's sensor_offsets.estimates has all of them.")
+        read = sorted(offsets["estimates"], key=lambda e: -abs(e["value"] / max(_declared(offsets, e), 1e-300)))
+        tables.append(Table(["test", "channel", "read", "σ", "unit", "declared σ"], [
+            [Cell(e["test"], cls="t"), Cell(e["channel"], cls="t"), Cell(f"{e['value']:+.3g}", e["value"]),
+             Cell(f"{e['std']:.2g}", e["std"]), Cell(e["unit"], cls="t nowrap"),
+             Cell(f"{_declared(offsets, e):g}", _declared(offsets, e))] for e in read[:12]],
+            caption="Zero offsets the data read (largest against the declared σ)", cls="offsets"))
     return Section("Sensor zero offsets in σ total", text, tables=tables, anchor="offsets")
+
+
+def _declared(offsets: dict, estimate: dict) -> float:
+    """The declared 1 σ of an estimated offset's channel."""
+    return next(c["value"] for c in offsets["channels"] if c["channel"] == estimate["channel"])
 
 
 def which_test_rows(run) -> tuple[list[str], list[tuple[str, float, list[float]]]]:
