@@ -52,27 +52,20 @@ def car_system(
     equations are identities (the deflections come from the loads) and are left out.
     """
     decimate = tuple(decimate or ())
-    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
-    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
-    total = int(np.prod(decimate)) if decimate else 1
-    k = None
-    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
-        needed = max(5 * cutoff, spin / 0.9)
-        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
-    # W there, the rest of the decimation in one stage
-    k, rest = (1, decimate) if k is None else (k, (total // k,))
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
     coarse = _every(traj, k)
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
                             regressor=regressor)
-    W, Y = _decimated(eq, traj.qd, fs, k, rest, decimate, model.tree)
+    W, Y = _decimated(eq, [traj.qd], fs, k, rest, decimate, model.tree)
+    W, Y = W[:, 0], Y[:, 0]
     Z, sim = None, traj
     if instruments is not None:
         sim = _simulated_suspensions(model.tree, traj, coarse, eq, instruments)
         sc = _every(sim, k)
         sim_eq = car_identification(model, sc.q, sc.qd, sc.qdd, coarse.wheel_wrenches, aw, base=base,
                                     regressor=regressor)
-        Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate, model.tree)
+        Z = _decimated(sim_eq, [sim.qd], fs, k, rest, decimate, model.tree)[0][:, 0]
     rows, n = len(eq.rows), W.shape[0]
     step = k * (int(np.prod(rest)) if rest else 1)
     t = traj.t[::step][:n]
@@ -103,34 +96,91 @@ def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
                          None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
 
 
-def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...], decimate: tuple[int, ...],
-               tree) -> tuple[np.ndarray, np.ndarray]:
-    """W (n, rows, p) and Y (n, rows) of equations computed on every k-th sample, decimated by `rest` (W's
-    live entries and Y through one parallel filter); the dry-friction columns from the full-rate qd_full, each by
-    its joint's Coulomb law (`tree.friction_law`)."""
+def car_moved_rows(
+    model: Model,
+    traj: CarTrajectory,
+    moved: Sequence[CarTrajectory],
+    fs: float,
+    keep: np.ndarray,
+    decimate: tuple[int, ...] = (5, 10),
+    base: str | BaseParameters = "generic",
+    aero: Aerodynamics | None = None,
+    regressor=None,
+    cutoff: float | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(W, Y) of each moved trajectory (traj with some input changed: a sensor offset's), the rows `keep` selects
+    (`car_system(model, m, ..., keep=keep)`'s, the other arguments `car_system`'s), all in one evaluation of the
+    equations and one parallel decimation. The equations are computed on traj's coarse samples (its wheel spin
+    chooses the step: an offset's effect on it is far below the margin of that choice)."""
+    decimate = tuple(decimate or ())
+    if not moved:
+        return []
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    coarse = [_every(m, k) for m in moved]
+    q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse]) for a in ("q", "qd", "qdd", "wheel_wrenches"))
+    aw = aero_wrench(model, q, qd, aero) if aero is not None else None
+    eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
+    W, Y = _decimated(eq, [m.qd for m in moved], fs, k, rest, decimate, model.tree)
+    rows = len(eq.rows)
+    keep = np.asarray(keep, dtype=bool)
+    m = W.shape[0]
+    return [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
+            for v in range(len(moved))]
+
+
+def _coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
+                 ) -> tuple[int, tuple[int, ...]]:
+    """k, the step of the samples the equations are computed on, and the rest of the decimation (`car_system`)."""
+    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
+    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
+    total = int(np.prod(decimate)) if decimate else 1
+    k = None
+    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
+        needed = max(5 * cutoff, spin / 0.9)
+        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
+    # W there, the rest of the decimation in one stage
+    return (1, decimate) if k is None else (k, (total // k,))
+
+
+def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple[int, ...],
+               decimate: tuple[int, ...], tree) -> tuple[np.ndarray, np.ndarray]:
+    """W (n, V, rows, p) and Y (n, V, rows) of V trajectories' equations (eq: their coarse samples one after
+    the other, V = len(qd_full)) computed on every k-th sample, decimated by `rest` (W's live entries and Y of
+    all V through one parallel filter); the dry-friction columns from each one's full-rate qd_full, by its joint's
+    Coulomb law (`tree.friction_law`)."""
     rows, p = len(eq.rows), eq.per_sample.shape[2]
-    W3 = eq.per_sample  # (N, rows, p)
-    N = W3.shape[0]
+    V = len(qd_full)
+    W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
+    N = W4.shape[1]
     # only the (row, column) pairs that are not structural zeros (126 of the paper's 14 x 48) and Y go
-    # through the filter, gathered as one (N, live + rows) array
-    live_r, live_c = np.nonzero(np.any(W3 != 0, axis=0))
-    both = np.empty((N, live_r.size + rows))
-    both[:, : live_r.size] = W3[:, live_r, live_c]
-    both[:, live_r.size :] = eq.Y.reshape(rows, N).T
+    # through the filter, gathered as one (N, V (live + rows)) array
+    live_r, live_c = np.nonzero(np.any(W4 != 0, axis=(0, 1)))
+    nl = live_r.size
+    both = np.empty((N, V, nl + rows))
+    both[:, :, :nl] = W4[:, :, live_r, live_c].transpose(1, 0, 2)
+    both[:, :, nl:] = eq.Y.reshape(rows, V, N).transpose(2, 1, 0)
+    both = both.reshape(N, -1)
     if rest:
         both, _ = decimate_parallel(both, None, rest, fs / k)
-    W = np.zeros((both.shape[0], rows, p))
-    W[:, live_r, live_c] = both[:, : live_r.size]
-    Y = both[:, live_r.size :]
+    both = both.reshape(both.shape[0], V, nl + rows)
+    W = np.zeros((both.shape[0], V, rows, p))
+    W[:, :, live_r, live_c] = both[:, :, :nl]
+    Y = both[:, :, nl:]
     if k > 1:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            signs = np.stack([coulomb(qd_full[:, j - 1], tree.friction_law(j)) for _, _, j in fs_cols], axis=1)
+            # one column set per distinct full-rate qd (moved loads share the unmoved one's)
+            distinct = list({id(a): a for a in qd_full}.values())
+            signs = np.concatenate([np.stack([coulomb(a[:, j - 1], tree.friction_law(j)) for _, _, j in fs_cols],
+                                             axis=1) for a in distinct], axis=1)
             dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
-            for i, (c, r, _) in enumerate(fs_cols):
-                W[:n, r, c] = dec[:n, i]
+            where = {key: i for i, key in enumerate({id(a): None for a in qd_full})}
+            for v, a in enumerate(qd_full):
+                first = where[id(a)] * len(fs_cols)
+                for i, (c, r, _) in enumerate(fs_cols):
+                    W[:n, v, r, c] = dec[:n, first + i]
     return W, Y
 
 

@@ -24,7 +24,7 @@ import pickle
 import threading
 import zlib
 from collections import OrderedDict
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -44,7 +44,7 @@ from .robot import GroupedSystem, chunk_rows, to_frames
 from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window
 
 if TYPE_CHECKING:
-    from ..vehicle.estimate import CarTrajectory
+    from ..vehicle.estimate import CarTrajectory, JointsPass
     from ..vehicle.tire_curves import TireSamples
 
 
@@ -148,11 +148,15 @@ class CarSetup:
         the config turns the compensation off); lags: channel group -> s, its channels taken as that much later
         than declared (advanced by it more: the delay estimate's perturbations); compensated: `compensated` of
         these channels and lags, when known (not undone again)."""
-        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
+        return self.joints(channels, fs, lags, compensated).traj
 
-        return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite, self.logger.channels,
-                               self._lags(channels, lags), compensated)
+    def joints(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
+               compensated: Mapping[str, np.ndarray] | None = None) -> JointsPass:
+        """`trajectory` with what a pass with one channel's zero moved reuses (`vehicle.estimate.JointsPass`)."""
+        from ..vehicle.estimate import joints_pass  # the car's modules, as in __init__: a robot needs none
+
+        return joints_pass(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables, self.conditioning,
+                           self.vehicle.suite, self.logger.channels, self._lags(channels, lags), compensated)
 
     def compensated(self, channels: dict[str, np.ndarray], fs: float,
                     lags: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
@@ -179,6 +183,15 @@ class CarSetup:
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations)[0]
+
+    def moved_rows(self, traj: CarTrajectory, moved: Sequence[CarTrajectory], fs: float, keep: np.ndarray
+                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass."""
+        from .car import car_moved_rows
+
+        s = self.settings
+        return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
+                              regressor=self.regressor, cutoff=self.conditioning.cutoff)
 
     def load_only(self, channel: str) -> bool:
         """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
@@ -235,7 +248,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     channels = w.read()
     lags = dict(job.lags)
     compensated = setup.compensated(channels, w.fs, lags)
-    traj = setup.trajectory(channels, w.fs, lags, compensated)
+    joints = setup.joints(channels, w.fs, lags, compensated)
+    traj = joints.traj
     sys = setup.rows(traj, w.fs, job.instruments)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
@@ -262,17 +276,10 @@ def reduce_car_segment(job: CarJob) -> Partial:
                         [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
         part.bias = ls.bias_accumulator()
-        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
-            if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
-                moved_traj = shifted_load(traj, q, b)
-            elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
-                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags)
-            else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
-                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags,
-                                              {**compensated, q: compensated[q] + b})
-            p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
-            iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
-            part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
+        moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets, job.instruments)
+        for (q, _), (dW, dY, dZ) in zip(job.offsets, moved, strict=True):
+            iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": dZ}
+            part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, dW, dY, sys.groups, job.weight, **iv)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
@@ -283,6 +290,43 @@ def reduce_car_segment(job: CarJob) -> Partial:
             noisy[-1].add(p.W, p.Y, sys.groups)
         part.errors = ErrorEffect(ls, *noisy)
     return part
+
+
+def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
+                   compensated: dict[str, np.ndarray], joints: JointsPass, sys: GroupedSystem,
+                   offsets: Sequence[tuple[str, float]], instruments: dict[str, float] | None = None,
+                   one_pass: bool = True) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+    """(ΔW, ΔY, ΔZ) of the kept rows `sys` (of joints.traj, of these channels) for each (channel, one-σ zero
+    offset SI): the rows of the trajectory with that channel's zero moved, less sys's (ΔZ None without
+    instruments); the offset's exact effect, not a linearisation (the attitude's rows are curved enough for a
+    one-σ gyro or inclinometer offset to move them 0.02 to 0.3 % off their tangent).
+
+    The moved trajectories: a wheel-load channel's moves the filtered loads alone (`CarSetup.load_only`), a
+    camera's what its range clips (the whole pass); the inertial unit's, the lasers' and the velocity sensor's
+    run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes through the whole
+    estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz: the offset passes
+    through it as is). Their rows then come from one evaluation of the equations and one decimation for all of
+    them (`car.car_moved_rows`). one_pass=False: the old way, each offset through the whole estimator
+    (`CarSetup.trajectory`) and `CarSetup.rows` in turn (the oracle the tests compare with)."""
+    traj = joints.traj
+    trajs = []
+    for q, b in offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
+        if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
+            trajs.append(shifted_load(traj, q, b))
+        elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
+            trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags))
+        elif one_pass and joints.movable(q):
+            trajs.append(joints.moved(q, b))
+        else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
+            trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags,
+                                          {**compensated, q: compensated[q] + b}))
+    if one_pass and instruments is None:
+        return [(W - sys.W, Y - sys.Y, None) for W, Y in setup.moved_rows(traj, trajs, fs, sys.kept)]
+    out = []
+    for t in trajs:
+        p = setup.rows(t, fs, instruments, keep=sys.kept)
+        out.append((p.W - sys.W, p.Y - sys.Y, None if instruments is None else p.Z - sys.Z))
+    return out
 
 
 def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) -> tuple[dict[str, np.ndarray], ...]:
