@@ -11,7 +11,8 @@ from ..dynamics import BaseParameters, Model
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
 from ..signals import decimate_parallel
-from ..vehicle import DAMPERS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle.equations import load_rows
 from ..vehicle.estimate import CarTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
 from ..vehicle.sensors import CORNER_TAGS
@@ -126,6 +127,33 @@ def car_moved_rows(
     m = W.shape[0]
     return [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
             for v in range(len(moved))]
+
+
+def car_load_changes(
+    model: Model,
+    traj: CarTrajectory,
+    moved: Sequence[tuple[int, int, float]],
+    fs: float,
+    keep: np.ndarray,
+    decimate: tuple[int, ...] = (5, 10),
+    cutoff: float | None = None,
+) -> list[np.ndarray]:
+    """ΔY of the rows `keep` selects (`car_system`'s, the other arguments its own) for each (wheel, component, b):
+    that wheel-wrench component of traj moved by b (N or N·m; wheels and components in `car_identification`'s
+    order). W does not depend on the loads and Y is linear in them (`vehicle.equations.load_rows`): ΔY is b times
+    the rows' change per unit load, through the same decimation, all in one pass."""
+    if not moved:
+        return []
+    decimate = tuple(decimate or ())
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    unit = load_rows(model, _every(traj, k).q, EQUATION_ROWS)  # (n, rows, 4, 6)
+    n, rows = unit.shape[:2]
+    dY = np.stack([b * unit[:, :, wheel, comp] for wheel, comp, b in moved], axis=1).reshape(n, -1)
+    if rest:
+        dY, _ = decimate_parallel(dY, None, rest, fs / k)
+    dY = dY.reshape(dY.shape[0], len(moved), rows)
+    keep = np.asarray(keep, dtype=bool)
+    return [dY[:, v].T.reshape(-1)[keep] for v in range(len(moved))]
 
 
 def _coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None

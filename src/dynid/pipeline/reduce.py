@@ -193,6 +193,16 @@ class CarSetup:
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
                               regressor=self.regressor, cutoff=self.conditioning.cutoff)
 
+    def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
+                     ) -> list[np.ndarray]:
+        """ΔY of the kept rows for each (wheel-load channel, offset SI) (`load_only` channels: W unchanged)."""
+        from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
+        from .car import car_load_changes
+
+        which = [(CORNER_TAGS.index(q.split("_")[1]), WFT_COMPONENTS.index(q.split("_")[2]), b) for q, b in moved]
+        return car_load_changes(self.model, traj, which, fs, keep, self.settings.decimate,
+                                cutoff=self.conditioning.cutoff)
+
     def load_only(self, channel: str) -> bool:
         """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
         the vertical force of a car without height lasers (its heights come from that load). The estimator takes
@@ -277,9 +287,9 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if job.offsets:
         part.bias = ls.bias_accumulator()
         moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets, job.instruments)
-        for (q, _), (dW, dY, dZ) in zip(job.offsets, moved, strict=True):
-            iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": dZ}
-            part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, dW, dY, sys.groups, job.weight, **iv)
+        part.bias.add_many([f"{w.test}: {q}" for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
+                           [m[1] for m in moved], sys.groups, job.weight,
+                           *(() if job.instruments is None else (sys.Z, [m[2] for m in moved])))
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
@@ -309,24 +319,40 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
     them (`car.car_moved_rows`). one_pass=False: the old way, each offset through the whole estimator
     (`CarSetup.trajectory`) and `CarSetup.rows` in turn (the oracle the tests compare with)."""
     traj = joints.traj
+    if not one_pass or instruments is not None:  # the loads move the instruments' simulated suspensions: rows
+        out = []
+        for t in _moved_trajectories(setup, channels, fs, lags, compensated, joints, offsets, one_pass):
+            p = setup.rows(t, fs, instruments, keep=sys.kept)
+            out.append((p.W - sys.W, p.Y - sys.Y, None if instruments is None else p.Z - sys.Z))
+        return out
+    loads = [(q, b) for q, b in offsets if setup.load_only(q)]
+    others = [(q, b) for q, b in offsets if not setup.load_only(q)]
+    changes = {}
+    for (q, _), dY in zip(loads, setup.load_changes(traj, loads, fs, sys.kept), strict=True):
+        changes[q] = (None, dY, None)  # W does not depend on the loads
+    trajs = _moved_trajectories(setup, channels, fs, lags, compensated, joints, others, one_pass)
+    for (q, _), (W, Y) in zip(others, setup.moved_rows(traj, trajs, fs, sys.kept), strict=True):
+        changes[q] = (W - sys.W, Y - sys.Y, None)
+    return [changes[q] for q, _ in offsets]
+
+
+def _moved_trajectories(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
+                        compensated: dict[str, np.ndarray], joints: JointsPass, offsets: Sequence[tuple[str, float]],
+                        staged: bool) -> list[CarTrajectory]:
+    """The trajectory with each offset's channel moved (`offset_changes`); staged: through the stages it reaches
+    only, where it can (`JointsPass.moved`)."""
     trajs = []
     for q, b in offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
         if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
-            trajs.append(shifted_load(traj, q, b))
+            trajs.append(shifted_load(joints.traj, q, b))
         elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
             trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags))
-        elif one_pass and joints.movable(q):
+        elif staged and joints.movable(q):
             trajs.append(joints.moved(q, b))
         else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
             trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags,
                                           {**compensated, q: compensated[q] + b}))
-    if one_pass and instruments is None:
-        return [(W - sys.W, Y - sys.Y, None) for W, Y in setup.moved_rows(traj, trajs, fs, sys.kept)]
-    out = []
-    for t in trajs:
-        p = setup.rows(t, fs, instruments, keep=sys.kept)
-        out.append((p.W - sys.W, p.Y - sys.Y, None if instruments is None else p.Z - sys.Z))
-    return out
+    return trajs
 
 
 def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) -> tuple[dict[str, np.ndarray], ...]:
