@@ -198,17 +198,23 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            # one column set per distinct full-rate qd (moved loads share the unmoved one's)
-            distinct = list({id(a): a for a in qd_full}.values())
-            signs = np.concatenate([np.stack([coulomb(a[:, j - 1], tree.friction_law(j)) for _, _, j in fs_cols],
-                                             axis=1) for a in distinct], axis=1)
+            # one set of columns per distinct full-rate velocity of those joints (an offset that does not reach
+            # them shares the unmoved trajectory's)
+            joints = [j - 1 for _, _, j in fs_cols]
+            distinct: list[np.ndarray] = []
+            which = []
+            for a in qd_full:
+                cols = a[:, joints]
+                which.append(next((i for i, d in enumerate(distinct) if np.array_equal(d, cols)), len(distinct)))
+                if which[-1] == len(distinct):
+                    distinct.append(cols)
+            signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
+                                             axis=1) for d in distinct], axis=1)
             dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
-            where = {key: i for i, key in enumerate({id(a): None for a in qd_full})}
-            for v, a in enumerate(qd_full):
-                first = where[id(a)] * len(fs_cols)
+            for v, d in enumerate(which):
                 for i, (c, r, _) in enumerate(fs_cols):
-                    W[:n, v, r, c] = dec[:n, first + i]
+                    W[:n, v, r, c] = dec[:n, d * len(fs_cols) + i]
     return W, Y
 
 
