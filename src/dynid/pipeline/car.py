@@ -117,16 +117,25 @@ def car_moved_rows(
     if not moved:
         return []
     k, rest = _coarse_step(traj, fs, decimate, cutoff)
-    coarse = [_every(m, k) for m in moved]
-    q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse]) for a in ("q", "qd", "qdd", "wheel_wrenches"))
-    aw = aero_wrench(model, q, qd, aero) if aero is not None else None
-    eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
-    W, Y = _decimated(eq, [m.qd for m in moved], fs, k, rest, decimate, model.tree)
-    rows = len(eq.rows)
     keep = np.asarray(keep, dtype=bool)
-    m = W.shape[0]
-    return [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
-            for v in range(len(moved))]
+    # a few trajectories per evaluation: the equations' arrays (and the regressor's pooled buffers) stay the size
+    # of one long segment's, whatever the number of offsets
+    per = max(1, MOVED_SAMPLES // max(1, len(traj.t[::k])))
+    out = []
+    for first in range(0, len(moved), per):
+        coarse = [_every(m, k) for m in moved[first : first + per]]
+        q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse])
+                          for a in ("q", "qd", "qdd", "wheel_wrenches"))
+        aw = aero_wrench(model, q, qd, aero) if aero is not None else None
+        eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
+        W, Y = _decimated(eq, [m.qd for m in moved[first : first + per]], fs, k, rest, decimate, model.tree)
+        rows, m = len(eq.rows), W.shape[0]
+        out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
+                for v in range(len(coarse))]
+    return out
+
+
+MOVED_SAMPLES = 4096  # coarse samples per evaluation of `car_moved_rows` (a 60 s segment has 3750 at 62.5 Hz)
 
 
 def car_load_changes(

@@ -307,17 +307,19 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
                    offsets: Sequence[tuple[str, float]], instruments: dict[str, float] | None = None,
                    one_pass: bool = True) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
     """(ΔW, ΔY, ΔZ) of the kept rows `sys` (of joints.traj, of these channels) for each (channel, one-σ zero
-    offset SI): the rows of the trajectory with that channel's zero moved, less sys's (ΔZ None without
-    instruments); the offset's exact effect, not a linearisation (the attitude's rows are curved enough for a
-    one-σ gyro or inclinometer offset to move them 0.02 to 0.3 % off their tangent).
+    offset SI): the rows of the trajectory with that channel's zero moved, less sys's (ΔW None where W does not
+    move, ΔZ None without instruments); the offset's exact effect, not a linearisation (the attitude's rows are
+    curved enough for a one-σ gyro or inclinometer offset to move them 0.02 to 0.3 % off their tangent).
 
-    The moved trajectories: a wheel-load channel's moves the filtered loads alone (`CarSetup.load_only`), a
-    camera's what its range clips (the whole pass); the inertial unit's, the lasers' and the velocity sensor's
-    run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes through the whole
-    estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz: the offset passes
-    through it as is). Their rows then come from one evaluation of the equations and one decimation for all of
-    them (`car.car_moved_rows`). one_pass=False: the old way, each offset through the whole estimator
-    (`CarSetup.trajectory`) and `CarSetup.rows` in turn (the oracle the tests compare with)."""
+    A wheel-load channel's offset moves the filtered loads alone (`CarSetup.load_only`): ΔY is the rows' change
+    per unit load times it, for all of them in one decimation (`CarSetup.load_changes`). The others' moved
+    trajectories: a camera's moves what its range clips (the whole pass); the inertial unit's, the lasers' and the
+    velocity sensor's run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes
+    through the whole estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz:
+    the offset passes through it as is). Their rows come from one evaluation of the equations and one decimation
+    for all of them (`CarSetup.moved_rows`). With instruments (the loads move the simulated suspensions too), or
+    one_pass=False, each moved trajectory's rows through `CarSetup.rows` in turn; one_pass=False, the trajectories
+    too through the whole estimator (`CarSetup.trajectory`): the old way, the oracle the tests compare with."""
     traj = joints.traj
     if not one_pass or instruments is not None:  # the loads move the instruments' simulated suspensions: rows
         out = []
