@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import itertools
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,7 +101,7 @@ def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
 def car_moved_rows(
     model: Model,
     traj: CarTrajectory,
-    moved: Sequence[CarTrajectory],
+    moved: Iterable[CarTrajectory],
     fs: float,
     keep: np.ndarray,
     decimate: tuple[int, ...] = (5, 10),
@@ -114,24 +115,25 @@ def car_moved_rows(
     equations and one parallel decimation. The equations are computed on traj's coarse samples (its wheel spin
     chooses the step: an offset's effect on it is far below the margin of that choice)."""
     decimate = tuple(decimate or ())
-    if not moved:
-        return []
     k, rest = _coarse_step(traj, fs, decimate, cutoff)
     keep = np.asarray(keep, dtype=bool)
-    # a few trajectories per evaluation: the equations' arrays (and the regressor's pooled buffers) stay the size
-    # of one long segment's, whatever the number of offsets
+    # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
+    # equations' arrays, the regressor's pooled buffers and the trajectories alive stay the size of one long
+    # segment's, whatever the number of offsets
     per = max(1, MOVED_SAMPLES // max(1, len(traj.t[::k])))
     out = []
-    for first in range(0, len(moved), per):
-        coarse = [_every(m, k) for m in moved[first : first + per]]
+    pending = iter(moved)
+    while chunk := list(itertools.islice(pending, per)):
+        coarse = [_every(m, k) for m in chunk]
         q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse])
                           for a in ("q", "qd", "qdd", "wheel_wrenches"))
         aw = aero_wrench(model, q, qd, aero) if aero is not None else None
         eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
-        W, Y = _decimated(eq, [m.qd for m in moved[first : first + per]], fs, k, rest, decimate, model.tree)
+        W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree)
         rows, m = len(eq.rows), W.shape[0]
         out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
                 for v in range(len(coarse))]
+        del chunk, coarse, q, qd, qdd, ww, aw, eq, W, Y
     return out
 
 

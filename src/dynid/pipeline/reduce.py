@@ -24,7 +24,7 @@ import pickle
 import threading
 import zlib
 from collections import OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -184,7 +184,7 @@ class CarSetup:
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations)[0]
 
-    def moved_rows(self, traj: CarTrajectory, moved: Sequence[CarTrajectory], fs: float, keep: np.ndarray
+    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
                    ) -> list[tuple[np.ndarray, np.ndarray]]:
         """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass."""
         from .car import car_moved_rows
@@ -340,21 +340,18 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
 
 def _moved_trajectories(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
                         compensated: dict[str, np.ndarray], joints: JointsPass, offsets: Sequence[tuple[str, float]],
-                        staged: bool) -> list[CarTrajectory]:
-    """The trajectory with each offset's channel moved (`offset_changes`); staged: through the stages it reaches
-    only, where it can (`JointsPass.moved`)."""
-    trajs = []
+                        staged: bool) -> Iterator[CarTrajectory]:
+    """The trajectory with each offset's channel moved (`offset_changes`), one at a time (each is the size of the
+    segment's); staged: through the stages it reaches only, where it can (`JointsPass.moved`)."""
     for q, b in offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
         if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
-            trajs.append(shifted_load(joints.traj, q, b))
+            yield shifted_load(joints.traj, q, b)
         elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
-            trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags))
+            yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags)
         elif staged and joints.movable(q):
-            trajs.append(joints.moved(q, b))
+            yield joints.moved(q, b)
         else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
-            trajs.append(setup.trajectory({**channels, q: channels[q] + b}, fs, lags,
-                                          {**compensated, q: compensated[q] + b}))
-    return trajs
+            yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags, {**compensated, q: compensated[q] + b})
 
 
 def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) -> tuple[dict[str, np.ndarray], ...]:
