@@ -1,7 +1,8 @@
 """The sensor offsets' effect in one pass (issue 28 item 3), against the per-offset re-runs it replaced.
 
 Data: the demo's quick plan simulated once per shipped vehicle (the 406, with height lasers; the compact SUV, without:
-its vertical wheel loads set the heights), its logger files written with the suite's noise and zero offsets (seed 1).
+its vertical wheel loads set the heights), its logger files written with the suite's noise and zero offsets (seed 1);
+the MuJoCo car's noisy sine (skipped without the shared data).
 Oracles: the old path, kept as `offset_changes(one_pass=False)` (each offset through the whole estimator,
 `CarSetup.trajectory`, then `CarSetup.rows`, in turn); the identification engine's right-hand side for the wheel
 loads' rows; a re-identification from files with a wheel's vertical force moved by 10 N.
@@ -19,6 +20,9 @@ import pytest
 
 from dynid.pipeline.config import load_config
 from dynid.pipeline.demo import simulate_tests, write_demo
+
+# the fixture simulates the demo's quick plan for each vehicle (10-20 s): the whole module is slow
+pytestmark = pytest.mark.slow
 
 # beside the suites' own offsets: a camera's (what its range clips moves), a clearance's and a wheel speed's (the
 # whole estimator), the velocity sensor's (the estimator's last stages alone)
@@ -61,22 +65,40 @@ def segment(config, test: int):
     return cfg, setup, w.fs, channels, compensated, joints, setup.rows(joints.traj, w.fs)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("test", [0, 3])  # the sine; the lane change, whose steering cameras clip
 def test_one_pass_equals_the_per_offset_reruns(noisy, test):
     """Every declared offset's (ΔW, ΔY) in one pass equals its re-run through the whole estimator and the rows
     (1e-12 of the rows' scale), and so do the estimates' shifts they propagate to (1e-6 of each source's largest);
     on an instrumental-variable pass too (its ΔZ)."""
+    from dynid.vehicle.estimate import _saturated_cameras
+
+    if test == 3:  # the camera's offset moves what its range clips
+        _, setup, _, channels, *_ = segment(noisy, test)
+        assert _saturated_cameras(channels, setup.vehicle.suite)
+    assert_one_pass_equals_reruns(noisy, test)
+
+
+def test_one_pass_equals_the_per_offset_reruns_on_the_mujoco_car(tmp_path):
+    """The same on the MuJoCo car (examples/mujoco_car's vehicle file, its suite's offsets; the noisy sine)."""
+    from mujoco_car import DATA, EXAMPLE, mujoco_truth
+
+    mujoco_truth()  # skips without the data
+    config = tmp_path / "identify.toml"
+    config.write_text(f'[model]\nvehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"\n\n[[tests]]\n'
+                      f'name = "sine"\nfile = "{(DATA / "noise" / "sine.parquet").as_posix()}"\n\n'
+                      "[identification]\naero = false\n")
+    assert_one_pass_equals_reruns(config, 0, iv=False)
+
+
+def assert_one_pass_equals_reruns(config, test: int, iv: bool = True) -> None:
+    """The comparison of the tests above, on the first segment of the config's test `test`."""
     from dynid.estimation import StreamingLS
     from dynid.pipeline.car import sensor_offsets
     from dynid.pipeline.reduce import offset_changes
-    from dynid.vehicle.estimate import _saturated_cameras
 
-    cfg, setup, fs, channels, compensated, joints, sys = segment(noisy, test)
+    cfg, setup, fs, channels, compensated, joints, sys = segment(config, test)
     offsets = tuple(sensor_offsets(cfg.car, setup.vehicle).si().items())
     assert len(offsets) >= 20 and any(not setup.load_only(q) and joints.movable(q) for q, _ in offsets)
-    if test == 3:  # the camera's offset moves what its range clips
-        assert _saturated_cameras(channels, setup.vehicle.suite)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     result = ls.solve_weighted()
@@ -96,6 +118,8 @@ def test_one_pass_equals_the_per_offset_reruns(noisy, test):
         assert np.abs(dY - dY0).max() <= 1e-12 * scale, q
         assert np.abs(shifts[0][q] - shifts[1][q]).max() <= 1e-6 * np.abs(shifts[1][q]).max(), q
 
+    if not iv:
+        return
     # an IDIM-IV pass: the loads move the instruments (the simulated suspensions) too
     values = dict(zip(result.names, (float(v) for v in result.values), strict=True))
     iv_sys = setup.rows(joints.traj, fs, values)
@@ -184,7 +208,6 @@ def moved_file(config, test: int, channel: str, b: float, folder):
     return other
 
 
-@pytest.mark.slow
 def test_a_wheel_load_step_in_the_file_moves_the_estimate_by_the_propagated_shift(noisy, tmp_path):
     """A +10 N step on the front-left wheel's Fz, written in the sine's file and identified again from it (read,
     joints, rows, weighted least squares with the weights held), moves the estimate by the shift the one pass
