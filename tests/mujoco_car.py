@@ -23,24 +23,27 @@ def mujoco_truth() -> dict:
 
 
 def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
-             tire_law: str = "paper") -> tuple[dict, dict]:
-    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` in its
-    [wheels]) on `tests` of `folder`."""
+             tire_law: str = "paper", lateral_force: bool = False, conditioning: str = "") -> tuple[dict, dict]:
+    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` and, when
+    lateral_force, `tire_lateral_force = true` in its [wheels]) on `tests` of `folder`; conditioning: more lines of
+    the config's [conditioning] (TOML)."""
     vehicle = EXAMPLE / "vehicle.toml"
     if tire_law != "paper":
         text = vehicle.read_text()
         assert text.count("[wheels]") == 1
+        lines = f'tire_law = "{tire_law}"' + "\ntire_lateral_force = true" * lateral_force
+        tire_law += "_fy" * lateral_force  # the file's and the config's names
         vehicle = tmp / f"vehicle_{tire_law}.toml"
         (tmp / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
-        vehicle.write_text(text.replace("[wheels]", f'[wheels]\ntire_law = "{tire_law}"'))
+        vehicle.write_text(text.replace("[wheels]", f"[wheels]\n{lines}"))
     lines = ['[model]', f'vehicle = "{vehicle.as_posix()}"']
     for t in tests:
         lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
                   f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
-              f"compensate_delays = {'true' if compensate_delays else 'false'}",
+              f"compensate_delays = {'true' if compensate_delays else 'false'}", conditioning,
               "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
-    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}.toml"
+    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}{'_c' if conditioning else ''}.toml"
     cfg.write_text("\n".join(lines) + "\n")
     out = tmp / cfg.stem
     assert main(["identify", str(cfg), "--out", str(out)]) == 0

@@ -154,6 +154,7 @@ file = "sine.csv"
     ("min_speed = { 10 = 0.01 }", "", ["[conditioning]", "min_speed", "10", "9, 18, 27, 36"]),
     ("min_speed = { 9 = -0.01 }", "", ["[conditioning]", "min_speed", ">= 0"]),
     ("compensate_delays = 1", "", ["[conditioning]", "compensate_delays", "true or false"]),
+    ("friction_lowpass = 1", "", ["[conditioning]", "friction_lowpass", "true or false"]),
     ("", "flag_percent = 0", ["[identification]", "flag_percent", "positive"]),
     ("", 'flag_percent = "5 %"', ["[identification]", "flag_percent", "positive"]),
     ("", 'method = "iv"\niv_passes = 0', ["[identification]", "iv_passes", "1 to 10"]),
@@ -169,10 +170,12 @@ def test_car_conditioning_options_are_checked(tmp_path, conditioning, identifica
         load_config(cfg)
     for w in words:
         assert w in str(exc.value), (w, str(exc.value))
-    cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.02, 27 = 0 }\ncompensate_delays = false",
+    cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.02, 27 = 0 }\ncompensate_delays = false\n"
+                                                   "friction_lowpass = true",
                                       identification='flag_percent = 4\nmethod = "iv"\niv_passes = 3'))
     c = load_config(cfg)
     assert c.car.min_speed == {9: 0.02, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
+    assert c.car.friction_lowpass
     assert c.method == "iv" and c.car.iv_passes == 3
     cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
     c = load_config(cfg)

@@ -113,6 +113,57 @@ def test_a_progressive_tire_fits_the_spiral_s_load_range_better(ideal_all, ideal
 
 
 @pytest.fixture(scope="module")
+def ideal_lateral(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine", "spiral", "braking"], compensate_delays=False,
+                    tire_law="progressive", lateral_force=True)
+
+
+def test_the_lateral_force_term_brings_every_tire_group_below_two_percent(ideal_progressive, ideal_lateral):
+    """[wheels] tire_lateral_force = true: kt q + ktq q² + off - ktfy Fy² q = Fz, Fy the transducer's lateral force
+    (the Magic Formula's qFcy form, its sign free). Issue 24's bound for the tire groups on ideal/ is 2 %; the
+    progressive law alone leaves 2.1 and 3.2 % at the rear (measured), mostly the spiral's outer wheels. With the
+    term: 1.46, 0.81, 0.82, 0.32 % (measured), each group at most its progressive residual. The tire equations
+    share no parameter with the others: every other estimate is the progressive law's."""
+    law, lat = ({p["label"]: p for p in r["parameters"]} for r in (ideal_progressive[0], ideal_lateral[0]))
+    before, after = ({t: r[0]["validation"]["direct"][f"tire{t}"] for t in (15, 24, 33, 42)}
+                     for r in (ideal_progressive, ideal_lateral))
+    for tire in (15, 24, 33, 42):
+        assert after[tire] < 0.02 and after[tire] <= before[tire], (tire, before, after)
+        assert lat[f"ktfy{tire}"]["unit"] == "1/(N·m)" and lat[f"ktfy{tire}"]["a_priori"] == 0.0
+        assert ideal_lateral[0]["validation"]["fit"][f"tire{tire}"]["fits"]
+    tire = {f"{p}{t}" for p in ("kt", "off", "ktq") for t in (15, 24, 33, 42)}
+    for name, p in law.items():
+        if name not in tire:
+            assert lat[name]["value"] == pytest.approx(p["value"], rel=1e-7, abs=1e-6), name
+
+
+@pytest.fixture(scope="module")
+def ideal_friction_lowpass(truth, tmp_path_factory):
+    return identify(tmp_path_factory.mktemp("mj"), "ideal", ["sine", "spiral", "braking"], compensate_delays=False,
+                    conditioning="friction_lowpass = true\nmin_speed = 0.02")
+
+
+def test_friction_columns_through_the_loads_low_pass_give_the_suspensions_within_one_percent(
+        truth, ideal_all, ideal_friction_lowpass):
+    """[conditioning] friction_lowpass = true: the dampers' dry-friction columns through the loads' low-pass (W and Y
+    through the same filters). With min_speed 0.02 m/s every spring, damper and bar is within issue 24's 1 % on
+    ideal/ and the dry friction within 5 % (measured: ks <= 0.51 %, h <= 0.68 %, fs <= 0.93 %, bars <= 0.47 %;
+    the defaults miss by up to 2.7 %), and every suspension group's residual falls below half the defaults'
+    (measured 0.06 / 0.06 / 0.04 / 0.05 % against 0.24 / 0.25 / 0.15 / 0.14 %)."""
+    res, _ = ideal_friction_lowpass
+    values = {p["label"]: p["value"] for p in res["parameters"]}
+    true = {p["label"]: p["value"] for p in truth["true_parameters"]}
+    for corner in (9, 18, 27, 36):
+        for kind in ("ks", "h"):
+            assert values[f"{kind}{corner}"] == pytest.approx(true[f"{kind}{corner}"], rel=0.01), (kind, corner)
+        assert values[f"fs{corner}"] == pytest.approx(true[f"fs{corner}"], rel=0.05)
+        group = f"susp{corner}"
+        assert res["validation"]["direct"][group] < 0.5 * ideal_all[0]["validation"]["direct"][group]
+    for bar in ("karf", "karr"):
+        assert values[bar] == pytest.approx(true[bar], rel=0.01)
+
+
+@pytest.fixture(scope="module")
 def noise_all(truth, tmp_path_factory):
     return identify(tmp_path_factory.mktemp("mj"), "noise", ["sine", "spiral", "braking"], compensate_delays=True)
 

@@ -36,7 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..kinematics.forward import frame_plan, joint_array
-from ..model.tree import CURVE_TERMS, FIXED, INERTIAL, REVOLUTE, Tree
+from ..model.tree import CURVE_TERMS, FIXED, INERTIAL, LOAD_TERMS, REVOLUTE, Tree
 
 try:  # numba is a runtime dependency, but an install without it must still work
     from numba import njit as _njit
@@ -684,7 +684,7 @@ def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
             couplings.append((pos, by_name[name]))
         elif kind in INERTIAL:
             entries.setdefault(int(name[len(kind):]), []).append((INERTIAL.index(kind), pos))
-        else:
+        elif kind not in LOAD_TERMS:  # a load term's column is the measured wrench's: 0 here (model.tree)
             j = int(name[len(kind):])
             if j in row_pos:
                 code = _SMOOTH_FS if kind == "FS" and widths[j] != 0.0 else _TERM_CODE[kind]

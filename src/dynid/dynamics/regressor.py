@@ -22,7 +22,7 @@ import numpy as np
 
 from ..kinematics.forward import KinematicState, cross, forward_kinematics, joint_array
 from ..kinematics.motion import Motion, Vec, local_motion, vadd, vcross
-from ..model.tree import FIXED, INERTIAL, REVOLUTE, ModelError, Tree
+from ..model.tree import FIXED, INERTIAL, LOAD_TERMS, REVOLUTE, ModelError, Tree
 from .newton_euler import (
     CHUNK,
     Wrench,
@@ -261,7 +261,7 @@ def _plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
             links.setdefault(k, ([], []))
             links[k][0].append(pos)
             links[k][1].append(INERTIAL.index(kind))
-        else:
+        elif kind not in LOAD_TERMS:  # a load term's column is the measured wrench's: 0 here (model.tree)
             terms.append((pos, int(name[len(kind):]), kind))
     pairs = {}
     for k, (pos, off) in links.items():

@@ -403,6 +403,9 @@ def save_tree(tree: Tree, path: str | os.PathLike[str]) -> None:
 
 
 def tree_to_toml(tree: Tree) -> str:
+    if tree.load_terms:  # a load term's column is an application's (model.tree): a model file cannot say which wrench
+        raise ModelError(f"model {tree.name!r} has load terms on frames {sorted(tree.load_terms)} (a car's "
+                         "tire_lateral_force): a model file holds none; save the tree without them")
     lines = [f"name = {_q(tree.name)}", f"gravity = [{', '.join(_fmt(g) for g in tree.gravity)}]"]
     if tree.known:
         lines.append("known = [" + ", ".join(_q(k) for k in tree.parameter_names if k in tree.known) + "]")

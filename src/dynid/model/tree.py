@@ -14,7 +14,13 @@ Parameters, in a stable order that every result carries by name:
   the joint terms declared for it among IAj (rotor inertia), FVj (viscous), FSj
   (Coulomb), OFFj (constant offset), Kj (stiffness of an elastic joint), KQj (its
   second-order term), FVPLj FVPHj FVNLj FVNHj (a piecewise-linear viscous curve, below);
-  then the couplings, each named by the model.
+  then its load terms (below), then the couplings, each named by the model.
+
+A load term is a term of joint j's equation proportional to a function of the MEASURED external
+wrench on its link, not of the joint's motion: KFYj multiplies -q_j Fy_j², Fy_j the measured force
+along y_j on link j (a tire whose vertical stiffness falls with its lateral force, Pacejka's qFcy).
+The engines hold no measured wrench (theirs is a right-hand side): their column of a load term is 0,
+and the application that reads the wrench builds it (vehicle.equations.car_identification).
 
 The generalized force of joint j (what an actuator must supply) is
 
@@ -56,6 +62,8 @@ INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
 # speed about the joint's knees: see the module doc and Tree.knees)
 CURVE_TERMS = ("FVPL", "FVPH", "FVNL", "FVNH")
 JOINT_TERMS = ("IA", "FV", "FS", "OFF", "K", "KQ", *CURVE_TERMS)
+# terms in the measured wrench on the joint's link (see the module doc); the engines' column of each is 0
+LOAD_TERMS = ("KFY",)
 NO_KNEES: tuple[float, float] = (-math.inf, math.inf)
 FRICTION_SHAPES = ("sign", "tanh", "sigmoid")
 SIGN_LAW: tuple[str, float] = ("sign", 0.0)
@@ -120,6 +128,7 @@ class Tree:
     ignored, its motion is the master's, its force is added into the master's equation);
     frozen: the moving joints of the description it was imported from (a URDF's) that the import
     held still, name -> value (rad or m), merged into the body they hang from: no frame.
+    load_terms[j]: the load terms declared for frame j (subset of LOAD_TERMS; module doc).
     """
 
     name: str
@@ -135,6 +144,7 @@ class Tree:
     knees: dict[int, tuple[float, float]] = field(default_factory=dict)
     mimic: dict[int, Mimic] = field(default_factory=dict)
     frozen: dict[str, float] = field(default_factory=dict)
+    load_terms: dict[int, tuple[str, ...]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -216,6 +226,7 @@ class Tree:
         for f in self.frames:
             names += [f"{p}{f.j}" for p in INERTIAL]
             names += [f"{t}{f.j}" for t in JOINT_TERMS if t in self.joint_terms.get(f.j, ())]
+            names += [f"{t}{f.j}" for t in LOAD_TERMS if t in self.load_terms.get(f.j, ())]
         names += [c.name for c in self.couplings]
         return tuple(names)
 
@@ -320,11 +331,12 @@ def freeze(tree: Tree, frames: dict[int, float]) -> Tree:
             theta, r = (f.theta + v, f.r) if f.sigma == REVOLUTE else (f.theta, f.r + v)
             f = Frame(f.j, f.ant, FIXED, f.gamma, f.b, f.alpha, f.d, theta, r)
         new_frames.append(f)
-    gone = {f"{t}{j}" for j in held for t in tree.joint_terms.get(j, ())}
+    gone = {f"{t}{j}" for j in held for t in (*tree.joint_terms.get(j, ()), *tree.load_terms.get(j, ()))}
     names = {j: n for j, n in tree.joint_names.items() if j not in held}
     frozen = dict(tree.frozen) | {tree.joint_names.get(j, f"frame {j}"): held[j] for j in sorted(held)}
     return _replace(tree, frames=tuple(new_frames),
                     joint_terms={j: t for j, t in tree.joint_terms.items() if j not in held},
+                    load_terms={j: t for j, t in tree.load_terms.items() if j not in held},
                     values={k: v for k, v in tree.values.items() if k not in gone},
                     known=frozenset(k for k in tree.known if k not in gone),
                     joint_names=names, mimic={j: m for j, m in tree.mimic.items() if j not in held},
@@ -374,6 +386,12 @@ def _validate(tree: Tree) -> None:
             raise ModelError(f"{where}, frame {j}: unknown joint term(s) {bad}; known: {JOINT_TERMS}")
         if tree.frames[j - 1].sigma == FIXED and terms:
             raise ModelError(f"{where}, frame {j} is fixed (sigma=2) and cannot have joint terms {terms}")
+    for j, terms in tree.load_terms.items():
+        if not 1 <= j <= n or tree.frames[j - 1].sigma == FIXED:
+            raise ModelError(f"{where}: load terms given for frame {j}, which is not a moving joint (1..{n})")
+        bad = [t for t in terms if t not in LOAD_TERMS]
+        if bad:
+            raise ModelError(f"{where}, frame {j}: unknown load term(s) {bad}; known: {LOAD_TERMS}")
     seen = set()
     for c in tree.couplings:
         if c.kind not in COUPLING_KINDS:

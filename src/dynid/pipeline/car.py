@@ -11,7 +11,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
-from ..signals import decimate_parallel
+from ..signals import decimate_parallel, lowpass
 from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.equations import load_rows
 from ..vehicle.estimate import CarTrajectory, required_channels
@@ -33,6 +33,7 @@ def car_system(
     instruments: Mapping[str, float] | None = None,
     keep: np.ndarray | None = None,
     equations: Sequence[int] | None = None,
+    friction_lowpass: int | None = None,
 ) -> tuple[GroupedSystem, BaseParameters]:
     """W, Y and groups of one test: each of the 14 equations' columns of W and its Y through the same
     anti-alias filter and decimation (Gautier's parallel decimation), then stacked group by group.
@@ -52,6 +53,10 @@ def car_system(
     keep: the rows to keep (the `kept` mask of another system of the same samples) instead of min_speed's.
     equations: the joints whose equations are kept (default: all 14); e.g. without height lasers the tire
     equations are identities (the deflections come from the loads) and are left out.
+    friction_lowpass: the order of the low-pass (at `cutoff`) the loads went through: the dry-friction columns s(qd)
+    go through it too, before the decimation. The loads hold the friction force low-passed (a step at a reversal
+    spread over about 1 / cutoff), and a column s(qd) without it does not: Gautier's parallel filtering wants W and Y
+    through the same filters. None: not (the columns are s(qd) decimated only).
     """
     decimate = tuple(decimate or ())
     k, rest = _coarse_step(traj, fs, decimate, cutoff)
@@ -59,7 +64,8 @@ def car_system(
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
                             regressor=regressor)
-    W, Y = _decimated(eq, [traj.qd], fs, k, rest, decimate, model.tree)
+    lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
+    W, Y = _decimated(eq, [traj.qd], fs, k, rest, decimate, model.tree, lp)
     W, Y = W[:, 0], Y[:, 0]
     Z, sim = None, traj
     if instruments is not None:
@@ -67,7 +73,7 @@ def car_system(
         sc = _every(sim, k)
         sim_eq = car_identification(model, sc.q, sc.qd, sc.qdd, coarse.wheel_wrenches, aw, base=base,
                                     regressor=regressor)
-        Z = _decimated(sim_eq, [sim.qd], fs, k, rest, decimate, model.tree)[0][:, 0]
+        Z = _decimated(sim_eq, [sim.qd], fs, k, rest, decimate, model.tree, lp)[0][:, 0]
     rows, n = len(eq.rows), W.shape[0]
     step = k * (int(np.prod(rest)) if rest else 1)
     t = traj.t[::step][:n]
@@ -109,6 +115,7 @@ def car_moved_rows(
     aero: Aerodynamics | None = None,
     regressor=None,
     cutoff: float | None = None,
+    friction_lowpass: int | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """(W, Y) of each moved trajectory (traj with some input changed: a sensor offset's), the rows `keep` selects
     (`car_system(model, m, ..., keep=keep)`'s, the other arguments `car_system`'s), all in one evaluation of the
@@ -116,6 +123,7 @@ def car_moved_rows(
     chooses the step: an offset's effect on it is far below the margin of that choice)."""
     decimate = tuple(decimate or ())
     k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
     keep = np.asarray(keep, dtype=bool)
     # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
     # equations' arrays, the regressor's pooled buffers and the trajectories alive stay the size of one long
@@ -129,7 +137,7 @@ def car_moved_rows(
                           for a in ("q", "qd", "qdd", "wheel_wrenches"))
         aw = aero_wrench(model, q, qd, aero) if aero is not None else None
         eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
-        W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree)
+        W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp)
         rows, m = len(eq.rows), W.shape[0]
         out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
                 for v in range(len(coarse))]
@@ -182,11 +190,12 @@ def _coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cuto
 
 
 def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple[int, ...],
-               decimate: tuple[int, ...], tree) -> tuple[np.ndarray, np.ndarray]:
+               decimate: tuple[int, ...], tree, lowpass_fs: tuple[float, int] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """W (n, V, rows, p) and Y (n, V, rows) of V trajectories' equations (eq: their coarse samples one after
     the other, V = len(qd_full)) computed on every k-th sample, decimated by `rest` (W's live entries and Y of
     all V through one parallel filter); the dry-friction columns from each one's full-rate qd_full, by its joint's
-    Coulomb law (`tree.friction_law`)."""
+    Coulomb law (`tree.friction_law`), low-passed first at lowpass_fs = (cutoff, order) when given."""
     rows, p = len(eq.rows), eq.per_sample.shape[2]
     V = len(qd_full)
     W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
@@ -205,7 +214,7 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
     W = np.zeros((both.shape[0], V, rows, p))
     W[:, :, live_r, live_c] = both[:, :, :nl]
     Y = both[:, :, nl:]
-    if k > 1:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
+    if k > 1 or lowpass_fs:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
@@ -221,6 +230,8 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
                     distinct.append(cols)
             signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
                                              axis=1) for d in distinct], axis=1)
+            if lowpass_fs:
+                signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
             dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
             for v, d in enumerate(which):
@@ -300,14 +311,21 @@ COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is
 
 
 def car_scales(values: Mapping[str, float]) -> dict[str, float]:
-    """The engineering scale of the chassis parameters whose value may be near zero: products of inertia
-    against the smallest principal moment of the chassis inertia about O6, first moments against a
-    centre-of-mass shift (M6 x COM_SCALE). The others are judged against their own value (the default)."""
+    """The engineering scale of the parameters whose value may be near zero: products of inertia against the
+    smallest principal moment of the chassis inertia about O6, first moments against a centre-of-mass shift
+    (M6 x COM_SCALE), a tire's lateral-force term ktfy against kt / (M6 g / 4)². The others are judged against
+    their own value (the default)."""
     v = {n: float(values.get(n, 0.0)) for n in ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "M6")}
     inertia = np.array([[v["XX6"], v["XY6"], v["XZ6"]], [v["XY6"], v["YY6"], v["YZ6"]],
                         [v["XZ6"], v["YZ6"], v["ZZ6"]]])
     out = dict.fromkeys(("XY6", "XZ6", "YZ6"), abs(float(np.linalg.eigvalsh(inertia).min())))
     out.update(dict.fromkeys(("MX6", "MY6", "MZ6"), COM_SCALE * abs(v["M6"])))
+    # a tire's lateral-force term (-ktfy Fy² q), near 0 on a tire that keeps its stiffness: against the ktfy that
+    # takes its whole kt away at a lateral force of a quarter of the sprung weight (the Magic Formula's qFcy = 1)
+    load = abs(v["M6"]) * 9.81 / 4
+    for n in values:
+        if n.startswith("KFY") and load > 0:
+            out[n] = abs(float(values.get(f"K{n[3:]}", 0.0))) / load**2
     return {n: s for n, s in out.items() if n in values}
 
 

@@ -90,6 +90,8 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
                                      # [sensors.dynamics], default Table 1); false: none, whatever is declared
     min_speed = 0.01                 # m/s: damper rows left out where |clearance rate| is below (dry
                                      # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none
+    friction_lowpass = false         # true: the dampers' dry-friction columns s(rate) through the same low-pass
+                                     # (cutoff, order) as the loads, before the parallel decimation
 
     [identification]                 # known, poor_factor and flag_percent as for a robot, and:
     method = "wls"                   # or "iv": IDIM-IV, instruments from the suspensions simulated with the
@@ -205,6 +207,7 @@ class CarSettings:
     segment: float = 60.0
     compensate_delays: bool = True
     min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.01))
+    friction_lowpass: bool = False  # the dry-friction columns through the loads' low-pass (pipeline.car.car_system)
     base: str = "generic"
     aero: bool = True
     # channel -> 1-sigma zero offset in the suite's unit of the channel (the config's [uncertainty] offsets);
@@ -264,7 +267,8 @@ _DRIVE_KEYS = ("gains", "identify_gains")
 _PAYLOAD_KEYS = ("mass_kg", "com_m", "inertia_kg_m2", "frame")
 _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
-_CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed")
+_CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed",
+                     "friction_lowpass")
 _ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
 _CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
                        "tire_curves")
@@ -839,6 +843,7 @@ def _car_settings(data: dict, err: Err, suite: _VehicleChannels) -> CarSettings:
         attitude_crossover=_crossover(c, where, err),
         segment=_float(c, "segment", 60.0, where, err, "a segment length in s (a positive number)"),
         compensate_delays=_flag(c, "compensate_delays", True, where, err), min_speed=_car_min_speed(c, err),
+        friction_lowpass=_flag(c, "friction_lowpass", False, where, err),
         base=base, aero=_flag(ident, "aero", True, "[identification]", err), offsets=offsets,
         offset_segments=segments, iv_passes=_iv_passes(ident, err),
         tire_curves=_flag(ident, "tire_curves", True, "[identification]", err),

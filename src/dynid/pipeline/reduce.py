@@ -182,7 +182,7 @@ class CarSetup:
         s = self.settings
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
-                          equations=self.equations)[0]
+                          equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
 
     def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
                    ) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -191,7 +191,8 @@ class CarSetup:
 
         s = self.settings
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
-                              regressor=self.regressor, cutoff=self.conditioning.cutoff)
+                              regressor=self.regressor, cutoff=self.conditioning.cutoff,
+                              friction_lowpass=s.order if s.friction_lowpass else None)
 
     def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
                      ) -> list[np.ndarray]:
@@ -312,7 +313,8 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
     curved enough for a one-σ gyro or inclinometer offset to move them 0.02 to 0.3 % off their tangent).
 
     A wheel-load channel's offset moves the filtered loads alone (`CarSetup.load_only`): ΔY is the rows' change
-    per unit load times it, for all of them in one decimation (`CarSetup.load_changes`). The others' moved
+    per unit load times it, for all of them in one decimation (`CarSetup.load_changes`), unless the tree has load
+    terms (a column of W built from the loads: then as the others). The others' moved
     trajectories: a camera's moves what its range clips (the whole pass); the inertial unit's, the lasers' and the
     velocity sensor's run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes
     through the whole estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz:
@@ -327,8 +329,11 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
             p = setup.rows(t, fs, instruments, keep=sys.kept)
             out.append((p.W - sys.W, p.Y - sys.Y, None if instruments is None else p.Z - sys.Z))
         return out
-    loads = [(q, b) for q, b in offsets if setup.load_only(q)]
-    others = [(q, b) for q, b in offsets if not setup.load_only(q)]
+    # the loads' rows by their change per unit load where W does not depend on them: a tree with load terms (a
+    # tire's -ktfy Fy² q) has a column built from them
+    linear = not setup.tree.load_terms
+    loads = [(q, b) for q, b in offsets if linear and setup.load_only(q)]
+    others = [(q, b) for q, b in offsets if not (linear and setup.load_only(q))]
     changes = {}
     for (q, _), dY in zip(loads, setup.load_changes(traj, loads, fs, sys.kept), strict=True):
         changes[q] = (None, dY, None)  # W does not depend on the loads

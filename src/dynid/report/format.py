@@ -15,11 +15,11 @@ _INERTIAL_UNITS = {"XX": "kg·m²", "XY": "kg·m²", "XZ": "kg·m²", "YY": "kg�
                    "MX": "kg·m", "MY": "kg·m", "MZ": "kg·m", "M": "kg"}
 # joint terms: (revolute, prismatic)
 _JOINT_UNITS = {"IA": ("kg·m²", "kg"), "FV": ("N·m·s/rad", "N·s/m"), "FS": ("N·m", "N"), "OFF": ("N·m", "N"),
-                "K": ("N·m/rad", "N/m"), "KQ": ("N·m/rad²", "N/m²"),
+                "K": ("N·m/rad", "N/m"), "KQ": ("N·m/rad²", "N/m²"), "KFY": ("1/N", "1/(N·m)"),
                 **dict.fromkeys(("FVPL", "FVPH", "FVNL", "FVNH"), ("N·m·s/rad", "N·s/m"))}
 _GAIN = re.compile(r"^G\d+$")  # a drive gain of a current channel (pipeline.sources.gain_names): motor side
 GAIN_UNIT = "N·m/A"
-_NAME = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FVPL|FVPH|FVNL|FVNH|FV|FS|OFF|KQ|K)(\d+)$")
+_NAME = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FVPL|FVPH|FVNL|FVNH|FV|FS|OFF|KQ|KFY|K)(\d+)$")
 
 
 def _finite(x: float | None) -> bool:

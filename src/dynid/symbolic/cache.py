@@ -5,6 +5,7 @@ from there.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import importlib.util
@@ -36,8 +37,10 @@ def generator_fingerprint() -> str:
 def model_hash(tree: Tree, model: str, options: dict) -> str:
     """Hash of everything the generated code depends on: the model, the options and the generator."""
     opts = {k: (list(map(repr, v)) if k == "wrenches" else v) for k, v in sorted(options.items())}
-    payload = json.dumps({"v": generator_fingerprint(), "tree": tree_to_toml(tree), "gravity": list(tree.gravity),
-                          "model": model, "options": opts}, sort_keys=True, default=repr)
+    # a model file holds no load terms (model.tree): they go in beside its text (a parameter column's name moves)
+    text = tree_to_toml(dataclasses.replace(tree, load_terms={}))
+    payload = json.dumps({"v": generator_fingerprint(), "tree": text, "load_terms": sorted(tree.load_terms.items()),
+                          "gravity": list(tree.gravity), "model": model, "options": opts}, sort_keys=True, default=repr)
     return hashlib.sha256(payload.encode()).hexdigest()[:20]
 
 

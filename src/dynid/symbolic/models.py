@@ -26,7 +26,7 @@ import numpy as np
 
 from ..dynamics.regressor import resolve_cols as _engine_cols
 from ..dynamics.regressor import resolve_rows as _engine_rows
-from ..model.tree import FIXED, INERTIAL, PRISMATIC, REVOLUTE, ModelError, Tree
+from ..model.tree import FIXED, INERTIAL, LOAD_TERMS, PRISMATIC, REVOLUTE, ModelError, Tree
 from .expr import ONE, ZERO, OpCount, Poly, Program, SymbolicError, add, const, cross, dot, mul, neg, scale, sub, sym
 from .geometry import Geometry, axis_sym
 
@@ -515,6 +515,8 @@ def _regressor(tree: Tree, rows, cols, geometry: str, wrenches, back_w: bool, ba
             for j, v in c.coeffs.items():
                 if j in row_of:
                     b.prog.outputs.append(((row_of[j], ci), scale(f, float(v))))
+            continue
+        if kind in LOAD_TERMS:  # a load term's column is the measured wrench's: 0 here (model.tree)
             continue
         if kind not in INERTIAL:
             if frame in row_of:

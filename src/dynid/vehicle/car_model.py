@@ -26,6 +26,7 @@ def car_template(
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
     damper_friction: dict[int, tuple[str, float]] | None = None,
+    tire_lateral_force: bool = False,
 ) -> Tree:
     """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
 
@@ -46,10 +47,15 @@ def car_template(
     drops that side's high-speed slope (one slope per direction); the other dampers keep h. A curved damper's h in
     `values` is the value of each of its slopes that `values` does not give.
     damper_friction: damper frame -> (shape, vs) of its dry friction's law (`Tree.friction_law`); default sign(qd).
+    tire_lateral_force: with the progressive law, each tire's equation gets - ktfy Fy² q (ktfy15 ... ktfy42, 1/(N·m)),
+    Fy the measured lateral force of the wheel's transducer: the form of the Magic Formula's vertical stiffness
+    falling with the lateral force, (1 - (qFcy Fy / Fz0)²) in MF 6.1/6.2, i.e. ktfy = kt qFcy² / Fz0², its sign left
+    free (docs/vehicle.md, 'The tire equation'). A load term of the tree (model.tree), whose column
+    `car_identification` builds from the measured wrench.
     """
     geometry = CarGeometry() if geometry is None else geometry
     tree = car_tree(geometry, a_priori().values if values is None else values, name, tire_offsets, tire_law,
-                    damper_knees, damper_friction)
+                    damper_knees, damper_friction, tire_lateral_force)
     if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
         rest_state(tree, default_tables(geometry), fix_dampers=True)
     return tree.with_known(set(known)) if known else tree

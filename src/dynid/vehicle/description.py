@@ -131,6 +131,7 @@ class Vehicle:
     correvit: bool = True
     tire_offsets: bool = True
     tire_law: str = "paper"  # [wheels] tire_law: template.TIRE_LAWS
+    tire_lateral_force: bool = False  # [wheels] tire_lateral_force: the progressive law's lateral-force term
     damper_law: str = "linear"  # [dampers] law: DAMPER_LAWS
     # [dampers] knees per damper frame, (v-, v+) m/s (bump is q' > 0): the identification's curves ("curve") and
     # the truth's (a [truth] curve slope); {} when the file gives none
@@ -145,6 +146,7 @@ class Vehicle:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
         return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
                             tire_offsets=self.tire_offsets, tire_law=self.tire_law,
+                            tire_lateral_force=self.tire_lateral_force,
                             damper_knees=self.damper_knees if self.damper_law == "curve" else None,
                             damper_friction=self.damper_friction)
 
@@ -245,6 +247,12 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
     if tire_law not in TIRE_LAWS:
         raise VehicleError(f"{where}: [wheels] tire_law = {tire_law!r}; give one of {', '.join(TIRE_LAWS)} "
                            "(docs/vehicle.md, 'The tire equation')")
+    fy_term = data["wheels"].get("tire_lateral_force", False)
+    if not isinstance(fy_term, bool):
+        raise VehicleError(f"{where}: [wheels] tire_lateral_force must be true or false; got {fy_term!r}")
+    if fy_term and tire_law != "progressive":
+        raise VehicleError(f"{where}: [wheels] tire_lateral_force = true is an option of the progressive tire law; "
+                           "add tire_law = \"progressive\" (docs/vehicle.md, 'The tire equation')")
     truth = None
     if "truth" in data:
         given = _parameters(data["truth"], names, where, "truth", complete=False, geometry=geometry)
@@ -254,6 +262,7 @@ def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
         raise VehicleError(f"{where}: name is empty; give the car's name")
     return Vehicle(name, geometry, tables, aero, ParameterSet("a priori", a_priori, dict.fromkeys(a_priori, where)),
                    truth, known, where, ratio, tire_offsets=tire_offsets, tire_law=tire_law,
+                   tire_lateral_force=fy_term,
                    damper_friction=damper_friction, **fitted, defaulted_tables=defaulted, dynamics=dynamics,
                    damper_law=damper_law, damper_knees=knees)
 
@@ -452,7 +461,8 @@ def _geometry(data: dict, where: str) -> CarGeometry:
                             kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
 
     wheels = data["wheels"]
-    _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known", "tire_law"}, where, "[wheels]")
+    _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known", "tire_law",
+                    "tire_lateral_force"}, where, "[wheels]")
     imu = data.get("imu", {})
     _keys(imu, {"position_m", "axes"}, where, "[imu]")
     position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")

@@ -101,18 +101,34 @@ def _cached(tree: Tree, key: tuple, make):
 def identified(tree: Tree) -> list[str]:
     """The paper's parameters not listed as known, in the paper's order (a damper's curve slopes in place of its h,
     `car_template(damper_knees=...)`), then the tires' offsets and progressive stiffnesses where the tree has them
-    (`car_template(tire_offsets=True, tire_law="progressive")`)."""
+    (`car_template(tire_offsets=True, tire_law="progressive")`) and their lateral-force terms
+    (`tire_lateral_force=True`)."""
     paper = [c for n in paper_parameter_names()
              for c in ((n,) if n in tree.index or not n.startswith("FV")
                        else tuple(f"{t}{n[2:]}" for t in CURVE_TERMS if f"{t}{n[2:]}" in tree.index))]
-    names = [*paper, *(f"{p}{t}" for p in ("OFF", "KQ") for t in TIRES if f"{p}{t}" in tree.index)]
+    names = [*paper, *(f"{p}{t}" for p in ("OFF", "KQ", "KFY") for t in TIRES if f"{p}{t}" in tree.index)]
     return [n for n in names if n not in tree.known]
+
+
+def _load_names(tree: Tree) -> list[str]:
+    """The tree's load terms (model.tree: KFY15 ...), whose columns car_identification builds from the wrench."""
+    return [f"{p}{j}" for j, terms in tree.load_terms.items() for p in terms]
 
 
 def _base(tree: Tree, rows: tuple[int, ...], motion: str) -> BaseParameters:
     def make() -> BaseParameters:
         t = still_tree(tree) if motion == "car" else tree
-        return Model(t).base_parameters(rows=list(rows), cols=identified(tree))
+        load = [n for n in identified(tree) if n in _load_names(tree)]
+        bp = Model(t).base_parameters(rows=list(rows), cols=[n for n in identified(tree) if n not in load])
+        if not load:
+            return bp
+        # a tire's -Fy² q column is the only one in its row with the lateral force: independent of the others
+        # whenever Fy varies (the engines, without the measured wrench, would call it "no effect"), so each is a
+        # base parameter of its own, regrouping nothing
+        return dataclasses.replace(
+            bp, names=(*bp.names, *load), columns=(*bp.columns, *(tree.index[n] for n in load)),
+            expressions=(*bp.expressions, *load),
+            beta=np.vstack([bp.beta, np.zeros((len(load), bp.beta.shape[1]))]))
 
     return _cached(tree, ("base", rows, motion), make)
 
@@ -275,8 +291,19 @@ def car_identification(
         wrenches.append(aero_wrench)
 
     cols = list(bp.columns) + known_cols
-    W, Q = (regressor or model.regressor)(q, qd, qdd, wrenches, rows=list(rows), cols=cols)
+    load = {tree.index[n] for n in _load_names(tree)}
+    engine = [c for c in cols if c not in load]
+    W, Q = (regressor or model.regressor)(q, qd, qdd, wrenches, rows=list(rows), cols=engine)
     W = np.asarray(W)
+    if len(engine) < len(cols):  # the load terms' columns, from the measured wrench (model.tree)
+        full = np.zeros((N, len(rows), len(cols)))
+        full[:, :, [i for i, c in enumerate(cols) if c not in load]] = W
+        for i, c in enumerate(cols):
+            name = tree.parameter_names[c]
+            if c in load:  # KFY (model.tree's only load term), on a tire: - Fy² q of its wheel's transducer
+                t = int(name.removeprefix("KFY"))
+                full[:, rows.index(t), i] = -F[:, TIRES.index(t), 1] ** 2 * q[:, t - 1]
+        W = full
     nb = len(bp.columns)
     Y = Q.copy()
     for i, w in enumerate(spin):  # the ground's moment about the axle acts on the wheel itself

@@ -139,7 +139,7 @@ def labels() -> dict[str, str]:
         out.update({f"K{d}": f"ks{d}", f"FV{d}": f"h{d}", f"FS{d}": f"fs{d}", f"OFF{d}": f"off{d}"})
         out.update({f"{t}{d}": f"{lab}{d}" for t, lab in CURVE_LABELS.items()})
     for t in TIRES:
-        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}"})
+        out.update({f"K{t}": f"kt{t}", f"OFF{t}": f"off{t}", f"KQ{t}": f"ktq{t}", f"KFY{t}": f"ktfy{t}"})
     return out
 
 
@@ -152,6 +152,7 @@ _QUANTITY = {
     ("damper", "FS"): ("dry friction", "N"), ("damper", "OFF"): ("spring preload (offset)", "N"),
     ("tire", "K"): ("tire vertical stiffness", "N/m"), ("tire", "OFF"): ("tire load offset", "N"),
     ("tire", "KQ"): ("tire progressive stiffness (q² term)", "N/m²"),
+    ("tire", "KFY"): ("tire stiffness change with lateral force (-Fy² q term)", "1/(N·m)"),
     ("wheel", "M"): ("wheel mass", "kg"), ("wheel", "XX"): ("wheel inertia, diametral", "kg·m²"),
     ("wheel", "YY"): ("wheel inertia, diametral", "kg·m²"), ("wheel", "ZZ"): ("wheel inertia, spin", "kg·m²"),
     **{("damper", t): (f"damping slope, {m}", "N·s/m") for t, m in CURVE_MEANINGS.items()},
@@ -333,12 +334,15 @@ def car_tree(
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
     damper_friction: dict[int, tuple[str, float]] | None = None,
+    tire_lateral_force: bool = False,
 ) -> Tree:
     """The 42-frame tree of the car with these values (name or label -> value; the rest 0): its frames, joint terms
     and couplings, nothing solved. `car_model.car_template` is the one to call: the paper's a priori values by
     default, and the rest state checked. The options are `car_template`'s."""
     if tire_law not in TIRE_LAWS:
         raise ValueError(f"tire_law must be one of {TIRE_LAWS}; got {tire_law!r}")
+    if tire_lateral_force and tire_law != "progressive":
+        raise ValueError("tire_lateral_force is an option of the progressive tire law: give tire_law='progressive'")
     knees = dict(damper_knees or {})
     if set(knees) - set(DAMPERS):
         raise ValueError(f"damper_knees: keys must be damper frames {DAMPERS}; got {sorted(knees)}")
@@ -352,7 +356,8 @@ def car_tree(
                  Coupling("karf", "K", {damper(2): 1.0, damper(3): -1.0}))
     tree = Tree(name, frames(geometry), terms, couplings, {}, frozenset(), labels(), (0.0, 0.0, -9.81),
                 knees={d: (float(lo), float(hi)) for d, (lo, hi) in knees.items()},
-                friction_shape=dict(damper_friction or {}))
+                friction_shape=dict(damper_friction or {}),
+                load_terms=dict.fromkeys(TIRES, ("KFY",)) if tire_lateral_force else {})
     values = dict(values)
     for d in knees:  # a curved damper's h (the paper's a priori, say): the value of each slope not given
         h = [values.pop(n) for n in (f"FV{d}", f"h{d}") if n in values]
