@@ -78,15 +78,28 @@ def test_one_pass_equals_the_per_offset_reruns(noisy, test):
     assert_one_pass_equals_reruns(noisy, test)
 
 
-def test_one_pass_equals_the_per_offset_reruns_on_the_mujoco_car(tmp_path):
-    """The same on the MuJoCo car (examples/mujoco_car's vehicle file, its suite's offsets; the noisy sine)."""
+@pytest.mark.parametrize("lateral", [False, True])
+def test_one_pass_equals_the_per_offset_reruns_on_the_mujoco_car(tmp_path, lateral):
+    """The same on the MuJoCo car (examples/mujoco_car's vehicle file, its suite's offsets; the noisy sine); and with
+    the tires' lateral-force term (a column of W built from the wheel loads: their offsets move W) and the dry
+    friction's low-pass."""
     from mujoco_car import DATA, EXAMPLE, mujoco_truth
 
     mujoco_truth()  # skips without the data
+    vehicle = EXAMPLE / "vehicle.toml"
+    if lateral:
+        text = vehicle.read_text()
+        assert text.count("[wheels]") == 1
+        (tmp_path / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
+        vehicle = tmp_path / "vehicle.toml"
+        vehicle.write_text(text.replace("[wheels]", '[wheels]\ntire_law = "progressive"\ntire_lateral_force = true'))
     config = tmp_path / "identify.toml"
-    config.write_text(f'[model]\nvehicle = "{(EXAMPLE / "vehicle.toml").as_posix()}"\n\n[[tests]]\n'
+    config.write_text(f'[model]\nvehicle = "{vehicle.as_posix()}"\n\n[[tests]]\n'
                       f'name = "sine"\nfile = "{(DATA / "noise" / "sine.parquet").as_posix()}"\n\n'
+                      f"[conditioning]\nfriction_lowpass = {'true' if lateral else 'false'}\n\n"
                       "[identification]\naero = false\n")
+    _, setup, *_ = segment(config, 0)
+    assert bool(setup.tree.load_terms) == lateral
     assert_one_pass_equals_reruns(config, 0, iv=False)
 
 
