@@ -9,7 +9,7 @@ its own, not shared with a second core) with timers around the pipeline's functi
 - plan: each test's pass over the time stamps (`sources.plan_car_test`);
 - read: decoding a segment's channels (`SegmentWindow.read`);
 - compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensate`);
-- joints: the rest of `estimate_joints` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
+- joints: the rest of `joints_pass` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
 - regressor: the generated 14-equation identification model (`GeneratedRegressor`);
 - equations: the rest of `car_identification` (the wheel wrenches' and gravity's rows);
 - decimation: the parallel decimation of W and Y (`car._decimated`);
@@ -148,7 +148,7 @@ def main() -> None:
         timed(run, "plan_car_test", "plan")
         timed(sources.SegmentWindow, "read", "read")
         timed(estimate, "compensate", "compensation")
-        timed(estimate, "estimate_joints", "joints+compensation")
+        timed(estimate, "joints_pass", "joints+compensation")
         timed(car, "car_identification", "equations+regressor")
         timed(car, "_decimated", "decimation")
         timed(car, "car_system", "car_system")

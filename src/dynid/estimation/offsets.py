@@ -54,10 +54,10 @@ class OffsetFactors:
     factors: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     rows: dict[str, dict[str, int]] = field(default_factory=dict)
 
-    def add(self, test: str, sources: Sequence[str], W: ArrayLike, Y: ArrayLike, dW: Sequence[ArrayLike],
+    def add(self, test: str, sources: Sequence[str], W: ArrayLike, Y: ArrayLike, dW: Sequence[ArrayLike | None],
             dY: Sequence[ArrayLike], groups: ArrayLike) -> None:
         """A segment's rows of `test` and, per source (its declared offsets, the same for every segment of the
-        test), the rows' change for a one-σ offset."""
+        test), the rows' change for a one-σ offset (a dW of None: W unchanged)."""
         sources = tuple(sources)
         if self.sources.setdefault(test, sources) != sources:
             raise IdentificationError(f"test {test!r}: its segments declare other offsets ({sources} against "
@@ -68,8 +68,10 @@ class OffsetFactors:
         Y = Y - W[:, self.known_columns] @ kv
         C = np.empty((len(Y), len(sources)))
         for k, (w, y) in enumerate(zip(dW, dY, strict=True)):
-            w = np.asarray(w, dtype=float)
-            C[:, k] = np.asarray(y, dtype=float) - w[:, self.known_columns] @ kv - w[:, self.columns] @ self.x0
+            C[:, k] = y
+            if w is not None:
+                w = np.asarray(w, dtype=float)
+                C[:, k] -= w[:, self.known_columns] @ kv + w[:, self.columns] @ self.x0
         block = np.column_stack([C, W[:, self.columns], Y])
         per, counts = self.factors.setdefault(test, {}), self.rows.setdefault(test, {})
         for g in dict.fromkeys(groups.tolist()):

@@ -20,7 +20,7 @@ source and group while streaming the data (`BiasAccumulator`), before X̂ is kno
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -74,23 +74,43 @@ class BiasAccumulator:
         their sums (a sample of a long test's segments standing for all of it). For an instrumental-variable
         estimate X̂ = A⁻¹ Zᵀ Ω Y, give the instruments Z and their change dZ: the bracket is then
         Zᵀ (ΔY − ΔW X̂) + ΔZᵀ (Y − W X̂) (least squares is the case Z = W)."""
-        W, Y, dW, dY = (np.asarray(a, dtype=float) for a in (W, Y, dW, dY))
+        self.add_many([source], W, Y, [dW], [dY], groups, scale, Z, None if dZ is None else [dZ])
+
+    def add_many(self, sources: Sequence[str], W: ArrayLike, Y: ArrayLike, dW: Sequence[ArrayLike | None],
+                 dY: Sequence[ArrayLike], groups: ArrayLike, scale: float = 1.0, Z: ArrayLike | None = None,
+                 dZ: Sequence[ArrayLike | None] | None = None) -> None:
+        """`add` of several sources on the same rows (their changes dW[k], dY[k], dZ[k] in the order of
+        `sources`), the rows split by group once; a dW[k] (and dZ[k]) of None: W (and Z) unchanged."""
+        W, Y = np.asarray(W, dtype=float), np.asarray(Y, dtype=float)
         Z = W if Z is None else np.asarray(Z, dtype=float)
-        dZ = dW if dZ is None else np.asarray(dZ, dtype=float)
         groups = np.asarray(groups)
-        Y = Y - W[:, self.known_columns] @ self.known_values
-        dY = dY - dW[:, self.known_columns] @ self.known_values
-        per = self.terms.setdefault(source, {})
+        kc, kv = self.known_columns, self.known_values
+        Y = Y - W[:, kc] @ kv
+        split = []
         for g in dict.fromkeys(groups.tolist()):
-            rows = groups == g
-            We, dWe = W[rows][:, self.columns], dW[rows][:, self.columns]
-            Ze, dZe = Z[rows][:, self.columns], dZ[rows][:, self.columns]
-            # bracket = a - B x with a = Zᵀ ΔY + ΔZᵀ Y, B = Zᵀ ΔW + ΔZᵀ W
-            a = scale * (Ze.T @ dY[rows] + dZe.T @ Y[rows])
-            B = scale * (Ze.T @ dWe + dZe.T @ We)
-            if g in per:
-                a, B = a + per[g][0], B + per[g][1]
-            per[g] = (a, B)
+            rows = np.flatnonzero(groups == g)
+            split.append((g, rows, W[rows][:, self.columns], Z[rows][:, self.columns], Y[rows]))
+        dZ = [None] * len(sources) if dZ is None else dZ
+        for source, dWk, dYk, dZk in zip(sources, dW, dY, dZ, strict=True):
+            dYk = np.asarray(dYk, dtype=float)
+            if dWk is not None:
+                dWk = np.asarray(dWk, dtype=float)
+                dYk = dYk - dWk[:, kc] @ kv
+            dZk = dWk if dZk is None else np.asarray(dZk, dtype=float)  # least squares: Z = W
+            per = self.terms.setdefault(source, {})
+            for g, rows, We, Ze, Yg in split:
+                # bracket = a - B x with a = Zᵀ ΔY + ΔZᵀ Y, B = Zᵀ ΔW + ΔZᵀ W
+                a = Ze.T @ dYk[rows]
+                B = np.zeros((len(self.columns), len(self.columns)))
+                if dWk is not None:
+                    B = B + Ze.T @ dWk[rows][:, self.columns]
+                if dZk is not None:
+                    dZe = dZk[rows][:, self.columns]
+                    a, B = a + dZe.T @ Yg, B + dZe.T @ We
+                a, B = scale * a, scale * B
+                if g in per:
+                    a, B = a + per[g][0], B + per[g][1]
+                per[g] = (a, B)
 
     def merge(self, other: BiasAccumulator) -> BiasAccumulator:
         """A new accumulator with both one's sums (same columns): segments reduced apart, combined."""

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import itertools
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +14,7 @@ from ..io.units import unit_factor
 from ..signals import decimate_parallel, lowpass
 from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.dampers import KneeSearch
-from ..vehicle.equations import group_name
+from ..vehicle.equations import group_name, load_rows
 from ..vehicle.estimate import CarTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
 from ..vehicle.sensors import CORNER_TAGS
@@ -59,20 +60,21 @@ def car_system(
     through the same filters. None: not (the columns are s(qd) decimated only).
     """
     decimate = tuple(decimate or ())
-    k, rest = _stride(traj, fs, decimate, cutoff)
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
     coarse = _every(traj, k)
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
                             regressor=regressor)
     lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
-    W, Y = _decimated(eq, traj.qd, fs, k, rest, decimate, model.tree, lp)
+    W, Y = _decimated(eq, [traj.qd], fs, k, rest, decimate, model.tree, lp)
+    W, Y = W[:, 0], Y[:, 0]
     Z, sim = None, traj
     if instruments is not None:
         sim = _simulated_suspensions(model.tree, traj, coarse, eq, instruments)
         sc = _every(sim, k)
         sim_eq = car_identification(model, sc.q, sc.qd, sc.qdd, coarse.wheel_wrenches, aw, base=base,
                                     regressor=regressor)
-        Z, _ = _decimated(sim_eq, sim.qd, fs, k, rest, decimate, model.tree, lp)
+        Z = _decimated(sim_eq, [sim.qd], fs, k, rest, decimate, model.tree, lp)[0][:, 0]
     rows, n = len(eq.rows), W.shape[0]
     step = k * (int(np.prod(rest)) if rest else 1)
     t = traj.t[::step][:n]
@@ -96,26 +98,12 @@ def car_system(
     return sys, eq.base
 
 
-def _stride(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
-            ) -> tuple[int, tuple[int, ...]]:
-    """(k, rest): W computed on every k-th sample, then decimated by `rest` (car_system's doc)."""
-    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
-    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
-    total = int(np.prod(decimate)) if decimate else 1
-    k = None
-    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
-        needed = max(5 * cutoff, spin / 0.9)
-        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
-    # W there, the rest of the decimation in one stage
-    return (1, decimate) if k is None else (k, (total // k,))
-
-
 def knee_rows(sys: GroupedSystem, traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None,
               search: KneeSearch, dampers: Sequence[int]) -> None:
     """Add to `search` each damper's group rows of `sys` (car_system's rows of traj, the linear law) with the
     candidate curves' columns (`KneeSearch.hinges`) computed and decimated as W is, and the rows' rates."""
     decimate = tuple(decimate or ())
-    k, rest = _stride(traj, fs, decimate, cutoff)
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
     rate = traj.qd[::k][:, [d - 1 for d in dampers]]
     cols = np.concatenate([rate, *(search.hinges(rate[:, i]) for i in range(len(dampers)))], axis=1)
     if rest:
@@ -136,36 +124,139 @@ def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
                          None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
 
 
-def _decimated(eq, qd_full: np.ndarray, fs: float, k: int, rest: tuple[int, ...], decimate: tuple[int, ...],
-               tree, lowpass_fs: tuple[float, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """W (n, rows, p) and Y (n, rows) of equations computed on every k-th sample, decimated by `rest` (W's
-    live entries and Y through one parallel filter); the dry-friction columns from the full-rate qd_full, each by
-    its joint's Coulomb law (`tree.friction_law`), low-passed first at lowpass_fs = (cutoff, order) when given."""
+def car_moved_rows(
+    model: Model,
+    traj: CarTrajectory,
+    moved: Iterable[CarTrajectory],
+    fs: float,
+    keep: np.ndarray,
+    decimate: tuple[int, ...] = (5, 10),
+    base: str | BaseParameters = "generic",
+    aero: Aerodynamics | None = None,
+    regressor=None,
+    cutoff: float | None = None,
+    friction_lowpass: int | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(W, Y) of each moved trajectory (traj with some input changed: a sensor offset's), the rows `keep` selects
+    (`car_system(model, m, ..., keep=keep)`'s, the other arguments `car_system`'s), all in one evaluation of the
+    equations and one parallel decimation. The equations are computed on traj's coarse samples (its wheel spin
+    chooses the step: an offset's effect on it is far below the margin of that choice)."""
+    decimate = tuple(decimate or ())
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
+    keep = np.asarray(keep, dtype=bool)
+    # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
+    # equations' arrays, the regressor's pooled buffers and the trajectories alive stay the size of one long
+    # segment's, whatever the number of offsets
+    per = max(1, MOVED_SAMPLES // max(1, len(traj.t[::k])))
+    out = []
+    pending = iter(moved)
+    while chunk := list(itertools.islice(pending, per)):
+        coarse = [_every(m, k) for m in chunk]
+        q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse])
+                          for a in ("q", "qd", "qdd", "wheel_wrenches"))
+        aw = aero_wrench(model, q, qd, aero) if aero is not None else None
+        eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
+        W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp)
+        rows, m = len(eq.rows), W.shape[0]
+        out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
+                for v in range(len(coarse))]
+        del chunk, coarse, q, qd, qdd, ww, aw, eq, W, Y
+    return out
+
+
+MOVED_SAMPLES = 4096  # coarse samples per evaluation of `car_moved_rows` (a 60 s segment has 3750 at 62.5 Hz)
+
+
+def car_load_changes(
+    model: Model,
+    traj: CarTrajectory,
+    moved: Sequence[tuple[int, int, float]],
+    fs: float,
+    keep: np.ndarray,
+    decimate: tuple[int, ...] = (5, 10),
+    cutoff: float | None = None,
+) -> list[np.ndarray]:
+    """ΔY of the rows `keep` selects (`car_system`'s, the other arguments its own) for each (wheel, component, b):
+    that wheel-wrench component of traj moved by b (N or N·m; wheels and components in `car_identification`'s
+    order). W does not depend on the loads and Y is linear in them (`vehicle.equations.load_rows`): ΔY is b times
+    the rows' change per unit load, through the same decimation, all in one pass."""
+    if not moved:
+        return []
+    decimate = tuple(decimate or ())
+    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    unit = load_rows(model, _every(traj, k).q, EQUATION_ROWS)  # (n, rows, 4, 6)
+    n, rows = unit.shape[:2]
+    dY = np.stack([b * unit[:, :, wheel, comp] for wheel, comp, b in moved], axis=1).reshape(n, -1)
+    if rest:
+        dY, _ = decimate_parallel(dY, None, rest, fs / k)
+    dY = dY.reshape(dY.shape[0], len(moved), rows)
+    keep = np.asarray(keep, dtype=bool)
+    return [dY[:, v].T.reshape(-1)[keep] for v in range(len(moved))]
+
+
+def _coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
+                 ) -> tuple[int, tuple[int, ...]]:
+    """k, the step of the samples the equations are computed on, and the rest of the decimation (`car_system`)."""
+    # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
+    spin = 2 * np.abs(traj.qd[:, [w - 1 for w in WHEELS]]).max() / (2 * np.pi) if len(traj.t) else 0.0
+    total = int(np.prod(decimate)) if decimate else 1
+    k = None
+    if cutoff is not None:  # the coarsest rate, a divisor of the whole factor, whose Nyquist frequency clears both
+        needed = max(5 * cutoff, spin / 0.9)
+        k = next((d for d in range(total - 1, 1, -1) if total % d == 0 and fs / (2 * d) >= needed), None)
+    # W there, the rest of the decimation in one stage
+    return (1, decimate) if k is None else (k, (total // k,))
+
+
+def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple[int, ...],
+               decimate: tuple[int, ...], tree, lowpass_fs: tuple[float, int] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """W (n, V, rows, p) and Y (n, V, rows) of V trajectories' equations (eq: their coarse samples one after
+    the other, V = len(qd_full)) computed on every k-th sample, decimated by `rest` (W's live entries and Y of
+    all V through one parallel filter); the dry-friction columns from each one's full-rate qd_full, by its joint's
+    Coulomb law (`tree.friction_law`), low-passed first at lowpass_fs = (cutoff, order) when given."""
     rows, p = len(eq.rows), eq.per_sample.shape[2]
-    W3 = eq.per_sample  # (N, rows, p)
-    N = W3.shape[0]
+    V = len(qd_full)
+    W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
+    N = W4.shape[1]
     # only the (row, column) pairs that are not structural zeros (126 of the paper's 14 x 48) and Y go
-    # through the filter, gathered as one (N, live + rows) array
-    live_r, live_c = np.nonzero(np.any(W3 != 0, axis=0))
-    both = np.empty((N, live_r.size + rows))
-    both[:, : live_r.size] = W3[:, live_r, live_c]
-    both[:, live_r.size :] = eq.Y.reshape(rows, N).T
+    # through the filter, gathered as one (N, V (live + rows)) array
+    live_r, live_c = np.nonzero(np.any(W4 != 0, axis=(0, 1)))
+    nl = live_r.size
+    both = np.empty((N, V, nl + rows))
+    both[:, :, :nl] = W4[:, :, live_r, live_c].transpose(1, 0, 2)
+    both[:, :, nl:] = eq.Y.reshape(rows, V, N).transpose(2, 1, 0)
+    both = both.reshape(N, -1)
     if rest:
         both, _ = decimate_parallel(both, None, rest, fs / k)
-    W = np.zeros((both.shape[0], rows, p))
-    W[:, live_r, live_c] = both[:, : live_r.size]
-    Y = both[:, live_r.size :]
+    both = both.reshape(both.shape[0], V, nl + rows)
+    W = np.zeros((both.shape[0], V, rows, p))
+    W[:, :, live_r, live_c] = both[:, :, :nl]
+    Y = both[:, :, nl:]
     if k > 1 or lowpass_fs:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            signs = np.stack([coulomb(qd_full[:, j - 1], tree.friction_law(j)) for _, _, j in fs_cols], axis=1)
+            # one set of columns per distinct full-rate velocity of those joints (an offset that does not reach
+            # them shares the unmoved trajectory's)
+            joints = [j - 1 for _, _, j in fs_cols]
+            distinct: list[np.ndarray] = []
+            which = []
+            for a in qd_full:
+                cols = a[:, joints]
+                which.append(next((i for i, d in enumerate(distinct) if np.array_equal(d, cols)), len(distinct)))
+                if which[-1] == len(distinct):
+                    distinct.append(cols)
+            signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
+                                             axis=1) for d in distinct], axis=1)
             if lowpass_fs:
                 signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
             dec, _ = decimate_parallel(signs, None, decimate, fs)
             n = min(len(dec), W.shape[0])
-            for i, (c, r, _) in enumerate(fs_cols):
-                W[:n, r, c] = dec[:n, i]
+            for v, d in enumerate(which):
+                for i, (c, r, _) in enumerate(fs_cols):
+                    W[:n, v, r, c] = dec[:n, d * len(fs_cols) + i]
     return W, Y
 
 

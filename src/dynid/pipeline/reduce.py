@@ -26,7 +26,7 @@ import pickle
 import threading
 import zlib
 from collections import OrderedDict
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -48,7 +48,7 @@ from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_n
 
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
-    from ..vehicle.estimate import CarTrajectory
+    from ..vehicle.estimate import CarTrajectory, JointsPass
     from ..vehicle.tire_curves import TireSamples
 
 
@@ -169,11 +169,15 @@ class CarSetup:
         the config turns the compensation off); lags: channel group -> s, its channels taken as that much later
         than declared (advanced by it more: the delay estimate's perturbations); compensated: `compensated` of
         these channels and lags, when known (not undone again)."""
-        from ..vehicle.estimate import estimate_joints  # the car's modules, as in __init__: a robot needs none
+        return self.joints(channels, fs, lags, compensated).traj
 
-        return estimate_joints(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables,
-                               self.conditioning, self.vehicle.suite, self.logger.channels,
-                               self._lags(channels, lags), compensated)
+    def joints(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
+               compensated: Mapping[str, np.ndarray] | None = None) -> JointsPass:
+        """`trajectory` with what a pass with one channel's zero moved reuses (`vehicle.estimate.JointsPass`)."""
+        from ..vehicle.estimate import joints_pass  # the car's modules, as in __init__: a robot needs none
+
+        return joints_pass(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables, self.conditioning,
+                           self.vehicle.suite, self.logger.channels, self._lags(channels, lags), compensated)
 
     def compensated(self, channels: dict[str, np.ndarray], fs: float,
                     lags: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
@@ -200,6 +204,26 @@ class CarSetup:
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
+
+    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
+                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass."""
+        from .car import car_moved_rows
+
+        s = self.settings
+        return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
+                              regressor=self.regressor, cutoff=self.conditioning.cutoff,
+                              friction_lowpass=s.order if s.friction_lowpass else None)
+
+    def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
+                     ) -> list[np.ndarray]:
+        """ΔY of the kept rows for each (wheel-load channel, offset SI) (`load_only` channels: W unchanged)."""
+        from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
+        from .car import car_load_changes
+
+        which = [(CORNER_TAGS.index(q.split("_")[1]), WFT_COMPONENTS.index(q.split("_")[2]), b) for q, b in moved]
+        return car_load_changes(self.model, traj, which, fs, keep, self.settings.decimate,
+                                cutoff=self.conditioning.cutoff)
 
     def load_only(self, channel: str) -> bool:
         """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
@@ -256,7 +280,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     channels = w.read()
     lags = dict(job.lags)
     compensated = setup.compensated(channels, w.fs, lags)
-    traj = setup.trajectory(channels, w.fs, lags, compensated)
+    joints = setup.joints(channels, w.fs, lags, compensated)
+    traj = joints.traj
     sys = setup.rows(traj, w.fs, job.instruments)
     if job.knees:
         from ..vehicle.dampers import KneeSearch
@@ -291,25 +316,15 @@ def reduce_car_segment(job: CarJob) -> Partial:
                         [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
         part.bias = ls.bias_accumulator()
-        moves = []
-        for q, b in job.offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
-            if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
-                moved_traj = shifted_load(traj, q, b)
-            elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
-                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags)
-            else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
-                moved_traj = setup.trajectory({**channels, q: channels[q] + b}, w.fs, lags,
-                                              {**compensated, q: compensated[q] + b})
-            p = setup.rows(moved_traj, w.fs, job.instruments, keep=sys.kept)
-            iv = {} if job.instruments is None else {"Z": sys.Z, "dZ": p.Z - sys.Z}
-            part.bias.add(f"{w.test}: {q}", sys.W, sys.Y, p.W - sys.W, p.Y - sys.Y, sys.groups, job.weight, **iv)
-            if job.estimate_offsets:
-                moves.append((p.W - sys.W, p.Y - sys.Y))
+        moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets, job.instruments)
+        part.bias.add_many([f"{w.test}: {q}" for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
+                           [m[1] for m in moved], sys.groups, job.weight,
+                           *(() if job.instruments is None else (sys.Z, [m[2] for m in moved])))
         if job.estimate_offsets:
             acc = part.bias
             part.zeros = OffsetFactors(acc.columns, acc.known_columns, acc.known_values, setup.a_priori[acc.columns])
-            part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moves],
-                           [m[1] for m in moves], sys.groups)
+            part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
+                           [m[1] for m in moved], sys.groups)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
@@ -320,6 +335,62 @@ def reduce_car_segment(job: CarJob) -> Partial:
             noisy[-1].add(p.W, p.Y, sys.groups)
         part.errors = ErrorEffect(ls, *noisy)
     return part
+
+
+def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
+                   compensated: dict[str, np.ndarray], joints: JointsPass, sys: GroupedSystem,
+                   offsets: Sequence[tuple[str, float]], instruments: dict[str, float] | None = None,
+                   one_pass: bool = True) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+    """(ΔW, ΔY, ΔZ) of the kept rows `sys` (of joints.traj, of these channels) for each (channel, one-σ zero
+    offset SI): the rows of the trajectory with that channel's zero moved, less sys's (ΔW None where W does not
+    move, ΔZ None without instruments); the offset's exact effect, not a linearisation (the attitude's rows are
+    curved enough for a one-σ gyro or inclinometer offset to move them 0.02 to 0.3 % off their tangent).
+
+    A wheel-load channel's offset moves the filtered loads alone (`CarSetup.load_only`): ΔY is the rows' change
+    per unit load times it, for all of them in one decimation (`CarSetup.load_changes`), unless the tree has load
+    terms (a column of W built from the loads: then as the others). The others' moved
+    trajectories: a camera's moves what its range clips (the whole pass); the inertial unit's, the lasers' and the
+    velocity sensor's run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes
+    through the whole estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz:
+    the offset passes through it as is). Their rows come from one evaluation of the equations and one decimation
+    for all of them (`CarSetup.moved_rows`). With instruments (the loads move the simulated suspensions too), or
+    one_pass=False, each moved trajectory's rows through `CarSetup.rows` in turn; one_pass=False, the trajectories
+    too through the whole estimator (`CarSetup.trajectory`): the old way, the oracle the tests compare with."""
+    traj = joints.traj
+    if not one_pass or instruments is not None:  # the loads move the instruments' simulated suspensions: rows
+        out = []
+        for t in _moved_trajectories(setup, channels, fs, lags, compensated, joints, offsets, one_pass):
+            p = setup.rows(t, fs, instruments, keep=sys.kept)
+            out.append((p.W - sys.W, p.Y - sys.Y, None if instruments is None else p.Z - sys.Z))
+        return out
+    # the loads' rows by their change per unit load where W does not depend on them: a tree with load terms (a
+    # tire's -ktfy Fy² q) has a column built from them
+    linear = not setup.tree.load_terms
+    loads = [(q, b) for q, b in offsets if linear and setup.load_only(q)]
+    others = [(q, b) for q, b in offsets if not (linear and setup.load_only(q))]
+    changes = {}
+    for (q, _), dY in zip(loads, setup.load_changes(traj, loads, fs, sys.kept), strict=True):
+        changes[q] = (None, dY, None)  # W does not depend on the loads
+    trajs = _moved_trajectories(setup, channels, fs, lags, compensated, joints, others, one_pass)
+    for (q, _), (W, Y) in zip(others, setup.moved_rows(traj, trajs, fs, sys.kept), strict=True):
+        changes[q] = (W - sys.W, Y - sys.Y, None)
+    return [changes[q] for q, _ in offsets]
+
+
+def _moved_trajectories(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
+                        compensated: dict[str, np.ndarray], joints: JointsPass, offsets: Sequence[tuple[str, float]],
+                        staged: bool) -> Iterator[CarTrajectory]:
+    """The trajectory with each offset's channel moved (`offset_changes`), one at a time (each is the size of the
+    segment's); staged: through the stages it reaches only, where it can (`JointsPass.moved`)."""
+    for q, b in offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
+        if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
+            yield shifted_load(joints.traj, q, b)
+        elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
+            yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags)
+        elif staged and joints.movable(q):
+            yield joints.moved(q, b)
+        else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
+            yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags, {**compensated, q: compensated[q] + b})
 
 
 def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) -> tuple[dict[str, np.ndarray], ...]:

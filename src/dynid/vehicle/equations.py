@@ -213,6 +213,26 @@ def wheel_wrench_array(wheel_wrenches: Array | Mapping[int, Array], N: int) -> A
     return ww
 
 
+def load_rows(model: Model | Tree, q: Array, rows: Sequence[int] = EQUATION_ROWS) -> Array:
+    """dY/d(wheel wrench): (N, len(rows), 4, 6), the change of each equation's right-hand side per unit change of
+    each measured wheel-wrench component (N, N·m; `car_identification`'s convention: at the wheel centre, in the
+    wheel frame; wheels rear left, rear right, front left, front right) at the joints q (N, 42). Y is linear in
+    the wrenches (their generalized force J_tᵀ w, the wrench carried to the contact point, the origin of tire
+    frame t): exact, whatever the wrenches."""
+    model = model if isinstance(model, Model) else Model(model)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rho = _radius(model.tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
+    cols = np.asarray(rows) - 1
+    out = np.empty((q.shape[0], len(cols), 4, 6))
+    for k, t in enumerate(TIRES):
+        J = model.jacobian(q, t, expressed_in=t)[:, :, cols]  # (N, 6, rows): linear, then angular
+        out[:, :, k, :] = J.transpose(0, 2, 1)
+        # a force moves the moment about the contact point too: M_contact = M + (-rho Fy, rho Fx, 0)
+        out[:, :, k, 0] += rho[:, k, None] * J[:, 4, :]
+        out[:, :, k, 1] -= rho[:, k, None] * J[:, 3, :]
+    return out
+
+
 def car_identification(
     model: Model | Tree,
     q: Array,

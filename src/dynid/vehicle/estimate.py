@@ -243,6 +243,99 @@ def estimate_joints(
     (advanced by it more, whatever compensate_delays says: the delay estimate's perturbations). compensated:
     the channels already undone (`compensated_channels` of these channels, dynamics and lags), not undone again:
     a sensor offset's pass moves one channel of them (the undoing is affine, of unit gain at 0 Hz)."""
+    return joints_pass(channels, fs, model, geometry, tables, conditioning, suite, dynamics, lags, compensated).traj
+
+
+# the channels a zero offset of which moves the stages after the corners' alone (`JointsPass.moved`), by stage
+_ATTITUDE = ("imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_roll", "imu_pitch")
+_ACCELERATION = ("imu_ax", "imu_ay", "imu_az")
+_VELOCITY = ("correvit_vx", "correvit_vy", "gnss_vx", "gnss_vy")
+
+
+@dataclass(frozen=True)
+class _Context:
+    fs: float
+    model: Model
+    geometry: CarGeometry
+    conditioning: CarConditioning
+    suite: SensorSuite
+    lasers: bool
+    border: int
+
+
+@dataclass(frozen=True)
+class JointsPass:
+    """One pass of `estimate_joints`: its trajectory, and the stages' results that the pass with one channel's
+    zero moved by a constant reuses (`moved`): the channels as the joints were taken from them (undone,
+    saturated camera samples replaced), the untrimmed joints, the low-passed corner and load columns, the
+    chassis rotation and rates, the tire frames' heights and slopes, the lasers' heights of O6."""
+
+    traj: CarTrajectory
+    ctx: _Context
+    ch: dict[str, Array]
+    q: Array
+    qd: Array
+    qdd: Array
+    filtered: Array
+    steering: tuple[Array, Array, Array]
+    has_spin: bool
+    R6: Array
+    w6: Array
+    pz_zz: Array
+    z_laser: Array
+
+    def movable(self, channel: str) -> bool:
+        """Whether `moved` takes a zero offset of `channel` (the others: the whole pass)."""
+        load = channel.startswith("wft_") and channel.split("_")[-1] in WFT_COMPONENTS and channel in self.ch
+        return channel in self.ch and (channel in (*_ATTITUDE, *_ACCELERATION, *_VELOCITY) or load
+                                       or channel.startswith("laser_height_"))
+
+    def moved(self, channel: str, b: float) -> CarTrajectory:
+        """The trajectory of these channels with `channel`'s zero moved by b (SI), equal to the whole pass's
+        (`estimate_joints` of the channels with b added) to round-off: each stage the channel reaches is run
+        again on it, the others' results are reused. Its offset enters the stages as these channels plus b (the
+        sensor dynamics' undoing is affine with unit gain at 0 Hz), a low-passed column as that column plus the
+        low-passed constant (the filter is linear)."""
+        if not self.movable(channel):
+            raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
+        x = self.ctx
+        ch = {**self.ch, channel: self.ch[channel] + b}
+        q, qd, qdd = self.q.copy(), self.qd.copy(), self.qdd.copy()
+        filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
+        attitude = channel in _ATTITUDE
+        heights = attitude or channel.startswith("laser_height_")
+        if channel.startswith("wft_"):  # a low-passed load column: the loads, and without lasers the heights
+            filtered = filtered.copy()
+            i = 17 + 6 * CORNER_TAGS.index(channel.split("_")[1]) + WFT_COMPONENTS.index(channel.split("_")[2])
+            filtered[:, i] += _lowpass(np.full(len(filtered), b), x)
+            heights = not x.lasers and channel.endswith("_Fz")
+        if attitude:
+            R6, w6 = _attitude(ch, x, q, qd, qdd)
+            pz_zz = _tire_poses(x, q)
+        if heights:
+            z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
+        if attitude or channel in _ACCELERATION:
+            qdd[:, :3] = _acceleration(ch, x, R6, w6)
+        if heights or channel in _VELOCITY:
+            _velocity(ch, x, q, qd, R6, w6)
+        if heights:
+            _deflections(x, q, qd, qdd, pz_zz, z_laser)
+        return _trajectory(x, q, qd, qdd, filtered, self.has_spin, self.steering[0])
+
+
+def joints_pass(
+    channels: Mapping[str, Array],
+    fs: float,
+    model: Model,
+    geometry: CarGeometry | None = None,
+    tables: KinematicTables | None = None,
+    conditioning: CarConditioning | None = None,
+    suite: SensorSuite | None = None,
+    dynamics: Mapping[str, ChannelDynamics] | None = None,
+    lags: Mapping[str, float] | None = None,
+    compensated: Mapping[str, Array] | None = None,
+) -> JointsPass:
+    """`estimate_joints` (its arguments), with what a pass with one channel moved reuses (`JointsPass`)."""
     g = geometry or CarGeometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
@@ -263,38 +356,12 @@ def estimate_joints(
     N = len(ch["imu_roll"])
     if model.n != FRAMES:
         raise ModelError(f"the car estimator needs the 42-frame car template; got {model.name!r} ({model.n} frames)")
-
-    def lp(x: Array) -> Array:
-        return lowpass(x, fs, c.cutoff, order=c.order, axis=0)
-
-    def smooth(x: Array) -> tuple[Array, Array, Array]:
-        return filtered_derivatives(x, fs, c.cutoff, order=c.order, nderiv=2)
-
-    def from_rate(rate: Array) -> tuple[Array, Array]:
-        """Low-passed rate and its derivative."""
-        r, rd = filtered_derivatives(rate, fs, c.cutoff, order=c.order, nderiv=1)
-        return r, rd
+    b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
+    x = _Context(fs, model, g, c, suite, lasers, b)
 
     # column-major: every joint is written as a column, and the equations read them as columns
     q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
-    # --- attitude: Euler rates (ISO ZYX) from the gyros, angles fused with the inclinometers
-    A = np.asarray(g.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
-    w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
-    p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
-    incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
-    phi, theta = lp(incl).T
-    for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
-        dphi = p + (qb * sp + r * cp) * np.tan(theta)
-        dtheta = qb * cp - r * sp
-        dpsi = (qb * sp + r * cp) / ct
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
-        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
-    psi = integrate(dpsi, fs)
-    sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
-    rf, rdf = from_rate(np.stack([dpsi, dtheta, dphi], axis=1))
-    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * lp(np.stack([psi, theta, phi], axis=1)), sign * rf, sign * rdf
-    R6 = chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])
+    R6, w6 = _attitude(ch, x, q, qd, qdd)
 
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
     # with the loads (24 wheel-wrench components, the 4 spin torques when measured): one pass of the filter
@@ -307,83 +374,154 @@ def estimate_joints(
     for i, n in enumerate(names):
         if n in ch:
             raw[:, i] = ch[n]
-    filtered = lp(raw)
-    x = filtered[:, :17]
-    xd = derivative(x, fs)
+    filtered = _lowpass(raw, x)
+    xs = filtered[:, :17]
+    xd = derivative(xs, fs)
     xdd = derivative(xd, fs)
     for i, offset in enumerate((1, 2, 3)):  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
         cols, sl = [7 + 9 * k + offset for k in range(4)], slice(4 * i, 4 * i + 4)
-        q[:, cols], qd[:, cols], qdd[:, cols] = x[:, sl], xd[:, sl], xdd[:, sl]
+        q[:, cols], qd[:, cols], qdd[:, cols] = xs[:, sl], xd[:, sl], xdd[:, sl]
     spin = [7 + 9 * k + 6 for k in range(4)]
-    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(x[:, 12:16], fs), x[:, 12:16], xd[:, 12:16]
-    h = x[:, 16], xd[:, 16], xdd[:, 16]
+    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
+    h = xs[:, 16], xd[:, 16], xdd[:, 16]
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
                                copy=False)
 
-    # --- tire deflections: the tire frame's origin on the ground plane z0 = 0 (prismatic along z_tire). Each
-    # corner takes the chassis height its own laser implies: attitude errors then act over the 0.35 m between
-    # laser and wheel, not over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0
-    # serves the four corners.
-    # The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
-    # (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work.
-    tires = [15 + 9 * k for k in range(4)]
-    k_sub = max(1, int(fs / (20 * c.cutoff)))
+    pz_zz = _tire_poses(x, q)
+    z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
+    qdd[:, :3] = _acceleration(ch, x, R6, w6)
+    _velocity(ch, x, q, qd, R6, w6)
+    _deflections(x, q, qd, qdd, pz_zz, z_laser)
+    if 2 * b >= N:
+        raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
+                         f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
+    traj = _trajectory(x, q, qd, qdd, filtered, has_spin, h[0])
+    return JointsPass(traj, x, ch, q, qd, qdd, filtered, h, has_spin, R6, w6, pz_zz, z_laser)
+
+
+def _lowpass(x: Array, c: _Context) -> Array:
+    return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
+
+
+def _smooth(x: Array, c: _Context) -> tuple[Array, Array, Array]:
+    return filtered_derivatives(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, nderiv=2)
+
+
+def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array]:
+    """Yaw, pitch, roll into q, qd, qdd (columns 3:6): Euler rates (ISO ZYX) from the gyros, angles fused with
+    the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3)."""
+    fs, c = x.fs, x.conditioning
+    A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
+    w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
+    p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
+    incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+    phi, theta = _lowpass(incl, x).T
+    for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
+        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
+        dphi = p + (qb * sp + r * cp) * np.tan(theta)
+        dtheta = qb * cp - r * sp
+        dpsi = (qb * sp + r * cp) / ct
+        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
+    psi = integrate(dpsi, fs)
+    sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
+    rf, rdf = filtered_derivatives(np.stack([dpsi, dtheta, dphi], axis=1), fs, c.cutoff, order=c.order, nderiv=1)
+    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * _lowpass(np.stack([psi, theta, phi], axis=1), x), sign * rf, sign * rdf
+    return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _tire_poses(x: _Context, q: Array) -> Array:
+    """Heights and z-axis slopes in frame 0 of the four tire frames (N, 8), from the attitude and the corners'
+    joints (q's other columns, written by later stages, are taken as 0).
+
+    The tire frame's origin lies on the ground plane z0 = 0 (prismatic along z_tire). Each corner takes the
+    chassis height its own laser implies: attitude errors then act over the 0.35 m between laser and wheel, not
+    over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0 serves the four corners.
+    The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
+    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work."""
+    N = q.shape[0]
+    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
     sub = np.arange(0, N, k_sub)
     if sub[-1] != N - 1:
         sub = np.append(sub, N - 1)
     q0 = q[sub].copy()
-    q0[:, 2] = 0.0
-    st = forward_kinematics(model.tree, joint_array(q0, model.tree, "q")[0], frames=tires)
+    q0[:, [0, 1, 2, *(f - 1 for f in _TIRES)]] = 0.0
+    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=_TIRES)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
-    pz_zz = CubicSpline(sub, np.stack([st.P[f][2] for f in tires] + [st.Rc[f][2][2] for f in tires], axis=1))(
+    return CubicSpline(sub, np.stack([st.P[f][2] for f in _TIRES] + [st.Rc[f][2][2] for f in _TIRES], axis=1))(
         np.arange(N))
-    # --- height of O6 from the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x  (distance along -x6 to the ground),
-    # each laser's own estimate (N, 4), used again for the tire deflections below. Without lasers, each corner's
-    # contact point on the ground with the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz)
-    if lasers:
+
+
+_TIRES = [15 + 9 * k for k in range(4)]
+
+
+def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
+             pz_zz: Array) -> Array:
+    """The height of O6 into q, qd, qdd (column 2); returns each corner's estimate of it (N, 4).
+
+    From the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x (distance along -x6 to the ground), each laser's own
+    estimate, used again for the tire deflections. Without lasers, each corner's contact point on the ground with
+    the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz)."""
+    g, model = x.geometry, x.model
+    if x.lasers:
         z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
             - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
     else:
-        kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in tires])
+        kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in _TIRES])
         if not (kt > 0).all():
             raise ModelError("without height lasers the tire deflections come from the wheel loads: the tires' "
                              "vertical stiffness kt15, kt24, kt33, kt42 must be known (a tire bench), > 0; got "
                              f"{kt.tolist()}")
         load = filtered[:, [17 + 6 * k + WFT_COMPONENTS.index("Fz") for k in range(4)]] / kt
         z_laser = -(pz_zz[:, :4] + load * pz_zz[:, 4:])
-    q[:, 2], qd[:, 2], _ = smooth(z_laser.mean(axis=1))
-    # --- translational accelerations of O6 from the IMU (specific force at its mounting point): the unit's own
-    # acceleration low-passed once like every signal, then carried to O6 with the low-passed rotation rates, the
-    # ones the regressor carries O6's back to every point of the chassis with. Carried before the low-pass, the
-    # angular acceleration's lever arm term is filtered twice, the regressor's once: with the unit 1.6 m ahead of
-    # O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis equations.
-    w6f = lp(w6)
-    dw6 = derivative(w6f, fs, axis=0)
-    r_imu = np.asarray(g.imu_position, dtype=float)
+    q[:, 2], qd[:, 2], _ = _smooth(z_laser.mean(axis=1), x)
+    return z_laser
+
+
+def _acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
+    """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point).
+
+    The unit's own acceleration low-passed once like every signal, then carried to O6 with the low-passed
+    rotation rates, the ones the regressor carries O6's back to every point of the chassis with. Carried before
+    the low-pass, the angular acceleration's lever arm term is filtered twice, the regressor's once: with the unit
+    1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
+    equations."""
+    A = np.asarray(x.geometry.imu_axes, dtype=float)
+    w6f = _lowpass(w6, x)
+    dw6 = derivative(w6f, x.fs, axis=0)
+    r_imu = np.asarray(x.geometry.imu_position, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    a_imu0 = lp(np.einsum("nij,nj->ni", R6, f6) + np.asarray(model.tree.gravity))
-    a0 = a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
-    # --- velocity of O6: the Correvit (or a GNSS/INS) gives the horizontal components (chassis x, y), the
-    # height the vertical
-    tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in suite.names else ("gnss", gnss_point(g))
+    a_imu0 = _lowpass(np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity), x)
+    return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
+
+
+def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array) -> None:
+    """Position and velocity of O6 along x0, y0 into q, qd (columns 0:2): the Correvit (or a GNSS/INS) gives the
+    horizontal components (chassis x, y), the height's rate (qd column 2) the vertical."""
+    g = x.geometry
+    N = q.shape[0]
+    tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in x.suite.names else ("gnss", gnss_point(g))
     v_c = np.stack([ch[f"{tag}_vx"], ch[f"{tag}_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
     pc = np.asarray(pc)
     ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
     v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
     v0 = v_known + s[:, None] * (R6 @ ez6)
-    v = lp(v0[:, :2])
-    q[:, :2], qd[:, :2], qdd[:, :3] = integrate(v, fs), v, a0
+    v = _lowpass(v0[:, :2], x)
+    q[:, :2], qd[:, :2] = integrate(v, x.fs), v
 
+
+def _deflections(x: _Context, q: Array, qd: Array, qdd: Array, pz_zz: Array, z_laser: Array) -> None:
+    """The tire deflections into q, qd, qdd: each tire frame's origin on the ground under its corner's height."""
     deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
-    cols = [f - 1 for f in tires]
-    q[:, cols], qd[:, cols], qdd[:, cols] = smooth(deflection)
+    cols = [f - 1 for f in _TIRES]
+    q[:, cols], qd[:, cols], qdd[:, cols] = _smooth(deflection, x)
 
+
+def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
+                steering: Array) -> CarTrajectory:
+    """The joints and the low-passed loads, trimmed of the filters' borders."""
+    N = q.shape[0]
     ww = filtered[:, 17:41].reshape(N, 4, len(WFT_COMPONENTS))
     spin = filtered[:, 41:45] if has_spin else None
-    traj = CarTrajectory(np.arange(N) / fs, q, qd, qdd, ww, spin, h[0])
-    b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
-    if 2 * b >= N:
-        raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
-                         f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
-    return traj.trimmed(b)
+    return CarTrajectory(np.arange(N) / x.fs, q, qd, qdd, ww, spin, steering).trimmed(x.border)
