@@ -65,20 +65,27 @@ data_health = "warn"  # its dead channels are said, not a stop
 
 SPENT: dict[str, float] = defaultdict(float)
 COUNT: dict[str, int] = defaultdict(int)
+_NESTED: list[float] = []  # the time of the timed calls inside each running timed call
 
 
 def timed(owner, name: str, stage: str) -> None:
-    """Wrap owner.name (a module's function or a class's method) to add its time to SPENT[stage]."""
+    """Wrap owner.name (a module's function or a class's method) to add its own time to SPENT[stage]: the time of
+    the timed calls it makes is theirs, not its (each stage counted once, wherever it is called from)."""
     fn = getattr(owner, name)
 
     @functools.wraps(fn)
     def wrapper(*a, **k):
         t = time.perf_counter()
+        _NESTED.append(0.0)
         try:
             return fn(*a, **k)
         finally:
-            SPENT[stage] += time.perf_counter() - t
+            spent = time.perf_counter() - t
+            inner = _NESTED.pop()
+            SPENT[stage] += spent - inner
             COUNT[stage] += 1
+            if _NESTED:
+                _NESTED[-1] += spent
 
     setattr(owner, name, wrapper)
 
@@ -123,6 +130,7 @@ def main() -> None:
     import dynid.pipeline.run as run
     import dynid.pipeline.sources as sources
     import dynid.vehicle.estimate as estimate
+    import dynid.vehicle.tire_curves as tire_curves
     from dynid.estimation.streaming import StreamingLS
     from dynid.pipeline.config import load_config
     from dynid.symbolic.generated import GeneratedRegressor
@@ -147,12 +155,13 @@ def main() -> None:
         timed(GeneratedRegressor, "__call__", "regressor")
         timed(run, "plan_car_test", "plan")
         timed(sources.SegmentWindow, "read", "read")
-        timed(estimate, "compensate", "compensation")
-        timed(estimate, "estimate_joints", "joints+compensation")
-        timed(car, "car_identification", "equations+regressor")
+        timed(estimate, "compensated_channels", "compensation")
+        timed(estimate, "estimate_joints", "joints")
+        timed(car, "car_identification", "equations")
         timed(car, "_decimated", "decimation")
-        timed(car, "car_system", "car_system")
-        timed(run, "reduce_car_segment", "segments")
+        timed(car, "car_system", "rows other")
+        timed(tire_curves, "tire_samples", "tire samples")
+        timed(run, "reduce_car_segment", "segments other")
         rows_seen: list[tuple[int, int]] = []
         original_add = StreamingLS.add
 
@@ -202,13 +211,8 @@ def main() -> None:
 
     hours = args.minutes / 60.0
     per_hour = {k: v / hours for k, v in staged.items()}
-    joints = per_hour.get("joints+compensation", 0.0) - per_hour.get("compensation", 0.0)
-    equations = per_hour.get("equations+regressor", 0.0) - per_hour.get("regressor", 0.0)
-    rows_other = (per_hour.get("car_system", 0.0) - per_hour.get("equations+regressor", 0.0)
-                  - per_hour.get("decimation", 0.0))
-    segments = per_hour.get("segments", 0.0)
-    in_segments = (per_hour.get("read", 0.0) + per_hour.get("joints+compensation", 0.0)
-                   + per_hour.get("car_system", 0.0) + per_hour.get("QR", 0.0))
+    segments = sum(per_hour.get(k, 0.0) for k in ("read", "compensation", "joints", "regressor", "equations",
+                                                   "decimation", "rows other", "QR", "tire samples", "segments other"))
     fixed = 2 * sum(extras.values()) * len(cfg.tests)
     rest = identify_s - hours * (segments + per_hour.get("plan", 0.0)) - fixed  # s, whatever the length
 
@@ -234,13 +238,14 @@ def main() -> None:
         ("plan (time stamps)", per_hour.get("plan", 0.0), None),
         ("read (decode a segment's channels)", per_hour.get("read", 0.0), read_limit),
         ("compensation (sensor dynamics undone)", per_hour.get("compensation", 0.0), None),
-        ("joints (attitude, tables, filters, derivatives)", joints, None),
+        ("joints (attitude, tables, filters, derivatives)", per_hour.get("joints", 0.0), None),
         ("regressor (generated 14-equation model)", per_hour.get("regressor", 0.0), regressor_limit),
-        ("equations (wrenches, gravity rows)", equations, None),
+        ("equations (wrenches, gravity rows)", per_hour.get("equations", 0.0), None),
         ("decimation (parallel, W and Y)", per_hour.get("decimation", 0.0), None),
-        ("rows, other (aero, selection, stacking)", rows_other, None),
+        ("rows, other (aero, selection, stacking)", per_hour.get("rows other", 0.0), None),
         ("QR (streamed factor updates)", per_hour.get("QR", 0.0), qr_limit),
-        ("segments, not in the stages above", segments - in_segments, None),
+        ("tire samples (the tire curves' slips, forces)", per_hour.get("tire samples", 0.0), None),
+        ("segments, not in the stages above", per_hour.get("segments other", 0.0), None),
     ]
     print(f"{args.minutes:g} min of 625 Hz car data, one thread; figures per hour of data "
           f"(memory bandwidth {bw / 1e9:.1f} GB/s, one core's peak {peak / 1e9:.1f} Gop/s, measured now)")

@@ -172,9 +172,10 @@ class KinematicTables:
         table names whose joints are already in q, qd, qdd (e.g. ("steering", "camber") from a
         camera) and are kept. copy=False fills float (N, 42) arrays in place (the returned ones are used).
         """
-        # C order always, so the compiled kernel sees one layout and compiles once (an F-order caller's arrays are
-        # copied even with copy=False: the returned arrays are the ones filled)
-        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None, order="C") for a in (q, qd, qdd))
+        # F order always, so the compiled kernel sees one layout and compiles once, and reads and writes each
+        # joint's samples contiguously; the car estimator builds its joints column-major, so copy=False fills its
+        # arrays in place (a C-order caller's arrays are copied even with copy=False: the returned ones are filled)
+        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None, order="F") for a in (q, qd, qdd))
         N = q.shape[0]
         if isinstance(steering_wheel, tuple):
             h, hd, hdd = (np.broadcast_to(np.asarray(a, dtype=float), (N,)) for a in steering_wheel)
