@@ -250,7 +250,7 @@ def point_velocity(
     if state is None:
         qs, _ = joint_array(q, tree, "q")
         state = forward_kinematics(tree, qs, frames=[frame, expressed_in])
-    elif state.Rc[frame] is None or state.Rc[expressed_in] is None or state.N != qds.shape[1]:
+    elif state.Rc[frame] is None or state.Rc[expressed_in] is None or qds.shape[1] != state.N:
         raise ModelError(f"point_velocity: the state given lacks frame {frame} or {expressed_in}, or is not of qd's "
                          f"{qds.shape[1]} samples; compute it with forward_kinematics(tree, q, frames=[...])")
     st = state
