@@ -64,7 +64,8 @@ def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
 
 def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
     """x (n, C): every column filtered once backwards in time (last sample first), each from the steady state of
-    its last sample (zi (S, 2) per unit input); out (n, C), any layout, the result. The channels are the inner
+    its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order transpose of a
+    column-major (n, C): one layout whatever C, one compile). The channels are the inner
     loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct form II transposed)."""
     S = sos.shape[0]
     n, C = x.shape
@@ -86,7 +87,7 @@ def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
                 z1[s, c] = b2 * v[c] - a2 * y
                 v[c] = y
         for c in range(C):
-            out[i, c] = v[c]
+            out[c, i] = v[c]
 
 
 if HAVE_NUMBA:
@@ -129,5 +130,5 @@ def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
             out[:, c] = sosfilt(sos, x[::-1, c], zi=steady_state(sos) * x[-1, c])[0][::-1]
         return out
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
-    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out)
+    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out.T)
     return out
