@@ -8,13 +8,17 @@ its own, not shared with a second core) with timers around the pipeline's functi
 
 - plan: each test's pass over the time stamps (`sources.plan_car_test`);
 - read: decoding a segment's channels (`SegmentWindow.read`);
-- compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensate`);
-- joints: the rest of `estimate_joints` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
+- compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensated_channels`);
+- joints: `estimate_joints` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
 - regressor: the generated 14-equation identification model (`GeneratedRegressor`);
 - equations: the rest of `car_identification` (the wheel wrenches' and gravity's rows);
 - decimation: the parallel decimation of W and Y (`car._decimated`);
 - rows, other: the rest of `car_system` (aerodynamics, row selection, stacking);
 - QR: the streamed least squares' factor updates (`StreamingLS.add`);
+- tire samples: the tire curves' slips and forces (`vehicle.tire_curves.tire_samples`);
+- segments, other: the rest of `reduce_car_segment`.
+Each stage's time is its own: a timed function's time without the timed calls it makes (wherever it is called
+from, e.g. the compensation inside or outside `estimate_joints`).
 - offsets, error draws, delays: what the sensor offsets' propagation, the model-fit verdict's error draws and
   the channel delays' estimate add (each on 2 segments per test, whatever its length: a fixed cost, reported
   per test);

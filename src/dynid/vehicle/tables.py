@@ -173,8 +173,9 @@ class KinematicTables:
         camera) and are kept. copy=False fills float (N, 42) arrays in place (the returned ones are used).
         """
         # F order always, so that the compiled kernel (given the C-order transposes) sees one layout and compiles
-        # once, and reads and writes each joint's samples contiguously; the car estimator builds its joints column-major, so copy=False fills its
-        # arrays in place (a C-order caller's arrays are copied even with copy=False: the returned ones are filled)
+        # once, and reads and writes each joint's samples contiguously; the car estimator builds its joints
+        # column-major, so copy=False fills its arrays in place (a C-order caller's arrays are copied even with
+        # copy=False: the returned ones are filled)
         q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None, order="F") for a in (q, qd, qdd))
         N = q.shape[0]
         if isinstance(steering_wheel, tuple):
