@@ -1,6 +1,6 @@
 """Where an identification's time goes, stage by stage, per hour of 625 Hz car data, against this machine's limits.
 
-Run:  python benchmarks/profile_car.py [--minutes 10]
+Run:  python benchmarks/profile_car.py [--minutes 10] [--cpu]
 
 Writes `--minutes` of the sensor suite's channels (Parquet, as bench_pipeline.py: a 12 s manoeuvre repeated),
 then runs the car identification in this process on ONE thread (every segment in turn, so each stage's time is
@@ -8,13 +8,17 @@ its own, not shared with a second core) with timers around the pipeline's functi
 
 - plan: each test's pass over the time stamps (`sources.plan_car_test`);
 - read: decoding a segment's channels (`SegmentWindow.read`);
-- compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensate`);
-- joints: the rest of `joints_pass` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
+- compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensated_channels`);
+- joints: `joints_pass` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
 - regressor: the generated 14-equation identification model (`GeneratedRegressor`);
 - equations: the rest of `car_identification` (the wheel wrenches' and gravity's rows);
 - decimation: the parallel decimation of W and Y (`car._decimated`);
 - rows, other: the rest of `car_system` (aerodynamics, row selection, stacking);
 - QR: the streamed least squares' factor updates (`StreamingLS.add`);
+- tire samples: the tire curves' slips and forces (`vehicle.tire_curves.tire_samples`);
+- segments, other: the rest of `reduce_car_segment`.
+Each stage's time is its own: a timed function's time without the timed calls it makes (wherever it is called
+from, e.g. the compensation inside or outside `estimate_joints`).
 - offsets, error draws, delays: what the sensor offsets' propagation, the model-fit verdict's error draws and
   the channel delays' estimate add (each on 2 segments per test, whatever its length: a fixed cost, reported
   per test);
@@ -63,22 +67,30 @@ segment = 60.0
 data_health = "warn"  # its dead channels are said, not a stop
 """
 
+CLOCK = time.perf_counter  # --cpu: time.thread_time (this thread's CPU time: a loaded machine's waits left out)
 SPENT: dict[str, float] = defaultdict(float)
 COUNT: dict[str, int] = defaultdict(int)
+_NESTED: list[float] = []  # the time of the timed calls inside each running timed call
 
 
 def timed(owner, name: str, stage: str) -> None:
-    """Wrap owner.name (a module's function or a class's method) to add its time to SPENT[stage]."""
+    """Wrap owner.name (a module's function or a class's method) to add its own time to SPENT[stage]: the time of
+    the timed calls it makes is theirs, not its (each stage counted once, wherever it is called from)."""
     fn = getattr(owner, name)
 
     @functools.wraps(fn)
     def wrapper(*a, **k):
-        t = time.perf_counter()
+        t = CLOCK()
+        _NESTED.append(0.0)
         try:
             return fn(*a, **k)
         finally:
-            SPENT[stage] += time.perf_counter() - t
+            spent = CLOCK() - t
+            inner = _NESTED.pop()
+            SPENT[stage] += spent - inner
             COUNT[stage] += 1
+            if _NESTED:
+                _NESTED[-1] += spent
 
     setattr(owner, name, wrapper)
 
@@ -116,13 +128,19 @@ class Inline:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
+    ap.add_argument("--cpu", action="store_true", help="the stages' CPU time (one thread), not their wall time: "
+                    "comparable on a loaded machine; the fixed costs and limits stay wall times")
     args = ap.parse_args()
+    global CLOCK
+    if args.cpu:
+        CLOCK = time.thread_time
 
     import dynid.pipeline.car as car
     import dynid.pipeline.reduce as reduce
     import dynid.pipeline.run as run
     import dynid.pipeline.sources as sources
     import dynid.vehicle.estimate as estimate
+    import dynid.vehicle.tire_curves as tire_curves
     from dynid.estimation.streaming import StreamingLS
     from dynid.pipeline.config import load_config
     from dynid.symbolic.generated import GeneratedRegressor
@@ -147,12 +165,13 @@ def main() -> None:
         timed(GeneratedRegressor, "__call__", "regressor")
         timed(run, "plan_car_test", "plan")
         timed(sources.SegmentWindow, "read", "read")
-        timed(estimate, "compensate", "compensation")
-        timed(estimate, "joints_pass", "joints+compensation")
-        timed(car, "car_identification", "equations+regressor")
+        timed(estimate, "compensated_channels", "compensation")
+        timed(estimate, "joints_pass", "joints")
+        timed(car, "car_identification", "equations")
         timed(car, "_decimated", "decimation")
-        timed(car, "car_system", "car_system")
-        timed(run, "reduce_car_segment", "segments")
+        timed(car, "car_system", "rows other")
+        timed(tire_curves, "tire_samples", "tire samples")
+        timed(run, "reduce_car_segment", "segments other")
         rows_seen: list[tuple[int, int]] = []
         original_add = StreamingLS.add
 
@@ -202,13 +221,8 @@ def main() -> None:
 
     hours = args.minutes / 60.0
     per_hour = {k: v / hours for k, v in staged.items()}
-    joints = per_hour.get("joints+compensation", 0.0) - per_hour.get("compensation", 0.0)
-    equations = per_hour.get("equations+regressor", 0.0) - per_hour.get("regressor", 0.0)
-    rows_other = (per_hour.get("car_system", 0.0) - per_hour.get("equations+regressor", 0.0)
-                  - per_hour.get("decimation", 0.0))
-    segments = per_hour.get("segments", 0.0)
-    in_segments = (per_hour.get("read", 0.0) + per_hour.get("joints+compensation", 0.0)
-                   + per_hour.get("car_system", 0.0) + per_hour.get("QR", 0.0))
+    segments = sum(per_hour.get(k, 0.0) for k in ("read", "compensation", "joints", "regressor", "equations",
+                                                   "decimation", "rows other", "QR", "tire samples", "segments other"))
     fixed = 2 * sum(extras.values()) * len(cfg.tests)
     rest = identify_s - hours * (segments + per_hour.get("plan", 0.0)) - fixed  # s, whatever the length
 
@@ -234,15 +248,17 @@ def main() -> None:
         ("plan (time stamps)", per_hour.get("plan", 0.0), None),
         ("read (decode a segment's channels)", per_hour.get("read", 0.0), read_limit),
         ("compensation (sensor dynamics undone)", per_hour.get("compensation", 0.0), None),
-        ("joints (attitude, tables, filters, derivatives)", joints, None),
+        ("joints (attitude, tables, filters, derivatives)", per_hour.get("joints", 0.0), None),
         ("regressor (generated 14-equation model)", per_hour.get("regressor", 0.0), regressor_limit),
-        ("equations (wrenches, gravity rows)", equations, None),
+        ("equations (wrenches, gravity rows)", per_hour.get("equations", 0.0), None),
         ("decimation (parallel, W and Y)", per_hour.get("decimation", 0.0), None),
-        ("rows, other (aero, selection, stacking)", rows_other, None),
+        ("rows, other (aero, selection, stacking)", per_hour.get("rows other", 0.0), None),
         ("QR (streamed factor updates)", per_hour.get("QR", 0.0), qr_limit),
-        ("segments, not in the stages above", segments - in_segments, None),
+        ("tire samples (the tire curves' slips, forces)", per_hour.get("tire samples", 0.0), None),
+        ("segments, not in the stages above", per_hour.get("segments other", 0.0), None),
     ]
-    print(f"{args.minutes:g} min of 625 Hz car data, one thread; figures per hour of data "
+    clock = "CPU" if args.cpu else "wall"
+    print(f"{args.minutes:g} min of 625 Hz car data, one thread; {clock} seconds per hour of data "
           f"(memory bandwidth {bw / 1e9:.1f} GB/s, one core's peak {peak / 1e9:.1f} Gop/s, measured now)")
     print(f"  {'stage':<50} {'s / hour':>9} {'limit s':>9} {'x limit':>8}")
     for name, s, limit in table:
@@ -257,7 +273,8 @@ def main() -> None:
     print(f"  fixed per identification, s: solve, validation, delay steps, notes {rest:.2f}; report (tables, "
           f"figures, report.html) {report_s:.2f}")
     print(f"  the whole identification of these {args.minutes:g} min took {identify_s:.1f} s on one thread")
-    write_results("profile_car", {"minutes": args.minutes, "per_hour_s": {n: s for n, s, _ in table},
+    write_results("profile_car", {"minutes": args.minutes, "clock": clock.lower(),
+                                  "per_hour_s": {n: s for n, s, _ in table},
                                   "limit_per_hour_s": {n: lim for n, _, lim in table if lim},
                                   "per_test_fixed_s": {k: 2 * v for k, v in extras.items()},
                                   "rest_s": rest, "report_s": report_s, "identify_s": identify_s,

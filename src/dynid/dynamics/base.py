@@ -101,7 +101,10 @@ def base_parameters(
             f"random states) needs {need / 2**30:.1f} GiB, more than half this machine's memory; analyse it by "
             "parts (rows=, cols=) or describe a smaller tree")
     q, qd, qdd = random_states(tree, samples, seed)
-    W = np.asarray(regressor(tree, q, qd, qdd, rows=R, cols=C)).reshape(-1, len(C))
+    # a few dozen random states: the NumPy engine (30 ms on the car's 42 x 442), not the compiled one, whose
+    # first compile costs a new user 10 to 30 s (issue 28 item 4) when nothing else of the run needs it; the
+    # same numbers to round-off (the engines agree to ~1e-15; the tests hold them to each other)
+    W = np.asarray(regressor(tree, q, qd, qdd, rows=R, cols=C, backend="numpy")).reshape(-1, len(C))
     norms = np.linalg.norm(W, axis=0)
     scale = norms.max() if norms.size else 1.0
     zero = norms <= 1e-12 * scale

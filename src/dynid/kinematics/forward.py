@@ -237,17 +237,25 @@ def jacobian(
 
 
 def point_velocity(
-    tree: Tree, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0
+    tree: Tree, q: Array, qd: Array, frame: int, point: Sequence[float] | None = None, expressed_in: int = 0,
+    state: KinematicState | None = None,
 ) -> tuple[Array, Array]:
     """J qd without J: the linear velocity of a point fixed in `frame` and the frame's angular velocity,
-    each (N, 3), components in frame `expressed_in`; only the frame's ancestors are visited."""
+    each (N, 3), components in frame `expressed_in`; only the frame's ancestors are visited. state: q's
+    `forward_kinematics` with frame and expressed_in among its frames, when the caller has it (several frames'
+    velocities from one pass; q is then not read)."""
     check_frame(tree, frame)
     check_frame(tree, expressed_in, "expressed_in frame")
-    qs, single = joint_array(q, tree, "q")
-    qds, _ = joint_array(qd, tree, "qd")
-    st = forward_kinematics(tree, qs, frames=[frame, expressed_in])
+    qds, single = joint_array(qd, tree, "qd")
+    if state is None:
+        qs, _ = joint_array(q, tree, "q")
+        state = forward_kinematics(tree, qs, frames=[frame, expressed_in])
+    elif state.Rc[frame] is None or state.Rc[expressed_in] is None or qds.shape[1] != state.N:
+        raise ModelError(f"point_velocity: the state given lacks frame {frame} or {expressed_in}, or is not of qd's "
+                         f"{qds.shape[1]} samples; compute it with forward_kinematics(tree, q, frames=[...])")
+    st = state
     _, Pp = _point(st, frame, point)
-    v, w = np.zeros((3, qs.shape[1])), np.zeros((3, qs.shape[1]))
+    v, w = np.zeros((3, qds.shape[1])), np.zeros((3, qds.shape[1]))
     for j in tree.ancestors[frame]:
         zq = st.Rc[j][2] * qds[j - 1]
         if tree.sigma[j] == REVOLUTE:

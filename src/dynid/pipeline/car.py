@@ -118,9 +118,12 @@ def knee_rows(sys: GroupedSystem, traj: CarTrajectory, fs: float, decimate: tupl
 
 
 def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
+    """Every k-th sample; the joints copied samples-first (C order: the estimator's are column-major, and the
+    generated regressor reads a sample's joints together: one cache line each instead of one per joint)."""
     if k == 1:
         return traj
-    return CarTrajectory(traj.t[::k], traj.q[::k], traj.qd[::k], traj.qdd[::k], traj.wheel_wrenches[::k],
+    q, qd, qdd = (np.ascontiguousarray(a[::k]) for a in (traj.q, traj.qd, traj.qdd))
+    return CarTrajectory(traj.t[::k], q, qd, qdd, traj.wheel_wrenches[::k],
                          None if traj.spin_torques is None else traj.spin_torques[::k], traj.steering_wheel[::k])
 
 

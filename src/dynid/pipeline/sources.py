@@ -303,7 +303,11 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
     k = np.searchsorted(t, clock)
     if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):
         rows = slice(int(k[0]), int(k[-1]) + 1)
-        return {n: Channel(n, c.unit, c.values[rows], t[rows], None if c.lines is None else c.lines[rows])
+        # one time array (and one lines array) shared by the channels, as in the stream: `align` checks a
+        # time base once per array, not once per channel
+        tr, lines = t[rows], {}
+        return {n: Channel(n, c.unit, c.values[rows], tr,
+                           None if c.lines is None else lines.setdefault(id(c.lines), c.lines[rows]))
                 for n, c in s.channels.items()}
     return None
 

@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import sosfilt_zi, sosfiltfilt
+from scipy.signal import sosfilt, sosfilt_zi, sosfiltfilt
 
 try:
     from numba import njit
@@ -62,8 +62,37 @@ def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
                 ext[i, c] = v[c]
 
 
+def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
+    """x (n, C): every column filtered once backwards in time (last sample first), each from the steady state of
+    its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order transpose of a
+    column-major (n, C): one layout whatever C, one compile). The channels are the inner
+    loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct form II transposed)."""
+    S = sos.shape[0]
+    n, C = x.shape
+    z0 = np.empty((S, C))
+    z1 = np.empty((S, C))
+    v = np.empty(C)
+    for s in range(S):
+        for c in range(C):
+            z0[s, c] = zi[s, 0] * x[n - 1, c]
+            z1[s, c] = zi[s, 1] * x[n - 1, c]
+    for i in range(n - 1, -1, -1):
+        for c in range(C):
+            v[c] = x[i, c]
+        for s in range(S):
+            b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
+            for c in range(C):
+                y = b0 * v[c] + z0[s, c]
+                z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
+                z1[s, c] = b2 * v[c] - a2 * y
+                v[c] = y
+        for c in range(C):
+            out[c, i] = v[c]
+
+
 if HAVE_NUMBA:
     _filtfilt_columns = njit(cache=True, nogil=True)(_filtfilt_columns)
+    _reverse_columns = njit(cache=True, nogil=True)(_reverse_columns)
 
 
 def steady_state(sos: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -89,3 +118,17 @@ def sos_filtfilt(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int, pa
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
     _filtfilt_columns(sos, steady_state(sos), cols, pad, ext)
     return np.moveaxis(ext[pad : pad + cols.shape[0]].reshape(moved.shape), 0, axis)
+
+
+def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Every column of x (n, C) float64 through `sos` once, backwards in time, from its last sample's steady state:
+    `scipy.signal.sosfilt(sos, x[::-1], axis=0, zi=steady_state(sos)[..., None] * x[-1])[0][::-1]`, returned
+    column-major (each channel's samples contiguous)."""
+    out = np.empty(x.shape, order="F")
+    if not HAVE_NUMBA:
+        for c in range(x.shape[1]):
+            out[:, c] = sosfilt(sos, x[::-1, c], zi=steady_state(sos) * x[-1, c])[0][::-1]
+        return out
+    sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
+    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out.T)
+    return out

@@ -32,7 +32,7 @@ from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
-from ..signals.filters import undo_lowpass_phase
+from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry
 from .sensors import (
@@ -219,8 +219,24 @@ def compensated_channels(
     dynamics = _declared(conditioning or CarConditioning(), suite or paper_suite(), dynamics)
     lags = lags or {}
     none = ChannelDynamics()
-    return {k: compensate(np.asarray(v, dtype=float), dynamics.get(k, none), fs, lags.get(k, 0.0))
-            if k in dynamics or lags.get(k) else np.asarray(v, dtype=float) for k, v in channels.items()}
+    out = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    # `compensate` of each channel, the band limits' phase undone for all channels of one filter in one pass
+    banded: dict[tuple, list[str]] = {}
+    for k, x in out.items():
+        if k not in dynamics and not lags.get(k):
+            continue
+        d = dynamics.get(k, none)
+        if d.bandwidth is not None and d.bandwidth < 0.45 * fs and x.ndim == 1 and len(x):
+            banded.setdefault((d.bandwidth, d.order, len(x)), []).append(k)
+        else:
+            out[k] = compensate(x, d, fs, lags.get(k, 0.0))
+    for (band, order, _), names in banded.items():
+        undone = undo_lowpass_phase_columns(np.stack([out[k] for k in names], axis=1), fs, band, order)
+        for i, k in enumerate(names):
+            shift = dynamics[k].lag(fs) + lags.get(k, 0.0)
+            shift -= dynamics[k].band_delay()
+            out[k] = advance(undone[:, i], shift, fs) if shift else undone[:, i]
+    return out
 
 
 def estimate_joints(

@@ -129,18 +129,19 @@ def eval_table(XB, YB, NX, NY, C, i, u, h, out):
 
 
 def _table_joints(XB, YB, NX, NY, C, steering, u_cols, out_cols, q, qd, qdd, h, hd, hdd):  # pragma: no cover
-    """For each table t: the joint in column out_cols[t] of q, qd, qdd (N, 42) from the damper column
-    u_cols[t] and the steering wheel (h, hd, hdd) by the chain rule; steering[t] = 0 for a table of u
+    """For each table t: the joint in row out_cols[t] of q, qd, qdd (42, N) (joints first: the transposes of
+    column-major (N, 42) arrays, so that a one-sample call and a long record share one layout and one compile) from
+    the damper row u_cols[t] and the steering wheel (h, hd, hdd) by the chain rule; steering[t] = 0 for a table of u
     alone (h neither checked nor used). Returns -1, or t * N + n for the first sample n off table t's grid.
     Measured signals are smooth: each sample's cell is first looked for where the last one was."""
-    N = q.shape[0]
+    N = q.shape[1]
     for t in range(u_cols.size):
         cu, cj = u_cols[t], out_cols[t]
         nx, ny = NX[t], NY[t]
         xb, yb = XB[t], YB[t]
         a = b = 0
         for n in range(N):
-            u, ud, udd = q[n, cu], qd[n, cu], qdd[n, cu]
+            u, ud, udd = q[cu, n], qd[cu, n], qdd[cu, n]
             if not (xb[0] - 1e-12 <= u <= xb[nx] + 1e-12):  # also a NaN
                 return t * N + n
             if not (xb[a] <= u < xb[a + 1]):
@@ -151,9 +152,9 @@ def _table_joints(XB, YB, NX, NY, C, steering, u_cols, out_cols, q, qd, qdd, h, 
                 c0, c1, c2, c3 = C[t, a, 0, 0, 0], C[t, a, 0, 1, 0], C[t, a, 0, 2, 0], C[t, a, 0, 3, 0]
                 fu = (c1 + s * (2.0 * c2 + 3.0 * s * c3)) / wx
                 fuu = (2.0 * c2 + 6.0 * s * c3) / (wx * wx)
-                q[n, cj] = c0 + s * (c1 + s * (c2 + s * c3))
-                qd[n, cj] = fu * ud
-                qdd[n, cj] = fuu * ud * ud + fu * udd
+                q[cj, n] = c0 + s * (c1 + s * (c2 + s * c3))
+                qd[cj, n] = fu * ud
+                qdd[cj, n] = fuu * ud * ud + fu * udd
                 continue
             hn = h[n]
             if not (yb[0] - 1e-12 <= hn <= yb[ny] + 1e-12):
@@ -176,9 +177,9 @@ def _table_joints(XB, YB, NX, NY, C, steering, u_cols, out_cols, q, qd, qdd, h, 
                 fh = fh * s + dp
                 fhh = fhh * s + ddp
             fu, fh, fuu, fuh, fhh = fu / wx, fh / wy, fuu / (wx * wx), fuh / (wx * wy), fhh / (wy * wy)
-            q[n, cj] = f
-            qd[n, cj] = fu * ud + fh * hd[n]
-            qdd[n, cj] = fuu * ud * ud + 2.0 * fuh * ud * hd[n] + fhh * hd[n] * hd[n] + fu * udd + fh * hdd[n]
+            q[cj, n] = f
+            qd[cj, n] = fu * ud + fh * hd[n]
+            qdd[cj, n] = fuu * ud * ud + 2.0 * fuh * ud * hd[n] + fhh * hd[n] * hd[n] + fu * udd + fh * hdd[n]
     return -1
 
 

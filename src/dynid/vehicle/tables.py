@@ -172,9 +172,11 @@ class KinematicTables:
         table names whose joints are already in q, qd, qdd (e.g. ("steering", "camber") from a
         camera) and are kept. copy=False fills float (N, 42) arrays in place (the returned ones are used).
         """
-        # C order always, so the compiled kernel sees one layout and compiles once (an F-order caller's arrays are
-        # copied even with copy=False: the returned arrays are the ones filled)
-        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None, order="C") for a in (q, qd, qdd))
+        # F order always, so that the compiled kernel (given the C-order transposes) sees one layout and compiles
+        # once, and reads and writes each joint's samples contiguously; the car estimator builds its joints
+        # column-major, so copy=False fills its arrays in place (a C-order caller's arrays are copied even with
+        # copy=False: the returned ones are filled)
+        q, qd, qdd = (np.array(a, dtype=float, ndmin=2, copy=True if copy else None, order="F") for a in (q, qd, qdd))
         N = q.shape[0]
         if isinstance(steering_wheel, tuple):
             h, hd, hdd = (np.broadcast_to(np.asarray(a, dtype=float), (N,)) for a in steering_wheel)
@@ -187,7 +189,7 @@ class KinematicTables:
         todo = [(k, name) for k in range(4) for name in TABLE_NAMES if name not in measured]
         if table_joints is not None and todo:
             packed = self._packed(tuple(todo))
-            bad = table_joints(*packed, q, qd, qdd, *(np.array(a, dtype=float) for a in (h, hd, hdd)))  # writable
+            bad = table_joints(*packed, q.T, qd.T, qdd.T, *(np.array(a, dtype=float) for a in (h, hd, hdd)))  # writable
             if bad < 0:
                 return q, qd, qdd
         # without numba, or off a table's grid (the scipy path names the table, input and sample)

@@ -122,12 +122,13 @@ def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, s
     F = np.asarray(traj.wheel_wrenches)[::step, :, :3]
     n = len(q)
     tires = [tire(k) for k in range(4)]
-    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=tires)
+    # one pass for the tire frames and the wheel centres: each frame's pose is the same whichever others are asked
+    st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[*tires, *WHEELS])
     out = []
     for k, (w, f) in enumerate(zip(WHEELS, tires, strict=True)):
         R = np.stack([np.asarray(np.broadcast_to(c, (3, n))) for c in st.Rc[f]], axis=1)  # (3, 3, n) columns
         R = np.moveaxis(R, -1, 0)  # (n, 3, 3): 0R_tire
-        v, _ = point_velocity(model.tree, q, qd, w)  # wheel centre, frame 0 (the spin leaves it unmoved)
+        v, _ = point_velocity(model.tree, q, qd, w, state=st)  # wheel centre, frame 0 (the spin leaves it unmoved)
         y_wheel = R[:, :, 1]
         x_w = np.cross(y_wheel, [0.0, 0.0, 1.0])  # the wheel plane's line on the road
         x_w /= np.linalg.norm(x_w, axis=1)[:, None]
