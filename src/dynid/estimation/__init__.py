@@ -17,6 +17,7 @@ from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
     POOR_FACTOR,
+    ValidationSums,
     not_excited,
     nrmse,
     poorly_identified,
@@ -48,6 +49,7 @@ __all__ = [
     "ResidualStats",
     "StreamingLS",
     "SystematicUncertainty",
+    "ValidationSums",
     "check_rank",
     "essential_parameters",
     "fit_note",

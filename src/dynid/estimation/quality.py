@@ -101,6 +101,55 @@ def residual_rms(
     return {name: float(np.sqrt(np.mean(res[idx] ** 2))) for name, idx in rows.items()}
 
 
+class ValidationSums:
+    """`relative_errors`, `nrmse` and each group's RMS of Y over rows added a block at a time (a validation test,
+    a chunk), without keeping them: per group the rows' count, the sums of squares of Y and of the residual
+    Y - W X, and Y's mean and sum of squared deviations from it (each block's own, pooled by Chan's update: no
+    sum of squares minus a squared sum, whose cancellation would lose a small spread beside a large mean, a
+    robot's gravity load). So a cross validation over many tests holds a few numbers per group, whatever their
+    number; the blocks combine in any order to round-off."""
+
+    def __init__(self) -> None:
+        self.sums: dict[str, list[float]] = {}  # group -> [n, sum Y^2, sum res^2, mean Y, sum (Y - mean)^2]
+
+    def add(self, W: ArrayLike, Y: ArrayLike, X: ArrayLike, groups: ArrayLike) -> None:
+        """The rows W (m, p), Y (m,), their groups (m,), against the estimate X (p,)."""
+        res, y, rows = _residuals(W, Y, X, groups, None)
+        for g, idx in rows.items():
+            yg, rg = y[idx], res[idx]
+            mean = float(yg.mean())
+            dev = yg - mean
+            self._pool(g, [float(yg.size), float(yg @ yg), float(rg @ rg), mean, float(dev @ dev)])
+
+    def _pool(self, g: str, b: list[float]) -> None:
+        a = self.sums.get(g)
+        if a is None:
+            self.sums[g] = b
+            return
+        n = a[0] + b[0]
+        delta = b[3] - a[3]
+        self.sums[g] = [n, a[1] + b[1], a[2] + b[2], a[3] + delta * b[0] / n,
+                        a[4] + b[4] + delta * delta * a[0] * b[0] / n]
+
+    def relative_errors(self) -> dict[str, float]:
+        """As `relative_errors` on every row added."""
+        out = {g: norm_ratio(np.sqrt(s[2]), np.sqrt(s[1])) for g, s in self.sums.items()}
+        out["overall"] = norm_ratio(np.sqrt(sum(s[2] for s in self.sums.values())),
+                                    np.sqrt(sum(s[1] for s in self.sums.values())))
+        return out
+
+    def nrmse(self) -> dict[str, float]:
+        """As `nrmse` on every row added."""
+        out = {g: norm_ratio(np.sqrt(s[2]), np.sqrt(s[4])) for g, s in self.sums.items()}
+        out["overall"] = norm_ratio(np.sqrt(sum(s[2] for s in self.sums.values())),
+                                    np.sqrt(sum(s[4] for s in self.sums.values())))
+        return out
+
+    def rms(self) -> dict[str, float]:
+        """Each group's RMS of Y."""
+        return {g: float(np.sqrt(s[1] / s[0])) for g, s in self.sums.items()}
+
+
 def _residuals(W, Y, X, groups, names) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """Y - W X, Y and the rows of each group, the arguments checked."""
     A = as_matrix(W, names)

@@ -11,7 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +24,7 @@ from ..estimation import (
     IdentificationError,
     IdentificationResult,
     StreamingLS,
+    ValidationSums,
     fit_note,
     group_noise,
     misfit_parameters,
@@ -58,6 +59,7 @@ from .reference import Match, match_reference, read_reference
 from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
 from .schedulers import LocalScheduler, Scheduler, scheduler_for
 from .sources import (
+    RobotTestPlan,
     plan_car_test,
     plan_robot_test,
     read_robot_window,
@@ -67,6 +69,11 @@ from .sources import (
 )
 
 Progress = Callable[[str], None]
+# validation tests whose rows a run keeps for the report's figures and validation.csv (the first, in the config's
+# order); the cross-validation errors are over every one, from sums (a robot's `estimation.ValidationSums`, a car's
+# streamed factors): memory does not grow with the number of validation tests (200 once took 1.2 GB)
+SHOWN_VALIDATION = 8
+VALIDATION_BATCH = 4  # validation tests whose rows are made at a time, after the estimate
 
 
 @dataclass
@@ -154,17 +161,25 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
 
 
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
-                  health: list[dict] | None = None) -> dict[str, GroupedSystem]:
-    """Each test's decimated rows: its files planned from their stamps, their data health checked (an error stops
-    here; the other findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
-    (`reduce.reduce_robot_chunk`), stacked back joint by joint."""
+                  health: list[dict] | None = None, tests: list[TestSpec] | None = None,
+                  plans: dict[str, RobotTestPlan] | None = None, checked: bool = False) -> dict[str, GroupedSystem]:
+    """Each test's decimated rows (tests: default the config's every test): its files planned from their stamps,
+    their data health checked (an error stops here; the other findings appended to `health`), cut into chunks read
+    and reduced on the scheduler's workers (`reduce.reduce_robot_chunk`), stacked back joint by joint. plans: tests
+    already planned and checked (by name); checked: the other tests' health was checked before (planned again
+    quietly, not checked)."""
     jobs = []
-    for spec in cfg.tests:
-        say(f"reading and conditioning {spec.name!r}")
-        plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
-        found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
-        if health is not None:
-            health += found
+    tests = cfg.tests if tests is None else tests
+    for spec in tests:
+        plan = (plans or {}).get(spec.name)
+        if plan is None and checked:
+            plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec))
+        elif plan is None:
+            say(f"reading and conditioning {spec.name!r}")
+            plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
+            found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
+            if health is not None:
+                health += found
         transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels[plan.effort]))),
                     len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
@@ -179,7 +194,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
             jobs.append(RobotJob(cfg, window, (s, e), N))
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, stack_rows, say)
-    return {spec.name: in_joint_order([parts[spec.name]]) for spec in cfg.tests}
+    return {spec.name: in_joint_order([parts[spec.name]]) for spec in tests}
 
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
@@ -283,7 +298,6 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             f"({len(plan.segments)} segment(s))")
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
-    health = check_car_tests(cfg, plans, vehicle, say)  # the data's health: an error stops the run here
 
     # 2. map every segment to its factors (the offsets' effect on a few of each identification test's), fold per
     #    role. The offsets: the config's, or by default the vehicle's sensor suite's
@@ -293,8 +307,13 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         f"up to {settings.offset_segments} segment(s) per identification test" if moved else
         "no sensor zero offsets propagated: σ from the noise alone")
 
-    def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True) -> list[CarJob]:
+    def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
+             ) -> list[CarJob]:
+        """The map's jobs; health: each segment gathers the data health of the part of its test it answers for
+        (from its first sample to the next segment's first; the last to the test's end)."""
         out = []
+        # the rows kept for the report: each identification test's first segment, and the first validation tests'
+        shown = [p.test for p in plans if p.role == "validate"][:SHOWN_VALIDATION]
         for plan in plans:
             if instruments is not None and plan.role != "identify":
                 continue
@@ -305,10 +324,13 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             errors = picked(len(plan.segments)) if main and with_offsets else {}
             timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
+                last = i + 1 == len(plan.segments)
+                own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0 and instruments is None, errors=i in errors,
-                                  delays=i in timed))
+                                  instruments, keep_rows=i == 0 and instruments is None
+                                  and (plan.role == "identify" or plan.test in shown), errors=i in errors,
+                                  delays=i in timed, health=own if health else None))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
@@ -318,7 +340,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         return {int(i): n_segments / len(pick) for i in pick}
 
     say(f"joints and equations on {scheduler}")
-    parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: j.role, combine, say)
+    parts = scheduler.map_reduce(reduce_car_segment, jobs(health=True), lambda j: j.role, combine, say)
+    # the data's health, gathered by the segments: an error stops the run here, before the estimate
+    health = check_car_tests(cfg, plans, vehicle, say, {t: h for p in parts.values() for t, h in p.health.items()})
     ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
     errors = parts["identify"].errors
     validate = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
@@ -372,8 +396,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
         offsets=offsets.to_dict(), health=health)
-    run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
-    run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
+    run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate" and t.name in rows}
+    run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests if t.name in rows}, cfg, vehicle
+    run.notes += shown_note(cfg, list(run.validate))
     run.delays = delays
     run.errors["direct"] = ident.relative_errors(result)
     run.residual_rms = ident.group_rms(result)
@@ -493,27 +518,38 @@ def offsets_note(result, offsets) -> str:
             + (f"The offsets that move most estimates (parameters): {top}.\n" if top else "\n") + delay_text)
 
 
-def _validate(cfg: IdentifyConfig, run: IdentificationRun, systems: dict[str, GroupedSystem]) -> IdentificationRun:
+def _validate(cfg: IdentifyConfig, run: IdentificationRun, cross_rows: Iterable[tuple[str, GroupedSystem]]
+              ) -> IdentificationRun:
+    """Direct validation on the identification rows; cross validation on the validation tests' rows, a test at a
+    time (each reduced to sums and dropped, but the first `SHOWN_VALIDATION`, kept for the report)."""
     result = run.result
     ident = run.identify
     run.errors["direct"] = relative_errors(ident.W, ident.Y, result.values, ident.groups)
     run.residual_rms = residual_rms(ident.W, ident.Y, result.values, ident.groups)
-    cross = [t for t in cfg.tests if t.role == "validate"]
-    if cross:
-        val = GroupedSystem.stack([systems[t.name] for t in cross])
-        run.validate = {t.name: systems[t.name] for t in cross}
-        run.errors["cross"] = relative_errors(val.W, val.Y, result.values, val.groups)
-        moved = {g: float(np.sqrt(np.mean(val.Y[val.groups == g] ** 2))) for g in dict.fromkeys(val.groups.tolist())}
-        run.not_excited["cross"] = not_excited(moved, run.residual_rms)  # the car's rule: noise-over-noise marked
+    sums = ValidationSums()
+    for name, s in cross_rows:
+        sums.add(s.W, s.Y, result.values, s.groups)
+        if len(run.validate) < SHOWN_VALIDATION:
+            run.validate[name] = run.systems[name] = s
+    if sums.sums:
+        run.errors["cross"] = sums.relative_errors()
+        run.not_excited["cross"] = not_excited(sums.rms(), run.residual_rms)  # the car's rule: noise-over-noise marked
     # beside the paper's relative error, the NRMSE robot users compare models by: the static gravity load in
     # ||Y|| makes the relative error look small whatever the dynamics
     run.errors["direct NRMSE"] = nrmse(ident.W, ident.Y, result.values, ident.groups)
-    if cross:
-        run.errors["cross NRMSE"] = nrmse(val.W, val.Y, result.values, val.groups)
+    if sums.sums:
+        run.errors["cross NRMSE"] = sums.nrmse()
     result.validation.update(run.errors)
     if any(run.not_excited.values()):
         result.validation["not_excited"] = run.not_excited
     return run
+
+
+def shown_note(cfg: IdentifyConfig, shown: Sequence[str]) -> str:
+    """Which validation tests the figures and validation.csv show, when not all ('' when all)."""
+    n = sum(t.role == "validate" for t in cfg.tests)
+    return "" if n <= len(shown) else (f"Cross validation over all {n} validation tests; the figures and "
+                                       f"validation.csv show the first {len(shown)} ({', '.join(shown)}).\n")
 
 
 def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | None = None,
@@ -547,8 +583,18 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
                           "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
                           "known ([drive] identify_gains = false)")
     health: list[dict] = []
-    systems = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
-    ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+    plans = {}
+    for spec in cfg.tests:  # every test planned and its data's health checked (config order) before any row is made
+        say(f"reading and conditioning {spec.name!r}")
+        plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
+        health += check_robot_test(cfg, plan, say)
+        if spec.role == "identify":
+            plans[spec.name] = plan
+    scheduler = scheduler or LocalScheduler()
+    identifying = [t for t in cfg.tests if t.role == "identify"]
+    systems = robot_systems(cfg, model, base, scheduler, say, health, identifying, plans)
+    del plans
+    ident = GroupedSystem.stack([systems[t.name] for t in identifying])
     a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
     known = dict(cfg.known)
     if gains:  # the data sheet's gains are their a priori values; those not identified are known
@@ -578,17 +624,31 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     sections = None
-    if gains:  # the rows in joint torques with the estimated gains, for the validation and its plots
-        systems = {k: torques_with_gains(s, len(base.names), result.values[len(base.names):])
-                   for k, s in systems.items()}
-        ident = GroupedSystem.stack([systems[t.name] for t in cfg.tests if t.role == "identify"])
+
+    def torques(s: GroupedSystem) -> GroupedSystem:  # with identified gains: joint-torque rows, for the validation
+        return torques_with_gains(s, len(base.names), result.values[len(base.names):]) if gains else s
+
+    if gains:
+        systems = {k: torques(s) for k, s in systems.items()}
+        ident = GroupedSystem.stack([systems[t.name] for t in identifying])
         sections = [(f"{result.method} estimates of the base parameters", list(base.names)),
                     ("drive gains (N·m/A, motor side)", gains)]
+
+    def cross_rows():
+        """The validation tests' rows, a batch of tests at a time (their health checked above)."""
+        cross = [t for t in cfg.tests if t.role == "validate"]
+        for k in range(0, len(cross), VALIDATION_BATCH):
+            batch = robot_systems(cfg, model, base, scheduler, say, tests=cross[k:k + VALIDATION_BATCH], checked=True)
+            for t in cross[k:k + VALIDATION_BATCH]:
+                yield t.name, torques(batch.pop(t.name))
+
     run = _validate(cfg, IdentificationRun(model, base, result, ident, systems=systems, config=cfg, health=health,
-                                           sections=sections), systems)
+                                           sections=sections), cross_rows())
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
+    shown = shown_note(cfg, list(run.validate))
+    run.notes += f"\n{shown}" if shown else ""
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])
         run.reference, unmatched = match_reference(rows, base, cfg.reference.get("names", {}),
