@@ -266,16 +266,19 @@ class ChannelScan:
             return
         step = np.diff(y)
         size = np.abs(step)
-        # a pair of steps that turn back, each the smaller's size; a spike is such a pair larger than SPIKE times
-        # the steps' 99th percentile. The percentile (a partial sort) only when the largest pair could be one: when
-        # more than 1 % of the steps reach a fifth of it, the percentile does too (what np.quantile interpolates
-        # between is then at or above it)
-        pair = np.where(np.signbit(step[:-1]) != np.signbit(step[1:]), np.minimum(size[:-1], size[1:]), 0.0)
-        largest = float(pair.max())
-        if largest <= 2 * self.resolution:
+        # a spike is a pair of steps that turn back, the smaller larger than SPIKE times the steps' 99th percentile.
+        # The percentile (a partial sort) only when a pair could be one: when 1 % of the steps or more reach a
+        # SPIKE-th of a bound on the pairs, so does the percentile (what np.quantile interpolates between is then at
+        # or above it), and no pair exceeds SPIKE times it. The bounds: the largest step, then the largest pair
+        top = size.size - math.floor(0.99 * (size.size - 1))  # steps at or above the percentile's lower neighbour
+
+        def below(bound: float) -> bool:
+            return bound <= 2 * self.resolution or np.count_nonzero(size >= bound / SPIKE * (1 + 1e-9)) >= top
+
+        if below(float(size.max())):
             return
-        p = 0.99 * (size.size - 1)
-        if np.count_nonzero(size >= largest / SPIKE * (1 + 1e-9)) >= size.size - math.floor(p):
+        pair = np.where(np.signbit(step[:-1]) != np.signbit(step[1:]), np.minimum(size[:-1], size[1:]), 0.0)
+        if below(float(pair.max())):
             return
         big = SPIKE * float(np.quantile(size, 0.99))
         hit = np.flatnonzero((pair > big) & (pair > 2 * self.resolution))

@@ -6,7 +6,8 @@ needs the values, which the identification reads anyway: each segment of its fir
 file's samples of each channel, and sums over the SI channels on the clock), and the parts combine
 like the least squares' factors (`CarHealth.merged`, in the map's fold); `car_findings` judges the
 whole test before the estimate is solved. Reading the file a second time to scan it cost 45 % of an
-identification per hour of data; scanning what a segment holds costs a few % (benchmarks/bench_health.py).
+identification per hour of data; scanning what a segment holds costs 5 % of its CPU time there, 1.5 % on
+the demo (benchmarks/bench_health.py).
 `car_health(plan, vehicle)` reads a test's file itself, a window at a time, through the same functions.
 What is judged:
 
