@@ -639,6 +639,14 @@ def test_fuzz_csv_reader(tmp_path, raw):
         read_recording(path, fs=100.0)
 
 
+def _two_gb() -> None:
+    """The child's address space bounded as issue 30's tests ask (`ulimit -v 2000000`, KiB): a reader that held the
+    stream would fail with MemoryError, not grow to 20 GB."""
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (2_000_000 * 1024, 2_000_000 * 1024))
+
+
 @pytest.mark.skipif(os.name != "posix", reason="named pipes and /dev/zero")
 @pytest.mark.parametrize("kind", ["fifo", "dev_zero", "folder"])
 @pytest.mark.slow
@@ -656,7 +664,7 @@ def test_a_data_file_that_is_no_file_is_refused_before_it_is_read(tmp_path, caps
     cfg = tmp_path / "car.toml"
     cfg.write_text('[model]\nvehicle = "peugeot406"\n\n[[tests]]\nname = "sine"\nfile = "sine.csv"\n')
     proc = subprocess.run([sys.executable, "-m", "dynid.cli.main", "identify", str(cfg), "--out",
-                           str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+                           str(tmp_path / "out")], capture_output=True, text=True, timeout=120, preexec_fn=_two_gb)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     what = {"fifo": "a named pipe", "dev_zero": "a device", "folder": "a folder"}[kind]
     assert proc.returncode == 2 and len(lines) == 1 and str(data) in lines[0] and what in lines[0], proc.stderr

@@ -349,3 +349,26 @@ def test_a_robot_torque_clipped_on_40_percent_stops_the_run(tmp_path, capsys, no
     t0, t1 = (float(v) for v in span.split(".."))
     assert t0 <= at[0] and t1 >= at[-1], (span, at[0], at[-1])
     assert "40" in errors[0]  # the share, in %
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet", "mat", "mf4"])
+def test_stamps_going_back_stop_the_plan_in_every_format(tmp_path, fmt):
+    """A logger file whose stamps go back at one sample (the tester's MDF4 was resampled at 1250 Hz instead of
+    625 Hz): refused by the plan, before any segment is read, naming the file, the sample and the fix, in each
+    format the car reads."""
+    from dynid.io import DataError
+
+    t = np.arange(1250) / 625.0
+    t[700] = t[698]  # back by two periods
+    units = VEHICLE.suite.units
+    wanted = required_channels(spin=False, suite=VEHICLE.suite)
+    rec = Recording.from_channels([Channel(q, units[q], np.sin(t + k), t) for k, q in enumerate(wanted)])
+    path = write_recording(rec, tmp_path / f"log.{fmt}")
+    config = tmp_path / "identify.toml"
+    config.write_text(f'[model]\nvehicle = "peugeot406"\n\n[[tests]]\nname = "t"\nfile = "{path.name}"\n')
+    cfg = load_config(config)
+    with pytest.raises(DataError) as exc:
+        plan_car_test(cfg, cfg.tests[0], wanted, units, None, lambda fs: 0)
+    text = str(exc.value)
+    assert path.name in text and "time goes back" in text and "sample 700" in text, text
+    assert "Sort the rows by time" in text, text

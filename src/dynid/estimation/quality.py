@@ -100,7 +100,6 @@ def residual_rms(
     res, _, rows = _residuals(W, Y, X, groups, names)
     return {name: float(np.sqrt(np.mean(res[idx] ** 2))) for name, idx in rows.items()}
 
-
 def _residuals(W, Y, X, groups, names) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """Y - W X, Y and the rows of each group, the arguments checked."""
     A = as_matrix(W, names)

@@ -104,8 +104,13 @@ def holds(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """(starts, lengths) of the runs of identical consecutive values of x."""
     if x.size == 0:
         return np.empty(0, np.intp), np.empty(0, np.intp)
-    starts = np.flatnonzero(np.concatenate(([True], x[1:] != x[:-1])))
-    return starts, np.diff(np.append(starts, x.size))
+    new = np.empty(x.size, dtype=bool)
+    new[0] = True
+    np.not_equal(x[1:], x[:-1], out=new[1:])
+    starts = np.flatnonzero(new)
+    if starts.size == x.size:  # no value held (a noisy or fast channel): the common case, without the arithmetic
+        return starts, np.ones(x.size, dtype=np.intp)
+    return starts, np.diff(starts, append=x.size)
 
 
 def noise_deviation(x: NDArray[np.float64], resolution: float = 0.0) -> float:
@@ -130,6 +135,12 @@ class _Spans:
         self.spans.append((t0, t1))
         self.samples += n
         self.values.append(value)
+
+    def copy(self) -> _Spans:
+        return _Spans(list(self.spans), self.samples, list(self.values))
+
+    def merged(self, other: _Spans) -> _Spans:
+        return _Spans(self.spans + other.spans, self.samples + other.samples, self.values + other.values)
 
 
 class ChannelScan:
@@ -161,25 +172,51 @@ class ChannelScan:
         """One block of the channel: its time stamps (s) and values (the channel's unit), (n,) each."""
         t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
         keep = np.isfinite(x)  # non-finite values are the time-base checks' business
-        t, x = t[keep], x[keep]
+        if not keep.all():
+            t, x = t[keep], x[keep]
         if x.size == 0:
             return
-        if self.first_value is None:
-            self.first_value, self.t_first = float(x[0]), float(t[0])
-        self.t_last = float(t[-1])
-        self.n += x.size
-        self.constant = self.constant and bool(np.all(x == self.first_value))
-        if self.constant or x.size < 3:
-            return
-        self._limits(t, x)
         starts, lengths = holds(x)
-        self._plateaus(t, x, starts, lengths)
-        self._spikes(t, x, starts)
+        # one value over the block: nothing but the range to judge in it (blocks may come in any order: the channel
+        # is constant when every block is, at one value)
+        still = starts.size == 1
+        self.constant = self.constant and still and (self.first_value is None or float(x[0]) == self.first_value)
+        if self.first_value is None or t[0] < self.t_first:
+            self.first_value, self.t_first = float(x[0]), float(t[0])
+        self.t_last = max(float(t[-1]), self.t_last) if self.n else float(t[-1])
+        self.n += x.size
+        self._limits(t, x)
+        if still or x.size < 3:
+            return
+        y = x if starts.size == x.size else x[starts]  # the holds' values
+        self._plateaus(t, x, y, starts, lengths)
+        self._spikes(t, x, y, starts)
+
+    def merge(self, other: ChannelScan) -> ChannelScan:
+        """A new scan of both scans' blocks (blocks of the same channel that do not overlap in time; in either
+        order): what one scan fed with every block in time order finds."""
+        out = ChannelScan(self.name, self.unit, self.limits, self.resolution, self.still, self.min_run,
+                          self.min_samples)
+        if not (self.n and other.n):
+            src = self if self.n else other
+            out.__dict__.update({**src.__dict__, "out": src.out.copy(), "at_limit": src.at_limit.copy(),
+                                 "plateau": src.plateau.copy(), "spikes": src.spikes.copy(), "wild": src.wild.copy()})
+            return out
+        a, b = (self, other) if self.t_first <= other.t_first else (other, self)
+        out.n = a.n + b.n
+        out.first_value, out.t_first, out.t_last = a.first_value, a.t_first, max(a.t_last, b.t_last)
+        out.constant = a.constant and b.constant and a.first_value == b.first_value
+        for kind in ("out", "at_limit", "plateau", "spikes", "wild"):
+            setattr(out, kind, getattr(a, kind).merged(getattr(b, kind)))
+        out.span = (min(a.span[0], b.span[0]), max(a.span[1], b.span[1]))
+        return out
 
     def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         if self.limits is None:
             return
         lo, hi = self.limits
+        if lo < float(x.min()) and float(x.max()) < hi:  # the usual block: nowhere near the range
+            return
         s, e = _runs((x > hi) | (x < lo))
         for a, b in zip(s, e, strict=True):
             self.out.add(float(t[a]), float(t[b - 1]), int(b - a), float(x[a:b][np.argmax(np.abs(x[a:b]))]))
@@ -189,19 +226,21 @@ class ChannelScan:
                 if b - a >= self.min_samples:
                     self.at_limit.add(float(t[a]), float(t[b - 1]), int(b - a), limit)
 
-    def _plateaus(self, t, x, starts, lengths) -> None:
-        y = x[starts]
+    def _plateaus(self, t, x, y, starts, lengths) -> None:
         top, bottom = float(y.max()), float(y.min())
         ranged = set(self.limits or ())  # values at the declared range are counted there
         # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free)
         many = {v for v in {top, bottom} - ranged
                 if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
         clipped = many if many and np.unique(y).size >= LEVELS else set()
-        counts = np.cumsum(np.bincount(lengths))  # the median hold, from the lengths' histogram (no sort)
-        hold = max(1, int(np.searchsorted(counts, (lengths.size + 1) // 2)))
+        if lengths.size == x.size:  # no value held: every hold one sample
+            hold = 1
+        else:
+            counts = np.cumsum(np.bincount(lengths))  # the median hold, from the lengths' histogram (no sort)
+            hold = max(1, int(np.searchsorted(counts, (lengths.size + 1) // 2)))
         longest = max(self.min_run, 8 * hold)
         long = np.flatnonzero(lengths >= longest)  # seen from the shape
-        long = long[np.isin(y[long], [top, bottom])]
+        long = long[(y[long] == top) | (y[long] == bottom)]
         if long.size:
             gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
             jump = KINK * noise_deviation(x, self.resolution) + self.resolution
@@ -222,15 +261,27 @@ class ChannelScan:
             for run in np.split(at, np.flatnonzero(np.diff(at) > self.min_run) + 1):
                 self.plateau.add(float(t[run[0]]), float(t[run[-1]]), run.size, v)
 
-    def _spikes(self, t, x, starts) -> None:
-        y = x[starts]
+    def _spikes(self, t, x, y, starts) -> None:
         if y.size < 4:
             return
         step = np.diff(y)
-        big = SPIKE * float(np.quantile(np.abs(step), 0.99))
-        up, down = step[:-1], step[1:]
-        hit = np.flatnonzero((np.sign(up) == -np.sign(down)) & (np.minimum(np.abs(up), np.abs(down)) > big)
-                             & (np.minimum(np.abs(up), np.abs(down)) > 2 * self.resolution))
+        size = np.abs(step)
+        # a spike is a pair of steps that turn back, the smaller larger than SPIKE times the steps' 99th percentile.
+        # The percentile (a partial sort) only when a pair could be one: when 1 % of the steps or more reach a
+        # SPIKE-th of a bound on the pairs, so does the percentile (what np.quantile interpolates between is then at
+        # or above it), and no pair exceeds SPIKE times it. The bounds: the largest step, then the largest pair
+        top = size.size - math.floor(0.99 * (size.size - 1))  # steps at or above the percentile's lower neighbour
+
+        def below(bound: float) -> bool:
+            return bound <= 2 * self.resolution or np.count_nonzero(size >= bound / SPIKE * (1 + 1e-9)) >= top
+
+        if below(float(size.max())):
+            return
+        pair = np.where(np.signbit(step[:-1]) != np.signbit(step[1:]), np.minimum(size[:-1], size[1:]), 0.0)
+        if below(float(pair.max())):
+            return
+        big = SPIKE * float(np.quantile(size, 0.99))
+        hit = np.flatnonzero((pair > big) & (pair > 2 * self.resolution))
         ends = np.append(starts[1:], x.size)
         if hit.size:
             lo, hi = (float(v) for v in np.quantile(y, [0.001, 0.999]))

@@ -1,8 +1,15 @@
-"""A car test's data health, checked before the identification: its channels one by one, then the wiring.
+"""A car test's data health, gathered by the identification's segments: its channels one by one, then the wiring.
 
-`car_health(plan, vehicle)` reads the planned span of the test's file a window at a time (the
-blocks it decodes stay in the reader's cache, so that the identification's first segments read
-them again for free) and judges:
+The stamps are checked by the plan (`sources.plan_car_test`), before any segment is read. The rest
+needs the values, which the identification reads anyway: each segment of its first map
+(`reduce.reduce_car_segment`) scans the part of the test it answers for (`segment_health`: the
+file's samples of each channel, and sums over the SI channels on the clock), and the parts combine
+like the least squares' factors (`CarHealth.merged`, in the map's fold); `car_findings` judges the
+whole test before the estimate is solved. Reading the file a second time to scan it cost 45 % of an
+identification per hour of data; scanning what a segment holds costs 5 % of its CPU time there, 1.5 % on
+the demo (benchmarks/bench_health.py).
+`car_health(plan, vehicle)` reads a test's file itself, a window at a time, through the same functions.
+What is judged:
 
 - each channel (`io.health.ChannelScan`): values out of the sensor's declared range, runs at that
   range, flat tops at its extremes entered at speed, spikes, a channel that never moves. The
@@ -26,25 +33,33 @@ them again for free) and judges:
 - the total of the loads against the a priori weight (a unit or a calibration factor), and the
   accelerometer's vertical axis against gravity (a sign or a unit).
 
+What needs the whole test combines exactly from its parts: a channel is constant when every part
+is, at one value; the wiring's least squares, the mean vertical acceleration and the speeds' ratio
+are sums. A channel's scan judges each part alone (its holds, noise level and step sizes: the
+robust statistics of `io.health`, not combined across parts, as they were not across the windows
+read before): a plateau or a spike straddling two parts is judged in each, and the parts are a
+minute long (`[conditioning] segment`), long against a plateau (0.1 s) or a spike.
+
 Findings are `io.health.Finding`s (channel, time span in the file's time base, severity, what to do).
 `check_car_tests` runs them over every test: an error stops the identification with one line
-(`ConfigError`, exit status 2); warnings and notes are reported through `progress` and returned.
+(`ConfigError`, exit status 2), before the estimate is solved; warnings and notes are reported through
+`progress` and returned.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import read_window, unit_factor
+from ..io import Channel, read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
 from .config import ConfigError, IdentifyConfig
-from .sources import CarTestPlan, RobotTestPlan
+from .sources import CarTestPlan, RobotTestPlan, SegmentWindow, read_segment, segment_window
 
 Progress = Callable[[str], None]
 WINDOW_S = 120.0  # s of the file read at a time
@@ -68,12 +83,13 @@ _STILL = {"steering_wheel": "fine if the driver did not steer in this test; othe
 class _Loads:
     """Sums for the least squares of the four wheel loads on [1, ax, ay] over a test, and the vertical axis."""
 
-    xtx: NDArray[np.float64]
-    xty: NDArray[np.float64]
+    xtx: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 3)))
+    xty: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 4)))
     n: int = 0
     up_sum: float = 0.0
     up_n: int = 0
     moves: dict = field(default_factory=dict)  # imu_ax, imu_ay -> [n, sum, sum of squares], SI
+    speeds: tuple[float, float, int] = (0.0, 0.0, 0)  # sums of v w, w w and the samples, w the wheels' rolling speed
 
     def move(self, q: str, x: NDArray) -> None:
         m = self.moves.setdefault(q, [0, 0.0, 0.0])
@@ -92,67 +108,110 @@ class _Loads:
         self.xty += X.T @ loads
         self.n += ax.size
 
+    def merged(self, other: _Loads) -> _Loads:
+        """Both sums (pure)."""
+        moves = {q: [a + b for a, b in zip(self.moves.get(q, (0, 0.0, 0.0)), other.moves.get(q, (0, 0.0, 0.0)),
+                                           strict=True)] for q in {**self.moves, **other.moves}}
+        return _Loads(self.xtx + other.xtx, self.xty + other.xty, self.n + other.n, self.up_sum + other.up_sum,
+                      self.up_n + other.up_n, moves,
+                      tuple(a + b for a, b in zip(self.speeds, other.speeds, strict=True)))
 
-def _on(t: NDArray, x: NDArray, t_ref: NDArray) -> NDArray:
-    """x (on t) at the times t_ref (itself when they are the same stamps)."""
-    return x if t is t_ref or (t.size == t_ref.size and np.array_equal(t, t_ref)) else np.interp(t_ref, t, x)
+
+@dataclass
+class CarHealth:
+    """What a car test's health is judged from, gathered from parts of the test: each channel's scan (its file
+    samples) and the wiring's sums (the loads against the accelerations, the vertical axis, the speeds; on the
+    test's clock, SI). Parts of the test that do not overlap combine in any order (`merged`); `car_findings` judges
+    the whole. Small (a few numbers per channel and what was found): a segment's map returns one."""
+
+    scans: dict[str, ChannelScan]  # quantity -> its channel's scan
+    sums: _Loads
+
+    def merged(self, other: CarHealth) -> CarHealth:
+        """Both parts (pure: neither changes)."""
+        return CarHealth({q: s.merge(other.scans[q]) for q, s in self.scans.items()}, self.sums.merged(other.sums))
 
 
-def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
-    """The findings of one planned car test (module doc), errors first. vehicle: `vehicle.description.Vehicle`."""
+def car_scans(window, vehicle) -> dict[str, ChannelScan]:
+    """quantity -> an empty `ChannelScan` of its file channel: the sensor's declared range and resolution (the
+    vehicle's suite) in the file's unit, what a still channel means, the shortest plateau (0.1 s). window: a
+    `CarTestPlan` or a `SegmentWindow` (their channels, units and factors)."""
     suite = vehicle.suite
-    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
-    units = plan.index.units
-    scans: dict[str, ChannelScan] = {}
-    for q, name in plan.quantity_names.items():
+    units = window.index.units
+    scans = {}
+    for q, name in window.quantity_names.items():
         c = suite[q] if q in suite.names else None
         # the suite's figures are in its unit, the values in the file's: x_file = x_suite * f_suite / f_file
-        k = unit_factor(c.unit)[0] / plan.factors[q] if c is not None else 1.0
+        k = unit_factor(c.unit)[0] / window.factors[q] if c is not None else 1.0
         limits = None if c is None or c.range is None else tuple(sorted((c.range[0] * k, c.range[1] * k)))
         scans[q] = ChannelScan(name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0,
                                still=next((w for key, w in _STILL.items() if q.startswith(key)), None),
-                               min_run=max(5, round(0.1 * plan.fs)))
+                               min_run=max(5, round(0.1 * window.fs)))
+    return scans
+
+
+def segment_health(w: SegmentWindow, vehicle, own: tuple[float, float, bool], samples: Mapping[str, Channel],
+                   channels: Mapping[str, NDArray[np.float64]]) -> CarHealth:
+    """The health gathered on one segment, from what its map read anyway: `samples`, the file's samples of each
+    channel around the window (file unit, own stamps: `sources.read_segment`'s file_samples), and `channels`, the
+    quantities on the window's clock (SI). own: (t_start, t_end, end included) s, the part of the test this segment
+    answers for (segments overlap by the filter's borders: each sample is scanned by one segment)."""
+    t0, t1, closed = own
+    scans = car_scans(w, vehicle)
+    for q, name in w.quantity_names.items():
+        ch = samples[name]
+        a, b = np.searchsorted(ch.time, [t0, t1], side="left")
+        if closed:
+            b = np.searchsorted(ch.time, t1, side="right")
+        scans[q].add(ch.time[a:b], ch.values[a:b])
+    a, b = np.searchsorted(w.clock, [t0, t1], side="left")
+    if closed:
+        b = w.clock.size
+    got = {q: x[a:b] for q, x in channels.items()}
+    sums = _Loads()
     loads = [f"wft_{c}_Fz" for c in CORNERS]
-    wired = all(q in plan.quantity_names for q in (*loads, "imu_ax", "imu_ay"))
-    acc = _Loads(np.zeros((3, 3)), np.zeros((3, 4)))
+    if b - a > 1 and all(q in got for q in (*loads, "imu_ax", "imu_ay")):
+        sums.add(got["imu_ax"], got["imu_ay"], np.column_stack([got[q] for q in loads]))
+    for q in ("imu_ax", "imu_ay"):
+        if q in got:
+            sums.move(q, got[q])
+    ground = next((q for q in ("correvit_vx", "gnss_vx") if q in got), None)
+    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in got]
+    if ground is not None and wheels and b - a > 1:
+        w_roll = np.mean([got[q] for q in wheels], axis=0) * vehicle.geometry.wheel_radius
+        moving = np.abs(w_roll) > MOVING
+        sums.speeds = (float(got[ground][moving] @ w_roll[moving]), float(w_roll[moving] @ w_roll[moving]),
+                       int(np.count_nonzero(moving)))
     up = _vertical_axis(vehicle)
-    ground = next((q for q in ("correvit_vx", "gnss_vx") if q in plan.quantity_names), None)
-    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in plan.quantity_names]
-    speeds = [0.0, 0.0, 0]  # sums of v w, w w and the samples, w the wheels' mean rolling speed (m/s)
-    a = t0
-    while a <= t1:
-        b = min(a + WINDOW_S, t1)
-        last = b >= t1
-        rec = read_window(plan.index, list(plan.file_names), a, b)
-        got = {}
-        for q, name in plan.quantity_names.items():
-            ch = rec.channels[name]
-            keep = slice(None) if last else ch.time < b  # windows share their end stamp: counted once
-            t, x = ch.time[keep], ch.values[keep]
-            scans[q].add(t, x)
-            got[q] = (t, x * plan.factors[q])
-        if wired and all(got[q][0].size > 1 for q in (*loads, "imu_ax", "imu_ay")):
-            t_ref = got[loads[0]][0]
-            acc.add(*(_on(*got[q], t_ref) for q in ("imu_ax", "imu_ay")),
-                    np.column_stack([_on(*got[q], t_ref) for q in loads]))
-        for q in ("imu_ax", "imu_ay"):
-            if q in got:
-                acc.move(q, got[q][1])
-        if ground is not None and wheels and all(got[q][0].size > 1 for q in (ground, *wheels)):
-            t_ref = got[ground][0]
-            w = np.mean([_on(*got[q], t_ref) for q in wheels], axis=0) * vehicle.geometry.wheel_radius
-            moving = np.abs(w) > MOVING
-            speeds[0] += float(got[ground][1][moving] @ w[moving])
-            speeds[1] += float(w[moving] @ w[moving])
-            speeds[2] += int(np.count_nonzero(moving))
-        if up is not None and up[0] in got:
-            acc.up_sum += float(np.sum(got[up[0]][1]))
-            acc.up_n += got[up[0]][1].size
-        if last:
-            break
-        a = b
+    if up is not None and up[0] in got:
+        sums.up_sum, sums.up_n = float(np.sum(got[up[0]])), got[up[0]].size
+    return CarHealth(scans, sums)
+
+
+def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
+    """The findings of one planned car test (module doc), errors first, read here a window of `WINDOW_S` at a time
+    (the identification gathers the same from its segments instead: `segment_health`). vehicle:
+    `vehicle.description.Vehicle`."""
+    N = plan.samples
+    step = max(2, int(WINDOW_S * plan.fs))
+    whole = None
+    for lo in range(0, N, step):
+        hi = min(N, lo + step)
+        w = segment_window(plan, lo, min(N, hi + 1))  # the next window's first stamp closes this one
+        samples: dict[str, Channel] = {}
+        channels = read_segment(w, file_samples=samples)
+        part = segment_health(w, vehicle, (float(plan.clock[lo]), float(plan.clock[hi - 1 if hi == N else hi]),
+                                           hi == N), samples, channels)
+        whole = part if whole is None else whole.merged(part)
+    return car_findings(whole, vehicle, plan)
+
+
+def car_findings(health: CarHealth, vehicle, plan: CarTestPlan) -> list[Finding]:
+    """The findings of a whole car test's gathered health (module doc), errors first."""
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    acc = health.sums
     out = []
-    for q, scan in scans.items():
+    for q, scan in health.scans.items():
         for f in scan.findings():
             if q.startswith(_REPAIRED) and f.kind in ("clipped", "out of range") and "declared range" in f.detail:
                 f = replace(f, severity=NOTE, fix="the estimator replaces these samples by the kinematic tables' "
@@ -162,10 +221,14 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
                             fix=f"fine if this test has no such motion ({_MOVED_BY[q]} varies "
                             f"by {acc.std(_MOVED_BY[q]):.2g} m/s^2 RMS); otherwise check the sensor and its wiring")
             out.append(f)
-    if wired and acc.n > 3:
+    loads = [f"wft_{c}_Fz" for c in CORNERS]
+    if acc.n > 3:
         out += _wiring(acc, vehicle, [plan.quantity_names[q] for q in loads], t0, t1)
-    if speeds[2] > 10 and speeds[1] > 0:
-        out += _speed(speeds[0] / speeds[1], plan.quantity_names[ground], wheels, t0, t1)
+    ground = next((q for q in ("correvit_vx", "gnss_vx") if q in plan.quantity_names), None)
+    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in plan.quantity_names]
+    if acc.speeds[2] > 10 and acc.speeds[1] > 0:
+        out += _speed(acc.speeds[0] / acc.speeds[1], plan.quantity_names[ground], wheels, t0, t1)
+    up = _vertical_axis(vehicle)
     if up is not None and acc.up_n:
         out += _gravity(acc.up_sum / acc.up_n, up, plan.quantity_names.get(up[0], up[0]), t0, t1)
     order = {ERROR: 0, WARNING: 1, NOTE: 2}
@@ -277,12 +340,15 @@ def _gravity(mean: float, up: tuple[str, float], channel: str, t0: float, t1: fl
                     "file (imu_axes)", 1.0)]
 
 
-def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, say: Progress) -> list[dict]:
+def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, say: Progress,
+                    gathered: Mapping[str, CarHealth] | None = None) -> list[dict]:
     """Every planned test's findings: an error stops the run (`ConfigError`: one line naming the test's file,
     the channel, the time span and the fix, and how many more errors there are); the rest is said and returned
-    as dicts (the finding's fields, the test and its file), for results.json."""
-    return _reported(cfg, [(plan.test, str(plan.index.path), f) for plan in plans for f in car_health(plan, vehicle)],
-                     say)
+    as dicts (the finding's fields, the test and its file), for results.json. gathered: test -> its health as the
+    identification's segments gathered it (`segment_health`, combined); None: each test's file read here."""
+    return _reported(cfg, [(plan.test, str(plan.index.path), f) for plan in plans
+                           for f in (car_health(plan, vehicle) if gathered is None
+                                     else car_findings(gathered[plan.test], vehicle, plan))], say)
 
 
 def robot_health(plan: RobotTestPlan) -> list[Finding]:

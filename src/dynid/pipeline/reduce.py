@@ -41,10 +41,12 @@ from ..estimation.iv import InstrumentSums
 from ..estimation.offsets import OffsetFactors
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
+from ..io import Channel
 from ..io.units import unit_factor
 from .config import IdentifyConfig
+from .health import CarHealth, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
-from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window
+from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window, read_segment
 
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
@@ -73,6 +75,9 @@ class CarJob:
     lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
     estimate_offsets: bool = False  # the offsets' rows kept for their estimate (estimation.offsets), weight 1
     knees: bool = False  # the knees' search alone (vehicle.dampers.KneeSearch): the dampers' rows and candidates
+    # the part of the test whose data health this segment gathers: (t_start, t_end, end included), s (the first map's
+    # segments each answer for theirs: segments overlap by the filter's borders); None: not gathered here
+    health: tuple[float, float, bool] | None = None
 
     @property
     def test(self) -> str:
@@ -95,6 +100,7 @@ class Partial:
     tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
+    health: dict[str, CarHealth] = field(default_factory=dict)  # test -> its data health so far (pipeline.health)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -104,9 +110,10 @@ def combine(a: Partial, b: Partial) -> Partial:
 
     rows = {**b.rows, **a.rows}  # a test's rows kept on both sides (a robot's, all kept): a's then b's
     rows.update({k: GroupedSystem.stack([a.rows[k], b.rows[k]]) for k in a.rows.keys() & b.rows.keys()})
+    health = {t: a.health[t].merged(b.health[t]) if t in b.health else a.health[t] for t in a.health}
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), rows,
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
-                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees))
+                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees), {**b.health, **health})
 
 
 class CarSetup:
@@ -277,7 +284,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     """The job's segment read, turned into rows and reduced (module doc)."""
     setup = car_setup(job.cfg)
     w = job.window
-    channels = w.read()
+    samples: dict[str, Channel] | None = None if job.health is None else {}
+    channels = read_segment(w, file_samples=samples)
     lags = dict(job.lags)
     compensated = setup.compensated(channels, w.fs, lags)
     joints = setup.joints(channels, w.fs, lags, compensated)
@@ -294,6 +302,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    if job.health is not None:  # the data health of the part of the test this segment answers for
+        part.health = {w.test: segment_health(w, setup.vehicle, job.health, samples, channels)}
     if setup.settings.tire_curves and job.instruments is None and not job.lags:
         from ..vehicle.tire_curves import tire_samples
 

@@ -11,7 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,6 +62,10 @@ from .sources import (
 )
 
 Progress = Callable[[str], None]
+# validation tests whose rows a run keeps for the report's figures and validation.csv (the first, in the config's
+# order); the cross-validation errors are over every one, from the streamed factors: memory does not grow with the
+# number of validation tests (200 once took 1.2 GB)
+SHOWN_VALIDATION = 8
 
 
 @dataclass
@@ -168,6 +172,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     rows of each test's first chunks are kept too, up to `PLOT_BYTES` (the report's plots and validation.csv;
     every chunk's with all_rows), joint by joint."""
     jobs = []
+    shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
         plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
@@ -188,7 +193,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         for i, (s, e) in enumerate(robot_chunks(N, plan.fs, model, base, cfg.conditioning)):
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
-            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=all_rows or i == 0 or kept < PLOT_BYTES))
+            keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep))
             kept += (e - s) * row_bytes
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, combine, say)
     for part in parts.values():
@@ -289,7 +295,6 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             f"({len(plan.segments)} segment(s))")
         plans.append(plan)
         trim_heap()  # the pass over the stamps' temporaries
-    health = check_car_tests(cfg, plans, vehicle, say)  # the data's health: an error stops the run here
     knees_note = ""
     if vehicle.knees_from_data:  # the damper curves' knees from the data: a search pass, then the curves' setup
         cfg, knees_note = _knees_from_data(cfg, setup, plans, scheduler, say)
@@ -315,8 +320,13 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
          f"evaluated on up to {settings.offset_segments} segment(s) per identification test") if moved else
         "no sensor zero offsets propagated: σ from the noise alone")
 
-    def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True) -> list[CarJob]:
+    def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
+             ) -> list[CarJob]:
+        """The map's jobs; health: each segment gathers the data health of the part of its test it answers for
+        (from its first sample to the next segment's first; the last to the test's end)."""
         out = []
+        # the rows kept for the report: each identification test's first segment, and the first validation tests'
+        shown = [p.test for p in plans if p.role == "validate"][:SHOWN_VALIDATION]
         for plan in plans:
             if instruments is not None and plan.role != "identify":
                 continue
@@ -329,10 +339,14 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             errors = picked(len(plan.segments)) if main and with_offsets else {}
             timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
+                last = i + 1 == len(plan.segments)
+                own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
-                                  instruments, keep_rows=i == 0 and instruments is None, errors=i in errors,
-                                  delays=i in timed, estimate_offsets=estimating and i in picks))
+                                  instruments, keep_rows=i == 0 and instruments is None
+                                  and (plan.role == "identify" or plan.test in shown), errors=i in errors,
+                                  delays=i in timed, estimate_offsets=estimating and i in picks,
+                                  health=own if health else None))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
@@ -343,8 +357,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
 
     say(f"joints and equations on {scheduler}")
     # each identification test folded apart (what the report's "which test identifies what" leaves out), then together
-    parts = scheduler.map_reduce(reduce_car_segment, jobs(), lambda j: (j.role, j.test if j.role == "identify" else ""),
-                                 combine, say)
+    parts = scheduler.map_reduce(reduce_car_segment, jobs(health=True),
+                                 lambda j: (j.role, j.test if j.role == "identify" else ""), combine, say)
+    # the data's health, gathered by the segments: an error stops the run here, before the estimate
+    health = check_car_tests(cfg, plans, vehicle, say, {t: h for p in parts.values() for t, h in p.health.items()})
     per_test = {t: p for (role, t), p in parts.items() if role == "identify"}
     parts = {role: tree_fold([p for (r, _), p in parts.items() if r == role], combine)
              for role in dict.fromkeys(r for r, _ in parts)}
@@ -419,8 +435,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         + "Physical consistency of the estimates: "
         + consistency_text(result, setup.base, tree) + health_note([h for h in health if h["severity"] != "note"]),
         offsets=offsets.to_dict(offset_estimates and offset_estimates.offsets), health=health)
-    run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate"}
-    run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests}, cfg, vehicle
+    run.validate = {t.name: rows[t.name] for t in cfg.tests if t.role == "validate" and t.name in rows}
+    run.systems, run.config, run.vehicle = {t.name: rows[t.name] for t in cfg.tests if t.name in rows}, cfg, vehicle
+    run.notes += shown_note(cfg, list(run.validate))
     run.delays = delays
     run.without_test = without_each_test(names, kw, per_test, misfits)
     # a group the validation test barely moves (braking: the lateral force, yaw and roll moments): marked; the direct
@@ -632,6 +649,13 @@ def validate(run: IdentificationRun, ident: StreamingLS, cross: StreamingLS | No
     return run
 
 
+def shown_note(cfg: IdentifyConfig, shown: Sequence[str]) -> str:
+    """Which validation tests the figures and validation.csv show, when not all ('' when all)."""
+    n = sum(t.role == "validate" for t in cfg.tests)
+    return "" if n <= len(shown) else (f"Cross validation over all {n} validation tests; the figures and "
+                                       f"validation.csv show the first {len(shown)} ({', '.join(shown)}).\n")
+
+
 def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | None = None,
              scheduler: Scheduler | None = None) -> IdentificationRun:
     """Run the identification a config describes (a robot from joint files, or a car from its sensors), its
@@ -697,7 +721,9 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
-    systems = {name: part.rows[name] for name, part in parts.items()}  # each test's first chunk: the plots
+    # each identification test's first chunks and the first validation tests': the plots (not every validation test's:
+    # memory would grow with their number)
+    systems = {name: part.rows[name] for name, part in parts.items() if name in part.rows}
     sections = None
     checked = {role: None if ls is None else ls.reparametrised(names, same, known=known or None)
                for role, ls in full.items()}
@@ -711,11 +737,13 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     run = IdentificationRun(model, base, result, GroupedSystem.stack(
         [systems[t.name] for t in cfg.tests if t.role == "identify"]), systems=systems, config=cfg, health=health,
         sections=sections)
-    run.validate = {t.name: systems[t.name] for t in cfg.tests if t.role == "validate"}
+    run.validate = {t.name: systems[t.name] for t in cfg.tests if t.role == "validate" and t.name in systems}
     validate(run, checked["identify"], checked["validate"], result.values[:len(checked["identify"].names)])
     run.consistency = robot_consistency(result, structure, model.tree, fit)
     run.notes = (fit.note() if fit is not None else "") + "Physical consistency of the estimates: " \
         + run.consistency["text"]
+    shown = shown_note(cfg, list(run.validate))
+    run.notes += f"\n{shown}" if shown else ""
     if cfg.reference:
         rows = read_reference(cfg.reference["file"])
         run.reference, unmatched = match_reference(rows, base, cfg.reference.get("names", {}),

@@ -5,8 +5,8 @@ which job finished first or where it ran, so this machine's threads and a Dask c
 same answer to the last bit on the same CPU (and to round-off across CPUs).
 
 - `LocalScheduler(workers)`: threads on this machine (NumPy, SciPy and the compiled kernels release
-  the GIL; BLAS kept to one thread inside each); at most 2 x workers jobs in flight, so memory
-  follows the segments being worked on, not the file.
+  the GIL; BLAS kept to one thread inside each); at most 2 x workers jobs in flight, their results
+  folded as they arrive (`_Fold`), so memory follows the segments being worked on, not the file.
 - `DaskScheduler(address)`: a dask.distributed cluster ("local" starts a LocalCluster on this
   machine); the jobs are small (a segment's time window of a file the workers can reach), the
   workers read their data themselves, and the fold runs on the workers too. A worker lost
@@ -78,7 +78,8 @@ class LocalScheduler:
 
     def map_reduce(self, fn, jobs, key, combine, progress=None):
         say = progress or (lambda _m: None)
-        results: list = [None] * len(jobs)
+        folds = {k: _Fold(idx, combine) for k, idx in _by_key(jobs, key).items()}
+        of = {i: folds[k] for k, idx in _by_key(jobs, key).items() for i in idx}
         done = 0
         with ThreadPoolExecutor(self.workers) as pool, threadpool_limits(limits=1, user_api="blas"):
             running: dict = {}
@@ -89,14 +90,45 @@ class LocalScheduler:
                     continue
                 finished, _ = wait(running, return_when=FIRST_COMPLETED)
                 for f in finished:
-                    results[running.pop(f)] = f.result()
+                    j = running.pop(f)
+                    of[j].put(j, f.result())
                     done += 1
                     say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
             for f in list(running):
-                results[running.pop(f)] = f.result()
+                j = running.pop(f)
+                of[j].put(j, f.result())
                 done += 1
                 say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
-        return {k: tree_fold([results[i] for i in idx], combine) for k, idx in _by_key(jobs, key).items()}
+        return {k: fold.result() for k, fold in folds.items()}
+
+
+class _Fold:
+    """`tree_fold` of one key's results as they arrive: the results in the jobs' order are pushed on a stack of
+    (level, partial), two of one level combined at once (a binary counter), the rest combined from the top at the
+    end; the shape is tree_fold's for any count (pairs of neighbours level by level, an odd one carried up), so the
+    answer is the same bits. A result that arrives before its predecessors waits for them: held are the results in
+    flight and the stack (log2 of the count), not every job's (a car's partial holds its least squares' factors)."""
+
+    def __init__(self, order: Sequence[int], combine: Callable[[Any, Any], Any]) -> None:
+        self.order, self.combine = list(order), combine
+        self.next = 0  # position in order of the next result to push
+        self.waiting: dict[int, Any] = {}
+        self.stack: list[tuple[int, Any]] = []
+
+    def put(self, i: int, result: Any) -> None:
+        self.waiting[i] = result
+        while self.next < len(self.order) and self.order[self.next] in self.waiting:
+            value, level = self.waiting.pop(self.order[self.next]), 0
+            self.next += 1
+            while self.stack and self.stack[-1][0] == level:
+                value, level = self.combine(self.stack.pop()[1], value), level + 1
+            self.stack.append((level, value))
+
+    def result(self) -> Any:
+        value = self.stack.pop()[1]
+        while self.stack:
+            value = self.combine(self.stack.pop()[1], value)
+        return value
 
 
 class DaskScheduler:

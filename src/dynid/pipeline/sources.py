@@ -238,18 +238,22 @@ def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
                          plan.clock[lo:hi], plan.fs, plan.timed, plan.max_gap, margin, lo)
 
 
-def read_segment(w: SegmentWindow, si: bool = True) -> dict[str, NDArray[np.float64]]:
+def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Channel] | None = None
+                 ) -> dict[str, NDArray[np.float64]]:
     """{quantity: values on the window's clock slice, SI (or the file's unit)}: the file's samples around the slice,
-    repeated stamps merged, each channel not already on the clock interpolated onto it (cubic)."""
-    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic")
+    repeated stamps merged, each channel not already on the clock interpolated onto it (cubic). file_samples: a dict
+    to receive {file channel: its samples as read (file unit, own stamps; the slice's, or around it when
+    interpolated)}, the data health's scan (`pipeline.health.segment_health`)."""
+    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples)
     return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
 
 
 def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64], margin: float, timed: bool,
-               first: int, kind: Callable[[str], str]):
+               first: int, kind: Callable[[str], str], file_samples: dict[str, Channel] | None = None):
     """The channels on the clock slice (`dynid.io.align`), from the window of the file around it: per time base,
     repeated stamps merged (the plan checked the stamps: no gap is refused here, where a window's own median step
-    could differ), the samples on the clock used as they are, the others interpolated (kind(name))."""
+    could differ), the samples on the clock used as they are, the others interpolated (kind(name)); the samples
+    used put in file_samples when given."""
     rec = read_window(index, list(names), float(clock[0]) - margin, float(clock[-1]) + margin)
     specs, exact = [], True
     with _samples_of_the_test(first, True):
@@ -258,6 +262,8 @@ def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64
             cut = _on_clock(s, clock)
             exact = exact and cut is not None
             specs += [InterpSpec(n, c, kind(n)) for n, c in (cut or s.channels).items()]
+            if file_samples is not None:
+                file_samples.update(cut or s.channels)
     with _samples_of_the_test(first, exact):
         return align(specs, t=clock, source=rec.label, gap_factor=None)
 
