@@ -22,13 +22,6 @@ from test_data_health import robot_log
 from dynid.pipeline.schedulers import LocalScheduler, tree_fold
 
 
-def _rows(rng, m, p=4, mean=0.0):
-    W = rng.normal(size=(m, p))
-    g = np.array(["joint1", "joint2", "joint3"])[rng.integers(0, 3, m)]
-    Y = mean + W @ np.arange(1.0, p + 1) + 0.3 * rng.normal(size=m)
-    return W, Y, g
-
-
 def test_the_threads_fold_has_tree_folds_shape():
     """Jobs finishing in a shuffled order (their sleeps), two keys: each key's fold as `tree_fold` of its results in
     the jobs' order (a combine that writes its shape: the same string is the same tree)."""
