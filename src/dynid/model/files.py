@@ -61,6 +61,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..atomic import write_atomic
+from ..pysource import parse
 from ..textfiles import read_toml
 from .tree import (
     COUPLING_KINDS,
@@ -478,7 +479,7 @@ def parse_number(v: object, where: str) -> float:
         if isinstance(v, int | float):
             x = float(v)
         elif isinstance(v, str) and len(v) <= _MAX_EXPRESSION:  # a bound: ast recursion and huge literals
-            x = float(_eval(ast.parse(v.strip(), mode="eval").body))
+            x = float(_eval(parse(v.strip(), mode="eval").body))
     except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError, OverflowError, RecursionError,
             MemoryError):
         x = None

@@ -18,6 +18,7 @@ from types import ModuleType
 from ..atomic import write_atomic as _write_atomic
 from ..model.files import tree_to_toml
 from ..model.tree import Tree
+from ..pysource import compile_source
 from .codegen import GENERATOR_VERSION
 from .expr import SymbolicError
 from .numpy_code import to_numpy
@@ -100,7 +101,7 @@ def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
             mod = import_file(path, name)
         except OSError:  # read-only cache: fall back to an in-memory module
             mod = ModuleType(name)
-            exec(compile(src, f"<dynid generated {model}>", "exec"), mod.__dict__)
+            exec(compile_source(src, f"<dynid generated {model}>"), mod.__dict__)
     sys.modules.setdefault(name, mod)
     _LOADED[h] = mod
     return mod

@@ -28,6 +28,8 @@ import struct
 import textwrap
 from collections.abc import Callable
 
+from ..pysource import parse
+
 _BINARY = {ast.Add: "fadd", ast.Sub: "fsub", ast.Mult: "fmul"}
 _MATH = {"sin": "llvm.sin.f64", "cos": "llvm.cos.f64"}
 _DECLARATIONS = ("declare double @llvm.sin.f64(double)", "declare double @llvm.cos.f64(double)",
@@ -140,7 +142,7 @@ class _Emitter:
 
 
 def parse_function(source: str) -> ast.FunctionDef:
-    tree = ast.parse(textwrap.dedent(source))
+    tree = parse(textwrap.dedent(source))
     if len(tree.body) != 1 or not isinstance(tree.body[0], ast.FunctionDef):
         raise UnsupportedSourceError("the source of exactly one function is expected")
     fn = tree.body[0]

@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
+from .. import pysource
 from ..model.tree import Tree
 from .cache import cache_dir, generator_fingerprint, import_file, model_hash, write_atomic
 from .codegen import _ARGS, _eq_text, format_poly
@@ -177,7 +178,7 @@ def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
     from .llvm_code import UnsupportedSourceError, function_ir
 
     out: dict[str, list[str]] = {}
-    for node in ast.parse(body).body:
+    for node in pysource.parse(body).body:
         if isinstance(node, ast.FunctionDef) and node.name in names:
             try:
                 function_ir(ast.get_source_segment(body, node) or "", node.name)
@@ -225,7 +226,7 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
             mod = ModuleType(mod_name)
             fname = f"<dynid numba {mod_name}>"
             linecache.cache[fname] = (len(src), None, src.splitlines(True), fname)  # llvm_code reads the source
-            exec(compile(src, fname, "exec"), mod.__dict__)
+            exec(pysource.compile_source(src, fname), mod.__dict__)
     if not getattr(mod, "NUMBA", False):
         _warn_missing()
     sys.modules.setdefault(mod_name, mod)

@@ -10,6 +10,7 @@ import ast
 import re
 
 from ..model.tree import Tree
+from ..pysource import parse
 from .codegen import _ARGS, _TITLES, _eq_text, _prod, format_poly
 from .expr import Poly, Program, SymbolicError, _key, is_const, neg, symbols_of, trivial
 
@@ -209,13 +210,13 @@ class _Kernel:
     # -- expressions
     def value(self, text: str) -> tuple[str, bool]:
         """Emit text into a temporary row (or nothing for a name or a number): (operand, negated)."""
-        node, negated = _signed(ast.parse(text, mode="eval").body, self.negated)
+        node, negated = _signed(parse(text, mode="eval").body, self.negated)
         return self._operand(node), negated
 
     def into(self, text: str, dst: str, sign_free: bool = False) -> bool:
         """Emit dst = text, the last operation writing into dst; with sign_free, dst may get the
         opposite value instead of a negation pass: returns whether it did."""
-        node, negated = _signed(ast.parse(text, mode="eval").body, self.negated)
+        node, negated = _signed(parse(text, mode="eval").body, self.negated)
         if negated and not (sign_free and isinstance(node, ast.BinOp)):
             v = self._operand(node)
             self._release(v)
