@@ -22,20 +22,22 @@ def mujoco_truth() -> dict:
     return json.loads((DATA / "truth.json").read_text())
 
 
-def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
-             tire_law: str = "paper", lateral_force: bool = False, conditioning: str = "") -> tuple[dict, dict]:
-    """results.json and engineering.csv's values by key, of the example's vehicle (with `tire_law` and, when
-    lateral_force, `tire_lateral_force = true` in its [wheels]) on `tests` of `folder`; conditioning: more lines of
-    the config's [conditioning] (TOML)."""
+EXAMPLE_TIRE = 'tire_law = "progressive"\ntire_lateral_force = true\n'  # the example's [wheels] lines
+
+
+def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool, tire: str = "example",
+             conditioning: str = "") -> tuple[dict, dict]:
+    """results.json and engineering.csv's values by key, of the example's vehicle on `tests` of `folder`.
+    tire: "example" (the file's progressive law with the lateral-force term), "progressive" (without that term) or
+    "paper" (the paper's line kt q + off); conditioning: more lines of the config's [conditioning] (TOML)."""
     vehicle = EXAMPLE / "vehicle.toml"
-    if tire_law != "paper":
+    if tire != "example":
         text = vehicle.read_text()
-        assert text.count("[wheels]") == 1
-        lines = f'tire_law = "{tire_law}"' + "\ntire_lateral_force = true" * lateral_force
-        tire_law += "_fy" * lateral_force  # the file's and the config's names
-        vehicle = tmp / f"vehicle_{tire_law}.toml"
+        assert text.count(EXAMPLE_TIRE) == 1
+        lines = {"progressive": 'tire_law = "progressive"\n', "paper": ""}[tire]
+        vehicle = tmp / f"vehicle_{tire}.toml"
         (tmp / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
-        vehicle.write_text(text.replace("[wheels]", f"[wheels]\n{lines}"))
+        vehicle.write_text(text.replace(EXAMPLE_TIRE, lines))
     lines = ['[model]', f'vehicle = "{vehicle.as_posix()}"']
     for t in tests:
         lines += ["[[tests]]", f'name = "{TESTS[t]}"', 'role = "identify"',
@@ -45,7 +47,7 @@ def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool,
               "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
     if folder == "ideal":  # the true channel values: no zero offsets to estimate (declared, the estimate would read
         lines += ["[uncertainty]", 'offsets = "none"']  # the model's misfits into them: 0.3 mm of CoG here)
-    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire_law}{'_c' if conditioning else ''}.toml"
+    cfg = tmp / f"{folder}_{'_'.join(tests)}_{tire}{'_c' if conditioning else ''}.toml"
     cfg.write_text("\n".join(lines) + "\n")
     out = tmp / cfg.stem
     assert main(["identify", str(cfg), "--out", str(out)]) == 0

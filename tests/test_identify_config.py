@@ -171,16 +171,18 @@ def test_car_conditioning_options_are_checked(tmp_path, conditioning, identifica
         load_config(cfg)
     for w in words:
         assert w in str(exc.value), (w, str(exc.value))
-    cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.02, 27 = 0 }\ncompensate_delays = false\n"
-                                                   "friction_lowpass = true",
+    cfg.write_text(CAR_OPTIONS.format(conditioning="min_speed = { 9 = 0.03, 27 = 0 }\ncompensate_delays = false\n"
+                                                   "friction_lowpass = false",
                                       identification='flag_percent = 4\nmethod = "iv"\niv_passes = 3'))
     c = load_config(cfg)
-    assert c.car.min_speed == {9: 0.02, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
-    assert c.car.friction_lowpass
+    assert c.car.min_speed == {9: 0.03, 27: 0.0} and not c.car.compensate_delays and c.flag_percent == 4.0
+    assert not c.car.friction_lowpass
     assert c.method is Method.IV and c.car.iv_passes == 3
     cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
     c = load_config(cfg)
-    assert c.car.min_speed == {9: 0.01, 18: 0.01, 27: 0.01, 36: 0.01} and c.car.compensate_delays
+    # the defaults: docs/vehicle.md, 'The dry-friction columns and the loads' low-pass'
+    assert c.car.min_speed == {9: 0.02, 18: 0.02, 27: 0.02, 36: 0.02} and c.car.compensate_delays
+    assert c.car.friction_lowpass
 
 
 # ----- strict sections: every unknown key and every wrongly typed value is one clear line

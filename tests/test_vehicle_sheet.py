@@ -284,6 +284,35 @@ def test_the_symmetric_car_gives_its_figures_by_hand():
     assert q["pitch_gradient"] == pytest.approx(math.degrees(theta), rel=1e-9)
 
 
+def test_a_progressive_tire_rates_at_its_static_load():
+    """The tire law kt q + ktq q² + off = Fz: the sheet's tire rate is dFz/dq where the tire carries its corner's
+    static load (oracle: the deflection found by a root finder, the slope by central differences); the ride
+    frequency puts it in series with the wheel rate; a line (ktq 0) rates kt."""
+    from scipy.optimize import brentq
+
+    g, v = _car()
+    assert car_quantities(v, g)["tire_rate_front_left"] == KT
+    ktq, off = 4.0e6, 2500.0
+    for t in TIRES:
+        v.update({f"KQ{t}": ktq, f"OFF{t}": off})
+    q = car_quantities(v, g)
+    law = lambda x: KT * x + ktq * x * x + off  # noqa: E731
+    a, b = L - A_REAR, A_REAR
+    for corner, load in (("front_left", (MS * b / L / 2 + MW) * 9.81), ("rear_right", (MS * a / L / 2 + MW) * 9.81)):
+        x = brentq(lambda x, f: law(x) - f, 0.0, 0.1, args=(load,), xtol=1e-15)
+        slope = (law(x + 1e-6) - law(x - 1e-6)) / 2e-6  # exact for a quadratic up to rounding (1e-9 relative)
+        assert q[f"tire_rate_{corner}"] == pytest.approx(slope, rel=1e-8)
+        assert q[f"tire_rate_{corner}"] > KT
+    cf = _vertical(g, CORNERS.index("front left"))
+    kf = 2 * _in_series(KSF / cf**2, q["tire_rate_front_left"])
+    # the axle's ride on its share of the sprung mass (Iyy = m a b: the axles decouple, see the test above)
+    assert q["ride_frequency_front"] == pytest.approx(math.sqrt(kf / (MS * b / L)) / (2 * math.pi), rel=1e-9)
+
+
+def _in_series(a: float, b: float) -> float:
+    return a * b / (a + b)
+
+
 def test_a_lateral_offset_loads_the_left_wheels_as_the_roll_stiffness_shares_it():
     g, v = _car()
     y = 0.02  # 2 cm to the left: MY6 = -m y (y6 to the right)

@@ -16,13 +16,14 @@ midway between the rear wheel centres, at their height in the design position) a
   centres ±tφ vertically relative to the body (t the half track); each wheel centre moves along its damper
   axis, whose vertical component is c, so the clearances move ±tφ/c and the springs and bar store
   ½(ks_l + ks_r)(tφ/c)² + ½ k_ar (2tφ/c)²: K_φ = (ks_l + ks_r + 4 k_ar) t² / c², given in N·m/deg.
-- The ride-and-handling sheet (docs/engineering.md derives each formula and states its assumptions): the springs
-  act along the damper axis (the template's slide), so a vertical wheel travel z moves the damper z/c (motion
-  ratio 1/c) and the wheel rate is ks/c², the bar's in roll 2 k_ar/c², the damping h/c²; ride rate: the wheel rate
-  in series with kt; ride frequency and damping ratio per axle on that axle's share of the sprung mass; corner
-  weights on a level scale with no diagonal preload (a lateral CoG offset shared as the roll stiffness); roll
-  gradient about the roll axis of the slides (roll centre t·tan(lateral tilt) below the ground), pitch gradient
-  about the ground, both with the tires in series and the body's weight term.
+- The ride-and-handling sheet (docs/engineering.md derives each formula and states its assumptions): the springs act
+  along the damper axis (the template's slide), so a vertical wheel travel z moves the damper z/c (motion ratio 1/c)
+  and the wheel rate is ks/c², the bar's in roll 2 k_ar/c², the damping h/c²; ride rate: the wheel rate in series with
+  the tire's rate at its static load (kt for the paper's line, the progressive law's tangent there); ride frequency and
+  damping ratio per axle on that axle's share of the sprung mass; corner weights on a level scale with no diagonal
+  preload (a lateral CoG offset shared as the roll stiffness); roll gradient about the roll axis of the slides (roll
+  centre t·tan(lateral tilt) below the ground), pitch gradient about the ground, both with the tires in series and the
+  body's weight term.
 - The data sheet (`chassis_from_data_sheet`, `chassis_data_sheet`): the chassis CoG (ahead of the rear axle, above
   the ground or the wheel centres, to the left) and inertia at it in ISO 8855 axes, exactly to and from XX6..M6.
 """
@@ -105,6 +106,8 @@ QUANTITIES: dict[str, tuple[str, str, str, str]] = {
                              "scale reading, load / g" if i == 0 else "") for i, c in enumerate(_BY_AXLE)},
     **{f"wheel_rate_{_key(c)}": ("Wheel rates (at the wheel centre, vertical)", f"spring, {c}", "N/m",
                                  "ks / c²" if i == 0 else "") for i, c in enumerate(_BY_AXLE)},
+    **{f"tire_rate_{_key(c)}": ("Wheel rates (at the wheel centre, vertical)", f"tire, {c}", "N/m",
+                                "at the corner's static load" if i == 0 else "") for i, c in enumerate(_BY_AXLE)},
     "wheel_rate_bar_front": ("Wheel rates (at the wheel centre, vertical)", "anti-roll bar, front (in roll)", "N/m",
                              "2 k_ar / c²; one wheel alone: half"),
     "wheel_rate_bar_rear": ("Wheel rates (at the wheel centre, vertical)", "anti-roll bar, rear (in roll)", "N/m",
@@ -187,6 +190,16 @@ def _series(a: float, b: float) -> float:
     return a * b / (a + b) if a + b else 0.0
 
 
+def _tire_rate(kt: float, ktq: float, load: float) -> float:
+    """dFz/dq of the tire law kt q + ktq q² (+ off) where it carries `load` (above its offset): the tangent
+    sqrt(kt² + 4 ktq load) at the root q = (sqrt(...) - kt) / (2 ktq); kt for a line. NaN where the law never
+    reaches that load on its rising branch."""
+    if ktq == 0.0:
+        return kt
+    d = kt * kt + 4.0 * ktq * load
+    return float(np.sqrt(d)) if d >= 0.0 else float("nan")
+
+
 def _gradient(moment: float, stiffness: float) -> float:
     """deg per g of a body on an angular stiffness whose weight's arm adds `moment` per radian (m g d): the
     equilibrium angle (m g d) / (K - m g d); NaN when K <= m g d (no equilibrium: the body would not stand)."""
@@ -239,13 +252,18 @@ def car_quantities(values: Mapping[str, float], geometry: CarGeometry) -> dict[s
         t = ax.half_track
         corners = axle_corners(axle)
         ks = [p(f"K{damper(k)}") for k in corners]
-        kt = [p(f"K{tire(k)}") for k in corners]
+        # each tire's stiffness at its static load (level ground, the axle's sprung share and the wheel): the
+        # progressive law's tangent there, kt for the paper's line
+        load = [(m_axle[axle] / 2 + wheel_m[k]) * G for k in corners]
+        kt = [_tire_rate(p(f"K{tire(k)}"), p(f"KQ{tire(k)}"), f - p(f"OFF{tire(k)}")) for k, f in zip(corners, load,
+                                                                                                    strict=True)]
         # a damper curve's linear equivalent at small amplitude: the mean of its low-speed bump and rebound slopes
         h = [0.5 * (p(f"FVPL{damper(k)}") + p(f"FVNL{damper(k)}")) if f"FVPL{damper(k)}" in v
              else p(f"FV{damper(k)}") for k in corners]
         bar = p(BARS[axle])
-        for k, kk in zip(corners, ks, strict=True):
+        for k, kk, tt in zip(corners, ks, kt, strict=True):
             out[f"wheel_rate_{_key(CORNERS[k])}"] = kk / cv**2
+            out[f"tire_rate_{_key(CORNERS[k])}"] = tt
         out[f"wheel_rate_bar_{axle}"] = 2 * bar / cv**2
         ride[axle] = sum(_series(kk / cv**2, tt) for kk, tt in zip(ks, kt, strict=True))
         damping = sum(h) / cv**2
