@@ -52,8 +52,9 @@ def tire_figure(tires) -> bytes:
         law = tires.longitudinal.get(axle)
         if law is not None:
             k = np.linspace(min(law.kappa_range[0], 0.0), law.kappa_range[1], 50)
-            kx = law.stiffness(law.fz0)[0] / law.fz0
-            ax.plot(k, -kx * (k - law.fit.value("kappa0")), color="C3", lw=1.6, label=f"fit at {law.fz0:.0f} N")
+            k0 = law.free_rolling_slip(law.fz0)[0]
+            kx = law.stiffness(law.fz0)[0] / law.fz0 / (1 - k0)  # per unit of the slip counted with R, as plotted
+            ax.plot(k, -kx * (k - k0), color="C3", lw=1.6, label=f"fit at {law.fz0:.0f} N")
         ax.set_title(f"{axle} axle: longitudinal")
         ax.set_xlabel("slip ratio κ (> 0 braking)")
         ax.set_ylabel("Fx / Fz")
@@ -77,7 +78,7 @@ def tire_table(tires) -> Table:
         v, s = law.stiffness(law.fz0)
         rows.append([name, "slip stiffness (secant)", f"{law.fz0:.0f}", f"{v:.0f}", f"{s:.0f}", "N per unit slip",
                      f"κ {law.kappa_range[0]:.3f} .. {law.kappa_range[1]:.3f}",
-                     f"rolling radius {tires.wheel_radius * (1 - law.fit.value('kappa0')):.4f} m"])
+                     f"rolling radius {tires.wheel_radius / (1 - law.free_rolling_slip(law.fz0)[0]):.4f} m"])
     return Table(["axle / tire", "quantity", "load (N)", "value", "σ", "unit", "slips used", "curve"], rows,
                  caption="Tire characteristics (ISO wheel axes, pure slip)")
 
