@@ -711,8 +711,8 @@ class TireCurves:
         for name, law in self.longitudinal.items():
             v, s = law.stiffness(law.fz0)
             out.append(Quantity(f"slip_stiffness_{name}", "tires", f"longitudinal slip stiffness, {name} axle",
-                                "N per unit slip", v, s, f"per tire, at {law.fz0:.0f} N (secant over the slips "
-                                f"reached, up to {max(abs(x) for x in law.kappa_range):.3f})"))
+                                "N per unit slip", v, s, f"per tire, at {law.fz0:.0f} N, its load when braking or "
+                                f"driving (the secant to its mean slip then, {law.kappa_seen:.3f})"))
         return out
 
     def csv(self) -> str:
@@ -754,7 +754,7 @@ class TireCurves:
             lines.append(f"  tire {name:<2} cornering stiffness {v * DEG:7.1f} ± {s * DEG:.1f} N/deg at {fz:.0f} N "
                          f"({how})")
         if self.longitudinal_per_tire:
-            lines.append("  slip stiffness per tire (N per unit slip, at its mean load): " + "; ".join(
+            lines.append("  slip stiffness per tire (N per unit slip, at its load braking or driving): " + "; ".join(
                 f"{name} {law.stiffness(law.fz0)[0]:.0f} ± {law.stiffness(law.fz0)[1]:.0f} at {law.fz0:.0f} N"
                 for name, law in self.longitudinal_per_tire.items()))
         tests: dict[str, list[str]] = {}
