@@ -31,19 +31,25 @@ tire where the data allow:
   slips a line is the curve's secant: -7.8 % on the quick demo's rear axle at 3.7°). E is fitted only when the
   tests pass the curve's peak (it shapes the curve beyond it), else fixed at 0; a load term only when the loads
   spread over LOAD_SPREAD of Fz0.
-- longitudinal: samples with |α| <= ALPHA_PURE and speed >= MIN_SPEED: Fx = -Kx (κ - κ0), Kx = kx0 Fz
-  (1 + pKx2 dfz), fitted as κ = κ0 - Fx / Kx (the slip is the noisy side: `fit_longitudinal`). Straight-line
-  braking holds one slip for seconds (about 0.03 at 6 m/s²): Kx is the secant to that slip, not the slope at
-  zero, and no Magic Formula is fitted (its peak is not reached; an ABS stop would).
+- longitudinal: samples with |α| <= ALPHA_PURE and speed >= MIN_SPEED, with the free-rolling samples (|Fx| <=
+  FREE_ROLLING Fz) at any slip angle: Fx = -Kx (κ - κ0(Fz)), Kx = kx0 Fz (1 + pKx2 dfz), κ0(Fz) = κ0 + κ0_fz
+  (Fz / Fz_free - 1), fitted as κ = κ0(Fz) - Fx / Kx (the slip is the noisy side: `fit_longitudinal`). The
+  free-rolling slip moves with the load because the effective rolling radius R / (1 - κ0) shrinks with it; Fz0
+  is the mean load of the samples that brake or drive (|Fx| >= SLIPPING Fz: only they see Kx), and Kx is given
+  per unit of the slip counted with the effective radius, (κ - κ0) / (1 - κ0). Straight-line braking holds one
+  slip for seconds (about 0.03 at 6 m/s²): Kx is the secant to that slip, not the slope at zero, and no Magic
+  Formula is fitted (its peak is not reached; an ABS stop would).
 
 Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
 [MF_C_BOUNDS] and E <= 1, from a few starts). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
 s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of
 consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
-consecutive residuals are not independent. It assumes the model right (no bias: combined slip, camber thrust,
-relaxation length and the filters' lag are not modelled), the slips and loads exact (errors in α and κ bias
-slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor files), the residual stationary with one
-variance, and the solution inside its bounds (a parameter at a bound gets no σ).
+consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
+wheels share the chassis velocity's estimate and its error in their slips. It assumes the model right (no bias:
+combined slip, camber thrust, relaxation length and the filters' lag are not modelled), the slips and loads exact
+but for noise (errors in α and κ bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor
+files), the residual stationary with one variance, J alike for the wheels of one instant, and the solution inside
+its bounds (a parameter at a bound gets no σ).
 """
 
 from __future__ import annotations
