@@ -66,6 +66,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..kinematics.forward import forward_kinematics, joint_array
 from .geometry import CarGeometry, side
 
 ACQUISITION_RATE = 625.0  # Hz (the paper's sample time 1.6 ms)
@@ -510,7 +511,6 @@ def ideal_channels(
     N = q.shape[0]
     deg = np.degrees
     out: dict[str, np.ndarray] = {}
-    from ..kinematics.forward import forward_kinematics, joint_array
 
     st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[6])  # frame 6 only
     R6 = np.stack([np.asarray(c).T for c in st.Rc[6]], axis=2)  # (N, 3, 3), columns = axes of frame 6
