@@ -30,11 +30,15 @@ import argparse
 import contextlib
 import json
 import sys
+from pathlib import Path
+
+from ..atomic import staged_folder, write_atomic
+from .progress import report as say
+from .usage import UsageError, command
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `plan` to the top-level `dynid` sub-commands."""
-    from .usage import command
 
     p = command(
         subparsers, "plan", help="the shortest track-test plan whose identification meets the targets",
@@ -64,13 +68,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..atomic import staged_folder, write_atomic
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..pipeline.plan import load_targets, plan_tests
     from ..vehicle.description import load_vehicle
-    from .progress import report as say
-    from .usage import UsageError
 
     if args.repeats < 1:
         raise UsageError(f"--repeats {args.repeats}: give a whole number >= 1")
