@@ -135,9 +135,15 @@ import numpy as np
 
 from ..estimation.errors import IdentificationError
 from ..estimation.method import Method
+from ..io.rosbag_format import is_bag, is_bag_folder
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
+from ..vehicle.description import load_vehicle
+from ..vehicle.estimate import required_channels
+from ..vehicle.sensors import fitted_suite
+from .reference import parse_combination, reference_text
 from .robot import Conditioning
+from .schedulers import address_problem
 
 
 class ConfigError(ModelError):
@@ -480,8 +486,6 @@ def _compute(c: dict, err: Err) -> dict[str, Any]:
         raise err("[compute]", f"scheduler = {scheduler!r}; give \"local\" (a Dask cluster on this machine) or a "
                                "Dask scheduler's address such as \"tcp://10.0.0.5:8786\"")
     if scheduler is not None:
-        from .schedulers import address_problem
-
         problem = address_problem(scheduler)
         if problem is not None:
             raise err("[compute]", f"scheduler = {problem}")
@@ -635,7 +639,6 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err, effort: str = "tau")
 
 def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple[str | None, tuple[str, ...]]:
     """A robot test's topic and ignore_joints, which only a ROS 2 bag takes."""
-    from ..io.rosbag_format import is_bag
 
     topic, ignore = t.get("topic"), t.get("ignore_joints", [])
     if ("topic" in t or "ignore_joints" in t) and not all(is_bag(f) for f in files.values()):
@@ -650,8 +653,6 @@ def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple
 
 
 def _bag_folder(path: Path) -> bool:
-    from ..io.rosbag_format import is_bag_folder
-
     return is_bag_folder(path)
 
 
@@ -828,7 +829,6 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
         raise err(where, f"file not found: {ref['file']}")
     if ref["file"].is_dir():
         raise err(where, f"file = {str(ref['file'])!r} is a folder; give the published table's CSV file")
-    from .reference import parse_combination, reference_text
 
     try:  # a binary or non-UTF-8 file is refused now, before the identification (its rows are read with the results)
         reference_text(ref["file"])
@@ -1036,9 +1036,6 @@ class _VehicleChannels:
     @property
     def valid(self) -> list[str]:
         if self._valid is None:  # imported here: the vehicle's modules are not needed to read a robot's config
-            from ..vehicle.description import load_vehicle
-            from ..vehicle.estimate import required_channels
-
             self._vehicle = load_vehicle(self.ref)
             self._valid = required_channels(spin=False, suite=self._vehicle.suite)
         return self._valid
@@ -1065,7 +1062,5 @@ class _VehicleChannels:
 
 def _every_channel() -> set[str]:
     """Every channel the estimator knows, whatever the suite: the paper's and a GNSS/INS car's."""
-    from ..vehicle.estimate import required_channels  # as in _VehicleChannels.valid: a car's config only
-    from ..vehicle.sensors import fitted_suite
 
     return {*required_channels(spin=False), *required_channels(spin=False, suite=fitted_suite(correvit=False))}

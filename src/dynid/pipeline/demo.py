@@ -18,6 +18,9 @@ from pathlib import Path
 
 from ..atomic import write_atomic
 from ..progress import notice_if_slow
+from ..vehicle.description import VehicleError, load_vehicle
+from ..vehicle.sim import CarSimulator
+from ..vehicle.sim.recording import write_test
 from .config import load_config
 from .run import IdentificationRun, identify
 
@@ -71,8 +74,6 @@ def conditioning_toml(offsets: dict[str, float], estimate: bool = True) -> list[
 
 def simulated_car(vehicle: str = "peugeot406"):
     """The simulator of a vehicle (a shipped name or a vehicle file) driven with its [truth] set."""
-    from ..vehicle.description import VehicleError, load_vehicle
-    from ..vehicle.sim import CarSimulator
 
     v = load_vehicle(vehicle)
     if v.truth is None:
@@ -127,8 +128,6 @@ def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fm
     """The logger files of the simulated tests (sensor noise seeded by seed + the test's index, or none) and
     the identification config in `out` (for `vehicle`: a shipped name, or a vehicle file, written as an absolute
     path); returns the config's path."""
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.sim.recording import write_test
 
     suite = load_vehicle(vehicle).suite  # the sensors the vehicle file says are fitted
     data = out / "data"
