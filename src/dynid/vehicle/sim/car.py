@@ -50,7 +50,7 @@ from ..parameters import ParameterSet, truth
 from ..sensors import ideal_channels, mounted
 from ..statics import rest_state
 from ..tables import STEERING_RATIO, KinematicTables, default_tables
-from ..template import CHASSIS, DAMPERS, TIRES, WHEELS
+from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, tabulated
 from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
 from .bicycle import Bicycle, Car, bicycle, cornering_bicycle
 from .interp import pack_aero, pack_tables
@@ -155,7 +155,7 @@ def free_rows_inertia(inert: Tree):
     (the rest left zero), shape (K.NF, K.NF_ROW): composite bodies, numeric parameters."""
     prog = inertia(inert, "numeric", "numeric")
     rows = {j - 1: i for i, j in enumerate(K.FREE)}
-    cols = set(rows) | {7 + 9 * k + 2 + n for k in range(4) for n in range(4)}
+    cols = set(rows) | {j - 1 for k in range(4) for j in tabulated(k)}
     prog.outputs = [((rows[i], j), v) for (i, j), v in prog.outputs if i in rows and j in cols]
     prog.shape = (K.NF, K.NF_ROW)
     return prog.prune()
