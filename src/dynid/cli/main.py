@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, NoReturn
 from .._version import __version__
 from ..atomic import OutputError, Terminated, final_text, staged_folder, write_atomic
 from ..progress import Count
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from ..textfiles import TextEncodingError
 from . import excite_cmds, model_io_cmds, plan_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
 from .model_table import format_table
@@ -229,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "--template, a vehicle template's instead.",
         examples=["dynid model show tx40", "dynid model show robot.toml", "dynid model show --template peugeot406"])
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
-    show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
+    show.add_argument("--template", help=f"a vehicle template instead of a file: {CAR_TEMPLATE}")
     show.set_defaults(func=cmd_model_show)
     demo = command(
         sub, "demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
@@ -245,9 +246,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "(default: dynid-demo)")
     demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")
     demo.add_argument("--seed", type=int, default=406, help="seed of the sensor noise (default 406)")
-    demo.add_argument("--vehicle", default="peugeot406",
+    demo.add_argument("--vehicle", default=DEMO_VEHICLE,
                       help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
-                           "(default: peugeot406)")
+                           f"(default: {DEMO_VEHICLE})")
     demo.set_defaults(func=cmd_demo)
     ident = command(
         sub, "identify", help="identify a model's parameters from measurement files, as a config describes them",

@@ -17,6 +17,7 @@ import time
 
 from ..atomic import OutputError, add_force, refuse_overwrite
 from ..progress import Count, notice_if_slow
+from ..shipped import DEMO_VEHICLE
 from .progress import report as show
 from .usage import command
 
@@ -48,9 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--noise-free", action="store_true", help="sensor channels without noise and bias")
     p.add_argument("--out", required=True, help="output file (.csv, .parquet, .mf4); its sidecar <stem>.json beside it")
     add_force(p)
-    p.add_argument("--vehicle", default="peugeot406",
+    p.add_argument("--vehicle", default=DEMO_VEHICLE,
                    help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
-                        "(default: peugeot406)")
+                        f"(default: {DEMO_VEHICLE})")
     p.set_defaults(func=cmd_simulate)
 
 

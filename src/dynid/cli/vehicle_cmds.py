@@ -9,10 +9,11 @@ from importlib.util import find_spec
 from pathlib import Path
 
 from ..atomic import add_force, refuse_overwrite, write_atomic
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from .model_table import format_table
 from .usage import command
 
-TEMPLATES = ("peugeot406",)
+TEMPLATES = (CAR_TEMPLATE,)
 
 
 def show_template(name: str) -> str:
@@ -167,7 +168,7 @@ def cmd_new(args: argparse.Namespace) -> int:
     refuse_overwrite([out], args.force)
     head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
             "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
-    source = vehicle_path("peugeot406")
+    source = vehicle_path(DEMO_VEHICLE)
     lines = [line for line in source.read_text(encoding="utf-8").splitlines() if not line.startswith("# ")]
     for i, line in enumerate(lines):  # JSON's string escapes are TOML's
         if line.startswith("name = "):

@@ -138,6 +138,7 @@ from ..estimation.method import Method
 from ..io.rosbag_format import is_bag, is_bag_folder
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from ..vehicle.description import load_vehicle
 from ..vehicle.estimate import required_channels
 from ..vehicle.sensors import fitted_suite
@@ -335,7 +336,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
     _keys(ident, _CAR_IDENTIFICATION if is_car else _ROBOT_IDENTIFICATION, "[identification]", err,
           None if is_car else dict.fromkeys(set(_CAR_IDENTIFICATION) - set(_ROBOT_IDENTIFICATION), _FOR_A_CAR))
     # a car's [channels] and [uncertainty] name channels of the suite its vehicle has (read only when named)
-    suite = _VehicleChannels(vehicle or "peugeot406", err) if is_car else None
+    suite = _VehicleChannels(vehicle or DEMO_VEHICLE, err) if is_car else None
     car = _car_settings(data, err, suite) if is_car else None
     channels_raw = data.get("channels", {})
     effort = "current" if isinstance(channels_raw, dict) and "current" in channels_raw else "tau"
@@ -544,11 +545,13 @@ def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None
                          "known values are its vehicle file's: vehicle = \"my_car.toml\")")
     given = [k for k in _MODEL_KEYS if k in m]
     if not given:
-        raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "
-                         "or vehicle = \"peugeot406\" (a car: a shipped vehicle or a vehicle file)")
+        raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", "
+                         f"template = \"{CAR_TEMPLATE}\" or vehicle = \"{DEMO_VEHICLE}\" (a car: a shipped vehicle "
+                         "or a vehicle file)")
     if {"template", "vehicle"} <= set(given):
         raise err(where, f"template = {m['template']!r} and vehicle = {m['vehicle']!r} together: give one (vehicle "
-                         "describes the car on the peugeot406 template; template alone is the shipped Peugeot 406)")
+                         f"describes the car on the {CAR_TEMPLATE} template; template alone is the shipped vehicle "
+                         f"{DEMO_VEHICLE})")
     if len(given) > 1:
         raise err(where, f"{' and '.join(given)} together: give one of {', '.join(_MODEL_KEYS)}")
     key = given[0]
@@ -557,11 +560,11 @@ def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None
         raise err(where, f"{key} = {value!r}; give a name or a file name (a string)")
     if key == "vehicle":
         if not value.lower().endswith(".toml"):
-            return "peugeot406", value  # a shipped vehicle's name (resolved with the vehicle files)
+            return CAR_TEMPLATE, value  # a shipped vehicle's name (resolved with the vehicle files)
         file = (here / value).resolve()
         if not file.is_file():
             raise err(where, f"vehicle file not found: {file}")
-        return "peugeot406", file
+        return CAR_TEMPLATE, file
     return (here / value if key == "file" else value), None
 
 

@@ -43,6 +43,7 @@ from ..estimation import StreamingLS
 from ..estimation.errors import EstimationWarning
 from ..estimation.systematic import BiasAccumulator
 from ..report.build import car_engineering
+from ..shipped import DEMO_VEHICLE
 from ..signals import border_samples, lowpass
 from ..vehicle.description import load_vehicle
 from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
@@ -735,7 +736,7 @@ def _num(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
+def plan_tests(vehicle: str = DEMO_VEHICLE, spec: TargetSpec | None = None,
                candidates: Sequence[Candidate] = CANDIDATES, repeats: int = 2, seed: int = 2900,
                progress: Progress | None = None, work: Path | None = None) -> TestPlan:
     """Simulate the candidates (within the spec's limits), reduce each once, search the shortest plan meeting the

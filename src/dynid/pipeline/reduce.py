@@ -43,6 +43,7 @@ from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io import Channel
 from ..io.units import unit_factor
+from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
 from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
 from ..vehicle.dampers import KneeSearch
@@ -132,7 +133,7 @@ class CarSetup:
 
     def __init__(self, cfg: IdentifyConfig) -> None:
         settings = self.settings = cfg.car
-        vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+        vehicle = load_vehicle(cfg.vehicle or DEMO_VEHICLE)
         if settings.knees:  # the knees the search chose from the data (pipeline.run)
             vehicle = vehicle.with_knees({d: (lo, hi) for d, lo, hi in settings.knees})
         self.vehicle = vehicle

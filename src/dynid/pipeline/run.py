@@ -47,6 +47,7 @@ from ..model.tree import FIXED, INERTIAL
 from ..report import parameter_table
 from ..report.build import build_report, car_engineering
 from ..report.tables import engineering_block
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from ..signals import border_samples
 from ..vehicle.description import load_vehicle
 from ..vehicle.estimate import required_channels
@@ -232,7 +233,7 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     resampling reported through `progress`) read as one window. The identification reads a segment at a time
     instead; this is for looking at a test. suite: the sensors fitted (default: the config's vehicle's)."""
 
-    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite
+    suite = load_vehicle(cfg.vehicle or DEMO_VEHICLE).suite if suite is None else suite
     plan = plan_car_test(cfg, spec, required_channels(spin=False, suite=suite), suite.units, None, lambda fs: 0,
                          progress)
     return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
@@ -294,8 +295,8 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     scheduler's workers, fold them (`reduce.combine`), solve; IDIM-IV passes map again with the last estimate.
     W is never held whole, whatever the tests' length."""
 
-    if cfg.model != "peugeot406":
-        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
+    if cfg.model != CAR_TEMPLATE:
+        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: {CAR_TEMPLATE}")
     scheduler = scheduler or LocalScheduler()
     settings = cfg.car
     setup = car_setup(cfg)

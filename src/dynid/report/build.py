@@ -23,6 +23,7 @@ from ..atomic import file_sha256, final_path
 from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
+from ..shipped import DEMO_VEHICLE
 from ..vehicle.dampers import damper_curve, damper_slopes
 from ..vehicle.description import load_vehicle, vehicle_path
 from ..vehicle.engineering import car_quantities, damper_vertical, engineering_figures, jacobian
@@ -250,7 +251,7 @@ def _vehicle(run):
     if getattr(run, "vehicle", None) is not None:
         return run.vehicle
     cfg = run.config
-    return load_vehicle((getattr(cfg, "vehicle", None) or "peugeot406") if cfg is not None else "peugeot406")
+    return load_vehicle((getattr(cfg, "vehicle", None) or DEMO_VEHICLE) if cfg is not None else DEMO_VEHICLE)
 
 
 def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
@@ -736,7 +737,7 @@ def input_files(cfg) -> list[tuple[str, Path]]:
         if isinstance(p, Path) or (isinstance(p, str) and p.endswith(".toml")):
             out.append((what, Path(p)))
     if cfg.kind == "car" and not isinstance(cfg.vehicle, Path):  # a shipped vehicle: its file, as installed
-        out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or "peugeot406")))
+        out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or DEMO_VEHICLE)))
     for t in cfg.tests:
         for q, p in t.files.items():
             out.append((f"{t.name}: {q}", Path(p)))

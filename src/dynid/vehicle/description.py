@@ -79,6 +79,7 @@ import numpy as np
 from ..model.consistency import check_physical
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import FRICTION_SHAPES, ModelError, Tree
+from ..shipped import DEMO_VEHICLE
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .car_model import car_template
@@ -210,7 +211,7 @@ def vehicle_path(name_or_path: str | os.PathLike[str]) -> Path:
                        f"{', '.join(shipped_vehicles())} (or give a path to a .toml vehicle file)")
 
 
-def load_vehicle(name_or_path: str | os.PathLike[str] = "peugeot406") -> Vehicle:
+def load_vehicle(name_or_path: str | os.PathLike[str] = DEMO_VEHICLE) -> Vehicle:
     """Read and check a vehicle file (a path, or a shipped vehicle's name)."""
     path = vehicle_path(name_or_path)
     data = read_toml(path, "vehicle file", VehicleError)
