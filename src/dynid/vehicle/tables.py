@@ -132,6 +132,9 @@ class KinematicTables:
     """The four tables of each corner: tables[corner][name], corner 0 rear left .. 3 front right."""
 
     tables: tuple[Mapping[str, KinematicTable], ...]
+    # `_packed`'s workspace: the packed tables per selection, built on first use. Declared, so that it is no
+    # attribute written behind the frozen dataclass' back, and no part of the value (compare, repr, replace)
+    _packed_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.tables) != 4 or any(set(t) != set(TABLE_NAMES) for t in self.tables):
@@ -140,7 +143,7 @@ class KinematicTables:
     def _packed(self, todo: tuple[tuple[int, str], ...]) -> tuple:
         """The tables `todo` (corner, name) packed for `table_joints`, with which tables use the steering and
         their damper and joint columns; built once per set (the tables are immutable)."""
-        cache = self.__dict__.setdefault("_packed_cache", {})
+        cache = self._packed_cache
         if todo not in cache:
             tabs = [self.tables[k][n] for k, n in todo]
             steering = np.array([t.steering is not None for t in tabs])
