@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
 from .figures import _png, _pyplot
 from .html import Section, Table
 
@@ -18,7 +19,6 @@ def tire_figure(tires) -> bytes:
     0.5, 1 and 1.5 times the axle's nominal load, dashed beyond the slips measured), and longitudinal force over
     load against slip ratio with the fitted law."""
     plt = _pyplot()
-    from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), squeeze=False)
     s = tires.samples

@@ -54,14 +54,19 @@ its bounds (a parameter at a bound gets no σ).
 
 from __future__ import annotations
 
+import csv
+import io
 import math
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from ..kinematics.forward import forward_kinematics, joint_array, point_velocity
+from .engineering import Quantity
 from .template import WHEELS, tire
 
 Array = np.ndarray
@@ -707,7 +712,6 @@ class TireCurves:
     def quantities(self) -> list:
         """The engineering sheet's tire figures (`vehicle.engineering.Quantity`): per axle the cornering stiffness
         (N/deg) and the longitudinal slip stiffness (N per unit slip) at the axle's nominal load, with σ."""
-        from .engineering import Quantity
 
         out = []
         for name, c in self.lateral.items():
@@ -723,8 +727,6 @@ class TireCurves:
 
     def csv(self) -> str:
         """tires.csv (`rows`)."""
-        import csv
-        import io
 
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
@@ -847,14 +849,12 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
     """Every curve the samples support (module doc); what they do not is said in `missing`. BLAS on one thread:
     the problems are a few thousand rows by a few columns, where threads cost more than they give (on a loaded
     machine, 3 s of wall time against 0.4 s)."""
-    from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit_tire_curves(samples, wheel_radius)
 
 
 def _fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
-    import time
 
     t0, c0 = time.perf_counter(), time.process_time()
     s = _ordered(samples)
