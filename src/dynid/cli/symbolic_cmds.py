@@ -9,13 +9,13 @@ import time
 from pathlib import Path
 
 from ..atomic import OutputError, add_force, refuse_overwrite
+from .usage import UsageError, command
 
 HELP_FILE = "model file (TOML) or a shipped example: puma560, tx40, floating_tree"
 
 
 def register(model_subparsers: argparse._SubParsersAction) -> None:
     """Add `ops` and `codegen` to the `dynid model ...` sub-commands."""
-    from .usage import command
 
     ops = command(model_subparsers, "ops", help="operation counts of the symbolic models (mult, add, functions)",
                   description="Build the symbolic models of a tree (geometric dgm, inverse dynamic idm, "
@@ -56,13 +56,13 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _load(args: argparse.Namespace):
-    from ..dynamics import load_model
+    from ..dynamics import load_model  # start-up: the library, 1-5 s (--help 0.1 s)
 
     return load_model(args.file).tree
 
 
 def _is_column(tree, name: str) -> bool:
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     try:
         tree.column(name)
@@ -72,8 +72,6 @@ def _is_column(tree, name: str) -> bool:
 
 
 def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
-    from .usage import UsageError
-
     out: dict = {}
     if args.rows:
         try:
@@ -94,7 +92,7 @@ def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
 
 
 def cmd_ops(args: argparse.Namespace) -> int:
-    from ..symbolic import SymbolicError, build
+    from ..symbolic import SymbolicError, build  # start-up: the library, 1-5 s (--help 0.1 s)
 
     tree = _load(args)
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters; geometry {args.geometry}")
@@ -116,8 +114,9 @@ def cmd_ops(args: argparse.Namespace) -> int:
 
 
 def cmd_codegen(args: argparse.Namespace) -> int:
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..symbolic import SymbolicError, build, model_hash, to_c, to_numpy, to_text
-    from ..symbolic.cache import write_atomic
+    from ..symbolic.cache import write_atomic  # start-up: the library, 1-5 s (--help 0.1 s)
 
     tree = _load(args)
     opts = {"geometry": args.geometry}

@@ -23,23 +23,39 @@ shortfall per second of driving, a pair when no single test helps), and drops ev
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import tempfile
 import time
 import tomllib
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
+from ..atomic import write_atomic
 from ..estimation import StreamingLS
+from ..estimation.errors import EstimationWarning
 from ..estimation.systematic import BiasAccumulator
+from ..report.build import car_engineering
+from ..shipped import DEMO_VEHICLE
+from ..signals import border_samples, lowpass
+from ..vehicle.description import load_vehicle
+from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
+from ..vehicle.estimate import required_channels
+from ..vehicle.sim.recording import write_test
+from .car import car_scales, sensor_offsets
 from .config import ConfigError, load_config
+from .demo import conditioning_toml, simulated_car
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
+from .run import identify
 from .schedulers import LocalScheduler
+from .sources import plan_car_test, segment_window
 
 Progress = Callable[[str], None]
 
@@ -126,7 +142,6 @@ class Envelope:
 def envelope(result) -> Envelope:
     """The run's peaks from the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), filtered at 2 Hz
     (a driver's and a standard's reading of acceleration, not the tire's vibration)."""
-    from ..signals import lowpass
 
     fs = 1.0 / float(result.time[1] - result.time[0])
     qd, qdd, yaw = result.qd[:, 0:2], result.qdd[:, 0:2], result.q[:, 3]
@@ -203,7 +218,6 @@ def load_targets(path: str | Path | None) -> TargetSpec:
             raise ConfigError(f"{path}: [targets] {k}: not a target; targets: {', '.join(TARGET_KEYS)} (and the "
                               "tables [targets.parameters], [targets.quantities])")
         categories[k] = None if v is False else _positive(path, f"[targets] {k}", v)
-    from ..vehicle.engineering import QUANTITIES
 
     for k, v in per_quantity.items():
         if k not in QUANTITIES:
@@ -288,9 +302,6 @@ class Piece:
 
 def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float]) -> str:
     """The identification config of these tests (name -> file), all identified, with the demo's conditioning."""
-    import json
-
-    from .demo import conditioning_toml
 
     lines = ["# dynid plan's tests: rerun with `dynid identify identify.toml --out DIR`", "", "[model]",
              f"vehicle = {json.dumps(vehicle)}", ""]
@@ -312,12 +323,6 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     """Each simulated test (key -> SimulationResult) written noise-free and with `draws` draws of the suite's noise
     and zero offsets (seeds seed + 100 d + its index) into `folder`, each file reduced once by the identification's
     map; returns key -> Piece and the car setup (names, tree, vehicle)."""
-    from ..signals import border_samples
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.estimate import required_channels
-    from ..vehicle.sim.recording import write_test
-    from .car import sensor_offsets
-    from .sources import plan_car_test, segment_window
 
     say = say or (lambda _m: None)
     suite = load_vehicle(vehicle).suite
@@ -379,11 +384,6 @@ class Prediction:
 def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
     """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc);
     a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources)."""
-    import warnings
-
-    from scipy.linalg import solve_triangular
-
-    from ..estimation.errors import EstimationWarning
 
     # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
     # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their differences)
@@ -500,7 +500,6 @@ class Scorer:
 
 def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[Target], geometry) -> Scorer:
     """The Scorer of these targets at `values` (every parameter of the tree: the estimated at their a priori)."""
-    from ..vehicle.engineering import car_quantities, jacobian
 
     keys = tuple(dict.fromkeys(t.key for t in targets if t.kind == "quantity"))
     x = np.array([values[n] for n in names])
@@ -604,9 +603,6 @@ class TestPlan:
         """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
         noise and zero offsets (seed + its index; a repeat is a new draw) in `folder`/data, and `folder`/
         identify.toml identifying on all of them (the demo's conditioning); returns the config's path."""
-        from ..atomic import write_atomic
-        from ..vehicle.description import load_vehicle
-        from ..vehicle.sim.recording import write_test
 
         suite = load_vehicle(self.vehicle).suite
         (folder / "data").mkdir(parents=True, exist_ok=True)
@@ -630,8 +626,6 @@ class TestPlan:
         return bool(np.all(self.reported <= np.array([t.limit for t in self.score.targets])))
 
     def text(self) -> str:
-        from ..vehicle.engineering import QUANTITIES
-
         c, lines = self.candidates, []
         lines += [f"Test plan for {self.vehicle}: targets {self.spec.source}", f"Driver and track limits: "
                   f"{self.spec.limits.text()}", "", "Candidates (simulated with the vehicle's [truth] set; peaks "
@@ -700,7 +694,6 @@ class TestPlan:
     def scales(self) -> dict[str, float]:
         """Each parameter's engineering scale (`car.car_scales`: products against the smallest moment, first
         moments against M6 x 0.2 m; the others their own value)."""
-        from .car import car_scales
 
         found = car_scales(self.values)
         return {n: found.get(n, abs(v)) for n, v in self.values.items()}
@@ -743,12 +736,11 @@ def _num(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
+def plan_tests(vehicle: str = DEMO_VEHICLE, spec: TargetSpec | None = None,
                candidates: Sequence[Candidate] = CANDIDATES, repeats: int = 2, seed: int = 2900,
                progress: Progress | None = None, work: Path | None = None) -> TestPlan:
     """Simulate the candidates (within the spec's limits), reduce each once, search the shortest plan meeting the
     targets (module doc). work: where the candidates' files go (default: a temporary folder, removed)."""
-    from .demo import simulated_car
 
     say = progress or (lambda _m: None)
     spec = spec or TargetSpec()
@@ -787,7 +779,6 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         labels = {n: tree.label(n) for n in names}
         everything = predict(list(pieces.values()))  # the noise-free estimate of every test: the a priori car
         values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
-        from ..vehicle.engineering import car_quantities
 
         quantities = car_quantities(values, setup.vehicle.geometry)
         targets = targets_for(spec, names, values, quantities, labels)
@@ -850,8 +841,6 @@ class SeedCheck:
 def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Progress | None = None) -> SeedCheck:
     """`plan.rehearsal` for each seed identified by `identify` (the demo's procedure: files through the normal
     pipeline); the spread of its estimates against the predicted σ total (module doc)."""
-    from ..report.build import car_engineering
-    from .run import identify
 
     say = progress or (lambda _m: None)
     names = plan.prediction.names

@@ -31,10 +31,31 @@ from ..estimation import (
     propagate,
 )
 from ..estimation.method import Method
-from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc_streamed
+from ..estimation.physical import (
+    PRIOR_SPREAD,
+    ConsistencyStructure,
+    PhysicalFit,
+    feasible_standard,
+    plausible_standard,
+    wls_pc_streamed,
+)
 from ..estimation.shifts import estimate_shifts
+from ..io.rosbag_format import is_bag
 from ..model import ModelError
+from ..model.consistency import NONNEGATIVE_TERMS, Violation, check_base_singletons, check_joint_terms, check_physical
+from ..model.tree import FIXED, INERTIAL
 from ..report import parameter_table
+from ..report.build import build_report, car_engineering
+from ..report.tables import engineering_block
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
+from ..signals import border_samples
+from ..vehicle.description import load_vehicle
+from ..vehicle.estimate import required_channels
+from ..vehicle.excitation import excitation_hint
+from ..vehicle.sensors import CORNER_TAGS, gnss_point
+from ..vehicle.template import DAMPERS, meaning
+from ..vehicle.tire_curves import fit_tire_curves
+from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 from .config import ConfigError, IdentifyConfig, TestSpec, load_config
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .health import check_car_tests, check_robot_test, health_note
@@ -50,7 +71,17 @@ from .reduce import (
     robot_setup,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
+from .robot import (
+    GroupedSystem,
+    JointTest,
+    _border,
+    chunk_pad,
+    in_joint_order,
+    link_box,
+    link_length,
+    robot_chunks,
+    robot_scales,
+)
 from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
     plan_car_test,
@@ -103,15 +134,10 @@ class IdentificationRun:
         sheet, then the notes."""
         meanings = None
         if self.vehicle is not None:
-            from ..vehicle.template import meaning
-
             found = {n: meaning(n) for n in self.result.names}
             meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
         text = parameter_table(self.result, self.sections, meanings=meanings)
         if self.vehicle is not None:
-            from ..report.build import car_engineering
-            from ..report.tables import engineering_block
-
             quantities, kind, _, _ = car_engineering(self)
             text += "\n\n" + engineering_block(quantities, kind)
         return f"{text}\n\n{self.notes}" if self.notes else text
@@ -147,8 +173,6 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
 
 
 def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
-    from ..io.rosbag_format import is_bag
-
     for quantity in ("q", cfg.effort):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
@@ -208,10 +232,8 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     each to SI, and the sample rate: the plan of `sources.plan_car_test` (time stamps checked, the rates and the
     resampling reported through `progress`) read as one window. The identification reads a segment at a time
     instead; this is for looking at a test. suite: the sensors fitted (default: the config's vehicle's)."""
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.estimate import required_channels
 
-    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite
+    suite = load_vehicle(cfg.vehicle or DEMO_VEHICLE).suite if suite is None else suite
     plan = plan_car_test(cfg, spec, required_channels(spin=False, suite=suite), suite.units, None, lambda fs: 0,
                          progress)
     return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
@@ -272,13 +294,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     segment to per-group factors (`reduce.reduce_car_segment`: joints, 14 equations, parallel decimation) on the
     scheduler's workers, fold them (`reduce.combine`), solve; IDIM-IV passes map again with the last estimate.
     W is never held whole, whatever the tests' length."""
-    from ..signals import border_samples
-    from ..vehicle.estimate import required_channels
-    from ..vehicle.excitation import excitation_hint
-    from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 
-    if cfg.model != "peugeot406":
-        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
+    if cfg.model != CAR_TEMPLATE:
+        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: {CAR_TEMPLATE}")
     scheduler = scheduler or LocalScheduler()
     settings = cfg.car
     setup = car_setup(cfg)
@@ -453,8 +471,6 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
                      ) -> tuple[IdentifyConfig, str]:
     """The knees of the dampers the vehicle file gives none (`vehicle.dampers.KneeSearch` on every identification
     segment's rows): the config that carries them, and the results' note saying what was chosen."""
-    from ..vehicle.sensors import CORNER_TAGS
-    from ..vehicle.template import DAMPERS
 
     dampers = setup.vehicle.knees_from_data
     say(f"choosing the knees of {len(dampers)} damper curve(s) from the data's clearance rates")
@@ -497,7 +513,6 @@ def without_each_test(names: list[str], kw: dict, per_test: dict,
 
 def _tire_curves(parts: dict, vehicle, say: Progress):
     """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
-    from ..vehicle.tire_curves import fit_tire_curves
 
     samples = [p.tires for p in parts.values() if p.tires is not None]
     if not samples:
@@ -543,7 +558,6 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
 
 def sensors_note(vehicle) -> str:
     """What the sensors not fitted change (empty for the paper's suite)."""
-    from ..vehicle.sensors import gnss_point
 
     out = ""
     if not vehicle.cameras:
@@ -820,8 +834,6 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     """What a robot's physical-consistency constraints need: K (base = K @ standard), each moving body's ten
     parameters, the joint terms that must be >= 0. A body none of whose inertial parameters has any effect (all
     eliminated) is left out: nothing the data say can make it inconsistent."""
-    from ..model.consistency import NONNEGATIVE_TERMS
-    from ..model.tree import FIXED, INERTIAL
 
     names = tree.parameter_names
     K = np.zeros((base.rank, len(names)))
@@ -858,8 +870,6 @@ def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], 
     plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
     scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
     file in each link's own units, the estimate reproduced within its σ."""
-    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
-    from .robot import link_box, link_length
 
     structure = consistency_structure(tree, base)
     bodies = {}
@@ -905,7 +915,6 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
     the conditions readable on base parameters that are one standard parameter each, then, with the pc extra
     installed, the standard set of largest pseudo-inertia margin reproducing every base value (a witness when
     realisable); without the extra, the bodies whose parameters regroup are named as not checked."""
-    from ..model.consistency import Violation, check_base_singletons, check_joint_terms, check_physical
 
     couplings = {c.name: c.kind for c in tree.couplings}
     bodies = sorted(structure.bodies)
@@ -960,7 +969,6 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
     """results.json, parameters.csv, validation.csv (the measured and predicted signals per test and equation),
     engineering.csv (a car), the figures (PNG) and report.html (self-contained: the figures embedded) in `out`,
     each written atomically; report.html last, so a report on disk always has its data beside it."""
-    from ..report.build import build_report
 
     say = progress or (lambda _msg: None)
     out.mkdir(parents=True, exist_ok=True)
