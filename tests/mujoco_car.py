@@ -44,6 +44,7 @@ def identify(tmp: Path, folder: str, tests: list[str], compensate_delays: bool, 
                   f'file = "{(DATA / folder / f"{t}.parquet").as_posix()}"']
     lines += ["[conditioning]", "cutoff = 4.0", "order = 4", "decimate = [5, 10]", "attitude_crossover = 0.2",
               f"compensate_delays = {'true' if compensate_delays else 'false'}", conditioning,
+              *([] if "min_speed" in conditioning else ["min_speed = 0.02"]),  # the example's (its comment says why)
               "[identification]", 'method = "wls"', 'base = "generic"', "aero = false"]
     if folder == "ideal":  # the true channel values: no zero offsets to estimate (declared, the estimate would read
         lines += ["[uncertainty]", 'offsets = "none"']  # the model's misfits into them: 0.3 mm of CoG here)

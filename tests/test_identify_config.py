@@ -181,7 +181,7 @@ def test_car_conditioning_options_are_checked(tmp_path, conditioning, identifica
     cfg.write_text(CAR_OPTIONS.format(conditioning="", identification=""))
     c = load_config(cfg)
     # the defaults: docs/vehicle.md, 'The dry-friction columns and the loads' low-pass'
-    assert c.car.min_speed == {9: 0.02, 18: 0.02, 27: 0.02, 36: 0.02} and c.car.compensate_delays
+    assert c.car.min_speed == {9: 0.01, 18: 0.01, 27: 0.01, 36: 0.01} and c.car.compensate_delays
     assert c.car.friction_lowpass
 
 

@@ -164,15 +164,15 @@ def ideal_step_friction(truth, tmp_path_factory):
 
 def test_friction_columns_through_the_loads_low_pass_bring_the_suspensions_within_one_percent(
         truth, ideal_all, ideal_step_friction):
-    """[conditioning] friction_lowpass = true and min_speed = 0.02 (the defaults): the dampers' dry-friction
-    columns through the loads' low-pass (W and Y through the same filters), and the rows within 2 cm/s of a reversal
-    left out. The former defaults (a sharp sign(rate) column, rows from 1 cm/s) miss issue 24's 1 % on ideal/ (ks
-    -1.35 %, h27 +2.67 %, karr +2.59 %, measured); the defaults give every spring, damper and bar within 0.7 % and
-    every suspension group's residual below half the former's (measured 0.064 / 0.064 / 0.045 / 0.054 % against
-    0.24 / 0.25 / 0.15 / 0.14 %)."""
+    """[conditioning] friction_lowpass = true (the default): the dampers' dry-friction columns through the loads'
+    low-pass (W and Y through the same filters); with the example's min_speed = 0.02 (MuJoCo smooths the Coulomb
+    friction at very low rates, its README says). A sharp sign(rate) column (friction_lowpass = false) with rows
+    from 1 cm/s misses issue 24's 1 % on ideal/ (ks -1.35 %, h27 +2.67 %, karr +2.59 %, measured); the example's
+    files give every spring, damper and bar within 0.7 % and every suspension group's residual below half the
+    other's (measured 0.064 / 0.064 / 0.045 / 0.054 % against 0.24 / 0.25 / 0.15 / 0.14 %)."""
     before, after = _errors(ideal_step_friction[0], truth), _errors(ideal_all[0], truth)
     names = [f"{kind}{c}" for kind in ("ks", "h") for c in (9, 18, 27, 36)] + ["karf", "karr"]
-    assert max(abs(before[n]) for n in names) > 0.01  # the former defaults miss (so this test can tell)
+    assert max(abs(before[n]) for n in names) > 0.01  # the sharp column misses (so this test can tell)
     assert max(abs(after[n]) for n in names) <= 0.01
     for corner in (9, 18, 27, 36):
         group = f"susp{corner}"

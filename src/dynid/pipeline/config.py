@@ -88,9 +88,9 @@ parameters); [transmission] and [reference] are the robot's only, [uncertainty] 
     segment = 60.0                   # s: long tests are processed in overlapping segments (bounded memory)
     compensate_delays = true         # undo each channel's declared dynamics (the vehicle file's
                                      # [sensors.dynamics], default Table 1); false: none, whatever is declared
-    min_speed = 0.02                 # m/s: damper rows left out where |clearance rate| is below (the dry
-                                     # friction's transition at a reversal: pre-sliding, a simulator's smoothing,
-                                     # the rate's noise); or { 9 = 0.02, 27 = 0.03 }; 0: none
+    min_speed = 0.01                 # m/s: damper rows left out where |clearance rate| is below (dry
+                                     # friction is undefined at reversal); or { 9 = 0.01, 27 = 0.02 }; 0: none;
+                                     # more where the friction builds up over a wider range of rates
     friction_lowpass = true          # the dampers' dry-friction columns s(rate) through the same low-pass
                                      # (cutoff, order) as the loads, before the parallel decimation; false: not
 
@@ -218,7 +218,7 @@ class CarSettings:
     attitude_crossover: float = 0.2
     segment: float = 60.0
     compensate_delays: bool = True
-    min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.02))
+    min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.01))
     friction_lowpass: bool = True  # the dry-friction columns through the loads' low-pass (pipeline.car.car_system)
     base: str = "generic"
     aero: bool = True
@@ -894,11 +894,11 @@ DAMPER_FRAMES = (9, 18, 27, 36)
 
 
 def _car_min_speed(c: dict, err: Err) -> dict[int, float]:
-    """[conditioning] min_speed for a car: one speed (m/s) for the four dampers, or { 9 = 0.02, ... }."""
-    raw = c.get("min_speed", 0.02)
+    """[conditioning] min_speed for a car: one speed (m/s) for the four dampers, or { 9 = 0.01, ... }."""
+    raw = c.get("min_speed", 0.01)
     table = dict.fromkeys(DAMPER_FRAMES, raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else raw
     if not isinstance(table, dict):
-        raise err("[conditioning]", f"min_speed = {raw!r}; use a speed in m/s (0.02) or {{ 9 = 0.02, 27 = 0.03 }}")
+        raise err("[conditioning]", f"min_speed = {raw!r}; use a speed in m/s (0.01) or {{ 9 = 0.01, 27 = 0.02 }}")
     out = {}
     for k, v in table.items():
         if str(k) not in {str(d) for d in DAMPER_FRAMES} or not _number(v, lambda x: x >= 0):
