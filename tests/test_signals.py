@@ -136,6 +136,23 @@ def test_lowpass_nan_message_names_first_sample_and_column():
         lowpass(w, FS, 3.0)
 
 
+
+@pytest.mark.parametrize("values", [[1e308, 1e308, -1e308], [np.inf, -np.inf, 0.0], [np.inf, 1.0, 2.0],
+                                    [-1e308, -1e308, np.nan], [0.5, -0.25, 3.0]])
+def test_finite_check_agrees_with_isfinite_whatever_the_sum(values):
+    """Oracle: np.isfinite on every entry. The check's fast path reads the sum: finite entries whose sum overflows
+    must still pass, and an inf with a -inf (sum NaN) or a NaN among huge values must still be caught."""
+    from dynid.signals._checks import finite
+
+    x = np.zeros((50, 3))
+    x[17] = values
+    if np.isfinite(x).all():
+        finite(x, "x")
+    else:
+        with pytest.raises(SignalError, match="sample 17"):
+            finite(x, "x")
+
+
 # ---------------------------------------------------------------- derivatives
 
 AMPS = np.array([0.8, 0.5, 0.3])

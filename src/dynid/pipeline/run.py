@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..atomic import final_text, write_atomic
 from ..dynamics import BaseParameters, Model
@@ -683,6 +684,15 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if scheduler is None:
         with contextlib.closing(scheduler_for(cfg.scheduler, cfg.workers)) as own:
             return identify(cfg, progress, own)
+    # BLAS on one thread, as the map's workers already run it: the solves' QRs are small (the offsets' a few
+    # hundred rows by ~85 columns), and OpenBLAS's threads on them cost 1.5 ms -> 145 ms of CPU per QR on a loaded
+    # 2-core machine (busy-waiting threads competing with the other processes), 8 s of the demo's 18
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(cfg, progress, scheduler)
+
+
+def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Scheduler) -> IdentificationRun:
+    """`identify` with its scheduler, BLAS limited to one thread."""
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
         return _identify_car(cfg, say, scheduler)
