@@ -36,6 +36,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..estimation import StreamingLS
+from ..estimation.offsets import OffsetFactors, solve_with_offsets
 from ..estimation.systematic import BiasAccumulator
 from .config import ConfigError, load_config
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
@@ -270,6 +271,7 @@ class Piece:
     ls: StreamingLS
     bias: BiasAccumulator | None
     noisy: tuple[StreamingLS, ...]
+    zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
 
     @cached_property
     def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -286,8 +288,10 @@ class Piece:
         return groups, a, B
 
 
-def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float]) -> str:
-    """The identification config of these tests (name -> file), all identified, with the demo's conditioning."""
+def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float], estimate: bool = True
+                     ) -> str:
+    """The identification config of these tests (name -> file), all identified, with the demo's conditioning;
+    estimate: each test's zero offsets estimated with the parameters (identify's default), else propagated."""
     import json
 
     from .demo import conditioning_toml
@@ -296,8 +300,7 @@ def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[st
              f"vehicle = {json.dumps(vehicle)}", ""]
     for name, path in files.items():
         lines += ["[[tests]]", f"name = {json.dumps(name)}", 'role = "identify"', f"file = {json.dumps(path)}", ""]
-    # the offsets propagated, as `predict` does (identify's default estimates them: its σ total is then smaller)
-    return "\n".join(lines + conditioning_toml(dict(offsets), estimate=False))
+    return "\n".join(lines + conditioning_toml(dict(offsets), estimate=estimate))
 
 
 NOISY = " (noisy)"
@@ -343,18 +346,17 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     for spec in cfg.tests:
         plan = plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
                              lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
-        n = len(plan.segments)
-        picks = np.unique(np.linspace(0, n - 1, min(cfg.car.offset_segments, n)).round()).astype(int)
+        # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
         for i, (lo, hi) in enumerate(plan.segments):
-            with_offsets = NOISY not in spec.name and i in picks
-            jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1,
-                               moved if with_offsets else (), n / len(picks) if with_offsets else 1.0))
+            with_offsets = NOISY not in spec.name and bool(moved)
+            jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
+                               1.0, estimate_offsets=with_offsets))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
         f"{draws} noisy draws each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
-    pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)))
-              for k in results}
+    pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),
+                       parts[k].zeros) for k in results}
     return pieces, setup
 
 
@@ -376,9 +378,11 @@ class Prediction:
         return np.sqrt(self.std_stat**2 + self.std_sys**2)
 
 
-def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
+def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Prediction:
     """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc);
-    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources)."""
+    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources).
+    estimate: each test's offsets estimated with the parameters (identify's default, `estimation.offsets`: the
+    pieces need their `zeros`), else propagated (`[uncertainty] estimate = false`)."""
     import warnings
 
     from scipy.linalg import solve_triangular
@@ -411,12 +415,14 @@ def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
     if rank < q:
         inf = np.full(q, np.inf)
         return Prediction(names, np.full(q, np.nan), inf, inf, np.full((q, q), np.inf), rank)
-    x = solve_triangular(R[:q, :q], R[:q, q])
-    Rinv = solve_triangular(R[:q, :q], np.eye(q))
     # s²: the weighted residual of the noisy rows over their degrees of freedom (paper eq. (9)), about 1. The noisy
     # rows' own normal matrix gives the same σ within 1.5 % (the 406's plan, fs9 the most): the noise-free one is kept
     Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
     s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
+    if estimate:
+        return _with_offsets_estimated(pieces, names, sigmas, s2, rank)
+    x = solve_triangular(R[:q, :q], R[:q, q])
+    Rinv = solve_triangular(R[:q, :q], np.eye(q))
     C = s2 * (Rinv @ Rinv.T)
     # every test's offsets, independent sources (systematic.propagate, all sources at once): the shifts
     # ΔX_k = A⁻¹ Σ_g (a_kg - B_kg x) / σ_g², their covariance Σ_k ΔX_k ΔX_kᵀ
@@ -431,15 +437,39 @@ def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
     return Prediction(names, x, np.sqrt(np.diag(C)), np.sqrt(np.diag(C_sys)), C + C_sys, rank)
 
 
+def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigmas: Mapping[str, float], s2: float,
+                            rank: int) -> Prediction:
+    """`predict` with each test's offsets estimated: `estimation.offsets.solve_with_offsets` (identify's own) on the
+    tests' noise-free factors of [C | W | Y] at the noisy draw's weights and scale; a repeat is a test of its own
+    (its own offsets). Its statistical part is the noise's, its systematic part what the data leave of the offsets'."""
+    missing = [i for i, p in enumerate(pieces) if p.zeros is None]
+    if missing:
+        raise ValueError(f"plan.predict: piece {missing[0]} has no offsets' factors (Piece.zeros) to estimate its "
+                         "offsets from; reduce it with the offsets estimated or call predict(..., estimate=False)")
+    first = pieces[0].zeros
+    acc = OffsetFactors(first.columns, first.known_columns, first.known_values, first.x0)
+    for p in pieces:  # the factors are shared, not copied: solve_with_offsets only reads them
+        for test, per in p.zeros.factors.items():
+            name, k = test, 1
+            while name in acc.factors:
+                k += 1
+                name = f"{test} (repeat {k})"
+            acc.sources[name], acc.factors[name], acc.rows[name] = p.zeros.sources[test], per, p.zeros.rows[test]
+    est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
+    C_stat, C_sys = est.solution.covariance, est.systematic.covariance
+    return Prediction(tuple(names), est.solution.x, np.sqrt(np.clip(np.diag(C_stat), 0, None)),
+                      np.sqrt(np.clip(np.diag(C_sys), 0, None)), C_stat + C_sys, rank)
+
+
 # Student's t 90 % quantile by degrees of freedom (scipy.stats.t.ppf(0.9, df); its import costs a second)
 T90 = {2: 1.8856, 3: 1.6377, 4: 1.5332, 5: 1.4759, 6: 1.4398, 7: 1.4149, 8: 1.3968, 9: 1.3830, 10: 1.3722}
 
 
-def predict_all(pieces: Sequence[Piece]) -> list[Prediction]:
+def predict_all(pieces: Sequence[Piece], estimate: bool = True) -> list[Prediction]:
     """`predict` with each noisy draw's weights. The weights σ_g (eq. (8)) come from residuals the zero offsets
     dominate, so they, and the σ total an identification reports, change from one set of offsets to the next (MX6's
     offsets part by 3x between two seeds of the 406's plan): the draws sample that scatter."""
-    return [predict(pieces, d) for d in range(len(pieces[0].noisy))]
+    return [predict(pieces, d, estimate) for d in range(len(pieces[0].noisy))]
 
 
 def typical(draws: Sequence[Prediction]) -> Prediction:
@@ -510,7 +540,7 @@ def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[
 
 
 def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int = 2,
-           max_tests: int = 10, starts: int = 3) -> tuple[list[str], int]:
+           max_tests: int = 10, starts: int = 3, estimate: bool = True) -> tuple[list[str], int]:
     """The shortest plan found (test keys, a repetition listed again) and the evaluations it took.
 
     Every plan of one or two tests is evaluated: the shortest that meets the targets wins. Otherwise the greedy
@@ -524,7 +554,7 @@ def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: S
     def cost(plan: Sequence[str]) -> float:
         k = tuple(sorted(plan))
         if k not in cache:
-            cache[k] = score.shortfall(predict_all([pieces[t] for t in k])) if k else math.inf
+            cache[k] = score.shortfall(predict_all([pieces[t] for t in k], estimate)) if k else math.inf
         return cache[k]
 
     def seconds(plan: Sequence[str]) -> float:
@@ -594,6 +624,7 @@ class TestPlan:
     seconds: dict[str, float] = field(default_factory=dict)
     results: dict[str, object] = field(default_factory=dict, repr=False)  # key -> SimulationResult (noise-free)
     draws: list[Prediction] = field(default_factory=list, repr=False)  # the plan's, per noisy draw's weights
+    estimate: bool = True  # the offsets estimated with the parameters (identify's default), else propagated
 
     @property
     def reported(self) -> np.ndarray:
@@ -618,8 +649,8 @@ class TestPlan:
             name = self.candidates[k].name + (f" (repeat {runs[k]})" if runs[k] > 1 else "")
             files[name] = path.relative_to(folder).as_posix()
         where = Path(self.vehicle).resolve().as_posix() if self.vehicle.endswith(".toml") else self.vehicle
-        return write_atomic(folder / "identify.toml", plan_config_text(files, where, {c.name: c.bias for c in suite
-                                                                                     if c.bias}))
+        offsets = {c.name: c.bias for c in suite if c.bias}
+        return write_atomic(folder / "identify.toml", plan_config_text(files, where, offsets, self.estimate))
 
     @property
     def duration(self) -> float:
@@ -745,9 +776,10 @@ def _num(v: float) -> float | None:
 
 def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
                candidates: Sequence[Candidate] = CANDIDATES, repeats: int = 2, seed: int = 2900,
-               progress: Progress | None = None, work: Path | None = None) -> TestPlan:
+               progress: Progress | None = None, work: Path | None = None, estimate: bool = True) -> TestPlan:
     """Simulate the candidates (within the spec's limits), reduce each once, search the shortest plan meeting the
-    targets (module doc). work: where the candidates' files go (default: a temporary folder, removed)."""
+    targets (module doc). work: where the candidates' files go (default: a temporary folder, removed); estimate:
+    each test's zero offsets estimated with the parameters (identify's default), else propagated (an upper bound)."""
     from .demo import simulated_car
 
     say = progress or (lambda _m: None)
@@ -785,7 +817,7 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
         tree = setup.tree
         labels = {n: tree.label(n) for n in names}
-        everything = predict(list(pieces.values()))  # the noise-free estimate of every test: the a priori car
+        everything = predict(list(pieces.values()), estimate=estimate)  # noise-free, every test: the a priori car
         values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
         from ..vehicle.engineering import car_quantities
 
@@ -794,19 +826,19 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         score = scorer(names, values, targets, setup.vehicle.geometry)
         say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
         durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-        plan, evaluations = search(pieces, durations, score, repeats)
-        draws = predict_all([pieces[k] for k in plan])
+        plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate)
+        draws = predict_all([pieces[k] for k in plan], estimate)
         prediction = typical(draws)
         without = {}
         for k in dict.fromkeys(plan):
             rest = list(plan)
             rest.remove(k)
-            without[k] = typical(predict_all([pieces[t] for t in rest])) if rest else dataclasses.replace(
+            without[k] = typical(predict_all([pieces[t] for t in rest], estimate)) if rest else dataclasses.replace(
                 prediction, rank=0, std_stat=np.full(len(names), np.inf))
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
                     labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
-                    {k: results[k] for k in dict.fromkeys(plan)}, draws)
+                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate)
 
 
 # ----------------------------------------------------------------------------------------------- honesty check
