@@ -265,6 +265,31 @@ def test_fishhook_and_random_steer_against_the_step_steers_angle(sim):
     assert spectrum[f > 2.2].sum() < 1e-3 * spectrum.sum()
 
 
+def test_a_table_replays_the_step_steer_and_brakes_at_its_demand(sim):
+    """Oracle: the step steer (an existing manoeuvre) driven from its own steering-wheel target sampled every
+    10 ms: the robot follows the same reference to the linear interpolation's error (h'' dt² / 8, about 1e-4 of
+    the angle), so the lateral acceleration matches the step's to 1 % of its peak; and a demand of -4 m/s² from
+    1.5 s: the speed target's slope, the brakes taking what the resistances do not (the 2 Hz peak within 5 %, the
+    speed at the end within 1 km/h of the target)."""
+    from dynid.vehicle.sim.kernel import smoothstep
+    from dynid.vehicle.sim.manoeuvres import manoeuvre, pack, table_manoeuvre
+
+    step = sim.run("step", duration=6.0)
+    A, rise = pack(manoeuvre("step"), sim.car_constants())[3:5]
+    t = np.arange(0.0, 6.0 + 1e-9, 0.01)
+    h = np.array([A * smoothstep((x - 2.0) / rise) if x > 2.0 else 0.0 for x in t])
+    table = sim.run(table_manoeuvre(0.01, h, np.zeros_like(h), 80.0))
+    ay_step, ay_table = (planner.road_signals(r)[0] for r in (step, table))
+    assert np.max(np.abs(ay_table - ay_step)) < 0.01 * np.max(np.abs(ay_step))
+    a = np.where(t > 1.5, -4.0, 0.0)
+    braking = sim.run(table_manoeuvre(0.01, np.zeros_like(t), a, 100.0))
+    env = planner.envelope(braking)
+    assert env.longitudinal == pytest.approx(4.0, rel=0.05) and env.lateral < 0.1
+    assert 3.6 * np.hypot(*braking.qd[-1, :2]) == pytest.approx(100.0 - 3.6 * 4.0 * 4.5, abs=1.0)
+    with pytest.raises(ManoeuvreError, match=r"10\.\.180 km/h"):
+        table_manoeuvre(0.01, np.zeros_like(t), np.full(t.size, -6.0), 100.0)
+
+
 def test_envelope_of_a_braking_is_its_deceleration(sim):
     """Oracle: the requested 6 m/s² plus the rolling resistance and drag at 100 km/h (about 0.4 m/s²)."""
     env = planner.envelope(sim.run("braking", duration=6.0))

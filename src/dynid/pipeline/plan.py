@@ -3,15 +3,20 @@
 Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
 sensor suite noise-free and with a few (DRAWS) seeded draws of the suite's noise and zero offsets. Each file is
 reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
-rows give the normal matrix and the zero offsets' sensitivities (`BiasAccumulator`), each noisy draw the equation
-groups' noise levels (paper eq. (8): `StreamingLS.group_sigmas`). A combination of tests is then evaluated without
-simulating or reading anything again: with the weights σ_g of each draw's combined noisy rows,
+rows give the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per
+offset (`estimation.offsets.OffsetFactors`), each noisy draw the equation groups' noise levels (paper eq. (8):
+`StreamingLS.group_sigmas`). A combination of tests is then evaluated without simulating or reading anything
+again, with the weights σ_g and scale s² of each draw's combined noisy rows, as `dynid identify` computes it:
 
-    σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ),   A = Σ_g W_gᵀ W_g / σ_g²
+- by default each test's offsets are estimated with the parameters, their declared σ as the prior
+  (`estimation.offsets.solve_with_offsets`, identify's own, on the tests' [C | W | Y] factors):
+  σ total² = diag(s² A_r⁻¹), A_r the normal matrix with every test's offsets profiled out, split into the noise's
+  part and what the data leave of the offsets' effect;
+- with estimate=False (`[uncertainty] estimate = false`) they are propagated as independent sources:
+  σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ), A = Σ_g W_gᵀ W_g / σ_g² (`estimation.systematic`), an upper bound.
 
-(statistical, paper eq. (9)-(10), plus every test's offsets propagated as independent sources: each test is
-zeroed anew; `estimation.systematic`), as `dynid identify` computes it. A repeated test costs nothing more: its
-rows are the same, its offsets new sources, its noise a new draw.
+Each test is zeroed anew: a repeated test costs nothing more, its rows are the same, its offsets new ones, its noise
+a new draw.
 
 The weights come from residuals the offsets dominate, so the σ total an identification reports scatters from seed
 to seed: the plan's σ is the draws' root mean square (what the estimates' spread over seeds is), and each target is
@@ -89,17 +94,18 @@ CANDIDATES: tuple[Candidate, ...] = (
 @dataclass(frozen=True)
 class Limits:
     """What a driver and a track allow: peak lateral and longitudinal acceleration (m/s²), speed (km/h), the run's
-    length (m)."""
+    length (m), and the track time for the whole plan (s of driving)."""
 
     lateral_acceleration: float = 7.0
     longitudinal_acceleration: float = 7.0
     speed: float = 130.0
     length: float = 1000.0
+    time: float | None = None  # s of driving the whole plan may take (None: no limit)
 
     def text(self) -> str:
         return (f"lateral acceleration <= {self.lateral_acceleration:g} m/s², longitudinal <= "
                 f"{self.longitudinal_acceleration:g} m/s², speed <= {self.speed:g} km/h, run length <= "
-                f"{self.length:g} m")
+                f"{self.length:g} m" + ("" if self.time is None else f", the plan's driving <= {self.time:g} s"))
 
 
 @dataclass(frozen=True)
@@ -124,9 +130,10 @@ class Envelope:
         return out
 
 
-def envelope(result) -> Envelope:
-    """The run's peaks from the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), filtered at 2 Hz
-    (a driver's and a standard's reading of acceleration, not the tire's vibration)."""
+def road_signals(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A run's lateral and longitudinal acceleration (m/s², in the road plane, in the car's heading, filtered at
+    2 Hz: a driver's and a standard's reading of acceleration, not the tire's vibration), speed (m/s) per sample
+    of the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), and its sample rate (Hz)."""
     from ..signals import lowpass
 
     fs = 1.0 / float(result.time[1] - result.time[0])
@@ -135,7 +142,12 @@ def envelope(result) -> Envelope:
     # q1, q2 translate along x0, y0 in the road plane; the heading at yaw q4 is (-sin, cos) (y0 forward at rest)
     a_head = lowpass(-qdd[:, 0] * s + qdd[:, 1] * c, fs, 2.0, 2)
     a_side = lowpass(qdd[:, 0] * c + qdd[:, 1] * s, fs, 2.0, 2)
-    speed = np.hypot(qd[:, 0], qd[:, 1])
+    return a_side, a_head, np.hypot(qd[:, 0], qd[:, 1]), fs
+
+
+def envelope(result) -> Envelope:
+    """The run's peaks (`road_signals`) and the distance it drove."""
+    a_side, a_head, speed, fs = road_signals(result)
     return Envelope(float(np.max(np.abs(a_side))), float(np.max(np.abs(a_head))), float(3.6 * speed.max()),
                     float(np.sum(speed) / fs))
 
@@ -625,6 +637,22 @@ class TestPlan:
     results: dict[str, object] = field(default_factory=dict, repr=False)  # key -> SimulationResult (noise-free)
     draws: list[Prediction] = field(default_factory=list, repr=False)  # the plan's, per noisy draw's weights
     estimate: bool = True  # the offsets estimated with the parameters (identify's default), else propagated
+    pieces: dict[str, Piece] = field(default_factory=dict, repr=False)  # key -> the candidate's reduced rows
+    repeats: int = 2
+
+    def with_candidate(self, candidate: Candidate, piece: Piece, result, env: Envelope) -> TestPlan:
+        """The plan searched again with one more candidate (an optimised input: its reduced rows, noise-free run
+        and peaks)."""
+        pieces = {**self.pieces, candidate.key: piece}
+        durations = {k: self.candidates[k].duration for k in self.pieces} | {candidate.key: candidate.duration}
+        results = {**self.results, candidate.key: result}
+        with threadpool_limits(limits=1, user_api="blas"):
+            plan, evaluations, draws, prediction, without = _searched(pieces, durations, self.score, self.repeats,
+                                                                      self.estimate)
+        return dataclasses.replace(self, candidates={**self.candidates, candidate.key: candidate},
+                                   envelopes={**self.envelopes, candidate.key: env}, plan=plan, prediction=prediction,
+                                   without=without, evaluations=self.evaluations + evaluations,
+                                   results={k: results[k] for k in dict.fromkeys(plan)}, draws=draws, pieces=pieces)
 
     @property
     def reported(self) -> np.ndarray:
@@ -660,6 +688,15 @@ class TestPlan:
     def met(self) -> bool:
         return bool(np.all(self.reported <= np.array([t.limit for t in self.score.targets])))
 
+    @property
+    def in_time(self) -> bool:
+        return self.spec.limits.time is None or self.duration <= self.spec.limits.time
+
+    @property
+    def needs_input(self) -> bool:
+        """The standard tests miss a target, or take longer than allowed: an optimised input is designed."""
+        return not (self.met and self.in_time)
+
     def text(self) -> str:
         from ..vehicle.engineering import QUANTITIES
 
@@ -677,8 +714,10 @@ class TestPlan:
         lines += ["", f"Recommended plan: {len(self.plan)} test(s), {self.duration:g} s of driving, {len(self.plan)} "
                   "zeroing(s) of the sensors (one before each test: its zero offsets are drawn anew)"
                   + ("" if self.met else "; it does NOT meet every target (see below): the search found no "
-                     "combination of the candidates within the limits that does (an optimised input, issue 29 "
-                     "item 3, is not built yet)")]
+                     "combination of the candidates within the limits that does")
+                  + ("" if self.in_time else f"; it takes longer than the {self.spec.limits.time:g} s allowed")]
+        lines.append("  the zero offsets " + ("estimated with the parameters (identify's default)" if self.estimate
+                                              else "propagated ([uncertainty] estimate = false)"))
         for i, k in enumerate(self.plan, 1):
             runs[k] = runs.get(k, 0) + 1
             again = f" (repeat {runs[k]})" if runs[k] > 1 else ""
@@ -686,7 +725,8 @@ class TestPlan:
         sig, rep = self.score.sigmas(self.prediction), self.reported
         p, names = self.prediction, list(self.prediction.names)
         bound = {t.key: (t, r) for t, r in zip(self.score.targets, rep, strict=True)}
-        lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets, GUM: "
+        lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets ("
+                  + ("what the data leave of them, estimated" if self.estimate else "propagated") + "), GUM: "
                   "the spread of the estimates over seeds); the σ total the identification reports changes with each "
                   "test's offsets (its weights come from residuals they dominate): 'in 9/10' is what it stays below "
                   "in 9 seeds of 10 (log-normal over the draws' weights), held against the target:",
@@ -752,6 +792,7 @@ class TestPlan:
                 "plan": [{"key": k, "name": self.candidates[k].name, "standard": self.candidates[k].standard,
                           "duration_s": self.candidates[k].duration} for k in self.plan],
                 "duration_s": self.duration, "zeroings": len(self.plan), "meets_targets": self.met,
+                "offsets": "estimated" if self.estimate else "propagated",
                 "candidates": {k: {"name": c.name, "envelope": dataclasses.asdict(self.envelopes[k]),
                                    "excluded": self.excluded.get(k, [])} for k, c in self.candidates.items()},
                 "parameters": {n: {"a_priori": self.values[n], "std_noise": _num(a), "std_offsets": _num(b),
@@ -826,19 +867,27 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         score = scorer(names, values, targets, setup.vehicle.geometry)
         say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
         durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-        plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate)
-        draws = predict_all([pieces[k] for k in plan], estimate)
-        prediction = typical(draws)
-        without = {}
-        for k in dict.fromkeys(plan):
-            rest = list(plan)
-            rest.remove(k)
-            without[k] = typical(predict_all([pieces[t] for t in rest], estimate)) if rest else dataclasses.replace(
-                prediction, rank=0, std_stat=np.full(len(names), np.inf))
+        plan, evaluations, draws, prediction, without = _searched(pieces, durations, score, repeats, estimate)
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
                     labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
-                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate)
+                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate, pieces, repeats)
+
+
+def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int,
+              estimate: bool) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction]]:
+    """`search`'s plan, the evaluations it took, its draws, their typical prediction, and the plan without each
+    test (one repetition fewer)."""
+    plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate)
+    draws = predict_all([pieces[k] for k in plan], estimate)
+    prediction = typical(draws)
+    without = {}
+    for k in dict.fromkeys(plan):
+        rest = list(plan)
+        rest.remove(k)
+        without[k] = typical(predict_all([pieces[t] for t in rest], estimate)) if rest else dataclasses.replace(
+            prediction, rank=0, std_stat=np.full(len(prediction.names), np.inf))
+    return plan, evaluations, draws, prediction, without
 
 
 # ----------------------------------------------------------------------------------------------- honesty check
