@@ -284,6 +284,7 @@ class Piece:
     bias: BiasAccumulator | None
     noisy: tuple[StreamingLS, ...]
     zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
+    quiet: StreamingLS | None = None  # a draw of the sensors' noise without zero offsets: the rows' own noise
 
     @cached_property
     def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -316,6 +317,7 @@ def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[st
 
 
 NOISY = " (noisy)"
+QUIET = " (noise, no offsets)"
 
 
 DRAWS = 4  # noisy draws per candidate: the weights' seed-to-seed scatter (`predictions`)
@@ -330,6 +332,7 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     from ..signals import border_samples
     from ..vehicle.description import load_vehicle
     from ..vehicle.estimate import required_channels
+    from ..vehicle.sensors import SensorSuite
     from ..vehicle.sim.recording import write_test
     from .car import sensor_offsets
     from .sources import plan_car_test, segment_window
@@ -339,11 +342,15 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     data = folder / "data"
     data.mkdir(parents=True, exist_ok=True)
     files = {}
+    # the sensors' noise without zero offsets: what the rows keep once the offsets are read (the spread's sandwich)
+    quiet = SensorSuite(tuple(dataclasses.replace(c, bias=0.0) for c in suite.channels), suite.rate)
     for i, (key, result) in enumerate(results.items()):
         for d in range(-1, draws):  # -1: noise-free
             path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.csv", seed=seed + 100 * d + i,
                                  noise=d >= 0, suite=suite)
             files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
+        path, _ = write_test(result, data / f"{key}-quiet.csv", seed=seed + 100 * draws + i, suite=quiet)
+        files[f"{key}{QUIET}"] = path.relative_to(folder).as_posix()
     offsets = {c.name: c.bias for c in suite if c.bias}
     where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
     cfg_path = folder / "candidates.toml"
@@ -360,23 +367,25 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
                              lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
         # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
         for i, (lo, hi) in enumerate(plan.segments):
-            with_offsets = NOISY not in spec.name and bool(moved)
+            with_offsets = NOISY not in spec.name and QUIET not in spec.name and bool(moved)
             jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
                                1.0, estimate_offsets=with_offsets))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
-        f"{draws} noisy draws each)")
+        f"{draws} noisy draws and one of the noise alone each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
     pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),
-                       parts[k].zeros) for k in results}
+                       parts[k].zeros, parts[f"{k}{QUIET}"].ls) for k in results}
     return pieces, setup
 
 
 # ------------------------------------------------------------------------------- a combination, without the data
 @dataclass(frozen=True)
 class Prediction:
-    """σ of the estimates of a combination of tests (order `names`): statistical, from the zero offsets, total; the
-    noise-free estimate x; the total covariance; rank: the number of parameters the rows identify."""
+    """σ of the estimates of a combination of tests (order `names`): statistical, from the zero offsets, total (the
+    spread of the estimates over seeds); the noise-free estimate x; the total covariance; rank: the number of
+    parameters the rows identify; reported: the covariance the identification reports, where it is not the
+    spread's (None: the same)."""
 
     names: tuple[str, ...]
     x: np.ndarray
@@ -384,10 +393,15 @@ class Prediction:
     std_sys: np.ndarray
     covariance: np.ndarray
     rank: int
+    reported: np.ndarray | None = None
 
     @property
     def std_total(self) -> np.ndarray:
         return np.sqrt(self.std_stat**2 + self.std_sys**2)
+
+    @property
+    def reported_covariance(self) -> np.ndarray:
+        return self.covariance if self.reported is None else self.reported
 
 
 def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Prediction:
@@ -432,7 +446,15 @@ def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Pr
     Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
     s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
     if estimate:
-        return _with_offsets_estimated(pieces, names, sigmas, s2, rank)
+        noise = None
+        if all(p.quiet is not None for p in pieces):  # the rows' noise without offsets: the spread's (sandwich)
+            quiet = pieces[0].quiet
+            for p in pieces[1:]:
+                quiet = quiet.merge(p.quiet)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", EstimationWarning)
+                noise = quiet.group_sigmas()
+        return _with_offsets_estimated(pieces, names, sigmas, s2, rank, noise)
     x = solve_triangular(R[:q, :q], R[:q, q])
     Rinv = solve_triangular(R[:q, :q], np.eye(q))
     C = s2 * (Rinv @ Rinv.T)
@@ -450,10 +472,20 @@ def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Pr
 
 
 def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigmas: Mapping[str, float], s2: float,
-                            rank: int) -> Prediction:
-    """`predict` with each test's offsets estimated: `estimation.offsets.solve_with_offsets` (identify's own) on the
-    tests' noise-free factors of [C | W | Y] at the noisy draw's weights and scale; a repeat is a test of its own
-    (its own offsets). Its statistical part is the noise's, its systematic part what the data leave of the offsets'."""
+                            rank: int, noise: Mapping[str, float] | None = None) -> Prediction:
+    """`predict` with each test's offsets estimated, on the tests' noise-free factors of [C | W | Y] at the noisy
+    draw's weights σ_g and scale s²; a repeat is a test of its own (its own offsets).
+
+    What the identification reports: `estimation.offsets.solve_with_offsets` (identify's own), s² A_r⁻¹. Its weights
+    come from residuals the offsets dominate, so it overstates the noise the rows keep once the offsets are read
+    (the 406's plan: the spread of ten seeds 0.68 of it, median over the parameters). The spread itself is the
+    estimator's sandwich: with Z_t = W̃_t − C̃_t R_uu⁻¹ R_ux (the weighted rows with test t's offsets profiled out),
+    the noise moves x by A_r⁻¹ Σ_t Z_tᵀ e_t, each group's rows of noise ρ_g = noise_g / σ_g in the weighted scale
+    (noise_g: the rows' σ without offsets, `Piece.quiet`), and each offset of one declared σ by
+    ΔX_k = A_r⁻¹ R_uxᵀ R_uu⁻ᵀ e_k; with ρ_g = 1 the two add up to A_r⁻¹. noise None: ρ_g = s (the weights taken
+    for the rows' noise)."""
+    from scipy.linalg import solve_triangular
+
     missing = [i for i, p in enumerate(pieces) if p.zeros is None]
     if missing:
         raise ValueError(f"plan.predict: piece {missing[0]} has no offsets' factors (Piece.zeros) to estimate its "
@@ -468,9 +500,27 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
                 name = f"{test} (repeat {k})"
             acc.sources[name], acc.factors[name], acc.rows[name] = p.zeros.sources[test], per, p.zeros.rows[test]
     est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
-    C_stat, C_sys = est.solution.covariance, est.systematic.covariance
+    reported = est.solution.covariance + est.systematic.covariance
+    q = len(names)
+    Ainv = reported / s2  # A_r⁻¹ of the weighted rows (solve_with_offsets' total is s² A_r⁻¹)
+    moved, shifts = [], []
+    for test, per in acc.factors.items():
+        m = len(acc.sources[test])
+        blocks = [R / sigmas[g] for g, R in per.items()]
+        R = np.linalg.qr(np.vstack([*blocks, np.hstack([np.eye(m), np.zeros((m, q + 1))])]), mode="r")
+        Ruu, Rux = R[:m, :m], R[:m, m:m + q]
+        T = solve_triangular(Ruu, Rux)
+        profile = np.vstack([-T, np.eye(q)])  # [C W] profile = Z: the rows with the offsets read taken out
+        rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
+        moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
+        shifts.append(Rux.T @ solve_triangular(Ruu, np.eye(m)).T)
+    L = np.linalg.qr(np.vstack(moved), mode="r")
+    B = L @ Ainv
+    C_stat = B.T @ B
+    D = Ainv @ np.hstack(shifts)
+    C_sys = D @ D.T
     return Prediction(tuple(names), est.solution.x, np.sqrt(np.clip(np.diag(C_stat), 0, None)),
-                      np.sqrt(np.clip(np.diag(C_sys), 0, None)), C_stat + C_sys, rank)
+                      np.sqrt(np.clip(np.diag(C_sys), 0, None)), C_stat + C_sys, rank, reported)
 
 
 # Student's t 90 % quantile by degrees of freedom (scipy.stats.t.ppf(0.9, df); its import costs a second)
@@ -507,12 +557,14 @@ class Scorer:
     keys: tuple[str, ...]  # the engineering quantities the targets bound
     J: np.ndarray  # (len(keys), q)
 
-    def sigmas(self, p: Prediction) -> np.ndarray:
-        """(len(targets),) σ total of each target's quantity."""
+    def sigmas(self, p: Prediction, reported: bool = False) -> np.ndarray:
+        """(len(targets),) σ total of each target's quantity: the estimates' spread, or (reported) the σ total the
+        identification reports."""
         if p.rank < len(self.names):
             return np.full(len(self.targets), np.inf)
-        sq = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", self.J, p.covariance, self.J), 0, None))
-        std = p.std_total
+        cov = p.reported_covariance if reported else p.covariance
+        sq = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", self.J, cov, self.J), 0, None))
+        std = np.sqrt(np.clip(np.diag(cov), 0, None)) if reported else p.std_total
         return np.array([std[self.names.index(t.key)] if t.kind == "parameter" else sq[self.keys.index(t.key)]
                          for t in self.targets])
 
@@ -520,7 +572,7 @@ class Scorer:
         """(len(targets),) the σ total an identification reports in 9 seeds of 10: the draws' σ taken as
         log-normal, the 90 % prediction bound of one more draw from n of them, exp(mean + t(0.9, n-1) sqrt(1 + 1/n)
         sd) of their logarithms (their largest with fewer than three draws)."""
-        s = np.array([self.sigmas(d) for d in draws])
+        s = np.array([self.sigmas(d, reported=True) for d in draws])
         if not np.all(np.isfinite(s)):
             return np.full(len(self.targets), np.inf)
         n = len(draws)
@@ -727,9 +779,10 @@ class TestPlan:
         bound = {t.key: (t, r) for t, r in zip(self.score.targets, rep, strict=True)}
         lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets ("
                   + ("what the data leave of them, estimated" if self.estimate else "propagated") + "), GUM: "
-                  "the spread of the estimates over seeds); the σ total the identification reports changes with each "
-                  "test's offsets (its weights come from residuals they dominate): 'in 9/10' is what it stays below "
-                  "in 9 seeds of 10 (log-normal over the draws' weights), held against the target:",
+                  "the spread of the estimates over seeds); the σ total the identification reports is larger (its "
+                  "weights come from residuals the offsets dominate) and changes with each test's offsets: 'in 9/10' "
+                  "is what it stays below in 9 seeds of 10 (log-normal over the draws' weights), held against the "
+                  "target:",
                   f"  {'parameter':<10} {'a priori':>12} {'σ noise':>8} {'σ offsets':>9} {'σ total':>8} "
                   f"{'in 9/10':>8} {'target':>8}  met"]
         for i, n in enumerate(names):
