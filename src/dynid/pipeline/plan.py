@@ -956,6 +956,15 @@ class SeedCheck:
     reported: np.ndarray  # (seeds, targets): the σ total each seed's identification reported, over the bound
     seconds: float
     targets: tuple[str, ...] = ()
+    # per parameter the σ total the plan predicts the identification reports (its draws' RMS), and (seeds,
+    # parameters) the σ total each seed's identification reported
+    predicted_reported: np.ndarray | None = None
+    reported_sigma: np.ndarray | None = None
+
+    @property
+    def reported_ratio(self) -> np.ndarray:
+        """(parameters,) the σ total the seeds' identifications reported (RMS over the seeds) over its prediction."""
+        return np.sqrt(np.mean(self.reported_sigma ** 2, axis=0)) / self.predicted_reported
 
     @property
     def met(self) -> np.ndarray:
@@ -973,6 +982,10 @@ class SeedCheck:
                  f"parameter (median {np.median(ratio):.2f}, RMS {np.sqrt(np.mean(ratio ** 2)):.2f}); targets met "
                  f"(σ total reported) in {int(self.met.sum())} of {len(self.met)} seeds"]
         worst = self.reported.max(axis=0)
+        if self.reported_sigma is not None:
+            r = self.reported_ratio
+            lines.append(f"  σ total reported (RMS over the seeds) / its prediction: median {np.median(r):.2f}, RMS "
+                         f"{np.sqrt(np.mean(r ** 2)):.2f}, {r.min():.2f} to {r.max():.2f}")
         lines.append("  reported σ total / bound, largest over the seeds: " + ", ".join(
             f"{labels.get(k, k)} {w:.2f}" for k, w in sorted(zip(self.targets, worst, strict=True),
                                                              key=lambda kw: -kw[1])[:6]))
@@ -989,7 +1002,7 @@ def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Pr
 
     say = progress or (lambda _m: None)
     names = plan.prediction.names
-    estimates, reported = [], []
+    estimates, reported, sigmas = [], [], []
     t0 = time.perf_counter()
     for s in seeds:
         say(f"seed {s}: identifying the plan's rehearsal")
@@ -997,8 +1010,12 @@ def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Pr
         r = run.result
         estimates.append([r.value(n) for n in names])
         total = dict(zip(r.names, r.std_total, strict=True))
+        sigmas.append([total[n] for n in names])
         figures = {q.key: q.std for q in car_engineering(run)[0]}
         reported.append([(total[t.key] if t.kind == "parameter" else figures[t.key]) / t.limit
                          for t in plan.score.targets])
+    draws = plan.draws or [plan.prediction]
+    predicted_reported = np.sqrt(np.mean([np.diag(d.reported_covariance) for d in draws], axis=0))
     return SeedCheck(tuple(names), plan.prediction.std_total, np.array(estimates), np.array(reported),
-                     (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets))
+                     (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets),
+                     predicted_reported, np.array(sigmas))
