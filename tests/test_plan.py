@@ -193,6 +193,10 @@ def test_search_finds_the_shortest_plan_and_drops_what_is_not_needed():
     assert feasible
     best = min(sum(durations[k] for k in c) for c in feasible)
     assert sum(durations[k] for k in plan) == best, (plan, feasible)
+    # [limits] time: no plan of 10 s meets the target; the one returned keeps within it
+    short, _ = planner.search(pieces, durations, score, repeats=1, max_seconds=10.0)
+    assert sum(durations[k] for k in short) <= 10.0 and score.shortfall(
+        planner.predict_all([pieces[k] for k in short])) > 0
 
 
 def test_the_offsets_of_a_combination_as_the_identification_propagates_them():

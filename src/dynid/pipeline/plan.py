@@ -604,7 +604,8 @@ def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[
 
 
 def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int = 2,
-           max_tests: int = 10, starts: int = 3, estimate: bool = True) -> tuple[list[str], int]:
+           max_tests: int = 10, starts: int = 3, estimate: bool = True, max_seconds: float | None = None
+           ) -> tuple[list[str], int]:
     """The shortest plan found (test keys, a repetition listed again) and the evaluations it took.
 
     Every plan of one or two tests is evaluated: the shortest that meets the targets wins. Otherwise the greedy
@@ -624,11 +625,15 @@ def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: S
     def seconds(plan: Sequence[str]) -> float:
         return sum(durations[k] for k in plan)
 
-    def allowed(plan: Sequence[str]) -> bool:
-        return len(plan) <= max_tests and all(plan.count(k) <= repeats for k in plan)
+    def allowed(plan: Sequence[str]) -> bool:  # max_seconds: the track time allowed ([limits] time)
+        return (len(plan) <= max_tests and all(plan.count(k) <= repeats for k in plan)
+                and (max_seconds is None or seconds(plan) <= max_seconds))
 
     keys = list(pieces)
-    small = [[k] for k in keys] + [[a, b] for i, a in enumerate(keys) for b in keys[i:] if allowed([a, b])]
+    small = [[k] for k in keys if allowed([k])] + [[a, b] for i, a in enumerate(keys) for b in keys[i:]
+                                                   if allowed([a, b])]
+    if not small:
+        return [min(keys, key=lambda k: durations[k])], len(cache)
 
     def rank(plan: Sequence[str]) -> tuple:
         return (cost(plan) > 0, seconds(plan) if cost(plan) == 0 else cost(plan))
@@ -700,7 +705,7 @@ class TestPlan:
         results = {**self.results, candidate.key: result}
         with threadpool_limits(limits=1, user_api="blas"):
             plan, evaluations, draws, prediction, without = _searched(pieces, durations, self.score, self.repeats,
-                                                                      self.estimate)
+                                                                      self.estimate, self.spec.limits.time)
         return dataclasses.replace(self, candidates={**self.candidates, candidate.key: candidate},
                                    envelopes={**self.envelopes, candidate.key: env}, plan=plan, prediction=prediction,
                                    without=without, evaluations=self.evaluations + evaluations,
@@ -920,7 +925,8 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         score = scorer(names, values, targets, setup.vehicle.geometry)
         say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
         durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-        plan, evaluations, draws, prediction, without = _searched(pieces, durations, score, repeats, estimate)
+        plan, evaluations, draws, prediction, without = _searched(pieces, durations, score, repeats, estimate,
+                                                                  spec.limits.time)
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
                     labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
@@ -928,10 +934,11 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
 
 
 def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int,
-              estimate: bool) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction]]:
-    """`search`'s plan, the evaluations it took, its draws, their typical prediction, and the plan without each
-    test (one repetition fewer)."""
-    plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate)
+              estimate: bool, max_seconds: float | None = None
+              ) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction]]:
+    """`search`'s plan (within max_seconds of driving), the evaluations it took, its draws, their typical
+    prediction, and the plan without each test (one repetition fewer)."""
+    plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate, max_seconds=max_seconds)
     draws = predict_all([pieces[k] for k in plan], estimate)
     prediction = typical(draws)
     without = {}
