@@ -12,8 +12,10 @@ segment, on this machine's cores or a cluster's workers, and folds with the seco
 
 A robot's chunk (`reduce_robot_chunk`) reduces to the same `Partial`: its rows' per-group factors of [W | Y]
 (every column: the known values and the drive gains are applied to the factors when solving), and for each
-test's first chunk the rows themselves (the report's plots). So a robot's memory is bounded by its factors and
-one chunk, whatever the length of its logs.
+test's first chunks the rows themselves (the report's plots, up to `run.PLOT_BYTES`). A chunk's full-rate W is
+never whole either (`robot.chunk_rows`: a block at a time through the first decimation stage). So a robot's
+memory is bounded by its factors, a few decimated chunks and one block per worker, whatever the length of its
+logs.
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..atomic import final_text, write_atomic
 from ..dynamics import BaseParameters, Model
@@ -181,20 +182,22 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
-PLOT_BYTES = 32 * 2**20
+PLOT_BYTES = 8 * 2**20
 """Decimated rows of a robot test kept for the report's plots and validation.csv: the first chunks' up to this
-size (20 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole test
-when shorter). The
-estimate and the validation errors come from the factors of every chunk."""
+size (about 6 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole
+test when shorter). The estimate and the validation errors come from the factors of every chunk. Held twice
+while the fold stacks them: 32 MiB was ~90 MB of a 1 h log's peak."""
 
 
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
                   health: list[dict] | None = None, all_rows: bool = False) -> dict[str, Partial]:
-    """Each test reduced to its per-joint factors of [W | Y] (every column): its files planned from their stamps,
-    their data health checked (an error stops here; the other findings appended to `health`), cut into chunks
-    read and reduced on the scheduler's workers (`reduce.reduce_robot_chunk`), folded (`reduce.combine`). The
-    rows of each test's first chunks are kept too, up to `PLOT_BYTES` (the report's plots and validation.csv;
-    every chunk's with all_rows), joint by joint."""
+    """The tests of each role ("identify", "validate") reduced to one per-joint factor of [W | Y] (every column):
+    each test's files planned from their stamps, their data health checked (an error stops here; the other
+    findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
+    (`reduce.reduce_robot_chunk`), folded per role as they arrive (`reduce.combine`): no test's factors wait for
+    the others', so memory does not grow with the number of tests. The rows of each test's first chunks are kept
+    too (Partial.rows, by test), up to `PLOT_BYTES` (the report's plots and validation.csv; every chunk's with
+    all_rows), joint by joint."""
     jobs = []
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
@@ -220,10 +223,10 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
             jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep))
             kept += (e - s) * row_bytes
-    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, combine, say)
+    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
     for part in parts.values():
         part.rows = {k: in_joint_order([v]) for k, v in part.rows.items()}
-    return {spec.name: parts[spec.name] for spec in cfg.tests}
+    return parts
 
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
@@ -683,6 +686,15 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if scheduler is None:
         with contextlib.closing(scheduler_for(cfg.scheduler, cfg.workers)) as own:
             return identify(cfg, progress, own)
+    # BLAS on one thread, as the map's workers already run it: the solves' QRs are small (the offsets' a few
+    # hundred rows by ~85 columns), and OpenBLAS's threads on them cost 1.5 ms -> 145 ms of CPU per QR on a loaded
+    # 2-core machine (busy-waiting threads competing with the other processes), 8 s of the demo's 18
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(cfg, progress, scheduler)
+
+
+def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Scheduler) -> IdentificationRun:
+    """`identify` with its scheduler, BLAS limited to one thread."""
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
         return _identify_car(cfg, say, scheduler)
@@ -713,7 +725,7 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
             f"{' and '.join(scale)})")
     # the factors of every column, folded per role; the known values moved to the right-hand side on them
-    full = {role: _folded([parts[t.name].ls for t in cfg.tests if t.role == role]) for role in ("identify", "validate")}
+    full = {role: parts[role].ls if role in parts else None for role in ("identify", "validate")}
     same = np.eye(len(names) + 1)
     ident = full["identify"].reparametrised(names, same, known=known or None, a_priori=a_priori)
     ident.poor_factor = cfg.poor_factor
@@ -737,7 +749,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     # each identification test's first chunks and the first validation tests': the plots (not every validation test's:
     # memory would grow with their number)
-    systems = {name: part.rows[name] for name, part in parts.items() if name in part.rows}
+    kept = {name: rows for part in parts.values() for name, rows in part.rows.items()}
+    systems = {t.name: kept[t.name] for t in cfg.tests if t.name in kept}
     sections = None
     checked = {role: None if ls is None else ls.reparametrised(names, same, known=known or None)
                for role, ls in full.items()}
@@ -766,16 +779,6 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
             say(f"{len(unmatched)} published rows match none of our base parameters: "
                 + "; ".join(r.expression for r in unmatched[:3]))
     return run
-
-
-def _folded(parts: list[StreamingLS]) -> StreamingLS | None:
-    """The accumulators' rows in order (None for none)."""
-    if not parts:
-        return None
-    out = parts[0]
-    for other in parts[1:]:
-        out = out.merge(other)
-    return out
 
 
 def _wls_with_gains(full: StreamingLS, ident: StreamingLS, names: list[str], p: int, known: dict[str, float]

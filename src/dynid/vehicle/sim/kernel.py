@@ -67,6 +67,8 @@ NPAR = 28
 NREC = 19
 # manoeuvre kinds
 M_CONST, M_SINE, M_BRAKE, M_SPIRAL, M_STEP, M_LANE, M_ACCEL, M_FISHHOOK, M_RANDOM = 0, 1, 2, 3, 4, 5, 6, 7, 8
+M_TABLE = 9
+MAN_TABLE = 10  # a table manoeuvre's samples start here: steering wheel (rad), acceleration (m/s^2), speed (m/s)
 # status codes
 S_OK, S_TABLE, S_NONFINITE = 0, 1, 2
 
@@ -122,6 +124,22 @@ def random_angle(man, t):
     return man[3] * math.sqrt(2.0 / n) * h * smoothstep(t)
 
 
+def table_value(man, column, t):
+    """A table manoeuvre's column (0 steering wheel, 1 acceleration demand, 2 speed target) at t s: linear between
+    its samples man[3] s apart (man[4] of them), held after the last."""
+    n = int(man[4])
+    x = t / man[3]
+    if x <= 0.0:
+        i, f = 0, 0.0
+    elif x >= n - 1:
+        i, f = n - 2, 1.0
+    else:
+        i = int(x)
+        f = x - i
+    base = MAN_TABLE + column * n
+    return man[base + i] + f * (man[base + i + 1] - man[base + i])
+
+
 def driver(t, y, v, par, man, out):
     """Steering-wheel target, total drive torque and the brake torque per wheel.
 
@@ -160,23 +178,28 @@ def driver(t, y, v, par, man, out):
         h_ref = fishhook_angle(man, t - t0)
     elif kind == M_RANDOM and t > t0:
         h_ref = random_angle(man, t - t0)
+    elif kind == M_TABLE:
+        h_ref = table_value(man, 0, t)
     mR = par[P_MASS] * par[P_R0]
     ff = (par[P_MASS] * par[P_G] * 0.012 + 0.5 * par[P_RHO] * par[P_AREA] * 0.31 * v * v * par[P_AERO_ON]) * par[P_R0]
     if kind == M_ACCEL and t > t0:  # the speed target ramps at man[3] m/s^2 up to man[4] m/s, its force fed forward
         ramp = smoothstep((t - t0) / man[5])
         vref = min(vref + man[3] * max(t - t0 - 0.5 * man[5], 0.0), man[4])
         ff += mR * man[3] * ramp * smoothstep((man[4] - v) / 1.0)
+    if kind == M_TABLE:  # the speed target and its acceleration fed forward; a negative torque is braking
+        vref = table_value(man, 2, t)
+        ff += mR * table_value(man, 1, t)
     err = vref - v
     td = ff + mR * (par[P_KP] * err + par[P_KI] * y[Y_INT])
+    if kind == M_TABLE and td < 0.0:
+        brake = -td
+        td = 0.0
     td = min(max(td, par[P_TDMIN]), par[P_TDMAX]) * drive_on
     out[0] = h_ref
     out[1] = td
-    if kind == M_BRAKE:
-        share = man[4]
-        out[2] = out[3] = brake * (1.0 - share) * 0.5
-        out[4] = out[5] = brake * share * 0.5
-    else:
-        out[2] = out[3] = out[4] = out[5] = 0.0
+    share = man[4] if kind == M_BRAKE else man[5]  # a table's front share; brake is 0 but for the two
+    out[2] = out[3] = brake * (1.0 - share) * 0.5
+    out[4] = out[5] = brake * share * 0.5
     out[6] = err if drive_on > 0.5 else 0.0
     return 0
 
@@ -476,5 +499,5 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
 car_kin = car_idm = car_inertia = None
 
 
-JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "driver",
+JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "table_value", "driver",
           "reduced_inertia", "lu_solve", "derivative", "simulate")
