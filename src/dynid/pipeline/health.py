@@ -351,14 +351,17 @@ def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, 
                                      else car_findings(gathered[plan.test], vehicle, plan))], say)
 
 
-def robot_health(plan: RobotTestPlan) -> list[Finding]:
-    """The findings of one planned robot test: each joint's position and torque channel (`io.health.ChannelScan`:
-    clipped plateaus, spikes, a channel that never moves), read a window at a time, errors first. No range is
-    declared for a robot's channels: clips are seen from the data. A joint that does not move in a test, or
-    whose torque does not change, may be the test's design (one joint excited at a time): a warning."""
+def robot_health(plan: RobotTestPlan, cfg: IdentifyConfig | None = None, model=None,
+                 columns: Sequence[int] | None = None) -> list[Finding]:
+    """The findings of one planned robot test, errors first: each joint's position and torque channel
+    (`io.health.ChannelScan`: a boolean channel, clipped plateaus, spikes, a channel that never moves), read a window
+    at a time; then, with the config, the model (a priori values) and the frame of each data column
+    (`robot.data_joints`), the joints against the model (`robot_physics`). No range is declared for a robot's
+    channels: clips are seen from the data. A joint that does not move in a test, or whose torque does not change,
+    may be the test's design (one joint excited at a time): a warning."""
     t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
     still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
-    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)))
+    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)), continuous=True)
              for q in ("q", plan.effort) for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
     for q in ("q", plan.effort):
         a = t0
@@ -373,16 +376,170 @@ def robot_health(plan: RobotTestPlan) -> list[Finding]:
                 break
             a = b
     out = [f for scan in scans.values() for f in scan.findings()]
+    if cfg is not None and model is not None and columns is not None:
+        broken = {f.channel for f in out if f.severity == ERROR}
+        out += robot_physics(plan, cfg, model, columns, broken)
     order = {ERROR: 0, WARNING: 1, NOTE: 2}
     return sorted(out, key=lambda f: order[f.severity])
 
 
-def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
+ANTI = -0.5  # correlation of a joint's torque with the a priori model's at or below which its sign is inverted
+TURN = 2.0 * math.pi
+# rad: a revolute joint's positions spanning more than two turns over a test are beyond the widest range of common
+# arms' joints (a UR's +-360 deg; the TX40's wrist spans 1.1 turns in its measured files)
+SPAN = 2.0 * TURN
+
+
+@dataclass
+class _Joints:
+    """Per data column, over the samples judged: sums of the measured torque t and the a priori model's a (their
+    correlation), and the positions' extremes with their times."""
+
+    k: int
+    n: int = 0
+    sums: NDArray[np.float64] = field(init=False)  # rows: t, a, t t, a a, t a
+    low: NDArray[np.float64] = field(init=False)  # rows: value, time
+    high: NDArray[np.float64] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.sums = np.zeros((5, self.k))
+        self.low = np.array([np.full(self.k, np.inf), np.zeros(self.k)])
+        self.high = np.array([np.full(self.k, -np.inf), np.zeros(self.k)])
+
+    def positions(self, t: NDArray, q: NDArray) -> None:
+        i, j = np.argmin(q, axis=0), np.argmax(q, axis=0)
+        cols = np.arange(self.k)
+        lo, hi = q[i, cols], q[j, cols]
+        less, more = lo < self.low[0], hi > self.high[0]
+        self.low[:, less] = np.array([lo, t[i]])[:, less]
+        self.high[:, more] = np.array([hi, t[j]])[:, more]
+
+    def torques(self, t: NDArray, a: NDArray) -> None:
+        self.n += t.shape[0]
+        self.sums += np.array([t.sum(0), a.sum(0), (t * t).sum(0), (a * a).sum(0), (t * a).sum(0)])
+
+    def correlation(self) -> tuple[NDArray, NDArray, NDArray]:
+        """(r, the torque's standard deviation, the model's), per column (r = 0 where either is still)."""
+        st, sa, stt, saa, sta = self.sums / max(self.n, 1)
+        vt, va = np.maximum(stt - st * st, 0.0), np.maximum(saa - sa * sa, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where((vt > 0) & (va > 0), (sta - st * sa) / np.sqrt(vt * va), 0.0)
+        return r, np.sqrt(vt), np.sqrt(va)
+
+
+def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequence[int],
+                  broken: set[str] = frozenset()) -> list[Finding]:
+    """A robot test's joints against its model, on the joint side (the channels through [transmission] and the drive
+    gains, SI), read a window of `WINDOW_S` at a time:
+
+    - a revolute joint whose positions span more than `SPAN` (two turns; the model files hold no joint limits): in
+      degrees under a [rad] header when the span read as degrees is within it (an error: the joint's
+      kinematics, gravity and every regressor column would be wrong), else a motor-side angle without its gear
+      ratio or a joint that turns on and on (a warning);
+    - a joint torque against the torque the model's a priori values give on the measured motion (gravity load,
+      inertia and friction: `Model.inverse_dynamics` on the filtered positions and their derivatives, the
+      config's cut-off, on samples at about 10 times the cut-off): a correlation at or below `ANTI` over the test
+      is a torque whose sign is inverted (an error). A gravity-loaded joint's torque follows its gravity load with
+      the a priori model's sign whatever the model's errors; the a priori inertia and friction join it so that a
+      fast motion, whose inertial torque may oppose the gravity load's changes, is judged right too.
+
+    Joints whose channels have an error already (`broken`: a spike, a boolean column) are not judged; no torque is
+    when a position channel has one, nor the torques with identified drive gains (their scale and sign are
+    parameters)."""
+    from ..signals import border_samples, filtered_derivatives
+    from .robot import to_frames
+    from .sources import driven, read_robot_window
+
+    N, fs = plan.samples, plan.fs
+    k = len(columns)
+    cond = cfg.conditioning
+    border = border_samples(fs, cond.cutoff, cond.order) + 2
+    if 2 * border + 2 >= N:
+        return []  # too short to filter: the identification says so
+    step = max(1, int(fs / (10.0 * cond.cutoff)))  # the model's torque at ~10 samples per cut-off period
+    sums = _Joints(k)
+    size = max(2 * border + 4, int(WINDOW_S * fs))
+    torque = True
+    for lo in range(0, N, size):
+        hi = min(N, lo + size)
+        a, b = max(0, lo - border), min(N, hi + border)  # read past the part judged: the filter's transients
+        raw = read_robot_window(plan, a, b)
+        q, tau, gains = driven(cfg, raw["q"], raw[plan.effort], k)
+        clock = plan.clock[a:b]
+        own = slice(lo - a, hi - a)
+        sums.positions(clock[own], q[own])
+        torque = gains is None
+        if not torque or b - a <= 2 * border:
+            continue
+        qf, qd, qdd = filtered_derivatives(q, fs, cond.cutoff, order=cond.order, nderiv=2)
+        # judged: this window's own samples, away from the test's ends (the transients nothing reads past)
+        pick = np.arange(max(lo, border), min(hi, N - border), step) - a
+        if pick.size == 0:
+            continue
+        n = model.n
+        ap = model.inverse_dynamics(to_frames(qf[pick], columns, n), to_frames(qd[pick], columns, n),
+                                    to_frames(qdd[pick], columns, n))[:, np.asarray(columns) - 1]
+        sums.torques(tau[pick], ap)
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    out = []
+    q_names = _joint_channels(cfg, plan, "q", k)
+    tau_names = _joint_channels(cfg, plan, plan.effort, k)
+    sigma = np.asarray(model.tree.sigma)[np.asarray(columns) - 1]
+    for j in range(k):
+        span = float(sums.high[0, j] - sums.low[0, j])
+        if sigma[j] != 0 or not span > SPAN or broken & set(q_names[j]):
+            continue
+        when = sorted((float(sums.low[1, j]), float(sums.high[1, j])))
+        deg = math.radians(span)
+        name = " and ".join(q_names[j])
+        if deg <= SPAN:
+            out.append(Finding(name, "range", ERROR, when[0], when[1],
+                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns, from "
+                               f"{sums.low[0, j]:.4g} to {sums.high[0, j]:.4g} rad), {deg:.3g} rad read as degrees: "
+                               "positions in degrees under a [rad] header", "give the channel's unit: "
+                               "unit = \"deg\" in [channels] q, or [deg] in the file's header (a joint that does "
+                               "turn on and on: data_health = \"warn\" in [identification])", 1.0))
+        else:
+            out.append(Finding(name, "range", WARNING, when[0], when[1],
+                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns)",
+                               "fine for a joint that turns on and on; a motor-side angle needs its gear ratio "
+                               "([transmission] q)", 1.0))
+    # the model's torque from positions that are wrong anywhere is wrong at every joint (the dynamics couple them)
+    q_bad = any(f.severity == ERROR for f in out) or bool(broken & set(plan.channels["q"]))
+    if torque and sums.n > 10 and not q_bad:
+        r, sd_t, sd_a = sums.correlation()
+        for j in range(k):
+            if r[j] > ANTI or broken & set(tau_names[j]):
+                continue
+            name = " and ".join(tau_names[j])
+            out.append(Finding(name, "sign", ERROR, t0, t1,
+                               f"joint {j + 1}'s torque runs against the one the model file's a priori values give "
+                               f"on the measured motion (gravity load, inertia, friction): correlation {r[j]:.2f} "
+                               f"over {sums.n} samples while the joints move ({sd_t[j]:.3g} N.m RMS measured, "
+                               f"{sd_a[j]:.3g} N.m expected): its sign is inverted",
+                               "negate the channel (a -1 in its row of [transmission] tau, or the logger's sign "
+                               "convention), or check the model file's a priori masses and first moments", 1.0))
+    return out
+
+
+def _joint_channels(cfg: IdentifyConfig, plan: RobotTestPlan, quantity: str, k: int) -> list[tuple[str, ...]]:
+    """Each joint's channels of `quantity` (those its row of [transmission] mixes; the j-th without one)."""
+    names = plan.channels[quantity]
+    m = cfg.transmission.get("q" if quantity == "q" else "tau")
+    if m is None or m.shape != (k, len(names)):
+        return [(names[j],) if j < len(names) else () for j in range(k)]
+    return [tuple(names[i] for i in np.flatnonzero(m[j])) for j in range(k)]
+
+
+def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress, model=None,
+                     columns: Sequence[int] | None = None) -> list[dict]:
     """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
-    (`ConfigError`, one line), the rest is said and returned as dicts."""
+    (`ConfigError`, one line), the rest is said and returned as dicts. model, columns: the robot's model (a priori
+    values) and the frame of each data column, for the joints' physics (`robot_physics`)."""
     e = plan.effort
-    return _reported(cfg, [(plan.test, str(plan.indexes[e if f.channel in plan.channels[e] else "q"].path), f)
-                           for f in robot_health(plan)], say)
+    return _reported(cfg, [(plan.test, str(plan.indexes[e if set(f.channel.split(" and ")) & set(plan.channels[e])
+                                                         else "q"].path), f)
+                           for f in robot_health(plan, cfg, model, columns)], say)
 
 
 def _reported(cfg: IdentifyConfig, found: Sequence[tuple[str, str, Finding]], say: Progress) -> list[dict]:
@@ -416,4 +573,5 @@ def health_note(listed: Sequence[dict]) -> str:
     return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
 
 
-__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health"]
+__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health",
+           "robot_physics"]

@@ -176,7 +176,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
         plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
-        found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
+        setup = robot_setup(cfg)
+        found = check_robot_test(cfg, plan, say, setup.model, setup.joints.columns)  # the data's health
         if health is not None:
             health += found
         transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels[plan.effort]))),
