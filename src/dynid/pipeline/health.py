@@ -433,9 +433,9 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
     gains, SI), read a window of `WINDOW_S` at a time:
 
     - a revolute joint whose positions span more than `SPAN` (two turns; the model files hold no joint limits): in
-      degrees under a [rad] header when the span read as degrees is within it (an error: the joint's
-      kinematics, gravity and every regressor column would be wrong), else a motor-side angle without its gear
-      ratio or a joint that turns on and on (a warning);
+      degrees under a [rad] header when the span read as degrees is within it and the joint swings (it travels
+      more than 1.5 times its span: an error, the joint's kinematics, gravity and every regressor column would be
+      wrong), else a joint that turns on and on or a motor-side angle without its gear ratio (a warning);
     - a joint torque against the torque the model's a priori values give on the measured motion (gravity load,
       inertia and friction: `Model.inverse_dynamics` on the filtered positions and their derivatives, the
       config's cut-off, on samples at about 10 times the cut-off): a correlation at or below `ANTI` over the test
@@ -460,6 +460,7 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
     sums = _Joints(k)
     size = max(2 * border + 4, int(WINDOW_S * fs))
     torque = True
+    travel, prev = np.zeros(k), None
     for lo in range(0, N, size):
         hi = min(N, lo + size)
         a, b = max(0, lo - border), min(N, hi + border)  # read past the part judged: the filter's transients
@@ -468,6 +469,10 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
         clock = plan.clock[a:b]
         own = slice(lo - a, hi - a)
         sums.positions(clock[own], q[own])
+        # the way each joint travels (on every step-th sample: less noise summed), through the windows
+        path = q[own][::step] if prev is None else np.vstack([prev, q[own][::step]])
+        travel += np.abs(np.diff(path, axis=0)).sum(axis=0)
+        prev = path[-1:]
         torque = gains is None
         if not torque or b - a <= 2 * border:
             continue
@@ -492,7 +497,8 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
         when = sorted((float(sums.low[1, j]), float(sums.high[1, j])))
         deg = math.radians(span)
         name = " and ".join(q_names[j])
-        if deg <= SPAN:
+        winds = travel[j] <= 1.5 * span  # a joint turning on travels its span once; one that swings, twice or more
+        if deg <= SPAN and not winds:
             out.append(Finding(name, "range", ERROR, when[0], when[1],
                                f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns, from "
                                f"{sums.low[0, j]:.4g} to {sums.high[0, j]:.4g} rad), {deg:.3g} rad read as degrees: "
@@ -501,7 +507,8 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
                                "turn on and on: data_health = \"warn\" in [identification])", 1.0))
         else:
             out.append(Finding(name, "range", WARNING, when[0], when[1],
-                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns)",
+                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns, "
+                               f"{travel[j]:.4g} rad travelled)",
                                "fine for a joint that turns on and on; a motor-side angle needs its gear ratio "
                                "([transmission] q)", 1.0))
     # the model's torque from positions that are wrong anywhere is wrong at every joint (the dynamics couple them)
