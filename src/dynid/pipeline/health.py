@@ -391,32 +391,49 @@ SPAN = 2.0 * TURN
 
 
 @dataclass
-class _Joints:
-    """Per data column, over the samples judged: sums of the measured torque t and the a priori model's a (their
-    correlation), and the positions' extremes with their times."""
+class RobotHealth:
+    """What a robot test's joints are judged from against the model (`robot_physics`), gathered from parts of the
+    test that do not overlap (a window, or a chunk of the identification's map: `gather_joints`) and combined in
+    any order (`merged`): per data column, the positions' extremes with their times and the way travelled, and
+    sums of the measured torque t and the a priori model's a (their correlation). A few numbers per joint."""
 
     k: int
     n: int = 0
+    torque: bool = True  # the joint torques are known (not with identified drive gains)
     sums: NDArray[np.float64] = field(init=False)  # rows: t, a, t t, a a, t a
     low: NDArray[np.float64] = field(init=False)  # rows: value, time
     high: NDArray[np.float64] = field(init=False)
+    travel: NDArray[np.float64] = field(init=False)
 
     def __post_init__(self) -> None:
         self.sums = np.zeros((5, self.k))
         self.low = np.array([np.full(self.k, np.inf), np.zeros(self.k)])
         self.high = np.array([np.full(self.k, -np.inf), np.zeros(self.k)])
+        self.travel = np.zeros(self.k)
 
-    def positions(self, t: NDArray, q: NDArray) -> None:
+    def positions(self, t: NDArray, q: NDArray, step: int) -> None:
         i, j = np.argmin(q, axis=0), np.argmax(q, axis=0)
         cols = np.arange(self.k)
         lo, hi = q[i, cols], q[j, cols]
         less, more = lo < self.low[0], hi > self.high[0]
         self.low[:, less] = np.array([lo, t[i]])[:, less]
         self.high[:, more] = np.array([hi, t[j]])[:, more]
+        # on every step-th sample: less of the noise summed (the step between two parts is left out: one in a chunk)
+        self.travel += np.abs(np.diff(q[::step], axis=0)).sum(axis=0)
 
     def torques(self, t: NDArray, a: NDArray) -> None:
         self.n += t.shape[0]
         self.sums += np.array([t.sum(0), a.sum(0), (t * t).sum(0), (a * a).sum(0), (t * a).sum(0)])
+
+    def merged(self, other: RobotHealth) -> RobotHealth:
+        """Both parts (pure)."""
+        out = RobotHealth(self.k, self.n + other.n, self.torque and other.torque)
+        out.sums = self.sums + other.sums
+        out.travel = self.travel + other.travel
+        lo, hi = other.low[0] < self.low[0], other.high[0] > self.high[0]
+        out.low = np.where(lo, other.low, self.low)
+        out.high = np.where(hi, other.high, self.high)
+        return out
 
     def correlation(self) -> tuple[NDArray, NDArray, NDArray]:
         """(r, the torque's standard deviation, the model's), per column (r = 0 where either is still)."""
@@ -427,10 +444,46 @@ class _Joints:
         return r, np.sqrt(vt), np.sqrt(va)
 
 
+def _judged(fs: float, cond) -> tuple[int, int]:
+    """(border, step): the samples at each end of a test no torque is judged on (the filter's transient), and the
+    model's torque on every step-th sample (about 10 per cut-off period)."""
+    from ..signals import border_samples
+
+    return border_samples(fs, cond.cutoff, cond.order) + 2, max(1, int(fs / (10.0 * cond.cutoff)))
+
+
+def gather_joints(cfg: IdentifyConfig, model, columns: Sequence[int], clock: NDArray, fs: float, first: int,
+                  own: tuple[int, int], n_samples: int, q: NDArray, tau: NDArray, gains: NDArray | None
+                  ) -> RobotHealth:
+    """One part's `RobotHealth`: q, tau the joints' positions and torques (SI, joint side: `sources.driven`, one
+    column per data joint) on the clock samples first.. of the test (clock: those samples' times), the part judged
+    own = (s, e) of the test's samples (the rest read around it: the filter's transients); gains: the drive gains'
+    columns (identified gains: no torque known)."""
+    from ..signals import filtered_derivatives
+    from .robot import to_frames
+
+    cond = cfg.conditioning
+    border, step = _judged(fs, cond)
+    out = RobotHealth(len(columns), torque=gains is None)
+    s, e = own[0] - first, own[1] - first
+    if e > s:
+        out.positions(clock[s:e], q[s:e], step)
+    pick = np.arange(max(own[0], border), min(own[1], n_samples - border), step) - first
+    if not out.torque or pick.size == 0 or q.shape[0] < 2 * border:
+        return out
+    qf, qd, qdd = filtered_derivatives(q, fs, cond.cutoff, order=cond.order, nderiv=2)
+    n = model.n
+    ap = model.inverse_dynamics(to_frames(qf[pick], columns, n), to_frames(qd[pick], columns, n),
+                                to_frames(qdd[pick], columns, n))[:, np.asarray(columns) - 1]
+    out.torques(tau[pick], ap)
+    return out
+
+
 def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequence[int],
-                  broken: set[str] = frozenset()) -> list[Finding]:
+                  broken: set[str] = frozenset(), gathered: RobotHealth | None = None) -> list[Finding]:
     """A robot test's joints against its model, on the joint side (the channels through [transmission] and the drive
-    gains, SI), read a window of `WINDOW_S` at a time:
+    gains, SI), from `gathered` (the identification's chunks gather it: `gather_joints`) or read here a window of
+    `WINDOW_S` at a time:
 
     - a revolute joint whose positions span more than `SPAN` (two turns; the model files hold no joint limits): in
       degrees under a [rad] header when the span read as degrees is within it and the joint swings (it travels
@@ -446,45 +499,24 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
     Joints whose channels have an error already (`broken`: a spike, a boolean column) are not judged; no torque is
     when a position channel has one, nor the torques with identified drive gains (their scale and sign are
     parameters)."""
-    from ..signals import border_samples, filtered_derivatives
-    from .robot import to_frames
     from .sources import driven, read_robot_window
 
     N, fs = plan.samples, plan.fs
     k = len(columns)
-    cond = cfg.conditioning
-    border = border_samples(fs, cond.cutoff, cond.order) + 2
+    border, _ = _judged(fs, cfg.conditioning)
     if 2 * border + 2 >= N:
         return []  # too short to filter: the identification says so
-    step = max(1, int(fs / (10.0 * cond.cutoff)))  # the model's torque at ~10 samples per cut-off period
-    sums = _Joints(k)
-    size = max(2 * border + 4, int(WINDOW_S * fs))
-    torque = True
-    travel, prev = np.zeros(k), None
-    for lo in range(0, N, size):
-        hi = min(N, lo + size)
-        a, b = max(0, lo - border), min(N, hi + border)  # read past the part judged: the filter's transients
-        raw = read_robot_window(plan, a, b)
-        q, tau, gains = driven(cfg, raw["q"], raw[plan.effort], k)
-        clock = plan.clock[a:b]
-        own = slice(lo - a, hi - a)
-        sums.positions(clock[own], q[own])
-        # the way each joint travels (on every step-th sample: less noise summed), through the windows
-        path = q[own][::step] if prev is None else np.vstack([prev, q[own][::step]])
-        travel += np.abs(np.diff(path, axis=0)).sum(axis=0)
-        prev = path[-1:]
-        torque = gains is None
-        if not torque or b - a <= 2 * border:
-            continue
-        qf, qd, qdd = filtered_derivatives(q, fs, cond.cutoff, order=cond.order, nderiv=2)
-        # judged: this window's own samples, away from the test's ends (the transients nothing reads past)
-        pick = np.arange(max(lo, border), min(hi, N - border), step) - a
-        if pick.size == 0:
-            continue
-        n = model.n
-        ap = model.inverse_dynamics(to_frames(qf[pick], columns, n), to_frames(qd[pick], columns, n),
-                                    to_frames(qdd[pick], columns, n))[:, np.asarray(columns) - 1]
-        sums.torques(tau[pick], ap)
+    sums = gathered
+    if sums is None:
+        size = max(2 * border + 4, int(WINDOW_S * fs))
+        for lo in range(0, N, size):
+            hi = min(N, lo + size)
+            a, b = max(0, lo - border), min(N, hi + border)  # read past the part judged: the filter's transients
+            raw = read_robot_window(plan, a, b)
+            part = gather_joints(cfg, model, columns, plan.clock[a:b], fs, a, (lo, hi), N,
+                                 *driven(cfg, raw["q"], raw[plan.effort], k))
+            sums = part if sums is None else sums.merged(part)
+    torque, travel = sums.torque, sums.travel
     t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
     out = []
     q_names = _joint_channels(cfg, plan, "q", k)
@@ -542,11 +574,25 @@ def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress, mo
                      columns: Sequence[int] | None = None) -> list[dict]:
     """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
     (`ConfigError`, one line), the rest is said and returned as dicts. model, columns: the robot's model (a priori
-    values) and the frame of each data column, for the joints' physics (`robot_physics`)."""
+    values) and the frame of each data column, for the joints' physics (`robot_physics`; without them, each
+    channel alone: the identification judges the joints from its chunks, `check_robot_joints`)."""
+    return _reported(cfg, _sourced(plan, robot_health(plan, cfg, model, columns)), say)
+
+
+def check_robot_joints(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress, model, columns: Sequence[int],
+                       broken: set[str], gathered: RobotHealth | None) -> list[dict]:
+    """`robot_physics` of one test from what the identification's chunks gathered (`gather_joints`, combined), as
+    `check_robot_test` reports: broken, the channels whose own findings were errors (data_health = "warn")."""
+    found = robot_physics(plan, cfg, model, columns, broken, gathered)
+    order = {ERROR: 0, WARNING: 1, NOTE: 2}
+    return _reported(cfg, _sourced(plan, sorted(found, key=lambda f: order[f.severity])), say)
+
+
+def _sourced(plan: RobotTestPlan, found: Sequence[Finding]) -> list[tuple[str, str, Finding]]:
+    """(test, the file of the finding's channel(s), finding)."""
     e = plan.effort
-    return _reported(cfg, [(plan.test, str(plan.indexes[e if set(f.channel.split(" and ")) & set(plan.channels[e])
-                                                         else "q"].path), f)
-                           for f in robot_health(plan, cfg, model, columns)], say)
+    return [(plan.test, str(plan.indexes[e if set(f.channel.split(" and ")) & set(plan.channels[e]) else "q"].path),
+             f) for f in found]
 
 
 def _reported(cfg: IdentifyConfig, found: Sequence[tuple[str, str, Finding]], say: Progress) -> list[dict]:
@@ -580,5 +626,5 @@ def health_note(listed: Sequence[dict]) -> str:
     return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
 
 
-__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health",
-           "robot_physics"]
+__all__ = ["RobotHealth", "car_health", "check_car_tests", "check_robot_joints", "check_robot_test", "expected_loads",
+           "gather_joints", "health_note", "robot_health", "robot_physics"]

@@ -44,7 +44,7 @@ from ..estimation.systematic import BiasAccumulator
 from ..io import Channel
 from ..io.units import unit_factor
 from .config import IdentifyConfig
-from .health import CarHealth, segment_health
+from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
 from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window, read_segment
 
@@ -100,7 +100,8 @@ class Partial:
     tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
-    health: dict[str, CarHealth] = field(default_factory=dict)  # test -> its data health so far (pipeline.health)
+    # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
+    health: dict[str, CarHealth | RobotHealth] = field(default_factory=dict)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -447,6 +448,7 @@ class RobotJob:
     chunk: tuple[int, int]
     n_samples: int
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
+    health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
 
     @property
     def test(self) -> str:
@@ -495,6 +497,8 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
     arrays = read_robot_window(w, 0, w.samples)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
+    health = {w.test: gather_joints(job.cfg, setup.model, columns, w.clock, w.fs, w.first, job.chunk, job.n_samples,
+                                    q, tau, gains)} if job.health else {}
     q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
     if gains is not None and len(columns) != n:  # the joints without data: no rows, zero columns
         full = np.zeros((gains.shape[0], n, gains.shape[2]))
@@ -504,4 +508,4 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
-    return Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)
