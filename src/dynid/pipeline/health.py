@@ -398,14 +398,15 @@ class RobotHealth:
     sums of the measured torque t and the a priori model's a (their correlation). A few numbers per joint."""
 
     k: int
-    n: int = 0
     torque: bool = True  # the joint torques are known (not with identified drive gains)
+    n: NDArray[np.int64] = field(init=False)  # samples in the sums, per column
     sums: NDArray[np.float64] = field(init=False)  # rows: t, a, t t, a a, t a
     low: NDArray[np.float64] = field(init=False)  # rows: value, time
     high: NDArray[np.float64] = field(init=False)
     travel: NDArray[np.float64] = field(init=False)
 
     def __post_init__(self) -> None:
+        self.n = np.zeros(self.k, dtype=np.int64)
         self.sums = np.zeros((5, self.k))
         self.low = np.array([np.full(self.k, np.inf), np.zeros(self.k)])
         self.high = np.array([np.full(self.k, -np.inf), np.zeros(self.k)])
@@ -425,9 +426,21 @@ class RobotHealth:
         self.n += t.shape[0]
         self.sums += np.array([t.sum(0), a.sum(0), (t * t).sum(0), (a * a).sum(0), (t * a).sum(0)])
 
+    def add_rows(self, system, columns: Sequence[int], a_priori: NDArray[np.float64]) -> None:
+        """The torques of an identification chunk's rows (`robot.chunk_rows`: filtered, decimated, the slow rows
+        dropped): Y the measured torque, W @ a_priori the model's (a_priori: its base parameters' values, one per
+        column of W)."""
+        a = system.W @ a_priori
+        for i, j in enumerate(columns):
+            mask = system.groups == f"joint{j}"
+            y, m = system.Y[mask], a[mask]
+            self.sums[:, i] += [y.sum(), m.sum(), y @ y, m @ m, y @ m]
+            self.n[i] += y.size
+
     def merged(self, other: RobotHealth) -> RobotHealth:
         """Both parts (pure)."""
-        out = RobotHealth(self.k, self.n + other.n, self.torque and other.torque)
+        out = RobotHealth(self.k, self.torque and other.torque)
+        out.n = self.n + other.n
         out.sums = self.sums + other.sums
         out.travel = self.travel + other.travel
         lo, hi = other.low[0] < self.low[0], other.high[0] > self.high[0]
@@ -437,7 +450,7 @@ class RobotHealth:
 
     def correlation(self) -> tuple[NDArray, NDArray, NDArray]:
         """(r, the torque's standard deviation, the model's), per column (r = 0 where either is still)."""
-        st, sa, stt, saa, sta = self.sums / max(self.n, 1)
+        st, sa, stt, saa, sta = self.sums / np.maximum(self.n, 1)
         vt, va = np.maximum(stt - st * st, 0.0), np.maximum(saa - sa * sa, 0.0)
         with np.errstate(invalid="ignore", divide="ignore"):
             r = np.where((vt > 0) & (va > 0), (sta - st * sa) / np.sqrt(vt * va), 0.0)
@@ -453,12 +466,13 @@ def _judged(fs: float, cond) -> tuple[int, int]:
 
 
 def gather_joints(cfg: IdentifyConfig, model, columns: Sequence[int], clock: NDArray, fs: float, first: int,
-                  own: tuple[int, int], n_samples: int, q: NDArray, tau: NDArray, gains: NDArray | None
-                  ) -> RobotHealth:
+                  own: tuple[int, int], n_samples: int, q: NDArray, tau: NDArray, gains: NDArray | None,
+                  torques: bool = True) -> RobotHealth:
     """One part's `RobotHealth`: q, tau the joints' positions and torques (SI, joint side: `sources.driven`, one
     column per data joint) on the clock samples first.. of the test (clock: those samples' times), the part judged
     own = (s, e) of the test's samples (the rest read around it: the filter's transients); gains: the drive gains'
-    columns (identified gains: no torque known)."""
+    columns (identified gains: no torque known); torques: False in an identification chunk, whose rows give them
+    (`RobotHealth.add_rows`: the filtering and the regressor already done)."""
     from ..signals import filtered_derivatives
     from .robot import to_frames
 
@@ -469,7 +483,7 @@ def gather_joints(cfg: IdentifyConfig, model, columns: Sequence[int], clock: NDA
     if e > s:
         out.positions(clock[s:e], q[s:e], step)
     pick = np.arange(max(own[0], border), min(own[1], n_samples - border), step) - first
-    if not out.torque or pick.size == 0 or q.shape[0] < 2 * border:
+    if not (torques and out.torque) or pick.size == 0 or q.shape[0] < 2 * border:
         return out
     qf, qd, qdd = filtered_derivatives(q, fs, cond.cutoff, order=cond.order, nderiv=2)
     n = model.n
@@ -490,8 +504,10 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
       more than 1.5 times its span: an error, the joint's kinematics, gravity and every regressor column would be
       wrong), else a joint that turns on and on or a motor-side angle without its gear ratio (a warning);
     - a joint torque against the torque the model's a priori values give on the measured motion (gravity load,
-      inertia and friction: `Model.inverse_dynamics` on the filtered positions and their derivatives, the
-      config's cut-off, on samples at about 10 times the cut-off): a correlation at or below `ANTI` over the test
+      inertia and friction; in the identification, its rows' Y against W times the a priori base parameters: the
+      filtered, decimated rows, those of a joint slower than its min_speed dropped; read here,
+      `Model.inverse_dynamics` on the filtered positions and their derivatives, the config's cut-off, on samples
+      at about 10 times the cut-off): a correlation at or below `ANTI` over the test
       is a torque whose sign is inverted (an error). A gravity-loaded joint's torque follows its gravity load with
       the a priori model's sign whatever the model's errors; the a priori inertia and friction join it so that a
       fast motion, whose inertial torque may oppose the gravity load's changes, is judged right too.
@@ -545,16 +561,16 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
                                "([transmission] q)", 1.0))
     # the model's torque from positions that are wrong anywhere is wrong at every joint (the dynamics couple them)
     q_bad = any(f.severity == ERROR for f in out) or bool(broken & set(plan.channels["q"]))
-    if torque and sums.n > 10 and not q_bad:
+    if torque and not q_bad:
         r, sd_t, sd_a = sums.correlation()
         for j in range(k):
-            if r[j] > ANTI or broken & set(tau_names[j]):
+            if r[j] > ANTI or sums.n[j] <= 10 or broken & set(tau_names[j]):
                 continue
             name = " and ".join(tau_names[j])
             out.append(Finding(name, "sign", ERROR, t0, t1,
                                f"joint {j + 1}'s torque runs against the one the model file's a priori values give "
                                f"on the measured motion (gravity load, inertia, friction): correlation {r[j]:.2f} "
-                               f"over {sums.n} samples while the joints move ({sd_t[j]:.3g} N.m RMS measured, "
+                               f"over {sums.n[j]} samples while the joints move ({sd_t[j]:.3g} N.m RMS measured, "
                                f"{sd_a[j]:.3g} N.m expected): its sign is inverted",
                                "negate the channel (a -1 in its row of [transmission] tau, or the logger's sign "
                                "convention), or check the model file's a priori masses and first moments", 1.0))

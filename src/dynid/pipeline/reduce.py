@@ -465,6 +465,7 @@ class RobotSetup:
         self.joints = config_joints(cfg, load_model(cfg.model).tree)
         self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
+        self.a_priori = self.base.values(self.model.parameters)  # the model file's values of the base parameters
         # the estimated parameters: the base parameters, then the drive gains when identified
         self.names = [*self.base.names, *gain_names(cfg)]
         clash = sorted(set(self.base.names) & set(gain_names(cfg)))
@@ -497,8 +498,9 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
     arrays = read_robot_window(w, 0, w.samples)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
+    # the joints' data health: the positions here, the torques from the rows below (pipeline.health)
     health = {w.test: gather_joints(job.cfg, setup.model, columns, w.clock, w.fs, w.first, job.chunk, job.n_samples,
-                                    q, tau, gains)} if job.health else {}
+                                    q, tau, gains, torques=False)} if job.health else {}
     q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
     if gains is not None and len(columns) != n:  # the joints without data: no rows, zero columns
         full = np.zeros((gains.shape[0], n, gains.shape[2]))
@@ -506,6 +508,8 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
         gains = full
     sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
+    if health and gains is None:
+        health[w.test].add_rows(sys, columns, setup.a_priori)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)
