@@ -398,6 +398,15 @@ def _robot_findings(folder, edit=None):
     return robot_health(plan_robot_test(cfg, cfg.tests[0]), cfg, setup.model, setup.joints.columns)
 
 
+def _winds(t, q, tau, model) -> None:
+    """Joint 6 turns on for 2.2 turns over the test, its sine on top: its speed (2.3 rad/s on average, the sine's
+    2.5 rad/s) still changes sign, so its Coulomb friction is told from its offset; the torques recomputed from the
+    model (the file is consistent)."""
+    q[:, 5] += 2.2 * 2 * np.pi * t / t[-1]
+    qd = np.gradient(q, t, axis=0)
+    tau[:] = model.inverse_dynamics(q, qd, np.gradient(qd, t, axis=0))
+
+
 @pytest.mark.parametrize("joint", [1, 2, 3])
 def test_a_robot_torque_with_its_sign_inverted_is_named(tmp_path, joint):
     """Oracle: the log's torques are the TX40 model's own inverse dynamics on the sines; one joint's negated by hand
@@ -416,7 +425,7 @@ def test_a_robot_torque_with_its_sign_inverted_is_named(tmp_path, joint):
 
 def test_positions_in_degrees_and_a_joint_that_turns_on(tmp_path):
     """q2 logged in degrees under [rad] (0.5 rad sines: 57 "rad" peak to peak, 9 turns) is an error naming q2 and the
-    unit's fix; joint 6 turning on for 3 turns (its torque recomputed from the model: the file is consistent) is a
+    unit's fix; joint 6 turning on for 2.2 turns (its torque recomputed from the model: the file is consistent) is a
     warning only (a continuous joint), as is nothing else."""
     def degrees(_t, q, _tau, _m):
         q[:, 1] = np.degrees(q[:, 1])
@@ -425,13 +434,35 @@ def test_positions_in_degrees_and_a_joint_that_turns_on(tmp_path):
     assert [(f.channel, f.kind, f.severity) for f in found] == [("q2", "range", ERROR)], found
     assert "degrees" in found[0].detail and 'unit = "deg"' in found[0].fix
 
-    def winds(t, q, tau, model):
-        q[:, 5] = 3 * 2 * np.pi * t / t[-1]
-        qd = np.gradient(q, t, axis=0)
-        tau[:] = model.inverse_dynamics(q, qd, np.gradient(qd, t, axis=0))
-
-    found = _robot_findings(tmp_path / "winds", winds)
+    found = _robot_findings(tmp_path / "winds", _winds)
     assert [(f.channel, f.kind, f.severity) for f in found] == [("q6", "range", WARNING)], found
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+@pytest.mark.parametrize("case", ["winds", "flipped"])
+def test_the_identification_judges_the_joints_from_its_chunks_as_a_read_of_the_file(tmp_path, capsys, case):
+    """Oracle: the same judgement read from the file here (`robot_health` with the model: its own filtering and
+    inverse dynamics). `dynid identify` gathers it from its chunks' rows instead: the same findings (a winding
+    joint 6 listed in results.json; tau2 negated stops the run, exit 2, one line naming it)."""
+    def edit(t, q, tau, model):
+        if case == "flipped":
+            tau[:, 1] *= -1.0
+            return
+        _winds(t, q, tau, model)
+
+    folder = tmp_path / case
+    read_here = [(f.channel, f.kind, f.severity) for f in _robot_findings(folder, edit)]
+    code = main(["identify", str(folder / "robot.toml"), "--out", str(folder / "out")])
+    err = capsys.readouterr().err
+    if case == "winds":
+        assert code == 0 and read_here == [("q6", "range", WARNING)], (read_here, err[-800:])
+        listed = json.loads((folder / "out" / "results.json").read_text())["health"]
+        assert [(d["channel"], d["kind"], d["severity"]) for d in listed] == read_here
+    else:
+        assert read_here == [("tau2", "sign", ERROR)]
+        errors = [ln for ln in err.splitlines() if ln.startswith("dynid: error")]
+        assert code == 2 and len(errors) == 1 and "'tau2'" in errors[0] and "sign is inverted" in errors[0], err
 
 
 def test_a_boolean_column_for_a_continuous_quantity():
