@@ -363,15 +363,20 @@ def robot_health(plan: RobotTestPlan, cfg: IdentifyConfig | None = None, model=N
     still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
     scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)), continuous=True)
              for q in ("q", plan.effort) for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
+    files: dict[int, tuple] = {}  # q and the effort in one file (the same index): read once
     for q in ("q", plan.effort):
+        files.setdefault(id(plan.indexes[q]), (plan.indexes[q], []))[1].append(q)
+    for index, quantities in files.values():
+        names = list(dict.fromkeys(n for q in quantities for n in plan.channels[q]))
         a = t0
         while a <= t1:
             b = min(a + WINDOW_S, t1)
-            rec = read_window(plan.indexes[q], list(plan.channels[q]), a, b)
-            for n in plan.channels[q]:
-                ch = rec.channels[n]
-                keep = slice(None) if b >= t1 else ch.time < b
-                scans[(q, n)].add(ch.time[keep], ch.values[keep])
+            rec = read_window(index, names, a, b)
+            for q in quantities:
+                for n in plan.channels[q]:
+                    ch = rec.channels[n]
+                    keep = slice(None) if b >= t1 else ch.time < b
+                    scans[(q, n)].add(ch.time[keep], ch.values[keep])
             if b >= t1:
                 break
             a = b
