@@ -9,10 +9,14 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
 Measured 2026-11-27 on the 2-core machine, busy (wall times not comparable): 1 h, 251,986 rows of 43 parameters,
-peak 920 MB with the rows reduced to factors (1,056 MB at 212feaf, the rows stacked whole); not met. What is left
-is not the rows: 171 MB of imports, ~130 MB of reading plans and the generated regressor's compilation, and two
-workers' chunks, each a full-rate W of up to `robot.SEGMENT_BYTES` (128 MiB) and its decimation's work space
-(32 MiB chunks: 684 MB; see the branch's report for why the chunk size was not lowered).
+peak 601 and 622 MB (two runs) against 937 MB for main at 54648a4 in the same series (1,056 MB at 212feaf, the
+rows stacked whole); the estimate equal to 2e-15 of its norm (2.3e-12 on its smallest parameter, 1e-9 of its σ).
+Not met, and not reachable by the data path alone: the process's fixed floor is ~320 MB (171 MB of imports, 64 MB
+of pyarrow and the pandas it imports on the first read, 43 MB for loading the generated regressor, ~40 MB of the
+planning's and health check's first use), before any row. What the log's length adds: its clock (29 MB), the rows
+kept for the plots (`run.PLOT_BYTES`, 8 MiB per test, held twice while folded) and each worker's chunk (~72 MB
+traced: its conditioned joints, the first decimation stage's output and one 16 MiB block of the full-rate W,
+`robot.BLOCK_BYTES`; the chunk's 128 MiB W was held whole before), with glibc's retained free blocks on top.
 """
 
 from __future__ import annotations

@@ -111,7 +111,7 @@ def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_p
                          segment_bytes=2**40)
     monkeypatch.setattr(robot, "SEGMENT_BYTES", 2**20)  # 300-sample chunks
     said: list[str] = []
-    parts = robot_systems(cfg, model, base, LocalScheduler(2), said.append, all_rows=True)["sines"].rows["sines"]
+    parts = robot_systems(cfg, model, base, LocalScheduler(2), said.append, all_rows=True)["identify"].rows["sines"]
     chunks = robot.robot_chunks(30000, FS, model, base, cfg.conditioning)
     assert len(chunks) > 50 and any(m == f"segments done {len(chunks)}/{len(chunks)}" for m in said), said
     assert parts.W.shape == whole.W.shape and np.array_equal(parts.groups, whole.groups)

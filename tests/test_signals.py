@@ -136,6 +136,23 @@ def test_lowpass_nan_message_names_first_sample_and_column():
         lowpass(w, FS, 3.0)
 
 
+
+@pytest.mark.parametrize("values", [[1e308, 1e308, -1e308], [np.inf, -np.inf, 0.0], [np.inf, 1.0, 2.0],
+                                    [-1e308, -1e308, np.nan], [0.5, -0.25, 3.0]])
+def test_finite_check_agrees_with_isfinite_whatever_the_sum(values):
+    """Oracle: np.isfinite on every entry. The check's fast path reads the sum: finite entries whose sum overflows
+    must still pass, and an inf with a -inf (sum NaN) or a NaN among huge values must still be caught."""
+    from dynid.signals._checks import finite
+
+    x = np.zeros((50, 3))
+    x[17] = values
+    if np.isfinite(x).all():
+        finite(x, "x")
+    else:
+        with pytest.raises(SignalError, match="sample 17"):
+            finite(x, "x")
+
+
 # ---------------------------------------------------------------- derivatives
 
 AMPS = np.array([0.8, 0.5, 0.3])
@@ -497,3 +514,37 @@ def test_compiled_zero_phase_filter_equals_scipy_sosfiltfilt(order, shape, axis)
     got = sos_filtfilt(sos, x, axis, pad_length(sos))
     assert got.shape == ref.shape
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("factor", [10, (10, 10), (5, 4, 3)])
+def test_blocked_decimation_is_the_whole_inputs_without_holding_it(factor):
+    """Oracle: `decimate_parallel` on the whole input held at once. The blocked path filters the first stage over
+    blocks read with its transient to ROUND_OFF (1e-15) of the kernel's weight around them: each output differs
+    from the whole input's by at most 1e-15 x the extension's mismatch (a few times the signal's largest value)
+    plus the recursions' round-off (the state's error ~1e-16 per step, damped by the filter: ~1e-14 over the
+    block, measured 1e-14 on random walks), so 1e-12 of the largest output bounds it on any CPU. One block over
+    everything is the same computation: the same bits. Structural zeros stay exactly zero, and the blocks asked
+    for cover the input without holding more than a block and its overlap."""
+    from dynid.signals.decimation import decimate_parallel_blocked
+
+    rng = np.random.default_rng(5)
+    n = 30007
+    W = np.cumsum(rng.normal(size=(n, 3, 5)), axis=0)  # random walks: all frequencies, the worst for the tails
+    W[:, 1, 2] = 0.0
+    Y = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    Wd, Yd = decimate_parallel(W, Y, factor, FS)
+    asked = []
+
+    def rows(lo, hi):
+        asked.append((lo, hi))
+        return W[lo:hi], Y[lo:hi]
+
+    Wb, Yb = decimate_parallel_blocked(rows, n, factor, FS, block_samples=3000)
+    assert len(asked) > 3 and asked[0][0] == 0 and asked[-1][1] == n
+    assert max(hi - lo for lo, hi in asked) < n / 2
+    assert Wb.shape == Wd.shape and Yb.shape == Yd.shape
+    assert np.max(np.abs(Wb - Wd)) <= 1e-12 * np.max(np.abs(Wd))
+    assert np.max(np.abs(Yb - Yd)) <= 1e-12 * np.max(np.abs(Yd))
+    assert np.all(Wb[:, 1, 2] == 0.0)
+    one = decimate_parallel_blocked(rows, n, factor, FS, block_samples=n)
+    assert np.array_equal(one[0], Wd) and np.array_equal(one[1], Yd)

@@ -18,10 +18,13 @@ from dynid.vehicle.tire_curves import (
     TireCurveError,
     TireSamples,
     fit_lateral,
+    fit_longitudinal,
     fit_magic_formula,
+    free_rolling_slip,
     lateral_force,
     magic_formula,
     peak_slip,
+    simultaneity_factor,
     tire_samples,
 )
 
@@ -80,6 +83,52 @@ def test_correlated_residuals_widen_sigma():
     assert 0.5 <= float(np.sqrt(np.mean(np.square(z)))) <= 2.0
 
 
+def _axle_with_a_shared_slip_error(seed: int, shared: float) -> TireSamples:
+    """Two wheels of an axle (fl, fr) on a 20 Hz, 40 s slow sine of slip angle (±5°), 4000 N each: Fy from the
+    Magic Formula B 10, C 1.4, D 4000 N, E 0 plus 30 N of white noise per wheel, the slip angles read with an error
+    both wheels share (as the chassis velocity's estimate gives them), low-passed over ~10 samples, `shared` rad
+    RMS."""
+    from scipy.signal import butter, filtfilt
+
+    rng = np.random.default_rng(seed)
+    n = 800
+    t = 0.05 * np.arange(n)
+    alpha = math.radians(5.0) * np.sin(2 * math.pi * t / 20.0)
+    b, a = butter(4, 0.1)
+    e = filtfilt(b, a, rng.standard_normal(n))
+    e *= shared / e.std()
+    fy = magic_formula(alpha, 10.0, 1.4, 4000.0, 0.0)
+    z = np.zeros(n)
+    return TireSamples(np.full(2 * n, "sine", dtype=object), np.repeat([2, 3], n), np.r_[t, t],
+                       np.r_[alpha + e, alpha + e], np.r_[z, z], np.r_[z, z], np.full(2 * n, 20.0), np.r_[z, z],
+                       np.r_[-fy, -fy] + 30.0 * rng.standard_normal(2 * n), np.full(2 * n, 4000.0))
+
+
+@pytest.mark.slow
+def test_sigma_honest_when_the_wheels_share_the_slip_error():
+    """The wheels of an axle share the chassis velocity's estimate and so its error in their slip angles (the MuJoCo
+    car's noise/: residuals of fl and fr correlated at 0.89). Oracle: the generator's law, 30 seeds: the RMS of
+    (K - truth) / σ within 0.5-2 with the simultaneity factor in σ (measured 1.34); counted as independent wheels
+    (σ without it) it is larger by about the factor's root (measured 1.80; on the MuJoCo car's noise/ the cornering
+    stiffness was 2.6 and 2.2 σ off, now 1.9 and 1.7). The shared error 0.1° RMS against 30 N of each wheel's own
+    noise: their residuals correlate at about 0.9, as on the MuJoCo car."""
+    true_k = 10.0 * 1.4 * 4000.0
+    z, z_indep = [], []
+    for seed in range(30):
+        s = _axle_with_a_shared_slip_error(seed, math.radians(0.1))
+        c = fit_lateral(s, magic=True)
+        k, sk = c.stiffness(4000.0)
+        p = {**c.fit.fixed, **dict(zip(c.fit.names, c.fit.values, strict=True))}
+        r = lateral_force(p, c.fz0, s.alpha, s.fz) - s.fy
+        both = simultaneity_factor(r, np.r_[np.arange(800), np.arange(800)])
+        assert both > 1.5  # the shared error dominates the residual: the wheels' residuals move together
+        z.append((k - true_k) / sk)
+        z_indep.append((k - true_k) / (sk / math.sqrt(both)))
+    rms, rms_indep = (float(np.sqrt(np.mean(np.square(v)))) for v in (z, z_indep))
+    assert 0.5 <= rms <= 2.0, rms
+    assert rms_indep > 1.25 * rms, (rms, rms_indep)
+
+
 def test_peak_slip_closed_form():
     """E = 0: the peak is where C atan(B x) = π/2, x = tan(π / 2C) / B."""
     assert peak_slip(10.0, 1.4, 0.0) == pytest.approx(math.tan(math.pi / 2.8) / 10.0, rel=1e-9)
@@ -118,6 +167,54 @@ def test_linear_range_gives_linear_law():
     curve = fit_lateral(_synthetic_axle(2, 1.0))
     assert not curve.magic
     assert curve.stiffness(3000.0)[0] == pytest.approx(21.84 * 3000, rel=0.05)
+
+
+def _wheel(test: str, n: int, alpha: np.ndarray, kappa: np.ndarray, fx: np.ndarray, fz: np.ndarray) -> TireSamples:
+    """One wheel's samples of a test (20 Hz, 20 m/s, straight-ahead wheel)."""
+    z = np.zeros(n)
+    return TireSamples(np.full(n, test, dtype=object), np.zeros(n, dtype=int), 0.05 * np.arange(n), alpha, kappa, z,
+                       np.full(n, 20.0), fx, z, fz)
+
+
+def test_longitudinal_law_with_a_load_dependent_rolling_radius():
+    """A tire whose effective rolling radius shrinks with the load (dynid's simulated tires: R - deflection / 3),
+    its slips counted with the geometric radius: the free-rolling slip κ0 = -0.02 - 0.02 (Fz / 3000 - 1) moves with
+    the load. Free rolling over a spiral's loads (1500-4500 N, slip angle 3°), one braking at 4200 N, Fx = -Kx κ_e
+    with κ_e = (κ - κ0) / (1 - κ0) the slip counted with the effective radius (the simulators' truth). Oracle: that
+    closed form. Kx is given at the braking's load (where it is measured; no load term from one load), to 1e-6
+    (noise-free); before, one κ0 for all loads made it 24 % high and at the mean of all loads."""
+    def k0(fz: np.ndarray) -> np.ndarray:
+        return -0.02 - 0.02 * (fz / 3000.0 - 1)
+
+    n = 200
+    fz_roll = np.linspace(1500.0, 4500.0, n)
+    rolling = _wheel("spiral", n, np.full(n, math.radians(3.0)), k0(fz_roll), np.zeros(n), fz_roll)
+    fz_brake = np.r_[np.full(20, 3000.0), np.full(n - 20, 4200.0)]  # cruising, then braking
+    ke = np.r_[np.zeros(20), np.full(n - 20, 0.03)]
+    kappa = k0(fz_brake) + ke * (1 - k0(fz_brake))
+    braking = _wheel("braking", n, np.zeros(n), kappa, -18.0 * fz_brake * ke, fz_brake)
+    law = fit_longitudinal(braking, rolling)
+    assert law.fz0 == pytest.approx(4200.0)
+    assert "pKx2" in law.fit.fixed and "kappa0_fz" not in law.fit.fixed
+    assert law.stiffness(4200.0)[0] == pytest.approx(18.0 * 4200.0, rel=1e-6)
+    assert law.free_rolling_slip(4200.0)[0] == pytest.approx(k0(np.array(4200.0)), abs=1e-8)
+    assert law.kappa_seen == pytest.approx(0.03 * (1 - k0(np.array(4200.0))), rel=1e-6)
+    # without the free-rolling samples of the other loads, the slip's load line is not seen
+    alone = fit_longitudinal(braking)
+    assert alone.stiffness(4200.0)[0] > 1.2 * 18.0 * 4200.0
+
+
+def test_free_rolling_slip_of_a_wheel_that_never_rolls_free():
+    """A driven wheel that never rolls free (|Fx| > 2 % Fz throughout) takes its axle's free-rolling slip, not 0
+    (with 0 its pure-slip selection dropped most of its samples: one demo seed of ten). Oracle: the samples' own
+    values (-0.02 at the free-rolling wheel)."""
+    n = 40
+    z = np.zeros(n)
+    free = _wheel("sine", n, z, np.full(n, -0.02), z, np.full(n, 4000.0))
+    driven = _wheel("sine", n, z, np.full(n, -0.03), np.full(n, 400.0), np.full(n, 4000.0))
+    s = free.merge(driven)
+    s = TireSamples(s.test, np.repeat([2, 3], n), s.t, s.alpha, s.kappa, s.gamma, s.vx, s.fx, s.fy, s.fz)
+    assert np.allclose(free_rolling_slip(s), -0.02)
 
 
 def test_bad_input_one_line():
@@ -222,12 +319,51 @@ def _law(entry: dict):
 @pytest.mark.e2e
 def test_mujoco_cornering_stiffness_per_axle(mujoco_tires, axle):
     """Cornering stiffness at the axle's mean load within 5 % of the truth curve's slope at zero slip (the truth's
-    loads interpolated); ideal/ (true channels) and noise/ (the paper's sensor chain)."""
+    loads interpolated); ideal/ (true channels) and noise/ (the paper's sensor chain). σ: the error within 2.5 σ
+    plus the model's 0.1 % (ideal/: +0.07 %, σ 0.01 %); measured on noise/ 1.9 σ front, 1.7 σ rear (2.6 and 2.2 σ
+    before σ counted the axle's two wheels' shared slip error, tire_curves.simultaneity_factor)."""
     _, slope = _truth_law()
     c = mujoco_tires["lateral"][axle]
     fz = c["mean_load_N"]
     assert c["cornering_stiffness_N_per_rad"] == pytest.approx(slope(fz), rel=0.05)
     assert c["cornering_stiffness_N_per_deg"] == pytest.approx(slope(fz) * math.pi / 180, rel=0.05)
+    err = abs(c["cornering_stiffness_N_per_rad"] - slope(fz))
+    assert err < 2.5 * c["cornering_stiffness_std"] + 0.001 * slope(fz)
+
+
+@pytest.mark.parametrize("axle", ["front", "rear"])
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_mujoco_slip_stiffness_per_axle(mujoco_tires, axle):
+    """The longitudinal slip stiffness at the load where it is measured (the braking's) within 5 % of the truth
+    curve's secant there: from its free-rolling slip (Fx = 0; its rolling resistance puts it at -0.0006) to that
+    plus the braking's mean slip the fit reports (0.028; the secant is 8 % below the slope at zero, and moves 0.5 %
+    per 0.001 of slip). Measured: ideal/ -0.2 % front, -0.6 % rear; noise/ -2.3 %, -3.0 % (1.2 and 1.6 σ: the
+    Correvit's speed error through the braking, a few cm/s, is a slip of 0.002 at 20 m/s). Before, the stiffness was
+    given at the mean load of every pure-slip sample through a load term fitted from one braking's nearly constant
+    load: +8 % and +14 % on noise/ against the slope at zero. σ: within 3 σ, plus 1 % for the linear law's own
+    misfit to the curve (on ideal/ σ is 0.07 % and the error 0.6 %)."""
+    from mujoco_car import DATA
+    from scipy.interpolate import CubicSpline
+    from scipy.optimize import brentq
+
+    T = np.loadtxt(DATA / "tire_truth.csv", delimiter=",", comments="#", skiprows=6)
+    loads = np.unique(T[:, 0])
+    splines = [CubicSpline(T[T[:, 0] == f, 3], T[T[:, 0] == f, 4]) for f in loads]
+    c = mujoco_tires["longitudinal"][axle]
+    fz = c["fz0_N"]
+    i = int(np.clip(np.searchsorted(loads, fz) - 1, 0, len(loads) - 2))
+    w = (fz - loads[i]) / (loads[i + 1] - loads[i])
+
+    def fx(k: float) -> float:
+        return float((1 - w) * splines[i](k) + w * splines[i + 1](k))
+
+    k0 = brentq(fx, -0.01, 0.01)
+    dk = c["secant_to_slip"]
+    assert 0.02 < dk < 0.04  # the braking's slip
+    secant = -fx(k0 + dk) / dk
+    assert c["slip_stiffness_N_per_unit_slip"] == pytest.approx(secant, rel=0.05)
+    assert abs(c["slip_stiffness_N_per_unit_slip"] - secant) < 3 * c["slip_stiffness_std"] + 0.01 * secant
 
 
 @pytest.mark.parametrize("axle", ["front", "rear"])

@@ -30,6 +30,8 @@ from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
+from ._version import __version__
+
 try:
     import fcntl
 except ImportError:  # Windows: lock files created with O_EXCL instead
@@ -427,8 +429,6 @@ def file_sha256(path: Path) -> str:
 
 
 def _write_marker(stage: Path) -> None:
-    from ._version import __version__
-
     files = {}
     for rel in _names(stage):
         if rel != MARKER and (stage / rel).is_file():

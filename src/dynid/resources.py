@@ -20,7 +20,7 @@ def memory_budget() -> float:
 def address_space_limit() -> float:
     """The process's address-space limit in bytes (`ulimit -v`, RLIMIT_AS), inf without one."""
     try:
-        import resource
+        import resource  # optional: POSIX only (not on Windows)
     except ImportError:  # not on this system (Windows)
         return float("inf")
     soft = resource.getrlimit(resource.RLIMIT_AS)[0]

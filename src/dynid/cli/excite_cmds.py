@@ -23,12 +23,13 @@ import math
 import sys
 from pathlib import Path
 
-from ..atomic import add_force, refuse_overwrite
+from ..atomic import add_force, refuse_overwrite, write_atomic
+from .progress import report as say  # the starts as a bar with its time left on a terminal
+from .usage import command
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `excite` to the top-level `dynid` sub-commands."""
-    from .usage import command
 
     p = command(
         subparsers, "excite", help="optimise a periodic excitation trajectory (Fourier series) for identification",
@@ -69,7 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _noise(text: str) -> list[float]:
-    from ..estimation.excitation import ExcitationError
+    from ..estimation.excitation import ExcitationError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     try:
         values = [float(x) for x in text.split(",") if x.strip()]
@@ -104,9 +105,9 @@ def _check_sizes(args: argparse.Namespace, joints: int, params: int, error: type
 
 
 def cmd_excite(args: argparse.Namespace) -> int:
-    import numpy as np
+    import numpy as np  # start-up: numpy (--help 0.1 s)
 
-    from ..atomic import write_atomic
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..dynamics import load_model
     from ..estimation.excitation import (
         ExcitationError,
@@ -115,7 +116,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
         expected_uncertainty,
         format_uncertainty,
     )
-    from ..io import Channel, Recording, write_recording
+    from ..io import Channel, Recording, write_recording  # start-up: the library, 1-5 s (--help 0.1 s)
 
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
@@ -148,8 +149,6 @@ def cmd_excite(args: argparse.Namespace) -> int:
     _check_sizes(args, len(moving), tree.p, ExcitationError)
     if len(noise) not in (1, len(moving)):
         raise ExcitationError(f"--noise: give one value or {len(moving)} (one per moving joint), got {len(noise)}")
-
-    from .progress import report as say  # the starts as a bar with its time left on a terminal
 
     d = design_excitation(model, limits, period=args.period, harmonics=args.harmonics, samples=args.samples,
                           scale=args.scale, starts=args.starts, optimise=args.refine, maxiter=args.maxiter,

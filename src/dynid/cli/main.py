@@ -5,11 +5,22 @@ from __future__ import annotations
 import argparse
 import errno
 import sys
+import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from .._version import __version__
+from ..atomic import OutputError, Terminated, final_text, staged_folder, write_atomic
+from ..progress import Count
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
+from ..textfiles import TextEncodingError
+from . import excite_cmds, model_io_cmds, plan_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
 from .model_table import format_table
+from .progress import report
+from .simulate_cmds import progress_bar
+from .usage import UsageError, check_options, command, overview
+from .vehicle_cmds import show_template
 
 if TYPE_CHECKING:  # the model layer (NumPy) is imported by the commands that use it: --help and --version stay quick
     from ..model import Tree
@@ -34,12 +45,11 @@ def format_parameters(tree: Tree) -> str:
 
 
 def cmd_model_show(args: argparse.Namespace) -> int:
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..dynamics import load_model
     from ..model import ModelError
 
     if args.template:
-        from .vehicle_cmds import show_template
-
         print(show_template(args.template))
         return 0
     if not args.file:
@@ -70,17 +80,13 @@ def cmd_model_show(args: argparse.Namespace) -> int:
 
 
 def _say(msg: str) -> None:
-    from ..atomic import final_text
-    from ..progress import Count
-    from .progress import report
-
     # the output folder's name, never its staging folder's; a count (segments) is drawn as a bar on a terminal
     report(msg if isinstance(msg, Count) else final_text(msg))
 
 
 def _print_run(run, validation_title: str) -> None:
     """The tables of an identification, the published comparison if any, and the validation errors."""
-    from ..report import validation_table
+    from ..report import validation_table  # start-up: the library, 1-5 s (--help 0.1 s)
 
     print(run.summary())
     if run.reference:
@@ -105,10 +111,7 @@ def _positive_int(text: str) -> int:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..atomic import final_text, staged_folder, write_atomic
-    from ..pipeline.campaign import (
+    from ..pipeline.campaign import (  # start-up: the library, 1-5 s (--help 0.1 s)
         SUMMARY_FILE,
         campaign_names,
         identify_campaign,
@@ -116,6 +119,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         summary_csv,
         summary_text,
     )
+
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..pipeline.config import ConfigError, load_config
     from ..pipeline.run import write_outputs
     from ..pipeline.schedulers import address_problem, scheduler_for
@@ -165,20 +170,16 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    import time
-    from pathlib import Path
-
     t0 = time.perf_counter()
     out = Path(args.out)
     _say(f"the demo: simulate the tests, write their files, identify, report into {out}")
-    from ..atomic import staged_folder
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..pipeline.demo import run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
-    from .simulate_cmds import progress_bar
 
     if args.vehicle:  # a bad vehicle file is refused before the output folder is made
-        from ..vehicle.description import load_vehicle
+        from ..vehicle.description import load_vehicle  # start-up: the library, 1-5 s (--help 0.1 s)
 
         load_vehicle(args.vehicle)
     # everything (the logger files, the config, the results) is written into a staging folder swapped in at the end
@@ -208,9 +209,6 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import excite_cmds, model_io_cmds, plan_cmds, simulate_cmds, symbolic_cmds, vehicle_cmds
-    from .usage import command, overview
-
     parser = _Parser(prog="dynid", description=DESCRIPTION,
                                      usage="dynid [-h] [--version] [--debug] COMMAND ...",
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -235,7 +233,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "--template, a vehicle template's instead.",
         examples=["dynid model show tx40", "dynid model show robot.toml", "dynid model show --template peugeot406"])
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
-    show.add_argument("--template", help="a vehicle template instead of a file: peugeot406")
+    show.add_argument("--template", help=f"a vehicle template instead of a file: {CAR_TEMPLATE}")
     show.set_defaults(func=cmd_model_show)
     demo = command(
         sub, "demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
@@ -251,9 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "(default: dynid-demo)")
     demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")
     demo.add_argument("--seed", type=int, default=406, help="seed of the sensor noise (default 406)")
-    demo.add_argument("--vehicle", default="peugeot406",
+    demo.add_argument("--vehicle", default=DEMO_VEHICLE,
                       help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
-                           "(default: peugeot406)")
+                           f"(default: {DEMO_VEHICLE})")
     demo.set_defaults(func=cmd_demo)
     ident = command(
         sub, "identify", help="identify a model's parameters from measurement files, as a config describes them",
@@ -292,17 +290,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _user_errors() -> tuple[type[Exception], ...]:
     """The errors that report bad input (files, configs, data) rather than a bug: one line, no traceback."""
-    from ..atomic import OutputError
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..estimation.errors import IdentificationError
     from ..io.errors import DataError, MissingDependencyError
     from ..model import ModelError
     from ..signals.errors import SignalError
     from ..symbolic.expr import SymbolicError
-    from ..textfiles import TextEncodingError
     from ..vehicle.sensors import SensorError
     from ..vehicle.sim.car import SimulationError
     from ..vehicle.sim.manoeuvres import ManoeuvreError
-    from .usage import UsageError
 
     return (ModelError, DataError, SignalError, IdentificationError, SymbolicError, OutputError, SimulationError,
             ManoeuvreError, SensorError, TextEncodingError, MissingDependencyError, UsageError)
@@ -318,7 +314,6 @@ _NO_ROOM = {errno.ENOSPC: "free space on that disk, or write elsewhere (--out)",
 def _os_error_text(exc: OSError, out: object) -> str:
     """One line for a file system refusal: the file (or, for a write refused for want of room that names none, the
     output being written), what the system said, and the fix where there is one."""
-    from ..atomic import final_text
 
     what = " ".join(str(exc.strerror or exc).split())
     fix = _NO_ROOM.get(exc.errno)
@@ -330,15 +325,10 @@ def _os_error_text(exc: OSError, out: object) -> str:
 
 
 def _end_bars() -> None:
-    from .progress import report
-
     report.close()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from ..atomic import Terminated, final_text
-    from .usage import check_options
-
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..atomic import add_force, refuse_overwrite
+from .usage import UsageError, command
 
 if TYPE_CHECKING:  # the model layer (NumPy) is imported where used: `dynid --help` stays quick
     from ..model import Tree
@@ -19,7 +20,6 @@ _STANDARD = re.compile(r"^(XX|XY|XZ|YY|YZ|ZZ|MX|MY|MZ|M|IA|FV|FS|OFF|K)(\d+)$")
 
 def register(model_subparsers: argparse._SubParsersAction) -> None:
     """Add `import` and `export` to the `dynid model ...` sub-commands."""
-    from .usage import command
 
     imp = command(
         model_subparsers, "import", help="read a URDF into a model file (one MDH frame per moving joint)",
@@ -61,12 +61,11 @@ def register(model_subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..model import save_tree
     from ..model.urdf import import_urdf
 
     if args.name is not None and not args.name.strip():
-        from .usage import UsageError
-
         raise UsageError(f"--name {args.name!r}: give the model's name (text), or leave --name out to keep the URDF's")
     refuse_overwrite([args.out], args.force)
     freeze = _freeze_option(args.freeze, args.urdf)
@@ -92,7 +91,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def _freeze_option(text: str | None, where: str) -> dict[str, float] | None:
     """--freeze a,b=0.01 -> {a: 0.0, b: 0.01}."""
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     if text is None:
         return None
@@ -110,6 +109,7 @@ def _freeze_option(text: str | None, where: str) -> dict[str, float] | None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..dynamics import load_model
     from ..model import ModelError
     from ..model.urdf import export_urdf
@@ -152,11 +152,12 @@ def _plausible(params: str, tree: Tree):
         return None
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
-        import cvxpy  # noqa: F401  (the pc extra)
+        import cvxpy  # noqa: F401  optional: cvxpy (the pc extra)
     except (OSError, json.JSONDecodeError, ImportError):
         return None  # read_parameters says what is wrong with the file; without cvxpy the exact regrouping
     if not isinstance(data, dict) or "base_parameters" not in data or not isinstance(data.get("parameters"), list):
         return None
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..dynamics import Model
     from ..estimation.errors import IdentificationError
     from ..model import ModelError
@@ -175,7 +176,7 @@ def _plausible(params: str, tree: Tree):
 
 
 def _write(action, out: str) -> None:
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     try:
         action()
@@ -185,7 +186,7 @@ def _write(action, out: str) -> None:
 
 def read_parameters(path: str, tree: Tree) -> dict[str, float]:
     """Standard parameter values from a results.json (base parameters) or a TOML parameter file."""
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     p = Path(path)
     if p.suffix.lower() == ".json":
@@ -203,11 +204,11 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
         if isinstance(data, dict) and "base_parameters" in data:
             return standard_from_base(tree, table, str(p))
         return _standard(table, tree, str(p))
-    from ..model.files import parse_number, read_toml
+    from ..model.files import parse_number, read_toml  # start-up: the library, 1-5 s (--help 0.1 s)
 
     data = read_toml(p, "parameter file", ModelError)
     if "frames" in data:  # a whole model file: its values
-        from ..model.files import tree_from_dict
+        from ..model.files import tree_from_dict  # start-up: the library, 1-5 s (--help 0.1 s)
 
         return dict(tree_from_dict(data, source=str(p)).values)
     table: dict[str, float] = {}
@@ -224,7 +225,7 @@ def read_parameters(path: str, tree: Tree) -> dict[str, float]:
 
 
 def _json_table(data: object, p: Path) -> dict[str, float]:
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     params = data.get("parameters") if isinstance(data, dict) else None
     if isinstance(params, list):
@@ -240,7 +241,7 @@ def _json_table(data: object, p: Path) -> dict[str, float]:
 
 
 def _standard(table: dict[str, float], tree: Tree, where: str) -> dict[str, float]:
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     out = {}
     for k, v in table.items():
@@ -255,6 +256,7 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
     """A standard set that reproduces identified base parameters: X_B = X_1 + beta X_2, so each kept
     standard parameter X_1 takes X_B - beta X_2 with the regrouped X_2 at the model's (a priori) values.
     Only the inertial parameters are returned (a URDF has no joint terms)."""
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..dynamics import Model
     from ..model import ModelError
 
@@ -274,7 +276,7 @@ def standard_from_base(tree: Tree, base_values: dict[str, float], where: str) ->
 
 
 def _is_inertial(name: str) -> bool:
-    from ..model import INERTIAL
+    from ..model import INERTIAL  # start-up: the library, 1-5 s (--help 0.1 s)
 
     m = _STANDARD.match(name)
     return bool(m) and m.group(1) in INERTIAL

@@ -117,7 +117,7 @@ class Reporter:
 
 def _tqdm(c: Count, out: TextIO) -> Any:
     try:
-        from tqdm import tqdm
+        from tqdm import tqdm  # start-up: tqdm, only once a bar is drawn
     except ImportError:  # a plain line now and then instead
         return None
     return tqdm(total=c.total, initial=c.done, desc=c.what, unit=c.unit or "it", file=out, leave=True,

@@ -15,7 +15,11 @@ import argparse
 import sys
 import time
 
-from ..atomic import add_force, refuse_overwrite
+from ..atomic import OutputError, add_force, refuse_overwrite
+from ..progress import Count, notice_if_slow
+from ..shipped import DEMO_VEHICLE
+from .progress import report as show
+from .usage import command
 
 # the names of vehicle.sim.manoeuvres.DEFAULTS, spelt out because importing the simulator for `dynid --help` costs a
 # second; tests/test_cli.py holds the two equal
@@ -24,7 +28,6 @@ MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "accel", "fishhook", 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `simulate` to the top-level `dynid` sub-commands."""
-    from .usage import command
 
     p = command(subparsers, "simulate", help="simulate a test-track manoeuvre and write the sensor file",
                 description="Drive the simulated car (a vehicle file's [truth] set) through a test-track "
@@ -46,16 +49,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--noise-free", action="store_true", help="sensor channels without noise and bias")
     p.add_argument("--out", required=True, help="output file (.csv, .parquet, .mf4); its sidecar <stem>.json beside it")
     add_force(p)
-    p.add_argument("--vehicle", default="peugeot406",
+    p.add_argument("--vehicle", default=DEMO_VEHICLE,
                    help="a shipped vehicle (dynid vehicle list) or a vehicle file with a [truth] set "
-                        "(default: peugeot406)")
+                        f"(default: {DEMO_VEHICLE})")
     p.set_defaults(func=cmd_simulate)
 
 
 def progress_bar(total: float):
     """Simulated seconds out of `total`: a bar on a terminal, a line every tenth otherwise: (report(t), close())."""
-    from ..progress import Count
-    from .progress import report as show
 
     def report(t: float) -> None:
         show(Count("simulating", round(t, 3), round(total, 3), f"simulated {t:.0f} / {total:.0f} s", unit="s"))
@@ -64,20 +65,20 @@ def progress_bar(total: float):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from ..atomic import OutputError
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..pipeline.demo import GENERATING, SLOW_BUILD_S, compile_pending, simulated_car
-    from ..progress import notice_if_slow
+
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle.description import load_vehicle
     from ..vehicle.sim import ManoeuvreError, SimulationError, manoeuvre
     from ..vehicle.sim.recording import check_output, write_test
-    from .progress import report as report_line
 
     try:
         m = manoeuvre(args.manoeuvre, speed=args.speed, duration=args.duration)
         path, _ = check_output(args.out, args.format)
         refuse_overwrite([path, path.with_suffix(".json")], args.force)
         t0 = time.perf_counter()
-        say = report_line
+        say = show
         say("building the car")
         with notice_if_slow(SLOW_BUILD_S, GENERATING, say):
             sim = simulated_car(args.vehicle)

@@ -9,13 +9,13 @@ import time
 from pathlib import Path
 
 from ..atomic import OutputError, add_force, refuse_overwrite
+from .usage import UsageError, command
 
 HELP_FILE = "model file (TOML) or a shipped example: puma560, tx40, floating_tree"
 
 
 def register(model_subparsers: argparse._SubParsersAction) -> None:
     """Add `ops` and `codegen` to the `dynid model ...` sub-commands."""
-    from .usage import command
 
     ops = command(model_subparsers, "ops", help="operation counts of the symbolic models (mult, add, functions)",
                   description="Build the symbolic models of a tree (geometric dgm, inverse dynamic idm, "
@@ -69,18 +69,15 @@ MAX_CELLS = 12_000_000
 def _load(args: argparse.Namespace, command: str = ""):
     """The model's tree; with command (ops, codegen), refused with one line when its symbolic models would be too
     large (`MAX_PAIRS`)."""
-    import numpy as np
-
-    from ..dynamics import load_model
-    from .usage import UsageError
+    from ..dynamics import load_model  # start-up: the library, 1-5 s (--help 0.1 s)
 
     tree = load_model(args.file).tree
     if command:
-        ant = np.asarray(tree.ant)
-        depth = np.zeros(tree.n + 1, dtype=np.int64)
+        ant = [int(a) for a in tree.ant]
+        depth = [0] * (tree.n + 1)
         for j in range(1, tree.n + 1):  # a frame's antecedent comes before it: one pass (no ancestor lists)
             depth[j] = depth[ant[j]] + 1
-        pairs = int(depth.sum())
+        pairs = sum(depth)
         if pairs > MAX_PAIRS:
             raise UsageError(
                 f"model {command} {args.file}: {tree.name!r} has {tree.n} frames, {pairs:,} frame-ancestor pairs "
@@ -101,7 +98,7 @@ def _load(args: argparse.Namespace, command: str = ""):
 
 
 def _is_column(tree, name: str) -> bool:
-    from ..model import ModelError
+    from ..model import ModelError  # start-up: the library, 1-5 s (--help 0.1 s)
 
     try:
         tree.column(name)
@@ -111,8 +108,6 @@ def _is_column(tree, name: str) -> bool:
 
 
 def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
-    from .usage import UsageError
-
     out: dict = {}
     if args.rows:
         try:
@@ -133,7 +128,7 @@ def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
 
 
 def cmd_ops(args: argparse.Namespace) -> int:
-    from ..symbolic import SymbolicError, build
+    from ..symbolic import SymbolicError, build  # start-up: the library, 1-5 s (--help 0.1 s)
 
     tree = _load(args, "ops")
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters; geometry {args.geometry}")
@@ -155,8 +150,9 @@ def cmd_ops(args: argparse.Namespace) -> int:
 
 
 def cmd_codegen(args: argparse.Namespace) -> int:
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..symbolic import SymbolicError, build, model_hash, to_c, to_numpy, to_text
-    from ..symbolic.cache import write_atomic
+    from ..symbolic.cache import write_atomic  # start-up: the library, 1-5 s (--help 0.1 s)
 
     tree = _load(args, "codegen")
     opts = {"geometry": args.geometry}

@@ -4,28 +4,36 @@ from __future__ import annotations
 
 import argparse
 import json
+import tomllib
+from importlib.util import find_spec
 from pathlib import Path
 
-from ..atomic import add_force, refuse_overwrite
+from ..atomic import add_force, refuse_overwrite, write_atomic
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from .model_table import format_table
+from .usage import command
 
-TEMPLATES = ("peugeot406",)
+TEMPLATES = (CAR_TEMPLATE,)
 
 
 def show_template(name: str) -> str:
     """The full text for a template: MDH table, the three parameter sets, consistency, base parameters."""
-    import numpy as np
+    import numpy as np  # start-up: numpy (--help 0.1 s)
 
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..model import ModelError
     from ..model.consistency import check_physical
 
     if name not in TEMPLATES:
         raise ModelError(f"no car template {name!r}; templates: {', '.join(TEMPLATES)}")
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle import parameters as params
     from ..vehicle.car_model import car_template
     from ..vehicle.equations import car_base_parameters
     from ..vehicle.geometry import CarGeometry
     from ..vehicle.statics import rest_state
+
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, paper_parameter_names, role
 
     geometry = CarGeometry()
@@ -102,7 +110,6 @@ def show_template(name: str) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `vehicle` to the top-level `dynid` sub-commands."""
-    from .usage import command
 
     p = command(subparsers, "vehicle", help="vehicle files: the shipped ones, a starting file, what a file describes",
                 description="A car is a vehicle file (TOML: geometry, sensors, tables, a priori and known values; "
@@ -135,9 +142,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    import tomllib
-    from importlib.util import find_spec
-
     # the shipped files are read as TOML, not loaded as vehicles: loading one builds its tables and template
     # (NumPy, SciPy: two seconds) for three numbers; tests/test_vehicle_file.py loads every shipped vehicle.
     # find_spec locates dynid.vehicle without running its __init__ (which imports all of it).
@@ -153,8 +157,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_new(args: argparse.Namespace) -> int:
-    from ..atomic import write_atomic
-    from ..vehicle.description import VehicleError, vehicle_path
+    from ..vehicle.description import VehicleError, vehicle_path  # start-up: the library, 1-5 s (--help 0.1 s)
 
     out = Path(args.out)
     if not args.name.strip():
@@ -165,7 +168,7 @@ def cmd_new(args: argparse.Namespace) -> int:
     refuse_overwrite([out], args.force)
     head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
             "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
-    source = vehicle_path("peugeot406")
+    source = vehicle_path(DEMO_VEHICLE)
     lines = [line for line in source.read_text(encoding="utf-8").splitlines() if not line.startswith("# ")]
     for i, line in enumerate(lines):  # JSON's string escapes are TOML's
         if line.startswith("name = "):
@@ -182,7 +185,7 @@ def cmd_new(args: argparse.Namespace) -> int:
 def _sheet_hint(source: Path) -> str:
     """A commented [a_priori.chassis]: the a priori chassis of the file a new one starts from, as a data sheet
     gives it."""
-    from ..vehicle.description import chassis_sheet_keys, load_vehicle
+    from ..vehicle.description import chassis_sheet_keys, load_vehicle  # start-up: the library, 1-5 s (--help 0.1 s)
 
     v = load_vehicle(source)
     keys = chassis_sheet_keys(v.a_priori.values, v.geometry)
@@ -193,7 +196,7 @@ def _sheet_hint(source: Path) -> str:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from ..vehicle.description import load_vehicle
+    from ..vehicle.description import load_vehicle  # start-up: the library, 1-5 s (--help 0.1 s)
 
     print(show_vehicle(load_vehicle(args.vehicle)))
     return 0
@@ -202,6 +205,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 def chassis_sheet_text(v) -> list[str]:
     """The chassis of each parameter set as a data sheet gives it, under the keys of [a_priori.chassis] (13
     significant digits: they read back to XX6..M6 to 1e-12)."""
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle.description import CHASSIS_PARAMETERS, chassis_sheet_keys
 
     sets = [("a priori", v.a_priori.values)]
@@ -220,9 +224,12 @@ def chassis_sheet_text(v) -> list[str]:
 
 def show_vehicle(v) -> str:
     """Frames, parameter sets, known values, base parameters and the a priori set's physical consistency."""
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..model.consistency import check_physical
     from ..model.tree import CURVE_TERMS
     from ..vehicle.equations import car_base_parameters, identified
+
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, meaning, paper_parameter_names, role
 
     tree = v.template()

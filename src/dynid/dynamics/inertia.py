@@ -8,6 +8,7 @@ import numpy as np
 
 from ..kinematics.forward import joint_array
 from ..model.tree import FIXED, ModelError, Tree
+from .mimic import follow, project
 from .newton_euler import (
     Wrench,
     check_parameters,
@@ -29,8 +30,6 @@ def inertia_matrix(tree: Tree, q: Array, X: Array | None = None, *, backend: str
     """
     X = tree.parameters if X is None else check_parameters(tree, X)
     if tree.mimic:  # G^T M G on the followed posture: a follower's row and column are 0, its master's carry it
-        from .mimic import follow, project
-
         qf = follow(tree, q, q, q)[0]
         M = inertia_matrix(tree.unconstrained, qf, X, backend=backend)
         every = range(1, tree.n + 1)
@@ -57,7 +56,7 @@ def _numpy_columns(tree: Tree, q: Array, X: Array) -> tuple[Array, bool]:
 
 
 def _compiled_columns(tree: Tree, q: Array, X: Array) -> tuple[Array, bool]:
-    from . import compiled
+    from . import compiled  # start-up: numba 0.5 s
 
     qs, single = compiled.joint_rows(q, tree, "q")
     N, n = qs.shape

@@ -22,6 +22,7 @@ import numpy as np
 from ..kinematics.forward import forward_kinematics, joint_array, to_local, to_world
 from ..kinematics.motion import Motion, Vec, local_motion, matvec, scale, umul, vadd, vcross
 from ..model.tree import FIXED, NO_KNEES, PRISMATIC, REVOLUTE, SIGN_LAW, ModelError, Tree
+from .mimic import follow, project
 
 Array = np.ndarray
 CHUNK = 2048  # samples per pass: keeps the per-frame arrays in cache (1-2k measured best)
@@ -49,7 +50,7 @@ def resolve_backend(backend: str | None = None) -> str:
 
 @functools.cache
 def _numba_works() -> bool:
-    from . import compiled  # imports numba on first use; without it HAVE_NUMBA is False
+    from . import compiled  # start-up: numba 0.5 s; imports numba on first use; without it HAVE_NUMBA is False
 
     return compiled.HAVE_NUMBA
 
@@ -258,8 +259,6 @@ def inverse_dynamics(
     q, qd, qdd are ignored). backend: "numba", "numpy" or None (see `resolve_backend`).
     """
     if tree.mimic:
-        from .mimic import follow, project
-
         q, qd, qdd = follow(tree, q, qd, qdd)
         tau = inverse_dynamics(tree.unconstrained, q, qd, qdd, wrenches, X, backend=backend)
         return project(tree, tau, range(1, tree.n + 1), axis=-1)
@@ -283,7 +282,7 @@ def inverse_dynamics(
 
 
 def _compiled_inverse_dynamics(tree: Tree, q, qd, qdd, wrenches, X) -> Array:
-    from . import compiled
+    from . import compiled  # start-up: numba 0.5 s
 
     qs, single = compiled.joint_rows(q, tree, "q")
     qds, _ = compiled.joint_rows(qd, tree, "qd")

@@ -23,6 +23,7 @@ import numpy as np
 from ..kinematics.forward import KinematicState, cross, forward_kinematics, joint_array
 from ..kinematics.motion import Motion, Vec, local_motion, vadd, vcross
 from ..model.tree import FIXED, INERTIAL, LOAD_TERMS, REVOLUTE, ModelError, Tree
+from .mimic import follow, project, rows_needed
 from .newton_euler import (
     CHUNK,
     Wrench,
@@ -153,7 +154,6 @@ def regressor(
 def _mimic_regressor(tree: Tree, q, qd, qdd, wrenches, rows, cols, out, backend) -> Array | tuple[Array, Array]:
     """The regressor of a tree with mimic joints: the unconstrained one on the followed motion, on the rows asked
     for and the followers of their masters, projected (mimic.project), then the rows asked for."""
-    from .mimic import follow, project, rows_needed
 
     R = resolve_rows(tree, rows)
     need = rows_needed(tree, R)
@@ -181,7 +181,7 @@ def check_out(out: object, shape: tuple[int, ...]) -> None:
 
 
 def _compiled_regressor(tree: Tree, q, qd, qdd, wrenches, rows, cols, out) -> Array | tuple[Array, Array]:
-    from . import compiled
+    from . import compiled  # start-up: numba 0.5 s
 
     qs, single = compiled.joint_rows(q, tree, "q")
     qds, _ = compiled.joint_rows(qd, tree, "qd")

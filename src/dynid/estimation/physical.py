@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import ArrayLike
 
 from ._checks import as_groups, group_rows, prepare
@@ -76,8 +77,8 @@ _SOLVER_ERROR = ("method \"wls-pc\" needs cvxpy and the Clarabel solver (dynid's
 def require_cvxpy() -> Any:
     """The cvxpy module, or a one-line IdentificationError saying which extra to install."""
     try:
-        import clarabel  # noqa: F401  (the solver cvxpy calls)
-        import cvxpy
+        import clarabel  # noqa: F401  optional: clarabel (the pc extra), the solver cvxpy calls
+        import cvxpy  # optional: cvxpy (the pc extra)
     except ImportError:
         raise IdentificationError(_SOLVER_ERROR) from None
     return cvxpy
@@ -379,7 +380,6 @@ def _closest_to_prior(cp: Any, structure: ConsistencyStructure, margin: float, f
     first + N z with N a basis of K's null space, so the base values hold whatever the solver's tolerance (to
     round-off, and to that tolerance where a non-negative term is put back on its bound); the first solve's set
     is kept if this one fails."""
-    import scipy.linalg
 
     names = structure.standard_names
     s0 = np.array([float(prior.get(n, 0.0)) for n in names])
@@ -479,7 +479,6 @@ def plausible_standard(structure: ConsistencyStructure, base_values: Mapping[str
     b = np.array([float(base_values[n]) for n in structure.base_names])
     sd = np.array([float(base_std.get(n, 0.0)) for n in structure.base_names])
     s0 = np.array([float(prior.get(n, 0.0)) for n in names])
-    import scipy.linalg
 
     K = structure.base_map
     held = sd <= 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Mapping, Sequence
@@ -146,7 +147,6 @@ class IdentificationResult:
 
     def with_systematic(self, systematic: SystematicUncertainty) -> IdentificationResult:
         """This result with the sensor offsets' uncertainty attached (flags unchanged: paper's rule)."""
-        import dataclasses
 
         return dataclasses.replace(self, systematic=systematic)
 
@@ -231,7 +231,7 @@ class IdentificationResult:
         Imports pandas only here; raises ImportError saying so if it is not installed.
         """
         try:
-            import pandas as pd
+            import pandas as pd  # optional: pandas
         except ImportError as exc:
             raise ImportError(
                 "IdentificationResult.to_dataframe() needs pandas, which is not installed; "

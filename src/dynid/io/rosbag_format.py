@@ -260,7 +260,7 @@ def _mcap_runs(storage: Any, topic: str, start: int | None, stop: int | None
     """An indexed MCAP storage's messages of the topic: each chunk's in receive-time order (stable), the chunks'
     merged by receive time (ties in file order), as rosbags' own iterator orders them. A run of message records
     of one length is found with NumPy, not record by record, and kept as rows of the chunk's bytes."""
-    from rosbags.rosbag2.storage_mcap import decompress
+    from rosbags.rosbag2.storage_mcap import decompress  # optional: rosbags (the ros extra)
 
     lo = -(2**63) if start is None else start
     hi = 2**63 - 1 if stop is None else stop

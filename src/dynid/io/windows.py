@@ -411,7 +411,7 @@ def _where(path: str) -> tuple[Any, str] | None:
     if "://" not in path:
         return None
     try:
-        import fsspec
+        import fsspec  # optional: fsspec
     except ImportError:
         raise FileFormatError(
             f"{path}: reading a URL needs the package fsspec (pip install fsspec, and the one for its scheme, "
@@ -799,7 +799,6 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
     blocks: list[Block] = []
     try:
         with _open_binary(label) as fh:
-
             def header_lines() -> Iterator[tuple[int, str]]:
                 number = 0
                 while True:

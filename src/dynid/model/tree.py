@@ -49,8 +49,10 @@ gear ratios of the joints it drives.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
+from difflib import get_close_matches
 from functools import cached_property
 
 import numpy as np
@@ -278,7 +280,6 @@ class Tree:
         for j, name in self.joint_names.items():
             if name == joint:
                 return j
-        from difflib import get_close_matches
 
         close = get_close_matches(str(joint), list(self.joint_names.values()), n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
@@ -345,8 +346,6 @@ def freeze(tree: Tree, frames: dict[int, float]) -> Tree:
 
 
 def _replace(tree: Tree, **changes: object) -> Tree:
-    import dataclasses
-
     return dataclasses.replace(tree, **changes)
 
 

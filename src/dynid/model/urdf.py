@@ -46,6 +46,7 @@ import pyexpat
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from difflib import get_close_matches
 from pathlib import Path
 
 import numpy as np
@@ -483,7 +484,6 @@ def _mimics(robot: ET.Element, kinds: dict[str, str | None], src: str) -> dict[s
 def _frozen(kinds: dict[str, str | None], mimics: dict[str, tuple[str, float, float]], freeze: dict[str, float],
             select: tuple[str, ...] | None, src: str) -> dict[str, float]:
     """The moving joints held still -> their value: those named, those not selected, and the mimics of frozen ones."""
-    from difflib import get_close_matches
 
     moving = [k for k, t in kinds.items() if t in _MOVING]
     for what, named in (("--freeze", list(freeze)), ("--joints", list(select or ()))):

@@ -17,6 +17,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ..progress import Count
+from ..report.build import car_engineering
+from ..vehicle.engineering import QUANTITIES
 from .config import IdentifyConfig
 from .run import IdentificationRun, identify
 from .schedulers import LocalScheduler, Scheduler
@@ -70,8 +72,6 @@ def summary(names: Sequence[str], runs: Sequence[IdentificationRun | Exception])
     head = ["config", "model", "parameters", "direct error %", "cross error %"]
     figures: dict[str, tuple[str, str]] = {}
     if cars:
-        from ..vehicle.engineering import QUANTITIES
-
         figures = {k: (QUANTITIES[k][1], QUANTITIES[k][2]) for k in CAR_FIGURES}
         head += [f"{label} [{unit}]" for label, unit in figures.values()]
     failed = len(done) < len(runs)
@@ -94,8 +94,6 @@ def summary(names: Sequence[str], runs: Sequence[IdentificationRun | Exception])
 
 
 def _car_figures(run: IdentificationRun) -> list:
-    from ..report.build import car_engineering
-
     return car_engineering(run)[0]  # σ total where the offsets were declared, as in the report
 
 

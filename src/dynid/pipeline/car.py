@@ -11,8 +11,9 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
+from ..model import check_physical
 from ..signals import decimate_parallel, lowpass
-from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.dampers import KneeSearch
 from ..vehicle.equations import group_name, load_rows
 from ..vehicle.estimate import CarTrajectory, required_channels
@@ -364,7 +365,6 @@ def car_scales(values: Mapping[str, float]) -> dict[str, float]:
 
 def car_sections(names: list[str], tree) -> list[tuple[str, list[str]]]:
     """The paper's tables: chassis (Table 2), suspensions and anti-roll bars (Table 3), wheels, tires (Table 5)."""
-    from ..vehicle.template import DAMPERS, TIRES, WHEELS
 
     def joint(n: str) -> int | None:
         digits = n[len(n.rstrip("0123456789")):]
@@ -395,7 +395,6 @@ def masses_note(result, tree) -> str:
 def consistency_text(result, base: BaseParameters, tree=None) -> str:
     """Whether the estimated chassis and wheels are physically realisable (only meaningful without regrouping);
     parameters fixed as known take the tree's values."""
-    from ..model import check_physical
 
     if base.regrouped:
         return ("Inertial parameters regroup in this base set (" + ", ".join(base.regrouped)

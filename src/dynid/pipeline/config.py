@@ -135,9 +135,16 @@ import numpy as np
 
 from ..estimation.errors import IdentificationError
 from ..estimation.method import Method
+from ..io.rosbag_format import is_bag, is_bag_folder
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
+from ..vehicle.description import load_vehicle
+from ..vehicle.estimate import required_channels
+from ..vehicle.sensors import fitted_suite
+from .reference import parse_combination, reference_text
 from .robot import Conditioning
+from .schedulers import address_problem
 
 
 class ConfigError(ModelError):
@@ -329,7 +336,7 @@ def load_config(path: str | Path) -> IdentifyConfig:
     _keys(ident, _CAR_IDENTIFICATION if is_car else _ROBOT_IDENTIFICATION, "[identification]", err,
           None if is_car else dict.fromkeys(set(_CAR_IDENTIFICATION) - set(_ROBOT_IDENTIFICATION), _FOR_A_CAR))
     # a car's [channels] and [uncertainty] name channels of the suite its vehicle has (read only when named)
-    suite = _VehicleChannels(vehicle or "peugeot406", err) if is_car else None
+    suite = _VehicleChannels(vehicle or DEMO_VEHICLE, err) if is_car else None
     car = _car_settings(data, err, suite) if is_car else None
     channels_raw = data.get("channels", {})
     effort = "current" if isinstance(channels_raw, dict) and "current" in channels_raw else "tau"
@@ -480,8 +487,6 @@ def _compute(c: dict, err: Err) -> dict[str, Any]:
         raise err("[compute]", f"scheduler = {scheduler!r}; give \"local\" (a Dask cluster on this machine) or a "
                                "Dask scheduler's address such as \"tcp://10.0.0.5:8786\"")
     if scheduler is not None:
-        from .schedulers import address_problem
-
         problem = address_problem(scheduler)
         if problem is not None:
             raise err("[compute]", f"scheduler = {problem}")
@@ -540,11 +545,13 @@ def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None
                          "known values are its vehicle file's: vehicle = \"my_car.toml\")")
     given = [k for k in _MODEL_KEYS if k in m]
     if not given:
-        raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", template = \"peugeot406\" "
-                         "or vehicle = \"peugeot406\" (a car: a shipped vehicle or a vehicle file)")
+        raise err(where, "give example = \"tx40\" (a shipped model), file = \"model.toml\", "
+                         f"template = \"{CAR_TEMPLATE}\" or vehicle = \"{DEMO_VEHICLE}\" (a car: a shipped vehicle "
+                         "or a vehicle file)")
     if {"template", "vehicle"} <= set(given):
         raise err(where, f"template = {m['template']!r} and vehicle = {m['vehicle']!r} together: give one (vehicle "
-                         "describes the car on the peugeot406 template; template alone is the shipped Peugeot 406)")
+                         f"describes the car on the {CAR_TEMPLATE} template; template alone is the shipped vehicle "
+                         f"{DEMO_VEHICLE})")
     if len(given) > 1:
         raise err(where, f"{' and '.join(given)} together: give one of {', '.join(_MODEL_KEYS)}")
     key = given[0]
@@ -553,11 +560,11 @@ def _model(m: dict, here: Path, err: Err) -> tuple[str | Path, str | Path | None
         raise err(where, f"{key} = {value!r}; give a name or a file name (a string)")
     if key == "vehicle":
         if not value.lower().endswith(".toml"):
-            return "peugeot406", value  # a shipped vehicle's name (resolved with the vehicle files)
+            return CAR_TEMPLATE, value  # a shipped vehicle's name (resolved with the vehicle files)
         file = (here / value).resolve()
         if not file.is_file():
             raise err(where, f"vehicle file not found: {file}")
-        return "peugeot406", file
+        return CAR_TEMPLATE, file
     return (here / value if key == "file" else value), None
 
 
@@ -635,7 +642,6 @@ def _tests(raw: object, here: Path, is_car: bool, err: Err, effort: str = "tau")
 
 def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple[str | None, tuple[str, ...]]:
     """A robot test's topic and ignore_joints, which only a ROS 2 bag takes."""
-    from ..io.rosbag_format import is_bag
 
     topic, ignore = t.get("topic"), t.get("ignore_joints", [])
     if ("topic" in t or "ignore_joints" in t) and not all(is_bag(f) for f in files.values()):
@@ -650,8 +656,6 @@ def _bag_options(t: dict, files: dict[str, Path], where: str, err: Err) -> tuple
 
 
 def _bag_folder(path: Path) -> bool:
-    from ..io.rosbag_format import is_bag_folder
-
     return is_bag_folder(path)
 
 
@@ -828,7 +832,6 @@ def _reference(ref: dict | None, here: Path, err: Err) -> dict[str, Any] | None:
         raise err(where, f"file not found: {ref['file']}")
     if ref["file"].is_dir():
         raise err(where, f"file = {str(ref['file'])!r} is a folder; give the published table's CSV file")
-    from .reference import parse_combination, reference_text
 
     try:  # a binary or non-UTF-8 file is refused now, before the identification (its rows are read with the results)
         reference_text(ref["file"])
@@ -1036,9 +1039,6 @@ class _VehicleChannels:
     @property
     def valid(self) -> list[str]:
         if self._valid is None:  # imported here: the vehicle's modules are not needed to read a robot's config
-            from ..vehicle.description import load_vehicle
-            from ..vehicle.estimate import required_channels
-
             self._vehicle = load_vehicle(self.ref)
             self._valid = required_channels(spin=False, suite=self._vehicle.suite)
         return self._valid
@@ -1065,7 +1065,5 @@ class _VehicleChannels:
 
 def _every_channel() -> set[str]:
     """Every channel the estimator knows, whatever the suite: the paper's and a GNSS/INS car's."""
-    from ..vehicle.estimate import required_channels  # as in _VehicleChannels.valid: a car's config only
-    from ..vehicle.sensors import fitted_suite
 
     return {*required_channels(spin=False), *required_channels(spin=False, suite=fitted_suite(correvit=False))}

@@ -18,6 +18,10 @@ from pathlib import Path
 
 from ..atomic import write_atomic
 from ..progress import notice_if_slow
+from ..shipped import DEMO_VEHICLE
+from ..vehicle.description import VehicleError, load_vehicle
+from ..vehicle.sim import CarSimulator
+from ..vehicle.sim.recording import write_test
 from .config import load_config
 from .run import IdentificationRun, identify
 
@@ -69,10 +73,8 @@ def conditioning_toml(offsets: dict[str, float], estimate: bool = True) -> list[
             f"offsets = {{ {offsets_text} }}", *([] if estimate else ["estimate = false"]), ""]
 
 
-def simulated_car(vehicle: str = "peugeot406"):
+def simulated_car(vehicle: str = DEMO_VEHICLE):
     """The simulator of a vehicle (a shipped name or a vehicle file) driven with its [truth] set."""
-    from ..vehicle.description import VehicleError, load_vehicle
-    from ..vehicle.sim import CarSimulator
 
     v = load_vehicle(vehicle)
     if v.truth is None:
@@ -99,7 +101,7 @@ def compile_pending(sim) -> bool | None:
 
 
 def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None,
-                   vehicle: str = "peugeot406") -> dict:
+                   vehicle: str = DEMO_VEHICLE) -> dict:
     """The demo's tests driven by the simulated car: file key -> SimulationResult (noise-free motion)."""
     say = progress or (lambda _m: None)
     say("building the simulated car")
@@ -123,12 +125,10 @@ def simulate_tests(quick: bool = False, progress: Progress | None = None, simula
 
 
 def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fmt: str = "csv",
-               vehicle: str = "peugeot406") -> Path:
+               vehicle: str = DEMO_VEHICLE) -> Path:
     """The logger files of the simulated tests (sensor noise seeded by seed + the test's index, or none) and
     the identification config in `out` (for `vehicle`: a shipped name, or a vehicle file, written as an absolute
     path); returns the config's path."""
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.sim.recording import write_test
 
     suite = load_vehicle(vehicle).suite  # the sensors the vehicle file says are fitted
     data = out / "data"
@@ -143,7 +143,7 @@ def write_demo(out: Path, results: dict, seed: int = 406, noise: bool = True, fm
 
 
 def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress | None = None,
-             simulation_progress=None, vehicle: str = "peugeot406") -> IdentificationRun:
+             simulation_progress=None, vehicle: str = DEMO_VEHICLE) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
     results = simulate_tests(quick, say, simulation_progress, vehicle)

@@ -58,8 +58,18 @@ from numpy.typing import NDArray
 
 from ..io import Channel, read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
+from ..signals import border_samples, filtered_derivatives
 from .config import ConfigError, IdentifyConfig
-from .sources import CarTestPlan, RobotTestPlan, SegmentWindow, read_segment, segment_window
+from .robot import to_frames
+from .sources import (
+    CarTestPlan,
+    RobotTestPlan,
+    SegmentWindow,
+    driven,
+    read_robot_window,
+    read_segment,
+    segment_window,
+)
 
 Progress = Callable[[str], None]
 WINDOW_S = 120.0  # s of the file read at a time
@@ -465,8 +475,6 @@ class RobotHealth:
 def _judged(fs: float, cond) -> tuple[int, int]:
     """(border, step): the samples at each end of a test no torque is judged on (the filter's transient), and the
     model's torque on every step-th sample (about 10 per cut-off period)."""
-    from ..signals import border_samples
-
     return border_samples(fs, cond.cutoff, cond.order) + 2, max(1, int(fs / (10.0 * cond.cutoff)))
 
 
@@ -478,9 +486,6 @@ def gather_joints(cfg: IdentifyConfig, model, columns: Sequence[int], clock: NDA
     own = (s, e) of the test's samples (the rest read around it: the filter's transients); gains: the drive gains'
     columns (identified gains: no torque known); torques: False in an identification chunk, whose rows give them
     (`RobotHealth.add_rows`: the filtering and the regressor already done)."""
-    from ..signals import filtered_derivatives
-    from .robot import to_frames
-
     cond = cfg.conditioning
     border, step = _judged(fs, cond)
     out = RobotHealth(len(columns), torque=gains is None)
@@ -520,8 +525,6 @@ def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequ
     Joints whose channels have an error already (`broken`: a spike, a boolean column) are not judged; no torque is
     when a position channel has one, nor the torques with identified drive gains (their scale and sign are
     parameters)."""
-    from .sources import driven, read_robot_window
-
     N, fs = plan.samples, plan.fs
     k = len(columns)
     border, _ = _judged(fs, cfg.conditioning)

@@ -3,15 +3,20 @@
 Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
 sensor suite noise-free and with a few (DRAWS) seeded draws of the suite's noise and zero offsets. Each file is
 reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
-rows give the normal matrix and the zero offsets' sensitivities (`BiasAccumulator`), each noisy draw the equation
-groups' noise levels (paper eq. (8): `StreamingLS.group_sigmas`). A combination of tests is then evaluated without
-simulating or reading anything again: with the weights σ_g of each draw's combined noisy rows,
+rows give the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per
+offset (`estimation.offsets.OffsetFactors`), each noisy draw the equation groups' noise levels (paper eq. (8):
+`StreamingLS.group_sigmas`). A combination of tests is then evaluated without simulating or reading anything
+again, with the weights σ_g and scale s² of each draw's combined noisy rows, as `dynid identify` computes it:
 
-    σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ),   A = Σ_g W_gᵀ W_g / σ_g²
+- by default each test's offsets are estimated with the parameters, their declared σ as the prior
+  (`estimation.offsets.solve_with_offsets`, identify's own, on the tests' [C | W | Y] factors):
+  σ total² = diag(s² A_r⁻¹), A_r the normal matrix with every test's offsets profiled out, split into the noise's
+  part and what the data leave of the offsets' effect;
+- with estimate=False (`[uncertainty] estimate = false`) they are propagated as independent sources:
+  σ total² = diag(s² A⁻¹ + Σ_k ΔX_k ΔX_kᵀ), A = Σ_g W_gᵀ W_g / σ_g² (`estimation.systematic`), an upper bound.
 
-(statistical, paper eq. (9)-(10), plus every test's offsets propagated as independent sources: each test is
-zeroed anew; `estimation.systematic`), as `dynid identify` computes it. A repeated test costs nothing more: its
-rows are the same, its offsets new sources, its noise a new draw.
+Each test is zeroed anew: a repeated test costs nothing more, its rows are the same, its offsets new ones, its noise
+a new draw.
 
 The weights come from residuals the offsets dominate, so the σ total an identification reports scatters from seed
 to seed: the plan's σ is the draws' root mean square (what the estimates' spread over seeds is), and each target is
@@ -23,23 +28,41 @@ shortfall per second of driving, a pair when no single test helps), and drops ev
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import tempfile
 import time
 import tomllib
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
+from ..atomic import write_atomic
 from ..estimation import StreamingLS
+from ..estimation.errors import EstimationWarning
+from ..estimation.offsets import OffsetFactors, solve_with_offsets
 from ..estimation.systematic import BiasAccumulator
+from ..report.build import car_engineering
+from ..shipped import DEMO_VEHICLE
+from ..signals import border_samples, lowpass
+from ..vehicle.description import load_vehicle
+from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
+from ..vehicle.estimate import required_channels
+from ..vehicle.sensors import SensorSuite
+from ..vehicle.sim.recording import write_test
+from .car import car_scales, sensor_offsets
 from .config import ConfigError, load_config
+from .demo import conditioning_toml, simulated_car
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
+from .run import identify
 from .schedulers import LocalScheduler
+from .sources import plan_car_test, segment_window
 
 Progress = Callable[[str], None]
 
@@ -88,17 +111,18 @@ CANDIDATES: tuple[Candidate, ...] = (
 @dataclass(frozen=True)
 class Limits:
     """What a driver and a track allow: peak lateral and longitudinal acceleration (m/s²), speed (km/h), the run's
-    length (m)."""
+    length (m), and the track time for the whole plan (s of driving)."""
 
     lateral_acceleration: float = 7.0
     longitudinal_acceleration: float = 7.0
     speed: float = 130.0
     length: float = 1000.0
+    time: float | None = None  # s of driving the whole plan may take (None: no limit)
 
     def text(self) -> str:
         return (f"lateral acceleration <= {self.lateral_acceleration:g} m/s², longitudinal <= "
                 f"{self.longitudinal_acceleration:g} m/s², speed <= {self.speed:g} km/h, run length <= "
-                f"{self.length:g} m")
+                f"{self.length:g} m" + ("" if self.time is None else f", the plan's driving <= {self.time:g} s"))
 
 
 @dataclass(frozen=True)
@@ -123,10 +147,10 @@ class Envelope:
         return out
 
 
-def envelope(result) -> Envelope:
-    """The run's peaks from the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), filtered at 2 Hz
-    (a driver's and a standard's reading of acceleration, not the tire's vibration)."""
-    from ..signals import lowpass
+def road_signals(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A run's lateral and longitudinal acceleration (m/s², in the road plane, in the car's heading, filtered at
+    2 Hz: a driver's and a standard's reading of acceleration, not the tire's vibration), speed (m/s) per sample
+    of the simulator's truth (q1, q2: the ground-plane position, q4 the yaw), and its sample rate (Hz)."""
 
     fs = 1.0 / float(result.time[1] - result.time[0])
     qd, qdd, yaw = result.qd[:, 0:2], result.qdd[:, 0:2], result.q[:, 3]
@@ -134,7 +158,12 @@ def envelope(result) -> Envelope:
     # q1, q2 translate along x0, y0 in the road plane; the heading at yaw q4 is (-sin, cos) (y0 forward at rest)
     a_head = lowpass(-qdd[:, 0] * s + qdd[:, 1] * c, fs, 2.0, 2)
     a_side = lowpass(qdd[:, 0] * c + qdd[:, 1] * s, fs, 2.0, 2)
-    speed = np.hypot(qd[:, 0], qd[:, 1])
+    return a_side, a_head, np.hypot(qd[:, 0], qd[:, 1]), fs
+
+
+def envelope(result) -> Envelope:
+    """The run's peaks (`road_signals`) and the distance it drove."""
+    a_side, a_head, speed, fs = road_signals(result)
     return Envelope(float(np.max(np.abs(a_side))), float(np.max(np.abs(a_head))), float(3.6 * speed.max()),
                     float(np.sum(speed) / fs))
 
@@ -203,7 +232,6 @@ def load_targets(path: str | Path | None) -> TargetSpec:
             raise ConfigError(f"{path}: [targets] {k}: not a target; targets: {', '.join(TARGET_KEYS)} (and the "
                               "tables [targets.parameters], [targets.quantities])")
         categories[k] = None if v is False else _positive(path, f"[targets] {k}", v)
-    from ..vehicle.engineering import QUANTITIES
 
     for k, v in per_quantity.items():
         if k not in QUANTITIES:
@@ -270,6 +298,8 @@ class Piece:
     ls: StreamingLS
     bias: BiasAccumulator | None
     noisy: tuple[StreamingLS, ...]
+    zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
+    quiet: StreamingLS | None = None  # a draw of the sensors' noise without zero offsets: the rows' own noise
 
     @cached_property
     def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -286,21 +316,21 @@ class Piece:
         return groups, a, B
 
 
-def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float]) -> str:
-    """The identification config of these tests (name -> file), all identified, with the demo's conditioning."""
-    import json
+def plan_config_text(files: Mapping[str, str], vehicle: str, offsets: Mapping[str, float], estimate: bool = True
+                     ) -> str:
+    """The identification config of these tests (name -> file), all identified, with the demo's conditioning;
+    estimate: each test's zero offsets estimated with the parameters (identify's default), else propagated."""
 
-    from .demo import conditioning_toml
 
     lines = ["# dynid plan's tests: rerun with `dynid identify identify.toml --out DIR`", "", "[model]",
              f"vehicle = {json.dumps(vehicle)}", ""]
     for name, path in files.items():
         lines += ["[[tests]]", f"name = {json.dumps(name)}", 'role = "identify"', f"file = {json.dumps(path)}", ""]
-    # the offsets propagated, as `predict` does (identify's default estimates them: its σ total is then smaller)
-    return "\n".join(lines + conditioning_toml(dict(offsets), estimate=False))
+    return "\n".join(lines + conditioning_toml(dict(offsets), estimate=estimate))
 
 
 NOISY = " (noisy)"
+QUIET = " (noise, no offsets)"
 
 
 DRAWS = 4  # noisy draws per candidate: the weights' seed-to-seed scatter (`predictions`)
@@ -312,23 +342,21 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     """Each simulated test (key -> SimulationResult) written noise-free and with `draws` draws of the suite's noise
     and zero offsets (seeds seed + 100 d + its index) into `folder`, each file reduced once by the identification's
     map; returns key -> Piece and the car setup (names, tree, vehicle)."""
-    from ..signals import border_samples
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.estimate import required_channels
-    from ..vehicle.sim.recording import write_test
-    from .car import sensor_offsets
-    from .sources import plan_car_test, segment_window
 
     say = say or (lambda _m: None)
     suite = load_vehicle(vehicle).suite
     data = folder / "data"
     data.mkdir(parents=True, exist_ok=True)
     files = {}
+    # the sensors' noise without zero offsets: what the rows keep once the offsets are read (the spread's sandwich)
+    quiet = SensorSuite(tuple(dataclasses.replace(c, bias=0.0) for c in suite.channels), suite.rate)
     for i, (key, result) in enumerate(results.items()):
         for d in range(-1, draws):  # -1: noise-free
             path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.csv", seed=seed + 100 * d + i,
                                  noise=d >= 0, suite=suite)
             files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
+        path, _ = write_test(result, data / f"{key}-quiet.csv", seed=seed + 100 * draws + i, suite=quiet)
+        files[f"{key}{QUIET}"] = path.relative_to(folder).as_posix()
     offsets = {c.name: c.bias for c in suite if c.bias}
     where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
     cfg_path = folder / "candidates.toml"
@@ -343,26 +371,27 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     for spec in cfg.tests:
         plan = plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
                              lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
-        n = len(plan.segments)
-        picks = np.unique(np.linspace(0, n - 1, min(cfg.car.offset_segments, n)).round()).astype(int)
+        # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
         for i, (lo, hi) in enumerate(plan.segments):
-            with_offsets = NOISY not in spec.name and i in picks
-            jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1,
-                               moved if with_offsets else (), n / len(picks) if with_offsets else 1.0))
+            with_offsets = NOISY not in spec.name and QUIET not in spec.name and bool(moved)
+            jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
+                               1.0, estimate_offsets=with_offsets))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
-        f"{draws} noisy draws each)")
+        f"{draws} noisy draws and one of the noise alone each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
-    pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)))
-              for k in results}
+    pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),
+                       parts[k].zeros, parts[f"{k}{QUIET}"].ls) for k in results}
     return pieces, setup
 
 
 # ------------------------------------------------------------------------------- a combination, without the data
 @dataclass(frozen=True)
 class Prediction:
-    """σ of the estimates of a combination of tests (order `names`): statistical, from the zero offsets, total; the
-    noise-free estimate x; the total covariance; rank: the number of parameters the rows identify."""
+    """σ of the estimates of a combination of tests (order `names`): statistical, from the zero offsets, total (the
+    spread of the estimates over seeds); the noise-free estimate x; the total covariance; rank: the number of
+    parameters the rows identify; reported: the covariance the identification reports, where it is not the
+    spread's (None: the same)."""
 
     names: tuple[str, ...]
     x: np.ndarray
@@ -370,20 +399,24 @@ class Prediction:
     std_sys: np.ndarray
     covariance: np.ndarray
     rank: int
+    reported: np.ndarray | None = None
 
     @property
     def std_total(self) -> np.ndarray:
         return np.sqrt(self.std_stat**2 + self.std_sys**2)
 
+    @property
+    def reported_covariance(self) -> np.ndarray:
+        return self.covariance if self.reported is None else self.reported
 
-def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
+
+def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Prediction:
     """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc);
-    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources)."""
-    import warnings
+    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources).
+    estimate: each test's offsets estimated with the parameters (identify's default, `estimation.offsets`: the
+    pieces need their `zeros`), else propagated (`[uncertainty] estimate = false`)."""
 
-    from scipy.linalg import solve_triangular
 
-    from ..estimation.errors import EstimationWarning
 
     # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
     # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their differences)
@@ -411,12 +444,22 @@ def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
     if rank < q:
         inf = np.full(q, np.inf)
         return Prediction(names, np.full(q, np.nan), inf, inf, np.full((q, q), np.inf), rank)
-    x = solve_triangular(R[:q, :q], R[:q, q])
-    Rinv = solve_triangular(R[:q, :q], np.eye(q))
     # s²: the weighted residual of the noisy rows over their degrees of freedom (paper eq. (9)), about 1. The noisy
     # rows' own normal matrix gives the same σ within 1.5 % (the 406's plan, fs9 the most): the noise-free one is kept
     Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
     s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
+    if estimate:
+        noise = None
+        if all(p.quiet is not None for p in pieces):  # the rows' noise without offsets: the spread's (sandwich)
+            quiet = pieces[0].quiet
+            for p in pieces[1:]:
+                quiet = quiet.merge(p.quiet)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", EstimationWarning)
+                noise = quiet.group_sigmas()
+        return _with_offsets_estimated(pieces, names, sigmas, s2, rank, noise)
+    x = solve_triangular(R[:q, :q], R[:q, q])
+    Rinv = solve_triangular(R[:q, :q], np.eye(q))
     C = s2 * (Rinv @ Rinv.T)
     # every test's offsets, independent sources (systematic.propagate, all sources at once): the shifts
     # ΔX_k = A⁻¹ Σ_g (a_kg - B_kg x) / σ_g², their covariance Σ_k ΔX_k ΔX_kᵀ
@@ -431,15 +474,65 @@ def predict(pieces: Sequence[Piece], draw: int = 0) -> Prediction:
     return Prediction(names, x, np.sqrt(np.diag(C)), np.sqrt(np.diag(C_sys)), C + C_sys, rank)
 
 
+def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigmas: Mapping[str, float], s2: float,
+                            rank: int, noise: Mapping[str, float] | None = None) -> Prediction:
+    """`predict` with each test's offsets estimated, on the tests' noise-free factors of [C | W | Y] at the noisy
+    draw's weights σ_g and scale s²; a repeat is a test of its own (its own offsets).
+
+    What the identification reports: `estimation.offsets.solve_with_offsets` (identify's own), s² A_r⁻¹. Its weights
+    come from residuals the offsets dominate, so it overstates the noise the rows keep once the offsets are read
+    (the 406's plan: the spread of ten seeds 0.68 of it, median over the parameters). The spread itself is the
+    estimator's sandwich: with Z_t = W̃_t − C̃_t R_uu⁻¹ R_ux (the weighted rows with test t's offsets profiled out),
+    the noise moves x by A_r⁻¹ Σ_t Z_tᵀ e_t, each group's rows of noise ρ_g = noise_g / σ_g in the weighted scale
+    (noise_g: the rows' σ without offsets, `Piece.quiet`), and each offset of one declared σ by
+    ΔX_k = A_r⁻¹ R_uxᵀ R_uu⁻ᵀ e_k; with ρ_g = 1 the two add up to A_r⁻¹. noise None: ρ_g = s (the weights taken
+    for the rows' noise)."""
+    missing = [i for i, p in enumerate(pieces) if p.zeros is None]
+    if missing:
+        raise ValueError(f"plan.predict: piece {missing[0]} has no offsets' factors (Piece.zeros) to estimate its "
+                         "offsets from; reduce it with the offsets estimated or call predict(..., estimate=False)")
+    first = pieces[0].zeros
+    acc = OffsetFactors(first.columns, first.known_columns, first.known_values, first.x0)
+    for p in pieces:  # the factors are shared, not copied: solve_with_offsets only reads them
+        for test, per in p.zeros.factors.items():
+            name, k = test, 1
+            while name in acc.factors:
+                k += 1
+                name = f"{test} (repeat {k})"
+            acc.sources[name], acc.factors[name], acc.rows[name] = p.zeros.sources[test], per, p.zeros.rows[test]
+    est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
+    reported = est.solution.covariance + est.systematic.covariance
+    q = len(names)
+    Ainv = reported / s2  # A_r⁻¹ of the weighted rows (solve_with_offsets' total is s² A_r⁻¹)
+    moved, shifts = [], []
+    for test, per in acc.factors.items():
+        m = len(acc.sources[test])
+        blocks = [R / sigmas[g] for g, R in per.items()]
+        R = np.linalg.qr(np.vstack([*blocks, np.hstack([np.eye(m), np.zeros((m, q + 1))])]), mode="r")
+        Ruu, Rux = R[:m, :m], R[:m, m:m + q]
+        T = solve_triangular(Ruu, Rux)
+        profile = np.vstack([-T, np.eye(q)])  # [C W] profile = Z: the rows with the offsets read taken out
+        rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
+        moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
+        shifts.append(Rux.T @ solve_triangular(Ruu, np.eye(m)).T)
+    L = np.linalg.qr(np.vstack(moved), mode="r")
+    B = L @ Ainv
+    C_stat = B.T @ B
+    D = Ainv @ np.hstack(shifts)
+    C_sys = D @ D.T
+    return Prediction(tuple(names), est.solution.x, np.sqrt(np.clip(np.diag(C_stat), 0, None)),
+                      np.sqrt(np.clip(np.diag(C_sys), 0, None)), C_stat + C_sys, rank, reported)
+
+
 # Student's t 90 % quantile by degrees of freedom (scipy.stats.t.ppf(0.9, df); its import costs a second)
 T90 = {2: 1.8856, 3: 1.6377, 4: 1.5332, 5: 1.4759, 6: 1.4398, 7: 1.4149, 8: 1.3968, 9: 1.3830, 10: 1.3722}
 
 
-def predict_all(pieces: Sequence[Piece]) -> list[Prediction]:
+def predict_all(pieces: Sequence[Piece], estimate: bool = True) -> list[Prediction]:
     """`predict` with each noisy draw's weights. The weights σ_g (eq. (8)) come from residuals the zero offsets
     dominate, so they, and the σ total an identification reports, change from one set of offsets to the next (MX6's
     offsets part by 3x between two seeds of the 406's plan): the draws sample that scatter."""
-    return [predict(pieces, d) for d in range(len(pieces[0].noisy))]
+    return [predict(pieces, d, estimate) for d in range(len(pieces[0].noisy))]
 
 
 def typical(draws: Sequence[Prediction]) -> Prediction:
@@ -465,12 +558,14 @@ class Scorer:
     keys: tuple[str, ...]  # the engineering quantities the targets bound
     J: np.ndarray  # (len(keys), q)
 
-    def sigmas(self, p: Prediction) -> np.ndarray:
-        """(len(targets),) σ total of each target's quantity."""
+    def sigmas(self, p: Prediction, reported: bool = False) -> np.ndarray:
+        """(len(targets),) σ total of each target's quantity: the estimates' spread, or (reported) the σ total the
+        identification reports."""
         if p.rank < len(self.names):
             return np.full(len(self.targets), np.inf)
-        sq = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", self.J, p.covariance, self.J), 0, None))
-        std = p.std_total
+        cov = p.reported_covariance if reported else p.covariance
+        sq = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", self.J, cov, self.J), 0, None))
+        std = np.sqrt(np.clip(np.diag(cov), 0, None)) if reported else p.std_total
         return np.array([std[self.names.index(t.key)] if t.kind == "parameter" else sq[self.keys.index(t.key)]
                          for t in self.targets])
 
@@ -478,7 +573,7 @@ class Scorer:
         """(len(targets),) the σ total an identification reports in 9 seeds of 10: the draws' σ taken as
         log-normal, the 90 % prediction bound of one more draw from n of them, exp(mean + t(0.9, n-1) sqrt(1 + 1/n)
         sd) of their logarithms (their largest with fewer than three draws)."""
-        s = np.array([self.sigmas(d) for d in draws])
+        s = np.array([self.sigmas(d, reported=True) for d in draws])
         if not np.all(np.isfinite(s)):
             return np.full(len(self.targets), np.inf)
         n = len(draws)
@@ -500,7 +595,6 @@ class Scorer:
 
 def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[Target], geometry) -> Scorer:
     """The Scorer of these targets at `values` (every parameter of the tree: the estimated at their a priori)."""
-    from ..vehicle.engineering import car_quantities, jacobian
 
     keys = tuple(dict.fromkeys(t.key for t in targets if t.kind == "quantity"))
     x = np.array([values[n] for n in names])
@@ -510,7 +604,8 @@ def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[
 
 
 def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int = 2,
-           max_tests: int = 10, starts: int = 3) -> tuple[list[str], int]:
+           max_tests: int = 10, starts: int = 3, estimate: bool = True, max_seconds: float | None = None
+           ) -> tuple[list[str], int]:
     """The shortest plan found (test keys, a repetition listed again) and the evaluations it took.
 
     Every plan of one or two tests is evaluated: the shortest that meets the targets wins. Otherwise the greedy
@@ -524,17 +619,21 @@ def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: S
     def cost(plan: Sequence[str]) -> float:
         k = tuple(sorted(plan))
         if k not in cache:
-            cache[k] = score.shortfall(predict_all([pieces[t] for t in k])) if k else math.inf
+            cache[k] = score.shortfall(predict_all([pieces[t] for t in k], estimate)) if k else math.inf
         return cache[k]
 
     def seconds(plan: Sequence[str]) -> float:
         return sum(durations[k] for k in plan)
 
-    def allowed(plan: Sequence[str]) -> bool:
-        return len(plan) <= max_tests and all(plan.count(k) <= repeats for k in plan)
+    def allowed(plan: Sequence[str]) -> bool:  # max_seconds: the track time allowed ([limits] time)
+        return (len(plan) <= max_tests and all(plan.count(k) <= repeats for k in plan)
+                and (max_seconds is None or seconds(plan) <= max_seconds))
 
     keys = list(pieces)
-    small = [[k] for k in keys] + [[a, b] for i, a in enumerate(keys) for b in keys[i:] if allowed([a, b])]
+    small = [[k] for k in keys if allowed([k])] + [[a, b] for i, a in enumerate(keys) for b in keys[i:]
+                                                   if allowed([a, b])]
+    if not small:
+        return [min(keys, key=lambda k: durations[k])], len(cache)
 
     def rank(plan: Sequence[str]) -> tuple:
         return (cost(plan) > 0, seconds(plan) if cost(plan) == 0 else cost(plan))
@@ -594,6 +693,23 @@ class TestPlan:
     seconds: dict[str, float] = field(default_factory=dict)
     results: dict[str, object] = field(default_factory=dict, repr=False)  # key -> SimulationResult (noise-free)
     draws: list[Prediction] = field(default_factory=list, repr=False)  # the plan's, per noisy draw's weights
+    estimate: bool = True  # the offsets estimated with the parameters (identify's default), else propagated
+    pieces: dict[str, Piece] = field(default_factory=dict, repr=False)  # key -> the candidate's reduced rows
+    repeats: int = 2
+
+    def with_candidate(self, candidate: Candidate, piece: Piece, result, env: Envelope) -> TestPlan:
+        """The plan searched again with one more candidate (an optimised input: its reduced rows, noise-free run
+        and peaks)."""
+        pieces = {**self.pieces, candidate.key: piece}
+        durations = {k: self.candidates[k].duration for k in self.pieces} | {candidate.key: candidate.duration}
+        results = {**self.results, candidate.key: result}
+        with threadpool_limits(limits=1, user_api="blas"):
+            plan, evaluations, draws, prediction, without = _searched(pieces, durations, self.score, self.repeats,
+                                                                      self.estimate, self.spec.limits.time)
+        return dataclasses.replace(self, candidates={**self.candidates, candidate.key: candidate},
+                                   envelopes={**self.envelopes, candidate.key: env}, plan=plan, prediction=prediction,
+                                   without=without, evaluations=self.evaluations + evaluations,
+                                   results={k: results[k] for k in dict.fromkeys(plan)}, draws=draws, pieces=pieces)
 
     @property
     def reported(self) -> np.ndarray:
@@ -604,9 +720,6 @@ class TestPlan:
         """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
         noise and zero offsets (seed + its index; a repeat is a new draw) in `folder`/data, and `folder`/
         identify.toml identifying on all of them (the demo's conditioning); returns the config's path."""
-        from ..atomic import write_atomic
-        from ..vehicle.description import load_vehicle
-        from ..vehicle.sim.recording import write_test
 
         suite = load_vehicle(self.vehicle).suite
         (folder / "data").mkdir(parents=True, exist_ok=True)
@@ -618,8 +731,8 @@ class TestPlan:
             name = self.candidates[k].name + (f" (repeat {runs[k]})" if runs[k] > 1 else "")
             files[name] = path.relative_to(folder).as_posix()
         where = Path(self.vehicle).resolve().as_posix() if self.vehicle.endswith(".toml") else self.vehicle
-        return write_atomic(folder / "identify.toml", plan_config_text(files, where, {c.name: c.bias for c in suite
-                                                                                     if c.bias}))
+        offsets = {c.name: c.bias for c in suite if c.bias}
+        return write_atomic(folder / "identify.toml", plan_config_text(files, where, offsets, self.estimate))
 
     @property
     def duration(self) -> float:
@@ -629,9 +742,16 @@ class TestPlan:
     def met(self) -> bool:
         return bool(np.all(self.reported <= np.array([t.limit for t in self.score.targets])))
 
-    def text(self) -> str:
-        from ..vehicle.engineering import QUANTITIES
+    @property
+    def in_time(self) -> bool:
+        return self.spec.limits.time is None or self.duration <= self.spec.limits.time
 
+    @property
+    def needs_input(self) -> bool:
+        """The standard tests miss a target, or take longer than allowed: an optimised input is designed."""
+        return not (self.met and self.in_time)
+
+    def text(self) -> str:
         c, lines = self.candidates, []
         lines += [f"Test plan for {self.vehicle}: targets {self.spec.source}", f"Driver and track limits: "
                   f"{self.spec.limits.text()}", "", "Candidates (simulated with the vehicle's [truth] set; peaks "
@@ -646,8 +766,10 @@ class TestPlan:
         lines += ["", f"Recommended plan: {len(self.plan)} test(s), {self.duration:g} s of driving, {len(self.plan)} "
                   "zeroing(s) of the sensors (one before each test: its zero offsets are drawn anew)"
                   + ("" if self.met else "; it does NOT meet every target (see below): the search found no "
-                     "combination of the candidates within the limits that does (an optimised input, issue 29 "
-                     "item 3, is not built yet)")]
+                     "combination of the candidates within the limits that does")
+                  + ("" if self.in_time else f"; it takes longer than the {self.spec.limits.time:g} s allowed")]
+        lines.append("  the zero offsets " + ("estimated with the parameters (identify's default)" if self.estimate
+                                              else "propagated ([uncertainty] estimate = false)"))
         for i, k in enumerate(self.plan, 1):
             runs[k] = runs.get(k, 0) + 1
             again = f" (repeat {runs[k]})" if runs[k] > 1 else ""
@@ -655,10 +777,12 @@ class TestPlan:
         sig, rep = self.score.sigmas(self.prediction), self.reported
         p, names = self.prediction, list(self.prediction.names)
         bound = {t.key: (t, r) for t, r in zip(self.score.targets, rep, strict=True)}
-        lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets, GUM: "
-                  "the spread of the estimates over seeds); the σ total the identification reports changes with each "
-                  "test's offsets (its weights come from residuals they dominate): 'in 9/10' is what it stays below "
-                  "in 9 seeds of 10 (log-normal over the draws' weights), held against the target:",
+        lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets ("
+                  + ("what the data leave of them, estimated" if self.estimate else "propagated") + "), GUM: "
+                  "the spread of the estimates over seeds); the σ total the identification reports is larger (its "
+                  "weights come from residuals the offsets dominate) and changes with each test's offsets: 'in 9/10' "
+                  "is what it stays below in 9 seeds of 10 (log-normal over the draws' weights), held against the "
+                  "target:",
                   f"  {'parameter':<10} {'a priori':>12} {'σ noise':>8} {'σ offsets':>9} {'σ total':>8} "
                   f"{'in 9/10':>8} {'target':>8}  met"]
         for i, n in enumerate(names):
@@ -700,7 +824,6 @@ class TestPlan:
     def scales(self) -> dict[str, float]:
         """Each parameter's engineering scale (`car.car_scales`: products against the smallest moment, first
         moments against M6 x 0.2 m; the others their own value)."""
-        from .car import car_scales
 
         found = car_scales(self.values)
         return {n: found.get(n, abs(v)) for n, v in self.values.items()}
@@ -721,6 +844,7 @@ class TestPlan:
                 "plan": [{"key": k, "name": self.candidates[k].name, "standard": self.candidates[k].standard,
                           "duration_s": self.candidates[k].duration} for k in self.plan],
                 "duration_s": self.duration, "zeroings": len(self.plan), "meets_targets": self.met,
+                "offsets": "estimated" if self.estimate else "propagated",
                 "candidates": {k: {"name": c.name, "envelope": dataclasses.asdict(self.envelopes[k]),
                                    "excluded": self.excluded.get(k, [])} for k, c in self.candidates.items()},
                 "parameters": {n: {"a_priori": self.values[n], "std_noise": _num(a), "std_offsets": _num(b),
@@ -743,12 +867,12 @@ def _num(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
+def plan_tests(vehicle: str = DEMO_VEHICLE, spec: TargetSpec | None = None,
                candidates: Sequence[Candidate] = CANDIDATES, repeats: int = 2, seed: int = 2900,
-               progress: Progress | None = None, work: Path | None = None) -> TestPlan:
+               progress: Progress | None = None, work: Path | None = None, estimate: bool = True) -> TestPlan:
     """Simulate the candidates (within the spec's limits), reduce each once, search the shortest plan meeting the
-    targets (module doc). work: where the candidates' files go (default: a temporary folder, removed)."""
-    from .demo import simulated_car
+    targets (module doc). work: where the candidates' files go (default: a temporary folder, removed); estimate:
+    each test's zero offsets estimated with the parameters (identify's default), else propagated (an upper bound)."""
 
     say = progress or (lambda _m: None)
     spec = spec or TargetSpec()
@@ -785,28 +909,37 @@ def plan_tests(vehicle: str = "peugeot406", spec: TargetSpec | None = None,
         names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
         tree = setup.tree
         labels = {n: tree.label(n) for n in names}
-        everything = predict(list(pieces.values()))  # the noise-free estimate of every test: the a priori car
+        everything = predict(list(pieces.values()), estimate=estimate)  # noise-free, every test: the a priori car
         values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
-        from ..vehicle.engineering import car_quantities
 
         quantities = car_quantities(values, setup.vehicle.geometry)
         targets = targets_for(spec, names, values, quantities, labels)
         score = scorer(names, values, targets, setup.vehicle.geometry)
         say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
         durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-        plan, evaluations = search(pieces, durations, score, repeats)
-        draws = predict_all([pieces[k] for k in plan])
-        prediction = typical(draws)
-        without = {}
-        for k in dict.fromkeys(plan):
-            rest = list(plan)
-            rest.remove(k)
-            without[k] = typical(predict_all([pieces[t] for t in rest])) if rest else dataclasses.replace(
-                prediction, rank=0, std_stat=np.full(len(names), np.inf))
+        plan, evaluations, draws, prediction, without = _searched(pieces, durations, score, repeats, estimate,
+                                                                  spec.limits.time)
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
                     labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
-                    {k: results[k] for k in dict.fromkeys(plan)}, draws)
+                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate, pieces, repeats)
+
+
+def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int,
+              estimate: bool, max_seconds: float | None = None
+              ) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction]]:
+    """`search`'s plan (within max_seconds of driving), the evaluations it took, its draws, their typical
+    prediction, and the plan without each test (one repetition fewer)."""
+    plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate, max_seconds=max_seconds)
+    draws = predict_all([pieces[k] for k in plan], estimate)
+    prediction = typical(draws)
+    without = {}
+    for k in dict.fromkeys(plan):
+        rest = list(plan)
+        rest.remove(k)
+        without[k] = typical(predict_all([pieces[t] for t in rest], estimate)) if rest else dataclasses.replace(
+            prediction, rank=0, std_stat=np.full(len(prediction.names), np.inf))
+    return plan, evaluations, draws, prediction, without
 
 
 # ----------------------------------------------------------------------------------------------- honesty check
@@ -822,6 +955,15 @@ class SeedCheck:
     reported: np.ndarray  # (seeds, targets): the σ total each seed's identification reported, over the bound
     seconds: float
     targets: tuple[str, ...] = ()
+    # per parameter the σ total the plan predicts the identification reports (its draws' RMS), and (seeds,
+    # parameters) the σ total each seed's identification reported
+    predicted_reported: np.ndarray | None = None
+    reported_sigma: np.ndarray | None = None
+
+    @property
+    def reported_ratio(self) -> np.ndarray:
+        """(parameters,) the σ total the seeds' identifications reported (RMS over the seeds) over its prediction."""
+        return np.sqrt(np.mean(self.reported_sigma ** 2, axis=0)) / self.predicted_reported
 
     @property
     def met(self) -> np.ndarray:
@@ -839,6 +981,10 @@ class SeedCheck:
                  f"parameter (median {np.median(ratio):.2f}, RMS {np.sqrt(np.mean(ratio ** 2)):.2f}); targets met "
                  f"(σ total reported) in {int(self.met.sum())} of {len(self.met)} seeds"]
         worst = self.reported.max(axis=0)
+        if self.reported_sigma is not None:
+            r = self.reported_ratio
+            lines.append(f"  σ total reported (RMS over the seeds) / its prediction: median {np.median(r):.2f}, RMS "
+                         f"{np.sqrt(np.mean(r ** 2)):.2f}, {r.min():.2f} to {r.max():.2f}")
         lines.append("  reported σ total / bound, largest over the seeds: " + ", ".join(
             f"{labels.get(k, k)} {w:.2f}" for k, w in sorted(zip(self.targets, worst, strict=True),
                                                              key=lambda kw: -kw[1])[:6]))
@@ -850,12 +996,10 @@ class SeedCheck:
 def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Progress | None = None) -> SeedCheck:
     """`plan.rehearsal` for each seed identified by `identify` (the demo's procedure: files through the normal
     pipeline); the spread of its estimates against the predicted σ total (module doc)."""
-    from ..report.build import car_engineering
-    from .run import identify
 
     say = progress or (lambda _m: None)
     names = plan.prediction.names
-    estimates, reported = [], []
+    estimates, reported, sigmas = [], [], []
     t0 = time.perf_counter()
     for s in seeds:
         say(f"seed {s}: identifying the plan's rehearsal")
@@ -863,8 +1007,12 @@ def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Pr
         r = run.result
         estimates.append([r.value(n) for n in names])
         total = dict(zip(r.names, r.std_total, strict=True))
+        sigmas.append([total[n] for n in names])
         figures = {q.key: q.std for q in car_engineering(run)[0]}
         reported.append([(total[t.key] if t.kind == "parameter" else figures[t.key]) / t.limit
                          for t in plan.score.targets])
+    draws = plan.draws or [plan.prediction]
+    predicted_reported = np.sqrt(np.mean([np.diag(d.reported_covariance) for d in draws], axis=0))
     return SeedCheck(tuple(names), plan.prediction.std_total, np.array(estimates), np.array(reported),
-                     (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets))
+                     (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets),
+                     predicted_reported, np.array(sigmas))

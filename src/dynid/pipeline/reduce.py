@@ -12,8 +12,10 @@ segment, on this machine's cores or a cluster's workers, and folds with the seco
 
 A robot's chunk (`reduce_robot_chunk`) reduces to the same `Partial`: its rows' per-group factors of [W | Y]
 (every column: the known values and the drive gains are applied to the factors when solving), and for each
-test's first chunk the rows themselves (the report's plots). So a robot's memory is bounded by its factors and
-one chunk, whatever the length of its logs.
+test's first chunks the rows themselves (the report's plots, up to `run.PLOT_BYTES`). A chunk's full-rate W is
+never whole either (`robot.chunk_rows`: a block at a time through the first decimation stage). So a robot's
+memory is bounded by its factors, a few decimated chunks and one block per worker, whatever the length of its
+logs.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..dynamics import BaseParameters, Model
+from ..dynamics import BaseParameters, Model, load_model
 from ..estimation import StreamingLS
 from ..estimation.fit import ErrorEffect
 from ..estimation.iv import InstrumentSums
@@ -43,7 +45,18 @@ from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io import Channel
 from ..io.units import unit_factor
-from .config import IdentifyConfig
+from ..shipped import DEMO_VEHICLE
+from ..symbolic.generated import GeneratedRegressor
+from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
+from ..vehicle.dampers import KneeSearch
+from ..vehicle.description import load_vehicle
+from ..vehicle.dynamics import group_channels
+from ..vehicle.equations import group_name
+from ..vehicle.estimate import CarConditioning, compensated_channels, joints_pass
+from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS, sample_and_hold
+from ..vehicle.tire_curves import tire_samples
+from .car import car_load_changes, car_moved_rows, car_system, knee_rows
+from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
 from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window, read_segment
@@ -122,14 +135,8 @@ class CarSetup:
     the base parameters, the conditioning, the generated identification model."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
-        from ..vehicle.description import load_vehicle
-        from ..vehicle.dynamics import group_channels
-        from ..vehicle.equations import group_name
-        from ..vehicle.estimate import CarConditioning
-
         settings = self.settings = cfg.car
-        vehicle = load_vehicle(cfg.vehicle or "peugeot406")
+        vehicle = load_vehicle(cfg.vehicle or DEMO_VEHICLE)
         if settings.knees:  # the knees the search chose from the data (pipeline.run)
             vehicle = vehicle.with_knees({d: (lo, hi) for d, lo, hi in settings.knees})
         self.vehicle = vehicle
@@ -167,8 +174,6 @@ class CarSetup:
 
     @cached_property
     def regressor(self):
-        from ..symbolic.generated import GeneratedRegressor
-
         return GeneratedRegressor(self.tree)
 
     def trajectory(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
@@ -182,7 +187,6 @@ class CarSetup:
     def joints(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
                compensated: Mapping[str, np.ndarray] | None = None) -> JointsPass:
         """`trajectory` with what a pass with one channel's zero moved reuses (`vehicle.estimate.JointsPass`)."""
-        from ..vehicle.estimate import joints_pass  # the car's modules, as in __init__: a robot needs none
 
         return joints_pass(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables, self.conditioning,
                            self.vehicle.suite, self.logger.channels, self._lags(channels, lags), compensated)
@@ -191,7 +195,6 @@ class CarSetup:
                     lags: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
         """The channels with the declared dynamics undone and the groups' lags advanced (`trajectory`'s first
         step), to be reused by passes that move one channel by a constant."""
-        from ..vehicle.estimate import compensated_channels
 
         return compensated_channels(channels, fs, self.conditioning, self.vehicle.suite, self.logger.channels,
                                     self._lags(channels, lags))
@@ -199,14 +202,12 @@ class CarSetup:
     @staticmethod
     def _lags(channels, lags: Mapping[str, float] | None) -> dict[str, float]:
         """channel -> s of the groups' lags."""
-        from ..vehicle.dynamics import group_channels
 
         return {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
         """The decimated rows of one segment's trajectory."""
-        from .car import car_system
 
         s = self.settings
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
@@ -216,7 +217,6 @@ class CarSetup:
     def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
                    ) -> list[tuple[np.ndarray, np.ndarray]]:
         """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass."""
-        from .car import car_moved_rows
 
         s = self.settings
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
@@ -226,8 +226,6 @@ class CarSetup:
     def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
                      ) -> list[np.ndarray]:
         """ΔY of the kept rows for each (wheel-load channel, offset SI) (`load_only` channels: W unchanged)."""
-        from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
-        from .car import car_load_changes
 
         which = [(CORNER_TAGS.index(q.split("_")[1]), WFT_COMPONENTS.index(q.split("_")[2]), b) for q, b in moved]
         return car_load_changes(self.model, traj, which, fs, keep, self.settings.decimate,
@@ -293,9 +291,6 @@ def reduce_car_segment(job: CarJob) -> Partial:
     traj = joints.traj
     sys = setup.rows(traj, w.fs, job.instruments)
     if job.knees:
-        from ..vehicle.dampers import KneeSearch
-        from .car import knee_rows
-
         search = KneeSearch()
         knee_rows(sys, traj, w.fs, setup.settings.decimate, setup.conditioning.cutoff, search,
                   setup.vehicle.knees_from_data)
@@ -306,8 +301,6 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if job.health is not None:  # the data health of the part of the test this segment answers for
         part.health = {w.test: segment_health(w, setup.vehicle, job.health, samples, channels)}
     if setup.settings.tire_curves and job.instruments is None and not job.lags:
-        from ..vehicle.tire_curves import tire_samples
-
         # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
         step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
         part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
@@ -409,7 +402,6 @@ def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) 
     noise of each channel's accuracy held at the sensor's own rate, as the suite's chain holds it
     (`vehicle.sensors.corrupt`: a 125 Hz unit's noise is 5 samples long, so more of it passes the low-pass), and
     its zero offset (bias) with a random sign (channel units; estimation/fit.py says why)."""
-    from ..vehicle.sensors import sample_and_hold
 
     rng = np.random.default_rng(seed)
     e = {}
@@ -424,7 +416,6 @@ def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) 
 
 def shifted_load(traj: CarTrajectory, channel: str, b: float) -> CarTrajectory:
     """traj with the wheel-wrench component of the channel wft_{corner}_{component} moved by b (SI)."""
-    from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS
 
     _, corner, comp = channel.split("_")
     ww = traj.wheel_wrenches.copy()
@@ -459,9 +450,6 @@ class RobotSetup:
     """A robot config's model and base parameters, built once per process."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
-        from ..dynamics import load_model
-        from .config import ConfigError
-
         self.joints = config_joints(cfg, load_model(cfg.model).tree)
         self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()

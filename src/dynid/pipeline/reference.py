@@ -23,6 +23,7 @@ import numpy as np
 from ..dynamics import BaseParameters
 from ..estimation.method import Method
 from ..model import ModelError
+from ..textfiles import encoding_problem
 
 _TERM = re.compile(r"([+-]?)\s*(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)\s*\*\s*)?([A-Za-z_][A-Za-z_0-9]*)")
 
@@ -74,8 +75,6 @@ def reference_text(path: str | Path) -> str:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
-        from ..textfiles import encoding_problem
-
         raise ModelError(f"{where}: {encoding_problem(path)}") from None
     return text
 

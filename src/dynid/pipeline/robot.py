@@ -17,6 +17,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
+from ..signals.decimation import decimate_parallel_blocked
 
 Array = np.ndarray
 
@@ -141,6 +142,9 @@ def condition(test: JointTest, c: Conditioning) -> tuple[Array, Array, Array, Ar
 # does not grow with the record (a 445 MB log once asked for one 12 GiB W)
 SEGMENT_BYTES = 128 * 2**20
 DECIMATION_ORDER = 8  # decimate_parallel's default, whose transient sets the segments' overlap
+# a chunk's full-rate W is built and put through the first decimation stage a block of this size at a time (with
+# the stage's transient around it): a worker holds one block, not the chunk's W (128 MiB for the Panda arm)
+BLOCK_BYTES = 16 * 2**20
 
 
 def joint_system(
@@ -215,17 +219,25 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     b, D = _border(fs, c), int(np.prod(c.decimate))
     pad = _decimation_transient(fs, c.decimate)
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
+    o = lo - first
+    eq, cols = np.array(rows) - 1, list(base.columns)
+
+    def block(a: int, z: int) -> tuple[Array, Array]:
+        """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
+        w = slice(o + a, o + z)
+        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols)
+        Y = tau[w][:, eq]
+        if payload is not None:
+            j, Xp = payload
+            Y = Y - model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=[f"{k}{j}" for k in INERTIAL]) @ Xp
+        if gains is not None:
+            W = np.concatenate([W, gains[w][:, eq, :]], axis=2)
+        return W, Y
+
+    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
+    Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
+                                       block_samples=BLOCK_BYTES // row_bytes)
     w = slice(lo - first, hi - first)
-    W = np.ascontiguousarray(model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=list(base.columns)))
-    Y = tau[w][:, np.array(rows) - 1]
-    if payload is not None:
-        j, Xp = payload
-        Wp = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=[f"{k}{j}" for k in INERTIAL])
-        Y = Y - Wp @ Xp
-    if gains is not None:
-        W = np.concatenate([W, gains[w][:, np.array(rows) - 1, :]], axis=2)
-    Wd, Yd = decimate_parallel(W, Y, c.decimate, fs, order=DECIMATION_ORDER)
-    del W
     speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
     Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs

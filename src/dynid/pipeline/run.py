@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..atomic import final_text, write_atomic
 from ..dynamics import BaseParameters, Model
@@ -31,10 +32,31 @@ from ..estimation import (
     propagate,
 )
 from ..estimation.method import Method
-from ..estimation.physical import ConsistencyStructure, PhysicalFit, feasible_standard, wls_pc_streamed
+from ..estimation.physical import (
+    PRIOR_SPREAD,
+    ConsistencyStructure,
+    PhysicalFit,
+    feasible_standard,
+    plausible_standard,
+    wls_pc_streamed,
+)
 from ..estimation.shifts import estimate_shifts
+from ..io.rosbag_format import is_bag
 from ..model import ModelError
+from ..model.consistency import NONNEGATIVE_TERMS, Violation, check_base_singletons, check_joint_terms, check_physical
+from ..model.tree import FIXED, INERTIAL
 from ..report import parameter_table
+from ..report.build import build_report, car_engineering
+from ..report.tables import engineering_block
+from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
+from ..signals import border_samples
+from ..vehicle.description import load_vehicle
+from ..vehicle.estimate import required_channels
+from ..vehicle.excitation import excitation_hint
+from ..vehicle.sensors import CORNER_TAGS, gnss_point
+from ..vehicle.template import DAMPERS, meaning
+from ..vehicle.tire_curves import fit_tire_curves
+from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 from .config import ConfigError, IdentifyConfig, TestSpec, load_config
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .health import check_car_tests, check_robot_joints, check_robot_test, health_note
@@ -50,7 +72,17 @@ from .reduce import (
     robot_setup,
 )
 from .reference import Match, match_reference, read_reference
-from .robot import GroupedSystem, JointTest, _border, chunk_pad, in_joint_order, robot_chunks, robot_scales
+from .robot import (
+    GroupedSystem,
+    JointTest,
+    _border,
+    chunk_pad,
+    in_joint_order,
+    link_box,
+    link_length,
+    robot_chunks,
+    robot_scales,
+)
 from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
     plan_car_test,
@@ -103,15 +135,10 @@ class IdentificationRun:
         sheet, then the notes."""
         meanings = None
         if self.vehicle is not None:
-            from ..vehicle.template import meaning
-
             found = {n: meaning(n) for n in self.result.names}
             meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
         text = parameter_table(self.result, self.sections, meanings=meanings)
         if self.vehicle is not None:
-            from ..report.build import car_engineering
-            from ..report.tables import engineering_block
-
             quantities, kind, _, _ = car_engineering(self)
             text += "\n\n" + engineering_block(quantities, kind)
         return f"{text}\n\n{self.notes}" if self.notes else text
@@ -147,8 +174,6 @@ def load_joint_test(cfg: IdentifyConfig, spec: TestSpec, n: int, progress: Progr
 
 
 def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
-    from ..io.rosbag_format import is_bag
-
     for quantity in ("q", cfg.effort):
         if quantity not in spec.files:
             raise ConfigError(f"{cfg.path}: test {spec.name!r} needs a file for {quantity!r} in files = {{...}}")
@@ -157,20 +182,22 @@ def _checked_robot_test(cfg: IdentifyConfig, spec: TestSpec) -> TestSpec:
     return spec
 
 
-PLOT_BYTES = 32 * 2**20
+PLOT_BYTES = 8 * 2**20
 """Decimated rows of a robot test kept for the report's plots and validation.csv: the first chunks' up to this
-size (20 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole test
-when shorter). The
-estimate and the validation errors come from the factors of every chunk."""
+size (about 6 minutes of the Panda arm's 7 joints and 43 base parameters at 1 kHz decimated by 100; the whole
+test when shorter). The estimate and the validation errors come from the factors of every chunk. Held twice
+while the fold stacks them: 32 MiB was ~90 MB of a 1 h log's peak."""
 
 
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
                   health: list[dict] | None = None, all_rows: bool = False) -> dict[str, Partial]:
-    """Each test reduced to its per-joint factors of [W | Y] (every column): its files planned from their stamps,
-    their data health checked (an error stops here; the other findings appended to `health`), cut into chunks
-    read and reduced on the scheduler's workers (`reduce.reduce_robot_chunk`), folded (`reduce.combine`). The
-    rows of each test's first chunks are kept too, up to `PLOT_BYTES` (the report's plots and validation.csv;
-    every chunk's with all_rows), joint by joint."""
+    """The tests of each role ("identify", "validate") reduced to one per-joint factor of [W | Y] (every column):
+    each test's files planned from their stamps, their data health checked (an error stops here; the other
+    findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
+    (`reduce.reduce_robot_chunk`), folded per role as they arrive (`reduce.combine`): no test's factors wait for
+    the others', so memory does not grow with the number of tests. The rows of each test's first chunks are kept
+    too (Partial.rows, by test), up to `PLOT_BYTES` (the report's plots and validation.csv; every chunk's with
+    all_rows), joint by joint."""
     jobs = []
     plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
@@ -200,17 +227,18 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
             jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True))
             kept += (e - s) * row_bytes
-    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.test, combine, say)
+    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
     setup = robot_setup(cfg)
     for spec in cfg.tests:  # the joints against the model, as the chunks gathered them: an error stops here
         plan, broken = plans[spec.name]
-        gathered = parts[spec.name].health.pop(spec.name, None)
+        part = parts.get(spec.role)
+        gathered = None if part is None else part.health.pop(spec.name, None)
         found = check_robot_joints(cfg, plan, say, setup.model, setup.joints.columns, broken, gathered)
         if health is not None:
             health += found
     for part in parts.values():
         part.rows = {k: in_joint_order([v]) for k, v in part.rows.items()}
-    return {spec.name: parts[spec.name] for spec in cfg.tests}
+    return parts
 
 
 def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | None = None, suite=None
@@ -219,10 +247,8 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     each to SI, and the sample rate: the plan of `sources.plan_car_test` (time stamps checked, the rates and the
     resampling reported through `progress`) read as one window. The identification reads a segment at a time
     instead; this is for looking at a test. suite: the sensors fitted (default: the config's vehicle's)."""
-    from ..vehicle.description import load_vehicle
-    from ..vehicle.estimate import required_channels
 
-    suite = load_vehicle(cfg.vehicle or "peugeot406").suite if suite is None else suite
+    suite = load_vehicle(cfg.vehicle or DEMO_VEHICLE).suite if suite is None else suite
     plan = plan_car_test(cfg, spec, required_channels(spin=False, suite=suite), suite.units, None, lambda fs: 0,
                          progress)
     return read_segment(segment_window(plan, 0, plan.samples), si=False), dict(plan.factors), plan.fs
@@ -283,13 +309,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     segment to per-group factors (`reduce.reduce_car_segment`: joints, 14 equations, parallel decimation) on the
     scheduler's workers, fold them (`reduce.combine`), solve; IDIM-IV passes map again with the last estimate.
     W is never held whole, whatever the tests' length."""
-    from ..signals import border_samples
-    from ..vehicle.estimate import required_channels
-    from ..vehicle.excitation import excitation_hint
-    from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 
-    if cfg.model != "peugeot406":
-        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: peugeot406")
+    if cfg.model != CAR_TEMPLATE:
+        raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: {CAR_TEMPLATE}")
     scheduler = scheduler or LocalScheduler()
     settings = cfg.car
     setup = car_setup(cfg)
@@ -464,8 +486,6 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
                      ) -> tuple[IdentifyConfig, str]:
     """The knees of the dampers the vehicle file gives none (`vehicle.dampers.KneeSearch` on every identification
     segment's rows): the config that carries them, and the results' note saying what was chosen."""
-    from ..vehicle.sensors import CORNER_TAGS
-    from ..vehicle.template import DAMPERS
 
     dampers = setup.vehicle.knees_from_data
     say(f"choosing the knees of {len(dampers)} damper curve(s) from the data's clearance rates")
@@ -508,7 +528,6 @@ def without_each_test(names: list[str], kw: dict, per_test: dict,
 
 def _tire_curves(parts: dict, vehicle, say: Progress):
     """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
-    from ..vehicle.tire_curves import fit_tire_curves
 
     samples = [p.tires for p in parts.values() if p.tires is not None]
     if not samples:
@@ -554,7 +573,6 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
 
 def sensors_note(vehicle) -> str:
     """What the sensors not fitted change (empty for the paper's suite)."""
-    from ..vehicle.sensors import gnss_point
 
     out = ""
     if not vehicle.cameras:
@@ -680,6 +698,15 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
     if scheduler is None:
         with contextlib.closing(scheduler_for(cfg.scheduler, cfg.workers)) as own:
             return identify(cfg, progress, own)
+    # BLAS on one thread, as the map's workers already run it: the solves' QRs are small (the offsets' a few
+    # hundred rows by ~85 columns), and OpenBLAS's threads on them cost 1.5 ms -> 145 ms of CPU per QR on a loaded
+    # 2-core machine (busy-waiting threads competing with the other processes), 8 s of the demo's 18
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(cfg, progress, scheduler)
+
+
+def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Scheduler) -> IdentificationRun:
+    """`identify` with its scheduler, BLAS limited to one thread."""
     say = progress or (lambda _msg: None)
     if cfg.kind == "car":
         return _identify_car(cfg, say, scheduler)
@@ -710,7 +737,7 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         say(f"drive gains identified with the inertial parameters: {', '.join(free)} (the scale from "
             f"{' and '.join(scale)})")
     # the factors of every column, folded per role; the known values moved to the right-hand side on them
-    full = {role: _folded([parts[t.name].ls for t in cfg.tests if t.role == role]) for role in ("identify", "validate")}
+    full = {role: parts[role].ls if role in parts else None for role in ("identify", "validate")}
     same = np.eye(len(names) + 1)
     ident = full["identify"].reparametrised(names, same, known=known or None, a_priori=a_priori)
     ident.poor_factor = cfg.poor_factor
@@ -734,7 +761,8 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))
     # each identification test's first chunks and the first validation tests': the plots (not every validation test's:
     # memory would grow with their number)
-    systems = {name: part.rows[name] for name, part in parts.items() if name in part.rows}
+    kept = {name: rows for part in parts.values() for name, rows in part.rows.items()}
+    systems = {t.name: kept[t.name] for t in cfg.tests if t.name in kept}
     sections = None
     checked = {role: None if ls is None else ls.reparametrised(names, same, known=known or None)
                for role, ls in full.items()}
@@ -763,16 +791,6 @@ def identify(cfg: IdentifyConfig | str | os.PathLike[str], progress: Progress | 
             say(f"{len(unmatched)} published rows match none of our base parameters: "
                 + "; ".join(r.expression for r in unmatched[:3]))
     return run
-
-
-def _folded(parts: list[StreamingLS]) -> StreamingLS | None:
-    """The accumulators' rows in order (None for none)."""
-    if not parts:
-        return None
-    out = parts[0]
-    for other in parts[1:]:
-        out = out.merge(other)
-    return out
 
 
 def _wls_with_gains(full: StreamingLS, ident: StreamingLS, names: list[str], p: int, known: dict[str, float]
@@ -831,8 +849,6 @@ def consistency_structure(tree, base: BaseParameters) -> ConsistencyStructure:
     """What a robot's physical-consistency constraints need: K (base = K @ standard), each moving body's ten
     parameters, the joint terms that must be >= 0. A body none of whose inertial parameters has any effect (all
     eliminated) is left out: nothing the data say can make it inconsistent."""
-    from ..model.consistency import NONNEGATIVE_TERMS
-    from ..model.tree import FIXED, INERTIAL
 
     names = tree.parameter_names
     K = np.zeros((base.rank, len(names)))
@@ -869,8 +885,6 @@ def plausible_export(tree, base: BaseParameters, base_values: dict[str, float], 
     plausible_standard`): physically plausible (every body's pseudo-inertia positive definite with a margin
     scaled to the link, its centre of mass inside the link's box, `robot.link_box`) and closest to the model
     file in each link's own units, the estimate reproduced within its σ."""
-    from ..estimation.physical import PRIOR_SPREAD, plausible_standard
-    from .robot import link_box, link_length
 
     structure = consistency_structure(tree, base)
     bodies = {}
@@ -916,7 +930,6 @@ def robot_consistency(result: IdentificationResult, structure: ConsistencyStruct
     the conditions readable on base parameters that are one standard parameter each, then, with the pc extra
     installed, the standard set of largest pseudo-inertia margin reproducing every base value (a witness when
     realisable); without the extra, the bodies whose parameters regroup are named as not checked."""
-    from ..model.consistency import Violation, check_base_singletons, check_joint_terms, check_physical
 
     couplings = {c.name: c.kind for c in tree.couplings}
     bodies = sorted(structure.bodies)
@@ -971,7 +984,6 @@ def write_outputs(run: IdentificationRun, out: Path, title: str, progress: Progr
     """results.json, parameters.csv, validation.csv (the measured and predicted signals per test and equation),
     engineering.csv (a car), the figures (PNG) and report.html (self-contained: the figures embedded) in `out`,
     each written atomically; report.html last, so a report on disk always has its data beside it."""
-    from ..report.build import build_report
 
     say = progress or (lambda _msg: None)
     out.mkdir(parents=True, exist_ok=True)

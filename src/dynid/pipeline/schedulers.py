@@ -22,6 +22,7 @@ from typing import Any, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
+from ..io.errors import MissingDependencyError
 from ..progress import Count
 from .heap import trim_heap
 
@@ -137,14 +138,12 @@ class DaskScheduler:
 
     def __init__(self, address: str = "local", workers: int | None = None) -> None:
         try:
-            from dask.distributed import Client, LocalCluster
+            from dask.distributed import Client, LocalCluster  # optional: distributed (the dask extra)
         except ImportError:
-            from ..io.errors import MissingDependencyError
-
             raise MissingDependencyError("Running on a Dask cluster needs dask.distributed: "
                                          "pip install distributed (dynid's 'dask' extra)") from None
         self.address = address
-        from .dask_worker import MallocTuning
+        from .dask_worker import MallocTuning  # optional: distributed (dask_worker imports it)
 
         if address == "local":
             self._cluster = LocalCluster(n_workers=workers or min(2, os.cpu_count() or 1), threads_per_worker=1,
@@ -171,7 +170,7 @@ class DaskScheduler:
         self.close()
 
     def map_reduce(self, fn, jobs, key, combine, progress=None):
-        from dask.distributed import as_completed
+        from dask.distributed import as_completed  # optional: distributed (the dask extra)
 
         say = progress or (lambda _m: None)
         # a lost worker's tasks are recomputed by the scheduler from the same jobs; an exception in a job (bad data)

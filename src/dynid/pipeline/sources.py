@@ -27,12 +27,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io import Channel, DataError, FileFormatError, align, format_of, unit_factor
+from ..dynamics import load_model
+from ..io import Channel, DataError, FileFormatError, align, format_of, to_si, unit_factor
 from ..io.align import InterpSpec
-from ..io.rosbag_format import is_bag
+from ..io.rosbag_format import first_joints, is_bag
 from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, time_bases
-from ..model.tree import ModelError, Tree
+from ..model.tree import PRISMATIC, ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .robot import DataJoints, data_joints
 from .timebase import RATE_TOLERANCE, _rate, opened, stream
@@ -429,7 +430,6 @@ def _bag_joints(cfg: IdentifyConfig, tree: Tree) -> int:
     count, else the model's joints with an equation that its first bag's first message names. When that is all
     of them less the joints others mimic (a gripper not logged), those are held still; any other count reads all
     of them, and the bag's test says which one the messages lack (`sources.plan_robot_test`)."""
-    from ..io.rosbag_format import first_joints, is_bag
 
     bag = next((t for t in cfg.tests if is_bag(t.files["q"])), None)
     if bag is None:
@@ -446,8 +446,6 @@ def _bag_channels(cfg: IdentifyConfig, spec: TestSpec, say: Progress
                   ) -> tuple[FileIndex, dict[str, tuple[str, ...]], dict[str, tuple[str, ...]]]:
     """A ROS 2 bag test's index, and its q and tau channels: each model joint's position and effort, matched by the
     names of the model's [joints] table, in SI by the joint's type (REP 103: rad or m, N·m or N)."""
-    from ..dynamics import load_model
-    from ..model.tree import PRISMATIC
 
     path = spec.files["q"]
     label = str(path)
@@ -556,7 +554,6 @@ def gain_names(cfg: IdentifyConfig) -> list[str]:
 def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArray[np.float64]]:
     """{"q": (hi - lo, channels), "tau" or "current": ...} in SI: the clock samples lo..hi of the test, each channel
     from its file's samples around them, interpolated where not on the clock (cubic for q, linear for the effort)."""
-    from ..io import to_si
 
     clock = plan.clock[lo:hi]
     out = {}

@@ -18,9 +18,17 @@ from typing import Any
 
 import numpy as np
 
+from .._version import __version__
+from ..atomic import file_sha256, final_path
 from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
+from ..shipped import DEMO_VEHICLE
+from ..vehicle.dampers import damper_curve, damper_slopes
+from ..vehicle.description import load_vehicle, vehicle_path
+from ..vehicle.engineering import car_quantities, damper_vertical, engineering_figures, jacobian
+from ..vehicle.excitation import excitation_hint
+from ..vehicle.template import CORNERS, DAMPERS, meaning
 from .axes import CHASSIS_AXES, ISO_TEXT, axis_label, to_iso
 from .figures import (
     NOT_EXCITED,
@@ -34,6 +42,8 @@ from .figures import (
 )
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
 from .html import Cell, Section, Table, esc, render_html, table_html
+from .tables import consistency_section as robot_verdict
+from .tires import tire_section
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
 CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
@@ -80,7 +90,6 @@ def meanings(run) -> dict[str, tuple[str, str]]:
     """A car's parameters' (corner, quantity) by name (`vehicle.template.meaning`); {} for a robot."""
     if not _is_car(run):
         return {}
-    from ..vehicle.template import meaning
 
     found = {n: meaning(n) for n in run.result.names}
     return {n: (m.corner, m.quantity) for n, m in found.items() if m is not None}
@@ -179,8 +188,6 @@ def flag_legend(run) -> str:
     ]
     out = '<dl class="legend">' + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in items) + "</dl>"
     if uncertain and getattr(run.config, "kind", None) == "car":
-        from ..vehicle.excitation import excitation_hint
-
         hint = excitation_hint(list(uncertain))
         if hint:
             out += "<p>" + "<br>".join(esc(line.strip()) for line in hint.split("\n")) + "</p>"
@@ -241,18 +248,15 @@ def _covariance(r) -> tuple[np.ndarray, str]:
 
 
 def _vehicle(run):
-    from ..vehicle.description import load_vehicle
-
     if getattr(run, "vehicle", None) is not None:
         return run.vehicle
     cfg = run.config
-    return load_vehicle((getattr(cfg, "vehicle", None) or "peugeot406") if cfg is not None else "peugeot406")
+    return load_vehicle((getattr(cfg, "vehicle", None) or DEMO_VEHICLE) if cfg is not None else DEMO_VEHICLE)
 
 
 def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
     """The engineering figures of the estimate (with σ), which covariance they used, the vehicle, and all the
     parameter values (estimates and the tree's known ones)."""
-    from ..vehicle.engineering import engineering_figures
 
     r, tree = run.result, run.model.tree
     vehicle = _vehicle(run)
@@ -276,8 +280,6 @@ class _Estimates:
 def damper_section(run) -> tuple[Section, bytes] | None:
     """The dampers' curves (car_model.car_template(damper_knees=...)): each corner's slopes with σ and 95 %
     interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
-    from ..vehicle.dampers import damper_curve, damper_slopes
-    from ..vehicle.template import CORNERS, DAMPERS
 
     r, tree = run.result, run.model.tree
     curved = [d for d in DAMPERS if f"FVPL{d}" in r.names]
@@ -319,8 +321,6 @@ def damper_section(run) -> tuple[Section, bytes] | None:
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
-    from ..vehicle.engineering import car_quantities, damper_vertical
-
     r = run.result
     truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
     prior = car_quantities({**values, **r.a_priori}, vehicle.geometry) if r.a_priori else None
@@ -373,8 +373,6 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
 
 
 def cog_figure(run, quantities, vehicle, values) -> bytes:
-    from ..vehicle.engineering import car_quantities, jacobian
-
     r, g = run.result, vehicle.geometry
     by = {q.key: q for q in quantities}
     C, _ = _covariance(r)
@@ -682,8 +680,6 @@ def consistency_section(run) -> Section:
     verdict, _ = split_notes(run.notes)
     text = "\n".join(verdict)
     if getattr(run, "consistency", None):  # a robot's verdict (and its wls-pc fit), as the terminal prints it
-        from .tables import consistency_section as robot_verdict
-
         text = robot_verdict(run.consistency)
     if not text:
         text = ("Not checked for this model: its base parameters regroup inertial parameters, so no rigid body "
@@ -741,9 +737,7 @@ def input_files(cfg) -> list[tuple[str, Path]]:
         if isinstance(p, Path) or (isinstance(p, str) and p.endswith(".toml")):
             out.append((what, Path(p)))
     if cfg.kind == "car" and not isinstance(cfg.vehicle, Path):  # a shipped vehicle: its file, as installed
-        from ..vehicle.description import vehicle_path
-
-        out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or "peugeot406")))
+        out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or DEMO_VEHICLE)))
     for t in cfg.tests:
         for q, p in t.files.items():
             out.append((f"{t.name}: {q}", Path(p)))
@@ -755,9 +749,6 @@ def input_files(cfg) -> list[tuple[str, Path]]:
 
 
 def provenance(run) -> dict[str, Any]:
-    from .._version import __version__
-    from ..atomic import file_sha256, final_path
-
     files = []
     # hashed where read, named where they will be: a demo reads its files from a staging folder renamed at the end
     for role, p in input_files(run.config):
@@ -859,8 +850,6 @@ def build_report(run, title: str) -> Report:
             out_sections.append(Section(dampers[0].heading, dampers[0].text, figures=[figs_written[-1][1:]],
                                         tables=dampers[0].tables, anchor=dampers[0].anchor))
     if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
-        from .tires import tire_section
-
         section, tire_files = tire_section(run.tires)
         out_sections.append(section)
         files.update(tire_files)

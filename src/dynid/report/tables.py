@@ -12,6 +12,7 @@ import numpy as np
 
 from ..estimation import EXCITED_FACTOR, IdentificationResult
 from .axes import CHASSIS_AXES, axis_label
+from .format import round_to_uncertainty
 
 
 def _cell(v: float | None, spec: str = ".6g") -> str:
@@ -109,7 +110,6 @@ def consistency_section(verdict: Mapping[str, Any]) -> str:
 
 def _plus_minus(value: float, std: float) -> str:
     """value ± σ rounded to σ's two digits; the value alone (4 significant digits) when σ is 0 or not known."""
-    from .format import round_to_uncertainty
 
     if np.isfinite(std) and std > 0:
         v, s = round_to_uncertainty(value, std)

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
 from .figures import _png, _pyplot
 from .html import Section, Table
 
@@ -18,7 +19,6 @@ def tire_figure(tires) -> bytes:
     0.5, 1 and 1.5 times the axle's nominal load, dashed beyond the slips measured), and longitudinal force over
     load against slip ratio with the fitted law."""
     plt = _pyplot()
-    from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), squeeze=False)
     s = tires.samples
@@ -52,8 +52,9 @@ def tire_figure(tires) -> bytes:
         law = tires.longitudinal.get(axle)
         if law is not None:
             k = np.linspace(min(law.kappa_range[0], 0.0), law.kappa_range[1], 50)
-            kx = law.stiffness(law.fz0)[0] / law.fz0
-            ax.plot(k, -kx * (k - law.fit.value("kappa0")), color="C3", lw=1.6, label=f"fit at {law.fz0:.0f} N")
+            k0 = law.free_rolling_slip(law.fz0)[0]
+            kx = law.stiffness(law.fz0)[0] / law.fz0 / (1 - k0)  # per unit of the slip counted with R, as plotted
+            ax.plot(k, -kx * (k - k0), color="C3", lw=1.6, label=f"fit at {law.fz0:.0f} N")
         ax.set_title(f"{axle} axle: longitudinal")
         ax.set_xlabel("slip ratio κ (> 0 braking)")
         ax.set_ylabel("Fx / Fz")
@@ -77,7 +78,7 @@ def tire_table(tires) -> Table:
         v, s = law.stiffness(law.fz0)
         rows.append([name, "slip stiffness (secant)", f"{law.fz0:.0f}", f"{v:.0f}", f"{s:.0f}", "N per unit slip",
                      f"κ {law.kappa_range[0]:.3f} .. {law.kappa_range[1]:.3f}",
-                     f"rolling radius {tires.wheel_radius * (1 - law.fit.value('kappa0')):.4f} m"])
+                     f"rolling radius {tires.wheel_radius / (1 - law.free_rolling_slip(law.fz0)[0]):.4f} m"])
     return Table(["axle / tire", "quantity", "load (N)", "value", "σ", "unit", "slips used", "curve"], rows,
                  caption="Tire characteristics (ISO wheel axes, pure slip)")
 

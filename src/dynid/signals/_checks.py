@@ -116,6 +116,12 @@ def finite(a: NDArray[np.float64], name: str, axis: int = 0, what: str = "fill o
     """
     if a.size == 0:
         return
+    # one reading pass, no mask: a NaN or an infinity makes the sum NaN or infinite, so a finite sum means every
+    # entry is finite (finite entries whose sum overflows fall through to the scan, which finds none)
+    with np.errstate(over="ignore", invalid="ignore"):  # inf - inf or an overflow: the scan decides
+        total = np.sum(a)
+    if np.isfinite(total):
+        return
     moved = np.moveaxis(a, axis, 0)
     n = moved.shape[0]
     flat = moved.reshape(n, -1)

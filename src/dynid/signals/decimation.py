@@ -18,8 +18,9 @@ t[0] + k factor / fs.
 
 from __future__ import annotations
 
+import dataclasses
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _checks
 from ._zero_phase import sos_filtfilt
+from .borders import border_samples
 from .errors import SignalError
 from .filters import design_lowpass, pad_length
 
@@ -194,3 +196,73 @@ def decimate_parallel(
     if Ya is None:
         return Wd, None
     return Wd, _decimate_columns(Ya.reshape(n, -1), stages, block).reshape((nd, *Ya.shape[1:]))
+
+
+# the first stage's transient is taken to this fraction of its kernel's weight around each block: a block's outputs
+# are then the whole input's to a few units of round-off (border_samples' rule; its tail sums floor near 1e-16)
+ROUND_OFF = 1e-15
+# columns filtered side by side in the blocked path: a few copies of this are its work space (decimate_parallel's
+# 16 MB blocks cost a worker ~50 MB beside its block of W)
+WORK_BYTES = 4 * 2**20
+
+
+def decimate_parallel_blocked(
+    rows: Callable[[int, int], tuple[NDArray[np.float64], NDArray[np.float64]]],
+    n: int,
+    factor: int | Sequence[int],
+    fs: float,
+    order: int = 8,
+    cutoff: float | Sequence[float] | None = None,
+    *,
+    block_samples: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """`decimate_parallel(W, Y, ...)` of the W (n, m, p) and Y (n, m) that `rows(0, n)` would give, without ever
+    holding them at the input rate: the first stage filters and decimates blocks of about `block_samples` input
+    samples (each asked for by `rows(lo, hi)`, W (hi - lo, m, p) and Y (hi - lo, m) of input samples lo..hi), read
+    with the stage's transient to `ROUND_OFF` of its weight beyond the block's own samples; the later stages run
+    on the first's output, `factor[0]` times smaller. The outputs equal `decimate_parallel`'s to round-off (the
+    same bits when one block covers the input); what is held is one block at the input rate and the first
+    stage's output, and a few copies of `WORK_BYTES` (the columns filtered side by side)."""
+    factors = _factors(factor)
+    fs = _checks.rate(fs)
+    order = _checks.filter_order(order)
+    stages = _stages(n, factors, fs, order, cutoff)
+    first, f = stages[0], factors[0]
+    # the overlap, on the first stage's grid: a block's outputs are those of the input samples it owns
+    ov = -(-border_samples(fs, first.cutoff, order, tol=ROUND_OFF) // f) * f
+    step = max(f, int(block_samples) // f * f, 4 * ov)
+    starts = list(range(0, n, step))
+    if len(starts) > 1 and n - starts[-1] < step // 2:  # no short last block: it merges with the one before
+        starts.pop()
+    ends = [*starts[1:], n]
+    W1 = Y1 = None
+    for a, e in zip(starts, ends, strict=True):
+        lo, hi = max(0, a - ov), min(n, e + ov)
+        W, Y = rows(lo, hi)
+        Wa, Ya = _checks.as_float(W, "W", min_ndim=3), _checks.as_float(Y, "Y")
+        if Wa.shape[0] != hi - lo or Ya.shape != Wa.shape[:2]:
+            raise SignalError(f"rows({lo}, {hi}) gave W {Wa.shape} and Y {Ya.shape}: W must be "
+                              f"({hi - lo}, m, p) and Y ({hi - lo}, m)")
+        _checks.finite(Wa, "W", 0, "remove or repair those samples before decimating")
+        _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
+        if W1 is None:
+            W1 = np.zeros((first.n_out, *Wa.shape[1:]))
+            Y1 = np.zeros((first.n_out, *Ya.shape[1:]))
+        stage = [dataclasses.replace(first, n_in=hi - lo)]
+        keep = slice((a - lo) // f, (a - lo) // f + -(-(e - a) // f))  # output k of the block is input lo + k f
+        W2 = Wa.reshape(hi - lo, -1)
+        live = np.flatnonzero(np.any(W2 != 0, axis=0))  # structural zeros stay zero (decimate_parallel)
+        block = max(1, WORK_BYTES // (8 * (hi - lo)))
+        W1[a // f : -(-e // f)] = _decimate_columns(W2, stage, block, live)[keep].reshape(-1, *Wa.shape[1:])
+        Y1[a // f : -(-e // f)] = _decimate_columns(Ya.reshape(hi - lo, -1), stage, block)[keep].reshape(
+            -1, *Ya.shape[1:])
+        del W, Wa, W2
+    if len(stages) == 1:
+        return W1, Y1
+    rest, n1 = stages[1:], first.n_out
+    W2 = W1.reshape(n1, -1)
+    block = max(1, WORK_BYTES // (8 * n1))
+    live = np.flatnonzero(np.any(W2 != 0, axis=0))
+    nd = rest[-1].n_out
+    Wd = _decimate_columns(W2, rest, block, live).reshape((nd, *W1.shape[1:]))
+    return Wd, _decimate_columns(Y1.reshape(n1, -1), rest, block).reshape((nd, *Y1.shape[1:]))

@@ -40,7 +40,10 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..model.tree import Tree
+from .cache import model_hash
 from .llvm_code import UnsupportedSourceError, _double, parse_function
+from .models import build
+from .numba_backend import arguments, compile_source, scalar_source, source_key
 
 LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16 measured slower on both models
 # one generation (and one parse of a generated source) at a time: CPython 3.11's ast.parse is not safe
@@ -404,6 +407,7 @@ def _next(args: list[str], outputs: set[str], a: str) -> str:
 def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Sequence[str] = ("X",)):
     """A Numba intrinsic `call(N, desc)` running `fn`'s source as block_ir (desc: a C-contiguous int64 array).
     The IR is built when Numba first compiles a caller (not when a cached one is loaded)."""
+    # start-up: numba 0.5 s
     import llvmlite.binding as ll
     from llvmlite import ir
     from numba.core import cgutils, types
@@ -470,7 +474,7 @@ def _address():
     """The address of an array's first element, jitted (a tenth of `a.ctypes.data`'s time: a block kernel's
     call reads five to ten of them)."""
     if not _ADDRESS:
-        from numba import njit
+        from numba import njit  # start-up: numba 0.5 s
 
         _ADDRESS.append(njit(cache=True, nogil=True)(_data_address))
     return _ADDRESS[0]
@@ -560,7 +564,6 @@ class BlockKernel:
 
 def kernel_source(prog, name: str) -> str:
     """The per-sample source the block IR is translated from, and the module's footer."""
-    from .numba_backend import scalar_source
 
     return scalar_source(prog, name) + _FOOTER.format(lanes=LANES, symbol=f"dynid_blk_{name}", name=name)
 
@@ -569,8 +572,6 @@ def block_model(tree: Tree, model: str, **options) -> BlockKernel:
     """The BlockKernel of a model (dgm, idm, regressor, inertia) of a tree; options as for dynid.symbolic.build.
 
     Generated once, then loaded from the disk cache (source and Numba's machine code)."""
-    from .cache import model_hash
-    from .numba_backend import compile_source, source_key
 
     key = source_key(model_hash(tree, model, options), "blocks", str(LANES))
     name = f"{model}_{key}"
@@ -583,8 +584,6 @@ def block_model(tree: Tree, model: str, **options) -> BlockKernel:
 
 def _generate(tree: Tree, model: str, options: dict, key: str, name: str):
     """Build the model, check that it translates, write and import its module (see block_model)."""
-    from .models import build
-    from .numba_backend import arguments, compile_source, scalar_source
 
     prog = build(tree, model, **options)
     outs = [("out", tuple(prog.shape), prog.outputs)] + [(k, tuple(s), e) for k, (s, e) in

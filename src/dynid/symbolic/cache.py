@@ -21,6 +21,7 @@ from ..model.tree import Tree
 from ..pysource import compile_source
 from .codegen import GENERATOR_VERSION
 from .expr import SymbolicError
+from .models import build
 from .numpy_code import to_numpy
 
 
@@ -77,7 +78,6 @@ def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
 
     Its `evaluate` function (also named after the model) is batched over samples.
     """
-    from .models import build
 
     h = model_hash(tree, model, options)
     if h in _LOADED:

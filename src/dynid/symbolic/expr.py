@@ -16,6 +16,7 @@ they must be evaluated. `to_sympy` converts for users who want sympy objects.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
@@ -319,8 +320,6 @@ class Program:
         if kind not in FUNCTIONS:
             raise SymbolicError(f"unknown function {kind!r}")
         if is_const(arg):
-            import math
-
             x = const_value(arg)
             return const({"sin": math.sin, "cos": math.cos, "sign": lambda v: (v > 0) - (v < 0),
                           "tanh": math.tanh}[kind](x))
@@ -375,7 +374,7 @@ class Program:
 
     def to_sympy(self) -> tuple[list, list]:
         """([(Symbol, expr), ...] equations, [(index, expr), ...] outputs) as sympy objects."""
-        import sympy
+        import sympy  # start-up: sympy 1 s
 
         cache: dict[str, sympy.Symbol] = {}
 

@@ -176,6 +176,7 @@ def straight_line(fn: Callable, symbol: str):
     arrays is the tuple of fn's arguments (C-contiguous float64 arrays); returns 0, as fn does.
     The IR is built when Numba first compiles a call (not when a cached caller is loaded); a source
     outside the language raises UnsupportedSourceError then (numba_backend checks it before choosing this path)."""
+    # start-up: numba 0.5 s
     import llvmlite.binding as ll
     from llvmlite import ir
     from numba.core import cgutils, types

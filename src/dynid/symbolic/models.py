@@ -18,6 +18,8 @@ equations; see expr.py for the zero/one bookkeeping.
 
 from __future__ import annotations
 
+import inspect
+import keyword
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -50,7 +52,6 @@ class WrenchSite:
 
 def identifier(name: str, taken: set[str]) -> str:
     """A code identifier for a parameter name (the name itself when it is one)."""
-    import keyword
 
     if name.isidentifier() and not keyword.iskeyword(name) and name.isascii():
         return name
@@ -692,7 +693,6 @@ def build(tree: Tree, model: str, **options) -> Program:
         raise SymbolicError(f"model {tree.name!r} has mimic joints (frame {j} follows frame {tree.mimic[j].master}), "
                             "which the symbolic models do not project; use the numeric engine, or freeze them "
                             "(dynid model import --freeze)")
-    import inspect
 
     allowed = set(inspect.signature(fn).parameters) - {"tree"}
     bad = sorted(set(options) - allowed)

@@ -39,6 +39,8 @@ from ..model.tree import Tree
 from .cache import cache_dir, generator_fingerprint, import_file, model_hash, write_atomic
 from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
+from .llvm_code import UnsupportedSourceError, function_ir
+from .models import build
 
 BACKEND_VERSION = "1"
 _LOADED: dict[str, ModuleType] = {}
@@ -59,7 +61,7 @@ def have_numba() -> bool:
 def jit(fn):
     """numba.njit(cache=True) when numba is importable, else the function itself (with a warning once)."""
     try:
-        from numba import njit
+        from numba import njit  # start-up: numba 0.5 s
     except ImportError:
         _warn_missing()
         return fn
@@ -175,7 +177,6 @@ def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
     importable and the source is in its language); the others are compiled by numba from Python."""
     if not names or not have_numba():
         return {}
-    from .llvm_code import UnsupportedSourceError, function_ir
 
     out: dict[str, list[str]] = {}
     for node in pysource.parse(body).body:
@@ -247,7 +248,6 @@ def numba_model(tree: Tree, model: str, name: str | None = None, **options):
     wrenches=[WrenchSite, ...], rows/cols for the regressor). Returns the function; its
     argument list is `arguments(build(...))` (see the module doc).
     """
-    from .models import build
 
     name = name or model
     h = source_key(model_hash(tree, model, options), name)

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.linalg
 
 from ..model.tree import INERTIAL, PRISMATIC, REVOLUTE, Tree
+from .cache import numpy_module
 from .expr import ONE, ZERO, Poly, Program, SymbolicError, add, const, dot, mul, neg, scale, sub, sym
 from .geometry import Geometry
 
@@ -186,7 +187,6 @@ def base_parameters(
     tree: Tree, geometry: str = "numeric", samples: int | None = None, seed: int = 0, tol: float = 1e-9
 ) -> SymbolicBaseParameters:
     """Base parameters of the full identification model (all rows and columns)."""
-    from .cache import numpy_module
 
     rel, removed, constants = rules(tree, geometry)
     names = tree.parameter_names

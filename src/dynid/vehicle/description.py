@@ -76,15 +76,19 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.consistency import check_physical
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import FRICTION_SHAPES, ModelError, Tree
+from ..shipped import DEMO_VEHICLE
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
 from .car_model import car_template
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
+from .engineering import chassis_data_sheet, chassis_from_data_sheet
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet
-from .sensors import SensorSuite, fitted_suite
+from .sensors import SensorSuite, correvit_point, fitted_suite, gnss_point, laser_point
+from .statics import design_preloads
 from .tables import (
     CORNER_KEYS,
     STEERING_RATIO,
@@ -95,7 +99,7 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, labels, paper_parameter_names
+from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, WHEELS, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
@@ -207,7 +211,7 @@ def vehicle_path(name_or_path: str | os.PathLike[str]) -> Path:
                        f"{', '.join(shipped_vehicles())} (or give a path to a .toml vehicle file)")
 
 
-def load_vehicle(name_or_path: str | os.PathLike[str] = "peugeot406") -> Vehicle:
+def load_vehicle(name_or_path: str | os.PathLike[str] = DEMO_VEHICLE) -> Vehicle:
     """Read and check a vehicle file (a path, or a shipped vehicle's name)."""
     path = vehicle_path(name_or_path)
     data = read_toml(path, "vehicle file", VehicleError)
@@ -427,7 +431,6 @@ def _sensors(t: dict, where: str) -> dict:
 def _check_points(g: CarGeometry, where: str) -> None:
     """Sensor points a car can carry: above the ground (x6 above the wheel centres' height minus the radius) and
     within 3 m of O6."""
-    from .sensors import correvit_point, gnss_point, laser_point
 
     ground = g.wheel_centre_height - g.wheel_radius
     named = [("[sensors] correvit_position_m", correvit_point(g)), ("[sensors] gnss_position_m", gnss_point(g))]
@@ -645,7 +648,6 @@ CHASSIS_PARAMETERS = ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "MX6", "MY6", "M
 
 def _chassis_sheet(t: object, g: CarGeometry, where: str, section: str) -> dict[str, float]:
     """XX6..M6 from a [section.chassis] data sheet (`engineering.chassis_from_data_sheet`), every key checked."""
-    from .engineering import chassis_from_data_sheet
 
     sec = f"[{section}.chassis]"
     if not isinstance(t, dict):
@@ -680,7 +682,6 @@ def _chassis_sheet(t: object, g: CarGeometry, where: str, section: str) -> dict[
 def chassis_sheet_keys(values: dict[str, float], g: CarGeometry) -> dict[str, float]:
     """The [*.chassis] keys of a parameter set's XX6..M6 (`engineering.chassis_data_sheet`): what `dynid vehicle
     show` prints, and what reads back to the same XX6..M6."""
-    from .engineering import chassis_data_sheet
 
     d = chassis_data_sheet(values, g)
     tiny = 1e-13 * max(abs(d["Ixx"]), abs(d["Iyy"]), abs(d["Izz"]))  # a product that is round-off of 0 reads 0
@@ -742,9 +743,6 @@ def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str,
     offset not given is the static preload that holds the damper at its design position. A damper whose curve
     slopes [truth] gives drives with that curve (a slope not given: the truth's h); the others with h (the a
     priori's when the a priori set has a curve)."""
-    from ..model.consistency import check_physical
-    from .statics import design_preloads
-    from .template import WHEELS
 
     curved = {d for d in DAMPERS if any(n in given for n in _curve_names(d))}
     values = {**a_priori, **known, **given}

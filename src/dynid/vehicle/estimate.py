@@ -46,7 +46,7 @@ from .sensors import (
     paper_suite,
 )
 from .tables import KinematicTables, default_tables
-from .template import FRAMES
+from .template import DAMPERS, FRAMES, TIRES, WHEELS, tabulated
 
 Array = np.ndarray
 # frame 0 coordinates of the ISO earth axes (X forward = y0, Y left = -x0, Z up = z0), as columns
@@ -394,10 +394,11 @@ def joints_pass(
     xs = filtered[:, :17]
     xd = derivative(xs, fs)
     xdd = derivative(xd, fs)
-    for i, offset in enumerate((1, 2, 3)):  # columns of frames b+2, b+3, b+4 (b = 7 + 9k)
-        cols, sl = [7 + 9 * k + offset for k in range(4)], slice(4 * i, 4 * i + 4)
+    steering, camber = ([tabulated(k)[n] for k in range(4)] for n in (0, 1))
+    for i, frames in enumerate((DAMPERS, steering, camber)):  # frame j in column j - 1
+        cols, sl = [j - 1 for j in frames], slice(4 * i, 4 * i + 4)
         q[:, cols], qd[:, cols], qdd[:, cols] = xs[:, sl], xd[:, sl], xdd[:, sl]
-    spin = [7 + 9 * k + 6 for k in range(4)]
+    spin = [w - 1 for w in WHEELS]
     q[:, spin], qd[:, spin], qdd[:, spin] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
     h = xs[:, 16], xd[:, 16], xdd[:, 16]
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
@@ -461,14 +462,12 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     if sub[-1] != N - 1:
         sub = np.append(sub, N - 1)
     q0 = q[sub].copy()
-    q0[:, [0, 1, 2, *(f - 1 for f in _TIRES)]] = 0.0
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=_TIRES)
+    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
-    return CubicSpline(sub, np.stack([st.P[f][2] for f in _TIRES] + [st.Rc[f][2][2] for f in _TIRES], axis=1))(
+    return CubicSpline(sub, np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1))(
         np.arange(N))
 
-
-_TIRES = [15 + 9 * k for k in range(4)]
 
 
 def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
@@ -483,7 +482,7 @@ def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Arr
         z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
             - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
     else:
-        kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in _TIRES])
+        kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in TIRES])
         if not (kt > 0).all():
             raise ModelError("without height lasers the tire deflections come from the wheel loads: the tires' "
                              "vertical stiffness kt15, kt24, kt33, kt42 must be known (a tire bench), > 0; got "
@@ -530,7 +529,7 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
 def _deflections(x: _Context, q: Array, qd: Array, qdd: Array, pz_zz: Array, z_laser: Array) -> None:
     """The tire deflections into q, qd, qdd: each tire frame's origin on the ground under its corner's height."""
     deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
-    cols = [f - 1 for f in _TIRES]
+    cols = [f - 1 for f in TIRES]
     q[:, cols], qd[:, cols], qdd[:, cols] = _smooth(deflection, x)
 
 

@@ -27,7 +27,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .template import DAMPERS, TIRES, WHEELS, paper_parameter_names
+from .geometry import CarGeometry
+from .statics import design_preloads
+from .template import DAMPERS, TIRES, WHEELS, car_tree, paper_parameter_names
 
 PAPER = "paper"
 CHOSEN = "chosen (not in the paper)"
@@ -119,9 +121,6 @@ def truth(geometry=None, tables=None) -> ParameterSet:
     geometry, tables: those of the simulated car (defaults: the 406's); the offsets depend
     on them through the rest attitude.
     """
-    from .geometry import CarGeometry
-    from .statics import design_preloads
-    from .template import car_tree
 
     est = paper_estimates()
     apr = a_priori()

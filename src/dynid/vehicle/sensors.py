@@ -66,7 +66,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..kinematics.forward import forward_kinematics, joint_array
 from .geometry import CarGeometry, side
+from .template import damper, tabulated, tire, wheel
 
 ACQUISITION_RATE = 625.0  # Hz (the paper's sample time 1.6 ms)
 SAMPLE_TIME = 1.0 / ACQUISITION_RATE
@@ -196,7 +198,6 @@ def _correvit(g: CarGeometry) -> list[SensorChannel]:
 def _corners(g: CarGeometry) -> list[SensorChannel]:
     out = []
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
         out.append(SensorChannel(f"laser_height_{c}", "mm", "distance from the sensor to the ground along -x6",
                                  "laser height sensor", "chassis down (-x6)", accuracy=1.0, bandwidth=200.0,
                                  resolution=0.062, range=(50.0, 600.0), rate=625.0, bias=0.5,
@@ -204,42 +205,39 @@ def _corners(g: CarGeometry) -> list[SensorChannel]:
                                  source=PAPER + " (ground clearances: 1 mm, 200 Hz, 0.062 mm); mounting, range and "
                                  "bias chosen"))
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
-        out.append(SensorChannel(f"clearance_{c}", "mm", f"damper clearance q{b + 2} (bump > 0)",
+        out.append(SensorChannel(f"clearance_{c}", "mm", f"damper clearance q{damper(k)} (bump > 0)",
                                  "video camera (Zimmer)",
                                  "damper axis", accuracy=1.0, bandwidth=200.0, resolution=0.062, range=(-125.0, 125.0),
-                                 rate=625.0, joint=b + 2, source=PAPER + "; rate chosen"))
+                                 rate=625.0, joint=damper(k), source=PAPER + "; rate chosen"))
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
-        out.append(SensorChannel(f"steer_{c}", "deg", f"steering joint q{b + 3} (> 0 to the left)",
+        steer = tabulated(k)[0]
+        out.append(SensorChannel(f"steer_{c}", "deg", f"steering joint q{steer} (> 0 to the left)",
                                  "video camera (Zimmer)", "chassis vertical x6", accuracy=0.033, bandwidth=30.0,
-                                 resolution=0.011, range=(-5.0, 5.0), rate=125.0, joint=b + 3,
+                                 resolution=0.011, range=(-5.0, 5.0), rate=125.0, joint=steer,
                                  source=PAPER + "; rate chosen"))
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
-        out.append(SensorChannel(f"camber_{c}", "deg", f"camber joint q{b + 4} (> 0 top outboard)",
+        camber = tabulated(k)[1]
+        out.append(SensorChannel(f"camber_{c}", "deg", f"camber joint q{camber} (> 0 top outboard)",
                                  "video camera (Zimmer)", "wheel heading", accuracy=0.042, bandwidth=30.0,
-                                 resolution=0.014, range=(-2.5, 2.5), rate=125.0, joint=b + 4,
+                                 resolution=0.014, range=(-2.5, 2.5), rate=125.0, joint=camber,
                                  source=PAPER + "; rate chosen"))
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
-        out.append(SensorChannel(f"wheel_speed_{c}", "rev/s", f"wheel spin rate qd{b + 7} (> 0 rolling forward)",
+        out.append(SensorChannel(f"wheel_speed_{c}", "rev/s", f"wheel spin rate qd{wheel(k)} (> 0 rolling forward)",
                                  "dynamometric wheel (IGEL)", "wheel axle (left)", accuracy=0.005, bandwidth=150.0,
-                                 resolution=0.001, range=(-30.0, 30.0), rate=625.0, joint=b + 7,
+                                 resolution=0.001, range=(-30.0, 30.0), rate=625.0, joint=wheel(k),
                                  source=PAPER + " (30 rev/s, 150 Hz); accuracy, resolution and rate chosen"))
     axes = {"Fx": "wheel x (forward, wheel plane)", "Fy": "wheel y (left, axle)", "Fz": "wheel z (up, wheel plane)"}
     axes.update({"M" + a[1]: v for a, v in axes.items()})
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
         for comp in WFT_COMPONENTS:
             force = comp[0] == "F"
             out.append(SensorChannel(
                 f"wft_{c}_{comp}", "N" if force else "N.m",
-                f"{'force' if force else 'moment about the wheel centre'} of the ground on wheel {b + 7}, "
-                f"non-spinning wheel frame (axes of frame {b + 8})",
+                f"{'force' if force else 'moment about the wheel centre'} of the ground on wheel {wheel(k)}, "
+                f"non-spinning wheel frame (axes of frame {tire(k)})",
                 "dynamometric wheel (IGEL)", axes[comp], accuracy=25.0 if force else 5.0, bandwidth=150.0,
                 resolution=1.0 if force else 0.1, range=(-20000.0, 20000.0) if force else (-5000.0, 5000.0),
-                rate=625.0, bias=10.0 if force else 2.0, joint=b + 7,
+                rate=625.0, bias=10.0 if force else 2.0, joint=wheel(k),
                 source=PAPER + " (forces 25 N, 20 kN, 150 Hz); moments, resolution, bias and rate chosen"))
     return out
 
@@ -249,10 +247,10 @@ def _driver() -> list[SensorChannel]:
                          "steering column", accuracy=0.1, bandwidth=100.0, resolution=0.1, range=(-720.0, 720.0),
                          rate=625.0, source=CHOSEN)]
     for k, c in enumerate(CORNER_TAGS):
-        out.append(SensorChannel(f"spin_torque_{c}", "N.m", f"drive + brake torque on wheel joint {14 + 9 * k} "
+        out.append(SensorChannel(f"spin_torque_{c}", "N.m", f"drive + brake torque on wheel joint {wheel(k)} "
                                  "about its axle (> 0 forward)", "driveline and brake command", "wheel axle (left)",
                                  accuracy=0.0, bandwidth=None, resolution=0.0, range=None, rate=625.0,
-                                 joint=14 + 9 * k, source=CHOSEN + ": a known command, logged exactly"))
+                                 joint=wheel(k), source=CHOSEN + ": a known command, logged exactly"))
     return out
 
 
@@ -510,7 +508,6 @@ def ideal_channels(
     N = q.shape[0]
     deg = np.degrees
     out: dict[str, np.ndarray] = {}
-    from ..kinematics.forward import forward_kinematics, joint_array
 
     st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[6])  # frame 6 only
     R6 = np.stack([np.asarray(c).T for c in st.Rc[6]], axis=2)  # (N, 3, 3), columns = axes of frame 6
@@ -537,13 +534,13 @@ def ideal_channels(
     v_iso = (tw[:, :3] + np.cross(tw[:, 3:], np.asarray(gnss_point(g)) - imu)) @ ISO_AXES.T
     out["gnss_vx"], out["gnss_vy"] = v_iso[:, 0], v_iso[:, 1]
     for k, c in enumerate(CORNER_TAGS):
-        b = 7 + 9 * k
+        steer, camber = tabulated(k)[:2]  # frame j in column j - 1
         P0 = np.einsum("nij,j->ni", R6, np.asarray(laser_point(g, k))) + O6
         out[f"laser_height_{c}"] = 1e3 * P0[:, 2] / R6[:, 2, 0]
-        out[f"clearance_{c}"] = 1e3 * q[:, b + 1]
-        out[f"steer_{c}"] = deg(q[:, b + 2])
-        out[f"camber_{c}"] = deg(q[:, b + 3])
-        out[f"wheel_speed_{c}"] = qd[:, b + 6] / (2 * np.pi)
+        out[f"clearance_{c}"] = 1e3 * q[:, damper(k) - 1]
+        out[f"steer_{c}"] = deg(q[:, steer - 1])
+        out[f"camber_{c}"] = deg(q[:, camber - 1])
+        out[f"wheel_speed_{c}"] = qd[:, wheel(k) - 1] / (2 * np.pi)
         for i, comp in enumerate(WFT_COMPONENTS):
             out[f"wft_{c}_{comp}"] = np.array(wheel_wrenches[:, k, i], dtype=float)
         out[f"spin_torque_{c}"] = np.array(spin_torques[:, k], dtype=float)

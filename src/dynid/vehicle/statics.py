@@ -20,6 +20,7 @@ from scipy.optimize import root
 from ..dynamics import Model, Wrench
 from ..model.tree import Tree
 from .geometry import GeometryError
+from .tables import default_tables
 from .template import CORNERS, DAMPERS, TIRES, WHEELS
 
 KN = 1000.0
@@ -47,7 +48,6 @@ def rest_state(tree: Tree, tables=None, fix_dampers: bool = False, steering_whee
     tables: KinematicTables for the tabulated joints (default: the 406's); fix_dampers: hold
     the dampers at q = 0 (their equations are then not imposed: see `design_preloads`).
     """
-    from .tables import default_tables
 
     tables = default_tables() if tables is None else tables
     model = Model(tree)

@@ -22,6 +22,7 @@ scipy's per-call evaluation, and without the GIL).
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import BSpline
 
 from ..symbolic.numba_backend import jit
 
@@ -39,7 +40,6 @@ Packed = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 def pack(tabs) -> Packed:
     """(xb (T, MX+1), yb (T, MY+1), nx (T,), ny (T,), coef (T, MX, MY, 4, 4)) of a sequence of
     KinematicTable; coef[t, a, b, m, k] multiplies s^m r^k in cell (a, b) of table t."""
-    from scipy.interpolate import BSpline
 
     grids = [(np.asarray(t.travel, dtype=float),
               np.array([-10.0, 10.0]) if t.steering is None else np.asarray(t.steering, dtype=float)) for t in tabs]

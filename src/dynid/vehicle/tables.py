@@ -42,7 +42,7 @@ from ..model.tree import ModelError
 from ..textfiles import TextEncodingError, read_csv_rows
 from .geometry import CarGeometry, side
 from .table_poly import pack, table_joints
-from .template import CORNERS, base
+from .template import CORNERS, damper, tabulated
 
 TABLE_NAMES = ("steering", "camber", "caster", "kingpin")
 CORNER_KEYS = ("rear_left", "rear_right", "front_left", "front_right")
@@ -132,6 +132,9 @@ class KinematicTables:
     """The four tables of each corner: tables[corner][name], corner 0 rear left .. 3 front right."""
 
     tables: tuple[Mapping[str, KinematicTable], ...]
+    # `_packed`'s workspace: the packed tables per selection, built on first use. Declared, so that it is no
+    # attribute written behind the frozen dataclass' back, and no part of the value (compare, repr, replace)
+    _packed_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.tables) != 4 or any(set(t) != set(TABLE_NAMES) for t in self.tables):
@@ -140,12 +143,13 @@ class KinematicTables:
     def _packed(self, todo: tuple[tuple[int, str], ...]) -> tuple:
         """The tables `todo` (corner, name) packed for `table_joints`, with which tables use the steering and
         their damper and joint columns; built once per set (the tables are immutable)."""
-        cache = self.__dict__.setdefault("_packed_cache", {})
+        cache = self._packed_cache
         if todo not in cache:
             tabs = [self.tables[k][n] for k, n in todo]
             steering = np.array([t.steering is not None for t in tabs])
-            u_cols = np.array([base(k) + 1 for k, _ in todo], dtype=np.int64)
-            out_cols = np.array([base(k) + 2 + TABLE_NAMES.index(n) for k, n in todo], dtype=np.int64)
+            # the damper's and the tabulated joint's columns (frame j in column j - 1)
+            u_cols = np.array([damper(k) - 1 for k, _ in todo], dtype=np.int64)
+            out_cols = np.array([tabulated(k)[TABLE_NAMES.index(n)] - 1 for k, n in todo], dtype=np.int64)
             cache[todo] = (*pack(tabs), steering, u_cols, out_cols)
         return cache[todo]
 
@@ -194,10 +198,9 @@ class KinematicTables:
                 return q, qd, qdd
         # without numba, or off a table's grid (the scipy path names the table, input and sample)
         for k, name in todo:
-            b = base(k)
-            u, ud, udd = q[:, b + 1], qd[:, b + 1], qdd[:, b + 1]
+            d, j = damper(k) - 1, tabulated(k)[TABLE_NAMES.index(name)] - 1  # columns (frame j in column j - 1)
+            u, ud, udd = q[:, d], qd[:, d], qdd[:, d]
             f, fu, fh, fuu, fuh, fhh = self.tables[k][name].derivatives(u, h)
-            j = b + 2 + TABLE_NAMES.index(name)  # column of frame b+3+i
             q[:, j] = f
             qd[:, j] = fu * ud + fh * hd
             qdd[:, j] = fuu * ud**2 + 2 * fuh * ud * hd + fhh * hd**2 + fu * udd + fh * hdd

@@ -8,8 +8,8 @@ and sidecar. Sensors: dynid.vehicle.sensors.
 
 from .car import CarSimulator, SimSettings, SimulationError, SimulationResult, sim_tree
 from .manoeuvres import DEFAULTS as MANOEUVRES
-from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre
+from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre, table_manoeuvre
 from .tires import MagicFormula
 
 __all__ = ["MANOEUVRES", "CarSimulator", "MagicFormula", "Manoeuvre", "ManoeuvreError", "SimSettings",
-           "SimulationError", "SimulationResult", "manoeuvre", "sim_tree"]
+           "SimulationError", "SimulationResult", "manoeuvre", "sim_tree", "table_manoeuvre"]

@@ -35,18 +35,22 @@ from pathlib import Path
 
 import numpy as np
 
+from ...dynamics import Model
+from ...model.files import tree_to_toml
 from ...model.tree import CURVE_TERMS, PRISMATIC, Tree
 from ...resources import memory_budget
 from ...symbolic import numba_backend as nb
 from ...symbolic.expr import ZERO, add, cross
 from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
-from ..aero import Aerodynamics, reference_point
+from ..aero import Aerodynamics, aero_wrench, reference_point
 from ..car_model import car_template
+from ..equations import car_identification
 from ..geometry import CarGeometry
 from ..parameters import ParameterSet, truth
+from ..sensors import ideal_channels, mounted
 from ..statics import rest_state
 from ..tables import STEERING_RATIO, KinematicTables, default_tables
-from ..template import CHASSIS, DAMPERS, TIRES, WHEELS
+from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, tabulated
 from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
 from .bicycle import Bicycle, Car, bicycle, cornering_bicycle
 from .interp import pack_aero, pack_tables
@@ -151,7 +155,7 @@ def free_rows_inertia(inert: Tree):
     (the rest left zero), shape (K.NF, K.NF_ROW): composite bodies, numeric parameters."""
     prog = inertia(inert, "numeric", "numeric")
     rows = {j - 1: i for i, j in enumerate(K.FREE)}
-    cols = set(rows) | {7 + 9 * k + 2 + n for k in range(4) for n in range(4)}
+    cols = set(rows) | {j - 1 for k in range(4) for j in tabulated(k)}
     prog.outputs = [((rows[i], j), v) for (i, j), v in prog.outputs if i in rows and j in cols]
     prog.shape = (K.NF, K.NF_ROW)
     return prog.prune()
@@ -160,7 +164,6 @@ def free_rows_inertia(inert: Tree):
 def _module_key(tree: Tree, aero_point) -> str:
     """Hash of what the compiled module depends on: the tree, the kernel and its helpers, the functions
     here that generate the models, the aero point."""
-    from ...model.files import tree_to_toml
 
     here = Path(__file__).parent
     srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py",
@@ -225,7 +228,6 @@ class CarSimulator:
         self.rest = rest_state(self.tree, self.tables)
         self.mass = sum(self.tree.values.get(f"M{j}", 0.0) for j in range(1, 43))
         self.radius = self.geometry.wheel_radius
-        from ...dynamics import Model
 
         g = -self.tree.gravity[2]
         b_rear = self.geometry.wheelbase * (self.rest.loads[2] + self.rest.loads[3]) / (self.mass * g)
@@ -397,8 +399,6 @@ class SimulationResult:
         return self.sim.tree
 
     def aero_wrench(self):
-        from ...dynamics import Model
-        from ..aero import aero_wrench
 
         if not self.sim.settings.aero:
             return None
@@ -406,8 +406,6 @@ class SimulationResult:
 
     def identification(self, base: str = "generic", spin: bool = True, model=None):
         """car_identification on the true trajectories (the simulator's own tree; spin rows with the torques)."""
-        from ...dynamics import Model
-        from ..equations import car_identification
 
         model = Model(self.tree) if model is None else model
         spin_torques = {w: self.spin_torques[:, k] for k, w in enumerate(WHEELS)} if spin else None
@@ -416,8 +414,6 @@ class SimulationResult:
 
     def ideal_channels(self, suite=None) -> dict[str, np.ndarray]:
         """The noise-free value of every channel, at the suite's mounting points (default: the car's)."""
-        from ...dynamics import Model
-        from ..sensors import ideal_channels, mounted
 
         g = self.sim.geometry if suite is None else mounted(self.sim.geometry, suite)
         return ideal_channels(Model(self.tree), self.q, self.qd, self.qdd, self.wheel_wrenches,

@@ -7,8 +7,10 @@ them too); the aerodynamic coefficients are cubic splines of the sideslip angle.
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from ...symbolic.numba_backend import jit
+from ..aero import COEFFICIENTS
 from ..table_poly import Packed, _cell, pack
 from ..tables import TABLE_NAMES, KinematicTables
 
@@ -21,9 +23,6 @@ def pack_tables(tables: KinematicTables) -> Packed:
 def pack_aero(aero) -> tuple[np.ndarray, np.ndarray]:
     """(beta breakpoints (m+1,), coefficients (6, m, 4)) of the aerodynamic tables' cubic splines
     (the same splines as dynid.vehicle.aero: scipy CubicSpline, not-a-knot), highest power first."""
-    from scipy.interpolate import CubicSpline
-
-    from ..aero import COEFFICIENTS
 
     x = np.asarray(aero.beta, dtype=float)
     C = np.stack([CubicSpline(x, np.asarray(getattr(aero, n), dtype=float)).c.T for n in COEFFICIENTS])

@@ -38,8 +38,15 @@ import numpy as np
 from dynid.vehicle.sim.interp import eval_ppoly
 from dynid.vehicle.sim.tires import magic_formula
 from dynid.vehicle.table_poly import eval_table
+from dynid.vehicle.template import DAMPERS, FREE_JOINTS, WHEELS, damper, tabulated, tire, wheel
 
-FREE = (1, 2, 3, 4, 5, 6, 9, 18, 27, 36, 14, 23, 32, 41)
+FREE = (*FREE_JOINTS, *DAMPERS, *WHEELS)  # 1, ..., 6, 9, 18, 27, 36, 14, 23, 32, 41
+# each corner's columns of q (frame j in column j - 1), from the template's corner frames: the damper, the first
+# tabulated joint (steering; camber, caster, kingpin follow it), the wheel, the tire
+DAMPER_COL = tuple(damper(k) - 1 for k in range(4))
+TABLE_COL = tuple(tabulated(k)[0] - 1 for k in range(4))
+WHEEL_COL = tuple(wheel(k) - 1 for k in range(4))
+TIRE_COL = tuple(tire(k) - 1 for k in range(4))
 NF = 14
 NY = 39
 Y_UX, Y_UY, Y_INT, Y_H, Y_HD = 28, 32, 36, 37, 38
@@ -60,6 +67,8 @@ NPAR = 28
 NREC = 19
 # manoeuvre kinds
 M_CONST, M_SINE, M_BRAKE, M_SPIRAL, M_STEP, M_LANE, M_ACCEL, M_FISHHOOK, M_RANDOM = 0, 1, 2, 3, 4, 5, 6, 7, 8
+M_TABLE = 9
+MAN_TABLE = 10  # a table manoeuvre's samples start here: steering wheel (rad), acceleration (m/s^2), speed (m/s)
 # status codes
 S_OK, S_TABLE, S_NONFINITE = 0, 1, 2
 
@@ -115,6 +124,22 @@ def random_angle(man, t):
     return man[3] * math.sqrt(2.0 / n) * h * smoothstep(t)
 
 
+def table_value(man, column, t):
+    """A table manoeuvre's column (0 steering wheel, 1 acceleration demand, 2 speed target) at t s: linear between
+    its samples man[3] s apart (man[4] of them), held after the last."""
+    n = int(man[4])
+    x = t / man[3]
+    if x <= 0.0:
+        i, f = 0, 0.0
+    elif x >= n - 1:
+        i, f = n - 2, 1.0
+    else:
+        i = int(x)
+        f = x - i
+    base = MAN_TABLE + column * n
+    return man[base + i] + f * (man[base + i + 1] - man[base + i])
+
+
 def driver(t, y, v, par, man, out):
     """Steering-wheel target, total drive torque and the brake torque per wheel.
 
@@ -153,23 +178,28 @@ def driver(t, y, v, par, man, out):
         h_ref = fishhook_angle(man, t - t0)
     elif kind == M_RANDOM and t > t0:
         h_ref = random_angle(man, t - t0)
+    elif kind == M_TABLE:
+        h_ref = table_value(man, 0, t)
     mR = par[P_MASS] * par[P_R0]
     ff = (par[P_MASS] * par[P_G] * 0.012 + 0.5 * par[P_RHO] * par[P_AREA] * 0.31 * v * v * par[P_AERO_ON]) * par[P_R0]
     if kind == M_ACCEL and t > t0:  # the speed target ramps at man[3] m/s^2 up to man[4] m/s, its force fed forward
         ramp = smoothstep((t - t0) / man[5])
         vref = min(vref + man[3] * max(t - t0 - 0.5 * man[5], 0.0), man[4])
         ff += mR * man[3] * ramp * smoothstep((man[4] - v) / 1.0)
+    if kind == M_TABLE:  # the speed target and its acceleration fed forward; a negative torque is braking
+        vref = table_value(man, 2, t)
+        ff += mR * table_value(man, 1, t)
     err = vref - v
     td = ff + mR * (par[P_KP] * err + par[P_KI] * y[Y_INT])
+    if kind == M_TABLE and td < 0.0:
+        brake = -td
+        td = 0.0
     td = min(max(td, par[P_TDMIN]), par[P_TDMAX]) * drive_on
     out[0] = h_ref
     out[1] = td
-    if kind == M_BRAKE:
-        share = man[4]
-        out[2] = out[3] = brake * (1.0 - share) * 0.5
-        out[4] = out[5] = brake * share * 0.5
-    else:
-        out[2] = out[3] = out[4] = out[5] = 0.0
+    share = man[4] if kind == M_BRAKE else man[5]  # a table's front share; brake is 0 but for the two
+    out[2] = out[3] = brake * (1.0 - share) * 0.5
+    out[4] = out[5] = brake * share * 0.5
     out[6] = err if drive_on > 0.5 else 0.0
     return 0
 
@@ -183,7 +213,7 @@ def reduced_inertia(Af, F, M):
             M[j, i] = Af[NF_ROW * j + c]
     for k in range(4):
         for n in range(4):
-            c = 7 + 9 * k + 2 + n
+            c = TABLE_COL[k] + n
             f = F[k, n]
             for j in range(NF):
                 M[j, 6 + k] += Af[NF_ROW * j + c] * f
@@ -237,13 +267,12 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
     hd = y[Y_HD]
     # tabulated joints (chain rule on the damper travel and the steering-wheel angle)
     for k in range(4):
-        b = 7 + 9 * k
-        u = q[b + 1]
-        ud = qd[b + 1]
+        u = q[DAMPER_COL[k]]
+        ud = qd[DAMPER_COL[k]]
         for n in range(4):
             if eval_table(XB, YB, TNX, TNY, C, 4 * k + n, u, h, tab) != 0:
                 status = S_TABLE
-            j = b + 2 + n
+            j = TABLE_COL[k] + n
             q[j] = tab[0]
             qd[j] = tab[1] * ud + tab[2] * hd
             F[k, n] = tab[1]
@@ -257,7 +286,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
     hdd = par[P_WS] * par[P_WS] * (ctl[0] - h) - 2.0 * par[P_ZS] * par[P_WS] * hd
     for k in range(4):
         for n in range(4):
-            qdd[7 + 9 * k + 2 + n] += F[k, 4 + n] * hdd
+            qdd[TABLE_COL[k] + n] += F[k, 4 + n] * hdd
     R0 = par[P_R0]
     for k in range(4):
         o = KIN_CORNER * k
@@ -273,8 +302,8 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         ct = tire[k, 26]
         Fz = kt * pen + ct * pend
         contact = pen > 0.0 and Fz > 0.0
-        jt = 7 + 9 * k + 7  # column of the tire joint
-        jw = jt - 1  # column of the wheel joint
+        jt = TIRE_COL[k]
+        jw = WHEEL_COL[k]
         omega = qd[jw]
         # ground axes in frame 15: normal n = (r20, r21, r22); heading xg = x15 made horizontal; yg = n x xg
         xn = 1.0 - r20 * r20
@@ -360,12 +389,12 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
     # the dampers' dry friction, fs tanh(qd / v_s): a smooth law, so that the force is defined at reversal
     # (a sign(qd) inside the RK4 stages chatters there); past a few v_s it is fs sign(qd)
     for k in range(4):
-        rhs[6 + k] -= par[P_FS + k] * math.tanh(qd[7 + 9 * k + 1] / par[P_FVS])
+        rhs[6 + k] -= par[P_FS + k] * math.tanh(qd[DAMPER_COL[k]] / par[P_FVS])
     for k in range(4):
-        rho = R0 - q[7 + 9 * k + 7]
+        rho = R0 - q[TIRE_COL[k]]
         my_centre = wr[k, 4] - rho * wr[k, 0]
         drive = 0.5 * ctl[1] if k >= 2 else 0.0
-        spin = drive - ctl[2 + k] * math.tanh(qd[7 + 9 * k + 6] / 0.5)
+        spin = drive - ctl[2 + k] * math.tanh(qd[WHEEL_COL[k]] / 0.5)
         rhs[10 + k] += spin + my_centre
         if record:
             RR[krow, 3 + k] = spin
@@ -381,7 +410,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         dy[NF + i] = x[i]
     for k in range(4):
         for n in range(4):
-            qdd[7 + 9 * k + 2 + n] += F[k, n] * x[6 + k]
+            qdd[TABLE_COL[k] + n] += F[k, n] * x[6 + k]
     for i in range(NF):
         qdd[FREE[i] - 1] = x[i]
     dy[Y_INT] = ctl[6]
@@ -393,7 +422,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
             RQD[krow, j] = qd[j]
             RQDD[krow, j] = qdd[j]
         for k in range(4):
-            rho = R0 - q[7 + 9 * k + 7]
+            rho = R0 - q[TIRE_COL[k]]
             RW[krow, k, 0] = wr[k, 0]
             RW[krow, k, 1] = wr[k, 1]
             RW[krow, k, 2] = wr[k, 2]
@@ -470,5 +499,5 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
 car_kin = car_idm = car_inertia = None
 
 
-JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "driver",
+JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "table_value", "driver",
           "reduced_inertia", "lu_solve", "derivative", "simulate")

@@ -32,6 +32,10 @@ manoeuvre's target through a steering robot (2nd-order, 8 Hz, damping 0.8).
            factor), RMS steering-wheel angle giving `lateral_acceleration` 3 m/s^2 RMS in steady state; from
            2 s; 20 s.
   static   standing still (speed 0): settling under gravity.
+  table    a steering-robot file played back (`table_manoeuvre`): the steering-wheel angle and the longitudinal
+           acceleration demand sampled every `step` s from t = 0; the speed target is `speed` plus the demand's
+           integral, the demand fed forward (m a R) to the speed controller, whose negative torque brakes the
+           wheels (`front_share` on the front axle).
 
 Speeds and accelerations a manoeuvre cannot reach on the tires (beyond 0.8 of the peak
 friction at the static load) raise ManoeuvreError, as do unknown names and parameters.
@@ -44,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernel import M_ACCEL, M_BRAKE, M_CONST, M_FISHHOOK, M_LANE, M_RANDOM, M_SINE, M_SPIRAL, M_STEP
+from .kernel import M_ACCEL, M_BRAKE, M_CONST, M_FISHHOOK, M_LANE, M_RANDOM, M_SINE, M_SPIRAL, M_STEP, M_TABLE
 
 NMAN = 10
 
@@ -70,7 +74,7 @@ DEFAULTS: dict[str, dict[str, float]] = {
 UNITS = {"speed": "km/h", "duration": "s", "frequency": "Hz", "lateral_acceleration": "m/s^2", "start": "s",
          "deceleration": "m/s^2", "front_share": "1", "ramp": "s", "release_speed": "km/h", "rate": "deg/s",
          "max_angle": "deg", "rise": "s", "offset": "m", "preview": "s", "acceleration": "m/s^2",
-         "final_speed": "km/h", "dwell": "s", "hold": "s", "components": "1"}
+         "final_speed": "km/h", "dwell": "s", "hold": "s", "components": "1", "step": "s"}
 LANE_SECTIONS = (12.0, 13.5, 11.0, 12.5, 12.0)
 
 
@@ -80,6 +84,8 @@ class Manoeuvre:
 
     name: str
     params: dict[str, float] = field(default_factory=dict)
+    # a table manoeuvre's samples (3, n): steering-wheel angle (rad), acceleration demand (m/s^2), speed target (m/s)
+    table: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def speed(self) -> float:
@@ -121,6 +127,29 @@ def manoeuvre(name: str, **params: float | None) -> Manoeuvre:
     if name == "braking" and not 0.0 <= p["front_share"] <= 1.0:
         raise ManoeuvreError(f"braking: front_share = {p['front_share']} must be within 0..1")
     return Manoeuvre(name, p)
+
+
+def table_manoeuvre(step: float, steering_wheel, acceleration, speed: float, front_share: float = 0.7
+                    ) -> Manoeuvre:
+    """A steering-robot file as a manoeuvre: the steering-wheel angle (rad) and the longitudinal acceleration demand
+    (m/s^2, negative: braking) sampled every `step` s from t = 0, starting straight at `speed` km/h; the speed
+    target integrates the demand (trapezoids) and must stay within 10..180 km/h."""
+    h = np.asarray(steering_wheel, dtype=float).reshape(-1)
+    a = np.asarray(acceleration, dtype=float).reshape(-1)
+    if h.size != a.size or h.size < 2:
+        raise ManoeuvreError(f"table: {h.size} steering-wheel and {a.size} acceleration samples; give the same "
+                             "number, at least 2")
+    if not (step > 0 and np.all(np.isfinite(h)) and np.all(np.isfinite(a))):
+        raise ManoeuvreError("table: the step must be positive and every sample a finite number")
+    if not 0.0 <= front_share <= 1.0:
+        raise ManoeuvreError(f"table: front_share = {front_share} must be within 0..1")
+    v = speed / 3.6 + np.concatenate([[0.0], np.cumsum(0.5 * (a[1:] + a[:-1]) * step)])
+    if 3.6 * v.min() < 10.0 or 3.6 * v.max() > 180.0:
+        raise ManoeuvreError(f"table: the speed target spans {3.6 * v.min():.0f}..{3.6 * v.max():.0f} km/h; keep "
+                             "it within 10..180 km/h (less braking or acceleration)")
+    params = {"speed": float(speed), "duration": step * (h.size - 1), "start": 0.0, "step": float(step),
+              "front_share": float(front_share)}
+    return Manoeuvre("table", params, np.vstack([h, a, v]))
 
 
 def lane_path(offset: float, start_distance: float) -> tuple[float, float, float, float]:
@@ -190,6 +219,9 @@ def pack(m: Manoeuvre, car: dict[str, float]) -> np.ndarray:
                 f"lane: at {p['speed']:g} km/h the lane change needs {peak:.1f} m/s^2 of lateral acceleration, "
                 f"beyond the adhesion of the tires ({limit:.2f} m/s^2); use a speed below {vmax:.0f} km/h")
         out[0], out[4], out[5], out[6], out[7], out[8], out[9] = M_LANE, p["offset"], s1, s2, s3, s4, p["preview"]
+    elif name == "table":
+        out[0], out[3], out[4], out[5] = M_TABLE, p["step"], m.table.shape[1], p["front_share"]
+        out = np.concatenate([out, m.table.ravel()])
     else:
         out[0] = M_CONST
     return out

@@ -11,6 +11,7 @@ the channel list.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -84,7 +85,6 @@ def _json_safe(x):
 def sidecar(result, seed: int | None, noise: bool, truth: bool, names: list[str],
             suite: SensorSuite | None = None) -> dict:
     """The JSON sidecar of a test (see the module doc)."""
-    import dataclasses
 
     sim = result.sim
     tree = result.tree
@@ -126,6 +126,7 @@ def write_test(result, path: str | os.PathLike[str], format: str | None = None, 
 
 def _write_channels(ch: dict[str, tuple[str, np.ndarray]], path: Path, fmt: str, meta: dict[str, str]) -> None:
     try:
+        # start-up: dynid.io loads scipy.signal (0.5 s), a simulated test needs neither
         from ...io import Channel, Recording, write_recording
     except ImportError:  # the io layer is optional here: CSV by hand
         if fmt != "csv":
