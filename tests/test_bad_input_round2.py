@@ -555,10 +555,9 @@ case("a link to itself", K, _self_link, "robot.toml", "log.csv", "symbolic link"
 case("a dead q channel", K, robot(files={"log.csv": column(3, lambda _i, _c: "0.25")}), "robot.toml", "'q3'",
      "never change", "check the sensor")
 case("a torque with its sign flipped", K, robot(files={"log.csv": column(8, lambda _i, c: str(-float(c)))}),
-     "'tau2'", "sign", open="no check compares a joint torque's sign with the gravity load while the joint moves")
+     "'tau2'", "sign", "negate the channel")  # against the a priori model's torque (pipeline.health.robot_physics)
 case("q in degrees under [rad]", K, robot(files={"log.csv": column(2, lambda _i, c: str(np.degrees(float(c))))}),
-     "'q2'", "deg", open="no check finds positions in degrees under a [rad] header (28 rad amplitudes are "
-     "plausible for a continuous joint)")
+     "'q2'", "deg", "unit = \"deg\"")  # spans 9 turns, 0.98 rad read as degrees
 
 # Parquet, MAT, MDF4 robot logs
 K = "Parquet/MAT/MDF4"
@@ -567,8 +566,7 @@ case("Parquet numbers as text", K, robot(PQ, {"l.parquet": to_parquet(lambda d, 
 case("Parquet float32", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
     "tau6": d[:, 12].astype(np.float32)}))}), ok=True)
 case("Parquet booleans", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
-    "q3": d[:, 3] > 0}))}), "l.parquet", "'q3'", "boolean",
-     open="a boolean column is read as 0/1 (digital channels); a joint position logged as booleans goes through")
+    "q3": d[:, 3] > 0}))}), "l.parquet", "'q3'", "boolean", "[channels]")
 case("Parquet nested column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {
     "q3": [[x, x] for x in d[:, 3]]}))}), "l.parquet", "'q3'")
 case("Parquet struct column", K, robot(PQ, {"l.parquet": to_parquet(lambda d, n: _with(n, d, {

@@ -56,7 +56,10 @@ def cmd_model_show(args: argparse.Namespace) -> int:
         raise ModelError("give a model file (or a shipped example: puma560, tx40, floating_tree) or --template NAME")
     model = load_model(args.file)
     tree = model.tree
-    base = model.base_parameters()  # first: a tree too large to analyse is refused before anything is printed
+    try:  # first: a tree too large to analyse is refused before anything is printed
+        base = model.base_parameters()
+    except ModelError as exc:
+        raise ModelError(f"model show {args.file}: {exc}") from None
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters, gravity {list(tree.gravity)} m/s²\n")
     table = format_table(tree)
     if tree.joint_names:  # a model imported from a URDF: each moving frame's joint

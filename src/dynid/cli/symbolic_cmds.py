@@ -55,10 +55,46 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cols", default=None, help="identification model columns: parameter names, e.g. XX6,M6,K9")
 
 
-def _load(args: argparse.Namespace):
+# frame-ancestor pairs the symbolic models are built for: their inertia matrix and regressor hold an entry per pair
+# (a chain of n frames has n (n + 1) / 2: the time grows with its square; a star's n). A chain of 300 frames (45,150
+# pairs) took 29 s of CPU for `model ops` on a loaded 2-core machine, of 1000 a RecursionError; a star of 1000
+# frames, 2.5 s. A robot or the car has a few hundred pairs.
+MAX_PAIRS = 20_000
+# cells of the symbolic regressor (its rows x columns, before the zeros are dropped): a star of 1000 frames
+# (1000 x 10,000) took 1.4 s of CPU, of 2000 frames 13 s (its time grows faster than its cells), of 10,000 more
+# than 300 s of wall time; `model ops` builds it, `model codegen --model regressor` too (--rows, --cols cut it)
+MAX_CELLS = 12_000_000
+
+
+def _load(args: argparse.Namespace, command: str = ""):
+    """The model's tree; with command (ops, codegen), refused with one line when its symbolic models would be too
+    large (`MAX_PAIRS`)."""
     from ..dynamics import load_model  # start-up: the library, 1-5 s (--help 0.1 s)
 
-    return load_model(args.file).tree
+    tree = load_model(args.file).tree
+    if command:
+        ant = [int(a) for a in tree.ant]
+        depth = [0] * (tree.n + 1)
+        for j in range(1, tree.n + 1):  # a frame's antecedent comes before it: one pass (no ancestor lists)
+            depth[j] = depth[ant[j]] + 1
+        pairs = sum(depth)
+        if pairs > MAX_PAIRS:
+            raise UsageError(
+                f"model {command} {args.file}: {tree.name!r} has {tree.n} frames, {pairs:,} frame-ancestor pairs "
+                f"(the inertia matrix and the regressor have an entry per pair: time and memory grow with them); the "
+                f"symbolic models are built for up to {MAX_PAIRS:,} (a chain of 200 frames, about 15 s); describe a "
+                "smaller tree, or use the numeric models (dynid.Model), which grow with the frames alone")
+        if command == "ops" or args.model == "regressor":
+            chosen = _rows_cols(args, tree)
+            rows = len(chosen.get("rows", tree.equations))
+            cols = len(chosen.get("cols", tree.parameter_names))
+            if rows * cols > MAX_CELLS:
+                raise UsageError(
+                    f"model {command} {args.file}: the symbolic regressor of {tree.name!r} has {rows:,} rows x "
+                    f"{cols:,} columns ({rows * cols:,} cells; time grows faster than them); it is built for up to "
+                    f"{MAX_CELLS:,} (a star of 1000 frames, about 1.5 s): choose its rows and columns with --rows "
+                    "and --cols, describe a smaller tree, or use the numeric models (dynid.Model)")
+    return tree
 
 
 def _is_column(tree, name: str) -> bool:
@@ -94,7 +130,7 @@ def _rows_cols(args: argparse.Namespace, tree=None) -> dict:
 def cmd_ops(args: argparse.Namespace) -> int:
     from ..symbolic import SymbolicError, build  # start-up: the library, 1-5 s (--help 0.1 s)
 
-    tree = _load(args)
+    tree = _load(args, "ops")
     print(f"{tree.name}: {tree.n} frames, {tree.p} parameters; geometry {args.geometry}")
     print(f"{'model':<10} {'mult':>8} {'add':>8} {'functions':>10} {'equations':>10} {'time':>9}")
     try:
@@ -118,7 +154,7 @@ def cmd_codegen(args: argparse.Namespace) -> int:
     from ..symbolic import SymbolicError, build, model_hash, to_c, to_numpy, to_text
     from ..symbolic.cache import write_atomic  # start-up: the library, 1-5 s (--help 0.1 s)
 
-    tree = _load(args)
+    tree = _load(args, "codegen")
     opts = {"geometry": args.geometry}
     if args.model == "regressor":
         opts.update(_rows_cols(args, tree))

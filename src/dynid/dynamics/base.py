@@ -19,7 +19,7 @@ import numpy as np
 import scipy.linalg
 
 from ..model.tree import PRISMATIC, REVOLUTE, ModelError, Tree
-from ..resources import memory_budget
+from ..resources import budget_text, memory_budget
 from .regressor import regressor, resolve_cols, resolve_rows
 
 Array = np.ndarray
@@ -98,7 +98,7 @@ def base_parameters(
     if need > memory_budget():
         raise ModelError(
             f"the base-parameter analysis of {tree.name!r} ({len(R)} equations x {len(C)} parameters, {samples} "
-            f"random states) needs {need / 2**30:.1f} GiB, more than half this machine's memory; analyse it by "
+            f"random states) needs {need / 2**30:.1f} GiB, more than {budget_text()}; analyse it by "
             "parts (rows=, cols=) or describe a smaller tree")
     q, qd, qdd = random_states(tree, samples, seed)
     # a few dozen random states: the NumPy engine (30 ms on the car's 42 x 442), not the compiled one, whose

@@ -35,6 +35,9 @@ What is judged, per channel (values in the channel's unit):
   noise a pair above 5 times it (13 deviations of a step) never happens. A spike of two samples or more
   on an unheld channel is not seen.
 - dead: one value over the whole test.
+- boolean: a channel that should be continuous (`continuous`: a joint's position or torque) reading 0 and 1
+  and nothing else over the whole test: a digital channel (a Parquet boolean column, a brake switch) mapped
+  where a measurement belongs.
 
 The holds: a logger samples a slow sensor at its own rate and holds each value (a 125 Hz inertial unit on
 a 625 Hz clock repeats each value 5 times); the typical hold is the median length of the runs of identical
@@ -150,11 +153,16 @@ class ChannelScan:
     not declared); resolution: its quantisation step (0: unknown); still: for a channel that may read one value
     over a whole test (a steering wheel on a straight line, a wheel that does not steer), what to check then
     (a constant channel is then a warning; None: an error, a dead sensor); min_run: the shortest clipped plateau, in
-    samples (default: 0.1 s at 625 Hz; a clip shorter than that hardly matters once low-passed)."""
+    samples (default: 0.1 s at 625 Hz; a clip shorter than that hardly matters once low-passed); continuous: the
+    quantity takes any value (a position, a torque), so a channel of 0s and 1s alone is a digital one (an error)."""
 
     def __init__(self, name: str, unit: str = "", limits: tuple[float, float] | None = None,
-                 resolution: float = 0.0, still: str | None = None, min_run: int = 62, min_samples: int = 5) -> None:
+                 resolution: float = 0.0, still: str | None = None, min_run: int = 62, min_samples: int = 5,
+                 continuous: bool = False) -> None:
         self.name, self.unit, self.limits = name, unit, limits
+        self.continuous = continuous
+        self.binary = continuous  # every value so far 0 or 1 (judged for a continuous quantity only)
+        self.zeros_and_ones = (False, False)  # whether a 0 and a 1 were seen
         self.resolution, self.still = float(resolution), still
         self.min_run, self.min_samples = int(min_run), int(min_samples)
         self.n = 0
@@ -176,6 +184,11 @@ class ChannelScan:
             t, x = t[keep], x[keep]
         if x.size == 0:
             return
+        if self.binary:
+            zero, one = x == 0.0, x == 1.0
+            self.binary = bool(np.all(zero | one))
+            seen = self.zeros_and_ones
+            self.zeros_and_ones = (seen[0] or bool(zero.any()), seen[1] or bool(one.any()))
         starts, lengths = holds(x)
         # one value over the block: nothing but the range to judge in it (blocks may come in any order: the channel
         # is constant when every block is, at one value)
@@ -196,7 +209,7 @@ class ChannelScan:
         """A new scan of both scans' blocks (blocks of the same channel that do not overlap in time; in either
         order): what one scan fed with every block in time order finds."""
         out = ChannelScan(self.name, self.unit, self.limits, self.resolution, self.still, self.min_run,
-                          self.min_samples)
+                          self.min_samples, self.continuous)
         if not (self.n and other.n):
             src = self if self.n else other
             out.__dict__.update({**src.__dict__, "out": src.out.copy(), "at_limit": src.at_limit.copy(),
@@ -206,6 +219,8 @@ class ChannelScan:
         out.n = a.n + b.n
         out.first_value, out.t_first, out.t_last = a.first_value, a.t_first, max(a.t_last, b.t_last)
         out.constant = a.constant and b.constant and a.first_value == b.first_value
+        out.binary = a.binary and b.binary
+        out.zeros_and_ones = (a.zeros_and_ones[0] or b.zeros_and_ones[0], a.zeros_and_ones[1] or b.zeros_and_ones[1])
         for kind in ("out", "at_limit", "plateau", "spikes", "wild"):
             setattr(out, kind, getattr(a, kind).merged(getattr(b, kind)))
         out.span = (min(a.span[0], b.span[0]), max(a.span[1], b.span[1]))
@@ -299,6 +314,12 @@ class ChannelScan:
             return []
         u = f" {self.unit}" if self.unit else ""
         out = []
+        if self.binary and all(self.zeros_and_ones):  # a digital channel: nothing else about it means anything
+            return [Finding(self.name, "boolean", ERROR, self.t_first, self.t_last,
+                            "reads 0 and 1 and nothing else over the test (a boolean or digital channel), where "
+                            "a continuous measurement belongs",
+                            "map this quantity to the sensor's own channel in [channels], or export the "
+                            "measurement instead of its flag", 1.0)]
         if self.constant and self.n > 1:
             if self.still is not None:
                 out.append(Finding(self.name, "dead", WARNING, self.t_first, self.t_last,

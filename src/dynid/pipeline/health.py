@@ -58,8 +58,18 @@ from numpy.typing import NDArray
 
 from ..io import Channel, read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
+from ..signals import border_samples, filtered_derivatives
 from .config import ConfigError, IdentifyConfig
-from .sources import CarTestPlan, RobotTestPlan, SegmentWindow, read_segment, segment_window
+from .robot import to_frames
+from .sources import (
+    CarTestPlan,
+    RobotTestPlan,
+    SegmentWindow,
+    driven,
+    read_robot_window,
+    read_segment,
+    segment_window,
+)
 
 Progress = Callable[[str], None]
 WINDOW_S = 120.0  # s of the file read at a time
@@ -351,38 +361,262 @@ def check_car_tests(cfg: IdentifyConfig, plans: Sequence[CarTestPlan], vehicle, 
                                      else car_findings(gathered[plan.test], vehicle, plan))], say)
 
 
-def robot_health(plan: RobotTestPlan) -> list[Finding]:
-    """The findings of one planned robot test: each joint's position and torque channel (`io.health.ChannelScan`:
-    clipped plateaus, spikes, a channel that never moves), read a window at a time, errors first. No range is
-    declared for a robot's channels: clips are seen from the data. A joint that does not move in a test, or
-    whose torque does not change, may be the test's design (one joint excited at a time): a warning."""
+def robot_health(plan: RobotTestPlan, cfg: IdentifyConfig | None = None, model=None,
+                 columns: Sequence[int] | None = None) -> list[Finding]:
+    """The findings of one planned robot test, errors first: each joint's position and torque channel
+    (`io.health.ChannelScan`: a boolean channel, clipped plateaus, spikes, a channel that never moves), read a window
+    at a time; then, with the config, the model (a priori values) and the frame of each data column
+    (`robot.data_joints`), the joints against the model (`robot_physics`). No range is declared for a robot's
+    channels: clips are seen from the data. A joint that does not move in a test, or whose torque does not change,
+    may be the test's design (one joint excited at a time): a warning."""
     t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
     still = "fine if this joint is meant to stay still in this test; otherwise check the sensor and its wiring"
-    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)))
+    scans = {(q, n): ChannelScan(n, u, still=still, min_run=max(5, round(0.1 * plan.fs)), continuous=True)
              for q in ("q", plan.effort) for n, u in zip(plan.channels[q], plan.units[q], strict=True)}
+    files: dict[int, tuple] = {}  # q and the effort in one file (the same index): read once
     for q in ("q", plan.effort):
+        files.setdefault(id(plan.indexes[q]), (plan.indexes[q], []))[1].append(q)
+    for index, quantities in files.values():
+        names = list(dict.fromkeys(n for q in quantities for n in plan.channels[q]))
         a = t0
         while a <= t1:
             b = min(a + WINDOW_S, t1)
-            rec = read_window(plan.indexes[q], list(plan.channels[q]), a, b)
-            for n in plan.channels[q]:
-                ch = rec.channels[n]
-                keep = slice(None) if b >= t1 else ch.time < b
-                scans[(q, n)].add(ch.time[keep], ch.values[keep])
+            rec = read_window(index, names, a, b)
+            for q in quantities:
+                for n in plan.channels[q]:
+                    ch = rec.channels[n]
+                    keep = slice(None) if b >= t1 else ch.time < b
+                    scans[(q, n)].add(ch.time[keep], ch.values[keep])
             if b >= t1:
                 break
             a = b
     out = [f for scan in scans.values() for f in scan.findings()]
+    if cfg is not None and model is not None and columns is not None:
+        broken = {f.channel for f in out if f.severity == ERROR}
+        out += robot_physics(plan, cfg, model, columns, broken)
     order = {ERROR: 0, WARNING: 1, NOTE: 2}
     return sorted(out, key=lambda f: order[f.severity])
 
 
-def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress) -> list[dict]:
+ANTI = -0.5  # correlation of a joint's torque with the a priori model's at or below which its sign is inverted
+TURN = 2.0 * math.pi
+# rad: a revolute joint's positions spanning more than two turns over a test are beyond the widest range of common
+# arms' joints (a UR's +-360 deg; the TX40's wrist spans 1.1 turns in its measured files)
+SPAN = 2.0 * TURN
+
+
+@dataclass
+class RobotHealth:
+    """What a robot test's joints are judged from against the model (`robot_physics`), gathered from parts of the
+    test that do not overlap (a window, or a chunk of the identification's map: `gather_joints`) and combined in
+    any order (`merged`): per data column, the positions' extremes with their times and the way travelled, and
+    sums of the measured torque t and the a priori model's a (their correlation). A few numbers per joint."""
+
+    k: int
+    torque: bool = True  # the joint torques are known (not with identified drive gains)
+    n: NDArray[np.int64] = field(init=False)  # samples in the sums, per column
+    sums: NDArray[np.float64] = field(init=False)  # rows: t, a, t t, a a, t a
+    low: NDArray[np.float64] = field(init=False)  # rows: value, time
+    high: NDArray[np.float64] = field(init=False)
+    travel: NDArray[np.float64] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.n = np.zeros(self.k, dtype=np.int64)
+        self.sums = np.zeros((5, self.k))
+        self.low = np.array([np.full(self.k, np.inf), np.zeros(self.k)])
+        self.high = np.array([np.full(self.k, -np.inf), np.zeros(self.k)])
+        self.travel = np.zeros(self.k)
+
+    def positions(self, t: NDArray, q: NDArray, step: int) -> None:
+        i, j = np.argmin(q, axis=0), np.argmax(q, axis=0)
+        cols = np.arange(self.k)
+        lo, hi = q[i, cols], q[j, cols]
+        less, more = lo < self.low[0], hi > self.high[0]
+        self.low[:, less] = np.array([lo, t[i]])[:, less]
+        self.high[:, more] = np.array([hi, t[j]])[:, more]
+        # on every step-th sample: less of the noise summed (the step between two parts is left out: one in a chunk)
+        self.travel += np.abs(np.diff(q[::step], axis=0)).sum(axis=0)
+
+    def torques(self, t: NDArray, a: NDArray) -> None:
+        self.n += t.shape[0]
+        self.sums += np.array([t.sum(0), a.sum(0), (t * t).sum(0), (a * a).sum(0), (t * a).sum(0)])
+
+    def add_rows(self, system, columns: Sequence[int], a_priori: NDArray[np.float64]) -> None:
+        """The torques of an identification chunk's rows (`robot.chunk_rows`: filtered, decimated, the slow rows
+        dropped): Y the measured torque, W @ a_priori the model's (a_priori: its base parameters' values, one per
+        column of W)."""
+        a = system.W @ a_priori
+        for i, j in enumerate(columns):
+            mask = system.groups == f"joint{j}"
+            y, m = system.Y[mask], a[mask]
+            self.sums[:, i] += [y.sum(), m.sum(), y @ y, m @ m, y @ m]
+            self.n[i] += y.size
+
+    def merged(self, other: RobotHealth) -> RobotHealth:
+        """Both parts (pure)."""
+        out = RobotHealth(self.k, self.torque and other.torque)
+        out.n = self.n + other.n
+        out.sums = self.sums + other.sums
+        out.travel = self.travel + other.travel
+        lo, hi = other.low[0] < self.low[0], other.high[0] > self.high[0]
+        out.low = np.where(lo, other.low, self.low)
+        out.high = np.where(hi, other.high, self.high)
+        return out
+
+    def correlation(self) -> tuple[NDArray, NDArray, NDArray]:
+        """(r, the torque's standard deviation, the model's), per column (r = 0 where either is still)."""
+        st, sa, stt, saa, sta = self.sums / np.maximum(self.n, 1)
+        vt, va = np.maximum(stt - st * st, 0.0), np.maximum(saa - sa * sa, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where((vt > 0) & (va > 0), (sta - st * sa) / np.sqrt(vt * va), 0.0)
+        return r, np.sqrt(vt), np.sqrt(va)
+
+
+def _judged(fs: float, cond) -> tuple[int, int]:
+    """(border, step): the samples at each end of a test no torque is judged on (the filter's transient), and the
+    model's torque on every step-th sample (about 10 per cut-off period)."""
+    return border_samples(fs, cond.cutoff, cond.order) + 2, max(1, int(fs / (10.0 * cond.cutoff)))
+
+
+def gather_joints(cfg: IdentifyConfig, model, columns: Sequence[int], clock: NDArray, fs: float, first: int,
+                  own: tuple[int, int], n_samples: int, q: NDArray, tau: NDArray, gains: NDArray | None,
+                  torques: bool = True) -> RobotHealth:
+    """One part's `RobotHealth`: q, tau the joints' positions and torques (SI, joint side: `sources.driven`, one
+    column per data joint) on the clock samples first.. of the test (clock: those samples' times), the part judged
+    own = (s, e) of the test's samples (the rest read around it: the filter's transients); gains: the drive gains'
+    columns (identified gains: no torque known); torques: False in an identification chunk, whose rows give them
+    (`RobotHealth.add_rows`: the filtering and the regressor already done)."""
+    cond = cfg.conditioning
+    border, step = _judged(fs, cond)
+    out = RobotHealth(len(columns), torque=gains is None)
+    s, e = own[0] - first, own[1] - first
+    if e > s:
+        out.positions(clock[s:e], q[s:e], step)
+    pick = np.arange(max(own[0], border), min(own[1], n_samples - border), step) - first
+    if not (torques and out.torque) or pick.size == 0 or q.shape[0] < 2 * border:
+        return out
+    qf, qd, qdd = filtered_derivatives(q, fs, cond.cutoff, order=cond.order, nderiv=2)
+    n = model.n
+    ap = model.inverse_dynamics(to_frames(qf[pick], columns, n), to_frames(qd[pick], columns, n),
+                                to_frames(qdd[pick], columns, n))[:, np.asarray(columns) - 1]
+    out.torques(tau[pick], ap)
+    return out
+
+
+def robot_physics(plan: RobotTestPlan, cfg: IdentifyConfig, model, columns: Sequence[int],
+                  broken: set[str] = frozenset(), gathered: RobotHealth | None = None) -> list[Finding]:
+    """A robot test's joints against its model, on the joint side (the channels through [transmission] and the drive
+    gains, SI), from `gathered` (the identification's chunks gather it: `gather_joints`) or read here a window of
+    `WINDOW_S` at a time:
+
+    - a revolute joint whose positions span more than `SPAN` (two turns; the model files hold no joint limits): in
+      degrees under a [rad] header when the span read as degrees is within it and the joint swings (it travels
+      more than 1.5 times its span: an error, the joint's kinematics, gravity and every regressor column would be
+      wrong), else a joint that turns on and on or a motor-side angle without its gear ratio (a warning);
+    - a joint torque against the torque the model's a priori values give on the measured motion (gravity load,
+      inertia and friction; in the identification, its rows' Y against W times the a priori base parameters: the
+      filtered, decimated rows, those of a joint slower than its min_speed dropped; read here,
+      `Model.inverse_dynamics` on the filtered positions and their derivatives, the config's cut-off, on samples
+      at about 10 times the cut-off): a correlation at or below `ANTI` over the test
+      is a torque whose sign is inverted (an error). A gravity-loaded joint's torque follows its gravity load with
+      the a priori model's sign whatever the model's errors; the a priori inertia and friction join it so that a
+      fast motion, whose inertial torque may oppose the gravity load's changes, is judged right too.
+
+    Joints whose channels have an error already (`broken`: a spike, a boolean column) are not judged; no torque is
+    when a position channel has one, nor the torques with identified drive gains (their scale and sign are
+    parameters)."""
+    N, fs = plan.samples, plan.fs
+    k = len(columns)
+    border, _ = _judged(fs, cfg.conditioning)
+    if 2 * border + 2 >= N:
+        return []  # too short to filter: the identification says so
+    sums = gathered
+    if sums is None:
+        size = max(2 * border + 4, int(WINDOW_S * fs))
+        for lo in range(0, N, size):
+            hi = min(N, lo + size)
+            a, b = max(0, lo - border), min(N, hi + border)  # read past the part judged: the filter's transients
+            raw = read_robot_window(plan, a, b)
+            part = gather_joints(cfg, model, columns, plan.clock[a:b], fs, a, (lo, hi), N,
+                                 *driven(cfg, raw["q"], raw[plan.effort], k))
+            sums = part if sums is None else sums.merged(part)
+    torque, travel = sums.torque, sums.travel
+    t0, t1 = float(plan.clock[0]), float(plan.clock[-1])
+    out = []
+    q_names = _joint_channels(cfg, plan, "q", k)
+    tau_names = _joint_channels(cfg, plan, plan.effort, k)
+    sigma = np.asarray(model.tree.sigma)[np.asarray(columns) - 1]
+    for j in range(k):
+        span = float(sums.high[0, j] - sums.low[0, j])
+        if sigma[j] != 0 or not span > SPAN or broken & set(q_names[j]):
+            continue
+        when = sorted((float(sums.low[1, j]), float(sums.high[1, j])))
+        deg = math.radians(span)
+        name = " and ".join(q_names[j])
+        winds = travel[j] <= 1.5 * span  # a joint turning on travels its span once; one that swings, twice or more
+        if deg <= SPAN and not winds:
+            out.append(Finding(name, "range", ERROR, when[0], when[1],
+                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns, from "
+                               f"{sums.low[0, j]:.4g} to {sums.high[0, j]:.4g} rad), {deg:.3g} rad read as degrees: "
+                               "positions in degrees under a [rad] header", "give the channel's unit: "
+                               "unit = \"deg\" in [channels] q, or [deg] in the file's header (a joint that does "
+                               "turn on and on: data_health = \"warn\" in [identification])", 1.0))
+        else:
+            out.append(Finding(name, "range", WARNING, when[0], when[1],
+                               f"joint {j + 1}'s position spans {span:.4g} rad ({span / TURN:.3g} turns, "
+                               f"{travel[j]:.4g} rad travelled)",
+                               "fine for a joint that turns on and on; a motor-side angle needs its gear ratio "
+                               "([transmission] q)", 1.0))
+    # the model's torque from positions that are wrong anywhere is wrong at every joint (the dynamics couple them)
+    q_bad = any(f.severity == ERROR for f in out) or bool(broken & set(plan.channels["q"]))
+    if torque and not q_bad:
+        r, sd_t, sd_a = sums.correlation()
+        for j in range(k):
+            if r[j] > ANTI or sums.n[j] <= 10 or broken & set(tau_names[j]):
+                continue
+            name = " and ".join(tau_names[j])
+            out.append(Finding(name, "sign", ERROR, t0, t1,
+                               f"joint {j + 1}'s torque runs against the one the model file's a priori values give "
+                               f"on the measured motion (gravity load, inertia, friction): correlation {r[j]:.2f} "
+                               f"over {sums.n[j]} samples while the joints move ({sd_t[j]:.3g} N.m RMS measured, "
+                               f"{sd_a[j]:.3g} N.m expected): its sign is inverted",
+                               "negate the channel (a -1 in its row of [transmission] tau, or the logger's sign "
+                               "convention), or check the model file's a priori masses and first moments", 1.0))
+    return out
+
+
+def _joint_channels(cfg: IdentifyConfig, plan: RobotTestPlan, quantity: str, k: int) -> list[tuple[str, ...]]:
+    """Each joint's channels of `quantity` (those its row of [transmission] mixes; the j-th without one)."""
+    names = plan.channels[quantity]
+    m = cfg.transmission.get("q" if quantity == "q" else "tau")
+    if m is None or m.shape != (k, len(names)):
+        return [(names[j],) if j < len(names) else () for j in range(k)]
+    return [tuple(names[i] for i in np.flatnonzero(m[j])) for j in range(k)]
+
+
+def check_robot_test(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress, model=None,
+                     columns: Sequence[int] | None = None) -> list[dict]:
     """`robot_health` of one planned test, as `check_car_tests` reports a car's: an error stops the run
-    (`ConfigError`, one line), the rest is said and returned as dicts."""
+    (`ConfigError`, one line), the rest is said and returned as dicts. model, columns: the robot's model (a priori
+    values) and the frame of each data column, for the joints' physics (`robot_physics`; without them, each
+    channel alone: the identification judges the joints from its chunks, `check_robot_joints`)."""
+    return _reported(cfg, _sourced(plan, robot_health(plan, cfg, model, columns)), say)
+
+
+def check_robot_joints(cfg: IdentifyConfig, plan: RobotTestPlan, say: Progress, model, columns: Sequence[int],
+                       broken: set[str], gathered: RobotHealth | None) -> list[dict]:
+    """`robot_physics` of one test from what the identification's chunks gathered (`gather_joints`, combined), as
+    `check_robot_test` reports: broken, the channels whose own findings were errors (data_health = "warn")."""
+    found = robot_physics(plan, cfg, model, columns, broken, gathered)
+    order = {ERROR: 0, WARNING: 1, NOTE: 2}
+    return _reported(cfg, _sourced(plan, sorted(found, key=lambda f: order[f.severity])), say)
+
+
+def _sourced(plan: RobotTestPlan, found: Sequence[Finding]) -> list[tuple[str, str, Finding]]:
+    """(test, the file of the finding's channel(s), finding)."""
     e = plan.effort
-    return _reported(cfg, [(plan.test, str(plan.indexes[e if f.channel in plan.channels[e] else "q"].path), f)
-                           for f in robot_health(plan)], say)
+    return [(plan.test, str(plan.indexes[e if set(f.channel.split(" and ")) & set(plan.channels[e]) else "q"].path),
+             f) for f in found]
 
 
 def _reported(cfg: IdentifyConfig, found: Sequence[tuple[str, str, Finding]], say: Progress) -> list[dict]:
@@ -416,4 +650,5 @@ def health_note(listed: Sequence[dict]) -> str:
     return "\nData health (checked before the identification):\n" + "\n".join(lines) + "\n"
 
 
-__all__ = ["car_health", "check_car_tests", "check_robot_test", "expected_loads", "health_note", "robot_health"]
+__all__ = ["RobotHealth", "car_health", "check_car_tests", "check_robot_joints", "check_robot_test", "expected_loads",
+           "gather_joints", "health_note", "robot_health", "robot_physics"]

@@ -57,7 +57,7 @@ from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS, sample_and_hold
 from ..vehicle.tire_curves import tire_samples
 from .car import car_load_changes, car_moved_rows, car_system, knee_rows
 from .config import ConfigError, IdentifyConfig
-from .health import CarHealth, segment_health
+from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
 from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window, read_segment
 
@@ -113,7 +113,8 @@ class Partial:
     tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
-    health: dict[str, CarHealth] = field(default_factory=dict)  # test -> its data health so far (pipeline.health)
+    # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
+    health: dict[str, CarHealth | RobotHealth] = field(default_factory=dict)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -438,6 +439,7 @@ class RobotJob:
     chunk: tuple[int, int]
     n_samples: int
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
+    health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
 
     @property
     def test(self) -> str:
@@ -451,6 +453,7 @@ class RobotSetup:
         self.joints = config_joints(cfg, load_model(cfg.model).tree)
         self.model = Model(self.joints.tree)
         self.base: BaseParameters = self.model.base_parameters()
+        self.a_priori = self.base.values(self.model.parameters)  # the model file's values of the base parameters
         # the estimated parameters: the base parameters, then the drive gains when identified
         self.names = [*self.base.names, *gain_names(cfg)]
         clash = sorted(set(self.base.names) & set(gain_names(cfg)))
@@ -483,6 +486,9 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
     arrays = read_robot_window(w, 0, w.samples)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
+    # the joints' data health: the positions here, the torques from the rows below (pipeline.health)
+    health = {w.test: gather_joints(job.cfg, setup.model, columns, w.clock, w.fs, w.first, job.chunk, job.n_samples,
+                                    q, tau, gains, torques=False)} if job.health else {}
     q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
     if gains is not None and len(columns) != n:  # the joints without data: no rows, zero columns
         full = np.zeros((gains.shape[0], n, gains.shape[2]))
@@ -490,6 +496,8 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
         gains = full
     sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
+    if health and gains is None:
+        health[w.test].add_rows(sys, columns, setup.a_priori)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
-    return Partial(ls, rows={w.test: sys} if job.keep_rows else {})
+    return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)

@@ -59,7 +59,7 @@ from ..vehicle.tire_curves import fit_tire_curves
 from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 from .config import ConfigError, IdentifyConfig, TestSpec, load_config
 from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
-from .health import check_car_tests, check_robot_test, health_note
+from .health import check_car_tests, check_robot_joints, check_robot_test, health_note
 from .heap import trim_heap
 from .reduce import (
     CarJob,
@@ -199,13 +199,17 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     too (Partial.rows, by test), up to `PLOT_BYTES` (the report's plots and validation.csv; every chunk's with
     all_rows), joint by joint."""
     jobs = []
+    plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
         plan = plan_robot_test(cfg, _checked_robot_test(cfg, spec), say)
-        found = check_robot_test(cfg, plan, say)  # the data's health (pipeline.health)
+        # the data's health: each channel, from its file, here (an error stops before any chunk is reduced); the
+        # joints against the model, gathered by the chunks (below)
+        found = check_robot_test(cfg, plan, say)
         if health is not None:
             health += found
+        plans[spec.name] = (plan, {d["channel"] for d in found if d["severity"] == "error"})
         transmitted(cfg, np.zeros((1, len(plan.channels["q"]))), np.zeros((1, len(plan.channels[plan.effort]))),
                     len(robot_setup(cfg).joints.columns))
         N, pad = plan.samples, chunk_pad(plan.fs, cfg.conditioning)
@@ -221,9 +225,17 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
-            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep))
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True))
             kept += (e - s) * row_bytes
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
+    setup = robot_setup(cfg)
+    for spec in cfg.tests:  # the joints against the model, as the chunks gathered them: an error stops here
+        plan, broken = plans[spec.name]
+        part = parts.get(spec.role)
+        gathered = None if part is None else part.health.pop(spec.name, None)
+        found = check_robot_joints(cfg, plan, say, setup.model, setup.joints.columns, broken, gathered)
+        if health is not None:
+            health += found
     for part in parts.values():
         part.rows = {k: in_joint_order([v]) for k, v in part.rows.items()}
     return parts
