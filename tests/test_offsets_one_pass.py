@@ -83,16 +83,16 @@ def test_one_pass_equals_the_per_offset_reruns_on_the_mujoco_car(tmp_path, later
     """The same on the MuJoCo car (examples/mujoco_car's vehicle file, its suite's offsets; the noisy sine); and with
     the tires' lateral-force term (a column of W built from the wheel loads: their offsets move W) and the dry
     friction's low-pass."""
-    from mujoco_car import DATA, EXAMPLE, mujoco_truth
+    from mujoco_car import DATA, EXAMPLE, EXAMPLE_TIRE, mujoco_truth
 
     mujoco_truth()  # skips without the data
-    vehicle = EXAMPLE / "vehicle.toml"
-    if lateral:
+    vehicle = EXAMPLE / "vehicle.toml"  # its tire: the progressive law with the lateral-force term
+    if not lateral:  # the paper's line
         text = vehicle.read_text()
-        assert text.count("[wheels]") == 1
+        assert text.count(EXAMPLE_TIRE) == 1
         (tmp_path / "kinematics.toml").write_text((EXAMPLE / "kinematics.toml").read_text())  # its [tables] file
         vehicle = tmp_path / "vehicle.toml"
-        vehicle.write_text(text.replace("[wheels]", '[wheels]\ntire_law = "progressive"\ntire_lateral_force = true'))
+        vehicle.write_text(text.replace(EXAMPLE_TIRE, ""))
     config = tmp_path / "identify.toml"
     config.write_text(f'[model]\nvehicle = "{vehicle.as_posix()}"\n\n[[tests]]\n'
                       f'name = "sine"\nfile = "{(DATA / "noise" / "sine.parquet").as_posix()}"\n\n'
