@@ -21,7 +21,7 @@ import pytest
 from oracles import compile_generated_c
 
 import dynid
-from dynid.dynamics import Model
+from dynid.dynamics import Model, trig
 from dynid.model import Frame, Tree
 from dynid.symbolic import (
     SymbolicError,
@@ -249,10 +249,11 @@ def test_generated_sincos_against_libm():
     rng = np.random.default_rng(0)
     xs = [np.linspace(-20.0, 20.0, 4001), rng.uniform(-9.9e4, 9.9e4, 4000), np.arange(-64, 64) * np.pi / 4,
           np.array([0.0, 1e-300, -3.0, 1e5 + 1.0, -1e7]), np.array([np.nan, 1.0, np.inf])]
+    rows = trig.numpy_rows()
     for x in xs:
-        s, c, w, k = np.empty_like(x), np.empty_like(x), np.empty((3, x.size)), np.empty(x.size, np.int64)
+        s, c, w, k = np.empty_like(x), np.empty_like(x), np.empty((rows, x.size)), np.empty(x.size, np.int64)
         with np.errstate(invalid="ignore"):
-            ns["_sincos"](x, s, c, w[0], w[1], w[2], k)
+            ns["_sincos"](x, s, c, k, *w)
             es, ec = np.sin(x), np.cos(x)
         np.testing.assert_allclose(s, es, rtol=0, atol=3e-16)
         np.testing.assert_allclose(c, ec, rtol=0, atol=3e-16)

@@ -22,8 +22,8 @@ sample), the block goes through a zeroed (size, LANES) scratch whose valid lanes
 copied. Arithmetic is the source's, operation by
 operation, with no fast-math flag (no contraction into FMA, no reassociation), so that the
 numbers do not depend on the CPU's instruction set: they are the per-sample code's except
-sine and cosine, fdlibm's reduction by pi/2 and polynomials in vector form (the same as the
-numeric engine's `_sincos`, within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
+sine and cosine, dynamics.trig's steps in vector form (the numeric engine's and the generated
+NumPy's and C's to the bit, within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
 takes libm's values.
 
 `block_model(tree, model, **options)` generates, caches on disk (the source beside Numba's
@@ -39,6 +39,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..dynamics import trig
 from ..model.tree import Tree
 from .cache import model_hash
 from .llvm_code import UnsupportedSourceError, _double, parse_function
@@ -52,16 +53,6 @@ LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16
 _GENERATION_LOCK = threading.RLock()
 _PREFETCHES = 48  # per input array and block: its rows' cache lines (8 rows of 42 doubles: 42 lines)
 _SLOTS = 4  # int64 per argument in the descriptor: address, then up to three strides (bytes)
-
-# fdlibm's constants, as in dynamics.compiled._sincos
-_INVPIO2, _PIO2_1, _PIO2_1T = 6.36619772367581382433e-01, 1.57079632673412561417e+00, 6.07710050650619224932e-11
-_ROUND = 6755399441055744.0
-_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
-        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
-_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
-        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
-_LIMIT = 1.0e5
-
 
 class _VectorEmitter:
     """One block's instructions: every Python name of the source is a <L x double> SSA value."""
@@ -183,32 +174,17 @@ class _VectorEmitter:
         raise UnsupportedSourceError(f"expression {ast.unparse(node)}")
 
     def sincos(self, x: str) -> tuple[str, str]:
-        """(sin x, cos x) of a vector: fdlibm's reduction and kernels (dynamics.compiled._sincos, operation by
-        operation); lanes out of range (|x| >= 1e5 or NaN) from libm, in a branch taken only then."""
+        """(sin x, cos x) of a vector: the steps of dynamics.trig, the quadrant by selects; lanes out of range
+        (|x| >= trig.LIMIT or NaN) from libm, in a branch taken only then."""
         L, V, c = self.L, self.V, self.const
         M, VI = f"<{L} x i1>", f"<{L} x i64>"
         ax = self._new(f"call {V} @llvm.fabs.v{L}f64({V} {x})")
-        ok = self._new(f"fcmp olt {V} {ax}, {c(_LIMIT)}")
-        xs = self._new(f"select {M} {ok}, {V} {x}, {V} zeroinitializer")
-        k = self._op("fsub", self._op("fadd", self._op("fmul", xs, c(_INVPIO2)), c(_ROUND)), c(_ROUND))
-        r = self._op("fsub", self._op("fsub", xs, self._op("fmul", k, c(_PIO2_1))), self._op("fmul", k, c(_PIO2_1T)))
-        z = self._op("fmul", r, r)
-        p = self._op("fmul", z, c(_SIN[5]))
-        for a in reversed(_SIN[:5]):  # _S1 + z * (_S2 + z * (... + z * _S6))
-            p = self._op("fadd", c(a), p)
-            if a != _SIN[0]:
-                p = self._op("fmul", z, p)
-        sn = self._op("fadd", r, self._op("fmul", self._op("fmul", z, r), p))
-        hz = self._op("fmul", c(0.5), z)
-        w = self._op("fsub", c(1.0), hz)
-        p = self._op("fmul", z, c(_COS[5]))
-        for a in reversed(_COS[:5]):
-            p = self._op("fadd", c(a), p)
-            if a != _COS[0]:
-                p = self._op("fmul", z, p)
-        tail = self._op("fadd", self._op("fsub", self._op("fsub", c(1.0), w), hz), self._op("fmul", self._op(
-            "fmul", z, z), p))
-        cs = self._op("fadd", w, tail)
+        ok = self._new(f"fcmp olt {V} {ax}, {c(trig.LIMIT)}")
+        val = {"x": self._new(f"select {M} {ok}, {V} {x}, {V} zeroinitializer")}
+        for name, op, a, b in trig.STEPS:  # one vector instruction per step
+            val[name] = self._op(f"f{op}", val[a] if a in val else c(trig.CONSTANTS[a]),
+                                 val[b] if b in val else c(trig.CONSTANTS[b]))
+        k, sn, cs = val["k"], val["sn"], val["cs"]
         quad = self._new(f"and {VI} {self._new(f'fptosi {V} {k} to {VI}')}, " + "<" + ", ".join(["i64 3"] * L) + ">")
 
         def bit(v: str, b: int) -> str:
