@@ -1,6 +1,7 @@
-"""The generated NumPy modules, cached on disk under a hash of the model description, the options and
-the generator's own source (`DYNID_CACHE`, default ~/.cache/dynid), written atomically and imported
-from there.
+"""The disk cache of generated code (`DYNID_CACHE`, default ~/.cache/dynid): `load_module`, the one loader
+of every generated module (NumPy, Numba per-sample and block kernels, the simulator's), written atomically
+and imported by path under a key that hashes the model description, the options and the generator's own
+source; `numpy_module`, the generated NumPy module of a model.
 """
 
 from __future__ import annotations
@@ -10,8 +11,11 @@ import functools
 import hashlib
 import importlib.util
 import json
+import linecache
 import os
 import sys
+import threading
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
@@ -62,16 +66,68 @@ def write_atomic(path: Path, text: str) -> None:
     _write_atomic(path, text)
 
 
+def module_path(folder: str, name: str) -> Path:
+    """Where load_module keeps the generated module `name` of a kind (numpy, numba)."""
+    return cache_dir() / folder / f"{name}.py"
+
+
 def import_file(path: Path, name: str) -> ModuleType:
+    """Import the Python file `path` as the module `name` (in sys.modules while it runs, as an import does)."""
     spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise SymbolicError(f"cannot import the generated module {path}")
     mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    sys.modules[name] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
     return mod
 
 
 _LOADED: dict[str, ModuleType] = {}
+_LOAD_LOCK = threading.Lock()
+
+
+def load_module(folder: str, name: str, key: str, source: Callable[[], str] | None) -> ModuleType | None:
+    """The generated module `name` (a Python identifier naming its key: its folder, its file, its entry in
+    sys.modules), from memory, from `module_path(folder, name)` when the file's KEY is `key`, or else
+    `source()` with a `KEY = key` line written there atomically and imported by path (Numba's cache=True
+    keeps machine code beside a file); source None: from the cache only, None when it is not there.
+
+    key: a hash of everything the text depends on, the generator's fingerprint included, so that a file of
+    another version is never reused. A damaged file is generated again, never trusted; a read-only cache
+    gives an in-memory module (its source registered for inspect.getsource, which llvm_code reads)."""
+    with _LOAD_LOCK:
+        if name in _LOADED:
+            return _LOADED[name]
+    path = module_path(folder, name)
+    mod = None
+    if path.exists():
+        try:
+            mod = import_file(path, name)
+        except Exception:  # a damaged cache file is generated again
+            mod = None
+        if mod is not None and getattr(mod, "KEY", None) != key:
+            mod = None
+    if mod is None:
+        if source is None:
+            return None
+        text = source() + f"\nKEY = {key!r}  # the cache key (dynid.symbolic.cache.load_module)\n"
+        try:
+            write_atomic(path, text)
+            mod = import_file(path, name)
+        except OSError:  # read-only cache: in memory (Numba then compiles every run: it caches beside a file)
+            mod = ModuleType(name)
+            fname = f"<dynid generated {name}>"
+            linecache.cache[fname] = (len(text), None, text.splitlines(True), fname)
+            sys.modules[name] = mod
+            exec(compile_source(text, fname), mod.__dict__)
+    with _LOAD_LOCK:
+        mod = _LOADED.setdefault(name, mod)
+        sys.modules[name] = mod
+    return mod
 
 
 def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
@@ -81,31 +137,16 @@ def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
     """
 
     h = model_hash(tree, model, options)
-    if h in _LOADED:
-        return _LOADED[h]
-    name = f"dynid_gen_{model}_{h}"
-    path = cache_dir() / "numpy" / f"{name}.py"
-    mod = None
-    if path.exists():
-        try:
-            mod = import_file(path, name)
-            if getattr(mod, "HASH", None) != h:
-                mod = None
-        except Exception:  # a damaged cache file is regenerated, never trusted
-            mod = None
-    if mod is None:
+
+    def source() -> str:
         prog = build(tree, model, **options)
         prog.meta["n"] = tree.n
-        src = to_numpy(prog, tree, h)
-        try:
-            write_atomic(path, src)
-            mod = import_file(path, name)
-        except OSError:  # read-only cache: fall back to an in-memory module
-            mod = ModuleType(name)
-            exec(compile_source(src, f"<dynid generated {model}>"), mod.__dict__)
-    sys.modules.setdefault(name, mod)
-    _LOADED[h] = mod
+        return to_numpy(prog, tree, h)
+
+    mod = load_module("numpy", f"dynid_gen_{model}_{h}", h, source)
+    assert mod is not None
     return mod
 
 
-__all__ = ["cache_dir", "generator_fingerprint", "import_file", "model_hash", "numpy_module", "write_atomic"]
+__all__ = ["cache_dir", "generator_fingerprint", "import_file", "load_module", "model_hash", "module_path",
+           "numpy_module", "write_atomic"]

@@ -270,8 +270,8 @@ def _zero_runs(shape: tuple[int, ...], entries) -> tuple[tuple[int, int], ...]:
 
 
 _RESERVED = {"q", "qd", "qdd", "X", "XT", "wrench", "out", "Q", "np", "sys", "threading", "evaluate", "release",
-             "CHUNK", "POOL_MIN", "POOL_SIZE", "READONLY", "MODEL", "HASH", "SHAPE", "N_SITES", "N_OUTPUTS", "ROWS",
-             "COLS", "PARAMETERS", "DEFAULT_X", *_ARGS}
+             "CHUNK", "POOL_MIN", "POOL_SIZE", "READONLY", "MODEL", "HASH", "KEY", "SHAPE", "N_SITES", "N_OUTPUTS",
+             "ROWS", "COLS", "PARAMETERS", "DEFAULT_X", *_ARGS}
 
 
 def _check_names(prog: Program) -> None:
