@@ -3,9 +3,11 @@
 Why our own: libm's sin and cos are a call each (10 to 15 ns), scalar, and cannot be vectorised across
 samples; these steps are about four times faster in the numeric engine and run as vector instructions in
 the generated kernels. Every target evaluates the same IEEE operations in the same order with no
-contraction into FMA, so they agree to the bit on any CPU, within an ulp of libm:
+contraction into FMA, so they agree to the bit on any CPU, within an ulp of libm (the engine's own compile
+contracts, its choice of speed over the last bit):
 
-- the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`;
+- the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`
+  (compiled with contraction into FMA, as the engine's kernels are, for speed: see there);
 - the generated NumPy modules run `numpy_source()` (one ufunc per step over a row of samples);
 - the generated C's `_block` functions run `c_source()` (GCC and clang vectorise it across samples);
 - the LLVM block kernels (symbolic.blocks) emit one vector instruction per step of `STEPS`.
@@ -16,6 +18,10 @@ __kernel_sin and __kernel_cos polynomials on |r| <= pi/4 (sn, cs). The quadrant 
 them (`QUADRANT`), each target in its own idiom (selects, a table, exact small-integer arithmetic): the same
 values, a pick and a sign change being exact. An angle of LIMIT or more in magnitude, or NaN, takes libm's
 values instead (k * PIO2_1 would no longer be exact).
+
+A change to the steps reaches the generated code at once (the generator's fingerprint hashes this file) and
+`python_function`'s own machine code, but not the engine's kernels that inline it, which Numba caches under
+dynamics/compiled.py's stamp: change or touch that file too.
 
 Accuracy: 1 ulp of max(|y|, 1/2) against libm (measured over 1e5 angles, tests/test_trig.py): absolute
 near the zeros of sine and cosine, where the two-part pi/2 (86 bits) leaves an error of |k| 2^-87.
@@ -127,8 +133,11 @@ def numpy_source(name: str = "_sincos") -> str:
     qs = next(r for r in scratch if r not in (sn, cs, kq))
     # constants as 0-d arrays: a float argument costs a conversion per ufunc call
     L = [f"_TRIG_{c} = np.array({CONSTANTS[c]!r})" for c in consts]
-    L += ["_TRIG_QC = np.array([1.0, 0.0, -1.0, 0.0])  # cos(k pi/2) by k mod 4",
-          "_TRIG_QS = np.array([0.0, 1.0, 0.0, -1.0])  # sin(k pi/2)", "", "",
+    # cos(k pi/2) and sin(k pi/2) by k mod 4, from QUADRANT: sin x = sn cos(k pi/2) + cs sin(k pi/2)
+    cos_k = [float(sign) if v == "sn" else 0.0 for (v, sign), _ in QUADRANT]
+    sin_k = [float(sign) if v == "cs" else 0.0 for (v, sign), _ in QUADRANT]
+    L += [f"_TRIG_QC = np.array({cos_k!r})  # cos(k pi/2)", f"_TRIG_QS = np.array({sin_k!r})  # sin(k pi/2)",
+          "", "",
           f"def {name}(x, s, c, k, {', '.join(scratch)}):",
           '    """s, c = sin x, cos x (rows): the steps of dynid.dynamics.trig, one ufunc each."""',
           f"    far = not (x.max(initial=0.0) < {LIMIT!r} and x.min(initial=0.0) > {-LIMIT!r})  # or NaN",
@@ -136,7 +145,13 @@ def numpy_source(name: str = "_sincos") -> str:
           f"        bad = ~(np.abs(x) < {LIMIT!r})",
           "        xf = x[bad]",
           "        x = np.where(bad, 0.0, x)"]
-    L += [f"    {fn[o]}({at.get(a, f'_TRIG_{a}')}, {at.get(b, f'_TRIG_{b}')}, {at[n]})" for n, o, a, b in STEPS]
+    for n, o, a, b in STEPS:
+        if (n, o, b) == ("kr", "add", "ROUND"):  # (t + ROUND) - ROUND is t rounded to even: one np.rint
+            continue
+        if (n, o, a, b) == ("k", "sub", "kr", "ROUND"):
+            L.append(f"    np.rint({at['kx']}, {at['k']})")
+            continue
+        L.append(f"    {fn[o]}({at.get(a, f'_TRIG_{a}')}, {at.get(b, f'_TRIG_{b}')}, {at[n]})")
     # the quadrant: k + ROUND holds k mod 4 in its lowest bits; sin x = sn cos(k pi/2) + cs sin(k pi/2), whose
     # terms are products by 0 and +-1 (exact), and cos x = cs cos(k pi/2) - sn sin(k pi/2)
     L += [f"    np.add({kq}, _TRIG_ROUND, {kq})", f"    np.bitwise_and({kq}.view(np.int64), 3, out=k)",

@@ -22,8 +22,8 @@ sample), the block goes through a zeroed (size, LANES) scratch whose valid lanes
 copied. Arithmetic is the source's, operation by
 operation, with no fast-math flag (no contraction into FMA, no reassociation), so that the
 numbers do not depend on the CPU's instruction set: they are the per-sample code's except
-sine and cosine, dynamics.trig's steps in vector form (the numeric engine's and the generated
-NumPy's and C's to the bit, within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
+sine and cosine, dynamics.trig's steps in vector form (the generated NumPy's and C's to the bit,
+within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
 takes libm's values.
 
 `block_model(tree, model, **options)` generates, caches on disk (the source beside Numba's

@@ -287,7 +287,7 @@ def to_numpy(prog: Program, tree: Tree | None = None, model_hash: str = "") -> s
     evaluate returns read-only arrays (N, *shape) that are views of C-ordered (size, N) buffers
     (one row per entry: `W.transpose(1, 2, 0)` is C-contiguous; copy to modify), and may hand a
     buffer out again once every array returned on it has been dropped. Sines and cosines are
-    dynamics.trig's (within an ulp of libm, the bits of the numeric engine's), everything else is
+    dynamics.trig's (within an ulp of libm, the bits of the C and LLVM kernels'), everything else is
     the same floating-point operations as the equations.
     """
     _check_names(prog)
