@@ -32,6 +32,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from ..pysource import compile_source
+
 # fdlibm's constants (e_rem_pio2.c, k_sin.c, k_cos.c)
 INVPIO2 = 6.36619772367581382433e-01  # 2/pi
 PIO2_1 = 1.57079632673412561417e+00  # the first 33 bits of pi/2
@@ -115,7 +117,7 @@ def python_function(name: str = "sincos") -> Callable[[float], tuple[float, floa
     defines a function, so that a change to the steps here invalidates its machine code, and a cached load
     imports the module named by `__name__`)."""
     ns: dict = {"math": math, "__name__": __name__}
-    exec(compile(python_source(name), __file__, "exec"), ns)
+    exec(compile_source(python_source(name), __file__), ns)
     return ns[name]
 
 
