@@ -51,7 +51,7 @@ Array = np.ndarray
 _TERM_CODE = {"IA": 0, "FV": 1, "FS": 2, "OFF": 3, "K": 4, "KQ": 5, "FVPL": 6, "FVPH": 7, "FVNL": 8, "FVNH": 9}
 _SMOOTH_FS = 10  # an FS term whose law is tanh or sigmoid (the regressor kernel's term kind)
 _COUPLING_CODE = {"K": 0, "IA": 1, "FV": 2, "FS": 3}
-# fused multiply-add only: no reassociation (the sincos reduction relies on the order of operations)
+# fused multiply-add only: no reassociation (_sincos, which relies on the order of operations, has none)
 _FASTMATH = {"contract"}
 
 
@@ -94,10 +94,11 @@ def _mul_t(R, j, x0, x1, x2):
 
 # sine and cosine together: dynamics.trig's steps, the ones every generated target runs, within an ulp of
 # libm and about four times faster than math.sin + math.cos, which would otherwise be a quarter of the
-# inverse dynamics of a 42-frame tree. Compiled like the kernels, with contraction into FMA: on a CPU with FMA
-# its last bit may differ from the generated code's (which never contracts) on a few angles in a hundred, and
-# it runs in 6 ns a call instead of 11 (measured); without FMA it is their value to the bit
-_sincos = _jit(trig.python_function("_sincos"))
+# inverse dynamics of a 42-frame tree. Compiled without contraction into FMA, unlike the kernels: the generated
+# code's values to the bit on any CPU (contracted, a call took 6 ns instead of 11, but the car's inverse
+# dynamics and regressor measured the same, 1.08-1.13 and 1.79-1.89 us per sample either way)
+_sincos = (_njit(cache=True, nogil=True, error_model="numpy")(trig.python_function("_sincos")) if HAVE_NUMBA
+           else trig.python_function("_sincos"))
 
 
 @_jit

@@ -3,11 +3,9 @@
 Why our own: libm's sin and cos are a call each (10 to 15 ns), scalar, and cannot be vectorised across
 samples; these steps are about four times faster in the numeric engine and run as vector instructions in
 the generated kernels. Every target evaluates the same IEEE operations in the same order with no
-contraction into FMA, so they agree to the bit on any CPU, within an ulp of libm (the engine's own compile
-contracts, its choice of speed over the last bit):
+contraction into FMA, so they agree to the bit on any CPU, within an ulp of libm:
 
-- the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`
-  (compiled with contraction into FMA, as the engine's kernels are, for speed: see there);
+- the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`;
 - the generated NumPy modules run `numpy_source()` (one ufunc per step over a row of samples);
 - the generated C's `_block` functions run `c_source()` (GCC and clang vectorise it across samples);
 - the LLVM block kernels (symbolic.blocks) emit one vector instruction per step of `STEPS`.
