@@ -649,7 +649,7 @@ def inverse_dynamics(tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, chec
     gravity=False and inertia_only=True (IA terms and IA couplings only) serve the inertia matrix.
     """
     ws = workspace(tree)
-    geo, xa = ws.geometry, ws.parameter_arrays(np.ascontiguousarray(X, dtype=float).tobytes(), inertia_only)
+    geo, xa = ws.geometry, ws.parameter_arrays(X.tobytes(), inertia_only)  # X: float64 (checked)
     N, n = q.shape
     todo, world = xa["todo"], np.zeros(n + 1, dtype=np.bool_)
     if checked:
