@@ -46,18 +46,27 @@ def _evaluate(tree: Tree) -> tuple[np.ndarray, ...]:
             m.inertia_matrix(q))
 
 
-def _at_address(address: int, like: Tree, tries: int = 1000) -> Tree:
-    """A tree equal to `like` whose id is `address`: the instance is allocated before anything else (CPython
-    hands a freed block of the same size out again), then initialised."""
+def _reborn(victim: list[Tree], like: Tree, tries: int = 1000) -> Tree:
+    """A tree equal to `like` at the address of victim[0], which is dropped here. The instance is allocated
+    right after the victim is freed and before anything else (CPython hands the freed block of that size out
+    again), with the collector off so that nothing else runs in between; then it is initialised."""
     kwargs = {f.name: getattr(like, f.name) for f in dataclasses.fields(Tree)}
-    held = []
-    for _ in range(tries):
-        t = Tree.__new__(Tree)
-        if id(t) == address:
-            t.__init__(**kwargs)
-            return t
-        held.append(t)
-    pytest.skip("the allocator did not reuse the freed tree's address")
+    address, ref, held = id(victim[0]), weakref.ref(victim[0]), []
+    gc.disable()
+    try:
+        victim.clear()  # the last reference: freed now, not by the collector
+        assert ref() is None
+        for _ in range(tries):
+            t = Tree.__new__(Tree)
+            if id(t) == address:
+                break
+            held.append(t)
+        else:
+            pytest.skip("the allocator did not reuse the freed tree's address")
+    finally:
+        gc.enable()
+    t.__init__(**kwargs)
+    return t
 
 
 def test_a_tree_at_a_reused_address_gets_its_own_results(puma):
@@ -66,10 +75,9 @@ def test_a_tree_at_a_reused_address_gets_its_own_results(puma):
     first = _moved(puma, 0.55)
     stale = _evaluate(first)
     assert not np.allclose(stale[1], expected[1])  # the two geometries differ where it is checked
-    address = id(first)
+    victim = [first]
     del first
-    gc.collect()
-    second = _at_address(address, twin)
+    second = _reborn(victim, twin)
     for got, want in zip(_evaluate(second), expected, strict=True):
         np.testing.assert_array_equal(got, want)  # same content, same code: bit for bit
 
@@ -93,13 +101,10 @@ def test_derived_values_stay_out_of_the_tree_and_do_not_keep_it_alive(puma):
 def test_per_tree_entry_goes_with_its_tree(puma):
     calls = []
     derived = PerTree(lambda t: calls.append(t.name) or len(calls))
-    a = _moved(puma, 0.1)
-    assert derived(a) == 1 and derived(a) == 1 and len(derived) == 1
-    address = id(a)
-    del a
-    gc.collect()
+    a = [_moved(puma, 0.1)]
+    assert derived(a[0]) == 1 and derived(a[0]) == 1 and len(derived) == 1
+    b = _reborn(a, puma)
     assert len(derived) == 0
-    b = _at_address(address, puma)
     assert derived(b) == 2 and calls == [puma.name, puma.name]
 
 
