@@ -79,3 +79,35 @@ def test_config_keys(tmp_path):
         p.write_text(text.replace('method = "wls"', bad if bad.startswith("method") else f'method = "wls"\n{bad}'))
         with pytest.raises(ConfigError, match=match):
             load_config(p)
+
+
+def test_a_car_hac_equals_statsmodels_on_its_stacked_rows(tmp_path):
+    """The quick demo's car (noisy sensor files) in one segment per test, so that the run keeps every row of its
+    identification tests: cov_type = "hac" against statsmodels' hac-panel on them (each test's group one panel,
+    in time order). Tolerance as for the TX40 (κ of the car's weighted W ≈ 1e3)."""
+    from dynid.pipeline.demo import simulate_tests, write_demo
+
+    config = write_demo(tmp_path, simulate_tests(quick=True), seed=2, noise=True, fmt="parquet")
+    text = config.read_text().replace('method = "wls"', 'method = "wls"\ncov_type = "hac"\nhac_lags = 3')
+    text = text.replace("[uncertainty]\n", "[uncertainty]\nestimate = false\n")
+    config.write_text(text.replace("[conditioning]\n", "[conditioning]\nsegment = 1000.0\n"))
+    run = identify(load_config(config))
+    r = run.result
+    parts = [run.systems[t.name] for t in run.config.tests if t.role == "identify"]
+    W, Y = np.vstack([s.W for s in parts]), np.concatenate([s.Y for s in parts])
+    key = np.concatenate([[f"{t.name}/{g}" for g in s.groups] for t, s in zip(
+        [t for t in run.config.tests if t.role == "identify"], parts, strict=True)])
+    t = np.concatenate([s.t for s in parts])
+    assert W.shape[0] == r.residual.n_rows
+    order = np.argsort(key, kind="stable")  # panels contiguous; each in the rows' (time) order
+    assert all(np.all(np.diff(t[key == k]) > 0) for k in np.unique(key))
+    est = [list(r.names).index(n) for n in r.estimated_names]
+    w = np.array([1.0 / r.weights[k.rsplit("/", 1)[1]] ** 2 for k in key])
+    ref = sm.WLS(Y[order], W[order][:, est], weights=w[order]).fit(
+        cov_type="hac-panel", cov_kwds={"groups": key[order], "maxlags": 3, "use_correction": False})
+    scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
+    assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
+    assert r.systematic is not None  # the declared offsets' part is still attached
+    with pytest.raises(ConfigError, match="estimate = false"):
+        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n"))
+        load_config(config)

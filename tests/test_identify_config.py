@@ -193,7 +193,7 @@ SECOND_TEST = '[[tests]]\nname = "sine"\nrole = "validate"\n{extra}\nfiles = {{{
 @pytest.mark.parametrize("change, words", [
     (("[conditioning]", "[identification]\nknow = {{ M14 = 35 }}\n[conditioning]"),
      ["identify.toml", "[identification] unknown key 'know'; did you mean 'known'?",
-      "valid keys: data_health, flag_percent, known, method, poor_factor"]),
+      "valid keys: cov_type, data_health, flag_percent, hac_lags, known, method, poor_factor"]),
     (("[conditioning]", '[identification]\nmethd = "wls"\n[conditioning]'),
      ["[identification]", "unknown key 'methd'", "did you mean 'method'?"]),
     (("[channels]", SECOND_TEST.format(extra='rol = "identify"') + "[channels]"),
