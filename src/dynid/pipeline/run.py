@@ -208,6 +208,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         # the data's health: each channel, from its file, here (an error stops before any chunk is reduced); the
         # joints against the model, gathered by the chunks (below)
         found = check_robot_test(cfg, plan, say)
+        trim_heap()  # the pass over the stamps' and the channels' temporaries (a 1 h log's: ~100 MB kept otherwise)
         if health is not None:
             health += found
         plans[spec.name] = (plan, {d["channel"] for d in found if d["severity"] == "error"})
