@@ -455,9 +455,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
 
     # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
     #    and cross validation; a delay mismatch's shift of the estimates in their σ total
-    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out
+    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out (for
+    # IV: its estimate with the offsets its WLS start read; the `!= "iv"` this once said compared a Method with a
+    # string, always true since the method became typed, and the car-truth tables were measured so)
     fitted = None
-    if offset_estimates is not None and cfg.method != "iv":
+    if offset_estimates is not None:
         fitted = zeros.group_rms([result.value(n) for n in ident.estimated_names], offset_estimates.u, misfits)
     fits = model_fits(ident, errors, result.estimates, fitted)
     if delays is not None and delays.mismatched:
