@@ -8,15 +8,20 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
-Measured 2026-11-27 on the 2-core machine, busy (wall times not comparable): 1 h, 251,986 rows of 43 parameters,
-peak 601 and 622 MB (two runs) against 937 MB for main at 54648a4 in the same series (1,056 MB at 212feaf, the
-rows stacked whole); the estimate equal to 2e-15 of its norm (2.3e-12 on its smallest parameter, 1e-9 of its σ).
-Not met, and not reachable by the data path alone: the process's fixed floor is ~320 MB (171 MB of imports, 64 MB
-of pyarrow and the pandas it imports on the first read, 43 MB for loading the generated regressor, ~40 MB of the
-planning's and health check's first use), before any row. What the log's length adds: its clock (29 MB), the rows
-kept for the plots (`run.PLOT_BYTES`, 8 MiB per test, held twice while folded) and each worker's chunk (~72 MB
-traced: its conditioned joints, the first decimation stage's output and one 16 MiB block of the full-rate W,
-`robot.BLOCK_BYTES`; the chunk's 128 MiB W was held whole before), with glibc's retained free blocks on top.
+Measured 2026-11-27 on the 2-core machine, busy: 1 h, 251,986 rows of 43 parameters, peak 529 MiB against main's
+601 at 77e8e1a (farm-bench medians of 3, A B A B in one run; CPU 0.97 x, wall 1.04 x, noisy), 937 MB at 54648a4 and
+1,056 MB at 212feaf (the rows stacked whole). What went: pandas (pyarrow's to_numpy imports it to check for it:
+the columns now come from their Arrow buffers, io/parquet_format.to_numpy), the heap the plan's pass over the
+stamps left (trimmed after each test's plan), half of each worker's block of the full-rate W (8 MiB; 4 MiB cost
++6.6 % CPU). Not met: the process's floor is ~265 MB before any row, measured as resident-set steps: 172 MB of
+imports (NumPy 27, scipy.linalg 28, scipy.signal 48 with the scipy.stats, interpolate and optimize it imports,
+Numba 53, dynid 17), pyarrow 29 on the first read, Numba's code generator set up on the first compiled call 47 (its
+functions are cached on disk: loading them still builds the target), cvxpy 17 (the physical-consistency check).
+On top: the plan's pass over 3.6 M stamps peaks at ~400 MB (the plan modules' temporaries, freed before the map),
+and during the map each of the 2 workers holds ~60 MB traced (its chunk's joints, the first stage's output, one
+block), the clock 29 MB, the Parquet block cache ~22 MB, the plots' rows (`run.PLOT_BYTES`). The levers left are
+outside the data path: scipy.signal's import (dynid uses butter and the sosfilt family, which Numba already runs
+for it), Numba on a robot's path, the plan's temporaries.
 """
 
 from __future__ import annotations

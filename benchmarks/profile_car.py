@@ -93,6 +93,11 @@ def timed(owner, name: str, stage: str) -> None:
                 _NESTED[-1] += spent
 
     setattr(owner, name, wrapper)
+    # a module that imported the function by name (`from ..vehicle.estimate import joints_pass`) calls its own
+    # reference: replaced too, or the stage reads 0 and its time lands in the caller's
+    for mod_name, module in list(sys.modules.items()):
+        if mod_name.startswith("dynid.") and module is not owner and getattr(module, name, None) is fn:
+            setattr(module, name, wrapper)
 
 
 def bandwidth() -> float:

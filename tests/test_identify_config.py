@@ -193,7 +193,7 @@ SECOND_TEST = '[[tests]]\nname = "sine"\nrole = "validate"\n{extra}\nfiles = {{{
 @pytest.mark.parametrize("change, words", [
     (("[conditioning]", "[identification]\nknow = {{ M14 = 35 }}\n[conditioning]"),
      ["identify.toml", "[identification] unknown key 'know'; did you mean 'known'?",
-      "valid keys: data_health, flag_percent, known, method, poor_factor"]),
+      "valid keys: cov_type, data_health, flag_percent, hac_lags, known, method, poor_factor"]),
     (("[conditioning]", '[identification]\nmethd = "wls"\n[conditioning]'),
      ["[identification]", "unknown key 'methd'", "did you mean 'method'?"]),
     (("[channels]", SECOND_TEST.format(extra='rol = "identify"') + "[channels]"),
@@ -293,7 +293,8 @@ file = "sine.csv"
     ('template = "peugeot406"', "start = 5.0\nend = 2.0", "", ['[[tests]] #1 ("sine")', "not before end"]),
     ('template = "peugeot406"', "", "[identification]\nknow = { M14 = 35 }",
      ["[identification] unknown key 'know'; did you mean 'known'?",
-      "aero, base, data_health, flag_percent, iv_passes, known, method, poor_factor, tire_curves"]),
+      "aero, base, cov_type, data_health, flag_percent, hac_lags, iv_passes, known, method, poor_factor, "
+      "tire_curves"]),
     ('vehicle = "peugeot406"', "", '[identification]\naero = "no"',
      ["[identification]", "aero = 'no'", "true or false"]),
     ('template = "peugeot406"', "", "[conditioning]\nborder = 0.1", ["[conditioning]", "'border'", "a robot's key"]),

@@ -216,10 +216,15 @@ def test_generated_numpy_reuses_only_dropped_buffers(readonly):
     if readonly:
         with pytest.raises(ValueError, match="read-only"):
             a[...] = 7.0
-        a.base.flags.writeable = True  # made writeable on purpose: the buffer is cleared before reuse
-        a.flags.writeable = True
-    a[...] = 7.0  # the caller writes into a result, then drops it
+        with pytest.raises(ValueError):  # nor can it be made writeable: the buffer's zero rows stay zero
+            a.base.flags.writeable = True
+    else:
+        a[...] = 7.0  # the caller writes into a result, then drops it: the buffer is cleared before reuse
+    view = a[1:]  # a view of a result holds the buffer too
     del a
+    c = f(q, qd, qdd)
+    assert not np.shares_memory(c, view)
+    del view, c
     c = f(q, qd, qdd)
     assert c.base.__array_interface__["data"][0] == address  # reused...
     close(c, ref)  # ...with its structural zeros zero again

@@ -188,6 +188,12 @@ def test_generated_regressor_results_are_read_only_and_never_reused_while_alive(
     del W2
     W3, _ = g(*states[0], wrench, rows, cols)  # W2's buffer again, its zero rows still zero
     assert np.array_equal(W3, keep)
+    with pytest.raises(ValueError):  # nor can a result be made writeable through its base
+        W1.base.flags.writeable = True
+    part = np.asarray(W1)[:, 2:]  # a view of a result holds its buffer as the result did
+    del W1, W3
+    W4, _ = g(*states[1], wrench, rows, cols)
+    assert not np.shares_memory(W4, part) and np.array_equal(part, keep[:, 2:])
 
 
 def test_aligned_zeros():

@@ -29,13 +29,15 @@ falls back to it (see newton_euler.resolve_backend).
 
 from __future__ import annotations
 
+import functools
 import math
-import threading
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..kinematics.forward import frame_plan, joint_array
+from ..kinematics.per_tree import PerTree
 from ..model.tree import CURVE_TERMS, FIXED, INERTIAL, LOAD_TERMS, REVOLUTE, Tree
 from . import trig
 
@@ -504,32 +506,86 @@ def _f64(x, shape=None) -> Array:
     return a.reshape(shape) if shape is not None else a
 
 
-def _ancestor_mask(tree: Tree, frames) -> Array:
-    """Mask (n+1,) of the frames on the paths from the base to the given frames."""
+def _ancestor_mask(geo: dict, frames) -> Array:
+    """Mask (n+1,) of the frames on the paths from the base to the given frames (geo: `Workspace.geometry`)."""
     idx = np.fromiter(frames, dtype=np.intp)
-    return geometry(tree)["anc"][idx].any(axis=0) if idx.size else np.zeros(tree.n + 1, dtype=np.bool_)
+    anc = geo["anc"]
+    return anc[idx].any(axis=0) if idx.size else np.zeros(anc.shape[0], dtype=np.bool_)
+
+
+def _geometry(tree: Tree) -> dict:
+    plan = frame_plan(tree)
+    E = np.tile(np.eye(3), (tree.n + 1, 1, 1))
+    u = np.zeros((tree.n + 1, 3))
+    anc = np.zeros((tree.n + 1, tree.n + 1), dtype=np.bool_)
+    for j in range(1, tree.n + 1):
+        E[j], u[j] = plan[j][0], plan[j][2]
+        anc[j, tree.ancestors[j]] = True
+    th0 = np.where(tree.sigma == REVOLUTE, tree.theta0, 0.0)  # theta is folded into E otherwise
+    xx = np.array([tree.index[f"XX{j}"] for j in range(1, tree.n + 1)], dtype=np.intp)
+    return {"ant": _i64(np.maximum(tree.ant, 0)), "sigma": _i64(tree.sigma), "E": _f64(E), "u": _f64(u),
+            "th0": _f64(th0), "r0": _f64(tree.r0), "g": _f64(tree.gravity), "anc": anc,
+            "inertial": xx[:, None] + np.arange(10), "fs_w": _friction_widths(tree),
+            "knee": _f64([tree.knee(j) for j in range(tree.n + 1)], (tree.n + 1, 2))}
+
+
+_X_CACHE_SIZE = 8  # parameter vectors kept per tree
+_PLAN_CACHE_SIZE = 16  # regressor plans (rows, columns) kept per tree
+
+
+class Workspace:
+    """What the kernels take from one tree besides the samples (the model side of Pinocchio's Model/Data):
+
+    - `geometry`: the tree as flat arrays: ant, sigma, E, u, th0, r0, g, and for the Python side the ancestor
+      matrix `anc`, where each link's inertial parameters start (`inertial`), fs_w and knee;
+    - `parameter_arrays(X bytes, inertia_only)`: the arrays that depend on the parameter values (the last
+      _X_CACHE_SIZE values kept: a model evaluated again and again with the same X pays for them once);
+    - `regressor_plan(rows, cols)`: what a requested block of the regressor needs (_PLAN_CACHE_SIZE kept).
+
+    All pure functions of the tree, so one workspace per tree serves every thread (functools.lru_cache is
+    thread-safe: no lock of ours); the kernels' per-sample scratch lives inside them. The workspace refers to
+    its tree weakly: `workspace(tree)` keeps it beside the tree, never inside it, and never keeps it alive.
+    """
+
+    def __init__(self, tree: Tree) -> None:
+        self._tree = weakref.ref(tree)
+        self.geometry = _geometry(tree)
+        self.parameter_arrays = functools.lru_cache(_X_CACHE_SIZE)(self._parameter_arrays)
+        self.regressor_plan = functools.lru_cache(_PLAN_CACHE_SIZE)(self._regressor_plan)
+
+    @property
+    def tree(self) -> Tree:
+        tree = self._tree()
+        if tree is None:
+            raise ReferenceError("compiled.Workspace: its tree was garbage collected; make one from a live tree")
+        return tree
+
+    def _parameter_arrays(self, xb: bytes, inertia_only: bool) -> dict:
+        tree, X = self.tree, np.frombuffer(xb)
+        inert = np.zeros((tree.n + 1, 10))
+        inert[1:] = X[self.geometry["inertial"]]
+        massive = inert.any(axis=1)
+        jt, has_jt = _joint_coefficients(tree, X, inertia_only)
+        return {"inert": inert, "massive": massive, "jt": jt, "has_jt": has_jt,
+                "todo": _ancestor_mask(self.geometry, np.flatnonzero(massive)),
+                "couplings": _coupling_arrays(tree, X, inertia_only)}
+
+    def _regressor_plan(self, R: tuple[int, ...], Cols: tuple[int, ...]) -> dict:
+        return _build_plan(self.tree, self.geometry, list(R), list(Cols))
+
+
+workspace = PerTree(Workspace)
+workspace.__doc__ = "The `Workspace` of a tree, made at its first use and kept while the tree lives."
 
 
 def geometry(tree: Tree) -> dict:
-    """The tree as flat arrays (cached on the immutable tree): ant, sigma, E, u, theta0, r0, gravity,
-    and for the Python side the ancestor matrix and where each link's inertial parameters start."""
-    geo = tree.__dict__.get("_compiled_geometry")
-    if geo is None:
-        plan = frame_plan(tree)
-        E = np.tile(np.eye(3), (tree.n + 1, 1, 1))
-        u = np.zeros((tree.n + 1, 3))
-        anc = np.zeros((tree.n + 1, tree.n + 1), dtype=np.bool_)
-        for j in range(1, tree.n + 1):
-            E[j], u[j] = plan[j][0], plan[j][2]
-            anc[j, tree.ancestors[j]] = True
-        th0 = np.where(tree.sigma == REVOLUTE, tree.theta0, 0.0)  # theta is folded into E otherwise
-        xx = np.array([tree.index[f"XX{j}"] for j in range(1, tree.n + 1)], dtype=np.intp)
-        geo = {"ant": _i64(np.maximum(tree.ant, 0)), "sigma": _i64(tree.sigma), "E": _f64(E), "u": _f64(u),
-               "th0": _f64(th0), "r0": _f64(tree.r0), "g": _f64(tree.gravity), "anc": anc,
-               "inertial": xx[:, None] + np.arange(10), "fs_w": _friction_widths(tree),
-               "knee": _f64([tree.knee(j) for j in range(tree.n + 1)], (tree.n + 1, 2))}
-        tree.__dict__["_compiled_geometry"] = geo
-    return geo
+    """The tree as flat arrays (`Workspace.geometry`)."""
+    return workspace(tree).geometry
+
+
+def regressor_plan(tree: Tree, R: Sequence[int], Cols: Sequence[int]) -> dict:
+    """What the requested block needs, as flat arrays (`Workspace.regressor_plan`)."""
+    return workspace(tree).regressor_plan(tuple(R), tuple(Cols))
 
 
 def _friction_widths(tree: Tree) -> Array:
@@ -572,41 +628,19 @@ def inverse_dynamics(tree: Tree, q: Array, qd: Array, qdd: Array, X: Array, chec
 
     gravity=False and inertia_only=True (IA terms and IA couplings only) serve the inertia matrix.
     """
-    geo, xa = geometry(tree), _parameter_arrays(tree, X, inertia_only)
+    ws = workspace(tree)
+    geo, xa = ws.geometry, ws.parameter_arrays(X.tobytes(), inertia_only)  # X: float64 (checked)
     N, n = q.shape
     todo, world = xa["todo"], np.zeros(n + 1, dtype=np.bool_)
     if checked:
-        todo = todo | _ancestor_mask(tree, [x for c in checked for x in c[:2]])
-        world = _ancestor_mask(tree, [x for c in checked if c[0] != c[1] for x in (c[0], c[1])])
+        todo = todo | _ancestor_mask(geo, [x for c in checked for x in c[:2]])
+        world = _ancestor_mask(geo, [x for c in checked if c[0] != c[1] for x in (c[0], c[1])])
     wl, we, wp, wv = _wrench_arrays(checked, N)
     tau = np.empty((N, n))
     _idm_kernel(q, qd, qdd, geo["ant"], geo["sigma"], geo["E"], geo["u"], geo["th0"], geo["r0"],
                 geo["g"] if gravity else np.zeros(3), xa["inert"], todo, xa["massive"], world,
                 xa["jt"], xa["has_jt"], geo["fs_w"], geo["knee"], *xa["couplings"], wl, we, wp, wv, tau)
     return tau
-
-
-_X_CACHE_SIZE = 8
-
-
-def _parameter_arrays(tree: Tree, X: Array, inertia_only: bool) -> dict:
-    """The arrays that depend on the parameter values (cached per value of X on the tree: a model
-    evaluated again and again with the same X pays for them once)."""
-    key = (X.tobytes(), inertia_only)
-    cache = tree.__dict__.setdefault("_compiled_x", {})
-    xa = cache.get(key)
-    if xa is None:
-        inert = np.zeros((tree.n + 1, 10))
-        inert[1:] = X[geometry(tree)["inertial"]]
-        massive = inert.any(axis=1)
-        jt, has_jt = _joint_coefficients(tree, X, inertia_only)
-        xa = {"inert": inert, "massive": massive, "jt": jt, "has_jt": has_jt,
-              "todo": _ancestor_mask(tree, np.flatnonzero(massive)),
-              "couplings": _coupling_arrays(tree, X, inertia_only)}
-        if len(cache) >= _X_CACHE_SIZE:
-            cache.pop(next(iter(cache)), None)
-        cache[key] = xa
-    return xa
 
 
 def _joint_coefficients(tree: Tree, X: Array, inertia_only: bool) -> tuple[Array, Array]:
@@ -631,26 +665,7 @@ def _coupling_arrays(tree: Tree, X: Array, inertia_only: bool) -> tuple[Array, .
 
 # ----- regressor -----------------------------------------------------------------------------
 
-_PLAN_CACHE_SIZE = 16
-_PLAN_LOCK = threading.Lock()
-
-
-def regressor_plan(tree: Tree, R: Sequence[int], Cols: Sequence[int]) -> dict:
-    """What the requested block needs, as flat arrays (cached per rows/cols on the tree)."""
-    key = (tuple(R), tuple(Cols))
-    with _PLAN_LOCK:
-        cache = tree.__dict__.setdefault("_compiled_plans", {})
-        if key in cache:
-            return cache[key]
-    plan = _build_plan(tree, list(R), list(Cols))
-    with _PLAN_LOCK:
-        if len(cache) >= _PLAN_CACHE_SIZE:
-            cache.pop(next(iter(cache)))
-        cache[key] = plan
-    return plan
-
-
-def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
+def _build_plan(tree: Tree, geo: dict, R: list[int], Cols: list[int]) -> dict:
     names = tree.parameter_names
     widths = _friction_widths(tree)
     row_pos = {j: i for i, j in enumerate(R)}
@@ -705,8 +720,8 @@ def _build_plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
         _f64([x for _, c in couplings for x in c.coeffs.values()], (int(c_ptr[-1]),)),
         _i64([row_pos.get(j, -1) for _, c in couplings for j in c.coeffs]),
     )
-    return {"kernel": kernel, "row_pos": row_pos, "todo": _ancestor_mask(tree, links + r_joint),
-            "motion": _ancestor_mask(tree, links), "axis": axis, "ref": _i64(links)}
+    return {"kernel": kernel, "row_pos": row_pos, "todo": _ancestor_mask(geo, links + r_joint),
+            "motion": _ancestor_mask(geo, links), "axis": axis, "ref": _i64(links)}
 
 
 def regressor(tree: Tree, q: Array, qd: Array, qdd: Array, R: Sequence[int], Cols: Sequence[int],
@@ -716,7 +731,8 @@ def regressor(tree: Tree, q: Array, qd: Array, qdd: Array, R: Sequence[int], Col
 
     Only entries that can be non-zero are written (see the module doc).
     """
-    geo, plan = geometry(tree), regressor_plan(tree, R, Cols)
+    ws = workspace(tree)
+    geo, plan = ws.geometry, ws.regressor_plan(tuple(R), tuple(Cols))
     N = q.shape[0]
     todo, axis, ref = plan["todo"], plan["axis"], plan["ref"]
     wq: list[list[int]] = []
@@ -724,7 +740,7 @@ def regressor(tree: Tree, q: Array, qd: Array, qdd: Array, R: Sequence[int], Col
         row_pos = plan["row_pos"]
         wq = [[j for j in tree.ancestors[k] if j in row_pos and tree.sigma[j] != FIXED] for k, _, _, _ in checked]
         extra = [j for r in wq for j in r]
-        todo = todo | _ancestor_mask(tree, extra + [x for k, e, _, _ in checked for x in (k, e)])
+        todo = todo | _ancestor_mask(geo, extra + [x for k, e, _, _ in checked for x in (k, e)])
         axis = axis.copy()
         axis[extra] = True
         if not len(ref):
@@ -739,4 +755,5 @@ def regressor(tree: Tree, q: Array, qd: Array, qdd: Array, R: Sequence[int], Col
     return Q
 
 
-__all__ = ["HAVE_NUMBA", "geometry", "inverse_dynamics", "joint_rows", "regressor", "regressor_plan"]
+__all__ = ["HAVE_NUMBA", "Workspace", "geometry", "inverse_dynamics", "joint_rows", "regressor", "regressor_plan",
+           "workspace"]

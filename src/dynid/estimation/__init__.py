@@ -12,9 +12,10 @@ parameter names. It imports nothing from the model, kinematics or dynamics layer
 from .errors import EstimationWarning, IdentificationError
 from .essential import RESIDUAL_TOL, EssentialResult, EssentialStep, essential_parameters
 from .fit import FIT_RATIO, ModelFit, fit_note, misfit_parameters, model_fits
+from .hac import HACSums
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
-from .method import Method
+from .method import Covariance, CovType, Method
 from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
@@ -38,10 +39,13 @@ __all__ = [
     "RESIDUAL_TOL",
     "SIGMA_FLOOR",
     "BiasAccumulator",
+    "CovType",
+    "Covariance",
     "EssentialResult",
     "EssentialStep",
     "EstimationWarning",
     "GroupFit",
+    "HACSums",
     "IdentificationError",
     "IdentificationResult",
     "InstrumentSums",

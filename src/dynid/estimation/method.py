@@ -7,7 +7,10 @@ The config's spelling ("ols", "wls", "iv", "wls-pc") and the label tables and re
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import Enum
+
+import numpy as np
 
 from .errors import IdentificationError
 
@@ -53,4 +56,60 @@ class Method(Enum):
         return self.label
 
 
-__all__ = ["Method"]
+class CovType(Enum):
+    """How σ is computed (statsmodels' ``cov_type``): "nonrobust", σ² (WᵀW)⁻¹ with white rows (paper eq. (7));
+    "hac", Newey–West's sandwich with a Bartlett kernel per equation group (the decimated rows are
+    autocorrelated: the filters and the model's errors span many of them)."""
+
+    NONROBUST = "nonrobust"
+    HAC = "hac"
+
+
+@dataclass(frozen=True)
+class Covariance:
+    """The covariance option of a run, parsed once: its kind and, for HAC, the lags (None: Newey–West's rule
+    floor(4 (n_g / 100)^(2/9)) on each group's row count n_g, statsmodels' default for ``S_hac_simple``)."""
+
+    kind: CovType = CovType.NONROBUST
+    lags: int | None = None
+
+    @classmethod
+    def parse(cls, cov_type: object = "nonrobust", hac_lags: object = None, where: str = "") -> Covariance:
+        """From a config's ``cov_type`` and ``hac_lags`` (an int >= 0, or "auto"/None); one-line errors naming
+        `where` and the choices."""
+        at = f"{where} " if where else ""
+        kinds = {k.value: k for k in CovType}
+        if not isinstance(cov_type, str) or cov_type.lower() not in kinds:
+            raise IdentificationError(f"{at}cov_type = {cov_type!r}; use \"nonrobust\" or \"hac\"")
+        kind = kinds[cov_type.lower()]
+        if hac_lags is None or (isinstance(hac_lags, str) and hac_lags.lower() == "auto"):
+            lags = None
+        elif isinstance(hac_lags, int | np.integer) and not isinstance(hac_lags, bool) and hac_lags >= 0:
+            lags = int(hac_lags)
+        else:
+            raise IdentificationError(f"{at}hac_lags = {hac_lags!r}; give a whole number of rows >= 0, or \"auto\" "
+                                      "(Newey–West's rule per group)")
+        if kind is CovType.NONROBUST and lags is not None:
+            raise IdentificationError(f"{at}hac_lags = {lags} needs cov_type = \"hac\"")
+        return cls(kind, lags)
+
+    @property
+    def hac(self) -> bool:
+        return self.kind is CovType.HAC
+
+    def lags_for(self, n_rows: int) -> int:
+        """The kernel's last lag (rows) for a group of n_rows rows."""
+        if self.lags is not None:
+            return self.lags
+        return int(np.floor(4.0 * (max(n_rows, 0) / 100.0) ** (2.0 / 9.0)))
+
+    @property
+    def label(self) -> str:
+        """What the report and results.json print."""
+        if not self.hac:
+            return "nonrobust"
+        rule = "Newey–West lags per group" if self.lags is None else f"{self.lags} lags"
+        return f"HAC (Bartlett kernel, {rule}, per equation group)"
+
+
+__all__ = ["CovType", "Covariance", "Method"]

@@ -100,6 +100,8 @@ class IdentificationResult:
     scales: dict[str, float] = field(default_factory=dict)
     flag_percent: float = FLAG_PERCENT
     misfit: dict[str, list[str]] = field(default_factory=dict)
+    cov_type: str = "nonrobust"  # which covariance `covariance` and σ are (`method.Covariance.label`)
+    hac_lags: dict[str, int] = field(default_factory=dict)  # {group: the kernel's last lag} of a HAC covariance
 
     # ----------------------------------------------------------------- access by name
     def index(self, name: str) -> int:
@@ -150,6 +152,24 @@ class IdentificationResult:
 
         return dataclasses.replace(self, systematic=systematic)
 
+    def with_covariance(self, covariance: np.ndarray, cov_type: str,
+                        hac_lags: Mapping[str, int] | None = None) -> IdentificationResult:
+        """This estimate with another covariance of its estimated parameters (q, q, `estimated_names` order):
+        σ, %σ and the paper's flags from it; cov_type says which (the report and results.json print it)."""
+        C = np.asarray(covariance, dtype=float)
+        q = len(self.estimated_names)
+        if C.shape != (q, q):
+            raise ValueError(f"with_covariance: covariance has shape {C.shape}, expected {(q, q)}")
+        pos = [self.index(n) for n in self.estimated_names]
+        std, rel = self.std.copy(), self.rel_std_percent.copy()
+        std[pos] = np.sqrt(np.diag(C))
+        rel[pos] = relative_std_percent(self.values[pos], std[pos])
+        poor = set(poorly_identified(dict(zip(self.estimated_names, rel[pos], strict=True)), self.poor_factor))
+        flags = tuple(f if f == FLAG_KNOWN else FLAG_POOR if n in poor else "" for n, f in zip(self.names, self.flags,
+                                                                                                 strict=True))
+        return dataclasses.replace(self, covariance=C, std=std, rel_std_percent=rel, flags=flags, cov_type=cov_type,
+                                   hac_lags=dict(hac_lags or {}))
+
     @property
     def scale(self) -> np.ndarray:
         """(p,) the engineering scale of each parameter: `scales`, else |value|."""
@@ -184,9 +204,10 @@ class IdentificationResult:
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON dict (non-finite numbers become null).
 
-        Schema: ``{"method", "parameters": [{"name", "label", "value", "std", "rel_std_percent",
-        "a_priori", "truth", "flag", "paper_rule", "scale"}], "validation": {"direct": {...}, "cross": {...}},
-        "condition_number", "weights": {group: sigma}, "residual": {...}, "poor_factor", "flag_percent"}``;
+        Schema: ``{"method", "cov_type", ("hac_lags": {group: L},) "parameters": [{"name", "label", "value", "std",
+        "rel_std_percent", "a_priori", "truth", "flag", "paper_rule", "scale"}],
+        "validation": {"direct": {...}, "cross": {...}}, "condition_number", "weights": {group: sigma},
+        "residual": {...}, "poor_factor", "flag_percent"}``;
         "flag" is `uncertainty_flags`, "paper_rule" the paper's 20x rule (`flags`); with sensor
         offsets declared, each parameter also has "std_systematic", "std_total", "rel_std_total_percent"
         and "main_offset" (the offset that moves it most).
@@ -215,6 +236,8 @@ class IdentificationResult:
         return _jsonable(
             {
                 "method": self.method.label,
+                "cov_type": self.cov_type,
+                **({"hac_lags": self.hac_lags} if self.hac_lags else {}),
                 "parameters": params,
                 "validation": self.validation,
                 "condition_number": self.condition_number,
@@ -270,6 +293,7 @@ class IdentificationResult:
             f"{' (weighted W)' if self.weights else ''}, "
             f"residual std {_num(r.sigma, '.4g')}{' (weighted, ~1 expected)' if self.weights else ''}, "
             f"||Y - W X||/||Y|| = {_num(100 * r.relative_residual, '.3g')} %",
+            *([f"  covariance: {self.cov_type}"] if self.cov_type != "nonrobust" else []),
         ]
         show_label = any(self.labels.get(n, n) != n for n in self.names)
         columns = ["parameter"] + (["label"] if show_label else [])

@@ -37,9 +37,10 @@ from ._checks import (
     split_known,
 )
 from .errors import IdentificationError
+from .hac import HACSums
 from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
-from .method import Method
+from .method import Covariance, Method
 from .offsets import OffsetEstimate, OffsetFactors, solve_with_offsets
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
@@ -297,6 +298,30 @@ class StreamingLS:
         cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
         known = np.array([self.names.index(n) for n in self.known], dtype=int)
         return BiasAccumulator(cols, known, np.array(list(self.known.values()), dtype=float))
+
+    def hac_sums(self, result: IdentificationResult, covariance: Covariance) -> HACSums:
+        """An empty accumulator of the Newey–West sums at `result`'s estimate and weights (a second pass feeds it
+        the same rows, `HACSums.add`), each group's lag from `covariance` and the group's rows here."""
+        self._require_rows()
+        cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
+        known = np.array([self.names.index(n) for n in self.known], dtype=int)
+        x = np.array([result.value(n) for n in self.estimated_names])
+        lags = {g: covariance.lags_for(n) for g, n in self._rows.items()}
+        return HACSums(cols, known, np.array(list(self.known.values()), dtype=float), x, result.weights or None, lags)
+
+    def with_hac(self, result: IdentificationResult, sums: HACSums, covariance: Covariance) -> IdentificationResult:
+        """`result` (from `solve` or `solve_weighted` on these rows) with its covariance the sandwich B S B:
+        B = (W̃ᵀW̃)⁻¹ of the weighted rows (these factors), S the sums of the second pass over every row."""
+        if sums.group_rows != self._rows:
+            raise IdentificationError(f"the HAC pass saw rows {sums.group_rows}, the estimate {self._rows}: the second "
+                                      "pass must go over every row of the first")
+        q = len(self.estimated_names)
+        R = self._stacked(result.weights or None)[:q, :q]
+        d = np.linalg.norm(R, axis=0)  # unit columns: the units of W's columns differ by orders of magnitude
+        Rinv = np.linalg.solve(R / d, np.eye(q))
+        B = (Rinv @ Rinv.T) / np.outer(d, d)
+        C = B @ sums.meat() @ B
+        return result.with_covariance((C + C.T) / 2, covariance.label, sums.lags)
 
     def with_systematic(self, result: IdentificationResult, accumulator: BiasAccumulator) -> IdentificationResult:
         """`result` (from `solve` or `solve_weighted` on these rows) with the offsets' uncertainty attached."""

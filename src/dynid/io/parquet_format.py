@@ -184,7 +184,26 @@ def first_tick(pa: Any, col: Any) -> int | None:
     """The integer tick of a timestamp column's first row (0 if that row is null), None for other columns."""
     if not pa.types.is_timestamp(col.type) or len(col) == 0:
         return None
-    return int(col.slice(0, 1).cast(pa.int64()).fill_null(0).to_numpy()[0])
+    return int(to_numpy(pa, col.slice(0, 1).cast(pa.int64()).fill_null(0), np.int64)[0])
+
+
+def to_numpy(pa: Any, col: Any, dtype: type) -> np.ndarray:
+    """A primitive Arrow array or chunked array (float64, int64 or boolean, without nulls where it matters) as a
+    NumPy copy, from its buffers: pyarrow's own ``to_numpy`` imports pandas to check for it (64 MB of resident
+    memory on the first Parquet read, a third of a robot run's floor, for nothing)."""
+    dtype = np.dtype(dtype)
+    parts = []
+    for ch in getattr(col, "chunks", [col]):
+        n = len(ch)
+        if n == 0:
+            continue
+        buf = ch.buffers()[1]
+        if pa.types.is_boolean(ch.type):  # bit-packed, least significant bit first
+            bits = np.unpackbits(np.frombuffer(buf, np.uint8), bitorder="little")
+            parts.append(bits[ch.offset:ch.offset + n].astype(bool))
+        else:
+            parts.append(np.frombuffer(buf, dtype=dtype, count=n, offset=dtype.itemsize * ch.offset))
+    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.empty(0, dtype)
 
 
 def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str = "") -> Column:
@@ -199,15 +218,15 @@ def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str 
     name, unit = name_and_unit(field.name, _unit_of(field), label)
     kind = field.type
     if pa.types.is_timestamp(kind):
-        ticks = np.asarray(col.cast(pa.int64()).fill_null(0).to_numpy(), dtype=np.int64)
+        ticks = to_numpy(pa, col.cast(pa.int64()).fill_null(0), np.int64)
         if ticks.size:
             values = (ticks - np.int64(tick0 if tick0 is not None else ticks[0])) / _TICKS_PER_SECOND[kind.unit]
         else:
             values = ticks.astype(np.float64)
         unit = "s"
     else:
-        values = np.asarray(col.cast(pa.float64()).to_numpy(), dtype=np.float64)
-    present = ~np.asarray(col.is_null().to_numpy(), dtype=bool) if col.null_count else None
+        values = to_numpy(pa, col.cast(pa.float64()), np.float64)
+    present = ~to_numpy(pa, col.is_null(), bool) if col.null_count else None
     return Column(name, unit, values if present is None else values[present], present)
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.tree import PRISMATIC, REVOLUTE, ModelError, Tree
+from .per_tree import PerTree
 
 Array = np.ndarray
 
@@ -75,22 +76,26 @@ def _signed_permutation(M: Array) -> tuple[tuple[int, float], ...] | None:
 
 
 def frame_plan(tree: Tree) -> list:
-    """Per-frame constants (E_j, its signed permutation or None, u_j), cached on the (immutable) tree.
+    """Per-frame constants (E_j, its signed permutation or None, u_j), computed once per tree (`PerTree`).
 
     E_j = Rot(z, gamma) Rot(x, alpha) for a revolute frame, times Rot(z, theta) otherwise;
     u_j = Rot(z, gamma) (d, 0, b), the origin of frame j in a(j) when r = 0.
     """
-    plan = tree.__dict__.get("_kinematic_plan")
-    if plan is None:
-        plan = [None]
-        for f in tree.frames:
-            C = _clean(tree.constant_rotation[f.j])
-            E = C if f.sigma == REVOLUTE else _clean(C @ np.array(
-                [[np.cos(f.theta), -np.sin(f.theta), 0.0], [np.sin(f.theta), np.cos(f.theta), 0.0], [0, 0, 1.0]]))
-            u = _clean(tree.constant_offset[f.j][None])[0]
-            plan.append((E, _signed_permutation(E), u))
-        tree.__dict__["_kinematic_plan"] = plan
+    return _FRAME_PLANS(tree)
+
+
+def _frame_plan(tree: Tree) -> list:
+    plan: list = [None]
+    for f in tree.frames:
+        C = _clean(tree.constant_rotation[f.j])
+        E = C if f.sigma == REVOLUTE else _clean(C @ np.array(
+            [[np.cos(f.theta), -np.sin(f.theta), 0.0], [np.sin(f.theta), np.cos(f.theta), 0.0], [0, 0, 1.0]]))
+        u = _clean(tree.constant_offset[f.j][None])[0]
+        plan.append((E, _signed_permutation(E), u))
     return plan
+
+
+_FRAME_PLANS = PerTree(_frame_plan)
 
 
 def _columns(Ra: Sequence[Array], E: Array, perm) -> list[Array]:

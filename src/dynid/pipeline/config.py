@@ -59,6 +59,9 @@
     known = { IA1 = 0.36 }           # fixed parameters (SI, within ±1e9): their contribution moves to Y
     poor_factor = 20.0               # the paper's rule: %σ > 20 x the smallest %σ ("paper rule" column)
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
+    cov_type = "nonrobust"           # σ² (WᵀW)⁻¹ (paper eq. (7)); "hac": Newey–West per equation group (the
+    hac_lags = "auto"                # decimated rows are autocorrelated; ols or wls), lags floor(4 (n_g/100)^(2/9))
+                                     # or a whole number of rows: one more pass over the data
     data_health = "stop"             # a data health error (a clipped, dead or swapped channel) stops the run;
                                      # "warn": said, kept in results.json, the run goes on (docs/tutorial.md)
 
@@ -135,7 +138,7 @@ from typing import Any
 import numpy as np
 
 from ..estimation.errors import IdentificationError
-from ..estimation.method import Method
+from ..estimation.method import Covariance, Method
 from ..io.rosbag_format import is_bag, is_bag_folder
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
@@ -243,6 +246,7 @@ class IdentifyConfig:
     transmission: dict[str, np.ndarray] = field(default_factory=dict)
     conditioning: Conditioning = field(default_factory=Conditioning)
     method: Method = Method.WLS  # a config's text ("wls", ...) is resolved here, once (`estimation.method`)
+    covariance: Covariance = field(default_factory=Covariance)  # cov_type and hac_lags, parsed once
     known: dict[str, float] = field(default_factory=dict)
     poor_factor: float = 20.0
     flag_percent: float = 2.5
@@ -292,8 +296,9 @@ _TRANSMISSION_KEYS = ("q", "q_offset", "tau")
 _ROBOT_CONDITIONING = ("cutoff", "order", "border", "decimate", "min_speed")
 _CAR_CONDITIONING = ("cutoff", "order", "decimate", "attitude_crossover", "segment", "compensate_delays", "min_speed",
                      "friction_lowpass")
-_ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health")
-_CAR_IDENTIFICATION = ("method", "base", "aero", "known", "poor_factor", "flag_percent", "iv_passes", "data_health",
+_ROBOT_IDENTIFICATION = ("method", "known", "poor_factor", "flag_percent", "data_health", "cov_type", "hac_lags")
+_CAR_IDENTIFICATION = ("method", "cov_type", "hac_lags", "base", "aero", "known", "poor_factor", "flag_percent",
+                       "iv_passes", "data_health",
                        "tire_curves")
 DATA_HEALTH = ("stop", "warn")  # what a data health error does: stop the run (default), or be said and kept
 _REFERENCE_KEYS = ("file", "names", "combinations")
@@ -358,9 +363,20 @@ def load_config(path: str | Path) -> IdentifyConfig:
     if method is Method.IV and car is None:
         raise err("[identification]", "method = \"iv\" takes its instruments from a simulation of the car's "
                   "suspensions driven by the measured loads; a robot has none here: use \"wls\"")
+    try:
+        covariance = Covariance.parse(ident.get("cov_type", "nonrobust"), ident.get("hac_lags"), "")
+    except IdentificationError as exc:
+        raise err("[identification]", str(exc)) from None
+    if covariance.hac and method not in (Method.OLS, Method.WLS):
+        raise err("[identification]", f"cov_type = \"hac\" is for method = \"ols\" or \"wls\" (its sandwich is "
+                  f"least squares'), not {method.value!r}: use cov_type = \"nonrobust\" with it")
+    if covariance.hac and car is not None and car.estimate_offsets:
+        raise err("[identification]", "cov_type = \"hac\" needs [uncertainty] estimate = false: its second pass takes "
+                  "the residual of the rows as measured, and the sensor offsets each test's estimate reads are not "
+                  "taken out of it yet")
     return IdentifyConfig(
         path=path, model=model, tests=tests, channels=channels, transmission=transmission,
-        conditioning=cond, method=method, known=_known(ident, err),
+        conditioning=cond, method=method, covariance=covariance, known=_known(ident, err),
         poor_factor=_positive(ident, "poor_factor", 20.0, err), flag_percent=_positive(ident, "flag_percent", 2.5, err),
         data_health=_data_health(ident, err), reference=_reference(data.get("reference"), here, err), car=car,
         vehicle=vehicle, joints=_model_joints(data.get("model", {}), is_car, err),

@@ -87,8 +87,21 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
 # them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
 SLOW_BUILD_S = 3.0
-GENERATING = ("generating the car's models (once per vehicle and dynid version, up to half a minute; cached for "
-              "later runs)")
+# what a user waits for on a first run, measured (benchmarks/profile_cold_start.py, one core of a 2-core AMD EPYC,
+# CPU seconds: a busy machine's wall time is longer): the car's models generated and the rest state's dynamics
+# compiled 4.6-5.5 s; the simulator's kernel compiled at its first call 8-9.5 s
+GENERATE_S, COMPILE_S = 5, 9
+GENERATING = (f"generating the car's models (once per vehicle and dynid version, about {GENERATE_S} s on a free "
+              "core; cached for later runs)")
+COMPILING = (f"compiling the simulator's models (first run only, about {COMPILE_S} s on a free core; cached for "
+             "later runs)")
+LOADING = f"loading the simulator's compiled models (about {COMPILE_S} s of compiling if they are not cached)"
+
+
+def compile_notice(sim: CarSimulator) -> str | None:
+    """What to say before the simulator's first call (None: nothing, its kernel is cached)."""
+    pending = compile_pending(sim)
+    return None if pending is False else COMPILING if pending else LOADING
 
 
 def compile_pending(sim) -> bool | None:
@@ -107,10 +120,9 @@ def simulate_tests(quick: bool = False, progress: Progress | None = None, simula
     say("building the simulated car")
     with notice_if_slow(SLOW_BUILD_S, GENERATING, say):
         sim = simulated_car(vehicle)
-    pending = compile_pending(sim)
-    if pending is not False:  # numba compiles at the first call: a silent minute unless announced
-        say("compiling the simulator's models (first run only, up to a minute; cached for later runs)"
-            if pending else "loading the simulator's compiled models (up to a minute if they are not cached)")
+    notice = compile_notice(sim)
+    if notice:  # numba compiles at the first call: seconds of silence unless announced
+        say(notice)
     sim.run(TESTS[0][2], duration=2 * sim.settings.dt, **TESTS[0][3])  # two samples: compiles, or loads the cache
     results = {}
     for name, key, man, params, _, full, short in TESTS:

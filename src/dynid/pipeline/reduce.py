@@ -39,6 +39,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model, load_model
 from ..estimation import StreamingLS
 from ..estimation.fit import ErrorEffect
+from ..estimation.hac import HACSums
 from ..estimation.iv import InstrumentSums
 from ..estimation.offsets import OffsetFactors
 from ..estimation.shifts import ShiftSums
@@ -91,6 +92,7 @@ class CarJob:
     # the part of the test whose data health this segment gathers: (t_start, t_end, end included), s (the first map's
     # segments each answer for theirs: segments overlap by the filter's borders); None: not gathered here
     health: tuple[float, float, bool] | None = None
+    hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
 
     @property
     def test(self) -> str:
@@ -115,6 +117,7 @@ class Partial:
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
     # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
     health: dict[str, CarHealth | RobotHealth] = field(default_factory=dict)
+    hac: HACSums | None = None  # the Newey–West sums of a HAC covariance's second pass (estimation.hac)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -127,7 +130,8 @@ def combine(a: Partial, b: Partial) -> Partial:
     health = {t: a.health[t].merged(b.health[t]) if t in b.health else a.health[t] for t in a.health}
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), rows,
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
-                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees), {**b.health, **health})
+                   both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees), {**b.health, **health},
+                   both(a.hac, b.hac))
 
 
 class CarSetup:
@@ -290,6 +294,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     joints = setup.joints(channels, w.fs, lags, compensated)
     traj = joints.traj
     sys = setup.rows(traj, w.fs, job.instruments)
+    if job.hac is not None:  # a HAC covariance's second pass: the rows' scores at the estimate, nothing else
+        return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if job.knees:
         search = KneeSearch()
         knee_rows(sys, traj, w.fs, setup.settings.decimate, setup.conditioning.cutoff, search,
@@ -440,6 +446,7 @@ class RobotJob:
     n_samples: int
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
+    hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
 
     @property
     def test(self) -> str:
@@ -496,8 +503,18 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
         gains = full
     sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
+    if job.hac is not None:
+        return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if health and gains is None:
         health[w.test].add_rows(sys, columns, setup.a_priori)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)
+
+
+def _scores(empty: HACSums, sys: GroupedSystem, test: str) -> HACSums:
+    """A chunk's or segment's rows added to a HAC pass's sums: each group's rows are in time order, the test is the
+    stream (lags never cross tests)."""
+    sums = empty.empty()
+    sums.add(sys.W, sys.Y, sys.groups, test)
+    return sums

@@ -190,15 +190,16 @@ while the fold stacks them: 32 MiB was ~90 MB of a 1 h log's peak."""
 
 
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
-                  health: list[dict] | None = None, all_rows: bool = False) -> dict[str, Partial]:
+                  health: list[dict] | None = None, all_rows: bool = False,
+                  jobs_out: list[RobotJob] | None = None) -> dict[str, Partial]:
     """The tests of each role ("identify", "validate") reduced to one per-joint factor of [W | Y] (every column):
     each test's files planned from their stamps, their data health checked (an error stops here; the other
     findings appended to `health`), cut into chunks read and reduced on the scheduler's workers
     (`reduce.reduce_robot_chunk`), folded per role as they arrive (`reduce.combine`): no test's factors wait for
     the others', so memory does not grow with the number of tests. The rows of each test's first chunks are kept
     too (Partial.rows, by test), up to `PLOT_BYTES` (the report's plots and validation.csv; every chunk's with
-    all_rows), joint by joint."""
-    jobs = []
+    all_rows), joint by joint. jobs_out: a list the chunks' jobs are appended to (a second pass maps them again)."""
+    jobs = [] if jobs_out is None else jobs_out
     plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
@@ -207,6 +208,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         # the data's health: each channel, from its file, here (an error stops before any chunk is reduced); the
         # joints against the model, gathered by the chunks (below)
         found = check_robot_test(cfg, plan, say)
+        trim_heap()  # the pass over the stamps' and the channels' temporaries (a 1 h log's: ~100 MB kept otherwise)
         if health is not None:
             health += found
         plans[spec.name] = (plan, {d["channel"] for d in found if d["severity"] == "error"})
@@ -424,6 +426,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             result, offset_estimates = ident.with_offsets_estimated(plain, zeros, misfits)
     elif parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
+    if cfg.covariance.hac:
+        result = hac_pass(cfg, ident, result, reduce_car_segment, [j for j in jobs(with_offsets=False)
+                                                                   if j.role == "identify"], lambda j: j.role,
+                          scheduler, say)
     delays = None
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
         delays = _car_delays(cfg, setup, plans, jobs(with_offsets=False), parts["identify"].shifts, result,
@@ -449,9 +455,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
 
     # 4. results: does the model fit each group (its residual against what the sensors' errors explain), direct
     #    and cross validation; a delay mismatch's shift of the estimates in their σ total
-    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out
+    # with the offsets estimated, the groups' residuals are the rows' with the offsets the data read taken out (for
+    # IV: its estimate with the offsets its WLS start read; the `!= "iv"` this once said compared a Method with a
+    # string, always true since the method became typed, and the car-truth tables were measured so)
     fitted = None
-    if offset_estimates is not None and cfg.method != "iv":
+    if offset_estimates is not None:
         fitted = zeros.group_rms([result.value(n) for n in ident.estimated_names], offset_estimates.u, misfits)
     fits = model_fits(ident, errors, result.estimates, fitted)
     if delays is not None and delays.mismatched:
@@ -651,6 +659,19 @@ def _offsets_read(offsets, estimates: dict[str, tuple[float, float]]) -> str:
     return out
 
 
+def hac_pass(cfg: IdentifyConfig, ident: StreamingLS, result: IdentificationResult, fn: Callable, jobs: list,
+             key: Callable, scheduler: Scheduler, say: Progress) -> IdentificationResult:
+    """`result` with the config's HAC covariance: the identification's chunks or segments (`jobs`, as the first pass
+    mapped them) mapped again through `fn` with the estimate, each reduced to its rows' Newey–West sums alone
+    (`estimation.hac`), folded in order, the sandwich from `ident`'s factors."""
+    say(f"covariance: {cfg.covariance.label}, a second pass over the {ident.n_rows} rows at the estimate")
+    sums = ident.hac_sums(result, cfg.covariance)
+    again = [dataclasses.replace(j, keep_rows=False, health=None if isinstance(j, CarJob) else False, hac=sums)
+             for j in jobs]
+    part = next(iter(scheduler.map_reduce(fn, again, key, combine, say).values()))
+    return ident.with_hac(result, part.hac, cfg.covariance)
+
+
 def validate(run: IdentificationRun, ident: StreamingLS, cross: StreamingLS | None,
              values: np.ndarray | None = None, residual: Mapping[str, float] | None = None) -> IdentificationRun:
     """The direct and cross validation of a robot's or a car's estimate, from the factors of every segment of the
@@ -725,7 +746,8 @@ def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Schedul
                           "(its constraints are on the bodies alone): use method = \"wls\", or give the gains as "
                           "known ([drive] identify_gains = false)")
     health: list[dict] = []
-    parts = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health)
+    jobs: list[RobotJob] = []
+    parts = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health, jobs_out=jobs)
     a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
     known = dict(cfg.known)
     if gains:  # the data sheet's gains are their a priori values; those not identified are known
@@ -756,6 +778,9 @@ def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Schedul
             result = ident.solve()
     except IdentificationError as exc:
         raise ConfigError(f"{cfg.path}: {exc}{_rank_hints(cfg, ident, health)}") from None
+    if cfg.covariance.hac:
+        result = hac_pass(cfg, ident, result, reduce_robot_chunk, [j for j in jobs if j.window.role == "identify"],
+                          lambda j: j.window.role, scheduler, say)
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))

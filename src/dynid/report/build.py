@@ -820,7 +820,7 @@ def build_report(run, title: str) -> Report:
     summary = (f"{r.method}: {len(r.estimated_names)} parameters estimated from {res.n_rows} rows"
                f"{f', {n_known} known' if n_known else ''}; "
                f"condition number {r.condition_number:.3g}; ‖Y − W X‖/‖Y‖ = {100 * res.relative_residual:.3g} %; "
-               f"{len(r.uncertain)} flagged uncertain.")
+               f"{len(r.uncertain)} flagged uncertain; σ from the {r.cov_type} covariance.")
     out_sections: list[Section] = []
     figs_written: list[tuple[str, str, bytes]] = []  # (file, caption, png)
     if is_car:

@@ -13,8 +13,8 @@ only reads W and copies Q).
 
 from __future__ import annotations
 
-import sys
 import threading
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
@@ -28,48 +28,34 @@ from .numba_backend import have_numba
 
 
 class _Pool:
-    """Output buffers handed out again once nothing refers to them (fresh pages cost a fault and a zero
-    fill each, about as long as the kernel). Results are read-only views, so a reused buffer's zero rows
-    (four fifths of the car's W) need no clearing unless someone made its memory writeable since.
+    """Output buffers handed out again once no result made on them is alive (fresh pages cost a fault and a
+    zero fill each, about as long as the kernel).
 
-    A buffer is an `aligned_zeros` view; the views made from it refer to the array that owns the memory
-    (NumPy collapses bases): it is free when neither it (being filled) nor its owner (a result alive) has
-    a reference from outside the pool."""
+    Only the kernel writes into a buffer; the caller's results are views of a root array made over a read-only
+    memoryview of it. NumPy collapses a view's base up to that root and no further (its base is no array), so
+    every array made from a result refers to the root, and a weak reference to the root says whether any is
+    alive; and no view can be made writeable again, so a reused buffer's zero rows (four fifths of the car's
+    W) stay zero without clearing."""
 
     def __init__(self, keep: int = 8) -> None:
         self.keep = keep  # buffers kept (per output and thread of the car pipeline, a few shapes)
-        self.items: list[tuple[np.ndarray, np.ndarray]] = []  # (owner, buffer)
+        self.items: list[list] = []  # [buffer, weak reference to the root of the results last made on it]
         self.lock = threading.Lock()
-        probe = aligned_zeros(1, 1)
-        items = [(probe.base, probe)]
-        del probe
-        self.free_counts = (sys.getrefcount(items[0][0]), sys.getrefcount(items[0][1]))  # only the pool refers
 
-    def get(self, size: int, N: int, zero_rows: Sequence[tuple[int, int]]) -> np.ndarray:
+    def get(self, size: int, N: int) -> tuple[np.ndarray, np.ndarray]:
+        """(buffer, root): a (size, N) buffer for the kernel, zero wherever the kernel does not write, and the
+        read-only array over the same memory to make the results from (the buffer is busy while it lives)."""
         with self.lock:
-            free = [i for i in range(len(self.items))
-                    if (sys.getrefcount(self.items[i][0]), sys.getrefcount(self.items[i][1])) == self.free_counts]
-            for i in free:
-                owner, buf = self.items[i]
-                if buf.shape == (size, N):
-                    if owner.flags.writeable:  # someone made it writeable: its zero rows may have been written
-                        for a, b in zero_rows:
-                            buf[a:b] = 0.0
-                    owner.flags.writeable = True
-                    buf.flags.writeable = True
-                    return buf
-            buf = aligned_zeros(size, N)
-            if free:
-                self.items[free[0]] = (buf.base, buf)
-            elif len(self.items) < self.keep:
-                self.items.append((buf.base, buf))
-            return buf
-
-    @staticmethod
-    def seal(buf: np.ndarray) -> None:
-        """Read-only, the owner of its memory too (so that no view of it can be made writeable again)."""
-        buf.flags.writeable = False
-        buf.base.flags.writeable = False
+            free = [item for item in self.items if item[1]() is None]
+            item = next((it for it in free if it[0].shape == (size, N)), None)
+            if item is None:
+                item = free[0] if free else [None, None]
+                item[0] = aligned_zeros(size, N)
+                if not free and len(self.items) < self.keep:
+                    self.items.append(item)
+            root = np.asarray(memoryview(item[0]).toreadonly())
+            item[1] = weakref.ref(root)
+            return item[0], root
 
 
 class GeneratedRegressor:
@@ -111,11 +97,8 @@ class GeneratedRegressor:
         for name, a in (("qd", qd), ("qdd", qdd)):
             if a.shape != q.shape:
                 raise ValueError(f"{name} has shape {a.shape}; q has shape {q.shape}")
-        out = {k: self._pool.get(size, N, kernel.zero_rows[k]) for k, size in kernel.outputs.items()}
-        kernel(q, qd, qdd, wrench=values if kernel.n_sites else None, out=out)
+        bufs = {k: self._pool.get(size, N) for k, size in kernel.outputs.items()}
+        kernel(q, qd, qdd, wrench=values if kernel.n_sites else None, out={k: b for k, (b, _) in bufs.items()})
         shapes = {"out": kernel.shape, "Q": kernel.shape[:1]}
-        res = []
-        for k, buf in out.items():
-            self._pool.seal(buf)
-            res.append(np.moveaxis(buf.reshape(*shapes[k], N), -1, 0))
+        res = [np.moveaxis(root.reshape(*shapes[k], N), -1, 0) for k, (_, root) in bufs.items()]
         return tuple(res) if len(res) > 1 else (res[0], np.zeros((N, kernel.shape[0])))

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import BaseParameters, Model, Wrench
+from ..kinematics.per_tree import PerTree
 from ..model.tree import CURVE_TERMS, FIXED, ModelError, Tree
 from .template import (
     CHASSIS_GROUPS,
@@ -82,20 +83,16 @@ def still_tree(tree: Tree) -> Tree:
     return dataclasses.replace(tree, frames=frames)
 
 
-_CACHE: dict[tuple, tuple[Tree, object]] = {}
+# per tree, what _base and _radius computed from it: kept beside the tree while it lives (PerTree), a few keys each
+_DERIVED: PerTree[dict] = PerTree(lambda tree: {})
 
 
 def _cached(tree: Tree, key: tuple, make):
-    """Memoise per tree object (Tree holds dicts, so it is not hashable); a few entries only."""
-    full = (id(tree), *key)
-    hit = _CACHE.get(full)
-    if hit is not None and hit[0] is tree:
-        return hit[1]
-    if len(_CACHE) > 32:
-        _CACHE.clear()
-    value = make()
-    _CACHE[full] = (tree, value)
-    return value
+    """make() once per tree and key (make must not return something that refers to the tree)."""
+    derived = _DERIVED(tree)
+    if key not in derived:
+        derived[key] = make()
+    return derived[key]
 
 
 def identified(tree: Tree) -> list[str]:

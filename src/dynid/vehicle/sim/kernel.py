@@ -147,6 +147,9 @@ def driver(t, y, v, par, man, out):
     out[2:6] brake torque magnitude on the wheels rl rr fl fr (N.m, >= 0), out[6] speed error.
     """
     kind = int(man[0])
+    # a table's columns as kind - M_TABLE + c (0 + c there), not the literals c: numba would compile table_value
+    # once per literal argument (three times on a cold start)
+    col = kind - M_TABLE
     vref = man[1]
     t0 = man[2]
     h_ref = 0.0
@@ -179,7 +182,7 @@ def driver(t, y, v, par, man, out):
     elif kind == M_RANDOM and t > t0:
         h_ref = random_angle(man, t - t0)
     elif kind == M_TABLE:
-        h_ref = table_value(man, 0, t)
+        h_ref = table_value(man, col, t)
     mR = par[P_MASS] * par[P_R0]
     ff = (par[P_MASS] * par[P_G] * 0.012 + 0.5 * par[P_RHO] * par[P_AREA] * 0.31 * v * v * par[P_AERO_ON]) * par[P_R0]
     if kind == M_ACCEL and t > t0:  # the speed target ramps at man[3] m/s^2 up to man[4] m/s, its force fed forward
@@ -187,8 +190,8 @@ def driver(t, y, v, par, man, out):
         vref = min(vref + man[3] * max(t - t0 - 0.5 * man[5], 0.0), man[4])
         ff += mR * man[3] * ramp * smoothstep((man[4] - v) / 1.0)
     if kind == M_TABLE:  # the speed target and its acceleration fed forward; a negative torque is braking
-        vref = table_value(man, 2, t)
-        ff += mR * table_value(man, 1, t)
+        vref = table_value(man, col + 2, t)
+        ff += mR * table_value(man, col + 1, t)
     err = vref - v
     td = ff + mR * (par[P_KP] * err + par[P_KI] * y[Y_INT])
     if kind == M_TABLE and td < 0.0:
@@ -454,40 +457,39 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     tab = np.zeros(6)
     ctl = np.zeros(7)
     tf = np.zeros(3)
-    k1 = np.zeros(NY)
-    k2 = np.zeros(NY)
-    k3 = np.zeros(NY)
-    k4 = np.zeros(NY)
+    kst = np.zeros((4, NY))  # the four RK4 stages' dy/dt
     yt = np.zeros(NY)
     hs = dt / nsub
-    # the stages that do not record: bool(0), not the literal False, which numba would type Literal[bool] and
-    # compile derivative a second time for (seconds of a new vehicle's first run)
-    no_record = bool(0)
+    # the stages in a loop around ONE call of derivative: simulate's own compiled library (optimised and emitted by
+    # LLVM with derivative's code linked in) then inlines one copy of it, not four (0.1-0.2 s of a first run); the
+    # arithmetic is the same (1.0 * hs == hs exactly)
     for n in range(nsteps):
         for s in range(nsub):
             t = t0 + n * dt + s * hs
-            st = derivative(t, y, k1, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af, M,
-                            x, F, rhs, tab, ctl, tf, s == 0, n, RQ, RQD, RQDD, RW, RR)
-            if st != S_OK:
-                status[0] = st
-                status[1] = n
-                return n
+            for c in range(4):
+                if c == 0:
+                    for i in range(NY):
+                        yt[i] = y[i]
+                    tc = t
+                else:
+                    a = 1.0 if c == 3 else 0.5
+                    for i in range(NY):
+                        yt[i] = y[i] + a * hs * kst[c - 1, i]
+                    tc = t + a * hs
+                record = c == 0 and s == 0  # a bool variable: a literal would type (and compile) derivative twice
+                st = derivative(tc, yt, kst[c], par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv,
+                                Af, M, x, F, rhs, tab, ctl, tf, record, n, RQ, RQD, RQDD, RW, RR)
+                if c == 0:
+                    if st != S_OK:
+                        status[0] = st
+                        status[1] = n
+                        return n
+                    if n == nsteps - 1:
+                        break  # the last sample is recorded; no step beyond it
             if n == nsteps - 1:
-                break  # the last sample is recorded; no step beyond it
+                break
             for i in range(NY):
-                yt[i] = y[i] + 0.5 * hs * k1[i]
-            derivative(t + 0.5 * hs, yt, k2, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
-                       M, x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
-            for i in range(NY):
-                yt[i] = y[i] + 0.5 * hs * k2[i]
-            derivative(t + 0.5 * hs, yt, k3, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af,
-                       M, x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
-            for i in range(NY):
-                yt[i] = y[i] + hs * k3[i]
-            derivative(t + hs, yt, k4, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv, Af, M,
-                       x, F, rhs, tab, ctl, tf, no_record, n, RQ, RQD, RQDD, RW, RR)
-            for i in range(NY):
-                y[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+                y[i] += hs / 6.0 * (kst[0, i] + 2.0 * kst[1, i] + 2.0 * kst[2, i] + kst[3, i])
     status[0] = S_OK
     status[1] = nsteps
     return nsteps

@@ -1,0 +1,113 @@
+"""cov_type = "hac" through `dynid identify`: the real TX40 files, their chunks mapped twice (the estimate, then the
+rows' Newey–West sums at it).
+
+Oracle: statsmodels' WLS(...).fit(cov_type="hac-panel") on the run's own stacked decimated rows (each joint one
+panel, weights 1/σ_j², no small-sample correction), which the run keeps whole for its plots (a short test), and
+the estimate of the nonrobust run. The chunks are made small (many chunks per test), so the second pass's sums
+are folded across chunk borders. Tolerance: the two sides solve the same system (κ of the weighted W ≈ 1e3)
+by different factorisations, and the folded sums add the same products in another order: a few κ² ε ≈ 1e-10
+relative; 1e-7 holds on any CPU.
+"""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynid.estimation import Covariance, CovType
+from dynid.pipeline import robot as robot_module
+from dynid.pipeline.config import ConfigError, load_config
+from dynid.pipeline.run import identify
+
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
+CONFIG = Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml"
+sm = pytest.importorskip("statsmodels.api")
+
+
+@pytest.fixture(scope="module")
+def runs(tx40_data):
+    cfg = load_config(CONFIG)
+    mp = pytest.MonkeyPatch()
+    mp.setattr(robot_module, "SEGMENT_BYTES", 2 * 2**20)  # ~17 chunks of the 5 kHz test instead of one
+    try:
+        return identify(cfg), identify(dataclasses.replace(cfg, covariance=Covariance(CovType.HAC, 4)))
+    finally:
+        mp.undo()
+
+
+def test_hac_equals_statsmodels_on_the_stacked_rows(runs):
+    plain, hac = runs
+    r = hac.result
+    np.testing.assert_array_equal(r.values, plain.result.values)  # the covariance alone changes
+    sys = hac.systems["exciting trajectory"]
+    assert sys.W.shape[0] == r.residual.n_rows  # the plots kept every row: the oracle sees them all
+    est = [list(r.names).index(n) for n in r.estimated_names]
+    w = np.array([1.0 / r.weights[g] ** 2 for g in sys.groups])
+    ref = sm.WLS(sys.Y, sys.W[:, est], weights=w).fit(
+        cov_type="hac-panel", cov_kwds={"groups": sys.groups, "maxlags": 4, "use_correction": False})
+    np.testing.assert_allclose(ref.params, r.values[est], rtol=1e-7, atol=1e-9 * np.abs(ref.params).max())
+    scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
+    assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
+    assert r.hac_lags == dict.fromkeys(r.weights, 4)
+
+
+def test_the_method_line_and_results_json_say_which(runs):
+    plain, hac = runs
+    assert plain.result.to_dict()["cov_type"] == "nonrobust" and "hac_lags" not in plain.result.to_dict()
+    data = hac.result.to_dict()
+    assert data["cov_type"].startswith("HAC (Bartlett kernel, 4 lags") and set(data["hac_lags"]) == set(
+        hac.result.weights)
+    assert "covariance: HAC" in hac.result.summary()
+    # the decimated rows are autocorrelated: HAC σ differs from the white-row σ (larger for most parameters)
+    ratio = hac.result.std / plain.result.std
+    assert np.nanmedian(ratio) > 1.0
+
+
+def test_config_keys(tmp_path):
+    text = CONFIG.read_text().replace("../../../shared", str(CONFIG.parents[3] / "shared"))
+    ok = tmp_path / "ok.toml"
+    ok.write_text(text.replace('method = "wls"', 'method = "wls"\ncov_type = "hac"\nhac_lags = 3'))
+    assert load_config(ok).covariance == Covariance(CovType.HAC, 3)
+    auto = tmp_path / "auto.toml"
+    auto.write_text(text.replace('method = "wls"', 'method = "ols"\ncov_type = "HAC"'))
+    assert load_config(auto).covariance == Covariance(CovType.HAC, None)
+    for bad, match in (('cov_type = "robust"', "nonrobust"), ('cov_type = "hac"\nhac_lags = -2', "hac_lags"),
+                       ('method = "wls-pc"\ncov_type = "hac"', "ols\" or \"wls")):
+        p = tmp_path / "bad.toml"
+        p.write_text(text.replace('method = "wls"', bad if bad.startswith("method") else f'method = "wls"\n{bad}'))
+        with pytest.raises(ConfigError, match=match):
+            load_config(p)
+
+
+def test_a_car_hac_equals_statsmodels_on_its_stacked_rows(tmp_path):
+    """The quick demo's car (noisy sensor files) in one segment per test, so that the run keeps every row of its
+    identification tests: cov_type = "hac" against statsmodels' hac-panel on them (each test's group one panel,
+    in time order). Tolerance as for the TX40 (κ of the car's weighted W ≈ 1e3)."""
+    from dynid.pipeline.demo import simulate_tests, write_demo
+
+    config = write_demo(tmp_path, simulate_tests(quick=True), seed=2, noise=True, fmt="parquet")
+    text = config.read_text().replace('method = "wls"', 'method = "wls"\ncov_type = "hac"\nhac_lags = 3')
+    text = text.replace("[uncertainty]\n", "[uncertainty]\nestimate = false\n")
+    config.write_text(text.replace("[conditioning]\n", "[conditioning]\nsegment = 1000.0\n"))
+    run = identify(load_config(config))
+    r = run.result
+    parts = [run.systems[t.name] for t in run.config.tests if t.role == "identify"]
+    W, Y = np.vstack([s.W for s in parts]), np.concatenate([s.Y for s in parts])
+    key = np.concatenate([[f"{t.name}/{g}" for g in s.groups] for t, s in zip(
+        [t for t in run.config.tests if t.role == "identify"], parts, strict=True)])
+    t = np.concatenate([s.t for s in parts])
+    assert W.shape[0] == r.residual.n_rows
+    order = np.argsort(key, kind="stable")  # panels contiguous; each in the rows' (time) order
+    assert all(np.all(np.diff(t[key == k]) > 0) for k in np.unique(key))
+    est = [list(r.names).index(n) for n in r.estimated_names]
+    w = np.array([1.0 / r.weights[k.rsplit("/", 1)[1]] ** 2 for k in key])
+    ref = sm.WLS(Y[order], W[order][:, est], weights=w[order]).fit(
+        cov_type="hac-panel", cov_kwds={"groups": key[order], "maxlags": 3, "use_correction": False})
+    scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
+    assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
+    assert r.systematic is not None  # the declared offsets' part is still attached
+    with pytest.raises(ConfigError, match="estimate = false"):
+        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n"))
+        load_config(config)
