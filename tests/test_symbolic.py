@@ -21,7 +21,7 @@ import pytest
 from oracles import compile_generated_c
 
 import dynid
-from dynid.dynamics import Model
+from dynid.dynamics import Model, trig
 from dynid.model import Frame, Tree
 from dynid.symbolic import (
     SymbolicError,
@@ -254,10 +254,11 @@ def test_generated_sincos_against_libm():
     rng = np.random.default_rng(0)
     xs = [np.linspace(-20.0, 20.0, 4001), rng.uniform(-9.9e4, 9.9e4, 4000), np.arange(-64, 64) * np.pi / 4,
           np.array([0.0, 1e-300, -3.0, 1e5 + 1.0, -1e7]), np.array([np.nan, 1.0, np.inf])]
+    rows = trig.numpy_rows()
     for x in xs:
-        s, c, w, k = np.empty_like(x), np.empty_like(x), np.empty((3, x.size)), np.empty(x.size, np.int64)
+        s, c, w, k = np.empty_like(x), np.empty_like(x), np.empty((rows, x.size)), np.empty(x.size, np.int64)
         with np.errstate(invalid="ignore"):
-            ns["_sincos"](x, s, c, w[0], w[1], w[2], k)
+            ns["_sincos"](x, s, c, k, *w)
             es, ec = np.sin(x), np.cos(x)
         np.testing.assert_allclose(s, es, rtol=0, atol=3e-16)
         np.testing.assert_allclose(c, ec, rtol=0, atol=3e-16)
@@ -459,6 +460,45 @@ def test_numpy_module_is_cached_on_disk(tmp_path):
     close(mod2.evaluate(q, qd, qdd), mod.evaluate(q, qd, qdd))
     other = numpy_module(tree.with_values({"M2": 9.0}), "idm")
     assert other.HASH != mod.HASH
+
+
+def test_one_loader_for_generated_modules(tmp_path, monkeypatch):
+    """cache.load_module: generated once, then from memory and from disk (the source is not asked again); a file
+    of another key or a damaged one is generated again; a read-only cache gives a module in memory whose
+    functions inspect can read (llvm_code translates their source). Oracle: the files and calls counted."""
+    import inspect
+
+    from dynid.symbolic import cache
+
+    calls = []
+
+    def source(value: int):
+        def text() -> str:
+            calls.append(value)
+            return f"def f(x):\n    return x + {value}\n"
+        return text
+
+    mod = cache.load_module("test", "dynid_test_loader_a", "k1", source(1))
+    path = cache.module_path("test", "dynid_test_loader_a")
+    assert Path(mod.__file__) == path and mod.f(1) == 2 and mod.KEY == "k1" and calls == [1]
+    assert cache.load_module("test", "dynid_test_loader_a", "k1", source(2)) is mod and calls == [1]  # memory
+    cache._LOADED.clear()
+    assert cache.load_module("test", "dynid_test_loader_a", "k1", None).f(1) == 2 and calls == [1]  # disk
+    cache._LOADED.clear()
+    assert cache.load_module("test", "dynid_test_loader_a", "k2", source(3)).f(1) == 4  # another key: again
+    assert calls == [1, 3] and "k2" in path.read_text()
+    cache._LOADED.clear()
+    path.write_text("def f(x):\n    return (\n")  # damaged: generated again
+    assert cache.load_module("test", "dynid_test_loader_a", "k2", source(4)).f(1) == 5 and calls == [1, 3, 4]
+    cache._LOADED.clear()
+    assert cache.load_module("test", "dynid_test_loader_b", "k1", None) is None  # cache only: not there
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+    monkeypatch.setenv("DYNID_CACHE", str(readonly))
+    monkeypatch.setattr(cache, "write_atomic", lambda path, text: (_ for _ in ()).throw(PermissionError(path)))
+    mem = cache.load_module("test", "dynid_test_loader_c", "k1", source(5))
+    assert getattr(mem, "__file__", None) is None and mem.f(1) == 6 and "return x + 5" in inspect.getsource(mem.f)
+    assert not list(readonly.rglob("*.py"))
 
 
 def test_bad_input_gives_a_clear_error():

@@ -22,8 +22,8 @@ sample), the block goes through a zeroed (size, LANES) scratch whose valid lanes
 copied. Arithmetic is the source's, operation by
 operation, with no fast-math flag (no contraction into FMA, no reassociation), so that the
 numbers do not depend on the CPU's instruction set: they are the per-sample code's except
-sine and cosine, fdlibm's reduction by pi/2 and polynomials in vector form (the same as the
-numeric engine's `_sincos`, within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
+sine and cosine, dynamics.trig's steps in vector form (the generated NumPy's and C's to the bit,
+within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
 takes libm's values.
 
 `block_model(tree, model, **options)` generates, caches on disk (the source beside Numba's
@@ -39,9 +39,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..dynamics import trig
 from ..model.tree import Tree
 from .cache import model_hash
-from .llvm_code import UnsupportedSourceError, _double, parse_function
+from .llvm_code import Emitter, UnsupportedSourceError, _double, call_ir, lazy_text, parse_function
 from .models import build
 from .numba_backend import arguments, compile_source, scalar_source, source_key
 
@@ -53,34 +54,16 @@ _GENERATION_LOCK = threading.RLock()
 _PREFETCHES = 48  # per input array and block: its rows' cache lines (8 rows of 42 doubles: 42 lines)
 _SLOTS = 4  # int64 per argument in the descriptor: address, then up to three strides (bytes)
 
-# fdlibm's constants, as in dynamics.compiled._sincos
-_INVPIO2, _PIO2_1, _PIO2_1T = 6.36619772367581382433e-01, 1.57079632673412561417e+00, 6.07710050650619224932e-11
-_ROUND = 6755399441055744.0
-_SIN = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
-        2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
-_COS = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
-        -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
-_LIMIT = 1.0e5
-
-
-class _VectorEmitter:
+class _VectorEmitter(Emitter):
     """One block's instructions: every Python name of the source is a <L x double> SSA value."""
 
     def __init__(self, args: list[str], outputs: set[str], shared: set[str], lanes: int) -> None:
-        self.args, self.outputs, self.shared, self.L = args, outputs, shared, lanes
-        self.V = f"<{lanes} x double>"
-        self.env: dict[str, str] = {}
-        self.lines: list[str] = []
-        self.count = 0
+        super().__init__(args)
+        self.outputs, self.shared, self.L = outputs, shared, lanes
+        self.V = self.T = f"<{lanes} x double>"
+        self.M = f"<{lanes} x i1>"
         self.block = "body"
-        self.trig: dict[str, tuple[str, str]] = {}  # argument text -> (sin, cos)
-        self.splats: dict[str, str] = {}
-
-    def _new(self, text: str) -> str:
-        self.count += 1
-        name = f"%v{self.count}"
-        self.lines.append(f"  {name} = {text}")
-        return name
+        self.pairs: dict[str, tuple[str, str]] = {}  # argument text -> (sin, cos)
 
     def const(self, x: float) -> str:
         if x == 0.0 and str(x)[0] != "-":
@@ -108,10 +91,7 @@ class _VectorEmitter:
         arr = node.value.id if isinstance(node.value, ast.Name) else ""
         if arr not in self.args or arr in self.outputs:
             raise UnsupportedSourceError(f"read of {ast.unparse(node)}: only input arrays are read")
-        idx = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
-        if not all(isinstance(i, ast.Constant) and type(i.value) is int and i.value >= 0 for i in idx):
-            raise UnsupportedSourceError(f"index {ast.unparse(node.slice)}: constant non-negative integers only")
-        off = self._offset(arr, [i.value for i in idx])
+        off = self._offset(arr, self.index(node))
         if arr in self.shared:  # the same for every sample: one load, broadcast
             ptr = self._new(f"getelementptr inbounds i8, ptr %p_{arr}, i64 {off}")
             return self._splat(self._new(f"load double, ptr {ptr}, align 8"))
@@ -140,75 +120,33 @@ class _VectorEmitter:
     def _op(self, op: str, a: str, b: str) -> str:
         return self._new(f"{op} {self.V} {a}, {b}")
 
-    def expr(self, node: ast.expr) -> str:
-        if isinstance(node, ast.Constant) and type(node.value) in (int, float):
-            if isinstance(node.value, int) and abs(node.value) > 2**53:
-                raise UnsupportedSourceError(f"integer {node.value} not exact as a double")
-            return self.const(float(node.value))
-        if isinstance(node, ast.Name):
-            if node.id not in self.env:
-                raise UnsupportedSourceError(f"name {node.id} read before assignment (or an array used as a number)")
-            return self.env[node.id]
-        if isinstance(node, ast.BinOp) and type(node.op) in (ast.Add, ast.Sub, ast.Mult):
-            a, b = self.expr(node.left), self.expr(node.right)
-            return self._op({ast.Add: "fadd", ast.Sub: "fsub", ast.Mult: "fmul"}[type(node.op)], a, b)
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
-            return self._new(f"fneg {self.V} {self.expr(node.operand)}")  # the bits of Numba's -0.0 - x
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.UAdd):
-            return self.expr(node.operand)
-        if isinstance(node, ast.Subscript):
-            return self.load(node)
-        if isinstance(node, ast.Call) and len(node.args) == 1 and not node.keywords:
-            f = node.func
-            if (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math"
-                    and f.attr in ("sin", "cos")):
-                key = ast.dump(node.args[0])
-                if key not in self.trig:
-                    self.trig[key] = self.sincos(self.expr(node.args[0]))
-                return self.trig[key][0 if f.attr == "sin" else 1]
-            if (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math"
-                    and f.attr == "tanh"):  # smooth friction laws: rare, libm lane by lane (the engine's numbers)
-                x, v = self.expr(node.args[0]), f"{self.V} poison"
-                for lane in range(self.L):
-                    xl = self._new(f"extractelement {self.V} {x}, i64 {lane}")
-                    t = self._new(f"call double @tanh(double {xl})")
-                    v = f"{self.V} " + self._new(f"insertelement {v}, double {t}, i64 {lane}")
-                return v.split(" ")[-1]
-            if isinstance(f, ast.Name) and f.id == "_sign":  # 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-                x = self.expr(node.args[0])
-                pos = self._new(f"fcmp ogt {self.V} {x}, zeroinitializer")
-                neg = self._new(f"fcmp olt {self.V} {x}, zeroinitializer")
-                low = self._new(f"select <{self.L} x i1> {neg}, {self.V} {self.const(-1.0)}, {self.V} zeroinitializer")
-                return self._new(f"select <{self.L} x i1> {pos}, {self.V} {self.const(1.0)}, {self.V} {low}")
-        raise UnsupportedSourceError(f"expression {ast.unparse(node)}")
+    def trig(self, kind: str, node: ast.Call) -> str:
+        key = ast.dump(node.args[0])  # sine and cosine of one argument computed together
+        if key not in self.pairs:
+            self.pairs[key] = self.sincos(self.expr(node.args[0]))
+        return self.pairs[key][0 if kind == "sin" else 1]
+
+    def tanh(self, x: str) -> str:
+        """Smooth friction laws: rare, libm lane by lane (the engine's numbers)."""
+        v = f"{self.V} poison"
+        for lane in range(self.L):
+            xl = self._new(f"extractelement {self.V} {x}, i64 {lane}")
+            t = self._new(f"call double @tanh(double {xl})")
+            v = f"{self.V} " + self._new(f"insertelement {v}, double {t}, i64 {lane}")
+        return v.split(" ")[-1]
 
     def sincos(self, x: str) -> tuple[str, str]:
-        """(sin x, cos x) of a vector: fdlibm's reduction and kernels (dynamics.compiled._sincos, operation by
-        operation); lanes out of range (|x| >= 1e5 or NaN) from libm, in a branch taken only then."""
+        """(sin x, cos x) of a vector: the steps of dynamics.trig, the quadrant by selects; lanes out of range
+        (|x| >= trig.LIMIT or NaN) from libm, in a branch taken only then."""
         L, V, c = self.L, self.V, self.const
         M, VI = f"<{L} x i1>", f"<{L} x i64>"
         ax = self._new(f"call {V} @llvm.fabs.v{L}f64({V} {x})")
-        ok = self._new(f"fcmp olt {V} {ax}, {c(_LIMIT)}")
-        xs = self._new(f"select {M} {ok}, {V} {x}, {V} zeroinitializer")
-        k = self._op("fsub", self._op("fadd", self._op("fmul", xs, c(_INVPIO2)), c(_ROUND)), c(_ROUND))
-        r = self._op("fsub", self._op("fsub", xs, self._op("fmul", k, c(_PIO2_1))), self._op("fmul", k, c(_PIO2_1T)))
-        z = self._op("fmul", r, r)
-        p = self._op("fmul", z, c(_SIN[5]))
-        for a in reversed(_SIN[:5]):  # _S1 + z * (_S2 + z * (... + z * _S6))
-            p = self._op("fadd", c(a), p)
-            if a != _SIN[0]:
-                p = self._op("fmul", z, p)
-        sn = self._op("fadd", r, self._op("fmul", self._op("fmul", z, r), p))
-        hz = self._op("fmul", c(0.5), z)
-        w = self._op("fsub", c(1.0), hz)
-        p = self._op("fmul", z, c(_COS[5]))
-        for a in reversed(_COS[:5]):
-            p = self._op("fadd", c(a), p)
-            if a != _COS[0]:
-                p = self._op("fmul", z, p)
-        tail = self._op("fadd", self._op("fsub", self._op("fsub", c(1.0), w), hz), self._op("fmul", self._op(
-            "fmul", z, z), p))
-        cs = self._op("fadd", w, tail)
+        ok = self._new(f"fcmp olt {V} {ax}, {c(trig.LIMIT)}")
+        val = {"x": self._new(f"select {M} {ok}, {V} {x}, {V} zeroinitializer")}
+        for name, op, a, b in trig.STEPS:  # one vector instruction per step
+            val[name] = self._op(f"f{op}", val[a] if a in val else c(trig.CONSTANTS[a]),
+                                 val[b] if b in val else c(trig.CONSTANTS[b]))
+        k, sn, cs = val["k"], val["sn"], val["cs"]
         quad = self._new(f"and {VI} {self._new(f'fptosi {V} {k} to {VI}')}, " + "<" + ", ".join(["i64 3"] * L) + ">")
 
         def bit(v: str, b: int) -> str:
@@ -246,33 +184,18 @@ class _VectorEmitter:
         return s2, c2
 
     # -- statements
-    def statement(self, node: ast.stmt) -> bool:
-        """Emit one statement; False after the return."""
-        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str):
-            return True
-        if isinstance(node, ast.Return):
-            if not (isinstance(node.value, ast.Constant) and node.value.value == 0):
-                raise UnsupportedSourceError("return: only `return 0`")
-            return False
-        if not (isinstance(node, ast.Assign) and len(node.targets) == 1):
-            raise UnsupportedSourceError(f"statement {ast.unparse(node)}")
-        target = node.targets[0]
-        if isinstance(target, ast.Name):
-            if target.id in self.args:
-                raise UnsupportedSourceError(f"assignment to the argument {target.id}")
-            self.env[target.id] = self.expr(node.value)
-            return True
-        if not (isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name)
-                and target.value.id in self.outputs):
-            raise UnsupportedSourceError(f"statement {ast.unparse(node)}")
-        value = node.value
+    def ret(self) -> None:
+        pass  # the loop's latch follows the block's statements
+
+    def assign_element(self, target: ast.Subscript, value: ast.expr) -> None:
+        if not (isinstance(target.value, ast.Name) and target.value.id in self.outputs):
+            raise UnsupportedSourceError(f"statement {ast.unparse(target)} = {ast.unparse(value)}")
         if isinstance(value, ast.Constant) and type(value.value) in (int, float) and value.value == 0:
-            return True  # zeros: the output buffers' rows are zero already (and so is the scratch)
+            return  # zeros: the output buffers' rows are zero already (and so is the scratch)
         sl = target.slice
         if not (isinstance(sl, ast.Constant) and type(sl.value) is int and sl.value >= 0):
-            raise UnsupportedSourceError(f"statement {ast.unparse(node)}: a store to out[k] (flat) only")
+            raise UnsupportedSourceError(f"statement {ast.unparse(target)} = ...: a store to out[k] (flat) only")
         self.store(target.value.id, sl.value, self.expr(value))
-        return True
 
 
 def block_ir(source: str, symbol: str, lanes: int = LANES, shared: Sequence[str] = ("X",)) -> str:
@@ -408,19 +331,15 @@ def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Seque
     """A Numba intrinsic `call(N, desc)` running `fn`'s source as block_ir (desc: a C-contiguous int64 array).
     The IR is built when Numba first compiles a caller (not when a cached one is loaded)."""
     # start-up: numba 0.5 s
-    import llvmlite.binding as ll
-    from llvmlite import ir
-    from numba.core import cgutils, types
+    from numba.core import types
     from numba.core.errors import TypingError
     from numba.extending import intrinsic
 
-    texts: list[str] = []
-
-    def ir_text() -> str:
+    def build() -> str:
         with _GENERATION_LOCK:
-            if not texts:
-                texts.append(block_ir(inspect.getsource(fn), symbol, lanes, shared))
-        return texts[0]
+            return block_ir(inspect.getsource(fn), symbol, lanes, shared)
+
+    ir_text = lazy_text(build)
 
     @intrinsic
     def call(typingctx, n, desc):
@@ -431,11 +350,7 @@ def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Seque
         def codegen(context, builder, sig, llargs):
             ary = context.make_array(sig.args[1])(context, builder, llargs[1])
             count = context.cast(builder, llargs[0], sig.args[0], types.int64)
-            module = ll.parse_assembly(ir_text())
-            module.verify()  # a malformed module would abort the process inside LLVM's passes
-            context.active_code_library.add_llvm_module(module)
-            fnty = ir.FunctionType(ir.VoidType(), [ir.IntType(64), ary.data.type])
-            builder.call(cgutils.get_or_insert_function(builder.module, fnty, symbol), [count, ary.data])
+            call_ir(context, builder, ir_text(), symbol, [count, ary.data])
             return context.get_constant(types.int64, 0)
 
         return types.int64(n, desc), codegen

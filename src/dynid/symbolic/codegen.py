@@ -8,6 +8,7 @@ PYTHONHASHSEED.
 
 from __future__ import annotations
 
+from ..dynamics import trig
 from .expr import Poly, Program, _key, factored
 
 GENERATOR_VERSION = "3"
@@ -172,38 +173,12 @@ __all__ = ["C_LANES", "GENERATOR_VERSION", "LANGS", "format_poly", "to_c", "to_t
 # unit-stride accesses, which GCC (-O2 from version 12) and clang vectorise across samples; the
 # results go to a lane-major tile and from it to the caller's sample-major `out`. Written so that
 # the loop has no branch the vectoriser must refuse (GCC does not if-convert floating-point
-# comparisons under its default -ftrapping-math): sine and cosine are fdlibm's reduction and
-# polynomials with the quadrant applied by exact arithmetic, sign() is a copysign; a lane whose
+# comparisons under its default -ftrapping-math): sine and cosine are dynamics.trig's steps
+# with the quadrant applied by exact arithmetic, sign() is a copysign; a lane whose
 # angle is 1e5 or more (or NaN) sends its block to the per-sample code (libm). A tail of fewer
 # than C_LANES samples runs through the same code on padded copies: a sample's value does not
 # depend on where it falls.
-_C_LANE_HELPERS = """
-/* sin and cos of x (1 ulp) from fdlibm's reduction by pi/2 and its polynomials on [-pi/4, pi/4]; the quadrant
-   m = k - 4 round(k / 4) (0, 1, +-2, -1) picks and signs them by exact arithmetic on small integers;
-   *bad counts an x of 1e5 or more, or NaN, whose result is wrong */
-static inline void dynid_sincos_lane(double x, double *s, double *c, double *bad)
-{
-    const double ROUND = 6755399441055744.0; /* 1.5 * 2^52: (t + ROUND) - ROUND rounds t to an integer */
-    const double k = (x * 6.36619772367581382433e-01 + ROUND) - ROUND;
-    const double r = (x - k * 1.57079632673412561417e+00) - k * 6.07710050650619224932e-11;
-    const double z = r * r;
-    const double sn = r + z * r * (-1.66666666666666324348e-01 + z * (8.33333333332248946124e-03
-        + z * (-1.98412698298579493134e-04 + z * (2.75573137070700676789e-06 + z * (-2.50507602534068634195e-08
-        + z * 1.58969099521155010221e-10)))));
-    const double hz = 0.5 * z;
-    const double w = 1.0 - hz;
-    const double cs = w + (((1.0 - w) - hz) + z * z * (4.16666666666666019037e-02 + z * (-1.38888888888741095749e-03
-        + z * (2.48015872894767294178e-05 + z * (-2.75573143513906633035e-07 + z * (2.08757232129817482790e-09
-        + z * -1.13596475577881948265e-11))))));
-    const double m = k - 4.0 * ((k * 0.25 + ROUND) - ROUND);
-    const double e = m * m;
-    const double odd = e * (4.0 - e) / 3.0, even = 1.0 - odd; /* 1 for m = +-1, else 0 */
-    const double a = (6.0 - 7.0 * e + e * e) / 6.0, b = m * (4.0 - e) / 3.0; /* signs: a + b of sin, a - b of cos */
-    *s = (a + b) * (odd * cs + even * sn);
-    *c = (a - b) * (odd * sn + even * cs);
-    *bad += fabs(x) < 1.0e5 ? 0.0 : 1.0;
-}
-
+_C_LANE_HELPERS = "\n" + trig.c_source() + """
 static inline double dynid_sign_lane(double x) { return copysign(fabs(x) > 0.0 ? 1.0 : 0.0, x); }
 
 /* the first n lane columns of a lane-major tile (size rows of LANES) to n sample-major rows of o; with SSE2,

@@ -13,7 +13,7 @@ writes what `to_c` writes, in Python: one function per model taking one sample,
 with q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench (sites, 6), out and
 any extra output flat float64 arrays. The module source is written atomically to
 `cache_dir()/numba/<name>_<hash>.py` (hash of the model and of this generator) and
-imported from there, so that `numba.njit(cache=True)` can keep the machine code next
+imported from there (cache.load_module), so that `numba.njit(cache=True)` can keep the machine code next
 to it: the first run compiles (seconds), the next ones load. Without numba the same
 functions run as plain Python (about 100x slower), with a warning.
 
@@ -27,8 +27,6 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib
-import linecache
-import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -36,14 +34,13 @@ from types import ModuleType
 
 from .. import pysource
 from ..model.tree import Tree
-from .cache import cache_dir, generator_fingerprint, import_file, model_hash, write_atomic
+from .cache import generator_fingerprint, load_module, model_hash, module_path
 from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
 from .llvm_code import UnsupportedSourceError, function_ir
 from .models import build
 
 BACKEND_VERSION = "1"
-_LOADED: dict[str, ModuleType] = {}
 
 
 class NumbaMissingWarning(RuntimeWarning):
@@ -155,10 +152,10 @@ def _sign(x):
 '''
 
 
-def _footer(names: list[str], key: str, mod_name: str, straight: dict[str, list[str]]) -> str:
+def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]]) -> str:
     """jit every name; those in `straight` (name -> its arguments) through their LLVM IR (llvm_code):
     a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher."""
-    lines = ["", f"KEY = {key!r}", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
+    lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
              "    _sign = njit(cache=True)(_sign)"]
     lines += [f"    {n} = njit(cache=True)({n})" for n in names if n not in straight]
@@ -192,8 +189,8 @@ def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
 
 def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb",
                    straight: Sequence[str] = ()) -> ModuleType | None:
-    """Import (from the disk cache, or after writing it) a module HEADER + body whose functions
-    `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
+    """Import (cache.load_module: from the disk cache, or after writing it) a module HEADER + body whose
+    functions `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
     (NOT of the text: the generator's factoring order may vary between processes), naming the module.
     `straight`: those of `names` that are generated straight-line code (scalar_source), compiled
     from their LLVM IR (llvm_code: seconds less each than numba's typing of every statement, the
@@ -203,35 +200,15 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
     only, None when it is not there.
     """
+
+    def source() -> str:
+        assert body is not None
+        return HEADER + body + _footer(names, mod_name, _straight_arguments(body, [n for n in straight if n in names]))
+
     mod_name = f"{prefix}_{key}"
-    if mod_name in _LOADED:
-        return _LOADED[mod_name]
-    path = cache_dir() / "numba" / f"{mod_name}.py"
-    mod = None
-    if path.exists():  # the same key: the same model (its text may differ in the order of factored terms)
-        try:
-            mod = import_file(path, mod_name)
-            if getattr(mod, "KEY", None) != key:
-                mod = None
-        except Exception:  # a damaged cache file is regenerated, never trusted
-            mod = None
-    if mod is None and body is None:  # load only
-        return None
-    if mod is None:
-        src = HEADER + body + _footer(names, key, mod_name, _straight_arguments(body, [n for n in straight
-                                                                                      if n in names]))
-        try:
-            write_atomic(path, src)
-            mod = import_file(path, mod_name)
-        except OSError:  # read-only cache: an in-memory module (numba then cannot cache: compiles every run)
-            mod = ModuleType(mod_name)
-            fname = f"<dynid numba {mod_name}>"
-            linecache.cache[fname] = (len(src), None, src.splitlines(True), fname)  # llvm_code reads the source
-            exec(pysource.compile_source(src, fname), mod.__dict__)
-    if not getattr(mod, "NUMBA", False):
+    mod = load_module("numba", mod_name, key, None if body is None else source)
+    if mod is not None and not getattr(mod, "NUMBA", False):
         _warn_missing()
-    sys.modules.setdefault(mod_name, mod)
-    _LOADED[mod_name] = mod
     return mod
 
 
@@ -250,28 +227,16 @@ def numba_model(tree: Tree, model: str, name: str | None = None, **options):
     """
 
     name = name or model
-    h = source_key(model_hash(tree, model, options), name)
-    mod_name = f"dynid_nb_{model}_{h}"
-    if mod_name not in _LOADED:
-        path = cache_dir() / "numba" / f"{mod_name}.py"
-        body = None
-        if path.exists():
-            try:
-                mod = import_file(path, mod_name)
-                if getattr(mod, "KEY", None) == h:
-                    sys.modules.setdefault(mod_name, mod)
-                    _LOADED[mod_name] = mod
-            except Exception:
-                body = None
-        if mod_name not in _LOADED:
-            prog = build(tree, model, **options)
-            body = scalar_source(prog, name)
-            compile_source(body, [name], h, prefix=f"dynid_nb_{model}")
-    return getattr(_LOADED[mod_name], name)
+    key = source_key(model_hash(tree, model, options), name)
+    mod = compile_source(None, [], key, prefix=f"dynid_nb_{model}")
+    if mod is None:
+        mod = compile_source(scalar_source(build(tree, model, **options), name), [name], key,
+                             prefix=f"dynid_nb_{model}")
+    return getattr(mod, name)
 
 
 def cached_module_path(key: str, prefix: str = "dynid_nb") -> Path:
-    return cache_dir() / "numba" / f"{prefix}_{key}.py"
+    return module_path("numba", f"{prefix}_{key}")
 
 
 __all__ = ["BACKEND_VERSION", "NumbaMissingWarning", "arguments", "compile_source", "have_numba", "jit",

@@ -9,6 +9,7 @@ from __future__ import annotations
 import ast
 import re
 
+from ..dynamics import trig
 from ..model.tree import Tree
 from ..pysource import parse
 from .codegen import _ARGS, _TITLES, _eq_text, _prod, format_poly
@@ -27,8 +28,8 @@ from .expr import Poly, Program, SymbolicError, _key, is_const, neg, symbols_of,
 #   model as long as the evaluation itself), see _buffer in _RUNTIME below; results are read-only
 #   views, so that a reused buffer's zero rows (four fifths of the car's) need no clearing, which
 #   cost a tenth of the car's evaluation (READONLY = False: writeable results, rows cleared);
-# - sine and cosine of an angle are computed together from fdlibm's polynomials (np.sin and
-#   np.cos are scalar libm calls here, 9-13 ns each).
+# - sine and cosine of an angle are computed together, the steps of dynamics.trig one ufunc each
+#   (np.sin and np.cos are scalar libm calls here, 9-13 ns each).
 CHUNK = 8192
 POOL_MIN = 1 << 20  # bytes: smaller outputs get plain np.zeros
 POOL_SIZE = 2  # buffers kept per output array of a model (one per thread of the car pipeline)
@@ -92,63 +93,6 @@ def release():
     """Free the pooled output buffers."""
     with _POOL_LOCK:
         _POOL.clear()
-'''
-
-# x - n pi/2 with pi/2 in two parts (the first one of 33 bits: n * 1.5707963267341256 is exact for
-# |n| < 2**20), fdlibm's __kernel_sin and __kernel_cos polynomials in Horner form, and the
-# quadrant n mod 4 by a table; 1 to 3 ulp, against 1 for libm.
-_RUNTIME_SINCOS = '''
-# 0-d arrays, not floats: a float argument costs a conversion per ufunc call
-_INV_PIO2, _PIO2_1, _PIO2_1T = np.array(6.36619772367581382433e-01), np.array(1.57079632673412561417e+00), \\
-    np.array(6.07710050650619224932e-11)
-_S6 = np.array(1.58969099521155010221e-10)
-_SIN = tuple(np.array(a) for a in (-2.50507602534068634195e-08, 2.75573137070700676789e-06,
-                                   -1.98412698298579493134e-04, 8.33333333332248946124e-03,
-                                   -1.66666666666666324348e-01))
-_C6 = np.array(-1.13596475577881948265e-11)
-_COS = tuple(np.array(a) for a in (2.08757232129817482790e-09, -2.75573143513906633035e-07,
-                                   2.48015872894767294178e-05, -1.38888888888741095749e-03,
-                                   4.16666666666666019037e-02, -0.5))
-_ONE = np.array(1.0)
-_MAGIC = np.array(6755399441055744.0)
-_QC = np.array([1.0, 0.0, -1.0, 0.0])
-_QS = np.array([0.0, 1.0, 0.0, -1.0])
-
-
-def _sincos(x, s, c, n, r, z, k):
-    """s, c = sin x, cos x (rows), with n, r, z float and k int64 scratch rows of the same length."""
-    if not (x.max(initial=0.0) < 1e5 and x.min(initial=0.0) > -1e5):  # large or NaN: libm
-        np.sin(x, s)
-        np.cos(x, c)
-        return
-    _mul(x, _INV_PIO2, n)
-    np.rint(n, n)
-    _mul(n, _PIO2_1, r)
-    _sub(x, r, r)
-    _mul(n, _PIO2_1T, z)
-    _sub(r, z, r)  # r = x - n pi/2, |r| <= pi/4
-    _mul(r, r, z)
-    _mul(z, _S6, s)
-    for a in _SIN:
-        _add(s, a, s)
-        _mul(s, z, s)
-    _mul(s, r, s)
-    _add(s, r, s)  # sin r
-    _mul(z, _C6, c)
-    for a in _COS:
-        _add(c, a, c)
-        _mul(c, z, c)
-    _add(c, _ONE, c)  # cos r
-    _add(n, _MAGIC, z)  # n mod 4 from the low bits of n + 1.5 * 2**52 (|n| < 2**20)
-    np.bitwise_and(z.view(np.int64), 3, out=k)
-    np.take(_QC, k, out=n, mode="clip")  # cos(n pi/2)
-    np.take(_QS, k, out=r, mode="clip")  # sin(n pi/2)
-    _mul(s, r, z)
-    _mul(s, n, s)
-    _mul(r, c, r)
-    _add(s, r, s)
-    _mul(c, n, c)
-    _sub(c, z, c)
 '''
 
 
@@ -291,8 +235,8 @@ class _Kernel:
             self.lines.append(f"_neg({x}, {t})")
             x = t
         if len(names) == 2:
-            w = [self._temp() for _ in range(3)]
-            self.lines.append(f"_sincos({x}, {names['sin']}, {names['cos']}, {', '.join(w)}, _K)")
+            w = [self._temp() for _ in range(trig.numpy_rows())]
+            self.lines.append(f"_sincos({x}, {names['sin']}, {names['cos']}, _K, {', '.join(w)})")
             for t in w:
                 self._release(t)
         else:
@@ -329,8 +273,8 @@ def _zero_runs(shape: tuple[int, ...], entries) -> tuple[tuple[int, int], ...]:
 
 
 _RESERVED = {"q", "qd", "qdd", "X", "XT", "wrench", "out", "Q", "np", "sys", "threading", "weakref", "evaluate",
-             "release", "CHUNK", "POOL_MIN", "POOL_SIZE", "READONLY", "MODEL", "HASH", "SHAPE", "N_SITES", "N_OUTPUTS",
-             "ROWS", "COLS", "PARAMETERS", "DEFAULT_X", *_ARGS}
+             "release", "CHUNK", "POOL_MIN", "POOL_SIZE", "READONLY", "MODEL", "HASH", "KEY", "SHAPE", "N_SITES",
+             "N_OUTPUTS", "ROWS", "COLS", "PARAMETERS", "DEFAULT_X", *_ARGS}
 
 
 def _check_names(prog: Program) -> None:
@@ -345,9 +289,9 @@ def to_numpy(prog: Program, tree: Tree | None = None, model_hash: str = "") -> s
 
     evaluate returns read-only arrays (N, *shape) that are views of C-ordered (size, N) buffers
     (one row per entry: `W.transpose(1, 2, 0)` is C-contiguous; copy to modify), and may hand a
-    buffer out again once every array returned on it has been dropped. Sines and cosines are to
-    an ulp or two (fdlibm's polynomials), everything else is the same floating-point operations
-    as the equations.
+    buffer out again once every array returned on it has been dropped. Sines and cosines are
+    dynamics.trig's (within an ulp of libm, the bits of the C and LLVM kernels'), everything else is
+    the same floating-point operations as the equations.
     """
     _check_names(prog)
     outs = _out_list(prog)
@@ -380,7 +324,7 @@ def _np_header(prog: Program, tree: Tree | None, model_hash: str, outs, numbers:
           for name, shape, entries in outs]
     L += _RUNTIME.split("\n")
     if sincos:
-        L += _RUNTIME_SINCOS.split("\n")
+        L += ["", *trig.numpy_source("_sincos").split("\n")]
     return [*L, ""]
 
 
