@@ -550,3 +550,20 @@ def test_the_optimised_input_lowers_the_binding_targets_sigma(plan406, design406
     standard = {key: sigma_with(plan406, [plan406.pieces[key]], k) for key in same}
     assert len(same) >= 3 and design406.sigma < min(standard.values()), (plan406.score.targets[k].key,
                                                                           design406.sigma, standard)
+
+
+def test_the_optimised_input_is_scored_with_the_tests_that_fit_beside_it():
+    """Issue 29 item 4: under [limits] time, an input is scored with the plan's tests that fit beside it, taken in
+    the plan's order while they fit; all of them without a limit (oracle: the sums by hand)."""
+    from types import SimpleNamespace
+
+    from dynid.pipeline.plan_input import fitting
+
+    cands = {"a": SimpleNamespace(duration=20.0), "b": SimpleNamespace(duration=12.0),
+             "c": SimpleNamespace(duration=4.0)}
+    plan = SimpleNamespace(plan=["a", "b", "c"], candidates=cands,
+                           spec=SimpleNamespace(limits=planner.Limits(time=45.0)))
+    assert fitting(plan, 20.0) == ["a", "c"]  # 25 s left: a (20), not b (12 > 5), c (4)
+    assert fitting(plan, 40.0) == ["c"]
+    plan.spec = SimpleNamespace(limits=planner.Limits())
+    assert fitting(plan, 20.0) == ["a", "b", "c"]
