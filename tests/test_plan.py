@@ -230,8 +230,8 @@ def test_search_finds_the_shortest_plan_and_drops_what_is_not_needed():
     names = ("x0", "x1", "x2")
     score = planner.Scorer(names, (planner.Target("parameter", "x1", 1.0, ""),), (), np.zeros((0, 3)))
 
-    def reported(plan):  # the search's draws
-        return planner.reported_draws([pieces[k] for k in plan], score, planner.SEARCH_DRAWS)
+    def reported(plan, draws=planner.SEARCH_DRAWS):  # the search's draws
+        return planner.reported_draws([pieces[k] for k in plan], score, draws)
 
     limit = 1.02 * float(score.reported(reported(["short1", "short2"]))[0])
     score = planner.Scorer(names, (planner.Target("parameter", "x1", limit, ""),), (), np.zeros((0, 3)))
@@ -239,7 +239,8 @@ def test_search_finds_the_shortest_plan_and_drops_what_is_not_needed():
     import itertools
 
     feasible = [c for r in (1, 2, 3) for c in itertools.combinations(pieces, r)
-                if score.shortfall(reported(c)) == 0]
+                if score.shortfall(reported(c)) < planner.NEAR
+                and score.shortfall(reported(c, planner.OFFSET_DRAWS)) == 0]
     assert feasible
     best = min(sum(durations[k] for k in c) for c in feasible)
     assert sum(durations[k] for k in plan) == best, (plan, feasible)
