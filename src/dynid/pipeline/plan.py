@@ -562,7 +562,7 @@ def typical(draws: Sequence[Prediction]) -> Prediction:
 
 
 # ------------------------------------------------------------ the σ an identification reports, over the zero offsets
-OFFSET_DRAWS = 400  # draws of every test's zero offsets (`reported_draws`): a 96 % quantile to about 1 %
+OFFSET_DRAWS = 400  # draws of every test's zero offsets (`reported_draws`): a 96 % quantile to a few %
 # the search's: its comparisons share the draws (one seed); a plan whose shortfall on them is below NEAR is scored
 # on OFFSET_DRAWS (a 96 % quantile from the 5th largest of 128 is some 8 % off: near the goal the search compares
 # plans on one set of draws, and a plan counts as met on all of them)
@@ -905,7 +905,7 @@ class TestPlan:
     def _scatter(self) -> Reported:
         if self.scatter is not None:
             return self.scatter
-        return reported_draws([self.pieces[k] for k in self.plan], self.score, estimate=self.estimate)
+        return reported_draws([self.pieces[k] for k in sorted(self.plan)], self.score, estimate=self.estimate)
 
     def rehearsal(self, folder: Path, seed: int = 406) -> Path:
         """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
@@ -1128,7 +1128,8 @@ def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score
     prediction, the plan without each test (one repetition fewer), and what its identification reports over the
     draws of the offsets."""
     plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate, max_seconds=max_seconds)
-    scatter = reported_draws([pieces[k] for k in plan], score, estimate=estimate)
+    # in the search's order (its cache's: sorted), so the draws fall on the same tests
+    scatter = reported_draws([pieces[k] for k in sorted(plan)], score, estimate=estimate)
     draws = predict_all([pieces[k] for k in plan], estimate)
     prediction = typical(draws)
     without = {}
