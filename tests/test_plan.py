@@ -415,33 +415,34 @@ def test_the_406s_plan_predicts_the_spread_of_ten_seeds(plan406, seeds406):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 29: with the offsets estimated the chassis' estimates spread more than "
-                   "any σ says: on 27 Nov M6's spread over ten seeds 2.20 x the predicted σ total (1.16 kg against "
-                   "0.53; the σ identify reports, 0.69 kg, is short too), MX6, MZ6, ZZ6 1.6 x; the other parameters "
-                   "within the band (median ratio 0.99, RMS 1.11)")
 def test_every_parameter_of_the_406s_plan_within_the_spreads_band(plan406, seeds406):
-    """Each parameter's spread over its predicted σ total inside the 99.9 % band of ten seeds' sample deviation."""
+    """Each parameter's spread over its predicted σ total inside the 99.9 % band of ten seeds' sample deviation
+    (0.47 to 1.82). Measured 27 Nov on the 92 s plan: 0.62 (kt24) to 1.61 (M6). M6's spread is above its prediction
+    on every plan measured (2.20 x on the 40 s plan, 1.74 x on a 100 s one, 1.61 x here): a cause not found yet, not
+    a seed's chance; the median over the parameters 1.14."""
     ratio = seeds406.spread / seeds406.predicted
     assert np.all((ratio > BAND[0]) & (ratio < BAND[1])), seeds406.text(plan406.labels)
 
 
 @pytest.mark.slow
 def test_the_406s_plan_predicts_the_sigma_total_the_identification_reports(plan406, seeds406):
-    """Issue 29 item 1: the σ total the plan predicts the identification reports (its draws' RMS) against the RMS
-    over ten seeds of what each seed's identification reported. Each side carries the seed-to-seed scatter of the
-    reported σ (about 20 %: the weights come from residuals the offsets dominate) over 4 draws and 10 seeds: about
-    12 % per parameter; over 32 parameters the RMS of the ratio within 25 % of 1, as the spread's test."""
+    """Issue 29 item 1: the σ total the plan predicts the identification reports (the RMS over its 400 draws of the
+    offsets) against the RMS over ten seeds of what each seed's identification reported. The seeds' side carries the
+    seed-to-seed scatter of the reported σ (about 20 %: the weights come from residuals the offsets dominate) over 10
+    seeds: about 7 % per parameter; over 32 parameters the RMS of the ratio within 25 % of 1, as the spread's test
+    (measured 27 Nov on the 92 s plan: median 1.00, RMS 1.01, 0.94 to 1.10)."""
     r = seeds406.reported_ratio
     assert abs(np.sqrt(np.mean(r**2)) - 1) < 0.25, seeds406.text(plan406.labels)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 29: the σ total each seed's identification reports scatters more "
-                   "than four noisy draws resolve: with the offsets estimated (the 3-test, 40 s plan) met in 5 of 10 "
-                   "seeds on 27 Nov, fs9 up to 1.39 x its bound against a 9-in-10 prediction of 0.97 (propagated, the "
-                   "5-test plan: 8 of 10, fs9 1.16)")
 def test_the_406s_plan_meets_its_targets_in_nine_seeds_of_ten(plan406, seeds406):
-    """Issue 29: the targets met (σ total the identification reports) in at least 9 of 10 seeds."""
+    """Issue 29: the targets met (σ total the identification reports) in at least 9 of 10 seeds. The plan promises
+    it (every target at once in a share LEVEL of its draws of the offsets: nine of ten or more in 95 % of campaigns);
+    measured 27 Nov: the 92 s plan (sine 0.5 Hz twice, 1 Hz twice, 0.3 Hz, braking from 80 km/h) met them in 10 of
+    10, fs9 at most 0.88 x its bound, Iyy 0.91 x (the 40 s plan the 4 noisy files chose: 5 of 10, as its draws of the
+    offsets say, 53 %)."""
+    assert plan406.met, plan406.text()
     assert int(seeds406.met.sum()) >= 9, seeds406.text(plan406.labels)
 
 
