@@ -1039,6 +1039,8 @@ class TestPlan:
                 "plan": [{"key": k, "name": self.candidates[k].name, "standard": self.candidates[k].standard,
                           "duration_s": self.candidates[k].duration} for k in self.plan],
                 "duration_s": self.duration, "zeroings": len(self.plan), "meets_targets": self.met,
+                # every target at once: the largest σ reported over its bound at the seeds' share `level`
+                "level": LEVEL, "margin": _num(self.score.margin(self._scatter)),
                 "offsets": "estimated" if self.estimate else "propagated",
                 "candidates": {k: {"name": c.name, "envelope": dataclasses.asdict(self.envelopes[k]),
                                    "excluded": self.excluded.get(k, [])} for k, c in self.candidates.items()},
