@@ -152,6 +152,51 @@ def test_the_spread_with_weights_the_offsets_inflate_is_the_estimators_sandwich(
     assert np.all(reported > 1.15 * spread), (reported, spread)
 
 
+@pytest.mark.parametrize("estimate", [True, False])
+def test_the_reported_sigma_over_draws_of_the_offsets_is_the_identifications(estimate):
+    """What an identification reports moves with each seed's offsets (its weights, eq. (8), come from residuals they
+    inflate). Oracle: 400 explicit draws of two tests' rows (fresh noise, fresh offsets of one σ each, 3 σ of them
+    in the noisy draws the pieces keep), each weighted by the identification's own eq. (8) (`group_sigmas`), s²
+    from NumPy's lstsq of the weighted rows, and its covariance by `solve_with_offsets` (estimate) or `propagate`
+    (not): the 10 %, 50 % and 90 % quantiles of each σ against `reported_draws`' 400 draws. Tolerance: a quantile
+    of 400 draws of a σ whose scatter is 3 to 13 % holds to about 1 % (its sd); two such apart, 1.4 %: 5 % is 3.5
+    of them, and the scatter itself (CV above 8 % for the two parameters the offsets reach) is far larger."""
+    from dynid.estimation.offsets import solve_with_offsets
+    from dynid.estimation.systematic import propagate
+
+    rng = np.random.default_rng(2930)
+    x0 = np.array([1.0, -2.0, 0.5])
+    tests = [_problem(rng), _problem(rng)]
+    pieces = [_piece(rng, t[0], t[1], x0, t[2], t[3], f"t{i}", reps=25, drawn=3.0) for i, t in enumerate(tests)]
+    names = ("x0", "x1", "x2")
+    rep = planner.reported_draws(pieces, planner.Scorer(names, (), (), np.zeros((0, 3))), 400, estimate=estimate)
+    acc, bias = pieces[0].zeros.merge(pieces[1].zeros), pieces[0].bias.merge(pieces[1].bias)
+    got = []
+    for _ in range(400):
+        ls, rows = StreamingLS(list(names)), []
+        for W, groups, noise, offsets in tests:
+            Y = W @ x0 + np.array([noise[g] for g in groups]) * rng.standard_normal(len(groups)) + sum(
+                rng.standard_normal() * dY for dY in offsets.values())
+            ls.add(W, Y, groups)
+            rows.append((W, Y, groups))
+        sigmas = ls.group_sigmas()
+        w = 1 / np.array([sigmas[g] for r in rows for g in r[2]])
+        W, Y = np.vstack([r[0] for r in rows]) * w[:, None], np.concatenate([r[1] for r in rows]) * w
+        e = Y - W @ np.linalg.lstsq(W, Y, rcond=None)[0]
+        s2 = e @ e / (len(Y) - 3)
+        if estimate:
+            est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
+            cov = est.solution.covariance + est.systematic.covariance
+        else:
+            cov = s2 * np.linalg.inv(W.T @ W) + np.diag(propagate(W.T @ W, bias, x0, names, sigmas).std ** 2)
+        got.append(np.sqrt(np.diag(cov)))
+    got = np.array(got)
+    for level in (0.1, 0.5, 0.9):
+        ratio = np.quantile(rep.std, level, axis=0) / np.quantile(got, level, axis=0)
+        assert np.all(np.abs(ratio - 1) < 0.05), (level, ratio)
+    assert np.all((got.std(axis=0) / got.mean(axis=0))[1:] > 0.08)
+
+
 def test_a_repeated_test_halves_the_variance_of_its_offsets():
     """Closed form: the same rows twice double A and each zeroing's shift halves; two independent shifts of half
     the size: variance 2 (1/2)² = 1/2 of one run's."""
@@ -183,20 +228,25 @@ def test_search_finds_the_shortest_plan_and_drops_what_is_not_needed():
         W, groups, noise, offsets = _problem(rng, n)
         pieces[key], durations[key] = _piece(rng, W, groups, x0, noise, offsets, key), dur
     names = ("x0", "x1", "x2")
-    limit = 1.02 * float(planner.predict([pieces["short1"], pieces["short2"]]).std_total[1])
+    score = planner.Scorer(names, (planner.Target("parameter", "x1", 1.0, ""),), (), np.zeros((0, 3)))
+
+    def reported(plan, draws=planner.SEARCH_DRAWS):  # the search's draws
+        return planner.reported_draws([pieces[k] for k in sorted(plan)], score, draws)  # the search's order
+
+    limit = 1.02 * float(score.reported(reported(["short1", "short2"]))[0])
     score = planner.Scorer(names, (planner.Target("parameter", "x1", limit, ""),), (), np.zeros((0, 3)))
     plan, _ = planner.search(pieces, durations, score, repeats=1)
     import itertools
 
     feasible = [c for r in (1, 2, 3) for c in itertools.combinations(pieces, r)
-                if score.shortfall(planner.predict_all([pieces[k] for k in c])) == 0]
+                if score.shortfall(reported(c)) < planner.NEAR
+                and score.shortfall(reported(c, planner.OFFSET_DRAWS)) == 0]
     assert feasible
     best = min(sum(durations[k] for k in c) for c in feasible)
     assert sum(durations[k] for k in plan) == best, (plan, feasible)
     # [limits] time: no plan of 10 s meets the target; the one returned keeps within it
     short, _ = planner.search(pieces, durations, score, repeats=1, max_seconds=10.0)
-    assert sum(durations[k] for k in short) <= 10.0 and score.shortfall(
-        planner.predict_all([pieces[k] for k in short])) > 0
+    assert sum(durations[k] for k in short) <= 10.0 and score.shortfall(reported(short)) > 0
 
 
 def test_the_offsets_of_a_combination_as_the_identification_propagates_them():
@@ -365,33 +415,34 @@ def test_the_406s_plan_predicts_the_spread_of_ten_seeds(plan406, seeds406):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 29: with the offsets estimated the chassis' estimates spread more than "
-                   "any σ says: on 27 Nov M6's spread over ten seeds 2.20 x the predicted σ total (1.16 kg against "
-                   "0.53; the σ identify reports, 0.69 kg, is short too), MX6, MZ6, ZZ6 1.6 x; the other parameters "
-                   "within the band (median ratio 0.99, RMS 1.11)")
 def test_every_parameter_of_the_406s_plan_within_the_spreads_band(plan406, seeds406):
-    """Each parameter's spread over its predicted σ total inside the 99.9 % band of ten seeds' sample deviation."""
+    """Each parameter's spread over its predicted σ total inside the 99.9 % band of ten seeds' sample deviation
+    (0.47 to 1.82). Measured 27 Nov on the 92 s plan: 0.62 (kt24) to 1.61 (M6). M6's spread is above its prediction
+    on every plan measured (2.20 x on the 40 s plan, 1.74 x on a 100 s one, 1.61 x here): a cause not found yet, not
+    a seed's chance; the median over the parameters 1.14."""
     ratio = seeds406.spread / seeds406.predicted
     assert np.all((ratio > BAND[0]) & (ratio < BAND[1])), seeds406.text(plan406.labels)
 
 
 @pytest.mark.slow
 def test_the_406s_plan_predicts_the_sigma_total_the_identification_reports(plan406, seeds406):
-    """Issue 29 item 1: the σ total the plan predicts the identification reports (its draws' RMS) against the RMS
-    over ten seeds of what each seed's identification reported. Each side carries the seed-to-seed scatter of the
-    reported σ (about 20 %: the weights come from residuals the offsets dominate) over 4 draws and 10 seeds: about
-    12 % per parameter; over 32 parameters the RMS of the ratio within 25 % of 1, as the spread's test."""
+    """Issue 29 item 1: the σ total the plan predicts the identification reports (the RMS over its 400 draws of the
+    offsets) against the RMS over ten seeds of what each seed's identification reported. The seeds' side carries the
+    seed-to-seed scatter of the reported σ (about 20 %: the weights come from residuals the offsets dominate) over 10
+    seeds: about 7 % per parameter; over 32 parameters the RMS of the ratio within 25 % of 1, as the spread's test
+    (measured 27 Nov on the 92 s plan: median 1.00, RMS 1.01, 0.94 to 1.10)."""
     r = seeds406.reported_ratio
     assert abs(np.sqrt(np.mean(r**2)) - 1) < 0.25, seeds406.text(plan406.labels)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 29: the σ total each seed's identification reports scatters more "
-                   "than four noisy draws resolve: with the offsets estimated (the 3-test, 40 s plan) met in 5 of 10 "
-                   "seeds on 27 Nov, fs9 up to 1.39 x its bound against a 9-in-10 prediction of 0.97 (propagated, the "
-                   "5-test plan: 8 of 10, fs9 1.16)")
 def test_the_406s_plan_meets_its_targets_in_nine_seeds_of_ten(plan406, seeds406):
-    """Issue 29: the targets met (σ total the identification reports) in at least 9 of 10 seeds."""
+    """Issue 29: the targets met (σ total the identification reports) in at least 9 of 10 seeds. The plan promises
+    it (every target at once in a share LEVEL of its draws of the offsets: nine of ten or more in 95 % of campaigns);
+    measured 27 Nov: the 92 s plan (sine 0.5 Hz twice, 1 Hz twice, 0.3 Hz, braking from 80 km/h) met them in 10 of
+    10, fs9 at most 0.88 x its bound, Iyy 0.91 x (the 40 s plan the 4 noisy files chose: 5 of 10, as its draws of the
+    offsets say, 53 %)."""
+    assert plan406.met, plan406.text()
     assert int(seeds406.met.sum()) >= 9, seeds406.text(plan406.labels)
 
 
@@ -443,12 +494,14 @@ def test_which_test_identifies_what_in_the_report_is_the_identification_without_
         assert got[n] == pytest.approx(v, rel=1e-6), n
 
 
-def test_student_quantiles():
-    """Oracle: scipy.stats (the table saves its import)."""
-    from scipy.stats import t
+def test_campaign_level():
+    """Oracle: scipy.stats' binomial: at the level, a campaign of 10 seeds meets the targets in 9 or more with
+    probability 95 % (the bisection's 60 halvings: to 1e-15)."""
+    from scipy.stats import binom
 
-    for df, q in planner.T90.items():
-        assert q == pytest.approx(t.ppf(0.9, df), abs=5e-5)
+    p = planner.campaign_level(10, 9, 0.95)
+    assert binom.sf(8, 10, p) == pytest.approx(0.95, abs=1e-12)
+    assert p == pytest.approx(planner.LEVEL)
 
 
 # ------------------------------------------------------------------------------------------ the optimised input
@@ -499,3 +552,20 @@ def test_the_optimised_input_lowers_the_binding_targets_sigma(plan406, design406
     standard = {key: sigma_with(plan406, [plan406.pieces[key]], k) for key in same}
     assert len(same) >= 3 and design406.sigma < min(standard.values()), (plan406.score.targets[k].key,
                                                                           design406.sigma, standard)
+
+
+def test_the_optimised_input_is_scored_with_the_tests_that_fit_beside_it():
+    """Issue 29 item 4: under [limits] time, an input is scored with the plan's tests that fit beside it, taken in
+    the plan's order while they fit; all of them without a limit (oracle: the sums by hand)."""
+    from types import SimpleNamespace
+
+    from dynid.pipeline.plan_input import fitting
+
+    cands = {"a": SimpleNamespace(duration=20.0), "b": SimpleNamespace(duration=12.0),
+             "c": SimpleNamespace(duration=4.0)}
+    plan = SimpleNamespace(plan=["a", "b", "c"], candidates=cands,
+                           spec=SimpleNamespace(limits=planner.Limits(time=45.0)))
+    assert fitting(plan, 20.0) == ["a", "c"]  # 25 s left: a (20), not b (12 > 5), c (4)
+    assert fitting(plan, 40.0) == ["c"]
+    plan.spec = SimpleNamespace(limits=planner.Limits())
+    assert fitting(plan, 20.0) == ["a", "b", "c"]

@@ -1,12 +1,13 @@
 """`dynid plan`: the shortest set of track tests whose identification meets an engineer's targets (issue 29).
 
 Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
-sensor suite noise-free and with a few (DRAWS) seeded draws of the suite's noise and zero offsets. Each file is
-reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
-rows give the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per
-offset (`estimation.offsets.OffsetFactors`), each noisy draw the equation groups' noise levels (paper eq. (8):
-`StreamingLS.group_sigmas`). A combination of tests is then evaluated without simulating or reading anything
-again, with the weights σ_g and scale s² of each draw's combined noisy rows, as `dynid identify` computes it:
+sensor suite noise-free and with one seeded draw of the suite's noise alone (no zero offsets). Each file is reduced
+once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free rows give
+the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per offset
+(`estimation.offsets.OffsetFactors`), the noisy draw the equation groups' noise levels. A combination of tests is
+then evaluated without simulating or reading anything again, at draws of the weights σ_g (paper eq. (8)) and the
+scale s² `dynid identify` takes (`offset_weights`: each draw of the tests' zero offsets put into the noise-free
+rows' residuals, as eq. (8) reads them), as identify computes it:
 
 - by default each test's offsets are estimated with the parameters, their declared σ as the prior
   (`estimation.offsets.solve_with_offsets`, identify's own, on the tests' [C | W | Y] factors):
@@ -19,10 +20,13 @@ Each test is zeroed anew: a repeated test costs nothing more, its rows are the s
 a new draw.
 
 The weights come from residuals the offsets dominate, so the σ total an identification reports scatters from seed
-to seed: the plan's σ is the draws' root mean square (what the estimates' spread over seeds is), and each target is
-held against the 90 % prediction bound of the reported σ from the draws (`Scorer.reported`). The search evaluates
-every plan of one or two tests, then goes on greedily from the best three (adding the test that removes most
-shortfall per second of driving, a pair when no single test helps), and drops every test the targets do not need.
+to seed, with a tail no log-normal has (a damper group's σ_g² is about one χ²(1) term of its clearance offset): the
+plan's σ total is the mean covariance over draws of the weights (what the estimates' spread over seeds is), and the
+σ reported is drawn OFFSET_DRAWS times (`reported_draws`). The plan promises what the issue asks of ten seeds: a
+seed meets every target at once with probability LEVEL, so that a campaign of 10 seeds meets them in 9 or more
+95 % of the time (`campaign_level`; `Scorer.margin`). The search evaluates every plan of one or two tests, then goes
+on greedily from the best three (adding the test that removes most shortfall per second of driving, a pair when no
+single test helps), and drops every test the targets do not need.
 """
 
 from __future__ import annotations
@@ -333,7 +337,7 @@ NOISY = " (noisy)"
 QUIET = " (noise, no offsets)"
 
 
-DRAWS = 4  # noisy draws per candidate: the weights' seed-to-seed scatter (`predictions`)
+DRAWS = 0  # noisy draws per candidate (the weights' draws are `offset_weights`', from the noise-free factors)
 
 
 def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path, seed: int = 2900,
@@ -352,10 +356,11 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     quiet = SensorSuite(tuple(dataclasses.replace(c, bias=0.0) for c in suite.channels), suite.rate)
     for i, (key, result) in enumerate(results.items()):
         for d in range(-1, draws):  # -1: noise-free
-            path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.csv", seed=seed + 100 * d + i,
-                                 noise=d >= 0, suite=suite)
+            # Parquet: the values as they are, written and read many times faster than text
+            path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.parquet",
+                                 seed=seed + 100 * d + i, noise=d >= 0, suite=suite)
             files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
-        path, _ = write_test(result, data / f"{key}-quiet.csv", seed=seed + 100 * draws + i, suite=quiet)
+        path, _ = write_test(result, data / f"{key}-quiet.parquet", seed=seed + 100 * draws + i, suite=quiet)
         files[f"{key}{QUIET}"] = path.relative_to(folder).as_posix()
     offsets = {c.name: c.bias for c in suite if c.bias}
     where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
@@ -410,29 +415,36 @@ class Prediction:
         return self.covariance if self.reported is None else self.reported
 
 
-def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Prediction:
-    """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc);
-    a test may appear more than once (each a new zeroing and a new noise draw: its offsets are new sources).
-    estimate: each test's offsets estimated with the parameters (identify's default, `estimation.offsets`: the
-    pieces need their `zeros`), else propagated (`[uncertainty] estimate = false`)."""
-
-
-
-    # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
-    # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their differences)
-    seen: dict[int, int] = {}
-    rows = []
-    for p in pieces:
-        seen[id(p)] = seen.get(id(p), -1) + 1
-        rows.append(p.noisy[(draw + seen[id(p)]) % len(p.noisy)])
-    noisy = rows[0]
-    for r in rows[1:]:
-        noisy = noisy.merge(r)
-    with warnings.catch_warnings():  # a group the tests do not move has its noise floored: said by the σ it gives
-        warnings.simplefilter("ignore", EstimationWarning)
-        sigmas = noisy.group_sigmas()
+def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True,
+            weights: tuple[Mapping[str, float], float] | None = None) -> Prediction:
+    """The σ total `dynid identify` would report on these tests with the weights of noisy draw `draw` (module doc),
+    or the given weights (σ_g per group and the scale s², a draw of `offset_weights`); a test may appear more than
+    once (each a new zeroing and a new noise draw: its offsets are new sources). estimate: each test's offsets
+    estimated with the parameters (identify's default, `estimation.offsets`: the pieces need their `zeros`), else
+    propagated (`[uncertainty] estimate = false`)."""
     names = pieces[0].ls.estimated_names
     q = len(names)
+    if weights is not None:
+        sigmas, s2 = dict(weights[0]), float(weights[1])
+        noisy = None
+    else:
+        if any(not p.noisy for p in pieces):
+            raise ValueError("plan.predict: a piece has no noisy draw to weight its rows with; give the weights "
+                             "(offset_weights) or reduce it with draws")
+        # a repeated test takes the next draw: its own offsets and noise (the same draw twice would leave the
+        # weights' scatter between the tests' offsets out: the damper groups' residuals hold ks times their
+        # differences)
+        seen: dict[int, int] = {}
+        rows = []
+        for p in pieces:
+            seen[id(p)] = seen.get(id(p), -1) + 1
+            rows.append(p.noisy[(draw + seen[id(p)]) % len(p.noisy)])
+        noisy = rows[0]
+        for r in rows[1:]:
+            noisy = noisy.merge(r)
+        with warnings.catch_warnings():  # a group the tests do not move has its noise floored: said by its σ
+            warnings.simplefilter("ignore", EstimationWarning)
+            sigmas = noisy.group_sigmas()
 
     def stacked(factors: list[np.ndarray]) -> np.ndarray:
         return np.linalg.qr(np.vstack(factors), mode="r")
@@ -446,8 +458,9 @@ def predict(pieces: Sequence[Piece], draw: int = 0, estimate: bool = True) -> Pr
         return Prediction(names, np.full(q, np.nan), inf, inf, np.full((q, q), np.inf), rank)
     # s²: the weighted residual of the noisy rows over their degrees of freedom (paper eq. (9)), about 1. The noisy
     # rows' own normal matrix gives the same σ within 1.5 % (the 406's plan, fs9 the most): the noise-free one is kept
-    Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
-    s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
+    if noisy is not None:
+        Rn = stacked([noisy.group_factor(g) / sigmas[g] for g in sigmas])
+        s2 = float(Rn[q, q] ** 2 / max(noisy.n_rows - q, 1))
     if estimate:
         noise = None
         if all(p.quiet is not None for p in pieces):  # the rows' noise without offsets: the spread's (sandwich)
@@ -524,15 +537,15 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
                       np.sqrt(np.clip(np.diag(C_sys), 0, None)), C_stat + C_sys, rank, reported)
 
 
-# Student's t 90 % quantile by degrees of freedom (scipy.stats.t.ppf(0.9, df); its import costs a second)
-T90 = {2: 1.8856, 3: 1.6377, 4: 1.5332, 5: 1.4759, 6: 1.4398, 7: 1.4149, 8: 1.3968, 9: 1.3830, 10: 1.3722}
+PREDICT_DRAWS = 16  # draws of the weights the predicted spread (`typical`) averages over
 
 
-def predict_all(pieces: Sequence[Piece], estimate: bool = True) -> list[Prediction]:
-    """`predict` with each noisy draw's weights. The weights σ_g (eq. (8)) come from residuals the zero offsets
-    dominate, so they, and the σ total an identification reports, change from one set of offsets to the next (MX6's
-    offsets part by 3x between two seeds of the 406's plan): the draws sample that scatter."""
-    return [predict(pieces, d, estimate) for d in range(len(pieces[0].noisy))]
+def predict_all(pieces: Sequence[Piece], estimate: bool = True, draws: int = PREDICT_DRAWS) -> list[Prediction]:
+    """`predict` at `draws` draws of the weights (`offset_weights`). The weights σ_g (eq. (8)) come from residuals
+    the zero offsets dominate, so they change from one set of offsets to the next (MX6's offsets part by 3x between
+    two seeds of the 406's plan), and with them the estimates' spread: the draws sample it."""
+    wt = offset_weights(pieces, draws)
+    return [predict(pieces, estimate=estimate, weights=wt.at(d)) for d in range(draws)]
 
 
 def typical(draws: Sequence[Prediction]) -> Prediction:
@@ -546,6 +559,170 @@ def typical(draws: Sequence[Prediction]) -> Prediction:
 
     return Prediction(p.names, p.x, rms([d.std_stat for d in draws]), rms([d.std_sys for d in draws]),
                       np.mean([d.covariance for d in draws], axis=0), p.rank)
+
+
+# ------------------------------------------------------------ the σ an identification reports, over the zero offsets
+OFFSET_DRAWS = 400  # draws of every test's zero offsets (`reported_draws`): a 96 % quantile to a few %
+# the search's: its comparisons share the draws (one seed); a plan whose shortfall on them is below NEAR is scored
+# on OFFSET_DRAWS (a 96 % quantile from the 5th largest of 128 is some 8 % off: near the goal the search compares
+# plans on one set of draws, and a plan counts as met on all of them)
+SEARCH_DRAWS = 128
+NEAR = 0.25
+CAMPAIGN = (10, 9, 0.95)  # the promise: a campaign of 10 seeds meets every target in at least 9, 95 % of the time
+
+
+def campaign_level(seeds: int = CAMPAIGN[0], passes: int = CAMPAIGN[1], confidence: float = CAMPAIGN[2]) -> float:
+    """The probability p that one seed meets every target for `passes` of `seeds` to hold with `confidence`:
+    P(Binomial(seeds, p) >= passes) = confidence (bisection; 0.9632 for 9 of 10 at 95 %)."""
+    def tail(p: float) -> float:
+        return sum(math.comb(seeds, k) * p**k * (1 - p) ** (seeds - k) for k in range(passes, seeds + 1))
+
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if tail(mid) < confidence else (lo, mid)
+    return hi
+
+
+LEVEL = campaign_level()
+
+
+@dataclass(frozen=True)
+class Reported:
+    """The σ total an identification of a combination reports, over `OFFSET_DRAWS` draws of its tests' zero offsets:
+    std (draws, q) per parameter, targets (draws, targets) per target (SI); rank: the parameters the rows identify."""
+
+    std: np.ndarray
+    targets: np.ndarray
+    rank: int
+
+
+@dataclass(frozen=True)
+class Weights:
+    """Draws of what weights an identification of a combination takes (`offset_weights`): σ_g² (groups, draws),
+    the scale s² (draws,), and what the covariance needs: the runs' factors [C | W | Y] per group with their number
+    of offsets, each group's W'W (groups, q, q); rank: the parameters the rows identify."""
+
+    names: tuple[str, ...]
+    groups: tuple[str, ...]
+    sigma2: np.ndarray
+    s2: np.ndarray
+    runs: list[tuple[Mapping[str, np.ndarray], int]]
+    WW: np.ndarray
+    rank: int
+
+    def at(self, d: int) -> tuple[dict[str, float], float]:
+        """Draw d's weights as `predict` takes them: σ_g per group, s²."""
+        return {g: math.sqrt(v) for g, v in zip(self.groups, self.sigma2[:, d], strict=True)}, float(self.s2[d])
+
+
+def offset_weights(pieces: Sequence[Piece], draws: int = OFFSET_DRAWS, seed: int = 29) -> Weights:
+    """The weights of eq. (8) and the scale s² an identification of these tests takes, for `draws` draws u of every
+    test's zero offsets (one σ each; the same seed for every combination: their comparisons are not noise), without
+    simulating or reading anything.
+
+    The weights hold the offsets: a group's σ_g² is its noise's (`Piece.quiet`, its χ²(n_g − p_g) scatter drawn
+    too) plus what its own fit leaves of the offsets' rows C u, ‖M_g (y + C u)‖² − ‖M_g y‖² over n_g − p_g (M_g:
+    the residual maker of the group's identified columns, on the tests' noise-free [C | W | Y] factors,
+    `Piece.zeros`); s² the joint weighted fit's residual likewise. A group whose residual one offset dominates has
+    σ_g² of about one χ²(1) term, far from log-normal: a few noisy files cannot give its tail."""
+    names = tuple(pieces[0].ls.estimated_names)
+    q = len(names)
+    # the noise without offsets (a piece reduced without it: its first noisy draw)
+    rows = [p.quiet if p.quiet is not None else p.noisy[0] for p in pieces]
+    quiet = rows[0]
+    for r in rows[1:]:
+        quiet = quiet.merge(r)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EstimationWarning)
+        fits = quiet.group_fits()
+    groups = tuple(fits)
+    noise2 = np.array([fits[g].sigma ** 2 for g in groups])
+    # the rank the rows give at the noise's weights (as `predict`)
+    R = np.linalg.qr(np.vstack([p.ls.group_factor(g) / fits[g].sigma for p in pieces for g in p.ls.group_rows]),
+                     mode="r")
+    d = np.abs(np.diag(R[:q, :q]))
+    rank = int(np.count_nonzero(d > 1e-10 * d.max()))
+    runs = []  # (factor per group, number of offsets): a repeated test is a run of its own (its own offsets)
+    for p in pieces:
+        runs += [(per, len(p.zeros.sources[t])) for t, per in p.zeros.factors.items()]
+    G = len(groups)
+    if rank < q:
+        return Weights(names, groups, np.ones((G, draws)), np.ones(draws), runs, np.zeros((G, q, q)), rank)
+    # each group's rows (the tests', as identify has them) less the parameters it identifies alone
+    counts = [sum(p.zeros.rows[t].get(g, 0) for p in pieces for t in p.zeros.rows) for g in groups]
+    dof = np.array([max(n - len(fits[g].parameters), 1) for g, n in zip(groups, counts, strict=True)], dtype=float)
+    rng = np.random.default_rng(seed)
+    U = [rng.standard_normal((m, draws)) for _, m in runs]
+    WW, Wz, zz = np.zeros((G, q, q)), np.zeros((G, q, draws)), np.zeros((G, draws))
+    own, own0 = np.zeros((G, draws)), np.zeros(G)
+    for i, g in enumerate(groups):
+        Z = np.vstack([per[g][:, :m] @ u + per[g][:, -1:] for (per, m), u in zip(runs, U, strict=True) if g in per])
+        W = np.vstack([per[g][:, m:m + q] for per, m in runs if g in per])
+        y0 = np.vstack([per[g][:, -1:] for per, _ in runs if g in per])[:, 0]
+        WW[i], Wz[i], zz[i] = W.T @ W, W.T @ Z, np.einsum("kd,kd->d", Z, Z)
+        Q = np.linalg.qr(W[:, [names.index(n) for n in fits[g].parameters]])[0]
+        QZ = Q.T @ Z
+        own[i] = zz[i] - np.einsum("kd,kd->d", QZ, QZ)
+        own0[i] = float(y0 @ y0 - np.sum((Q.T @ y0) ** 2))
+    # the noise's own part of eq. (8) scatters as χ²(n_g - p_g) / (n_g - p_g) (rows taken independent: a lower
+    # bound on it); σ_g² never below a tenth of its noise's: the cross term of the model's own residual with C u is
+    # what could take it there, and the noise alone is always in the residual
+    noise = noise2[:, None] * rng.chisquare(dof[:, None], (G, draws)) / dof[:, None]
+    sigma2 = np.maximum(noise + (own - own0[:, None]) / dof[:, None], 0.1 * noise2[:, None])
+    w = 1.0 / sigma2  # (G, draws)
+    A = (w.T @ WW.reshape(G, -1)).reshape(draws, q, q)
+    b = np.einsum("gd,gid->di", w, Wz)
+    joint = np.einsum("gd,gd->d", w, zz) - np.einsum("di,di->d", b, np.linalg.solve(A, b[..., None])[..., 0])
+    s2 = (np.einsum("gd,gd->d", w, noise * dof[:, None] - own0[:, None]) + joint) / (sum(counts) - q)
+    return Weights(names, groups, sigma2, s2, runs, WW, rank)
+
+
+def reported_draws(pieces: Sequence[Piece], score: Scorer, draws: int = OFFSET_DRAWS, seed: int = 29,
+                   estimate: bool = True) -> Reported:
+    """What `dynid identify` reports on these tests at each draw of `offset_weights`: each test's offsets estimated
+    (`solve_with_offsets`), s² A_r⁻¹, A_r every test's weighted normal matrix with its offsets profiled out (prior:
+    their σ); estimate=False: s² A⁻¹ plus the offsets propagated at each draw's weights (`predict`'s)."""
+    wt = offset_weights(pieces, draws, seed)
+    names, q, G = wt.names, len(wt.names), len(wt.groups)
+    if wt.rank < q:
+        return Reported(np.full((draws, q), np.inf), np.full((draws, len(score.targets)), np.inf), wt.rank)
+    w = 1.0 / wt.sigma2
+    if not estimate:
+        A = (w.T @ wt.WW.reshape(G, -1)).reshape(draws, q, q)
+        cov = wt.s2[:, None, None] * np.linalg.inv(A) + _propagated(pieces, wt.groups, w, A)
+        return _reported(cov, names, score, wt.rank)
+    Ar = np.zeros((draws, q, q))
+    for per, m in wt.runs:
+        gram = np.stack([per[g][:, :m + q].T @ per[g][:, :m + q] if g in per else np.zeros((m + q, m + q))
+                         for g in wt.groups])
+        Gt = (w.T @ gram.reshape(G, -1)).reshape(draws, m + q, m + q)
+        Guu = Gt[:, :m, :m] + np.eye(m)  # the prior: each offset of one declared σ
+        Ar += Gt[:, m:, m:] - Gt[:, m:, :m] @ np.linalg.solve(Guu, Gt[:, :m, m:])
+    return _reported(wt.s2[:, None, None] * np.linalg.inv(Ar), names, score, wt.rank)
+
+
+def _propagated(pieces: Sequence[Piece], groups: Sequence[str], w: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """(draws, q, q) Σ_k ΔX_k ΔX_kᵀ of every test's offsets propagated at each draw's weights w (groups, draws) and
+    normal matrix A (`predict`'s, estimate=False), at the a priori x."""
+    x = pieces[0].zeros.x0
+    out = np.zeros_like(A)
+    for p in pieces:
+        own, a, B = p.offsets
+        at = [list(groups).index(g) for g in own]
+        g = np.einsum("sgq,gd->dqs", a - B @ x, w[at])  # (draws, q, sources)
+        shifts = np.linalg.solve(A, g)
+        out += shifts @ shifts.transpose(0, 2, 1)
+    return out
+
+
+def _reported(cov: np.ndarray, names: Sequence[str], score: Scorer, rank: int) -> Reported:
+    draws = len(cov)
+    std = np.sqrt(np.clip(np.einsum("dii->di", cov), 0, None))
+    sq = np.sqrt(np.clip(np.einsum("ij,djk,ik->di", score.J, cov, score.J), 0, None))
+    targets = np.column_stack([std[:, names.index(t.key)] if t.kind == "parameter" else sq[:, score.keys.index(t.key)]
+                               for t in score.targets]) if score.targets else np.zeros((draws, 0))
+    return Reported(std, targets, rank)
 
 
 @dataclass(frozen=True)
@@ -569,28 +746,30 @@ class Scorer:
         return np.array([std[self.names.index(t.key)] if t.kind == "parameter" else sq[self.keys.index(t.key)]
                          for t in self.targets])
 
-    def reported(self, draws: Sequence[Prediction]) -> np.ndarray:
-        """(len(targets),) the σ total an identification reports in 9 seeds of 10: the draws' σ taken as
-        log-normal, the 90 % prediction bound of one more draw from n of them, exp(mean + t(0.9, n-1) sqrt(1 + 1/n)
-        sd) of their logarithms (their largest with fewer than three draws)."""
-        s = np.array([self.sigmas(d, reported=True) for d in draws])
-        if not np.all(np.isfinite(s)):
+    def reported(self, rep: Reported) -> np.ndarray:
+        """(len(targets),) the σ total an identification reports in a share LEVEL of seeds (`campaign_level`):
+        that quantile of the draws of the offsets (`reported_draws`)."""
+        if rep.rank < len(self.names):
             return np.full(len(self.targets), np.inf)
-        n = len(draws)
-        if n < 3:
-            return s.max(axis=0)
-        logs = np.log(s)
-        k = T90.get(n - 1, 1.2816) * math.sqrt(1 + 1 / n)
-        return np.exp(logs.mean(axis=0) + k * logs.std(axis=0, ddof=1))
+        return np.quantile(rep.targets, LEVEL, axis=0)
 
-    def shortfall(self, draws: Sequence[Prediction]) -> float:
-        """Σ over the targets of log(σ reported in 9 seeds of 10 / bound) where above it: 0 when every target is
-        met; the parameters the rows cannot identify count 100 each."""
-        rank = min(d.rank for d in draws)
-        if rank < len(self.names):
-            return 100.0 * (len(self.names) - rank) + 100.0
+    def margin(self, rep: Reported) -> float:
+        """Every target's σ reported over its bound, the largest (the seed's verdict), at quantile LEVEL of the
+        draws: <= 1 when a seed meets every target with probability LEVEL."""
+        if rep.rank < len(self.names):
+            return math.inf
         limits = np.array([t.limit for t in self.targets])
-        return float(np.sum(np.log(np.maximum(self.reported(draws) / limits, 1.0))))
+        return float(np.quantile(np.max(rep.targets / limits, axis=1, initial=0.0), LEVEL))
+
+    def shortfall(self, rep: Reported) -> float:
+        """Σ over the targets of log(σ reported at quantile LEVEL / bound) where above it, plus the log of
+        `margin` where above 1 (every target at once: a seed misses when any does): 0 when the plan keeps its
+        promise (CAMPAIGN); the parameters the rows cannot identify count 100 each."""
+        if rep.rank < len(self.names):
+            return 100.0 * (len(self.names) - rep.rank) + 100.0
+        limits = np.array([t.limit for t in self.targets])
+        return float(np.sum(np.log(np.maximum(self.reported(rep) / limits, 1.0)))
+                     + math.log(max(self.margin(rep), 1.0)))
 
 
 def scorer(names: Sequence[str], values: Mapping[str, float], targets: Sequence[Target], geometry) -> Scorer:
@@ -619,7 +798,10 @@ def search(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: S
     def cost(plan: Sequence[str]) -> float:
         k = tuple(sorted(plan))
         if k not in cache:
-            cache[k] = score.shortfall(predict_all([pieces[t] for t in k], estimate)) if k else math.inf
+            tests = [pieces[t] for t in k]
+            cache[k] = score.shortfall(reported_draws(tests, score, SEARCH_DRAWS, estimate=estimate)) if k else math.inf
+            if cache[k] < NEAR:  # near or at its goal: scored on all the draws (one set of draws near the goal)
+                cache[k] = score.shortfall(reported_draws(tests, score, OFFSET_DRAWS, estimate=estimate))
         return cache[k]
 
     def seconds(plan: Sequence[str]) -> float:
@@ -696,6 +878,7 @@ class TestPlan:
     estimate: bool = True  # the offsets estimated with the parameters (identify's default), else propagated
     pieces: dict[str, Piece] = field(default_factory=dict, repr=False)  # key -> the candidate's reduced rows
     repeats: int = 2
+    scatter: Reported | None = field(default=None, repr=False)  # what its identification reports over the offsets
 
     def with_candidate(self, candidate: Candidate, piece: Piece, result, env: Envelope) -> TestPlan:
         """The plan searched again with one more candidate (an optimised input: its reduced rows, noise-free run
@@ -704,17 +887,25 @@ class TestPlan:
         durations = {k: self.candidates[k].duration for k in self.pieces} | {candidate.key: candidate.duration}
         results = {**self.results, candidate.key: result}
         with threadpool_limits(limits=1, user_api="blas"):
-            plan, evaluations, draws, prediction, without = _searched(pieces, durations, self.score, self.repeats,
-                                                                      self.estimate, self.spec.limits.time)
+            plan, evaluations, draws, prediction, without, scatter = _searched(
+                pieces, durations, self.score, self.repeats, self.estimate, self.spec.limits.time)
         return dataclasses.replace(self, candidates={**self.candidates, candidate.key: candidate},
                                    envelopes={**self.envelopes, candidate.key: env}, plan=plan, prediction=prediction,
                                    without=without, evaluations=self.evaluations + evaluations,
-                                   results={k: results[k] for k in dict.fromkeys(plan)}, draws=draws, pieces=pieces)
+                                   results={k: results[k] for k in dict.fromkeys(plan)}, draws=draws, pieces=pieces,
+                                   scatter=scatter)
 
     @property
     def reported(self) -> np.ndarray:
-        """(targets,) the σ total an identification of the plan reports in 9 seeds of 10 (`Scorer.reported`)."""
-        return self.score.reported(self.draws or [self.prediction])
+        """(targets,) the σ total an identification of the plan reports in a share LEVEL of seeds
+        (`Scorer.reported`)."""
+        return self.score.reported(self._scatter)
+
+    @cached_property
+    def _scatter(self) -> Reported:
+        if self.scatter is not None:
+            return self.scatter
+        return reported_draws([self.pieces[k] for k in sorted(self.plan)], self.score, estimate=self.estimate)
 
     def rehearsal(self, folder: Path, seed: int = 406) -> Path:
         """The plan driven on the simulated car: each test's logger file with its own draw of the sensor suite's
@@ -740,7 +931,8 @@ class TestPlan:
 
     @property
     def met(self) -> bool:
-        return bool(np.all(self.reported <= np.array([t.limit for t in self.score.targets])))
+        """The plan keeps its promise (CAMPAIGN): a seed meets every target at once with probability LEVEL."""
+        return self.score.margin(self._scatter) <= 1.0
 
     @property
     def in_time(self) -> bool:
@@ -780,11 +972,14 @@ class TestPlan:
         lines += ["", "Predicted σ per parameter (% of the a priori value; total = noise and the zero offsets ("
                   + ("what the data leave of them, estimated" if self.estimate else "propagated") + "), GUM: "
                   "the spread of the estimates over seeds); the σ total the identification reports is larger (its "
-                  "weights come from residuals the offsets dominate) and changes with each test's offsets: 'in 9/10' "
-                  "is what it stays below in 9 seeds of 10 (log-normal over the draws' weights), held against the "
-                  "target:",
+                  "weights come from residuals the offsets dominate) and changes with each test's offsets: "
+                  f"'reported' is what it stays below in {100 * LEVEL:.1f} % of seeds ({OFFSET_DRAWS} draws of the "
+                  "offsets), held against the target; the plan keeps its promise when every target at once is met "
+                  f"that often (then a campaign of {CAMPAIGN[0]} seeds meets them in {CAMPAIGN[1]} or more, "
+                  f"{100 * CAMPAIGN[2]:g} % of the time); every target at once: {self.score.margin(self._scatter):.2f}"
+                  " x its bound, the largest:",
                   f"  {'parameter':<10} {'a priori':>12} {'σ noise':>8} {'σ offsets':>9} {'σ total':>8} "
-                  f"{'in 9/10':>8} {'target':>8}  met"]
+                  f"{'reported':>8} {'target':>8}  met"]
         for i, n in enumerate(names):
             v = self.values[n]
             rel = [100 * s[i] / abs(v) if v else math.nan for s in (p.std_stat, p.std_sys, p.std_total)]
@@ -794,7 +989,7 @@ class TestPlan:
             lines.append(f"  {self.labels.get(n, n):<10} {v:>12.6g} {rel[0]:>7.2f}% {rel[1]:>8.2f}% {rel[2]:>7.2f}% "
                          f"{shown:>8} {t[0].text if mark else '':>8}  {mark}")
         lines += ["", "Predicted σ total of the engineering quantities with a target:",
-                  f"  {'quantity':<46} {'a priori':>10} {'σ total':>10} {'in 9/10':>10} {'target':>26}  met"]
+                  f"  {'quantity':<46} {'a priori':>10} {'σ total':>10} {'reported':>10} {'target':>26}  met"]
         for t, s, r in zip(self.score.targets, sig, rep, strict=True):
             if t.kind != "quantity":
                 continue
@@ -844,6 +1039,8 @@ class TestPlan:
                 "plan": [{"key": k, "name": self.candidates[k].name, "standard": self.candidates[k].standard,
                           "duration_s": self.candidates[k].duration} for k in self.plan],
                 "duration_s": self.duration, "zeroings": len(self.plan), "meets_targets": self.met,
+                # every target at once: the largest σ reported over its bound at the seeds' share `level`
+                "level": LEVEL, "margin": _num(self.score.margin(self._scatter)),
                 "offsets": "estimated" if self.estimate else "propagated",
                 "candidates": {k: {"name": c.name, "envelope": dataclasses.asdict(self.envelopes[k]),
                                    "excluded": self.excluded.get(k, [])} for k, c in self.candidates.items()},
@@ -852,7 +1049,7 @@ class TestPlan:
                                for n, a, b in zip(self.prediction.names, self.prediction.std_stat,
                                                   self.prediction.std_sys, strict=True)},
                 "targets": [{"kind": t.kind, "key": t.key, "bound": t.limit, "as_given": t.text, "std_total": _num(s),
-                             "std_total_9_in_10": _num(r), "met": bool(r <= t.limit),
+                             "std_total_reported": _num(r), "met": bool(r <= t.limit),
                              "without": {h: _num(self.score.sigmas(w)[i]) for h, w in self.without.items()}}
                             for i, (t, s, r) in enumerate(zip(self.score.targets, sig, self.reported, strict=True))]}
 
@@ -909,7 +1106,8 @@ def plan_tests(vehicle: str = DEMO_VEHICLE, spec: TargetSpec | None = None,
         names = tuple(pieces[next(iter(pieces))].ls.estimated_names)
         tree = setup.tree
         labels = {n: tree.label(n) for n in names}
-        everything = predict(list(pieces.values()), estimate=estimate)  # noise-free, every test: the a priori car
+        every = list(pieces.values())  # noise-free, every test: the a priori car (any weights)
+        everything = predict(every, estimate=estimate, weights=offset_weights(every, 1).at(0))
         values = {**tree.values, **dict(zip(names, everything.x, strict=True))}
 
         quantities = car_quantities(values, setup.vehicle.geometry)
@@ -917,20 +1115,23 @@ def plan_tests(vehicle: str = DEMO_VEHICLE, spec: TargetSpec | None = None,
         score = scorer(names, values, targets, setup.vehicle.geometry)
         say(f"searching the shortest plan among {len(pieces)} candidates (up to {repeats} runs each)")
         durations = {k: c.duration for c in candidates for k in [c.key] if k in pieces}
-        plan, evaluations, draws, prediction, without = _searched(pieces, durations, score, repeats, estimate,
-                                                                  spec.limits.time)
+        plan, evaluations, draws, prediction, without, scatter = _searched(pieces, durations, score, repeats,
+                                                                           estimate, spec.limits.time)
     lap("searching")
     return TestPlan(str(vehicle), spec, {c.key: c for c in candidates}, envelopes, excluded, plan, prediction, score,
                     labels, {n: values[n] for n in names}, quantities, without, evaluations, seconds,
-                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate, pieces, repeats)
+                    {k: results[k] for k in dict.fromkeys(plan)}, draws, estimate, pieces, repeats, scatter)
 
 
 def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score: Scorer, repeats: int,
               estimate: bool, max_seconds: float | None = None
-              ) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction]]:
+              ) -> tuple[list[str], int, list[Prediction], Prediction, dict[str, Prediction], Reported]:
     """`search`'s plan (within max_seconds of driving), the evaluations it took, its draws, their typical
-    prediction, and the plan without each test (one repetition fewer)."""
+    prediction, the plan without each test (one repetition fewer), and what its identification reports over the
+    draws of the offsets."""
     plan, evaluations = search(pieces, durations, score, repeats, estimate=estimate, max_seconds=max_seconds)
+    # in the search's order (its cache's: sorted), so the draws fall on the same tests
+    scatter = reported_draws([pieces[k] for k in sorted(plan)], score, estimate=estimate)
     draws = predict_all([pieces[k] for k in plan], estimate)
     prediction = typical(draws)
     without = {}
@@ -939,7 +1140,7 @@ def _searched(pieces: Mapping[str, Piece], durations: Mapping[str, float], score
         rest.remove(k)
         without[k] = typical(predict_all([pieces[t] for t in rest], estimate)) if rest else dataclasses.replace(
             prediction, rank=0, std_stat=np.full(len(prediction.names), np.inf))
-    return plan, evaluations, draws, prediction, without
+    return plan, evaluations, draws, prediction, without, scatter
 
 
 # ----------------------------------------------------------------------------------------------- honesty check
@@ -1011,8 +1212,7 @@ def check_seeds(plan: TestPlan, seeds: Sequence[int], folder: Path, progress: Pr
         figures = {q.key: q.std for q in car_engineering(run)[0]}
         reported.append([(total[t.key] if t.kind == "parameter" else figures[t.key]) / t.limit
                          for t in plan.score.targets])
-    draws = plan.draws or [plan.prediction]
-    predicted_reported = np.sqrt(np.mean([np.diag(d.reported_covariance) for d in draws], axis=0))
+    predicted_reported = np.sqrt(np.mean(plan._scatter.std ** 2, axis=0))
     return SeedCheck(tuple(names), plan.prediction.std_total, np.array(estimates), np.array(reported),
                      (time.perf_counter() - t0) / len(seeds), tuple(t.key for t in plan.score.targets),
                      predicted_reported, np.array(sigmas))

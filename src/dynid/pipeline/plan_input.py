@@ -120,7 +120,8 @@ def fit_to_limits(sim, steering: np.ndarray, pedal: np.ndarray, limits: Limits, 
 def optimise_input(plan: TestPlan, duration: float = 20.0, speed: float = 80.0, designs: int = 6, seed: int = 2929,
                    progress: Progress | None = None, work: Path | None = None) -> InputDesign:
     """The best of `designs` random inputs (module doc) of `duration` s at `speed` km/h for `plan`'s binding
-    target: the one whose predicted σ total, with the plan's tests, is the smallest."""
+    target: the one whose predicted σ total, with the plan's tests that fit beside it in the track time allowed
+    (`fitting`), is the smallest."""
 
     say = progress or (lambda _m: None)
     sim = simulated_car(plan.vehicle)
@@ -139,7 +140,7 @@ def optimise_input(plan: TestPlan, duration: float = 20.0, speed: float = 80.0, 
             pieces, _ = reduce_candidates({"input": r}, plan.vehicle, Path(work or tmp) / f"design{d}",
                                           seed + 7 * d, say)
         design = InputDesign(m, env, seed, piece=pieces["input"], result=r)
-        design.sigma = sigma_with(plan, [design.piece], k)
+        design.sigma = sigma_with(plan, [design.piece], k, duration)
         say(f"input design {d + 1}: {plan.score.targets[k].key} σ total {design.sigma:.4g}")
         if best is None or design.sigma < best.sigma:
             best = design
@@ -153,11 +154,26 @@ def binding_target(plan: TestPlan) -> int:
     return int(np.argmax(plan.reported / np.array([t.limit for t in plan.score.targets])))
 
 
-def sigma_with(plan: TestPlan, extra: Sequence[Piece], k: int) -> float:
-    """Target k's predicted σ total (the draws' RMS, `plan.typical`) of the plan's tests and `extra`."""
+def sigma_with(plan: TestPlan, extra: Sequence[Piece], k: int, duration: float = 0.0) -> float:
+    """Target k's predicted σ total (the draws' RMS, `plan.typical`) of `extra` (runs of `duration` s of driving
+    in all) with the plan's tests that fit beside them in the track time allowed (`fitting`)."""
 
-    draws = predict_all([*[plan.pieces[t] for t in plan.plan], *extra], plan.estimate)
+    draws = predict_all([*[plan.pieces[t] for t in fitting(plan, duration)], *extra], plan.estimate)
     return float(plan.score.sigmas(typical(draws))[k])
+
+
+def fitting(plan: TestPlan, duration: float) -> list[str]:
+    """The plan's tests that fit beside a run of `duration` s in the track time allowed ([limits] time; all without
+    a limit), taken in the plan's order (the search's: the most useful first) while they fit: an input that only
+    helps with tests the track time leaves no room for is scored without them."""
+    if plan.spec.limits.time is None:
+        return list(plan.plan)
+    left, out = plan.spec.limits.time - duration, []
+    for key in plan.plan:
+        if plan.candidates[key].duration <= left:
+            out.append(key)
+            left -= plan.candidates[key].duration
+    return out
 
 
 def write_robot_file(design: InputDesign, path: str | Path) -> Path:
