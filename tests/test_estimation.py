@@ -125,6 +125,25 @@ def test_group_sigmas_match_statsmodels_per_group_and_wls_follows():
     assert rel(list(res.weights.values()), [s_chassis, s_susp]) < RTOL
 
 
+def test_a_column_of_round_off_is_no_parameter_of_its_group():
+    """A regressor term that cancels in exact arithmetic leaves round-off in its column (a TX40's ZZ2 in the
+    joint-1 rows: 1e-19 of the largest column). sigma_j is then statsmodels OLS on the other columns, whatever the
+    round-off's bits; scaled to unit norm it had passed for a parameter and fitted the noise (sigma_1 moved 0.1 %
+    with the last bits of sin/cos)."""
+    rng = np.random.default_rng(7)
+    m = 200
+    names = ["ZZ1", "FV1", "FS1", "ZZ2"]
+    W = np.zeros((m, 4))
+    W[:, :3] = rng.normal(scale=[500.0, 1.0, 1.0], size=(m, 3))
+    Y = W[:, :3] @ [0.5, 2.0, 3.0] + rng.normal(size=m)
+    s_ols = np.sqrt(sm.OLS(Y, W[:, :3]).fit().scale)
+    for draw in range(3):  # three different round-offs, 1e-16 in absolute terms
+        W[:, 3] = 1e-16 * rng.normal(size=m)
+        fit = group_noise(W, Y, np.array(["joint1"] * m), names)["joint1"]
+        assert rel(fit.sigma, s_ols) < RTOL
+        assert fit.parameters == ("ZZ1", "FV1", "FS1")
+
+
 def test_wls_recovers_group_noise_and_beats_ols():
     n, p, sigma = 300, 3, (0.1, 10.0)
     dof = n - p

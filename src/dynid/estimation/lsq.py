@@ -74,8 +74,12 @@ def pivoted_qr(
         A, b = Rc[:, :q], (None if b is None else Rc[:, q])
         rows = A.shape[0]
     norms = np.linalg.norm(A, axis=0)
+    # a column within round-off of zero next to the largest (a regressor term that cancels in exact arithmetic,
+    # e.g. ZZ2 in a TX40's joint-1 rows at 1e-19 of the largest column) is zero: scaled to unit norm it would
+    # pass for a parameter and fit the round-off (the joint's sigma_j moved 0.1 % with the last bits of sin/cos)
+    norms[norms <= tol * norms.max(initial=0.0)] = 0.0
     scale = np.where(norms > 0, norms, 1.0)
-    As = A / scale
+    As = np.where(norms > 0, A / scale, 0.0)
     if q == 0 or rows == 0:
         return PivotedQR(np.zeros((0, q)), np.arange(q), norms, None if b is None else np.zeros(0), 0, tol)
     if b is None:
