@@ -137,7 +137,7 @@ def test_a_column_of_round_off_is_no_parameter_of_its_group():
     W[:, :3] = rng.normal(scale=[500.0, 1.0, 1.0], size=(m, 3))
     Y = W[:, :3] @ [0.5, 2.0, 3.0] + rng.normal(size=m)
     s_ols = np.sqrt(sm.OLS(Y, W[:, :3]).fit().scale)
-    for draw in range(3):  # three different round-offs, 1e-16 in absolute terms
+    for _ in range(3):  # three different round-offs, 1e-16 in absolute terms
         W[:, 3] = 1e-16 * rng.normal(size=m)
         fit = group_noise(W, Y, np.array(["joint1"] * m), names)["joint1"]
         assert rel(fit.sigma, s_ols) < RTOL
