@@ -16,12 +16,17 @@ stamps left (trimmed after each test's plan), half of each worker's block of the
 +6.6 % CPU). Not met: the process's floor is ~265 MB before any row, measured as resident-set steps: 172 MB of
 imports (NumPy 27, scipy.linalg 28, scipy.signal 48 with the scipy.stats, interpolate and optimize it imports,
 Numba 53, dynid 17), pyarrow 29 on the first read, Numba's code generator set up on the first compiled call 47 (its
-functions are cached on disk: loading them still builds the target), cvxpy 17 (the physical-consistency check).
-On top: the plan's pass over 3.6 M stamps peaks at ~400 MB (the plan modules' temporaries, freed before the map),
-and during the map each of the 2 workers holds ~60 MB traced (its chunk's joints, the first stage's output, one
-block), the clock 29 MB, the Parquet block cache ~22 MB, the plots' rows (`run.PLOT_BYTES`). The levers left are
-outside the data path: scipy.signal's import (dynid uses butter and the sosfilt family, which Numba already runs
-for it), Numba on a robot's path, the plan's temporaries.
+functions are cached on disk: loading them still builds the target), cvxpy 17 (the physical-consistency check
+of a WLS estimate solves for a realisable standard set: `estimation.physical.feasible_standard`, so a robot run
+with the pc extra installed does use it). On top: the plan's pass over 3.6 M stamps (`pipeline.timebase.stream`,
+`io.windows`' Parquet stamps) holds the stamps and at most two arrays of their size (29 MB each; it held up to
+four, and read the file's stamps twice, for q and for tau): that phase peaks at 318 MB against 396 (RSS sampled in one
+identify run each, busy), traced 84 MiB against 166 for the plan alone, under the map's, so the process's peak
+stays the map's (529 MiB against 542 before, farm-bench medians of 2, A B A B in one run, noisy). During the map
+each of the 2 workers holds ~60 MB traced (its chunk's joints, the first stage's output, one block), the clock
+29 MB, the Parquet block cache ~22 MB, the plots' rows (`run.PLOT_BYTES`). The levers left are outside the data
+path: scipy.signal's import (dynid uses butter and the sosfilt family, which Numba already runs for it), Numba
+on a robot's path, the map's per-worker blocks.
 """
 
 from __future__ import annotations

@@ -265,3 +265,43 @@ def test_a_window_outside_the_record_is_refused(logs, capsys):
     d, _ = logs
     last = cli_error(config(d, "outside", q="clean.csv", extra="end = 30.0"), capsys)
     assert "end = 30 s is outside the record" in last and "0..23.999 s" in last
+
+
+def _stamps_over_blocks() -> tuple[np.ndarray, np.ndarray]:
+    """Stamps t0 + h slot + jitter over three and a bit of `timebase.BLOCK` steps, with holes of 2 and 3 periods in
+    different blocks (one on a block's edge): (t, slots)."""
+    from dynid.pipeline.timebase import BLOCK
+
+    h, n = 2e-3, 3 * BLOCK + 123
+    slots = np.arange(n, dtype=float)
+    for at, extra in ((1000, 1.0), (BLOCK, 2.0), (2 * BLOCK + 77, 1.0)):
+        slots[at:] += extra
+    rng = np.random.default_rng(25)
+    return 4.5 + h * slots + rng.uniform(-0.05, 0.05, n) * h, slots
+
+
+def test_the_clock_fitted_over_blocks_is_the_least_squares_line_of_the_stamps():
+    # oracle: the stamps' own construction (their slots) and NumPy's least-squares line through them (polyfit).
+    # Error bound: every n-term sum is within n eps of exact (n = 2e5: 4e-11 relative), so h to 1e-10 relative and
+    # t0 and the jitter to s_mean dh + eps t < 1e-8 s (the jitter itself is 1e-4 s)
+    from dynid.io import Channel
+    from dynid.pipeline.timebase import stream
+
+    t, slots = _stamps_over_blocks()
+    s = stream([Channel("time", "s", t, t)], "f.csv", True, 5.0)
+    h_ls, t0_ls = np.polyfit(slots, t, 1)
+    jitter = t - (t0_ls + h_ls * slots)
+    assert s.h == pytest.approx(h_ls, rel=1e-10) and s.t0 == pytest.approx(t0_ls, abs=1e-8)
+    assert s.jitter_max == pytest.approx(np.abs(jitter).max(), abs=1e-8)
+    assert s.jitter_rms == pytest.approx(np.sqrt(np.mean(jitter**2)), abs=1e-8)
+    assert s.largest_gap == np.diff(t).max() and not s.uniform and s.repeated == 0  # holes: resampled
+    assert np.array_equal(s.t, t)
+
+
+def test_holes_in_several_blocks_name_the_first_and_count_them_all():
+    from dynid.io import Channel, GapError
+    from dynid.pipeline.timebase import stream
+
+    t, _ = _stamps_over_blocks()
+    with pytest.raises(GapError, match=r"sample 1000 .*over max_gap = 1.5 \(3 such gap\(s\) in all\)"):
+        stream([Channel("time", "s", t, t)], "f.csv", True, 1.5)  # holes of 2, 3 and 2 periods (jitter 0.1)

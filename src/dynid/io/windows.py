@@ -384,14 +384,19 @@ def _parquet_stamps(index: FileIndex) -> NDArray[np.float64]:
     """The file's time column (or row / fs), decoded block by block as the whole-file reader decodes it."""
     _check_unchanged(index)
     opened: list[Any] = []
-    parts = []
+    out = np.empty(sum(b.rows for b in index.blocks))  # filled block by block: no list of parts to concatenate
+    at = 0
     for b in index.blocks:
         if index.time_column is None:
-            parts.append(uniform_time(b.rows, index.option("fs"), index.path, b.row0))
+            part = uniform_time(b.rows, index.option("fs"), index.path, b.row0)
         elif b.rows:
             col = _parquet_column(index, b, index.time_column, opened, store=False)
-            parts.append(table_time([col], index.time_column, None, index.path, None, b.row0))
-    return np.concatenate(parts) if parts else np.zeros(0)
+            part = table_time([col], index.time_column, None, index.path, None, b.row0)
+        else:
+            continue
+        out[at:at + part.size] = part
+        at += part.size
+    return out[:at]
 
 
 def clear_cache() -> None:

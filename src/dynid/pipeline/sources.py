@@ -36,7 +36,7 @@ from ..io.windows import FileIndex, index_file, read_window, time_bases
 from ..model.tree import PRISMATIC, ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .robot import DataJoints, data_joints
-from .timebase import RATE_TOLERANCE, _rate, opened, stream
+from .timebase import RATE_TOLERANCE, Stream, _rate, opened, stream
 
 Progress = Callable[[str], None]
 # steps of the slowest base read beyond a window's ends, besides the longest hole the plan allows: a not-a-knot cubic's
@@ -356,6 +356,8 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
     timed = True
     reported: set[tuple[Path, tuple[str, ...]]] = set()
+    bases: dict[Path, list] = {}  # file -> its time bases [(members, stamps, lines)]
+    planned: dict[tuple[Path, int], Stream] = {}  # (file, base) -> its Stream
     bag = _bag_channels(cfg, spec, say) if is_bag(spec.files["q"]) or is_bag(spec.files[cfg.effort]) else None
     quantities = ("q", cfg.effort) if bag is None else ("q", "tau")
     chans = {q: tuple(cfg.channels[q].channels) for q in quantities} if bag is None else bag[1]
@@ -370,13 +372,17 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
                                                                                  fs=fs),
                                           path, spec.fs, spec.name, cfg.path)
         index = indexes[quantity] = by_file[path]
-        bases, _ = _time_bases(index, list(dict.fromkeys(n for q in quantities if spec.files[q] == path
-                                                         for n in chans[q])), spec.name)
+        if path not in bases:  # once per file: q and tau in one file share its stamps (29 MB an hour at 1 kHz)
+            bases[path] = _time_bases(index, list(dict.fromkeys(n for q in quantities if spec.files[q] == path
+                                                                for n in chans[q])), spec.name)[0]
         streams[quantity] = []
-        for members, t, lines in bases:
+        for i, (members, t, lines) in enumerate(bases[path]):
             if not set(members) & set(names):
                 continue
-            s = stream([Channel("time", "s", t, t, lines)], str(path), timed, spec.max_gap, (spec.start, spec.end))
+            if (path, i) not in planned:
+                planned[path, i] = stream([Channel("time", "s", t, t, lines)], str(path), timed, spec.max_gap,
+                                          (spec.start, spec.end))
+            s = planned[path, i]
             streams[quantity].append((members, s))
             if timed and (path, tuple(members)) not in reported:
                 reported.add((path, tuple(members)))

@@ -82,12 +82,15 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
     t, lines = chans[0].time, chans[0].lines
     offset = 0  # of the first row kept, for messages
     if timed and window != (None, None) and t.size > 2:
-        margin = 2 * max_gap * float(np.median(np.abs(np.diff(t))))
+        steps = np.diff(t)
+        margin = 2 * max_gap * float(np.median(np.abs(steps, out=steps), overwrite_input=True))  # no copies
+        del steps
         lo = -np.inf if window[0] is None else window[0] - margin
         hi = np.inf if window[1] is None else window[1] + margin
-        inside = np.flatnonzero((t >= lo) & (t <= hi))
-        if inside.size and (inside[0] > 0 or inside[-1] < t.size - 1):
-            rows = slice(int(inside[0]), int(inside[-1]) + 1)
+        inside = (t >= lo) & (t <= hi)  # its first and last True, without their indices (8 bytes a sample)
+        a, z = int(np.argmax(inside)), t.size - 1 - int(np.argmax(inside[::-1]))
+        if inside[a] and (a > 0 or z < t.size - 1):
+            rows = slice(a, z + 1)
             offset = rows.start
             chans = [Channel(c.name, c.unit, c.values[rows], t[rows], None if lines is None else lines[rows])
                      for c in chans]
@@ -111,7 +114,9 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
             f"to {float(t[k]):.6g} s ({back.size} such step(s) in all): the time stamps must not decrease. Sort the "
             "rows by time or fix the logger's clock, or keep to a part before or after it (start, end in the test)",
             source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
-    # lean on memory: an hour's stamps are millions of samples, and the planning pass of a long file holds only them
+    # lean on memory: an hour's stamps are millions of samples (29 MB), and the planning pass of a long file holds
+    # only them; beside them at most two arrays of their size live at once (the median's steps, then the fit's two
+    # centred vectors), the rest is computed over blocks of BLOCK steps
     up = step > 0.0
     repeated = t.size - 1 - int(np.count_nonzero(up))
     first = None  # the first row of each stamp, where rows repeat one
@@ -129,38 +134,67 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
                             "the right column?), or drop the time column and give the test's fs",
                             source=source, sample=offset)
     su = np.diff(tu) if repeated else step
-    h = float(np.median(su))
-    big = np.flatnonzero(su > max_gap * h)
-    if big.size:
-        i = int(big[0])
+    del step
+    largest = float(np.max(su))
+    h_step = h = float(np.median(su, overwrite_input=True))  # in place: the same order statistics, no copy
+    del su
+    big_at, big_n = -1, 0  # the first step over max_gap periods (an index of tu's steps), and their count
+    for a, b in _blocks(tu.size - 1):
+        over = np.flatnonzero(np.diff(tu[a:b + 1]) > max_gap * h)
+        if over.size and big_at < 0:
+            big_at = a + int(over[0])
+        big_n += over.size
+    if big_n:
+        i = big_at
+        gap = float(tu[i + 1] - tu[i])
         k = int(first[i + 1]) if first is not None else i + 1
         raise GapError(
-            f"{_where(source, lines, k, float(t[k]), offset)}: no sample for {su[i] * 1e3:.4g} ms before it (from "
-            f"t = {float(tu[i]):.6g} s), {su[i] / h:.3g} sample periods at {1 / h:.6g} Hz, over max_gap = {max_gap:g} "
-            f"({big.size} such gap(s) in all). Keep to a part of the test without it (start, end in the test) or "
+            f"{_where(source, lines, k, float(t[k]), offset)}: no sample for {gap * 1e3:.4g} ms before it (from "
+            f"t = {float(tu[i]):.6g} s), {gap / h:.3g} sample periods at {1 / h:.6g} Hz, over max_gap = {max_gap:g} "
+            f"({big_n} such gap(s) in all). Keep to a part of the test without it (start, end in the test) or "
             "raise max_gap in the test if interpolating across it is acceptable",
             source=source, sample=offset + k, line=None if lines is None else int(lines[k]))
     # each step rounded to whole periods on its own: the count over the whole record (span / median step) is off
     # by several under a realistic jitter (10 % of the step over thousands of samples), which skews the rate
-    periods = np.rint(su / h)
-    consecutive = bool(np.all(periods == 1.0))
     slots = np.empty(tu.size)
-    slots[0] = 0.0
-    np.cumsum(periods, out=slots[1:])
-    del periods
+    consecutive = _slots(tu, h_step, slots)
     # the logger's clock: the stamps' least-squares line t = t0 + h slot, in closed form about the means
     s_mean, t_mean = float(slots.mean()), float(tu.mean())
-    centred = slots - s_mean
-    h = float(centred @ (tu - t_mean) / (centred @ centred))
-    del centred
+    centred = np.subtract(slots, s_mean, out=slots)  # the slots again below, from the stamps
+    dev = tu - t_mean
+    h = float(centred @ dev / (centred @ centred))
+    del centred, dev
     t0 = t_mean - h * s_mean
-    jitter = slots * h  # then tu - t0 - slots h, in place
+    _slots(tu, h_step, slots)
+    jitter = np.multiply(slots, h, out=slots)  # then tu - t0 - slots h, in place
     np.subtract(tu, jitter, out=jitter)
     jitter -= t0
     worst = float(max(jitter.max(), -jitter.min()))
     uniform = bool(worst <= UNIFORM * h and consecutive)
     return Stream(source, timed, tu, {c.name: c for c in chans}, h, uniform, t0, repeated,
-                  float(np.sqrt(jitter @ jitter / jitter.size)), worst, float(np.max(su)))
+                  float(np.sqrt(jitter @ jitter / jitter.size)), worst, largest)
+
+
+BLOCK = 1 << 16  # steps per block of the passes over the stamps (512 KiB of float64)
+
+
+def _blocks(n: int) -> list[tuple[int, int]]:
+    """[a, b) ranges of BLOCK steps covering n steps (a block's steps are diff(tu[a:b + 1]))."""
+    return [(a, min(a + BLOCK, n)) for a in range(0, n, BLOCK)]
+
+
+def _slots(tu: NDArray[np.float64], h: float, out: NDArray[np.float64]) -> bool:
+    """Each stamp's slot of the clock, into out: 0, then the running sum of the steps rounded to periods of h;
+    whether every step is one period. The running sum continues across blocks as np.cumsum over the whole: the
+    periods are whole numbers, so every partial sum is exact whatever the grouping."""
+    out[0] = 0.0
+    consecutive = True
+    for a, b in _blocks(tu.size - 1):
+        periods = np.rint(np.diff(tu[a:b + 1]) / h)
+        consecutive = consecutive and bool(np.all(periods == 1.0))
+        np.cumsum(periods, out=out[a + 1:b + 1])
+        out[a + 1:b + 1] += out[a]
+    return consecutive
 
 
 def _rate(h: float) -> float:
