@@ -7,6 +7,7 @@ files, over seeds (slow)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -393,57 +394,94 @@ SEEDS = 10
 BAND = (math.sqrt(1.97 / 9), math.sqrt(29.67 / 9))
 
 
-@pytest.fixture(scope="module")
-def plan406():
-    return planner.plan_tests("peugeot406")
+VEHICLES = ("peugeot406", "compact_suv")  # the shipped vehicles (issue 29: both)
 
 
 @pytest.fixture(scope="module")
-def seeds406(plan406, tmp_path_factory):
-    """The recommended plan driven ten times with the sensor suite (each test its own draw of noise and zero
-    offsets), each through `identify` as `dynid demo` does."""
-    return planner.check_seeds(plan406, range(SEEDS), tmp_path_factory.mktemp("seeds"))
+def planned():
+    """`plan_tests` once per vehicle for the whole module (the 406's plan serves both its fixtures)."""
+    return functools.cache(planner.plan_tests)
+
+
+@pytest.fixture(scope="module")
+def plan406(planned):
+    return planned("peugeot406")
+
+
+@pytest.fixture(scope="module", params=VEHICLES)
+def vehicle_plan(request, planned):
+    """Each shipped vehicle's recommended plan (`dynid plan --vehicle NAME`, the default targets)."""
+    return planned(request.param)
+
+
+@pytest.fixture(scope="module")
+def vehicle_seeds(vehicle_plan, tmp_path_factory):
+    """The recommended plan driven ten times with the vehicle's sensor suite (each test its own draw of noise and
+    zero offsets), each through `identify` as `dynid demo` does."""
+    return planner.check_seeds(vehicle_plan, range(SEEDS), tmp_path_factory.mktemp("seeds"))
 
 
 @pytest.mark.slow
-def test_the_406s_plan_predicts_the_spread_of_ten_seeds(plan406, seeds406):
-    """Issue 29's honesty test: the spread of the ten seeds' estimates against the predicted σ total, over the
-    parameters (the RMS of their ratio; each parameter's band is the next test)."""
-    ratio = seeds406.spread / seeds406.predicted
-    print(seeds406.text(plan406.labels))
-    assert abs(np.sqrt(np.mean(ratio**2)) - 1) < 0.25, seeds406.text(plan406.labels)
+def test_the_plan_predicts_the_spread_of_ten_seeds(vehicle_plan, vehicle_seeds):
+    """Issue 29's honesty test, both shipped vehicles: the spread of the ten seeds' estimates against the predicted
+    σ total, over the parameters (the RMS of their ratio; each parameter's band is the next test). Measured 27 Nov:
+    the 406's 92 s plan RMS 1.14; the SUV's 24 s plan (sine 0.5 Hz at 120 km/h, braking from 80 km/h) RMS 1.23, most
+    of it M6, MZ6, XY6, XX6 (next test)."""
+    ratio = vehicle_seeds.spread / vehicle_seeds.predicted
+    print(vehicle_seeds.text(vehicle_plan.labels))
+    assert abs(np.sqrt(np.mean(ratio**2)) - 1) < 0.25, vehicle_seeds.text(vehicle_plan.labels)
 
 
 @pytest.mark.slow
-def test_every_parameter_of_the_406s_plan_within_the_spreads_band(plan406, seeds406):
+def test_every_parameter_of_the_plan_within_the_spreads_band(request, vehicle_plan, vehicle_seeds):
     """Each parameter's spread over its predicted σ total inside the 99.9 % band of ten seeds' sample deviation
-    (0.47 to 1.82). Measured 27 Nov on the 92 s plan: 0.62 (kt24) to 1.61 (M6). M6's spread is above its prediction
-    on every plan measured (2.20 x on the 40 s plan, 1.74 x on a 100 s one, 1.61 x here): a cause not found yet, not
-    a seed's chance; the median over the parameters 1.14."""
-    ratio = seeds406.spread / seeds406.predicted
-    assert np.all((ratio > BAND[0]) & (ratio < BAND[1])), seeds406.text(plan406.labels)
+    (0.47 to 1.82). Measured 27 Nov on the 406's 92 s plan: 0.62 (kt24) to 1.61 (M6); on the SUV's 24 s plan: 0.52
+    (off9) to 2.32 (M6), MZ6 1.99, XY6 1.89: outside the band.
+
+    The cause is the sensors' noise read into the offsets, not the offsets themselves (experiments on the SUV's
+    plan, ten seeds through identify, 27 Nov): with every zero offset 0 (noise alone) M6's spread is still 2.55 x
+    the predicted noise part (XX6 1.88, MZ6 1.89, XY6 1.83, OFF36 1.91; the 406: M6 1.30, RMS 1.22); with the
+    inertial unit's noise alone 2.55 x the σ identify reports, and only with the offsets estimated: the same files
+    with `estimate = false` spread M6 by 0.057 kg, its white-row σ exactly (0.48 kg reported, 1.23 kg spread with
+    the offsets estimated). The error is linear in the noise (the unit's noise halved, as is, doubled: M6 -1.35,
+    -2.93, -5.39 kg on one seed, whose offsets are read as the sine's az -1.2 σ and its four Fz +0.7 σ each, none
+    drawn); estimating only the wheels' or only the unit's offsets gives the same -2.9 kg, the attitude crossover
+    0.05 or 0.8 Hz too; rows 2.5 x sparser (decimate [5, 25]) leave it (spread 1.12 kg, reported 0.57 kg): not the
+    rows' correlation with their neighbours. The realised offsets move M6 as the prediction's offsets columns say (a
+    seed identified with and without its Fz or az offsets: 0.01 to 0.2 kg, within 0.05 kg of the prediction, both
+    vehicles). What remains to find: what in the rows, beyond white noise of each group's σ, moves the estimate
+    along the direction {M6, az offset, sum of Fz offsets} that the offsets' prior pins (leads: one sensor's noise
+    in several groups' rows at once, which σ_g per group takes as independent; or a slow error the estimator's
+    integrations make of it); the identification's own σ misses it as the prediction does (reported / predicted RMS
+    1.02). The SUV's case is an expected failure (strict: it fails the suite once fixed)."""
+    if vehicle_plan.vehicle == "compact_suv":
+        request.node.add_marker(pytest.mark.xfail(strict=True, reason="the noise read into the offsets' estimate: "
+                                                  "M6 2.3 x, MZ6 2.0 x, XY6 1.9 x its predicted σ"))
+    ratio = vehicle_seeds.spread / vehicle_seeds.predicted
+    assert np.all((ratio > BAND[0]) & (ratio < BAND[1])), vehicle_seeds.text(vehicle_plan.labels)
 
 
 @pytest.mark.slow
-def test_the_406s_plan_predicts_the_sigma_total_the_identification_reports(plan406, seeds406):
+def test_the_plan_predicts_the_sigma_total_the_identification_reports(vehicle_plan, vehicle_seeds):
     """Issue 29 item 1: the σ total the plan predicts the identification reports (the RMS over its 400 draws of the
     offsets) against the RMS over ten seeds of what each seed's identification reported. The seeds' side carries the
     seed-to-seed scatter of the reported σ (about 20 %: the weights come from residuals the offsets dominate) over 10
     seeds: about 7 % per parameter; over 32 parameters the RMS of the ratio within 25 % of 1, as the spread's test
-    (measured 27 Nov on the 92 s plan: median 1.00, RMS 1.01, 0.94 to 1.10)."""
-    r = seeds406.reported_ratio
-    assert abs(np.sqrt(np.mean(r**2)) - 1) < 0.25, seeds406.text(plan406.labels)
+    (measured 27 Nov: the 406's 92 s plan median 1.00, RMS 1.01, 0.94 to 1.10; the SUV's 24 s plan median 1.02, RMS
+    1.02, 0.94 to 1.14)."""
+    r = vehicle_seeds.reported_ratio
+    assert abs(np.sqrt(np.mean(r**2)) - 1) < 0.25, vehicle_seeds.text(vehicle_plan.labels)
 
 
 @pytest.mark.slow
-def test_the_406s_plan_meets_its_targets_in_nine_seeds_of_ten(plan406, seeds406):
+def test_the_plan_meets_its_targets_in_nine_seeds_of_ten(vehicle_plan, vehicle_seeds):
     """Issue 29: the targets met (σ total the identification reports) in at least 9 of 10 seeds. The plan promises
     it (every target at once in a share LEVEL of its draws of the offsets: nine of ten or more in 95 % of campaigns);
-    measured 27 Nov: the 92 s plan (sine 0.5 Hz twice, 1 Hz twice, 0.3 Hz, braking from 80 km/h) met them in 10 of
-    10, fs9 at most 0.88 x its bound, Iyy 0.91 x (the 40 s plan the 4 noisy files chose: 5 of 10, as its draws of the
-    offsets say, 53 %)."""
-    assert plan406.met, plan406.text()
-    assert int(seeds406.met.sum()) >= 9, seeds406.text(plan406.labels)
+    measured 27 Nov: the 406's 92 s plan (sine 0.5 Hz twice, 1 Hz twice, 0.3 Hz, braking from 80 km/h) met them in 10
+    of 10, fs9 at most 0.88 x its bound, Iyy 0.91 x (the 40 s plan the 4 noisy files chose: 5 of 10, as its draws of
+    the offsets say, 53 %); the SUV's 24 s plan in 10 of 10, Iyz at most 0.89 x, fs9 0.82 x."""
+    assert vehicle_plan.met, vehicle_plan.text()
+    assert int(vehicle_seeds.met.sum()) >= 9, vehicle_seeds.text(vehicle_plan.labels)
 
 
 @pytest.mark.slow
