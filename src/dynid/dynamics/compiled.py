@@ -98,9 +98,12 @@ def _mul_t(R, j, x0, x1, x2):
 # libm and about four times faster than math.sin + math.cos, which would otherwise be a quarter of the
 # inverse dynamics of a 42-frame tree. Compiled without contraction into FMA, unlike the kernels: the generated
 # code's values to the bit on any CPU (contracted, a call took 6 ns instead of 11, but the car's inverse
-# dynamics and regressor measured the same, 1.08-1.13 and 1.79-1.89 us per sample either way)
-_sincos = (_njit(cache=True, nogil=True, error_model="numpy")(trig.python_function("_sincos")) if HAVE_NUMBA
-           else trig.python_function("_sincos"))
+# dynamics and regressor measured the same, 1.08-1.13 and 1.79-1.89 us per sample either way). Its one signature
+# given, so that it is compiled (or loaded) here with its own flags: compiled lazily, its first compile could come
+# from a contracting kernel's call and Numba cached that code as its own (found by tests/test_trig.py after
+# tests/test_compiled.py had run first on an empty cache)
+_sincos = (_njit("UniTuple(float64, 2)(float64)", cache=True, nogil=True, error_model="numpy")(
+    trig.python_function("_sincos")) if HAVE_NUMBA else trig.python_function("_sincos"))
 
 
 @_jit
