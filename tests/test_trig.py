@@ -1,8 +1,10 @@
 """One sine and cosine (dynid.dynamics.trig) in every target: the Numba engine's `_sincos`, the generated NumPy
 module, the generated C `_block` function and the LLVM block kernel, on the same 1e5 angles.
 
-Oracles: each other, to the bit (the same IEEE operations in the same order, no contraction into FMA: on any
-CPU); and libm through np.sin / np.cos, within 1 ulp of max(|y|, 1/2). Why that bound holds: against the exact
+Oracles: the generated targets each other, to the bit (the same IEEE operations in the same order, no
+contraction into FMA: on any CPU); the engine's, contracted into FMA like the engine's kernels (15 % of a PUMA's
+inverse dynamics uncontracted), within 1 ulp of them; and libm through np.sin / np.cos, within 1 ulp of
+max(|y|, 1/2) for every target (a contraction only rounds less). Why that bound holds: against the exact
 value, these steps err by under 1.05 ulp of max(|y|, 1/2) (fdlibm's kernels, under an ulp, and the two-part
 pi/2, |k| 2^-87 absolute; measured 1.04 against long double), a libm by under 0.55 (glibc; fdlibm-based ones
 under 1, with the same kernels); for |y| >= 1/2 two doubles of one binade differ by a whole number of ulps, so
@@ -80,15 +82,18 @@ def test_every_target_is_the_same_sine_and_cosine(tmp_path, monkeypatch):
     x = angles()
     assert x.size == 100_000
     res = every_target(x, tmp_path)
+    engine = res.pop("numba engine")
     bits = {name: (s.view(np.int64), c.view(np.int64)) for name, (s, c) in res.items()}
     first, *others = bits
     for name in others:
         for f, a, b in (("sin", bits[first][0], bits[name][0]), ("cos", bits[first][1], bits[name][1])):
             diff = np.flatnonzero(a != b)
             assert diff.size == 0, f"{f}: {name} differs from {first} at {diff.size} angles, e.g. x = {x[diff[0]]!r}"
+    for name, (s, c) in [*res.items(), ("numba engine", engine)]:
+        assert ulps(s, np.sin(x)).max() <= 1.0, name
+        assert ulps(c, np.cos(x)).max() <= 1.0, name
     s, c = res[first]
-    assert ulps(s, np.sin(x)).max() <= 1.0
-    assert ulps(c, np.cos(x)).max() <= 1.0
+    assert ulps(engine[0], s).max() <= 1.0 and ulps(engine[1], c).max() <= 1.0
 
 
 def test_angles_out_of_range_take_libm_in_every_target(tmp_path, monkeypatch):
@@ -103,7 +108,7 @@ def test_angles_out_of_range_take_libm_in_every_target(tmp_path, monkeypatch):
         assert np.array_equal(np.isnan(s), np.isnan(es)) and np.array_equal(np.isnan(c), np.isnan(ec)), name
         ok = ~np.isnan(es)
         assert ulps(s[ok], es[ok]).max() <= 1.0 and ulps(c[ok], ec[ok]).max() <= 1.0, name
-        assert np.array_equal(s[near], res["numba engine"][0][near]), name
+        assert np.array_equal(s[near], res["numpy"][0][near]) or name == "numba engine", name
 
 
 def test_the_steps_are_fdlibms_sine_and_cosine_kernels():

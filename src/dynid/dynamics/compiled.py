@@ -96,13 +96,11 @@ def _mul_t(R, j, x0, x1, x2):
 
 # sine and cosine together: dynamics.trig's steps, the ones every generated target runs, within an ulp of
 # libm and about four times faster than math.sin + math.cos, which would otherwise be a quarter of the
-# inverse dynamics of a 42-frame tree. Compiled without contraction into FMA, unlike the kernels: the generated
-# code's values to the bit on any CPU (contracted, a call took 6 ns instead of 11, but the car's inverse
-# dynamics and regressor measured the same, 1.08-1.13 and 1.79-1.89 us per sample either way). Its one signature
-# given, so that it is compiled (or loaded) here with its own flags: compiled lazily, its first compile could come
-# from a contracting kernel's call and Numba cached that code as its own (found by tests/test_trig.py after
-# tests/test_compiled.py had run first on an empty cache)
-_sincos = (_njit("UniTuple(float64, 2)(float64)", cache=True, nogil=True, error_model="numpy")(
+# inverse dynamics of a 42-frame tree. Contracted into FMA like the kernels (uncontracted, a PUMA's inverse
+# dynamics took 0.30 us a sample instead of 0.26): within an ulp of the generated targets, which agree to the bit.
+# Its one signature given, so that it is compiled (or loaded) here with its own flags: compiled lazily, its first
+# compile came from whichever kernel called it first and Numba cached that code as its own
+_sincos = (_njit("UniTuple(float64, 2)(float64)", cache=True, nogil=True, error_model="numpy", fastmath=_FASTMATH)(
     trig.python_function("_sincos")) if HAVE_NUMBA else trig.python_function("_sincos"))
 
 
