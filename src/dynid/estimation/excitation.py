@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+import scipy.linalg
 import scipy.optimize
 from threadpoolctl import threadpool_limits
 
@@ -673,12 +674,14 @@ def expected_uncertainty(model: ModelLike, trajectory: FourierTrajectory, noise:
     base = model.base_parameters(rows=joints, cols=identified)
     W = np.asarray(model.regressor(*trajectory.evaluate(t), rows=joints, cols=list(base.columns)))
     Wn = (W / sig[None, :, None]).reshape(-1, W.shape[-1])
-    info = repeat * (Wn.T @ Wn)
-    try:
-        cov = np.linalg.inv(info)
-    except np.linalg.LinAlgError:
+    # (WᵀW)⁻¹ = R⁻¹R⁻ᵀ from W = QR, not the inverse of WᵀW: that squares W's condition number (a TX40 design's
+    # sigma then moved 2e-4 relative with the last bits of the regressor's sine, enough to reverse a comparison)
+    R = np.linalg.qr(Wn, mode="r")
+    if R.shape[0] < R.shape[1] or np.any(np.diag(R) == 0.0):
         raise ExcitationError("the trajectory does not excite every base parameter (singular information "
-                              "matrix)") from None
+                              "matrix)")
+    Rinv = scipy.linalg.solve_triangular(R, np.eye(R.shape[1]))
+    cov = (Rinv @ Rinv.T) / repeat
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     values = np.asarray(base.values(np.asarray(tree.parameters, dtype=float)))
     values[np.abs(values) < 1e-12] = 0.0  # round-off of a regrouping (XX6 - YY6 of equal values), not a value
