@@ -34,6 +34,7 @@ import math
 import struct
 import textwrap
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 from ..pysource import parse
@@ -53,7 +54,7 @@ def _double(x: float) -> str:
     return f"0x{struct.unpack('<Q', struct.pack('<d', x))[0]:016X}"
 
 
-class Emitter:
+class Emitter(ABC):
     """The walk of the generated language that the scalar back-end (here) and the vector one (blocks) share:
     one SSA value %vN per Python name and temporary, operations in Python's evaluation order. A back-end sets
     the value type T and its comparison mask M, and says how a constant is written (`const`), an array element
@@ -76,24 +77,28 @@ class Emitter:
         return name
 
     # -- what a back-end says
+    @abstractmethod
     def const(self, x: float) -> str:
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def load(self, node: ast.Subscript) -> str:
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def assign_element(self, target: ast.Subscript, value: ast.expr) -> None:
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def ret(self) -> None:
-        raise NotImplementedError
+        ...
 
     def neg(self, x: str) -> str:
         return self._new(f"fneg {self.T} {x}")
 
+    @abstractmethod
     def trig(self, kind: str, node: ast.Call) -> str:
         """math.sin or math.cos (kind) of node.args[0]."""
-        raise NotImplementedError
 
     def tanh(self, x: str) -> str:
         raise UnsupportedSourceError("math.tanh")
