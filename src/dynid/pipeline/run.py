@@ -747,7 +747,7 @@ def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Schedul
                           "known ([drive] identify_gains = false)")
     health: list[dict] = []
     jobs: list[RobotJob] = []
-    parts = robot_systems(cfg, model, base, scheduler or LocalScheduler(), say, health, jobs_out=jobs)
+    parts = robot_systems(cfg, model, base, scheduler, say, health, jobs_out=jobs)
     a_priori = dict(zip(base.names, base.values(model.parameters), strict=True))
     known = dict(cfg.known)
     if gains:  # the data sheet's gains are their a priori values; those not identified are known
