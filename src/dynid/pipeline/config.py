@@ -368,12 +368,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
     except IdentificationError as exc:
         raise err("[identification]", str(exc)) from None
     if covariance.hac and method not in (Method.OLS, Method.WLS):
-        raise err("[identification]", f"cov_type = \"hac\" is for method = \"ols\" or \"wls\" (its sandwich is "
-                  f"least squares'), not {method.value!r}: use cov_type = \"nonrobust\" with it")
-    if covariance.hac and car is not None and car.estimate_offsets:
-        raise err("[identification]", "cov_type = \"hac\" needs [uncertainty] estimate = false: its second pass takes "
-                  "the residual of the rows as measured, and the sensor offsets each test's estimate reads are not "
-                  "taken out of it yet")
+        raise err("[identification]", f"cov_type = \"{covariance.kind.value}\" is for method = \"ols\" or \"wls\" "
+                  f"(its sandwich is least squares'), not {method.value!r}: use cov_type = \"nonrobust\" with it")
     return IdentifyConfig(
         path=path, model=model, tests=tests, channels=channels, transmission=transmission,
         conditioning=cond, method=method, covariance=covariance, known=_known(ident, err),
