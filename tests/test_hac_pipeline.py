@@ -108,6 +108,8 @@ def test_a_car_hac_equals_statsmodels_on_its_stacked_rows(tmp_path):
     scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
     assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
     assert r.systematic is not None  # the declared offsets' part is still attached
-    with pytest.raises(ConfigError, match="estimate = false"):
-        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n"))
-        load_config(config)
+    # the offsets estimated: the profiled problem's scores (tests/test_hac_offsets.py), both kinds accepted
+    for kind in ("hac", "hac-groupsum"):
+        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n").replace(
+            'cov_type = "hac"', f'cov_type = "{kind}"'))
+        assert load_config(config).covariance.kind.value == kind

@@ -137,6 +137,7 @@ class OffsetEstimate:
     inv_gram: np.ndarray | None = None
     profile: dict[str, np.ndarray] = field(default_factory=dict)
     exclude: tuple[str, ...] = ()  # the groups left out of the offsets' estimate
+    weights: dict[str, float] = field(default_factory=dict)  # {group: σ_g} the rows were weighted by
 
 
 def _without_offsets(R: np.ndarray, m: int) -> np.ndarray:
@@ -191,4 +192,5 @@ def solve_with_offsets(acc: OffsetFactors, names: Sequence[str], sigmas: Mapping
     statistical = total.covariance - systematic.covariance
     solution = LSQSolution(total.x, statistical / total.sigma2, total.rss, total.n_rows, total.dof, total.sigma2,
                            statistical, total.condition_number)
-    return OffsetEstimate(solution, systematic, offsets, us, total.inv_gram, profile, tuple(exclude))
+    weights = {g: 1.0 if sigmas is None else float(sigmas[g]) for per in acc.factors.values() for g in per}
+    return OffsetEstimate(solution, systematic, offsets, us, total.inv_gram, profile, tuple(exclude), weights)

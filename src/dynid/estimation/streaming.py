@@ -314,7 +314,9 @@ class StreamingLS:
         if covariance.groupsum:
             lags[SUMMED] = covariance.lags_for(max(self._rows.values()))
         profile = None if offsets is None else {t: (G, offsets.u[t]) for t, G in offsets.profile.items()}
-        return HACSums(cols, known, np.array(list(self.known.values()), dtype=float), x, result.weights or None, lags,
+        # with the offsets, the weights their estimate used (OLS's: the residual's σ, `with_offsets_estimated`)
+        sigmas = (result.weights or None) if offsets is None else offsets.weights
+        return HACSums(cols, known, np.array(list(self.known.values()), dtype=float), x, sigmas, lags,
                        groupsum=covariance.groupsum, profile=profile,
                        exclude=() if offsets is None else offsets.exclude)
 
