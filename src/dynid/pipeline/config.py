@@ -61,7 +61,9 @@
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
     cov_type = "nonrobust"           # σ² (WᵀW)⁻¹ (paper eq. (7)); "hac": Newey–West per equation group (the
     hac_lags = "auto"                # decimated rows are autocorrelated; ols or wls), lags floor(4 (n_g/100)^(2/9))
-                                     # or a whole number of rows: one more pass over the data
+                                     # or a whole number of rows: one more pass over the data; "hac-groupsum":
+                                     # the groups' scores at a sample summed first (Driscoll–Kraay: one sensor's
+                                     # noise in several groups' rows); a car's estimated offsets profiled out
     data_health = "stop"             # a data health error (a clipped, dead or swapped channel) stops the run;
                                      # "warn": said, kept in results.json, the run goes on (docs/tutorial.md)
 
