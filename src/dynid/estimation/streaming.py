@@ -310,9 +310,9 @@ class StreamingLS:
         cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
         known = np.array([self.names.index(n) for n in self.known], dtype=int)
         x = np.array([result.value(n) for n in self.estimated_names])
-        lags = {g: covariance.lags_for(n) for g, n in self._rows.items()}
-        if covariance.groupsum:
-            lags[SUMMED] = covariance.lags_for(max(self._rows.values()))
+        # group-summed: one series per test, so one lag (the groups' own would be unused, and results.json says it)
+        lags = ({SUMMED: covariance.lags_for(max(self._rows.values()))} if covariance.groupsum
+                else {g: covariance.lags_for(n) for g, n in self._rows.items()})
         profile = None if offsets is None else {t: (G, offsets.u[t]) for t, G in offsets.profile.items()}
         # with the offsets, the weights their estimate used (OLS's: the residual's σ, `with_offsets_estimated`)
         sigmas = (result.weights or None) if offsets is None else offsets.weights
