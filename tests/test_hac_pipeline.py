@@ -108,6 +108,69 @@ def test_a_car_hac_equals_statsmodels_on_its_stacked_rows(tmp_path):
     scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
     assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
     assert r.systematic is not None  # the declared offsets' part is still attached
-    with pytest.raises(ConfigError, match="estimate = false"):
-        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n"))
-        load_config(config)
+    # the offsets estimated: the profiled problem's scores (tests/test_hac_offsets.py), both kinds accepted
+    for kind in ("hac", "hac-groupsum"):
+        config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n").replace(
+            'cov_type = "hac"', f'cov_type = "{kind}"'))
+        assert load_config(config).covariance.kind.value == kind
+
+
+@pytest.mark.parametrize("kind", ["hac", "hac-groupsum"])
+def test_a_car_hac_with_its_offsets_estimated_equals_statsmodels(tmp_path, monkeypatch, kind):
+    """The quick demo's car (noisy sensor files, zero offsets drawn) in one segment per test with each test's offsets
+    estimated (identify's default): the σ of cov_type = "hac" and "hac-groupsum" against statsmodels on the run's
+    own rows, unprofiled: the estimated columns of W, each test's offsets' columns C (the rows' change per one-σ
+    offset, linearised at the a priori values, as the first pass took them: caught on their way into the
+    estimate) and the prior's pseudo-rows, weights 1/σ_g; OLS(...).fit()'s bread and residual, the meat over the
+    data rows from S_hac_simple per group and test (S_hac_groupsum per test, the sample its time), lags 3; the
+    parameters' block of B S B (tests/test_hac_offsets.py's oracle on the car). Tolerance as the estimate=false
+    car's: κ of the car's weighted [W C] ≈ 1e3-1e4, a few κ² ε, 1e-7 on any CPU."""
+    from dynid.estimation import offsets as offsets_module
+    from dynid.pipeline.demo import simulate_tests, write_demo
+
+    caught = {}
+    add = offsets_module.OffsetFactors.add
+
+    def catch(self, test, sources, W, Y, dW, dY, groups):
+        caught[test] = (self.offset_columns(dW, dY, len(Y)), self.columns.copy())
+        return add(self, test, sources, W, Y, dW, dY, groups)
+
+    monkeypatch.setattr(offsets_module.OffsetFactors, "add", catch)
+    config = write_demo(tmp_path, simulate_tests(quick=True), seed=2, noise=True, fmt="parquet")
+    text = config.read_text().replace('method = "wls"', f'method = "wls"\ncov_type = "{kind}"\nhac_lags = 3')
+    config.write_text(text.replace("[conditioning]\n", "[conditioning]\nsegment = 1000.0\n"))
+    run = identify(load_config(config))
+    r = run.result
+    assert ("group-summed" in r.cov_type) == (kind == "hac-groupsum")
+    tests = [t.name for t in run.config.tests if t.role == "identify"]
+    q, m = len(r.estimated_names), caught[tests[0]][0].shape[1]
+    blocks, ys, meta = [], [], []
+    for k, name in enumerate(tests):
+        s = run.systems[name]
+        C, cols = caught[name]
+        assert C.shape[0] == len(s.Y)  # one segment: the kept rows are every row of the test
+        w = 1.0 / np.array([r.weights[g] for g in s.groups])
+        A = np.zeros((len(s.Y), q + m * len(tests)))
+        A[:, :q], A[:, q + m * k:q + m * (k + 1)] = s.W[:, cols], C
+        blocks.append(A * w[:, None]), ys.append(s.Y * w), meta.append((np.full(len(s.Y), k), s.groups, s.t))
+    n = sum(len(y) for y in ys)
+    A = np.vstack([*blocks, np.hstack([np.zeros((m * len(tests), q)), np.eye(m * len(tests))])])
+    fit = sm.OLS(np.concatenate([*ys, np.zeros(m * len(tests))]), A).fit()
+    assert np.allclose(fit.params[:q], [r.value(x) for x in r.estimated_names], rtol=1e-6, atol=0)
+    scores = A[:n] * fit.resid[:n, None]
+    test_of, group, time = (np.concatenate(a) for a in zip(*meta, strict=True))
+    from statsmodels.stats import sandwich_covariance as sw
+
+    S = np.zeros((A.shape[1], A.shape[1]))
+    for k in range(len(tests)):
+        if kind == "hac-groupsum":
+            on = test_of == k
+            S += sw.S_hac_groupsum(scores[on], np.unique(time[on], return_inverse=True)[1], nlags=3)
+        else:
+            for g in np.unique(group[test_of == k]):
+                S += sw.S_hac_simple(scores[(test_of == k) & (group == g)], nlags=3)
+    B = fit.normalized_cov_params
+    ref = (B @ S @ B)[:q, :q]
+    scale = np.sqrt(np.outer(np.diag(ref), np.diag(ref)))
+    assert np.max(np.abs(r.covariance - ref) / scale) < 1e-7
+    assert r.systematic is not None  # what the data leave of the offsets' effect, in σ total

@@ -17,11 +17,23 @@ The residuals need the estimate, which the factors of the first pass give but ca
 the same chunks (rows in time order within each group) and keeps, per stream, S, the row count and the first
 and last L_g scores, so that two sums of consecutive chunks combine exactly (`merge` adds the products across
 the border), in any tree of reductions that keeps the chunks' order. Memory: (q² + 2 L_g q) floats per stream.
+
+Group-summed (Driscoll–Kraay, statsmodels' ``"hac-groupsum"`` with the sample as its time): one sensor's noise enters
+several groups' rows at the same sample (a car's inertial unit: its accelerations in every chassis equation), so
+the groups' scores are not independent; they are summed per sample (the rows' time stamps, `add`'s t) into one
+series per test, and the kernel runs over that series (its lag L: `SUMMED`'s).
+
+With each test's sensor offsets estimated (`offsets`: columns C of the rows, a prior on u), the scores are those of
+the profiled problem: the row less its offsets' part, x_t − Γ_kᵀ c_t (Γ_k = (C̃ᵀC̃ + I)⁻¹ C̃ᵀ W̃ of test k, weighted),
+times the residual with the offsets the test's data read taken out, e_t − c_t û_k; the bread is then the reduced
+normal matrix's inverse A_r⁻¹ (`offsets.OffsetEstimate.inv_gram`). The sandwich over the data rows is the
+statistical part alone: with white rows of the weights' σ it is σ² A_r⁻¹ less the offsets' part, as
+`solve_with_offsets` splits it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,16 +70,25 @@ def _cross(tail: np.ndarray, head: np.ndarray, k: np.ndarray) -> np.ndarray:
     return S
 
 
+SUMMED = "Σ groups"
+"""The key of the group-summed series (`HACSums`' lags and streams)."""
+
+
 class HACSums:
     """Newey–West sums of the scores of rows of one system at one estimate (module doc).
 
     columns: the estimated columns of the rows' W (in the order of the estimate x); known_columns, known_values:
     the known parameters' columns and values (moved to the right-hand side); x: (q,) the estimate; sigmas:
-    {group: σ_g} of a weighted estimate (None: OLS, unit weights); lags: {group: L_g}.
+    {group: σ_g} of a weighted estimate (None: OLS, unit weights); lags: {group: L_g} ({SUMMED: L} when
+    groupsum). groupsum: sum the groups' scores per sample before the kernel (module doc). profile: {stream (a
+    test): (Γ (m, q), û (m,))} of a test whose offsets were estimated (its rows' offsets' columns C then go to
+    `add`); exclude: groups whose rows the offsets neither inform nor correct (`offsets.solve_with_offsets`).
     """
 
     def __init__(self, columns: ArrayLike, known_columns: ArrayLike, known_values: ArrayLike, x: ArrayLike,
-                 sigmas: Mapping[str, float] | None, lags: Mapping[str, int]) -> None:
+                 sigmas: Mapping[str, float] | None, lags: Mapping[str, int], *, groupsum: bool = False,
+                 profile: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+                 exclude: Sequence[str] = ()) -> None:
         self.columns = np.asarray(columns, dtype=int)
         self.known_columns = np.asarray(known_columns, dtype=int)
         self.known_values = np.asarray(known_values, dtype=float)
@@ -77,18 +98,32 @@ class HACSums:
                                       "estimated columns")
         self.sigmas = None if sigmas is None else {str(g): float(s) for g, s in sigmas.items()}
         self.lags = {str(g): int(v) for g, v in lags.items()}
-        # (stream, group) -> [rows, S (q, q), first min(L, rows) scores, last min(L, rows) scores]
+        self.groupsum = bool(groupsum)
+        if self.groupsum and SUMMED not in self.lags:
+            raise IdentificationError(f"HACSums: group-summed scores need the lag of their series (lags[{SUMMED!r}])")
+        self.profile = {str(k): (np.asarray(G, dtype=float), np.asarray(u, dtype=float))
+                        for k, (G, u) in (profile or {}).items()}
+        for k, (G, u) in self.profile.items():
+            if G.shape != (u.size, self.x.size):
+                raise IdentificationError(f"HACSums: test {k!r}: Γ has shape {G.shape}, expected "
+                                          f"{(u.size, self.x.size)}")
+        self.exclude = tuple(str(g) for g in exclude)
+        # (stream, series) -> [rows, S (q, q), first min(L, rows) scores, last min(L, rows) scores, (first, last)
+        # sample time of a group-summed series, else None]; a series is a group, or SUMMED
         self._parts: dict[tuple[str, str], list] = {}
+        self._rows: dict[str, int] = {}  # rows added per group
 
     def empty(self) -> HACSums:
         """The same estimate and settings, no rows: a chunk's own."""
         out = object.__new__(HACSums)
         out.__dict__.update(self.__dict__)
-        out._parts = {}
+        out._parts, out._rows = {}, {}
         return out
 
-    def scores(self, W: ArrayLike, Y: ArrayLike, groups: ArrayLike) -> np.ndarray:
-        """(c, q) the rows' scores w² x e (W: (c, p) every column, Y: (c,), groups: (c,))."""
+    def scores(self, W: ArrayLike, Y: ArrayLike, groups: ArrayLike, stream: str = "",
+               C: ArrayLike | None = None) -> np.ndarray:
+        """(c, q) the rows' scores w² x e (W: (c, p) every column, Y: (c,), groups: (c,)); of the profiled problem
+        when `stream` has its offsets estimated (C: (c, m) the rows' offsets' columns, `offsets.offset_columns`)."""
         W = np.asarray(W, dtype=float)
         y = np.asarray(Y, dtype=float).reshape(-1)
         g = as_groups(groups, W.shape[0])
@@ -96,6 +131,18 @@ class HACSums:
         e = y - A @ self.x
         if self.known_columns.size:
             e = e - W[:, self.known_columns] @ self.known_values
+        if str(stream) in self.profile:
+            G, u = self.profile[str(stream)]
+            if C is None:
+                raise IdentificationError(f"HACSums: test {stream!r} has its offsets estimated: give its rows' "
+                                          "offsets' columns C")
+            C = np.asarray(C, dtype=float)
+            if C.shape != (W.shape[0], u.size):
+                raise IdentificationError(f"HACSums: test {stream!r}: C has shape {C.shape}, expected "
+                                          f"{(W.shape[0], u.size)}")
+            on = ~np.isin(g, self.exclude)  # an excluded group's rows: neither informing nor corrected
+            e = e - np.where(on, C @ u, 0.0)
+            A = A - np.where(on[:, None], C @ G, 0.0)
         w2 = np.ones(W.shape[0])
         if self.sigmas is not None:
             for name, idx in group_rows(g).items():
@@ -104,39 +151,64 @@ class HACSums:
                 w2[idx] = 1.0 / self.sigmas[name] ** 2
         return A * (w2 * e)[:, None]
 
-    def add(self, W: ArrayLike, Y: ArrayLike, groups: ArrayLike, stream: str = "") -> None:
+    def add(self, W: ArrayLike, Y: ArrayLike, groups: ArrayLike, stream: str = "", C: ArrayLike | None = None,
+            t: ArrayLike | None = None) -> None:
         """Add rows that follow those added before in `stream` (a test): W (c, p) every column, Y (c,), groups (c,),
-        each group's rows in time order."""
+        each group's rows in time order; C (c, m): the rows' offsets' columns where the test's offsets were
+        estimated; t (c,): the rows' sample times (group-summed scores: the rows of one sample share it)."""
         W = np.asarray(W, dtype=float)
         if W.shape[0] == 0:
             return
         g = as_groups(groups, W.shape[0])
-        s = self.scores(W, Y, g)
+        s = self.scores(W, Y, g, stream, C)
         for name, idx in group_rows(g).items():
+            self._lag(name)
+            self._rows[name] = self._rows.get(name, 0) + idx.size
+        if self.groupsum:
+            if t is None:
+                raise IdentificationError("HACSums: group-summed scores need the rows' sample times t")
+            t = np.asarray(t).reshape(-1)
+            if t.shape != (W.shape[0],):
+                raise IdentificationError(f"HACSums: t has {t.size} times for {W.shape[0]} rows")
+            stamps, at = np.unique(t, return_inverse=True)  # in time order
+            summed = np.zeros((stamps.size, s.shape[1]))
+            np.add.at(summed, at, s)
+            series = {SUMMED: (summed, (stamps[0], stamps[-1]))}
+        else:
+            series = {name: (s[idx], None) for name, idx in group_rows(g).items()}
+        for name, (block, ends) in series.items():
             L = self._lag(name)
-            block = s[idx]
-            own = [idx.size, _inner(block, bartlett(L)), block[:L].copy(), block[block.shape[0] - L:].copy()]
+            own = [block.shape[0], _inner(block, bartlett(L)), block[:L].copy(), block[block.shape[0] - L:].copy(),
+                   ends]
             key = (str(stream), name)
             self._parts[key] = own if key not in self._parts else self._joined(self._parts[key], own, L)
 
     def _lag(self, group: str) -> int:
-        if group not in self.lags:
+        """The series' last lag; a group's own needs none when the groups are summed."""
+        if group not in self.lags and not (self.groupsum and group != SUMMED):
             raise IdentificationError(f"HACSums: equation group {group!r} has no lag (the first pass did not see it)")
-        return self.lags[group]
+        return self.lags.get(group, 0)
 
     @staticmethod
     def _joined(a: list, b: list, L: int) -> list:
-        """One stream's sums of rows a then rows b."""
+        """One stream's sums of rows a then rows b (group-summed: b's samples after a's, none split between them)."""
+        if a[4] is not None and not b[4][0] > a[4][1]:
+            raise IdentificationError(f"HACSums: group-summed scores of the sample at {b[4][0]} in two chunks (or "
+                                      "chunks out of order): give each chunk whole samples, in time order")
         S = a[1] + b[1] + (_cross(a[3], b[2], bartlett(L)) if L else 0.0)
         head = a[2] if a[0] >= L else np.vstack([a[2], b[2]])[:L]
         tail = b[3] if b[0] >= L else np.vstack([a[3], b[3]])[max(0, a[3].shape[0] + b[3].shape[0] - L):]
-        return [a[0] + b[0], S, head, tail]
+        return [a[0] + b[0], S, head, tail, None if a[4] is None else (a[4][0], b[4][1])]
 
     def merge(self, other: HACSums) -> HACSums:
         """This one's rows then `other`'s (each stream's chunks in order); neither input changes."""
-        if not (np.array_equal(self.x, other.x) and self.lags == other.lags and self.sigmas == other.sigmas):
-            raise IdentificationError("cannot merge HAC sums of other estimates, weights or lags")
+        if not (np.array_equal(self.x, other.x) and self.lags == other.lags and self.sigmas == other.sigmas
+                and self.groupsum == other.groupsum and self.exclude == other.exclude
+                and self.profile.keys() == other.profile.keys()):
+            raise IdentificationError("cannot merge HAC sums of other estimates, weights, lags or offsets")
         out = self.empty()
+        out._rows = {g: self._rows.get(g, 0) + other._rows.get(g, 0)
+                     for g in dict.fromkeys([*self._rows, *other._rows])}
         for key in dict.fromkeys([*self._parts, *other._parts]):
             parts = [s._parts[key] for s in (self, other) if key in s._parts]
             out._parts[key] = parts[0] if len(parts) == 1 else self._joined(*parts, self.lags[key[1]])
@@ -145,13 +217,10 @@ class HACSums:
     @property
     def group_rows(self) -> dict[str, int]:
         """{group: rows added} over every stream."""
-        out: dict[str, int] = {}
-        for (_, g), p in self._parts.items():
-            out[g] = out.get(g, 0) + p[0]
-        return out
+        return dict(self._rows)
 
     def meat(self, group: str | None = None) -> np.ndarray:
-        """(q, q) S over every stream (of one group)."""
+        """(q, q) S over every stream (of one group; group-summed: of SUMMED)."""
         S = np.zeros((self.x.size, self.x.size))
         for (_, g), p in self._parts.items():
             if group is None or g == group:
@@ -159,4 +228,4 @@ class HACSums:
         return S
 
 
-__all__ = ["HACSums", "bartlett"]
+__all__ = ["SUMMED", "HACSums", "bartlett"]

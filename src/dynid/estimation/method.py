@@ -59,10 +59,14 @@ class Method(Enum):
 class CovType(Enum):
     """How σ is computed (statsmodels' ``cov_type``): "nonrobust", σ² (WᵀW)⁻¹ with white rows (paper eq. (7));
     "hac", Newey–West's sandwich with a Bartlett kernel per equation group (the decimated rows are
-    autocorrelated: the filters and the model's errors span many of them)."""
+    autocorrelated: the filters and the model's errors span many of them); "hac-groupsum", Driscoll–Kraay's: the
+    scores of every equation group at one sample summed before the kernel (statsmodels' ``"hac-groupsum"`` with
+    the sample as its time), for a sensor whose noise enters several groups' rows at once (a car's inertial unit:
+    its accelerations in every chassis equation)."""
 
     NONROBUST = "nonrobust"
     HAC = "hac"
+    HAC_GROUPSUM = "hac-groupsum"
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,8 @@ class Covariance:
         at = f"{where} " if where else ""
         kinds = {k.value: k for k in CovType}
         if not isinstance(cov_type, str) or cov_type.lower() not in kinds:
-            raise IdentificationError(f"{at}cov_type = {cov_type!r}; use \"nonrobust\" or \"hac\"")
+            raise IdentificationError(f"{at}cov_type = {cov_type!r}; use one of "
+                                      + ", ".join(f'"{k}"' for k in kinds))
         kind = kinds[cov_type.lower()]
         if hac_lags is None or (isinstance(hac_lags, str) and hac_lags.lower() == "auto"):
             lags = None
@@ -90,12 +95,18 @@ class Covariance:
             raise IdentificationError(f"{at}hac_lags = {hac_lags!r}; give a whole number of rows >= 0, or \"auto\" "
                                       "(Newey–West's rule per group)")
         if kind is CovType.NONROBUST and lags is not None:
-            raise IdentificationError(f"{at}hac_lags = {lags} needs cov_type = \"hac\"")
+            raise IdentificationError(f"{at}hac_lags = {lags} needs cov_type = \"hac\" or \"hac-groupsum\"")
         return cls(kind, lags)
 
     @property
     def hac(self) -> bool:
-        return self.kind is CovType.HAC
+        """Whether σ is a sandwich over a second pass (either HAC kind)."""
+        return self.kind is not CovType.NONROBUST
+
+    @property
+    def groupsum(self) -> bool:
+        """Whether the groups' scores at one sample are summed before the kernel (Driscoll–Kraay)."""
+        return self.kind is CovType.HAC_GROUPSUM
 
     def lags_for(self, n_rows: int) -> int:
         """The kernel's last lag (rows) for a group of n_rows rows."""
@@ -108,6 +119,10 @@ class Covariance:
         """What the report and results.json print."""
         if not self.hac:
             return "nonrobust"
+        if self.groupsum:
+            rule = "Newey–West lags" if self.lags is None else f"{self.lags} lags"
+            return (f"HAC group-summed (Driscoll–Kraay: every group's scores at a sample summed, Bartlett kernel, "
+                    f"{rule})")
         rule = "Newey–West lags per group" if self.lags is None else f"{self.lags} lags"
         return f"HAC (Bartlett kernel, {rule}, per equation group)"
 

@@ -64,14 +64,8 @@ class OffsetFactors:
                                       f"{self.sources[test]}); a test's offsets are the same on every segment")
         W, Y = np.asarray(W, dtype=float), np.asarray(Y, dtype=float)
         groups = np.asarray(groups)
-        kv = self.known_values
-        Y = Y - W[:, self.known_columns] @ kv
-        C = np.empty((len(Y), len(sources)))
-        for k, (w, y) in enumerate(zip(dW, dY, strict=True)):
-            C[:, k] = y
-            if w is not None:
-                w = np.asarray(w, dtype=float)
-                C[:, k] -= w[:, self.known_columns] @ kv + w[:, self.columns] @ self.x0
+        Y = Y - W[:, self.known_columns] @ self.known_values
+        C = self.offset_columns(dW, dY, len(Y))
         block = np.column_stack([C, W[:, self.columns], Y])
         per, counts = self.factors.setdefault(test, {}), self.rows.setdefault(test, {})
         for g in dict.fromkeys(groups.tolist()):
@@ -79,6 +73,18 @@ class OffsetFactors:
             stacked = block[rows] if g not in per else np.vstack([per[g], block[rows]])
             per[g] = np.linalg.qr(stacked, mode="r")
             counts[g] = counts.get(g, 0) + int(rows.sum())
+
+    def offset_columns(self, dW: Sequence[ArrayLike | None], dY: Sequence[ArrayLike], rows: int) -> np.ndarray:
+        """(rows, m) the offsets' columns C_k = ΔY_k − ΔW_k x0 (the known parameters' columns at their values) of
+        rows whose change per one-σ offset is (dW, dY) (a dW of None: W unchanged)."""
+        kv = self.known_values
+        C = np.empty((rows, len(dY)))
+        for k, (w, y) in enumerate(zip(dW, dY, strict=True)):
+            C[:, k] = y
+            if w is not None:
+                w = np.asarray(w, dtype=float)
+                C[:, k] -= w[:, self.known_columns] @ kv + w[:, self.columns] @ self.x0
+        return C
 
     def merge(self, other: OffsetFactors) -> OffsetFactors:
         """A new accumulator with both one's rows (segments reduced apart, combined)."""
@@ -126,6 +132,12 @@ class OffsetEstimate:
     systematic: SystematicUncertainty
     offsets: dict[str, tuple[float, float]]
     u: dict[str, np.ndarray]  # test -> its offsets' estimate, in declared σ, order `OffsetFactors.sources`
+    # the reduced normal matrix's inverse A_r⁻¹ (weighted rows, the prior in; a HAC covariance's bread), and per test
+    # Γ = R_uu⁻¹ R_ux (m, q): its offsets' regression on the weighted W (the profiled rows are W̃ − C̃ Γ)
+    inv_gram: np.ndarray | None = None
+    profile: dict[str, np.ndarray] = field(default_factory=dict)
+    exclude: tuple[str, ...] = ()  # the groups left out of the offsets' estimate
+    weights: dict[str, float] = field(default_factory=dict)  # {group: σ_g} the rows were weighted by
 
 
 def _without_offsets(R: np.ndarray, m: int) -> np.ndarray:
@@ -162,7 +174,7 @@ def solve_with_offsets(acc: OffsetFactors, names: Sequence[str], sigmas: Mapping
                       context="W with the sensor offsets estimated")
     if sigma2 is not None:
         total = dataclasses.replace(total, sigma2=float(sigma2), covariance=float(sigma2) * total.inv_gram)
-    shifts, offsets, us = {}, {}, {}
+    shifts, offsets, us, profile = {}, {}, {}, {}
     s = np.sqrt(total.sigma2)
     for test, (Ruu, Rux, ruy) in heads.items():
         # per unit of the true u: ΔX = A_r⁻¹ R_uxᵀ R_uu⁻ᵀ (module doc), in the weighted rows' scale s
@@ -170,7 +182,7 @@ def solve_with_offsets(acc: OffsetFactors, names: Sequence[str], sigmas: Mapping
         dX = s * total.inv_gram @ Rux.T @ Ruu_inv.T
         u = us[test] = Ruu_inv @ (ruy - Rux @ total.x)  # the offsets' estimate given x
         # u's covariance: (R_uuᵀR_uu)⁻¹ given x, plus x's own through R_uu⁻¹ R_ux
-        H = Ruu_inv @ Rux
+        H = profile[test] = Ruu_inv @ Rux
         cov_u = total.sigma2 * (Ruu_inv @ Ruu_inv.T) + H @ total.covariance @ H.T
         for k, source in enumerate(acc.sources[test]):
             key = f"{test}: {source}"
@@ -180,4 +192,5 @@ def solve_with_offsets(acc: OffsetFactors, names: Sequence[str], sigmas: Mapping
     statistical = total.covariance - systematic.covariance
     solution = LSQSolution(total.x, statistical / total.sigma2, total.rss, total.n_rows, total.dof, total.sigma2,
                            statistical, total.condition_number)
-    return OffsetEstimate(solution, systematic, offsets, us)
+    weights = {g: 1.0 if sigmas is None else float(sigmas[g]) for per in acc.factors.values() for g in per}
+    return OffsetEstimate(solution, systematic, offsets, us, total.inv_gram, profile, tuple(exclude), weights)

@@ -37,7 +37,7 @@ from ._checks import (
     split_known,
 )
 from .errors import IdentificationError
-from .hac import HACSums
+from .hac import SUMMED, HACSums
 from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
 from .method import Covariance, Method
@@ -299,27 +299,47 @@ class StreamingLS:
         known = np.array([self.names.index(n) for n in self.known], dtype=int)
         return BiasAccumulator(cols, known, np.array(list(self.known.values()), dtype=float))
 
-    def hac_sums(self, result: IdentificationResult, covariance: Covariance) -> HACSums:
+    def hac_sums(self, result: IdentificationResult, covariance: Covariance,
+                 offsets: OffsetEstimate | None = None) -> HACSums:
         """An empty accumulator of the Newey–West sums at `result`'s estimate and weights (a second pass feeds it
-        the same rows, `HACSums.add`), each group's lag from `covariance` and the group's rows here."""
+        the same rows, `HACSums.add`), each group's lag from `covariance` and the group's rows here (group-summed:
+        the summed series' from the largest group's rows, about the samples). offsets: the estimate of each test's
+        sensor offsets `result` comes with (`with_offsets_estimated`): the scores are the profiled problem's, and
+        the second pass gives each test's rows their offsets' columns."""
         self._require_rows()
         cols = np.array([self.names.index(n) for n in self.estimated_names], dtype=int)
         known = np.array([self.names.index(n) for n in self.known], dtype=int)
         x = np.array([result.value(n) for n in self.estimated_names])
-        lags = {g: covariance.lags_for(n) for g, n in self._rows.items()}
-        return HACSums(cols, known, np.array(list(self.known.values()), dtype=float), x, result.weights or None, lags)
+        # group-summed: one series per test, so one lag (the groups' own would be unused, and results.json says it)
+        lags = ({SUMMED: covariance.lags_for(max(self._rows.values()))} if covariance.groupsum
+                else {g: covariance.lags_for(n) for g, n in self._rows.items()})
+        profile = None if offsets is None else {t: (G, offsets.u[t]) for t, G in offsets.profile.items()}
+        # with the offsets, the weights their estimate used (OLS's: the residual's σ, `with_offsets_estimated`)
+        sigmas = (result.weights or None) if offsets is None else offsets.weights
+        return HACSums(cols, known, np.array(list(self.known.values()), dtype=float), x, sigmas, lags,
+                       groupsum=covariance.groupsum, profile=profile,
+                       exclude=() if offsets is None else offsets.exclude)
 
-    def with_hac(self, result: IdentificationResult, sums: HACSums, covariance: Covariance) -> IdentificationResult:
+    def with_hac(self, result: IdentificationResult, sums: HACSums, covariance: Covariance,
+                 offsets: OffsetEstimate | None = None) -> IdentificationResult:
         """`result` (from `solve` or `solve_weighted` on these rows) with its covariance the sandwich B S B:
-        B = (W̃ᵀW̃)⁻¹ of the weighted rows (these factors), S the sums of the second pass over every row."""
+        B = (W̃ᵀW̃)⁻¹ of the weighted rows (these factors), S the sums of the second pass over every row. With the
+        offsets estimated (`offsets`, as `hac_sums` had), B is the reduced normal matrix's inverse A_r⁻¹ and the
+        sandwich the statistical part; `result`'s systematic part (the offsets' remaining effect) stays."""
         if sums.group_rows != self._rows:
             raise IdentificationError(f"the HAC pass saw rows {sums.group_rows}, the estimate {self._rows}: the second "
                                       "pass must go over every row of the first")
-        q = len(self.estimated_names)
-        R = self._stacked(result.weights or None)[:q, :q]
-        d = np.linalg.norm(R, axis=0)  # unit columns: the units of W's columns differ by orders of magnitude
-        Rinv = np.linalg.solve(R / d, np.eye(q))
-        B = (Rinv @ Rinv.T) / np.outer(d, d)
+        if (offsets is None) != (not sums.profile):
+            raise IdentificationError("the HAC sums and the covariance's bread disagree on the offsets: give with_hac "
+                                      "the offsets' estimate hac_sums had")
+        if offsets is not None:
+            B = offsets.inv_gram
+        else:
+            q = len(self.estimated_names)
+            R = self._stacked(result.weights or None)[:q, :q]
+            d = np.linalg.norm(R, axis=0)  # unit columns: the units of W's columns differ by orders of magnitude
+            Rinv = np.linalg.solve(R / d, np.eye(q))
+            B = (Rinv @ Rinv.T) / np.outer(d, d)
         C = B @ sums.meat() @ B
         return result.with_covariance((C + C.T) / 2, covariance.label, sums.lags)
 

@@ -61,7 +61,9 @@
     flag_percent = 2.5               # "uncertain": total σ above 2.5 % of the parameter's scale (the flag to act on)
     cov_type = "nonrobust"           # σ² (WᵀW)⁻¹ (paper eq. (7)); "hac": Newey–West per equation group (the
     hac_lags = "auto"                # decimated rows are autocorrelated; ols or wls), lags floor(4 (n_g/100)^(2/9))
-                                     # or a whole number of rows: one more pass over the data
+                                     # or a whole number of rows: one more pass over the data; "hac-groupsum":
+                                     # the groups' scores at a sample summed first (Driscoll–Kraay: one sensor's
+                                     # noise in several groups' rows); a car's estimated offsets profiled out
     data_health = "stop"             # a data health error (a clipped, dead or swapped channel) stops the run;
                                      # "warn": said, kept in results.json, the run goes on (docs/tutorial.md)
 
@@ -368,12 +370,8 @@ def load_config(path: str | Path) -> IdentifyConfig:
     except IdentificationError as exc:
         raise err("[identification]", str(exc)) from None
     if covariance.hac and method not in (Method.OLS, Method.WLS):
-        raise err("[identification]", f"cov_type = \"hac\" is for method = \"ols\" or \"wls\" (its sandwich is "
-                  f"least squares'), not {method.value!r}: use cov_type = \"nonrobust\" with it")
-    if covariance.hac and car is not None and car.estimate_offsets:
-        raise err("[identification]", "cov_type = \"hac\" needs [uncertainty] estimate = false: its second pass takes "
-                  "the residual of the rows as measured, and the sensor offsets each test's estimate reads are not "
-                  "taken out of it yet")
+        raise err("[identification]", f"cov_type = \"{covariance.kind.value}\" is for method = \"ols\" or \"wls\" "
+                  f"(its sandwich is least squares'), not {method.value!r}: use cov_type = \"nonrobust\" with it")
     return IdentifyConfig(
         path=path, model=model, tests=tests, channels=channels, transmission=transmission,
         conditioning=cond, method=method, covariance=covariance, known=_known(ident, err),

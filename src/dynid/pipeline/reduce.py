@@ -295,7 +295,13 @@ def reduce_car_segment(job: CarJob) -> Partial:
     traj = joints.traj
     sys = setup.rows(traj, w.fs, job.instruments)
     if job.hac is not None:  # a HAC covariance's second pass: the rows' scores at the estimate, nothing else
-        return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
+        C = None
+        if w.test in job.hac.profile:  # the test's offsets estimated: the scores of the profiled rows need C
+            h = job.hac
+            moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets)
+            C = OffsetFactors(h.columns, h.known_columns, h.known_values, setup.a_priori[h.columns]).offset_columns(
+                [m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
+        return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test, C))
     if job.knees:
         search = KneeSearch()
         knee_rows(sys, traj, w.fs, setup.settings.decimate, setup.conditioning.cutoff, search,
@@ -512,9 +518,9 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
     return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)
 
 
-def _scores(empty: HACSums, sys: GroupedSystem, test: str) -> HACSums:
+def _scores(empty: HACSums, sys: GroupedSystem, test: str, C: np.ndarray | None = None) -> HACSums:
     """A chunk's or segment's rows added to a HAC pass's sums: each group's rows are in time order, the test is the
-    stream (lags never cross tests)."""
+    stream (lags never cross tests); C: the rows' offsets' columns where the test's offsets were estimated."""
     sums = empty.empty()
-    sums.add(sys.W, sys.Y, sys.groups, test)
+    sums.add(sys.W, sys.Y, sys.groups, test, C, sys.t)
     return sums

@@ -32,6 +32,7 @@ from ..estimation import (
     propagate,
 )
 from ..estimation.method import Method
+from ..estimation.offsets import OffsetEstimate
 from ..estimation.physical import (
     PRIOR_SPREAD,
     ConsistencyStructure,
@@ -426,10 +427,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             result, offset_estimates = ident.with_offsets_estimated(plain, zeros, misfits)
     elif parts["identify"].bias is not None:
         result = ident.with_systematic(result, parts["identify"].bias)
-    if cfg.covariance.hac:
-        result = hac_pass(cfg, ident, result, reduce_car_segment, [j for j in jobs(with_offsets=False)
-                                                                   if j.role == "identify"], lambda j: j.role,
-                          scheduler, say)
+    if cfg.covariance.hac:  # with the offsets estimated, each test's rows with their offsets' columns again
+        result = hac_pass(cfg, ident, result, reduce_car_segment,
+                          [j for j in jobs(with_offsets=offset_estimates is not None) if j.role == "identify"],
+                          lambda j: j.role, scheduler, say, offset_estimates)
     delays = None
     if parts["identify"].shifts is not None:  # the channel groups' delays the residual asks for, against the declared
         delays = _car_delays(cfg, setup, plans, jobs(with_offsets=False), parts["identify"].shifts, result,
@@ -660,16 +661,19 @@ def _offsets_read(offsets, estimates: dict[str, tuple[float, float]]) -> str:
 
 
 def hac_pass(cfg: IdentifyConfig, ident: StreamingLS, result: IdentificationResult, fn: Callable, jobs: list,
-             key: Callable, scheduler: Scheduler, say: Progress) -> IdentificationResult:
+             key: Callable, scheduler: Scheduler, say: Progress,
+             offsets: OffsetEstimate | None = None) -> IdentificationResult:
     """`result` with the config's HAC covariance: the identification's chunks or segments (`jobs`, as the first pass
     mapped them) mapped again through `fn` with the estimate, each reduced to its rows' Newey–West sums alone
-    (`estimation.hac`), folded in order, the sandwich from `ident`'s factors."""
+    (`estimation.hac`), folded in order, the sandwich from `ident`'s factors; offsets: a car's estimate of each
+    test's sensor offsets (the scores then the profiled problem's, the bread its reduced normal matrix's inverse;
+    the jobs must evaluate every segment's offsets' columns)."""
     say(f"covariance: {cfg.covariance.label}, a second pass over the {ident.n_rows} rows at the estimate")
-    sums = ident.hac_sums(result, cfg.covariance)
+    sums = ident.hac_sums(result, cfg.covariance, offsets)
     again = [dataclasses.replace(j, keep_rows=False, health=None if isinstance(j, CarJob) else False, hac=sums)
              for j in jobs]
     part = next(iter(scheduler.map_reduce(fn, again, key, combine, say).values()))
-    return ident.with_hac(result, part.hac, cfg.covariance)
+    return ident.with_hac(result, part.hac, cfg.covariance, offsets)
 
 
 def validate(run: IdentificationRun, ident: StreamingLS, cross: StreamingLS | None,
