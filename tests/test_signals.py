@@ -581,9 +581,10 @@ def test_butterworth_sections_are_scipys(order, fs, cutoff):
 @pytest.mark.parametrize("fs, cutoff", DESIGNS)
 def test_sections_steady_state_is_scipys_sosfilt_zi(order, fs, cutoff):
     """Oracle: scipy.signal.sosfilt_zi on scipy's own design. Each section's 2 x 2 system (I - A) z = B has the
-    determinant 1 + a1 + a2 = (1 - p)(1 - conj p), small for a low cut-off: both solutions carry a few ulp times
-    kappa = (1 + |a1| + |a2|) / |1 + a1 + a2| of the section's largest state, and the sections' DC-gain scale
-    one ulp per section before: within 4 (order + kappa) ulp of the section's largest state."""
+    determinant 1 + a1 + a2 = (1 - p)(1 - conj p), small for a low cut-off: a solution carries a few ulp times
+    kappa = (1 + |a1| + |a2|) / |1 + a1 + a2| of the section's largest state (the same LAPACK call gives the same
+    bits; another solver, or a LAPACK with FMA, stays within that), and the sections' DC-gain scale one ulp per
+    section before: within 4 (order + kappa) ulp of the section's largest state."""
     from scipy.signal import butter, sosfilt_zi
 
     from dynid.signals._butterworth import sosfilt_zi as zi
