@@ -8,25 +8,31 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
-Measured 2026-11-27 on the 2-core machine, busy: 1 h, 251,986 rows of 43 parameters, peak 529 MiB against main's
-601 at 77e8e1a (farm-bench medians of 3, A B A B in one run; CPU 0.97 x, wall 1.04 x, noisy), 937 MB at 54648a4 and
-1,056 MB at 212feaf (the rows stacked whole). What went: pandas (pyarrow's to_numpy imports it to check for it:
-the columns now come from their Arrow buffers, io/parquet_format.to_numpy), the heap the plan's pass over the
-stamps left (trimmed after each test's plan), half of each worker's block of the full-rate W (8 MiB; 4 MiB cost
-+6.6 % CPU). Not met: the process's floor is ~265 MB before any row, measured as resident-set steps: 172 MB of
-imports (NumPy 27, scipy.linalg 28, scipy.signal 48 with the scipy.stats, interpolate and optimize it imports,
-Numba 53, dynid 17), pyarrow 29 on the first read, Numba's code generator set up on the first compiled call 47 (its
-functions are cached on disk: loading them still builds the target), cvxpy 17 (the physical-consistency check
-of a WLS estimate solves for a realisable standard set: `estimation.physical.feasible_standard`, so a robot run
-with the pc extra installed does use it). On top: the plan's pass over 3.6 M stamps (`pipeline.timebase.stream`,
-`io.windows`' Parquet stamps) holds the stamps and at most two arrays of their size (29 MB each; it held up to
-four, and read the file's stamps twice, for q and for tau): that phase peaks at 318 MB against 396 (RSS sampled in one
-identify run each, busy), traced 84 MiB against 166 for the plan alone, under the map's, so the process's peak
-stays the map's (529 MiB against 542 before, farm-bench medians of 2, A B A B in one run, noisy). During the map
-each of the 2 workers holds ~60 MB traced (its chunk's joints, the first stage's output, one block), the clock
-29 MB, the Parquet block cache ~22 MB, the plots' rows (`run.PLOT_BYTES`). The levers left are outside the data
-path: scipy.signal's import (dynid uses butter and the sosfilt family, which Numba already runs for it), Numba
-on a robot's path, the map's per-worker blocks.
+Measured 2026-11-27 (19:25-19:35 UTC) on the 2-core machine, busy (~5 other sessions and a test run): 1 h,
+251,986 rows of 43 parameters, peak 508 MiB against main's 524 at d8e0370 (farm-bench medians of 3, A B A B in one
+run; CPU 1.05 x, range 0.92-1.09, wall 1.05 x: noise, the change removes work), 529 at 77e8e1a, 937 MB at 54648a4,
+1,056 MB at 212feaf (the rows stacked whole). The estimate is bit-equal to main's. What went, last: scipy.signal
+(dynid's Butterworth design, its steady states, the single passes and the kernel's autocorrelation are in
+`signals._butterworth` and `signals._zero_phase`; scipy.signal only without numba): the resident set after the
+imports 149 MB against 172, and no car or robot identification loads scipy.signal or, before the map, scipy.stats.
+Before: pandas (pyarrow's to_numpy imported it), the heap the plan's pass over the stamps left (trimmed), half of
+each worker's block of the full-rate W.
+
+Not met: 300 MB is ~210 MB away. The floor, measured as resident-set steps with one worker (peak 439 MB): 149 MB
+of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and spatial: the vehicle modules that
+pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then the plan +94 (pyarrow 30 on the
+first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the file's own stamps when uniform,
+so not a formula; the rest the plan pass's heap), the data-health check +82 (Numba's code generator 47 on the
+first compiled call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24 MB, constant in the
+log's length), so 318 MB before the first chunk. The map then adds ~60 MB per worker (its chunk's samples read
+and filtered, one 8 MiB block of W with its transient, the first decimation stage's output for the chunk,
+16 MB: all set by SEGMENT_BYTES and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB chunks
+-31 MB, +30 % CPU, the 5.5 k-sample decimation transient read around each chunk) and the plots' rows
+(`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the scipy.stats it imports, 20) comes after the map (the physical
+check of the estimate, a function-level import in `estimation.physical`): not in the peak. glibc's thresholds
+(MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take 45-70 MB off at 1.8 x the CPU. The levers left: the clock
+(a chunk could read its stamps from the file's blocks instead), scipy.interpolate and the car's modules out of a
+robot's imports, Numba's code generator on a robot's path, streaming the second decimation stage.
 """
 
 from __future__ import annotations

@@ -548,3 +548,83 @@ def test_blocked_decimation_is_the_whole_inputs_without_holding_it(factor):
     assert np.all(Wb[:, 1, 2] == 0.0)
     one = decimate_parallel_blocked(rows, n, factor, FS, block_samples=n)
     assert np.array_equal(one[0], Wd) and np.array_equal(one[1], Yd)
+
+
+# (fs, cut-off) pairs: the paper's 3 Hz at 625 Hz, a fast arm's 20 Hz at 1 kHz, a very low and a near-Nyquist
+# cut-off (poles at 1e-5 of the unit circle, poles on the negative axis), the quarter rate (a pole at the origin)
+DESIGNS = [(625.0, 3.0), (1000.0, 20.0), (1000.0, 0.01), (100.0, 49.9), (100.0, 25.0), (2.0, 0.7), (62.5, 4.0)]
+
+
+@pytest.mark.parametrize("order", range(1, 9))
+@pytest.mark.parametrize("fs, cutoff", DESIGNS)
+def test_butterworth_sections_are_scipys(order, fs, cutoff):
+    """Oracle: scipy.signal.butter(order, cutoff, fs=fs, output="sos"). Same formulas: each pole through exp, tan,
+    a complex product and a quotient (a few ulp), a coefficient from one or two of them (-2 Re p, |p|^2: a few ulp
+    of |p| <= 1), the gain a product of `order` factors (order ulp): within 8 order ulp of the coefficient's size
+    (|a1| <= 2, |a2| <= 1; the numerator relative to its own largest term, the gain's scale), with the same pairing,
+    order of the sections and the first-order section's zero at the origin (exactly zero in both)."""
+    from scipy.signal import butter
+
+    from dynid.signals._butterworth import butter_lowpass_sos
+
+    ref = butter(order, cutoff, fs=fs, output="sos")
+    got = butter_lowpass_sos(order, cutoff, fs)
+    assert got.shape == ref.shape
+    assert np.array_equal(got == 0, ref == 0)  # the same structural zeros: the same pairing
+    tol = 8 * order * np.finfo(float).eps
+    np.testing.assert_allclose(got[:, 3:], ref[:, 3:], rtol=0, atol=2 * tol)
+    scale = np.abs(ref[:, :3]).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(got[:, :3] / scale, ref[:, :3] / scale, rtol=0, atol=tol)
+
+
+@pytest.mark.parametrize("order", range(1, 9))
+@pytest.mark.parametrize("fs, cutoff", DESIGNS)
+def test_sections_steady_state_is_scipys_sosfilt_zi(order, fs, cutoff):
+    """Oracle: scipy.signal.sosfilt_zi on scipy's own design. Each section's 2 x 2 system (I - A) z = B has the
+    determinant 1 + a1 + a2 = (1 - p)(1 - conj p), small for a low cut-off: a solution carries a few ulp times
+    kappa = (1 + |a1| + |a2|) / |1 + a1 + a2| of the section's largest state (the same LAPACK call gives the same
+    bits; another solver, or a LAPACK with FMA, stays within that), and the sections' DC-gain scale one ulp per
+    section before: within 4 (order + kappa) ulp of the section's largest state."""
+    from scipy.signal import butter, sosfilt_zi
+
+    from dynid.signals._butterworth import sosfilt_zi as zi
+
+    sos = butter(order, cutoff, fs=fs, output="sos")
+    ref, got = sosfilt_zi(sos), zi(sos)
+    kappa = (1 + np.abs(sos[:, 4]) + np.abs(sos[:, 5])) / np.abs(1 + sos[:, 4] + sos[:, 5])
+    tol = 4 * (order + kappa) * np.finfo(float).eps * np.abs(ref).max(axis=1)
+    assert np.all(np.abs(got - ref).max(axis=1) <= tol)
+
+
+@pytest.mark.parametrize("order", [1, 2, 5, 8])
+def test_forward_pass_and_autocorrelation_are_scipys(order):
+    """Oracles: scipy.signal.sosfilt from rest (the same recursion: equal to round-off, the filter's gain bounded)
+    and fftconvolve(h, h[::-1]) (another FFT of the same length: each lag within a few ulp x log2(length) of the
+    largest, lag 0)."""
+    from scipy.signal import butter, fftconvolve, sosfilt
+
+    from dynid.signals._zero_phase import sosfilt_forward
+    from dynid.signals.borders import _autocorrelation
+
+    sos = butter(order, 20.0, fs=1000.0, output="sos")
+    x = np.random.default_rng(order).standard_normal((3000, 3))
+    ref = sosfilt(sos, x, axis=0)
+    np.testing.assert_allclose(sosfilt_forward(sos, x), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    h = sosfilt(sos, np.r_[1.0, np.zeros(4999)])
+    ref = fftconvolve(h, h[::-1])[h.size - 1:]
+    np.testing.assert_allclose(_autocorrelation(h), ref, rtol=0, atol=64 * np.finfo(float).eps * ref[0])
+
+
+def test_identification_does_not_import_scipy_signal():
+    """scipy.signal (48 MB resident with the scipy.stats it loads: issue 25's memory target) stays out of the
+    pipeline: importing it, designing, filtering, decimating and the borders, in a fresh process."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\nimport dynid.pipeline.run\nfrom dynid.signals import border_samples, "
+            "decimate_parallel, filtered_derivatives\nx = np.cumsum(np.ones((5000, 2)), axis=0)\n"
+            "filtered_derivatives(x, 1000.0, 20.0, nderiv=2)\ndecimate_parallel(x, None, (10,), 1000.0)\n"
+            "border_samples(1000.0, 20.0, 4, tol=1e-12)\nprint(sorted(m for m in sys.modules "
+            "if m.startswith('scipy.signal')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

@@ -1,10 +1,12 @@
 """Forward-backward second-order sections, compiled: scipy's `sosfiltfilt` (odd padding, steady-state
-initial conditions), several times faster and without the GIL, so that threads filter in parallel.
+initial conditions), several times faster and without the GIL, so that threads filter in parallel; and the
+single passes the package needs (backwards from a steady state, forwards from rest).
 
 Every call of the car pipeline filters a few dozen channels of tens of thousands of samples; scipy's
 generic loop spends ~4 ns per section and sample and holds the GIL between its steps. The kernel
 below runs the same recursion (direct form II transposed, as scipy's sosfilt) per channel. Without
-numba, scipy's sosfiltfilt is used: the same numbers to round-off (tested).
+numba, scipy's sosfiltfilt is used: the same numbers to round-off (tested). scipy.signal is imported only
+then: with numba, no identification loads it (48 MB resident, issue 25).
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ import functools
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import sosfilt, sosfilt_zi, sosfiltfilt
+
+from ._butterworth import sosfilt_zi
 
 try:
     from numba import njit
@@ -90,13 +93,37 @@ def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
             out[c, i] = v[c]
 
 
+def _forward_columns(sos, x, out):  # pragma: no cover - compiled
+    """x (n, C): every column filtered once forwards in time from rest (zero state); out (n, C) the result.
+    The recursion is scipy sosfilt's (direct form II transposed), the channels the inner loop."""
+    S = sos.shape[0]
+    n, C = x.shape
+    z0 = np.zeros((S, C))
+    z1 = np.zeros((S, C))
+    v = np.empty(C)
+    for i in range(n):
+        for c in range(C):
+            v[c] = x[i, c]
+        for s in range(S):
+            b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
+            for c in range(C):
+                y = b0 * v[c] + z0[s, c]
+                z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
+                z1[s, c] = b2 * v[c] - a2 * y
+                v[c] = y
+        for c in range(C):
+            out[i, c] = v[c]
+
+
 if HAVE_NUMBA:
     _filtfilt_columns = njit(cache=True, nogil=True)(_filtfilt_columns)
     _reverse_columns = njit(cache=True, nogil=True)(_reverse_columns)
+    _forward_columns = njit(cache=True, nogil=True)(_forward_columns)
 
 
 def steady_state(sos: NDArray[np.float64]) -> NDArray[np.float64]:
-    """scipy's sosfilt_zi(sos) (read-only), cached: it solves a small linear system per section, and a pipeline
+    """scipy's sosfilt_zi(sos) (read-only; `_butterworth.sosfilt_zi`), cached: it solves a small linear system per
+    section, and a pipeline
     asks for the same few filters' thousands of times (a third of the car joints' filtering time uncached)."""
     return _steady_state(np.ascontiguousarray(sos, dtype=np.float64).tobytes(), sos.shape)
 
@@ -111,6 +138,8 @@ def _steady_state(key: bytes, shape: tuple[int, ...]) -> NDArray[np.float64]:
 def sos_filtfilt(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int, pad: int) -> NDArray[np.float64]:
     """`scipy.signal.sosfiltfilt(sos, a, axis, padtype="odd", padlen=pad)` (a float64, len > pad)."""
     if not HAVE_NUMBA:
+        from scipy.signal import sosfiltfilt  # optional: scipy.signal, only without numba (48 MB, issue 25)
+
         return sosfiltfilt(sos, a, axis=axis, padtype="odd", padlen=pad)
     moved = np.moveaxis(a, axis, 0)
     cols = np.ascontiguousarray(moved.reshape(moved.shape[0], -1))
@@ -126,9 +155,23 @@ def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
     column-major (each channel's samples contiguous)."""
     out = np.empty(x.shape, order="F")
     if not HAVE_NUMBA:
+        from scipy.signal import sosfilt  # optional: scipy.signal, only without numba (48 MB, issue 25)
+
         for c in range(x.shape[1]):
             out[:, c] = sosfilt(sos, x[::-1, c], zi=steady_state(sos) * x[-1, c])[0][::-1]
         return out
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
     _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out.T)
+    return out
+
+
+def sosfilt_forward(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Every column of x (n, C) float64 through `sos` once, forwards from rest: `scipy.signal.sosfilt(sos, x,
+    axis=0)`, (n, C)."""
+    if not HAVE_NUMBA:
+        from scipy.signal import sosfilt  # optional: scipy.signal, only without numba (48 MB, issue 25)
+
+        return sosfilt(sos, x, axis=0)
+    out = np.empty(x.shape)
+    _forward_columns(np.ascontiguousarray(sos / sos[:, 3:4]), np.ascontiguousarray(x, dtype=np.float64), out)
     return out

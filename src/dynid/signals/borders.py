@@ -22,9 +22,9 @@ import numbers
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import fftconvolve, sosfilt
 
 from . import _checks
+from ._zero_phase import sosfilt_forward
 from .errors import SignalError
 from .filters import design_lowpass
 
@@ -38,6 +38,29 @@ def _tail_start(kernel: NDArray[np.float64], total: float, tol: float) -> int:
     tail = np.cumsum(mag[::-1])[::-1]
     beyond = np.append(tail[1:], 0.0)  # sum_{j > k}
     return int(np.argmax(beyond <= tol * total))
+
+
+def _fast_length(n: int) -> int:
+    """The smallest 2^a 3^b 5^c >= n: a length the FFT does fast (scipy.fft.next_fast_len(n, real=True))."""
+    best = 1 << max(0, (n - 1).bit_length())
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            m = p35 << max(0, (-(-n // p35) - 1).bit_length())  # p35 times the smallest power of 2 reaching n
+            best = min(best, m)
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
+def _autocorrelation(h: NDArray[np.float64]) -> NDArray[np.float64]:
+    """sum_j h[j] h[j + k] for the lags k = 0..len(h)-1, by FFT (scipy's fftconvolve(h, h[::-1])[len(h) - 1:],
+    zero-padded to the same fast length): NumPy's FFT, not scipy.signal's import (48 MB, issue 25)."""
+    n = h.size
+    length = _fast_length(2 * n - 1)
+    H = np.fft.rfft(h, length)
+    return np.fft.irfft(H * H.conj(), length)[:n]
 
 
 def border_samples(fs: float, cutoff: float, order: int, tol: float = 1e-3) -> int:
@@ -85,7 +108,7 @@ def border_samples(fs: float, cutoff: float, order: int, tol: float = 1e-3) -> i
     while True:
         impulse = np.zeros(n)
         impulse[0] = 1.0
-        h = sosfilt(sos, impulse)
+        h = sosfilt_forward(sos, impulse[:, None])[:, 0]
         if np.sum(np.abs(h[n // 2 :])) <= 1e-3 * tol * np.sum(np.abs(h)):
             break
         if n >= _MAX_RESPONSE:
@@ -94,7 +117,7 @@ def border_samples(fs: float, cutoff: float, order: int, tol: float = 1e-3) -> i
                 f"is longer than {_MAX_RESPONSE} samples; lower fs (decimate) or raise the cut-off"
             )
         n *= 2
-    g = fftconvolve(h, h[::-1])[n - 1 :]  # lags 0..n-1 of the symmetric kernel
+    g = _autocorrelation(h)  # lags 0..n-1 of the symmetric kernel
     g_total = abs(g[0]) + 2.0 * float(np.sum(np.abs(g[1:])))
     return max(_tail_start(g, g_total, tol), _tail_start(h, float(np.sum(np.abs(h))), tol))
 

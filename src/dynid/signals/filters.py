@@ -24,10 +24,10 @@ import functools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, sosfilt
 
 from . import _checks
-from ._zero_phase import sos_filtfilt, sosfilt_reversed, steady_state
+from ._butterworth import butter_lowpass_sos
+from ._zero_phase import sos_filtfilt, sosfilt_reversed
 from .errors import SignalError
 
 
@@ -43,7 +43,7 @@ def design_lowpass(fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
 
 @functools.lru_cache(maxsize=256)
 def _design(fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
-    sos = np.asarray(butter(order, cutoff, btype="low", fs=fs, output="sos"), dtype=np.float64)
+    sos = butter_lowpass_sos(order, cutoff, fs)  # scipy.signal.butter(..., output="sos"), without its import
     sos.setflags(write=False)
     return sos
 
@@ -79,8 +79,7 @@ def undo_lowpass_phase(x: NDArray[np.float64], fs: float, cutoff: float, order: 
     the same filter run backwards in time from the last sample's steady state. Zero phase overall; the gain
     becomes |H|^2 (within 0.2 % of 1 below a fifth of the cut-off). Package helper: a sensor's declared band
     limit (vehicle.estimate.compensate); arguments assumed checked, cutoff < fs / 2."""
-    sos = design_lowpass(fs, cutoff, order)
-    return sosfilt(sos, x[::-1], zi=steady_state(sos) * x[-1])[0][::-1]
+    return sosfilt_reversed(design_lowpass(fs, cutoff, order), np.asarray(x, dtype=np.float64)[:, None])[:, 0]
 
 
 def undo_lowpass_phase_columns(x: NDArray[np.float64], fs: float, cutoff: float, order: int) -> NDArray[np.float64]:
