@@ -468,8 +468,8 @@ def test_every_parameter_of_the_plan_within_the_spreads_band(request, vehicle_pl
     spreads 1.59 x the white per-group σ (MZ6 1.19, XY6 1.35, XX6 1.86, median 1.12); the group-summed sandwich of
     the true noise with one or two rows of lag leaves 1.02-1.07 (0.81-0.83, 0.98-1.06, 1.18-1.21). By source (M6
     shift / its white σ, / the all-noise white σ): ay 1.84, 0.89; ax 1.42, 1.08; the wheel forces 1.14, 0.48; az
-    1.32, 0.07; the gyros, the inclinometers (slow through the 0.2 Hz crossover: 40 % of their energy in the
-    braking's offsets' span), the Correvit, cameras, clearances, wheel speeds, moments below 0.1. The ten seeds this
+    1.32, 0.07; the gyros, the inclinometers (the roll one slow through the 0.2 Hz crossover: 40 % of its energy in
+    the braking's offsets' span), the Correvit, cameras, clearances, wheel speeds, moments below 0.1. The ten seeds this
     test draws (1000 s + i) are the unlucky ten of the forty: M6 2.26 x (the other tens 1.55, 1.06, 1.20), MZ6 1.70,
     XY6 1.66. Rows at 0.128 s (decimate [5, 16], same draws) spread M6 as much (0.83 kg against 0.87) and its white
     σ says 1.37 x (MZ6 1.06, XY6 1.20, median 1.00). The plan's prediction (`_with_offsets_estimated`, white rows
