@@ -236,7 +236,7 @@ def test_compiled_kinematics_match_the_engine(sim, sine):
     model = Model(sim.tree)
     out = np.zeros(kernel.NKIN)
     for q, qd in zip(sine.q[::1500], sine.qd[::1500], strict=True):
-        sim.module.car_kin(q, qd, out)
+        sim.models.python["car_kin"](q, qd, out)
         T = model.transforms(q)
         for k, t in enumerate((*TIRES, 6)):
             J = model.jacobian(q, t, expressed_in=t)
@@ -258,7 +258,7 @@ def test_compiled_inertia_rows_match_the_engine(sim, sine):
     free = np.array(kernel.FREE) - 1
     tab = [7 + 9 * k + 2 + n for k in range(4) for n in range(4)]
     for q, m in zip(sine.q[::1500], M, strict=True):
-        sim.module.car_inertia(q, out)
+        sim.models.python["car_inertia"](q, out)
         rows = out.reshape(kernel.NF, kernel.NF_ROW)
         cols = np.concatenate([free, tab])
         assert np.allclose(rows[:, cols], m[np.ix_(free, cols)], rtol=1e-12, atol=1e-10 * np.abs(m).max())

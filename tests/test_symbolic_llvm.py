@@ -80,12 +80,13 @@ def test_unsupported_source_falls_back_to_numba(tmp_path, monkeypatch):
 
 
 def test_simulator_models_are_their_python_source_to_the_bit():
-    """car_kin, car_idm and car_inertia (from LLVM IR) equal their generated Python run by Python."""
+    """car_kin, car_idm and car_inertia (from LLVM IR into native code, called by address) equal their generated
+    Python run by Python."""
     from dynid.vehicle.sim import CarSimulator, kernel
-    from dynid.vehicle.sim.car import _module_source
+    from dynid.vehicle.sim.car import _models_source
 
     sim = CarSimulator()
-    body, _ = _module_source(sim.tree, sim.aero_point)
+    body = "\n".join(_models_source(sim.tree, sim.aero_point).values())
     ns: dict = {}
     exec(compile(nb.HEADER + body, "<simulator models>", "exec"), ns)
     rng = np.random.default_rng(5)
@@ -98,6 +99,6 @@ def test_simulator_models_are_their_python_source_to_the_bit():
         for name, args, size in (("car_kin", (q, qd), kernel.NKIN), ("car_idm", (q, qd, qdd, wrench), 42),
                                  ("car_inertia", (q,), kernel.NF * kernel.NF_ROW)):
             a, b = np.full(size, np.nan), np.full(size, np.nan)
-            getattr(sim.module, name)(*args, a)
+            sim.models.python[name](*args, a)
             ns[name](*args, b)
             assert np.array_equal(a, b), name

@@ -21,6 +21,7 @@ from ..progress import notice_if_slow
 from ..shipped import DEMO_VEHICLE
 from ..vehicle.description import VehicleError, load_vehicle
 from ..vehicle.sim import CarSimulator
+from ..vehicle.sim.car import kernel_cached, prebuild_kernel
 from ..vehicle.sim.recording import write_test
 from .config import load_config
 from .run import IdentificationRun, identify
@@ -76,6 +77,7 @@ def conditioning_toml(offsets: dict[str, float], estimate: bool = True) -> list[
 def simulated_car(vehicle: str = DEMO_VEHICLE):
     """The simulator of a vehicle (a shipped name or a vehicle file) driven with its [truth] set."""
 
+    prebuild_kernel()  # a first run: the simulator's kernel compiles in another process while the vehicle loads
     v = load_vehicle(vehicle)
     if v.truth is None:
         raise VehicleError(f"{v.source}: no [truth] set: a simulation needs the parameters to drive with (give "
@@ -107,10 +109,8 @@ def compile_notice(sim: CarSimulator) -> str | None:
 def compile_pending(sim) -> bool | None:
     """Whether the simulator's first call will compile its kernel: numba has no cache index for it yet (True),
     has one (False), or cannot tell (None: numba absent, or its internals changed)."""
-    try:
-        return not Path(sim.module.simulate._cache._cache_file._index_path).exists()
-    except Exception:  # a guess for a message: never a reason to fail
-        return None
+    cached = kernel_cached(sim.module)
+    return None if cached is None else not cached
 
 
 def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None,

@@ -60,8 +60,8 @@ def cache_dir() -> Path:
     return Path(base) / "dynid"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write then rename (dynid.atomic), so that a reader never sees half a file; creates the folder."""
+def write_atomic(path: Path, text: str | bytes) -> None:
+    """Write (text or bytes) then rename (dynid.atomic), so that a reader never sees half a file; creates the folder."""
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_atomic(path, text)
 
