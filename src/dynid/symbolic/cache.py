@@ -90,6 +90,12 @@ _LOADED: dict[str, ModuleType] = {}
 _LOAD_LOCK = threading.Lock()
 
 
+def cache_lock() -> threading.Lock:
+    """The loader's lock (held briefly by load_module): a fork of this process holds it, so that the child's copy
+    is never left locked by another thread (vehicle.sim.car's kernel prebuild)."""
+    return _LOAD_LOCK
+
+
 def load_module(folder: str, name: str, key: str, source: Callable[[], str] | None) -> ModuleType | None:
     """The generated module `name` (a Python identifier naming its key: its folder, its file, its entry in
     sys.modules), from memory, from `module_path(folder, name)` when the file's KEY is `key`, or else
@@ -148,5 +154,5 @@ def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
     return mod
 
 
-__all__ = ["cache_dir", "generator_fingerprint", "import_file", "load_module", "model_hash", "module_path",
-           "numpy_module", "write_atomic"]
+__all__ = ["cache_dir", "cache_lock", "generator_fingerprint", "import_file", "load_module", "model_hash",
+           "module_path", "numpy_module", "write_atomic"]

@@ -45,6 +45,7 @@ from ...model.files import tree_to_toml
 from ...model.tree import CURVE_TERMS, PRISMATIC, Tree
 from ...resources import memory_budget
 from ...symbolic import numba_backend as nb
+from ...symbolic.cache import cache_lock
 from ...symbolic.expr import ZERO, add, cross
 from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
 from ..aero import Aerodynamics, aero_wrench, reference_point
@@ -225,6 +226,13 @@ def kernel_module():
     return module
 
 
+def compile_lock():
+    """Numba's global compiler lock (its compiles, in any thread, hold it)."""
+    from numba.core.compiler_lock import global_compiler_lock  # start-up: numba 0.5 s (called only where it is)
+
+    return global_compiler_lock
+
+
 class _Build:
     """A kernel compile running in another process: a fork of this one where there is fork (Linux: numba and
     dynid already imported, about 2 s of CPU a fresh interpreter would spend again), else a new interpreter."""
@@ -232,7 +240,10 @@ class _Build:
     def __init__(self, key: str) -> None:
         self.pid = self.proc = None
         if sys.platform.startswith("linux"):
-            pid = os.fork()
+            # forked while holding the locks the child takes (Numba's compiler lock, the generated modules' loader),
+            # so that no other thread of this process holds one in the child's copy, where it would never be freed
+            with compile_lock(), cache_lock():
+                pid = os.fork()
             if pid == 0:  # the child: compile, then leave at once (no atexit, no buffered output flushed twice)
                 code = 1
                 try:
