@@ -7,9 +7,15 @@ equations stay exact), generates three per-sample models with numeric parameters
 (numba_backend): the kinematics of the tire frames and of frame 6, the inverse dynamics
 with the four tire wrench sites and the aerodynamic site, and the free joints' rows of
 the inertia matrix M(q) (composite bodies: one pass, where NF products M v would cost
-eight times as much); and compiles them with the kernel (kernel.py) into one cached
-module. `run(manoeuvre)` integrates with RK4 on the 625 Hz acquisition clock (substeps
-optional) and returns a SimulationResult.
+eight times as much); compiles them from their LLVM IR into machine code (numba_backend.
+native_functions: no Numba typing, cached as object code), and hands their addresses to the
+kernel (kernel.py: one compiled module for every vehicle, cached once per dynid version).
+`run(manoeuvre)` integrates with RK4 on the 625 Hz acquisition clock (substeps optional) and
+returns a SimulationResult.
+
+First run: `prebuild_kernel()` (called by pipeline.demo.simulated_car before the vehicle is
+loaded) compiles the kernel in a forked process while this one loads the vehicle (its rest
+state compiles the engine) and generates its models; a new vehicle then costs only its models.
 
 Step: one RK4 step per 1.6 ms sample by default. The fastest dynamics are the wheel hop
 (about 13 Hz) and the tire-slip/spin loop through the relaxation lengths (about 30 Hz):
