@@ -86,8 +86,8 @@ def main() -> None:
     total = sum(own.values(), np.zeros(2))
     print(f"dynid {args.command}: cold {wall:.1f} s wall, {cpu:.1f} s CPU; Numba compiling {total[0]:.1f} s wall, "
           f"{total[1]:.1f} s CPU ({len(own)} functions)")
-    print(f"{'wall s':>7} {'CPU s':>7} {'times':>5}  function, its own compile (generated modules: dynid_car_* the "
-          "simulator, dynid_blk_* the identification's blocks)")
+    print(f"{'wall s':>7} {'CPU s':>7} {'times':>5}  function, its own compile (generated modules: dynid_simk_* the "
+          "simulator's kernel, dynid_blk_* the identification's blocks)")
     for name, s in sorted(own.items(), key=lambda kv: -kv[1][1])[:args.top]:
         print(f"{s[0]:7.2f} {s[1]:7.2f} {count[name]:5d}  {name}")
 
