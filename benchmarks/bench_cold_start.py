@@ -13,8 +13,11 @@ The commands:
 - identify: `dynid identify` on the demo's files and config, with its own fresh caches, so
   only what the identification compiles is counted.
 
-The time is each child's wall time, imports included. Targets (issue 16): a cold `dynid demo`
-<= 40 s, a warm one <= 15 s. Writes benchmarks/results/cold_start.json.
+The time is each child's wall time, imports included, and the ratio cold / warm. Targets: a cold
+`dynid demo` <= 40 s, a warm one <= 15 s (issue 16); cold <= 1.3 x warm (issue 28). On a first run the
+simulator's kernel compiles in a forked process (vehicle.sim.car.prebuild_kernel): what that buys
+depends on a second core being free, so read the ratio of a quiet machine. Writes
+benchmarks/results/cold_start.json.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ sys.path[:0] = [str(HERE)]
 from results_file import write_results  # noqa: E402
 
 TARGETS = {"demo": (40.0, 15.0)}
+RATIO = 1.3  # cold / warm, issue 28
 
 
 def timed(args: list[str], caches: Path, cwd: Path) -> float:
@@ -52,7 +56,7 @@ def main() -> None:
                     choices=["demo", "simulate", "identify"])
     args = ap.parse_args()
     res: dict = {"cpus": os.cpu_count(), "machine": os.uname().machine, "commands": {}}
-    print(f"{'command':<40} {'cold s':>8} {'warm s':>8}   target (cold, warm)")
+    print(f"{'command':<40} {'cold s':>8} {'warm s':>8} {'ratio':>6}   target (cold, warm, ratio)")
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         lines = {
@@ -67,12 +71,12 @@ def main() -> None:
             caches = work / f"caches-{name}"
             cold = timed(lines[name], caches, work)
             warm = timed(lines[name], caches, work)
-            res["commands"][name] = {"cold_s": cold, "warm_s": warm}
+            res["commands"][name] = {"cold_s": cold, "warm_s": warm, "ratio": cold / warm}
             target = TARGETS.get(name)
-            text = f"<= {target[0]:g} s, <= {target[1]:g} s" if target else "-"
+            text = f"<= {target[0]:g} s, <= {target[1]:g} s, <= {RATIO:g}" if target else "-"
             shown = {"demo": "dynid demo", "simulate": "dynid simulate sine",
                      "identify": "dynid identify demo/identify.toml"}[name]
-            print(f"{shown:<40} {cold:8.1f} {warm:8.1f}   {text}", flush=True)
+            print(f"{shown:<40} {cold:8.1f} {warm:8.1f} {cold / warm:6.2f}   {text}", flush=True)
     write_results("cold_start", res)
 
 

@@ -236,7 +236,7 @@ def test_compiled_kinematics_match_the_engine(sim, sine):
     model = Model(sim.tree)
     out = np.zeros(kernel.NKIN)
     for q, qd in zip(sine.q[::1500], sine.qd[::1500], strict=True):
-        sim.module.car_kin(q, qd, out)
+        sim.models.python["car_kin"](q, qd, out)
         T = model.transforms(q)
         for k, t in enumerate((*TIRES, 6)):
             J = model.jacobian(q, t, expressed_in=t)
@@ -258,7 +258,7 @@ def test_compiled_inertia_rows_match_the_engine(sim, sine):
     free = np.array(kernel.FREE) - 1
     tab = [7 + 9 * k + 2 + n for k in range(4) for n in range(4)]
     for q, m in zip(sine.q[::1500], M, strict=True):
-        sim.module.car_inertia(q, out)
+        sim.models.python["car_inertia"](q, out)
         rows = out.reshape(kernel.NF, kernel.NF_ROW)
         cols = np.concatenate([free, tab])
         assert np.allclose(rows[:, cols], m[np.ix_(free, cols)], rtol=1e-12, atol=1e-10 * np.abs(m).max())
@@ -367,3 +367,39 @@ def test_residual_through_the_sensor_suite_is_of_the_order_the_accuracies_predic
         got = np.sqrt(np.mean([rms[g] ** 2 for g in family]))
         want = np.sqrt(np.mean([budget[g] ** 2 for g in family]))
         assert got > want / 3, (family, got, want)
+
+
+_PREBUILT = """
+import json
+from dynid.pipeline.demo import simulated_car
+from dynid.vehicle.sim.car import kernel_cached, prebuild_kernel
+started = prebuild_kernel()
+sim = simulated_car()
+cached = kernel_cached(sim.module)
+sim.run("sine", duration=0.2)
+stats = {n: getattr(sim.module, n).stats for n in ("simulate", "derivative")}
+print(json.dumps({"started": started, "cached": cached,
+                  "signatures": {n: len(getattr(sim.module, n).signatures) for n in stats},
+                  "misses": {n: sum(s.cache_misses.values()) for n, s in stats.items()},
+                  "hits": {n: sum(s.cache_hits.values()) for n, s in stats.items()}}))
+"""
+
+
+@pytest.mark.slow
+def test_a_prebuilt_kernel_is_loaded_not_compiled_again(tmp_path):
+    """Empty caches: prebuild_kernel compiles the kernel in another process; the simulator then loads simulate
+    from Numba's cache (a hit, no miss: the types run() passes are the prebuild's) and compiles nothing (derivative,
+    linked into simulate's cached code, is never typed here). The oracle: Numba's own cache statistics, in a fresh
+    interpreter."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("numba")
+    env = {**os.environ, "DYNID_CACHE": str(tmp_path / "d"), "NUMBA_CACHE_DIR": str(tmp_path / "n")}
+    out = subprocess.run([sys.executable, "-c", _PREBUILT], env=env, capture_output=True, text=True, check=True)
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    assert res["started"] and res["cached"]
+    assert res["signatures"] == {"simulate": 1, "derivative": 0}
+    assert res["misses"]["simulate"] == 0 and res["hits"]["simulate"] == 1

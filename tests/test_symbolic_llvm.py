@@ -80,12 +80,13 @@ def test_unsupported_source_falls_back_to_numba(tmp_path, monkeypatch):
 
 
 def test_simulator_models_are_their_python_source_to_the_bit():
-    """car_kin, car_idm and car_inertia (from LLVM IR) equal their generated Python run by Python."""
+    """car_kin, car_idm and car_inertia (from LLVM IR into native code, called by address) equal their generated
+    Python run by Python."""
     from dynid.vehicle.sim import CarSimulator, kernel
-    from dynid.vehicle.sim.car import _module_source
+    from dynid.vehicle.sim.car import _models_source
 
     sim = CarSimulator()
-    body, _ = _module_source(sim.tree, sim.aero_point)
+    body = "\n".join(_models_source(sim.tree, sim.aero_point).values())
     ns: dict = {}
     exec(compile(nb.HEADER + body, "<simulator models>", "exec"), ns)
     rng = np.random.default_rng(5)
@@ -98,6 +99,40 @@ def test_simulator_models_are_their_python_source_to_the_bit():
         for name, args, size in (("car_kin", (q, qd), kernel.NKIN), ("car_idm", (q, qd, qdd, wrench), 42),
                                  ("car_inertia", (q,), kernel.NF * kernel.NF_ROW)):
             a, b = np.full(size, np.nan), np.full(size, np.nan)
-            getattr(sim.module, name)(*args, a)
+            sim.models.python[name](*args, a)
             ns[name](*args, b)
             assert np.array_equal(a, b), name
+
+
+def test_native_functions_are_the_python_source_to_the_bit_and_load_from_disk(tmp_path, monkeypatch):
+    """native_functions: machine code from the IR equals the source run by Python, to the bit; a second load
+    (a new process's: the in-memory registry cleared) comes from the object code on disk and gives the same; a
+    file made for another CPU is built again, never loaded."""
+    import pickle
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    body = BODY.format(name="f")
+    key = nb.source_key("test native", body)
+    rng = np.random.default_rng(11)
+    q, wrench = rng.normal(size=3), rng.normal(size=(2, 6))
+    want = (np.full(4, 7.0), np.full(6, 7.0))
+    _python("f", body)(q, wrench, *want)
+    built = []
+
+    def sources():
+        built.append(1)
+        return {"f": body}
+
+    for round_ in range(3):
+        nb._NATIVE.clear()
+        fns = nb.native_functions(key, sources, prefix="dynid_test")
+        out, extra = np.full(4, 7.0), np.full(6, 7.0)
+        fns.python["f"](q, wrench, out, extra)
+        assert np.array_equal(out, want[0]) and np.array_equal(extra, want[1]), round_
+        if round_ == 1:
+            assert len(built) == 1  # loaded, not built
+            path = next(tmp_path.rglob("dynid_test_*.lib"))
+            stored = pickle.loads(path.read_bytes())
+            stored["state"] = (("another", "cpu", ""), stored["state"][1])
+            path.write_bytes(pickle.dumps(stored))
+    assert len(built) == 2  # the foreign file was built again

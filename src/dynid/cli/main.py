@@ -243,9 +243,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "run ends: an interrupted or failed run leaves the previous results as they were.",
         examples=["dynid demo --quick --out demo", "dynid demo --out demo --seed 7",
                   "dynid identify demo/identify.toml --out demo-rerun"],
-        notes="The first run generates and compiles the simulator's and the identification's models: about 18 s "
-              "of CPU more than a later run (measured on a 2-core AMD EPYC: 30.6 s against 12.5 s); later runs load "
-              "them from the cache (DYNID_CACHE, default ~/.cache/dynid).")
+        notes="The first run compiles the simulator's kernel (on the second core, while the car loads) and "
+              "generates and compiles the car's and the identification's models: about 15 s more than a later run "
+              "(measured on a loaded 2-core AMD EPYC: 31.8 s against 17.3 s, 18 s more CPU); later runs load them "
+              "from the cache (DYNID_CACHE, default ~/.cache/dynid).")
     demo.add_argument("--out", default="dynid-demo", help="output folder, replaced as a whole at the end "
                                                           "(default: dynid-demo)")
     demo.add_argument("--quick", action="store_true", help="shorter tests (about half the driving)")

@@ -5,8 +5,10 @@
     dynid simulate spiral --duration 30 --truth --out spiral.mf4
 
 Writes the file (atomic) and `<stem>.json` beside it (manoeuvre, seed, settings, true
-parameters, sensors); progress on stderr. The first run generates and compiles the car's
-models (about 15 s of CPU, measured: pipeline.demo.GENERATE_S, COMPILE_S); later runs load them from the cache.
+parameters, sensors); progress on stderr. The first run compiles the simulator's kernel (once
+per dynid version, about 10 s of CPU on the other core while the car loads) and the car's models
+(about 2 s per new vehicle; measured: pipeline.demo.GENERATE_S, NEW_VEHICLE_S); later runs load them
+from the cache.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                 examples=["dynid simulate sine --out sine.csv",
                           "dynid simulate braking --speed 100 --seed 3 --format parquet --out braking.parquet",
                           "dynid simulate spiral --duration 30 --truth --out spiral.mf4"],
-                notes="The first run generates and compiles the car's models (about 15 s on one 2.4 GHz core, "
+                notes="The first run compiles the simulator's kernel (once per dynid version: about 10 s of CPU, "
+                      "on the other core while the car loads) and the car's models (about 2 s per new vehicle, "
                       "measured); later runs load them from the cache.")
     p.add_argument("manoeuvre", help=f"one of {', '.join(MANOEUVRES)}")
     p.add_argument("--speed", type=float, default=None, help="speed, km/h (default: the manoeuvre's)")

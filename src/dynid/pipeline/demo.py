@@ -21,6 +21,7 @@ from ..progress import notice_if_slow
 from ..shipped import DEMO_VEHICLE
 from ..vehicle.description import VehicleError, load_vehicle
 from ..vehicle.sim import CarSimulator
+from ..vehicle.sim.car import kernel_cached, prebuild_kernel
 from ..vehicle.sim.recording import write_test
 from .config import load_config
 from .run import IdentificationRun, identify
@@ -76,6 +77,7 @@ def conditioning_toml(offsets: dict[str, float], estimate: bool = True) -> list[
 def simulated_car(vehicle: str = DEMO_VEHICLE):
     """The simulator of a vehicle (a shipped name or a vehicle file) driven with its [truth] set."""
 
+    prebuild_kernel()  # a first run: the simulator's kernel compiles in another process while the vehicle loads
     v = load_vehicle(vehicle)
     if v.truth is None:
         raise VehicleError(f"{v.source}: no [truth] set: a simulation needs the parameters to drive with (give "
@@ -87,15 +89,18 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
 # them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
 SLOW_BUILD_S = 3.0
-# what a user waits for on a first run, measured (benchmarks/profile_cold_start.py, one core of a 2-core AMD EPYC,
-# CPU seconds: a busy machine's wall time is longer): the car's models generated and the rest state's dynamics
-# compiled 4.6-5.5 s; the simulator's kernel compiled at its first call 8-9.5 s
-GENERATE_S, COMPILE_S = 5, 9
-GENERATING = (f"generating the car's models (once per vehicle and dynid version, about {GENERATE_S} s on a free "
-              "core; cached for later runs)")
-COMPILING = (f"compiling the simulator's models (first run only, about {COMPILE_S} s on a free core; cached for "
+# what a user waits for on a first run, measured (benchmarks/profile_cold_start.py --in-process, CPU seconds on a
+# 2-core AMD EPYC; a busy machine's wall time is longer): the simulator's kernel compiled 9.5-10 s, in a forked
+# process (vehicle.sim.car.prebuild_kernel) while this one loads the vehicle (its rest state compiles the engine's
+# dynamics, 3 s) and generates and compiles its models; a new vehicle once the kernel is cached: `dynid simulate sine`
+# of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared (farm-bench, 3 pairs)
+GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 10, 10, 2
+GENERATING = (f"building the car: the simulator's kernel compiles on the other core while the car's models are "
+              f"generated (once per dynid version, about {GENERATE_S} s on a free machine; a new vehicle's models "
+              f"about {NEW_VEHICLE_S} s; cached for later runs)")
+COMPILING = (f"compiling the simulator's kernel (first run only, about {COMPILE_S} s on a free core; cached for "
              "later runs)")
-LOADING = f"loading the simulator's compiled models (about {COMPILE_S} s of compiling if they are not cached)"
+LOADING = f"loading the simulator's compiled kernel (about {COMPILE_S} s of compiling if it is not cached)"
 
 
 def compile_notice(sim: CarSimulator) -> str | None:
@@ -107,10 +112,8 @@ def compile_notice(sim: CarSimulator) -> str | None:
 def compile_pending(sim) -> bool | None:
     """Whether the simulator's first call will compile its kernel: numba has no cache index for it yet (True),
     has one (False), or cannot tell (None: numba absent, or its internals changed)."""
-    try:
-        return not Path(sim.module.simulate._cache._cache_file._index_path).exists()
-    except Exception:  # a guess for a message: never a reason to fail
-        return None
+    cached = kernel_cached(sim.module)
+    return None if cached is None else not cached
 
 
 def simulate_tests(quick: bool = False, progress: Progress | None = None, simulation_progress=None,

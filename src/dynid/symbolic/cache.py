@@ -60,8 +60,8 @@ def cache_dir() -> Path:
     return Path(base) / "dynid"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write then rename (dynid.atomic), so that a reader never sees half a file; creates the folder."""
+def write_atomic(path: Path, text: str | bytes) -> None:
+    """Write (text or bytes) then rename (dynid.atomic), so that a reader never sees half a file; creates the folder."""
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_atomic(path, text)
 
@@ -88,6 +88,12 @@ def import_file(path: Path, name: str) -> ModuleType:
 
 _LOADED: dict[str, ModuleType] = {}
 _LOAD_LOCK = threading.Lock()
+
+
+def cache_lock() -> threading.Lock:
+    """The loader's lock (held briefly by load_module): a fork of this process holds it, so that the child's copy
+    is never left locked by another thread (vehicle.sim.car's kernel prebuild)."""
+    return _LOAD_LOCK
 
 
 def load_module(folder: str, name: str, key: str, source: Callable[[], str] | None) -> ModuleType | None:
@@ -148,5 +154,5 @@ def numpy_module(tree: Tree, model: str, **options) -> ModuleType:
     return mod
 
 
-__all__ = ["cache_dir", "generator_fingerprint", "import_file", "load_module", "model_hash", "module_path",
-           "numpy_module", "write_atomic"]
+__all__ = ["cache_dir", "cache_lock", "generator_fingerprint", "import_file", "load_module", "model_hash",
+           "module_path", "numpy_module", "write_atomic"]

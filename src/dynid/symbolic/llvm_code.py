@@ -29,6 +29,7 @@ same 0.14 to 0.46 s of LLVM parsing, optimisation and code generation (best of 7
 from __future__ import annotations
 
 import ast
+import functools
 import inspect
 import math
 import struct
@@ -313,5 +314,81 @@ def straight_line(fn: Callable, symbol: str):
     return call
 
 
-__all__ = ["Emitter", "UnsupportedSourceError", "call_ir", "function_ir", "lazy_text", "parse_function",
-           "straight_line"]
+@functools.cache
+def address_call():
+    """A Numba intrinsic `call(address, arrays)`: calls the native `void f(ptr, i64, i64, ...)` at `address` (an
+    integer: `native_functions` gives them) with each array's data, number of elements and last dimension
+    (function_ir's convention); returns 0. The function is a run-time argument, not a compile-time one, so a
+    caller compiled once serves every vehicle's generated models (the simulator's kernel: issue 28)."""
+    # start-up: numba 0.5 s
+    from llvmlite import ir
+    from numba.core import cgutils, types
+    from numba.core.errors import TypingError
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def call(typingctx, address, arrays):
+        if not (isinstance(address, types.Integer) and isinstance(arrays, types.BaseTuple) and all(
+                isinstance(t, types.Array) and t.dtype == types.float64 and t.layout == "C" for t in arrays)):
+            raise TypingError(f"address_call: expects an integer address and a tuple of C-contiguous float64 "
+                              f"arrays, got {address}, {arrays}")
+
+        def codegen(context, builder, sig, llargs):
+            values = []
+            for k, aty in enumerate(sig.args[1]):
+                ary = context.make_array(aty)(context, builder, builder.extract_value(llargs[1], k))
+                shape = cgutils.unpack_tuple(builder, ary.shape, aty.ndim)
+                values += [ary.data, ary.nitems, shape[-1]]
+            fnty = ir.FunctionType(ir.VoidType(), [v.type for v in values])
+            builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), values)
+            return context.get_constant(types.int64, 0)
+
+        return types.int64(address, arrays), codegen
+
+    return call
+
+
+def native_library(name: str, texts: list[str]):
+    """Numba's code library `name` built from the IR modules `texts` (function_ir's), optimised and compiled to
+    machine code by Numba's own code generator (its passes, target machine and JIT: the code Numba makes of
+    the same IR when a caller links it), with object caching on (`serialize_using_object_code`)."""
+    # start-up: numba 0.5 s
+    import llvmlite.binding as ll
+    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core.registry import cpu_target
+
+    with global_compiler_lock:  # Numba's codegen is not reentrant: its own compiles hold the same lock
+        lib = cpu_target.target_context.codegen().create_library(name)
+        lib.enable_object_caching()
+        for text in texts:
+            module = ll.parse_assembly(text)
+            module.verify()  # a malformed module would abort the process inside LLVM's passes
+            lib.add_llvm_module(module)
+        lib.finalize()
+    return lib
+
+
+def library_state(lib) -> tuple:
+    """What `load_library` needs to load `lib` again without LLVM (its object code), and the codegen it fits."""
+    # start-up: numba 0.5 s
+    from numba.core.registry import cpu_target
+
+    return cpu_target.target_context.codegen().magic_tuple(), lib.serialize_using_object_code()
+
+
+def load_library(state: tuple):
+    """The code library of `library_state`, or None when it was made for another CPU or code generator."""
+    # start-up: numba 0.5 s
+    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core.registry import cpu_target
+
+    codegen = cpu_target.target_context.codegen()
+    magic, serialized = state
+    if magic != codegen.magic_tuple():
+        return None
+    with global_compiler_lock:
+        return codegen.unserialize_library(serialized)
+
+
+__all__ = ["Emitter", "UnsupportedSourceError", "address_call", "call_ir", "function_ir", "lazy_text", "library_state",
+           "load_library", "native_library", "parse_function", "straight_line"]

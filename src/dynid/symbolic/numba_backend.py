@@ -25,19 +25,24 @@ across them and cache the whole).
 from __future__ import annotations
 
 import ast
+import contextlib
+import ctypes
 import hashlib
 import importlib
+import pickle
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
 from .. import pysource
 from ..model.tree import Tree
-from .cache import generator_fingerprint, load_module, model_hash, module_path
+from .cache import generator_fingerprint, load_module, model_hash, module_path, write_atomic
 from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
-from .llvm_code import UnsupportedSourceError, function_ir
+from .llvm_code import UnsupportedSourceError, function_ir, library_state, load_library, native_library, parse_function
 from .models import build
 
 BACKEND_VERSION = "1"
@@ -212,6 +217,79 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     return mod
 
 
+@dataclass(frozen=True)
+class NativeFunctions:
+    """Generated straight-line functions compiled to machine code (`native_functions`): `address[name]` for a
+    compiled caller (llvm_code.address_call), `python[name]` to call one from Python with its arrays (C-contiguous
+    float64), `native` False when numba is absent (then the addresses index `python`'s functions, which run as
+    plain Python)."""
+
+    address: dict[str, int]
+    python: dict[str, Callable]
+    native: bool
+    library: object = None  # kept alive: the machine code lives as long as its library
+
+
+_NATIVE: dict[str, NativeFunctions] = {}
+_NATIVE_LOCK = threading.Lock()
+
+
+def _ctypes_caller(address: int, nargs: int) -> Callable:
+    proto = ctypes.CFUNCTYPE(None, *([ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] * nargs))(address)
+
+    def call(*arrays):
+        flat = []
+        for a in arrays:
+            if not (a.dtype == float and a.flags.c_contiguous):
+                raise TypeError("a generated native function takes C-contiguous float64 arrays")
+            flat += [a.ctypes.data, a.size, a.shape[-1]]
+        proto(*flat)
+        return 0
+
+    call.prototype = proto  # the ctypes object must outlive the calls
+    return call
+
+
+def native_functions(key: str, sources: Callable[[], dict[str, str]], prefix: str = "dynid_native") -> NativeFunctions:
+    """The straight-line functions of `sources()` (name -> scalar_source text: numba_backend's generated
+    language) compiled from their LLVM IR (llvm_code.function_ir) by Numba's code generator into one library,
+    kept on disk as object code (`cache_dir()/numba/<prefix>_<key>.lib`, pickled with the codegen's CPU
+    signature: a library made for another CPU is built again); key: a hash of everything the sources depend on.
+    No Numba typing at all: a caller compiled once (llvm_code.address_call) takes the addresses at run time."""
+    name = f"{prefix}_{key}"
+    with _NATIVE_LOCK:
+        if name in _NATIVE:
+            return _NATIVE[name]
+        if not have_numba():
+            _warn_missing()
+            ns: dict = {}
+            texts = sources()
+            exec(HEADER + "\n".join(texts.values()), ns)  # our own generated code
+            funcs = {n: ns[n] for n in texts}
+            out = NativeFunctions({n: id(f) for n, f in funcs.items()}, funcs, False)
+        else:
+            path = module_path("numba", name).with_suffix(".lib")
+            lib, symbols = None, None
+            if path.exists():
+                try:
+                    stored = pickle.loads(path.read_bytes())  # our own cache, its key checked below
+                    if stored["key"] == key:
+                        lib, symbols = load_library(stored["state"]), stored["symbols"]
+                except Exception:  # a damaged or foreign cache file is built again, never trusted
+                    lib = None
+            if lib is None:
+                texts = sources()
+                symbols = {n: (f"{name}.{n}", len(parse_function(src).args.args)) for n, src in texts.items()}
+                lib = native_library(name, [function_ir(src, symbols[n][0]) for n, src in texts.items()])
+                with contextlib.suppress(OSError):  # a read-only cache: built again next run
+                    write_atomic(path, pickle.dumps({"key": key, "symbols": symbols, "state": library_state(lib)}))
+            address = {n: lib.get_pointer_to_function(sym) for n, (sym, _) in symbols.items()}
+            python = {n: _ctypes_caller(address[n], nargs) for n, (_, nargs) in symbols.items()}
+            out = NativeFunctions(address, python, True, lib)
+        _NATIVE[name] = out
+        return out
+
+
 def source_key(*parts: str) -> str:
     """A short hash of the given texts and of this generator's source (see cache.generator_fingerprint)."""
     h = hashlib.sha256(("\0".join((BACKEND_VERSION, generator_fingerprint(), *parts))).encode())
@@ -239,5 +317,5 @@ def cached_module_path(key: str, prefix: str = "dynid_nb") -> Path:
     return module_path("numba", f"{prefix}_{key}")
 
 
-__all__ = ["BACKEND_VERSION", "NumbaMissingWarning", "arguments", "compile_source", "have_numba", "jit",
-           "numba_model", "scalar_source", "source_key"]
+__all__ = ["BACKEND_VERSION", "NativeFunctions", "NumbaMissingWarning", "arguments", "compile_source", "have_numba",
+           "jit", "native_functions", "numba_model", "scalar_source", "source_key"]

@@ -7,9 +7,15 @@ equations stay exact), generates three per-sample models with numeric parameters
 (numba_backend): the kinematics of the tire frames and of frame 6, the inverse dynamics
 with the four tire wrench sites and the aerodynamic site, and the free joints' rows of
 the inertia matrix M(q) (composite bodies: one pass, where NF products M v would cost
-eight times as much); and compiles them with the kernel (kernel.py) into one cached
-module. `run(manoeuvre)` integrates with RK4 on the 625 Hz acquisition clock (substeps
-optional) and returns a SimulationResult.
+eight times as much); compiles them from their LLVM IR into machine code (numba_backend.
+native_functions: no Numba typing, cached as object code), and hands their addresses to the
+kernel (kernel.py: one compiled module for every vehicle, cached once per dynid version).
+`run(manoeuvre)` integrates with RK4 on the 625 Hz acquisition clock (substeps optional) and
+returns a SimulationResult.
+
+First run: `prebuild_kernel()` (called by pipeline.demo.simulated_car before the vehicle is
+loaded) compiles the kernel in a forked process while this one loads the vehicle (its rest
+state compiles the engine) and generates its models; a new vehicle then costs only its models.
 
 Step: one RK4 step per 1.6 ms sample by default. The fastest dynamics are the wheel hop
 (about 13 Hz) and the tire-slip/spin loop through the relaxation lengths (about 30 Hz):
@@ -25,9 +31,14 @@ states the law.
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import hashlib
 import inspect
+import os
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -40,6 +51,7 @@ from ...model.files import tree_to_toml
 from ...model.tree import CURVE_TERMS, PRISMATIC, Tree
 from ...resources import memory_budget
 from ...symbolic import numba_backend as nb
+from ...symbolic.cache import cache_lock
 from ...symbolic.expr import ZERO, add, cross
 from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
 from ..aero import Aerodynamics, aero_wrench, reference_point
@@ -58,7 +70,6 @@ from .manoeuvres import Manoeuvre, ManoeuvreError, manoeuvre, pack
 from .tires import MagicFormula
 
 SAMPLE_TIME = 1.6e-3
-GENERATED = ("car_kin", "car_idm", "car_inertia")  # the generated models the kernel calls
 
 
 class SimulationError(RuntimeError):
@@ -161,41 +172,168 @@ def free_rows_inertia(inert: Tree):
     return prog.prune()
 
 
-def _module_key(tree: Tree, aero_point) -> str:
-    """Hash of what the compiled module depends on: the tree, the kernel and its helpers, the functions
-    here that generate the models, the aero point."""
+KERNEL_SOURCES = ("kernel.py", "tires.py", "interp.py", "../table_poly.py")  # what the compiled kernel depends on
 
-    here = Path(__file__).parent
-    srcs = "".join((here / f).read_text(encoding="utf-8") for f in ("kernel.py", "tires.py", "interp.py",
-                                                                     "../table_poly.py"))
-    srcs += "".join(inspect.getsource(f) for f in (kinematics_program, free_rows_inertia, _module_source))
+
+def _models_key(tree: Tree, aero_point) -> str:
+    """Hash of what the vehicle's generated models depend on: the tree, the functions here that generate them,
+    the aero point (and the generator: source_key)."""
+    srcs = "".join(inspect.getsource(f) for f in (kinematics_program, free_rows_inertia, _models_source))
     return nb.source_key(tree_to_toml(tree), repr(list(tree.gravity)), srcs, repr([float(x) for x in aero_point]))
 
 
-def _module_source(tree: Tree, aero_point) -> tuple[str, list[str]]:
+def _models_source(tree: Tree, aero_point) -> dict[str, str]:
+    """K.MODELS -> the source of the vehicle's generated straight-line function (numba_backend.scalar_source)."""
     sites = [WrenchSite(t) for t in TIRES] + [WrenchSite(CHASSIS, tuple(float(x) for x in aero_point), CHASSIS)]
     inertial = {n: v for n, v in tree.values.items() if n[:2] in ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ")
                 or (n.startswith("M") and n[1:].isdigit())}
     inert = dataclasses.replace(tree, joint_terms={}, couplings=(), gravity=(0.0, 0.0, 0.0), values=inertial,
                                 known=frozenset(), labels={})
-    kin = kinematics_program(tree)
     # the dampers' dry friction is the kernel's smooth law (P_FS), not the tree's sign(qd)
     no_dry = dataclasses.replace(tree, values={**tree.values, **{f"FS{d}": 0.0 for d in DAMPERS}})
-    dyn = idm(no_dry, parameters="numeric", wrenches=sites)
-    mass = free_rows_inertia(inert)
+    progs = (kinematics_program(tree), idm(no_dry, parameters="numeric", wrenches=sites), free_rows_inertia(inert))
+    out = {}
+    for name, prog, args in zip(K.MODELS, progs, _MODEL_ARGS, strict=True):
+        if nb.arguments(prog) != list(args):  # the kernel calls each with these arrays, by position
+            raise AssertionError(f"{name}: generated with arguments {nb.arguments(prog)}, the kernel passes {args}")
+        out[name] = nb.scalar_source(prog, name)
+    return out
+
+
+_MODEL_ARGS = (("q", "qd"), ("q", "qd", "qdd", "wrench"), ("q",))
+
+
+def _kernel_key() -> str:
+    here = Path(__file__).parent
+    return nb.source_key(*((here / f).read_text(encoding="utf-8") for f in KERNEL_SOURCES))
+
+
+def _kernel_body() -> str:
     kernel_src = inspect.getsource(K).replace("from __future__ import annotations\n", "")
     here = Path(__file__).parent
-    deps = hashlib.sha256(b"".join((here / f).read_bytes()
-                                   for f in ("tires.py", "interp.py", "../table_poly.py"))).hexdigest()[:16]
-    body = "\n".join([f"# kernel dependencies: tires.py + interp.py + table_poly.py {deps}", kernel_src,
-                      "# ----- generated models -----",
-                      nb.scalar_source(kin, "car_kin"), nb.scalar_source(dyn, "car_idm"),
-                      nb.scalar_source(mass, "car_inertia")])
-    return body, [*K.JITTED, *GENERATED]
+    deps = hashlib.sha256(b"".join((here / f).read_bytes() for f in KERNEL_SOURCES[1:])).hexdigest()[:16]
+    # compiled: the models are called through their addresses (llvm_code.address_call), not as Python functions
+    return "\n".join([f"# kernel dependencies: tires.py + interp.py + table_poly.py {deps}", kernel_src,
+                      "try:", "    from dynid.symbolic.llvm_code import address_call",
+                      "    call_model = address_call()  # noqa: F811 - replaces the Python version",
+                      "except ImportError:  # no numba: the Python version", "    pass"])
+
+
+def kernel_module():
+    """The compiled kernel (kernel.py, one module for every vehicle), from the cache or written now; waits for
+    a kernel build prebuild_kernel started (so that its compiled code is loaded, not compiled twice)."""
+    key = _kernel_key()
+    module = nb.compile_source(None, [], key, prefix="dynid_simk")
+    if module is None:
+        module = nb.compile_source(_kernel_body(), list(K.JITTED), key, prefix="dynid_simk")
+    build = _PREBUILD.pop(key, None)
+    if build is not None:
+        build.wait()
+    return module
+
+
+def compile_lock():
+    """Numba's global compiler lock (its compiles, in any thread, hold it)."""
+    from numba.core.compiler_lock import global_compiler_lock  # start-up: numba 0.5 s (called only where it is)
+
+    return global_compiler_lock
+
+
+class _Build:
+    """A kernel compile running in another process: a fork of this one where there is fork (Linux: numba and
+    dynid already imported, about 2 s of CPU a fresh interpreter would spend again), else a new interpreter."""
+
+    def __init__(self, key: str) -> None:
+        self.pid = self.proc = None
+        if sys.platform.startswith("linux"):
+            # forked while holding the locks the child takes (Numba's compiler lock, the generated modules' loader),
+            # so that no other thread of this process holds one in the child's copy, where it would never be freed
+            with compile_lock(), cache_lock():
+                pid = os.fork()
+            if pid == 0:  # the child: compile, then leave at once (no atexit, no buffered output flushed twice)
+                code = 1
+                try:
+                    _compile_kernel(key)
+                    code = 0
+                finally:
+                    os._exit(code)
+            self.pid = pid
+        else:  # its output is of no use to the user; a failure costs only the wait
+            self.proc = subprocess.Popen(
+                [sys.executable, "-c", f"from dynid.vehicle.sim.car import _compile_kernel; _compile_kernel({key!r})"],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def wait(self) -> None:
+        if self.proc is not None:
+            self.proc.wait()
+        elif self.pid is not None:
+            os.waitpid(self.pid, 0)
+            self.pid = None
+
+    def kill(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+        elif self.pid is not None:
+            os.kill(self.pid, signal.SIGKILL)
+        self.wait()
+
+
+_PREBUILD: dict[str, _Build] = {}
+
+
+@atexit.register
+def _stop_prebuilds() -> None:
+    """A run that ends before its simulator is built (a vehicle file's error) leaves no compile running."""
+    for build in _PREBUILD.values():
+        build.kill()
+
+
+def prebuild_kernel() -> bool:
+    """Start compiling the simulator's kernel in another process when its compiled code is not cached yet (a
+    first run): Numba's typing of it is most of a first simulation, and the vehicle's loading (its rest state,
+    its generated models) runs meanwhile on the other core. The next kernel_module() waits for it. Returns
+    whether a build was started."""
+    if not nb.have_numba():
+        return False
+    key = _kernel_key()
+    if key in _PREBUILD:
+        return True
+    module = kernel_module()
+    if kernel_cached(module) is not False:
+        return False
+    _PREBUILD[key] = _Build(key)
+    return True
+
+
+def kernel_cached(module) -> bool | None:
+    """Whether Numba has the kernel's compiled code on disk (None: cannot tell, numba absent or changed)."""
+    try:
+        return Path(module.simulate._cache._cache_file._index_path).exists()
+    except Exception:  # a guess for a message or a prebuild: never a reason to fail
+        return None
+
+
+def _kernel_arguments(module, models: np.ndarray, n: int = 1) -> tuple:
+    """simulate's arguments for n samples of zeros, of the types run() passes (the compile is per type)."""
+    packed = pack_tables(default_tables())
+    return (np.zeros(K.NY), 0.0, SAMPLE_TIME, 0, 1, np.zeros(K.NPAR), np.zeros((4, 27)), np.zeros(K.MAN_TABLE),
+            *packed, *pack_aero(Aerodynamics()), models, np.zeros((n, 42)), np.zeros((n, 42)), np.zeros((n, 42)),
+            np.zeros((n, 4, 6)), np.zeros((n, K.NREC)), np.zeros(2, dtype=np.int64))
+
+
+def _compile_kernel(key: str) -> None:
+    """In prebuild_kernel's process: compile simulate (and so everything it calls) into Numba's disk cache, with
+    no step taken (nsteps 0)."""
+    module = nb.compile_source(None, [], key, prefix="dynid_simk")
+    if module is not None:
+        module.simulate(*_kernel_arguments(module, np.zeros(len(K.MODELS), dtype=np.int64)))
 
 
 @dataclass
 class CompileInfo:
+    """generate_s: the vehicle's models generated and compiled (or loaded); import_s: the kernel loaded, with the
+    wait for a prebuild_kernel process; first_call_s: the first simulate call (Numba's compile when not cached)."""
+
     generate_s: float = 0.0
     import_s: float = 0.0
     first_call_s: float = 0.0
@@ -237,16 +375,15 @@ class CarSimulator:
         self.aero_point = reference_point(self.geometry) if self.aero.point is None else np.asarray(self.aero.point)
         self.compile_info = CompileInfo()
         t0 = time.perf_counter()
-        key = _module_key(self.tree, self.aero_point)
-        module = nb.compile_source(None, [], key, prefix="dynid_car")
-        if module is None:
-            body, names = _module_source(self.tree, self.aero_point)
-            # the generated models through LLVM IR: numba's own compile of their thousands of statements was
-            # most of a new vehicle's first run (numba_backend, llvm_code)
-            module = nb.compile_source(body, names, key, prefix="dynid_car", straight=GENERATED)
+        key = _models_key(self.tree, self.aero_point)
+        # the vehicle's models: straight-line code through LLVM IR into machine code, cached as object code
+        self.models = nb.native_functions(key, lambda: _models_source(self.tree, self.aero_point), prefix="dynid_car")
+        self._addresses = np.array([self.models.address[n] for n in K.MODELS], dtype=np.int64)
         self.compile_info.generate_s = time.perf_counter() - t0
         t0 = time.perf_counter()
-        self.module = module
+        self.module = kernel_module()
+        if not self.models.native:
+            self.module._PYTHON_MODELS.update({self.models.address[n]: f for n, f in self.models.python.items()})
         self.compile_info.import_s = time.perf_counter() - t0
         self.compile_info.module = self.module.__name__
         self._packed_tables = pack_tables(self.tables)
@@ -341,7 +478,7 @@ class CarSimulator:
             rows = n if done + n == N else n + 1  # records `rows` samples, advances rows - 1 steps
             sl = slice(done, done + rows)
             self.module.simulate(y, done * s.dt, s.dt, rows, s.substeps, par, tire, man, XB, YB, NX, NY, C, ax, aC,
-                                 RQ[sl], RQD[sl], RQDD[sl], RW[sl], RR[sl], status)
+                                 self._addresses, RQ[sl], RQD[sl], RQDD[sl], RW[sl], RR[sl], status)
             if self.compile_info.first_call_s == 0.0:
                 self.compile_info.first_call_s = time.perf_counter() - t_first
             if status[0] != K.S_OK:

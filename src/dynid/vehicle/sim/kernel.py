@@ -1,7 +1,9 @@
 """The simulator's per-step kernel: car forward dynamics, tires, driver, RK4 loop.
 
-This file is a TEMPLATE: `car.py` compiles it together with three functions generated
-from the car's tree (numba_backend), which replace the stubs at the bottom of this file:
+This file is compiled by `car.py` as one cached module, the same for every vehicle: the three
+functions generated from a car's tree (numba_backend.native_functions: straight-line code compiled
+from LLVM IR, no Numba typing) are run-time arguments, `models` = their addresses in this order,
+called through `call_model(models[i], (arrays...))` (llvm_code.address_call):
 
   car_kin(q, qd, out)          poses and twists of the tire frames and frame 6 (KIN_* layout)
   car_idm(q, qd, qdd, wrench, out)   inverse dynamics with the tree's numeric parameters and
@@ -9,6 +11,10 @@ from the car's tree (numba_backend), which replace the stubs at the bottom of th
   car_inertia(q, out)          the rows of the inertia matrix M(q) of the free joints (composite
                                bodies), flat (NF, 42): out[NF_ROW * i + c] = M[FREE[i] - 1, c] on
                                the free and tabulated columns c (the others are left 0)
+
+So a new vehicle compiles only its three models (well under a second of LLVM), and the kernel's
+own compile (seconds of Numba typing) happens once per dynid version, and can run in another
+process while the vehicle is loaded (car.prebuild_kernel).
 
 Forward dynamics (DESIGN, issue 5). Free joints f: x y z yaw pitch roll, the 4 dampers,
 the 4 wheel spins. Prescribed: the tabulated joints (steering, camber, caster, kingpin:
@@ -71,6 +77,9 @@ M_TABLE = 9
 MAN_TABLE = 10  # a table manoeuvre's samples start here: steering wheel (rad), acceleration (m/s^2), speed (m/s)
 # status codes
 S_OK, S_TABLE, S_NONFINITE = 0, 1, 2
+# the generated models, in the order of `models`
+MODELS = ("car_kin", "car_idm", "car_inertia")
+KIN, IDM, INERTIA = 0, 1, 2
 
 
 def smoothstep(x):
@@ -255,7 +264,7 @@ def lu_solve(M, x):
     return 0
 
 
-def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
+def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, models,
                q, qd, qdd, wr, kin, hv, Af, M, x, F, rhs, tab, ctl, tf, record, krow, RQ, RQD, RQDD, RW, RR):
     """dy/dt at (t, y); with record, the sample's q, qd, qdd, wheel wrenches and controls go to row krow."""
     status = S_OK
@@ -283,7 +292,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
             qdd[j] = tab[3] * ud * ud + 2.0 * tab[4] * ud * hd + tab[5] * hd * hd
             F[k, 4 + n] = tab[2]
     # tire deflections from the contact condition, at q15 = qd15 = 0 first
-    car_kin(q, qd, kin)
+    call_model(models[KIN], (q, qd, kin))
     v6 = kin[KIN_6 + 2]  # forward speed of O6
     driver(t, y, v6, par, man, ctl)
     hdd = par[P_WS] * par[P_WS] * (ctl[0] - h) - 2.0 * par[P_ZS] * par[P_WS] * hd
@@ -386,7 +395,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         wr[4, 4] = -qS * L * cm
         wr[4, 5] = qS * L * cl
     # generalized forces: h with the free accelerations at zero
-    car_idm(q, qd, qdd, wr, hv)
+    call_model(models[IDM], (q, qd, qdd, wr, hv))
     for i in range(NF):
         rhs[i] = -hv[FREE[i] - 1]
     # the dampers' dry friction, fs tanh(qd / v_s): a smooth law, so that the force is defined at reversal
@@ -402,7 +411,7 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
         if record:
             RR[krow, 3 + k] = spin
     # M_ff + M_fp F from the free joints' rows of M (one composite-body pass, not NF products M v)
-    car_inertia(q, Af)
+    call_model(models[INERTIA], (q, Af))
     reduced_inertia(Af, F, M)
     for i in range(NF):
         x[i] = rhs[i]
@@ -441,7 +450,8 @@ def derivative(t, y, dy, par, tire, man, XB, YB, TNX, TNY, C, ax, aC,
     return status
 
 
-def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, RQ, RQD, RQDD, RW, RR, status):
+def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, aC, models, RQ, RQD, RQDD, RW, RR,
+             status):
     """RK4 with nsub substeps per sample; records every sample (the first stage of its step)."""
     q = np.zeros(42)
     qd = np.zeros(42)
@@ -477,8 +487,8 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
                         yt[i] = y[i] + a * hs * kst[c - 1, i]
                     tc = t + a * hs
                 record = c == 0 and s == 0  # a bool variable: a literal would type (and compile) derivative twice
-                st = derivative(tc, yt, kst[c], par, tire, man, XB, YB, TNX, TNY, C, ax, aC, q, qd, qdd, wr, kin, hv,
-                                Af, M, x, F, rhs, tab, ctl, tf, record, n, RQ, RQD, RQDD, RW, RR)
+                st = derivative(tc, yt, kst[c], par, tire, man, XB, YB, TNX, TNY, C, ax, aC, models, q, qd, qdd, wr,
+                                kin, hv, Af, M, x, F, rhs, tab, ctl, tf, record, n, RQ, RQD, RQDD, RW, RR)
                 if c == 0:
                     if st != S_OK:
                         status[0] = st
@@ -495,10 +505,14 @@ def simulate(y, t0, dt, nsteps, nsub, par, tire, man, XB, YB, TNX, TNY, C, ax, a
     return nsteps
 
 
-# ----- the generated models: this file is a template; the compiled module (dynid.vehicle.sim.car) appends
-# car_kin(q, qd, out), car_idm(q, qd, qdd, wrench, out) and car_inertia(q, out), generated for the car,
-# after this source. The names are declared here so that the template reads (and lints) as a whole.
-car_kin = car_idm = car_inertia = None
+# ----- the generated models: called by address. Without numba the addresses are the ids of Python functions the
+# simulator registers in _PYTHON_MODELS; the compiled module (car.py) replaces call_model by llvm_code.address_call.
+_PYTHON_MODELS: dict = {}
+
+
+def call_model(address, arrays):
+    """The generated model at `address` on its arrays (plain Python: numba absent)."""
+    return _PYTHON_MODELS[address](*arrays)
 
 
 JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "table_value", "driver",
