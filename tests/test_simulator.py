@@ -403,3 +403,21 @@ def test_a_prebuilt_kernel_is_loaded_not_compiled_again(tmp_path):
     assert res["started"] and res["cached"]
     assert res["signatures"] == {"simulate": 1, "derivative": 0}
     assert res["misses"]["simulate"] == 0 and res["hits"]["simulate"] == 1
+
+
+def test_a_stuck_kernel_build_is_killed_and_the_run_goes_on():
+    """A first run waits for the kernel's build in another process at most `timeout`: a build that hangs (a
+    forked child that inherited a held lock) is killed and the caller compiles itself, never waits forever."""
+    import subprocess
+    import sys
+    import time
+
+    from dynid.vehicle.sim.car import _Build
+
+    build = _Build.__new__(_Build)
+    build.pid = None
+    build.proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    t0 = time.monotonic()
+    build.wait(timeout=0.5)
+    assert time.monotonic() - t0 < 10  # killed at the timeout, not after the child's 60 s
+    assert build.proc.returncode is not None and build.proc.returncode < 0  # by a signal

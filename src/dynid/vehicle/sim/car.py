@@ -39,6 +39,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -239,13 +240,20 @@ def compile_lock():
     return global_compiler_lock
 
 
+# the longest a first run waits for the kernel's build in another process (measured: ~10 s of CPU on an idle
+# core, 20-30 s on a loaded one) before it is taken for stuck and compiled here
+WAIT_S = 300.0
+
+
 class _Build:
     """A kernel compile running in another process: a fork of this one where there is fork (Linux: numba and
     dynid already imported, about 2 s of CPU a fresh interpreter would spend again), else a new interpreter."""
 
     def __init__(self, key: str) -> None:
         self.pid = self.proc = None
-        if sys.platform.startswith("linux"):
+        # fork only a process of one thread: another thread's locks (logging, a library's) would stay held in the
+        # child's copy, where nothing frees them (a library embedding dynid in a threaded worker gets a new interpreter)
+        if sys.platform.startswith("linux") and threading.active_count() == 1:
             # forked while holding the locks the child takes (Numba's compiler lock, the generated modules' loader),
             # so that no other thread of this process holds one in the child's copy, where it would never be freed
             with compile_lock(), cache_lock():
@@ -263,19 +271,29 @@ class _Build:
                 [sys.executable, "-c", f"from dynid.vehicle.sim.car import _compile_kernel; _compile_kernel({key!r})"],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
-    def wait(self) -> None:
-        if self.proc is not None:
-            self.proc.wait()
-        elif self.pid is not None:
-            os.waitpid(self.pid, 0)
-            self.pid = None
+    def wait(self, timeout: float = WAIT_S) -> None:
+        """Until the build ends; one stuck beyond `timeout` is killed (the kernel then compiles in this process:
+        the user loses the time, never the run)."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if self.proc is not None and self.proc.poll() is not None:
+                return
+            if self.pid is not None and os.waitpid(self.pid, os.WNOHANG)[0] != 0:
+                self.pid = None
+                return
+            if self.proc is None and self.pid is None:
+                return
+            time.sleep(0.02)
+        self.kill()
 
     def kill(self) -> None:
         if self.proc is not None:
             self.proc.kill()
+            self.proc.wait()
         elif self.pid is not None:
             os.kill(self.pid, signal.SIGKILL)
-        self.wait()
+            os.waitpid(self.pid, 0)
+            self.pid = None
 
 
 _PREBUILD: dict[str, _Build] = {}
