@@ -62,12 +62,21 @@ print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.ident
 """
 
 
-def child(config: Path, where: str, workers: int) -> dict:
+# the config of a tree that predates the keys of CONFIG's [identification] and [uncertainty] (`--vs`)
+PLAIN = CONFIG.split("[identification]")[0]
+
+
+def child(config: Path, where: str, workers: int, src: str | None = None) -> dict:
+    env = None if src is None else {**os.environ, "PYTHONPATH": src}
     proc = subprocess.run([sys.executable, "-c", CHILD, str(config), where, str(workers)], capture_output=True,
-                          text=True)
+                          text=True, env=env)
     if proc.returncode:
         sys.exit(f"the identification failed:\n{proc.stderr[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _walls(runs: list[dict]) -> str:
+    return ", ".join(f"{x['wall_s']:.2f}" for x in runs)
 
 
 def main() -> None:
@@ -75,6 +84,10 @@ def main() -> None:
     ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 3.0])
     ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="LocalCluster sizes to time (none: skip)")
     ap.add_argument("--format", default="parquet", choices=["parquet", "csv", "mf4"])
+    ap.add_argument("--vs", metavar="SRC", help="another tree's src folder (e.g. /work/wt-base/src): its 2-thread "
+                    "identification of each length timed in the same run, alternating with this tree's, with the "
+                    "config its version reads (no data_health, no [uncertainty]: the keys it predates)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each tree per length (the median is reported)")
     args = ap.parse_args()
     res: dict = {"format": args.format, "cpus": os.cpu_count(), "machine": os.uname().machine, "runs": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,14 +101,28 @@ def main() -> None:
                   f"{time.perf_counter() - t:.0f} s (not timed)", flush=True)
             configs[hours] = folder / "identify.toml"
             configs[hours].write_text(CONFIG.format(file=data.name))
+            (folder / "plain.toml").write_text(PLAIN.format(file=data.name))
         print(f"\n{'file':>6} {'where':>22} {'wall s':>8} {'h per 8 s':>10} {'peak GB':>8}")
         threads = {}
         for hours, cfg in configs.items():
-            r = child(cfg, "threads", 2)
+            runs, vs = [], []
+            for _ in range(args.repeat):  # alternated: the machine's load shared alike
+                if args.vs:
+                    vs.append(child(cfg.with_name("plain.toml"), "threads", 2, args.vs))
+                runs.append(child(cfg, "threads", 2))
+            r = sorted(runs, key=lambda x: x["wall_s"])[len(runs) // 2]
             threads[hours] = r
-            res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r})
+            res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r,
+                                "walls_s": [x["wall_s"] for x in runs]})
             print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
-                  f"{r['peak_gb']:8.2f}", flush=True)
+                  f"{r['peak_gb']:8.2f}   runs {_walls(runs)}", flush=True)
+            if vs:
+                b = sorted(vs, key=lambda x: x["wall_s"])[len(vs) // 2]
+                res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": args.vs, **b,
+                                    "walls_s": [x["wall_s"] for x in vs]})
+                print(f"{hours:>5g}h {'2 threads, --vs tree':>22} {b['wall_s']:8.2f} {8 * hours / b['wall_s']:10.2f} "
+                      f"{b['peak_gb']:8.2f}   runs {_walls(vs)}; this tree's "
+                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians)", flush=True)
         hours = min(configs)
         cluster = {}
         for n in args.workers:

@@ -391,16 +391,7 @@ def joints_pass(
         if n in ch:
             raw[:, i] = ch[n]
     filtered = _lowpass(raw, x)
-    xs = filtered[:, :17]
-    xd = derivative(xs, fs)
-    xdd = derivative(xd, fs)
-    steering, camber = ([tabulated(k)[n] for k in range(4)] for n in (0, 1))
-    for i, frames in enumerate((DAMPERS, steering, camber)):  # frame j in column j - 1
-        cols, sl = [j - 1 for j in frames], slice(4 * i, 4 * i + 4)
-        q[:, cols], qd[:, cols], qdd[:, cols] = xs[:, sl], xd[:, sl], xdd[:, sl]
-    spin = [w - 1 for w in WHEELS]
-    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
-    h = xs[:, 16], xd[:, 16], xdd[:, 16]
+    h = _corners(filtered, fs, q, qd, qdd)
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
                                copy=False)
 
@@ -414,6 +405,78 @@ def joints_pass(
                          f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
     traj = _trajectory(x, q, qd, qdd, filtered, has_spin, h[0])
     return JointsPass(traj, x, ch, q, qd, qdd, filtered, h, has_spin, R6, w6, pz_zz, z_laser)
+
+
+# the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
+# wheels' (speeds: integrated), then the steering wheel
+_CORNER_COLUMNS = np.array([j - 1 for frames in (DAMPERS, [tabulated(k)[0] for k in range(4)],
+                                                  [tabulated(k)[1] for k in range(4)], WHEELS) for j in frames])
+
+
+def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array, Array]:
+    """The corners' joints into q, qd, qdd (column-major, (N, 42)) from the low-passed columns 0:17 of filtered:
+    dampers, steering and camber angles and their central differences, the wheels' spin integrated from their
+    speeds (trapezoidal), the steering wheel's (h, h', h'') returned. `signals.derivative` and `integrate`, in one
+    compiled pass that writes each joint's column once (the NumPy passes' gathers and scatters cost more than
+    the differences)."""
+    if _corner_kernel is None:  # without numba: the same formulas through NumPy
+        xs = filtered[:, :17]
+        xd = derivative(xs, fs)
+        xdd = derivative(xd, fs)
+        cols = _CORNER_COLUMNS
+        q[:, cols[:12]], qd[:, cols[:12]], qdd[:, cols[:12]] = xs[:, :12], xd[:, :12], xdd[:, :12]
+        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
+        return xs[:, 16], xd[:, 16], xdd[:, 16]
+    h = np.empty((3, filtered.shape[0]))
+    _corner_kernel(np.ascontiguousarray(filtered), float(fs), _CORNER_COLUMNS, q.T, qd.T, qdd.T, h)
+    return h[0], h[1], h[2]
+
+
+def _central(x, h2, out):  # pragma: no cover - compiled
+    """`signals.derivative` of x (N >= 3) into out, its formulas and their order of operations."""
+    n = x.shape[0]
+    out[0] = (-3.0 * x[0] + 4.0 * x[1] - x[2]) / h2
+    for i in range(1, n - 1):
+        out[i] = (x[i + 1] - x[i - 1]) / h2
+    out[n - 1] = (3.0 * x[n - 1] - 4.0 * x[n - 2] + x[n - 3]) / h2
+
+
+def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compiled
+    """`_corners`' pass: x (N, C >= 17) C order, q, qd, qdd (42, N) (the column-major arrays' transposes)."""
+    n = x.shape[0]
+    h2 = 2.0 * (1.0 / fs)  # as signals.derivative
+    half = 0.5 / fs  # as signals.integrate
+    y = np.empty(n)
+    for c in range(17):
+        for i in range(n):
+            y[i] = x[i, c]
+        if c < 12:  # the joint itself, its rate and acceleration
+            j = cols[c]
+            q[j, :] = y
+            _central_compiled(y, h2, qd[j])
+            _central_compiled(qd[j], h2, qdd[j])
+        elif c < 16:  # a wheel's speed: its spin angle integrated, the speed, its derivative
+            j = cols[c]
+            qd[j, :] = y
+            _central_compiled(y, h2, qdd[j])
+            acc = 0.0
+            q[j, 0] = 0.0
+            for i in range(1, n):
+                acc += (y[i] + y[i - 1]) * half
+                q[j, i] = acc
+        else:
+            h[0, :] = y
+            _central_compiled(y, h2, h[1])
+            _central_compiled(h[1], h2, h[2])
+
+
+try:
+    from numba import njit
+
+    _central_compiled = njit(cache=True, nogil=True)(_central)
+    _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
+except ImportError:  # pragma: no cover - exercised only without numba
+    _corner_kernel = None
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
