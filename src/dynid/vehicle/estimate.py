@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
-from ..kinematics.forward import forward_kinematics, joint_array
+from ..kinematics.forward import forward_kinematics, frame_plan, joint_array, needed_frames
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
@@ -470,15 +470,6 @@ def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compile
             _central_compiled(h[1], h2, h[2])
 
 
-try:
-    from numba import njit
-
-    _central_compiled = njit(cache=True, nogil=True)(_central)
-    _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
-except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = None
-
-
 def _lowpass(x: Array, c: _Context) -> Array:
     return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
 
@@ -524,12 +515,81 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     sub = np.arange(0, N, k_sub)
     if sub[-1] != N - 1:
         sub = np.append(sub, N - 1)
-    q0 = q[sub].copy()
-    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
+    if _pose_kernel is None:  # without numba: the kinematics' batched NumPy model
+        q0 = q[sub].copy()
+        q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+        st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
+        poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
+    else:
+        poses = np.empty((sub.size, 8))
+        _pose_kernel(q.T, sub, *_tire_plan(x.model.tree), poses)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
-    return CubicSpline(sub, np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1))(
-        np.arange(N))
+    return CubicSpline(sub, poses)(np.arange(N))
+
+
+def _tire_plan(tree) -> tuple[Array, ...]:
+    """The frames on the paths to the tire frames, in tree order, as `_poses`' arrays: frame, antecedent, sigma,
+    theta, r, the constant rotation E (k, c) and offset u of `kinematics.forward.frame_plan`, the tire frames."""
+    todo = needed_frames(tree, TIRES)
+    plan = frame_plan(tree)
+    frames = [f for f in tree.frames if todo[f.j]]
+    return (np.array([f.j for f in frames], dtype=np.int64), np.array([f.ant for f in frames], dtype=np.int64),
+            np.array([f.sigma for f in frames], dtype=np.int64), np.array([f.theta for f in frames]),
+            np.array([f.r for f in frames]), np.array([plan[f.j][0] for f in frames]),
+            np.array([plan[f.j][2] for f in frames]), np.array(TIRES, dtype=np.int64))
+
+
+def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, tires, out):  # pragma: no cover - compiled
+    """`_tire_poses`' forward kinematics (`kinematics.forward.forward_kinematics`' formulas and order of
+    operations, the frames of `_tire_plan` only) at the samples `sub` of qT (42, N), x, y, z and the tire joints
+    taken as 0: out (len(sub), 8) the tire frames' heights then their z axes' z components."""
+    n = qT.shape[0]
+    R = np.zeros((n + 1, 3, 3))  # R[j, c]: column c of 0R_j
+    P = np.zeros((n + 1, 3))
+    D = np.empty((3, 3))
+    d = np.empty(3)
+    for c in range(3):
+        R[0, c, c] = 1.0
+    for i in range(sub.size):
+        s = sub[i]
+        for f in range(js.size):
+            j, a = js[f], ants[f]
+            for c in range(3):  # the columns of R_a E: `combine` (zeros skipped, terms in order)
+                for m in range(3):
+                    acc = 0.0
+                    for k in range(3):
+                        if E[f, k, c] != 0.0:
+                            acc += E[f, k, c] * R[a, k, m]
+                    D[c, m] = acc
+            qj = 0.0 if j <= 3 else qT[j - 1, s]
+            for t in range(tires.size):
+                if j == tires[t]:
+                    qj = 0.0
+            if sigmas[f] == 0:
+                th = thetas[f] + qj
+                cs, sn = np.cos(th), np.sin(th)
+                for m in range(3):
+                    R[j, 0, m] = cs * D[0, m] + sn * D[1, m]
+                    R[j, 1, m] = cs * D[1, m] - sn * D[0, m]
+                    R[j, 2, m] = D[2, m]
+            else:
+                for c in range(3):
+                    for m in range(3):
+                        R[j, c, m] = D[c, m]
+            r = rs[f] + qj if sigmas[f] == 1 else rs[f]
+            for m in range(3):
+                acc = 0.0
+                for k in range(3):
+                    if u[f, k] != 0.0:
+                        acc += u[f, k] * R[a, k, m]
+                if r != 0.0:
+                    acc = acc + r * R[j, 2, m]
+                d[m] = acc
+            for m in range(3):
+                P[j, m] = P[a, m] + d[m]
+        for t in range(tires.size):
+            out[i, t] = P[tires[t], 2]
+            out[i, tires.size + t] = R[tires[t], 2, 2]
 
 
 
@@ -603,3 +663,14 @@ def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, h
     ww = filtered[:, 17:41].reshape(N, 4, len(WFT_COMPONENTS))
     spin = filtered[:, 41:45] if has_spin else None
     return CarTrajectory(np.arange(N) / x.fs, q, qd, qdd, ww, spin, steering).trimmed(x.border)
+
+
+# the compiled passes (numba's cache: compiled once per machine, loaded in ms afterwards)
+try:
+    from numba import njit
+
+    _central_compiled = njit(cache=True, nogil=True)(_central)
+    _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
+    _pose_kernel = njit(cache=True, nogil=True)(_poses)
+except ImportError:  # pragma: no cover - exercised only without numba
+    _corner_kernel = _pose_kernel = None
