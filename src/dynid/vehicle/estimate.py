@@ -496,9 +496,30 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
         phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
     psi = integrate(dpsi, fs)
     sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
-    rf, rdf = filtered_derivatives(np.stack([dpsi, dtheta, dphi], axis=1), fs, c.cutoff, order=c.order, nderiv=1)
-    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * _lowpass(np.stack([psi, theta, phi], axis=1), x), sign * rf, sign * rdf
-    return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+    # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
+    low = _lowpass(np.stack([dpsi, dtheta, dphi, psi, theta, phi], axis=1), x)
+    rf, rdf = low[:, :3], derivative(low[:, :3], fs)
+    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * low[:, 3:], sign * rf, sign * rdf
+    if _rotation_kernel is None:
+        return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+    R = np.empty((len(q), 3, 3))
+    _rotation_kernel(q.T, _ROWS[:, 0], _COLS[0], _SIGNS, R)
+    return R, w6
+
+
+def _rotation(qT, rows, cols, signs, R):  # pragma: no cover - compiled
+    """`chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])` into R (N, 3, 3) from qT (42, N): `_zyx`'s products in its
+    order, gathered and signed as `chassis_rotation` does."""
+    Z = np.empty((3, 3))
+    for i in range(qT.shape[1]):
+        yaw, pitch, roll = qT[3, i], -qT[4, i], qT[5, i]
+        cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+        Z[0, 0], Z[0, 1], Z[0, 2] = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
+        Z[1, 0], Z[1, 1], Z[1, 2] = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
+        Z[2, 0], Z[2, 1], Z[2, 2] = -sy, cy * sx, cy * cx
+        for a in range(3):
+            for b in range(3):
+                R[i, a, b] = Z[rows[a], cols[b]] * signs[a, b]
 
 
 def _tire_poses(x: _Context, q: Array) -> Array:
@@ -672,5 +693,6 @@ try:
     _central_compiled = njit(cache=True, nogil=True)(_central)
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
     _pose_kernel = njit(cache=True, nogil=True)(_poses)
+    _rotation_kernel = njit(cache=True, nogil=True)(_rotation)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = _pose_kernel = None
+    _corner_kernel = _pose_kernel = _rotation_kernel = None
