@@ -332,10 +332,10 @@ class JointsPass:
             z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
         if attitude or channel in _ACCELERATION:
             qdd[:, :3] = _acceleration(ch, x, R6, w6)
-        if heights or channel in _VELOCITY:
+        if heights:  # the velocity (it reads the height's rate) and the deflections
+            _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
+        elif channel in _VELOCITY:
             _velocity(ch, x, q, qd, R6, w6)
-        if heights:
-            _deflections(x, q, qd, qdd, pz_zz, z_laser)
         return _trajectory(x, q, qd, qdd, filtered, self.has_spin, self.steering[0])
 
 
@@ -398,8 +398,7 @@ def joints_pass(
     pz_zz = _tire_poses(x, q)
     z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
     qdd[:, :3] = _acceleration(ch, x, R6, w6)
-    _velocity(ch, x, q, qd, R6, w6)
-    _deflections(x, q, qd, qdd, pz_zz, z_laser)
+    _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))  # and the deflections
     if 2 * b >= N:
         raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
                          f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
@@ -646,17 +645,21 @@ def _acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) ->
     1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
     equations."""
     A = np.asarray(x.geometry.imu_axes, dtype=float)
-    w6f = _lowpass(w6, x)
-    dw6 = derivative(w6f, x.fs, axis=0)
     r_imu = np.asarray(x.geometry.imu_position, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    a_imu0 = _lowpass(np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity), x)
+    # the rates and the unit's acceleration through one low-pass of 6 columns
+    low = _lowpass(np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1),
+                   x)
+    w6f, a_imu0 = low[:, :3], low[:, 3:]
+    dw6 = derivative(w6f, x.fs, axis=0)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
 
 
-def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array) -> None:
+def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array,
+              deflections: tuple[Array, Array, Array] | None = None) -> None:
     """Position and velocity of O6 along x0, y0 into q, qd (columns 0:2): the Correvit (or a GNSS/INS) gives the
-    horizontal components (chassis x, y), the height's rate (qd column 2) the vertical."""
+    horizontal components (chassis x, y), the height's rate (qd column 2) the vertical. deflections: (qdd, pz_zz,
+    z_laser), `_deflections`' arguments: done too, its columns through the same call of the low-pass."""
     g = x.geometry
     N = q.shape[0]
     tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in x.suite.names else ("gnss", gnss_point(g))
@@ -666,15 +669,26 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
     v0 = v_known + s[:, None] * (R6 @ ez6)
-    v = _lowpass(v0[:, :2], x)
+    if deflections is None:
+        v = _lowpass(v0[:, :2], x)
+    else:  # the velocity's 2 columns and the 4 deflections through one low-pass
+        qdd, pz_zz, z_laser = deflections
+        low = _lowpass(np.concatenate([v0[:, :2], _deflection(pz_zz, z_laser)], axis=1), x)
+        v = low[:, :2]
+        _deflected(x, q, qd, qdd, low[:, 2:])
     q[:, :2], qd[:, :2] = integrate(v, x.fs), v
 
 
-def _deflections(x: _Context, q: Array, qd: Array, qdd: Array, pz_zz: Array, z_laser: Array) -> None:
-    """The tire deflections into q, qd, qdd: each tire frame's origin on the ground under its corner's height."""
-    deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+def _deflection(pz_zz: Array, z_laser: Array) -> Array:
+    """The four tires' deflections (N, 4), before the low-pass."""
+    return -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+
+
+def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
+    """The low-passed deflections and their central differences (`_smooth`'s) into the tire columns."""
     cols = [f - 1 for f in TIRES]
-    q[:, cols], qd[:, cols], qdd[:, cols] = _smooth(deflection, x)
+    d = derivative(low, x.fs)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
