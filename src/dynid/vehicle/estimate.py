@@ -549,17 +549,24 @@ def _tire_poses(x: _Context, q: Array) -> Array:
 
 def _tire_plan(tree) -> tuple[Array, ...]:
     """The frames on the paths to the tire frames, in tree order, as `_poses`' arrays: frame, antecedent, sigma,
-    theta, r, the constant rotation E (k, c) and offset u of `kinematics.forward.frame_plan`, the tire frames."""
+    theta, r, the constant rotation E (k, c) and offset u of `kinematics.forward.frame_plan`, E's signed
+    permutation (column c of R_a E is sign[c] R_a[:, perm[c]]; perm -1: E is none), the tire frames."""
     todo = needed_frames(tree, TIRES)
     plan = frame_plan(tree)
     frames = [f for f in tree.frames if todo[f.j]]
+    perm = np.full((len(frames), 3), -1, dtype=np.int64)
+    sign = np.ones((len(frames), 3))
+    for i, f in enumerate(frames):
+        if plan[f.j][1] is not None:
+            perm[i] = [k for k, _ in plan[f.j][1]]
+            sign[i] = [v for _, v in plan[f.j][1]]
     return (np.array([f.j for f in frames], dtype=np.int64), np.array([f.ant for f in frames], dtype=np.int64),
             np.array([f.sigma for f in frames], dtype=np.int64), np.array([f.theta for f in frames]),
             np.array([f.r for f in frames]), np.array([plan[f.j][0] for f in frames]),
-            np.array([plan[f.j][2] for f in frames]), np.array(TIRES, dtype=np.int64))
+            np.array([plan[f.j][2] for f in frames]), perm, sign, np.array(TIRES, dtype=np.int64))
 
 
-def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, tires, out):  # pragma: no cover - compiled
+def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, perm, sign, tires, out):  # pragma: no cover - compiled
     """`_tire_poses`' forward kinematics (`kinematics.forward.forward_kinematics`' formulas and order of
     operations, the frames of `_tire_plan` only) at the samples `sub` of qT (42, N), x, y, z and the tire joints
     taken as 0: out (len(sub), 8) the tire frames' heights then their z axes' z components."""
@@ -567,24 +574,29 @@ def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, tires, out):  # pragma: 
     R = np.zeros((n + 1, 3, 3))  # R[j, c]: column c of 0R_j
     P = np.zeros((n + 1, 3))
     D = np.empty((3, 3))
-    d = np.empty(3)
+    free = np.ones(n + 1, dtype=np.bool_)  # the joints read from q (not x, y, z, nor the tires)
+    free[1:4] = False
+    for t in range(tires.size):
+        free[tires[t]] = False
     for c in range(3):
         R[0, c, c] = 1.0
     for i in range(sub.size):
         s = sub[i]
         for f in range(js.size):
             j, a = js[f], ants[f]
-            for c in range(3):  # the columns of R_a E: `combine` (zeros skipped, terms in order)
-                for m in range(3):
-                    acc = 0.0
-                    for k in range(3):
-                        if E[f, k, c] != 0.0:
-                            acc += E[f, k, c] * R[a, k, m]
-                    D[c, m] = acc
-            qj = 0.0 if j <= 3 else qT[j - 1, s]
-            for t in range(tires.size):
-                if j == tires[t]:
-                    qj = 0.0
+            for c in range(3):  # the columns of R_a E: a signed permutation's, or `combine`'s (zeros skipped)
+                k = perm[f, c]
+                if k >= 0:
+                    g = sign[f, c]
+                    D[c, 0], D[c, 1], D[c, 2] = g * R[a, k, 0], g * R[a, k, 1], g * R[a, k, 2]
+                else:
+                    for m in range(3):
+                        acc = 0.0
+                        for k in range(3):
+                            if E[f, k, c] != 0.0:
+                                acc += E[f, k, c] * R[a, k, m]
+                        D[c, m] = acc
+            qj = qT[j - 1, s] if free[j] else 0.0
             if sigmas[f] == 0:
                 th = thetas[f] + qj
                 cs, sn = np.cos(th), np.sin(th)
@@ -594,23 +606,23 @@ def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, tires, out):  # pragma: 
                     R[j, 2, m] = D[2, m]
             else:
                 for c in range(3):
-                    for m in range(3):
-                        R[j, c, m] = D[c, m]
+                    R[j, c, 0], R[j, c, 1], R[j, c, 2] = D[c, 0], D[c, 1], D[c, 2]
             r = rs[f] + qj if sigmas[f] == 1 else rs[f]
+            u0, u1, u2 = u[f, 0], u[f, 1], u[f, 2]
             for m in range(3):
                 acc = 0.0
-                for k in range(3):
-                    if u[f, k] != 0.0:
-                        acc += u[f, k] * R[a, k, m]
+                if u0 != 0.0:
+                    acc += u0 * R[a, 0, m]
+                if u1 != 0.0:
+                    acc += u1 * R[a, 1, m]
+                if u2 != 0.0:
+                    acc += u2 * R[a, 2, m]
                 if r != 0.0:
                     acc = acc + r * R[j, 2, m]
-                d[m] = acc
-            for m in range(3):
-                P[j, m] = P[a, m] + d[m]
+                P[j, m] = P[a, m] + acc
         for t in range(tires.size):
             out[i, t] = P[tires[t], 2]
             out[i, tires.size + t] = R[tires[t], 2, 2]
-
 
 
 def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
