@@ -7,7 +7,7 @@ then runs the car identification in this process on ONE thread (every segment in
 its own, not shared with a second core) with timers around the pipeline's functions:
 
 - plan: each test's pass over the time stamps (`sources.plan_car_test`);
-- read: decoding a segment's channels (`SegmentWindow.read`);
+- read: decoding a segment's channels (`sources.read_segment`);
 - compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensated_channels`);
 - joints: `joints_pass` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
 - regressor: the generated 14-equation identification model (`GeneratedRegressor`);
@@ -169,7 +169,7 @@ def main() -> None:
         GeneratedRegressor.__call__ = regressor_call
         timed(GeneratedRegressor, "__call__", "regressor")
         timed(run, "plan_car_test", "plan")
-        timed(sources.SegmentWindow, "read", "read")
+        timed(sources, "read_segment", "read")
         timed(estimate, "compensated_channels", "compensation")
         timed(estimate, "joints_pass", "joints")
         timed(car, "car_identification", "equations")

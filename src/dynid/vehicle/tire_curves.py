@@ -617,10 +617,12 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
     # residual weighted by the speed over 20 m/s: the slip's noise goes as 1/v
     weight = both.vx / 20.0
 
+    load_free, load_nominal = fz / fzf - 1, fz / fz0 - 1  # the same every call: once
+
     def fun(v: Array) -> Array:
         p = {**fixed, **dict(zip(names, v, strict=True))}
-        k0 = p["kappa0"] + p["kappa0_fz"] * (fz / fzf - 1)
-        return (k0 - fx / (p["kx0"] * fz * (1 + p["pKx2"] * (fz / fz0 - 1))) - k) * weight
+        k0 = p["kappa0"] + p["kappa0_fz"] * load_free
+        return (k0 - fx / (p["kx0"] * fz * (1 + p["pKx2"] * load_nominal)) - k) * weight
 
     kx = float(-np.sum(fx * k * fz) / max(np.sum((k * fz) ** 2), 1e-12))
     fit = _least_squares(fun, [[kx, 0.0] + ([0.0] if load else []) + ([0.0] if radius_load else [])],
