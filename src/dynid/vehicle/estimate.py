@@ -487,11 +487,16 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
     phi, theta = _lowpass(incl, x).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
-        dphi = p + (qb * sp + r * cp) * np.tan(theta)
-        dtheta = qb * cp - r * sp
-        dpsi = (qb * sp + r * cp) / ct
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        if _euler_kernel is None:
+            sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
+            dphi = p + (qb * sp + r * cp) * np.tan(theta)
+            dtheta = qb * cp - r * sp
+            dpsi = (qb * sp + r * cp) / ct
+            integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        else:  # the same formulas and integrals in one compiled pass
+            rates, integ = np.empty((3, len(p))), np.empty((len(p), 2))
+            _euler_kernel(np.ascontiguousarray(phi), np.ascontiguousarray(theta), p, qb, r, float(fs), rates, integ)
+            dphi, dtheta, dpsi = rates
         phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
     psi = integrate(dpsi, fs)
     sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
@@ -504,6 +509,23 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     R = np.empty((len(q), 3, 3))
     _rotation_kernel(q.T, _ROWS[:, 0], _COLS[0], _SIGNS, R)
     return R, w6
+
+
+def _euler(phi, theta, p, qb, r, fs, rates, integ):  # pragma: no cover - compiled
+    """`_attitude`'s Euler rates (ISO ZYX) into rates (3, N) (roll, pitch, yaw) and the roll and pitch rates'
+    trapezoidal integrals into integ (N, 2): `_attitude`'s NumPy formulas and `signals.integrate`'s, in their
+    order of operations."""
+    half = 0.5 / fs  # as signals.integrate
+    a0 = a1 = 0.0
+    for i in range(phi.shape[0]):
+        sp, cp, ct = np.sin(phi[i]), np.cos(phi[i]), np.cos(theta[i])
+        rates[0, i] = p[i] + (qb[i] * sp + r[i] * cp) * np.tan(theta[i])
+        rates[1, i] = qb[i] * cp - r[i] * sp
+        rates[2, i] = (qb[i] * sp + r[i] * cp) / ct
+        if i:
+            a0 += (rates[0, i] + rates[0, i - 1]) * half
+            a1 += (rates[1, i] + rates[1, i - 1]) * half
+        integ[i, 0], integ[i, 1] = a0, a1
 
 
 def _rotation(qT, rows, cols, signs, R):  # pragma: no cover - compiled
@@ -720,5 +742,6 @@ try:
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
     _pose_kernel = njit(cache=True, nogil=True)(_poses)
     _rotation_kernel = njit(cache=True, nogil=True)(_rotation)
+    _euler_kernel = njit(cache=True, nogil=True)(_euler)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = _pose_kernel = _rotation_kernel = None
+    _corner_kernel = _pose_kernel = _rotation_kernel = _euler_kernel = None
