@@ -506,9 +506,11 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * low[:, 3:], sign * rf, sign * rdf
     if _rotation_kernel is None:
         return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
-    R = np.empty((len(q), 3, 3))
+    # entries first in memory, as `chassis_rotation`'s gather leaves them: its users' einsum and matmul sum in an
+    # order that depends on the layout, and the rows stay main's to the bit
+    R = np.empty((3, 3, len(q)))
     _rotation_kernel(q.T, _ROWS[:, 0], _COLS[0], _SIGNS, R)
-    return R, w6
+    return R.transpose(2, 0, 1), w6
 
 
 def _euler(phi, theta, p, qb, r, fs, rates, integ):  # pragma: no cover - compiled
@@ -529,7 +531,7 @@ def _euler(phi, theta, p, qb, r, fs, rates, integ):  # pragma: no cover - compil
 
 
 def _rotation(qT, rows, cols, signs, R):  # pragma: no cover - compiled
-    """`chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])` into R (N, 3, 3) from qT (42, N): `_zyx`'s products in its
+    """`chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])` into R (3, 3, N) from qT (42, N): `_zyx`'s products in its
     order, gathered and signed as `chassis_rotation` does."""
     Z = np.empty((3, 3))
     for i in range(qT.shape[1]):
@@ -540,7 +542,7 @@ def _rotation(qT, rows, cols, signs, R):  # pragma: no cover - compiled
         Z[2, 0], Z[2, 1], Z[2, 2] = -sy, cy * sx, cy * cx
         for a in range(3):
             for b in range(3):
-                R[i, a, b] = Z[rows[a], cols[b]] * signs[a, b]
+                R[a, b, i] = Z[rows[a], cols[b]] * signs[a, b]
 
 
 def _tire_poses(x: _Context, q: Array) -> Array:
