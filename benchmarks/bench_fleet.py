@@ -46,7 +46,12 @@ from dynid.pipeline.reduce import car_setup
 def peak_gb():  # this process's own high-water mark (ru_maxrss starts at the parent's at fork)
     line = next(ln for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
     return int(line.split()[1]) / 1e6
-cfg = load_config(sys.argv[1])
+try:
+    cfg = load_config(sys.argv[1])
+except Exception as exc:  # a version that predates CONFIG's keys reads the plain config (--vs)
+    if "unknown key" not in str(exc):
+        raise
+    cfg = load_config(sys.argv[1].replace("identify.toml", "plain.toml"))
 address = None if sys.argv[2] == "threads" else "local"
 scheduler = scheduler_for(address, int(sys.argv[3]))
 car_setup(cfg).regressor  # imports, the vehicle and the engine's cache loaded before the clock starts
@@ -84,9 +89,10 @@ def main() -> None:
     ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 3.0])
     ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="LocalCluster sizes to time (none: skip)")
     ap.add_argument("--format", default="parquet", choices=["parquet", "csv", "mf4"])
-    ap.add_argument("--vs", metavar="SRC", help="another tree's src folder (e.g. /work/wt-base/src): its 2-thread "
-                    "identification of each length timed in the same run, alternating with this tree's, with the "
-                    "config its version reads (no data_health, no [uncertainty]: the keys it predates)")
+    ap.add_argument("--vs", metavar="SRC", nargs="*", default=[], help="other trees' src folders (e.g. "
+                    "/work/wt-base/src): their 2-thread identification of each length timed in the same run, "
+                    "alternating with this tree's; a version that predates CONFIG's keys (data_health, [uncertainty]) "
+                    "reads the config without them (it has neither the data health check nor the offsets)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each tree per length (the median is reported)")
     args = ap.parse_args()
     res: dict = {"format": args.format, "cpus": os.cpu_count(), "machine": os.uname().machine, "runs": []}
@@ -105,10 +111,11 @@ def main() -> None:
         print(f"\n{'file':>6} {'where':>22} {'wall s':>8} {'h per 8 s':>10} {'peak GB':>8}")
         threads = {}
         for hours, cfg in configs.items():
-            runs, vs = [], []
+            runs: list[dict] = []
+            vs: dict[str, list[dict]] = {src: [] for src in args.vs}
             for _ in range(args.repeat):  # alternated: the machine's load shared alike
-                if args.vs:
-                    vs.append(child(cfg.with_name("plain.toml"), "threads", 2, args.vs))
+                for src in args.vs:
+                    vs[src].append(child(cfg, "threads", 2, src))
                 runs.append(child(cfg, "threads", 2))
             r = sorted(runs, key=lambda x: x["wall_s"])[len(runs) // 2]
             threads[hours] = r
@@ -116,12 +123,12 @@ def main() -> None:
                                 "walls_s": [x["wall_s"] for x in runs]})
             print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
                   f"{r['peak_gb']:8.2f}   runs {_walls(runs)}", flush=True)
-            if vs:
-                b = sorted(vs, key=lambda x: x["wall_s"])[len(vs) // 2]
-                res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": args.vs, **b,
-                                    "walls_s": [x["wall_s"] for x in vs]})
-                print(f"{hours:>5g}h {'2 threads, --vs tree':>22} {b['wall_s']:8.2f} {8 * hours / b['wall_s']:10.2f} "
-                      f"{b['peak_gb']:8.2f}   runs {_walls(vs)}; this tree's "
+            for src, other in vs.items():
+                b = sorted(other, key=lambda x: x["wall_s"])[len(other) // 2]
+                res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": src, **b,
+                                    "walls_s": [x["wall_s"] for x in other]})
+                print(f"{hours:>5g}h {'2 threads, ' + Path(src).parent.name:>22} {b['wall_s']:8.2f} "
+                      f"{8 * hours / b['wall_s']:10.2f} {b['peak_gb']:8.2f}   runs {_walls(other)}; this tree's "
                       f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians)", flush=True)
         hours = min(configs)
         cluster = {}
