@@ -30,6 +30,15 @@ the bytes the stage must touch over the memory bandwidth (a large copy, measured
 decimation, and the arithmetic over one core's peak (benchmarks/roofline.py) for the regressor (its
 operations counted on the SYMORO-style model) and the QR (2 n p^2 per block of n rows, p columns).
 Writes benchmarks/results/profile_car.json.
+
+Measured (issue 28, --minutes 10 --cpu, CPU s per hour of data, one thread; main at d8e0370, then branch h-thru,
+in turn on a 2-core AMD EPYC shared with ~5 other sessions at a load average of 6: every figure inflated and
+noisy, the ratios are what hold): joints 4.59 -> 3.35 (the corners' differences, the tire poses' kinematics, the
+chassis rotation and the Euler rates in compiled passes; 12 low-pass calls per pass -> 8), compensation 0.78 ->
+0.70, decimation 0.65 -> 0.59, rows other 0.58 -> 0.56, QR 0.25 -> 0.22, read 1.20 -> 1.23, tire samples 0.55 ->
+0.61 (unchanged code: noise); total 9.15 -> 7.81. The rows, results.json and every parameter are main's to the bit
+(the tire curves' σ to 4e-16: their instants' labels are integers now, their groups summed in another order).
+Not in the table: the tire curves' fit after the segments (1 hour: 2.48 -> 1.94 s).
 """
 
 from __future__ import annotations
