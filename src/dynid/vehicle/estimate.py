@@ -316,7 +316,8 @@ class JointsPass:
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
         ch = {**self.ch, channel: self.ch[channel] + b}
-        q, qd, qdd = self.q.copy(), self.qd.copy(), self.qdd.copy()
+        # column-major as the whole pass's (one layout for the compiled stages: one compile each)
+        q, qd, qdd = (a.copy(order="F") for a in (self.q, self.qd, self.qdd))
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
         attitude = channel in _ATTITUDE
         heights = attitude or channel.startswith("laser_height_")
