@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
-from ..kinematics.forward import forward_kinematics, frame_plan, joint_array, needed_frames
+from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
@@ -432,42 +432,51 @@ def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tup
     return h[0], h[1], h[2]
 
 
-def _central(x, h2, out):  # pragma: no cover - compiled
-    """`signals.derivative` of x (N >= 3) into out, its formulas and their order of operations."""
+def _central(x, h2, out, j):  # pragma: no cover - compiled
+    """`signals.derivative` of x (N >= 3) into row j of out, its formulas and their order of operations."""
     n = x.shape[0]
-    out[0] = (-3.0 * x[0] + 4.0 * x[1] - x[2]) / h2
+    out[j, 0] = (-3.0 * x[0] + 4.0 * x[1] - x[2]) / h2
     for i in range(1, n - 1):
-        out[i] = (x[i + 1] - x[i - 1]) / h2
-    out[n - 1] = (3.0 * x[n - 1] - 4.0 * x[n - 2] + x[n - 3]) / h2
+        out[j, i] = (x[i + 1] - x[i - 1]) / h2
+    out[j, n - 1] = (3.0 * x[n - 1] - 4.0 * x[n - 2] + x[n - 3]) / h2
 
 
 def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compiled
-    """`_corners`' pass: x (N, C >= 17) C order, q, qd, qdd (42, N) (the column-major arrays' transposes)."""
+    """`_corners`' pass: x (N, C >= 17) C order, q, qd, qdd (42, N) (the column-major arrays' transposes), h (3, N).
+    Explicit loops (no slice assignment): numba compiles them in a fraction of the time."""
     n = x.shape[0]
     h2 = 2.0 * (1.0 / fs)  # as signals.derivative
     half = 0.5 / fs  # as signals.integrate
     y = np.empty(n)
+    d = np.empty(n)
     for c in range(17):
         for i in range(n):
             y[i] = x[i, c]
         if c < 12:  # the joint itself, its rate and acceleration
             j = cols[c]
-            q[j, :] = y
-            _central_compiled(y, h2, qd[j])
-            _central_compiled(qd[j], h2, qdd[j])
+            for i in range(n):
+                q[j, i] = y[i]
+            _central_compiled(y, h2, qd, j)
+            for i in range(n):
+                d[i] = qd[j, i]
+            _central_compiled(d, h2, qdd, j)
         elif c < 16:  # a wheel's speed: its spin angle integrated, the speed, its derivative
             j = cols[c]
-            qd[j, :] = y
-            _central_compiled(y, h2, qdd[j])
             acc = 0.0
             q[j, 0] = 0.0
+            qd[j, 0] = y[0]
             for i in range(1, n):
                 acc += (y[i] + y[i - 1]) * half
                 q[j, i] = acc
+                qd[j, i] = y[i]
+            _central_compiled(y, h2, qdd, j)
         else:
-            h[0, :] = y
-            _central_compiled(y, h2, h[1])
-            _central_compiled(h[1], h2, h[2])
+            for i in range(n):
+                h[0, i] = y[i]
+            _central_compiled(y, h2, h, 1)
+            for i in range(n):
+                d[i] = h[1, i]
+            _central_compiled(d, h2, h, 2)
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
@@ -488,16 +497,11 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
     phi, theta = _lowpass(incl, x).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        if _euler_kernel is None:
-            sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
-            dphi = p + (qb * sp + r * cp) * np.tan(theta)
-            dtheta = qb * cp - r * sp
-            dpsi = (qb * sp + r * cp) / ct
-            integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
-        else:  # the same formulas and integrals in one compiled pass
-            rates, integ = np.empty((3, len(p))), np.empty((len(p), 2))
-            _euler_kernel(np.ascontiguousarray(phi), np.ascontiguousarray(theta), p, qb, r, float(fs), rates, integ)
-            dphi, dtheta, dpsi = rates
+        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
+        dphi = p + (qb * sp + r * cp) * np.tan(theta)
+        dtheta = qb * cp - r * sp
+        dpsi = (qb * sp + r * cp) / ct
+        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
         phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
     psi = integrate(dpsi, fs)
     sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
@@ -505,45 +509,23 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     low = _lowpass(np.stack([dpsi, dtheta, dphi, psi, theta, phi], axis=1), x)
     rf, rdf = low[:, :3], derivative(low[:, :3], fs)
     q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * low[:, 3:], sign * rf, sign * rdf
-    if _rotation_kernel is None:
-        return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
-    # entries first in memory, as `chassis_rotation`'s gather leaves them: its users' einsum and matmul sum in an
-    # order that depends on the layout, and the rows stay main's to the bit
-    R = np.empty((3, 3, len(q)))
-    _rotation_kernel(q.T, _ROWS[:, 0], _COLS[0], _SIGNS, R)
-    return R.transpose(2, 0, 1), w6
+    return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
 
 
-def _euler(phi, theta, p, qb, r, fs, rates, integ):  # pragma: no cover - compiled
-    """`_attitude`'s Euler rates (ISO ZYX) into rates (3, N) (roll, pitch, yaw) and the roll and pitch rates'
-    trapezoidal integrals into integ (N, 2): `_attitude`'s NumPy formulas and `signals.integrate`'s, in their
-    order of operations."""
-    half = 0.5 / fs  # as signals.integrate
-    a0 = a1 = 0.0
-    for i in range(phi.shape[0]):
-        sp, cp, ct = np.sin(phi[i]), np.cos(phi[i]), np.cos(theta[i])
-        rates[0, i] = p[i] + (qb[i] * sp + r[i] * cp) * np.tan(theta[i])
-        rates[1, i] = qb[i] * cp - r[i] * sp
-        rates[2, i] = (qb[i] * sp + r[i] * cp) / ct
-        if i:
-            a0 += (rates[0, i] + rates[0, i - 1]) * half
-            a1 += (rates[1, i] + rates[1, i - 1]) * half
-        integ[i, 0], integ[i, 1] = a0, a1
-
-
-def _rotation(qT, rows, cols, signs, R):  # pragma: no cover - compiled
-    """`chassis_rotation(q[:, 3], -q[:, 4], q[:, 5])` into R (3, 3, N) from qT (42, N): `_zyx`'s products in its
-    order, gathered and signed as `chassis_rotation` does."""
-    Z = np.empty((3, 3))
-    for i in range(qT.shape[1]):
-        yaw, pitch, roll = qT[3, i], -qT[4, i], qT[5, i]
-        cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
-        Z[0, 0], Z[0, 1], Z[0, 2] = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
-        Z[1, 0], Z[1, 1], Z[1, 2] = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
-        Z[2, 0], Z[2, 1], Z[2, 2] = -sy, cy * sx, cy * cx
-        for a in range(3):
-            for b in range(3):
-                R[a, b, i] = Z[rows[a], cols[b]] * signs[a, b]
+def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
+    """`chassis_rotation` (N, 3, 3) of (N,) angles, each entry written once where the gather would put it (`_zyx`'s
+    products in its order, signed): no (N, 3, 3) stack gathered. Entries first in memory, as the gather leaves
+    them: its users' einsum and matmul sum in an order that depends on the layout (the rows stay main's to the
+    bit)."""
+    cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    Z = ((lambda: cz * cy, lambda: cz * sy * sx - sz * cx, lambda: cz * sy * cx + sz * sx),
+         (lambda: sz * cy, lambda: sz * sy * sx + cz * cx, lambda: sz * sy * cx - cz * sx),
+         (lambda: -sy, lambda: cy * sx, lambda: cy * cx))
+    R = np.empty((3, 3, len(cz)))
+    for a in range(3):
+        for b in range(3):
+            np.multiply(Z[_ROWS[a, 0]][_COLS[0, b]](), _SIGNS[a, b], out=R[a, b])
+    return R.transpose(2, 0, 1)
 
 
 def _tire_poses(x: _Context, q: Array) -> Array:
@@ -560,94 +542,12 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     sub = np.arange(0, N, k_sub)
     if sub[-1] != N - 1:
         sub = np.append(sub, N - 1)
-    if _pose_kernel is None:  # without numba: the kinematics' batched NumPy model
-        q0 = q[sub].copy()
-        q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
-        st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
-        poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
-    else:
-        poses = np.empty((sub.size, 8))
-        _pose_kernel(q.T, sub, *_tire_plan(x.model.tree), poses)
+    q0 = q[sub]  # a copy (fancy index)
+    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
+    poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
-
-
-def _tire_plan(tree) -> tuple[Array, ...]:
-    """The frames on the paths to the tire frames, in tree order, as `_poses`' arrays: frame, antecedent, sigma,
-    theta, r, the constant rotation E (k, c) and offset u of `kinematics.forward.frame_plan`, E's signed
-    permutation (column c of R_a E is sign[c] R_a[:, perm[c]]; perm -1: E is none), the tire frames."""
-    todo = needed_frames(tree, TIRES)
-    plan = frame_plan(tree)
-    frames = [f for f in tree.frames if todo[f.j]]
-    perm = np.full((len(frames), 3), -1, dtype=np.int64)
-    sign = np.ones((len(frames), 3))
-    for i, f in enumerate(frames):
-        if plan[f.j][1] is not None:
-            perm[i] = [k for k, _ in plan[f.j][1]]
-            sign[i] = [v for _, v in plan[f.j][1]]
-    return (np.array([f.j for f in frames], dtype=np.int64), np.array([f.ant for f in frames], dtype=np.int64),
-            np.array([f.sigma for f in frames], dtype=np.int64), np.array([f.theta for f in frames]),
-            np.array([f.r for f in frames]), np.array([plan[f.j][0] for f in frames]),
-            np.array([plan[f.j][2] for f in frames]), perm, sign, np.array(TIRES, dtype=np.int64))
-
-
-def _poses(qT, sub, js, ants, sigmas, thetas, rs, E, u, perm, sign, tires, out):  # pragma: no cover - compiled
-    """`_tire_poses`' forward kinematics (`kinematics.forward.forward_kinematics`' formulas and order of
-    operations, the frames of `_tire_plan` only) at the samples `sub` of qT (42, N), x, y, z and the tire joints
-    taken as 0: out (len(sub), 8) the tire frames' heights then their z axes' z components."""
-    n = qT.shape[0]
-    R = np.zeros((n + 1, 3, 3))  # R[j, c]: column c of 0R_j
-    P = np.zeros((n + 1, 3))
-    D = np.empty((3, 3))
-    free = np.ones(n + 1, dtype=np.bool_)  # the joints read from q (not x, y, z, nor the tires)
-    free[1:4] = False
-    for t in range(tires.size):
-        free[tires[t]] = False
-    for c in range(3):
-        R[0, c, c] = 1.0
-    for i in range(sub.size):
-        s = sub[i]
-        for f in range(js.size):
-            j, a = js[f], ants[f]
-            for c in range(3):  # the columns of R_a E: a signed permutation's, or `combine`'s (zeros skipped)
-                k = perm[f, c]
-                if k >= 0:
-                    g = sign[f, c]
-                    D[c, 0], D[c, 1], D[c, 2] = g * R[a, k, 0], g * R[a, k, 1], g * R[a, k, 2]
-                else:
-                    for m in range(3):
-                        acc = 0.0
-                        for k in range(3):
-                            if E[f, k, c] != 0.0:
-                                acc += E[f, k, c] * R[a, k, m]
-                        D[c, m] = acc
-            qj = qT[j - 1, s] if free[j] else 0.0
-            if sigmas[f] == 0:
-                th = thetas[f] + qj
-                cs, sn = np.cos(th), np.sin(th)
-                for m in range(3):
-                    R[j, 0, m] = cs * D[0, m] + sn * D[1, m]
-                    R[j, 1, m] = cs * D[1, m] - sn * D[0, m]
-                    R[j, 2, m] = D[2, m]
-            else:
-                for c in range(3):
-                    R[j, c, 0], R[j, c, 1], R[j, c, 2] = D[c, 0], D[c, 1], D[c, 2]
-            r = rs[f] + qj if sigmas[f] == 1 else rs[f]
-            u0, u1, u2 = u[f, 0], u[f, 1], u[f, 2]
-            for m in range(3):
-                acc = 0.0
-                if u0 != 0.0:
-                    acc += u0 * R[a, 0, m]
-                if u1 != 0.0:
-                    acc += u1 * R[a, 1, m]
-                if u2 != 0.0:
-                    acc += u2 * R[a, 2, m]
-                if r != 0.0:
-                    acc = acc + r * R[j, 2, m]
-                P[j, m] = P[a, m] + acc
-        for t in range(tires.size):
-            out[i, t] = P[tires[t], 2]
-            out[i, tires.size + t] = R[tires[t], 2, 2]
 
 
 def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
@@ -737,14 +637,11 @@ def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, h
     return CarTrajectory(np.arange(N) / x.fs, q, qd, qdd, ww, spin, steering).trimmed(x.border)
 
 
-# the compiled passes (numba's cache: compiled once per machine, loaded in ms afterwards)
+# the compiled pass (numba's cache: compiled once per machine, loaded in ms afterwards)
 try:
     from numba import njit
 
     _central_compiled = njit(cache=True, nogil=True)(_central)
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
-    _pose_kernel = njit(cache=True, nogil=True)(_poses)
-    _rotation_kernel = njit(cache=True, nogil=True)(_rotation)
-    _euler_kernel = njit(cache=True, nogil=True)(_euler)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = _pose_kernel = _rotation_kernel = _euler_kernel = None
+    _corner_kernel = None
