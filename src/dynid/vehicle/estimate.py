@@ -432,51 +432,35 @@ def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tup
     return h[0], h[1], h[2]
 
 
-def _central(x, h2, out, j):  # pragma: no cover - compiled
-    """`signals.derivative` of x (N >= 3) into row j of out, its formulas and their order of operations."""
-    n = x.shape[0]
-    out[j, 0] = (-3.0 * x[0] + 4.0 * x[1] - x[2]) / h2
-    for i in range(1, n - 1):
-        out[j, i] = (x[i + 1] - x[i - 1]) / h2
-    out[j, n - 1] = (3.0 * x[n - 1] - 4.0 * x[n - 2] + x[n - 3]) / h2
-
-
 def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compiled
     """`_corners`' pass: x (N, C >= 17) C order, q, qd, qdd (42, N) (the column-major arrays' transposes), h (3, N).
-    Explicit loops (no slice assignment): numba compiles them in a fraction of the time."""
+    One function of explicit loops (no slice assignment, no second function): its compile is short."""
     n = x.shape[0]
     h2 = 2.0 * (1.0 / fs)  # as signals.derivative
     half = 0.5 / fs  # as signals.integrate
-    y = np.empty(n)
-    d = np.empty(n)
+    b = np.empty((3, n))  # a column, its first and second central differences
     for c in range(17):
         for i in range(n):
-            y[i] = x[i, c]
+            b[0, i] = x[i, c]
+        for k in range(2):  # signals.derivative of b[k] into b[k + 1]: its formulas, in their order
+            b[k + 1, 0] = (-3.0 * b[k, 0] + 4.0 * b[k, 1] - b[k, 2]) / h2
+            for i in range(1, n - 1):
+                b[k + 1, i] = (b[k, i + 1] - b[k, i - 1]) / h2
+            b[k + 1, n - 1] = (3.0 * b[k, n - 1] - 4.0 * b[k, n - 2] + b[k, n - 3]) / h2
         if c < 12:  # the joint itself, its rate and acceleration
             j = cols[c]
             for i in range(n):
-                q[j, i] = y[i]
-            _central_compiled(y, h2, qd, j)
-            for i in range(n):
-                d[i] = qd[j, i]
-            _central_compiled(d, h2, qdd, j)
-        elif c < 16:  # a wheel's speed: its spin angle integrated, the speed, its derivative
+                q[j, i], qd[j, i], qdd[j, i] = b[0, i], b[1, i], b[2, i]
+        elif c < 16:  # a wheel's speed: its spin angle integrated (signals.integrate), the speed, its derivative
             j = cols[c]
             acc = 0.0
-            q[j, 0] = 0.0
-            qd[j, 0] = y[0]
+            q[j, 0], qd[j, 0], qdd[j, 0] = 0.0, b[0, 0], b[1, 0]
             for i in range(1, n):
-                acc += (y[i] + y[i - 1]) * half
-                q[j, i] = acc
-                qd[j, i] = y[i]
-            _central_compiled(y, h2, qdd, j)
+                acc += (b[0, i] + b[0, i - 1]) * half
+                q[j, i], qd[j, i], qdd[j, i] = acc, b[0, i], b[1, i]
         else:
             for i in range(n):
-                h[0, i] = y[i]
-            _central_compiled(y, h2, h, 1)
-            for i in range(n):
-                d[i] = h[1, i]
-            _central_compiled(d, h2, h, 2)
+                h[0, i], h[1, i], h[2, i] = b[0, i], b[1, i], b[2, i]
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
@@ -641,7 +625,6 @@ def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, h
 try:
     from numba import njit
 
-    _central_compiled = njit(cache=True, nogil=True)(_central)
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
 except ImportError:  # pragma: no cover - exercised only without numba
     _corner_kernel = None
