@@ -23,9 +23,10 @@ Writes benchmarks/results/fleet.json.
 Measured (issue 28, `--hours 1 --workers --repeat 3 --vs <main>/src <fddb8ab>/src`, the trees alternated, medians;
 a 2-core AMD EPYC shared with ~5 other sessions, load average 2 to 5 during the run: every figure noisy): 1 h on
 2 threads, branch h-thru 13.02 s (runs 18.82, 13.02, 9.79), main d8e0370 14.76 s (17.40, 14.76, 11.88): 1.13 x
-its throughput; fddb8ab 11.19 s (13.95, 11.19, 7.81), with its plain config (no data health, no offsets, error
-draws or delays: it predates them): 0.86 x its throughput, far from the 3 x target. Peak 0.99 GB. Of the hour's
-~13 s, the tire curves' fit after the segments is ~2 s and one thread; the segments ~9 s at 1.6 cores.
+its throughput; fddb8ab 11.19 s (13.95, 11.19, 7.81), with its plain config (it predates the data health, the
+error draws, the delays and the tire curves): 0.86 x its throughput, far from the 3 x target. Peak 0.99 GB.
+Of the hour's ~13 s, the tire curves' fit after the segments is ~2 s on one thread, the segments ~9 s at 1.6
+cores.
 """
 
 from __future__ import annotations
