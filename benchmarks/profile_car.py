@@ -32,13 +32,16 @@ operations counted on the SYMORO-style model) and the QR (2 n p^2 per block of n
 Writes benchmarks/results/profile_car.json.
 
 Measured (issue 28, --minutes 10 --cpu, CPU s per hour of data, one thread; main at d8e0370, then branch h-thru,
-in turn on a 2-core AMD EPYC shared with ~5 other sessions at a load average of 6: every figure inflated and
-noisy, the ratios are what hold): joints 4.59 -> 3.35 (the corners' differences, the tire poses' kinematics, the
-chassis rotation and the Euler rates in compiled passes; 12 low-pass calls per pass -> 8), compensation 0.78 ->
-0.70, decimation 0.65 -> 0.59, rows other 0.58 -> 0.56, QR 0.25 -> 0.22, read 1.20 -> 1.23, tire samples 0.55 ->
-0.61 (unchanged code: noise); total 9.15 -> 7.81. The rows, results.json and every parameter are main's to the bit
-(the tire curves' σ to 4e-16: their instants' labels are integers now, their groups summed in another order).
-Not in the table: the tire curves' fit after the segments (1 hour: 2.48 -> 1.94 s).
+in turn, on a 2-core AMD EPYC shared with ~5 other sessions at load averages of 4 to 6: every figure inflated
+and noisy, stages whose code did not change moved by up to 20 %): joints 4.46 -> 4.05 (the final branch: the
+corners' differences and integrals in one compiled pass, the chassis rotation written in place, 12 low-pass
+calls per pass -> 8), total 8.93 -> 9.12 in that run (read 1.25 -> 1.49, tire samples 0.48 -> 0.58: unchanged
+code, the load). The same comparison by min of 15 passes of one 60 s segment (/tmp scripts, alternated
+processes): joints 4.90 and 5.01 -> 4.28 and 4.16, rows 1.25 -> 1.18, compensation unchanged. A run with three
+more kernels (tire poses, Euler rates, rotation) read joints 4.59 -> 3.35, but they cost 2-5 s of compile each
+on a first run for 1-2 ms per pass: left out (the cold start). Rows, results.json and every parameter are
+main's to the bit (the tire curves' σ to 4e-16: their instants' labels are integers now, their groups summed in
+another order). Not in the table: the tire curves' fit after the segments (1 hour's samples: 2.48 -> 1.94 s).
 """
 
 from __future__ import annotations
