@@ -17,7 +17,16 @@ compiled engine loaded from its cache before the clock starts):
 
 Targets (issue 15): peak <= 1 GB for 3 h and for 1 h; >= 1 h of data per 8 s of wall time
 on 2 cores, reading included; a LocalCluster of 2 workers within 1.3 x the threads' time.
+Issue 28: >= 3 x the throughput of fddb8ab (its worktree's src as --vs, in the same run).
 Writes benchmarks/results/fleet.json.
+
+Measured (issue 28, `--hours 1 --workers --repeat 3 --vs <main>/src <fddb8ab>/src`, the trees alternated, medians;
+a 2-core AMD EPYC shared with ~5 other sessions, load average 2 to 5 during the run: every figure noisy): 1 h on
+2 threads, branch h-thru 13.02 s (runs 18.82, 13.02, 9.79), main d8e0370 14.76 s (17.40, 14.76, 11.88): 1.13 x
+its throughput; fddb8ab 11.19 s (13.95, 11.19, 7.81), with its plain config (it predates the data health, the
+error draws, the delays and the tire curves): 0.86 x its throughput, far from the 3 x target. Peak 0.99 GB.
+Of the hour's ~13 s, the tire curves' fit after the segments is ~2 s on one thread, the segments ~9 s at 1.6
+cores.
 """
 
 from __future__ import annotations
@@ -46,7 +55,12 @@ from dynid.pipeline.reduce import car_setup
 def peak_gb():  # this process's own high-water mark (ru_maxrss starts at the parent's at fork)
     line = next(ln for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
     return int(line.split()[1]) / 1e6
-cfg = load_config(sys.argv[1])
+try:
+    cfg = load_config(sys.argv[1])
+except Exception as exc:  # a version that predates CONFIG's keys reads the plain config (--vs)
+    if "unknown key" not in str(exc):
+        raise
+    cfg = load_config(sys.argv[1].replace("identify.toml", "plain.toml"))
 address = None if sys.argv[2] == "threads" else "local"
 scheduler = scheduler_for(address, int(sys.argv[3]))
 car_setup(cfg).regressor  # imports, the vehicle and the engine's cache loaded before the clock starts
@@ -62,12 +76,21 @@ print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.ident
 """
 
 
-def child(config: Path, where: str, workers: int) -> dict:
+# the config of a tree that predates the keys of CONFIG's [identification] and [uncertainty] (`--vs`)
+PLAIN = CONFIG.split("[identification]")[0]
+
+
+def child(config: Path, where: str, workers: int, src: str | None = None) -> dict:
+    env = None if src is None else {**os.environ, "PYTHONPATH": src}
     proc = subprocess.run([sys.executable, "-c", CHILD, str(config), where, str(workers)], capture_output=True,
-                          text=True)
+                          text=True, env=env)
     if proc.returncode:
         sys.exit(f"the identification failed:\n{proc.stderr[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _walls(runs: list[dict]) -> str:
+    return ", ".join(f"{x['wall_s']:.2f}" for x in runs)
 
 
 def main() -> None:
@@ -75,6 +98,11 @@ def main() -> None:
     ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 3.0])
     ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="LocalCluster sizes to time (none: skip)")
     ap.add_argument("--format", default="parquet", choices=["parquet", "csv", "mf4"])
+    ap.add_argument("--vs", metavar="SRC", nargs="*", default=[], help="other trees' src folders (e.g. "
+                    "/work/wt-base/src): their 2-thread identification of each length timed in the same run, "
+                    "alternating with this tree's; a version that predates CONFIG's keys (data_health, [uncertainty]) "
+                    "reads the config without them (it has neither the data health check nor the offsets)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each tree per length (the median is reported)")
     args = ap.parse_args()
     res: dict = {"format": args.format, "cpus": os.cpu_count(), "machine": os.uname().machine, "runs": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,14 +116,29 @@ def main() -> None:
                   f"{time.perf_counter() - t:.0f} s (not timed)", flush=True)
             configs[hours] = folder / "identify.toml"
             configs[hours].write_text(CONFIG.format(file=data.name))
+            (folder / "plain.toml").write_text(PLAIN.format(file=data.name))
         print(f"\n{'file':>6} {'where':>22} {'wall s':>8} {'h per 8 s':>10} {'peak GB':>8}")
         threads = {}
         for hours, cfg in configs.items():
-            r = child(cfg, "threads", 2)
+            runs: list[dict] = []
+            vs: dict[str, list[dict]] = {src: [] for src in args.vs}
+            for _ in range(args.repeat):  # alternated: the machine's load shared alike
+                for src in args.vs:
+                    vs[src].append(child(cfg, "threads", 2, src))
+                runs.append(child(cfg, "threads", 2))
+            r = sorted(runs, key=lambda x: x["wall_s"])[len(runs) // 2]
             threads[hours] = r
-            res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r})
+            res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r,
+                                "walls_s": [x["wall_s"] for x in runs]})
             print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
-                  f"{r['peak_gb']:8.2f}", flush=True)
+                  f"{r['peak_gb']:8.2f}   runs {_walls(runs)}", flush=True)
+            for src, other in vs.items():
+                b = sorted(other, key=lambda x: x["wall_s"])[len(other) // 2]
+                res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": src, **b,
+                                    "walls_s": [x["wall_s"] for x in other]})
+                print(f"{hours:>5g}h {'2 threads, ' + Path(src).parent.name:>22} {b['wall_s']:8.2f} "
+                      f"{8 * hours / b['wall_s']:10.2f} {b['peak_gb']:8.2f}   runs {_walls(other)}; this tree's "
+                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians)", flush=True)
         hours = min(configs)
         cluster = {}
         for n in args.workers:
@@ -107,8 +150,9 @@ def main() -> None:
                   f"{r['wall_s'] / threads[hours]['wall_s']:.2f} x the threads; cold {r['cold_s']:.2f} s", flush=True)
             if abs(r["M6"] / threads[hours]["M6"] - 1) > 1e-9:
                 sys.exit(f"the cluster's M6 {r['M6']} differs from the threads' {threads[hours]['M6']}")
-    peak = max(r["peak_gb"] for r in res["runs"] if r["where"] == "threads")
-    rate = min(8 * r["hours"] / r["wall_s"] for r in res["runs"] if r["where"] == "threads")
+    own = [r for r in res["runs"] if r["where"] == "threads" and "tree" not in r]  # this tree's (not --vs)
+    peak = max(r["peak_gb"] for r in own)
+    rate = min(8 * r["hours"] / r["wall_s"] for r in own)
     print(f"\npeak resident memory, threads, any length   {peak:6.2f} GB   target <= 1 GB")
     print(f"throughput (slowest length)                  {rate:6.2f} h of data per 8 s   target >= 1")
     if 2 in cluster:

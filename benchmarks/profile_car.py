@@ -7,7 +7,7 @@ then runs the car identification in this process on ONE thread (every segment in
 its own, not shared with a second core) with timers around the pipeline's functions:
 
 - plan: each test's pass over the time stamps (`sources.plan_car_test`);
-- read: decoding a segment's channels (`SegmentWindow.read`);
+- read: decoding a segment's channels (`sources.read_segment`);
 - compensation: undoing the sensors' declared dynamics (`vehicle.estimate.compensated_channels`);
 - joints: `joints_pass` (attitude fusion, kinematic tables, zero-phase filters, derivatives);
 - regressor: the generated 14-equation identification model (`GeneratedRegressor`);
@@ -30,6 +30,18 @@ the bytes the stage must touch over the memory bandwidth (a large copy, measured
 decimation, and the arithmetic over one core's peak (benchmarks/roofline.py) for the regressor (its
 operations counted on the SYMORO-style model) and the QR (2 n p^2 per block of n rows, p columns).
 Writes benchmarks/results/profile_car.json.
+
+Measured (issue 28, --minutes 10 --cpu, CPU s per hour of data, one thread; main at d8e0370, then branch h-thru,
+in turn, on a 2-core AMD EPYC shared with ~5 other sessions at load averages of 4 to 6: every figure inflated
+and noisy, stages whose code did not change moved by up to 20 %): joints 4.46 -> 4.05 (the final branch: the
+corners' differences and integrals in one compiled pass, the chassis rotation written in place, 12 low-pass
+calls per pass -> 8), total 8.93 -> 9.12 in that run (read 1.25 -> 1.49, tire samples 0.48 -> 0.58: unchanged
+code, the load). The same comparison by min of 15 passes of one 60 s segment (/tmp scripts, alternated
+processes): joints 4.90 and 5.01 -> 4.28 and 4.16, rows 1.25 -> 1.18, compensation unchanged. A run with three
+more kernels (tire poses, Euler rates, rotation) read joints 4.59 -> 3.35, but they cost 2-5 s of compile each
+on a first run for 1-2 ms per pass: left out (the cold start). Rows, results.json and every parameter are
+main's to the bit (the tire curves' σ to 4e-16: their instants' labels are integers now, their groups summed in
+another order). Not in the table: the tire curves' fit after the segments (1 hour's samples: 2.48 -> 1.94 s).
 """
 
 from __future__ import annotations
@@ -169,7 +181,7 @@ def main() -> None:
         GeneratedRegressor.__call__ = regressor_call
         timed(GeneratedRegressor, "__call__", "regressor")
         timed(run, "plan_car_test", "plan")
-        timed(sources.SegmentWindow, "read", "read")
+        timed(sources, "read_segment", "read")
         timed(estimate, "compensated_channels", "compensation")
         timed(estimate, "joints_pass", "joints")
         timed(car, "car_identification", "equations")

@@ -397,3 +397,31 @@ def test_mujoco_outputs(mujoco_tires):
     assert not mujoco_tires["not_fitted"]
     assert {r["test"][:6] for r in mujoco_tires["reach"]} == {"sine s", "spiral", "straig"}
     assert mujoco_tires["fit_cpu_seconds"] < 2.0
+
+
+def test_the_runs_and_instants_group_as_their_string_keys():
+    """`_runs` and `_instants` (integer labels from the arrays) partition the samples as the string keys they
+    replaced: test/corner with a break where time jumps, and test/time to the microsecond."""
+    from dynid.vehicle.tire_curves import TireSamples, _instants, _runs
+
+    rng = np.random.default_rng(2)
+    n = 400
+    test = np.array(["sine", "spiral"], dtype=object)[rng.integers(0, 2, n)]
+    corner = rng.integers(0, 4, n)
+    t = np.round(rng.integers(0, 50, n) * 0.0496, 6)
+    order = np.lexsort((t, corner, test.astype(str)))
+    test, corner, t = test[order], corner[order], t[order]
+    z = np.zeros(n)
+    s = TireSamples(test, corner, t, z, z, z, z, z, z, z)
+
+    def same_partition(labels, keys):
+        pairs = set(zip(labels.tolist(), keys, strict=True))
+        return len(pairs) == len(set(labels.tolist())) == len(set(keys))
+
+    instants = [f"{a}/{x:.6f}" for a, x in zip(test, t, strict=True)]
+    assert same_partition(_instants(s), instants)
+    dt = np.diff(t)
+    step = np.median(np.abs(dt))
+    key = np.array([f"{a}/{c}" for a, c in zip(test, corner, strict=True)], dtype=object)
+    runs = np.cumsum(np.r_[True, (key[1:] != key[:-1]) | (np.abs(dt - step) > 0.5 * step)])
+    np.testing.assert_array_equal(_runs(s), runs)

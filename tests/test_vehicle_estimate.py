@@ -215,3 +215,44 @@ def test_the_declared_delay_is_the_mean_age_of_a_held_sample(rate, fs):
     t = np.arange(6250) / 625.0
     age = np.mean(t - sample_and_hold(t, rate, 625.0))
     assert abs(ChannelDynamics.table1(c).lag(fs) - age) < 1e-9 + 1e-12 * fs  # the rate's rounding, ~1e-13 s
+
+
+def test_the_chassis_rotation_written_in_place_is_the_gathered_one():
+    """`_rotation` (each entry written once, entries first) against `chassis_rotation` (the (N, 3, 3) product
+    gathered and signed): the same NumPy operations, so equal to the bit, and laid out alike (the einsum and matmul
+    that read it sum in a layout-dependent order)."""
+    from dynid.vehicle.estimate import _rotation, chassis_rotation
+
+    yaw, pitch, roll = np.random.default_rng(3).uniform(-3.0, 3.0, (3, 1000))
+    ref = chassis_rotation(yaw, pitch, roll)
+    got = _rotation(yaw, pitch, roll)
+    np.testing.assert_array_equal(got, ref)
+    assert got.strides == ref.strides
+
+
+def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
+    """`_corners` (one compiled pass) against its NumPy path (signals.derivative twice, signals.integrate, the
+    columns scattered into q, qd, qdd), the oracle it replaced. The interior differences have no product to fuse:
+    equal; a machine that fuses a multiply-add may move the end formulas' products (|4 x| at most, one rounding:
+    4 eps max|x| / (2 h) in qd, twice that over 2 h in qdd) and each integration step (eps |running value|)."""
+    import dynid.vehicle.estimate as est
+
+    rng = np.random.default_rng(5)
+    n = 2000
+    t = np.arange(n) / FS
+    filtered = np.sin(2 * np.pi * rng.uniform(0.2, 2.0, 45) * t[:, None] + rng.uniform(0, 6, 45)) * rng.uniform(
+        0.01, 30.0, 45)
+    got = [np.zeros((n, 42), order="F") for _ in range(3)]
+    ref = [np.zeros((n, 42), order="F") for _ in range(3)]
+    h = est._corners(filtered, FS, *got)
+    kernel, est._corner_kernel = est._corner_kernel, None
+    try:
+        h_ref = est._corners(filtered, FS, *ref)
+    finally:
+        est._corner_kernel = kernel
+    eps, scale = np.finfo(float).eps, np.abs(filtered).max()
+    # q: an integral's n steps, one rounding each of at most its running value
+    tol = [2 * n * eps * np.abs(ref[0]).max(), 16 * eps * scale * FS, 64 * eps * scale * FS**2]
+    for a, b, tl in zip([*got, *h], [*ref, *h_ref], tol * 2, strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=tl)
+    assert all(np.count_nonzero(a) for a in got)  # every joint the pass writes is written

@@ -316,7 +316,8 @@ class JointsPass:
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
         ch = {**self.ch, channel: self.ch[channel] + b}
-        q, qd, qdd = self.q.copy(), self.qd.copy(), self.qdd.copy()
+        # column-major as the whole pass's (one layout for the compiled stages: one compile each)
+        q, qd, qdd = (a.copy(order="F") for a in (self.q, self.qd, self.qdd))
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
         attitude = channel in _ATTITUDE
         heights = attitude or channel.startswith("laser_height_")
@@ -332,10 +333,10 @@ class JointsPass:
             z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
         if attitude or channel in _ACCELERATION:
             qdd[:, :3] = _acceleration(ch, x, R6, w6)
-        if heights or channel in _VELOCITY:
+        if heights:  # the velocity (it reads the height's rate) and the deflections
+            _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
+        elif channel in _VELOCITY:
             _velocity(ch, x, q, qd, R6, w6)
-        if heights:
-            _deflections(x, q, qd, qdd, pz_zz, z_laser)
         return _trajectory(x, q, qd, qdd, filtered, self.has_spin, self.steering[0])
 
 
@@ -391,29 +392,75 @@ def joints_pass(
         if n in ch:
             raw[:, i] = ch[n]
     filtered = _lowpass(raw, x)
-    xs = filtered[:, :17]
-    xd = derivative(xs, fs)
-    xdd = derivative(xd, fs)
-    steering, camber = ([tabulated(k)[n] for k in range(4)] for n in (0, 1))
-    for i, frames in enumerate((DAMPERS, steering, camber)):  # frame j in column j - 1
-        cols, sl = [j - 1 for j in frames], slice(4 * i, 4 * i + 4)
-        q[:, cols], qd[:, cols], qdd[:, cols] = xs[:, sl], xd[:, sl], xdd[:, sl]
-    spin = [w - 1 for w in WHEELS]
-    q[:, spin], qd[:, spin], qdd[:, spin] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
-    h = xs[:, 16], xd[:, 16], xdd[:, 16]
+    h = _corners(filtered, fs, q, qd, qdd)
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
                                copy=False)
 
     pz_zz = _tire_poses(x, q)
     z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
     qdd[:, :3] = _acceleration(ch, x, R6, w6)
-    _velocity(ch, x, q, qd, R6, w6)
-    _deflections(x, q, qd, qdd, pz_zz, z_laser)
+    _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))  # and the deflections
     if 2 * b >= N:
         raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
                          f"({c.cutoff} Hz, order {c.order}); record longer or raise the cut-off")
     traj = _trajectory(x, q, qd, qdd, filtered, has_spin, h[0])
     return JointsPass(traj, x, ch, q, qd, qdd, filtered, h, has_spin, R6, w6, pz_zz, z_laser)
+
+
+# the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
+# wheels' (speeds: integrated), then the steering wheel
+_CORNER_COLUMNS = np.array([j - 1 for frames in (DAMPERS, [tabulated(k)[0] for k in range(4)],
+                                                  [tabulated(k)[1] for k in range(4)], WHEELS) for j in frames])
+
+
+def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array, Array]:
+    """The corners' joints into q, qd, qdd (column-major, (N, 42)) from the low-passed columns 0:17 of filtered:
+    dampers, steering and camber angles and their central differences, the wheels' spin integrated from their
+    speeds (trapezoidal), the steering wheel's (h, h', h'') returned. `signals.derivative` and `integrate`, in one
+    compiled pass that writes each joint's column once (the NumPy passes' gathers and scatters cost more than
+    the differences)."""
+    if _corner_kernel is None:  # without numba: the same formulas through NumPy
+        xs = filtered[:, :17]
+        xd = derivative(xs, fs)
+        xdd = derivative(xd, fs)
+        cols = _CORNER_COLUMNS
+        q[:, cols[:12]], qd[:, cols[:12]], qdd[:, cols[:12]] = xs[:, :12], xd[:, :12], xdd[:, :12]
+        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
+        return xs[:, 16], xd[:, 16], xdd[:, 16]
+    h = np.empty((3, filtered.shape[0]))
+    _corner_kernel(np.ascontiguousarray(filtered), float(fs), _CORNER_COLUMNS, q.T, qd.T, qdd.T, h)
+    return h[0], h[1], h[2]
+
+
+def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compiled
+    """`_corners`' pass: x (N, C >= 17) C order, q, qd, qdd (42, N) (the column-major arrays' transposes), h (3, N).
+    One function of explicit loops (no slice assignment, no second function): its compile is short."""
+    n = x.shape[0]
+    h2 = 2.0 * (1.0 / fs)  # as signals.derivative
+    half = 0.5 / fs  # as signals.integrate
+    b = np.empty((3, n))  # a column, its first and second central differences
+    for c in range(17):
+        for i in range(n):
+            b[0, i] = x[i, c]
+        for k in range(2):  # signals.derivative of b[k] into b[k + 1]: its formulas, in their order
+            b[k + 1, 0] = (-3.0 * b[k, 0] + 4.0 * b[k, 1] - b[k, 2]) / h2
+            for i in range(1, n - 1):
+                b[k + 1, i] = (b[k, i + 1] - b[k, i - 1]) / h2
+            b[k + 1, n - 1] = (3.0 * b[k, n - 1] - 4.0 * b[k, n - 2] + b[k, n - 3]) / h2
+        if c < 12:  # the joint itself, its rate and acceleration
+            j = cols[c]
+            for i in range(n):
+                q[j, i], qd[j, i], qdd[j, i] = b[0, i], b[1, i], b[2, i]
+        elif c < 16:  # a wheel's speed: its spin angle integrated (signals.integrate), the speed, its derivative
+            j = cols[c]
+            acc = 0.0
+            q[j, 0], qd[j, 0], qdd[j, 0] = 0.0, b[0, 0], b[1, 0]
+            for i in range(1, n):
+                acc += (b[0, i] + b[0, i - 1]) * half
+                q[j, i], qd[j, i], qdd[j, i] = acc, b[0, i], b[1, i]
+        else:
+            for i in range(n):
+                h[0, i], h[1, i], h[2, i] = b[0, i], b[1, i], b[2, i]
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
@@ -442,9 +489,27 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
         phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
     psi = integrate(dpsi, fs)
     sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
-    rf, rdf = filtered_derivatives(np.stack([dpsi, dtheta, dphi], axis=1), fs, c.cutoff, order=c.order, nderiv=1)
-    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * _lowpass(np.stack([psi, theta, phi], axis=1), x), sign * rf, sign * rdf
-    return chassis_rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+    # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
+    low = _lowpass(np.stack([dpsi, dtheta, dphi, psi, theta, phi], axis=1), x)
+    rf, rdf = low[:, :3], derivative(low[:, :3], fs)
+    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * low[:, 3:], sign * rf, sign * rdf
+    return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
+    """`chassis_rotation` (N, 3, 3) of (N,) angles, each entry written once where the gather would put it (`_zyx`'s
+    products in its order, signed): no (N, 3, 3) stack gathered. Entries first in memory, as the gather leaves
+    them: its users' einsum and matmul sum in an order that depends on the layout (the rows stay main's to the
+    bit)."""
+    cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    Z = ((lambda: cz * cy, lambda: cz * sy * sx - sz * cx, lambda: cz * sy * cx + sz * sx),
+         (lambda: sz * cy, lambda: sz * sy * sx + cz * cx, lambda: sz * sy * cx - cz * sx),
+         (lambda: -sy, lambda: cy * sx, lambda: cy * cx))
+    R = np.empty((3, 3, len(cz)))
+    for a in range(3):
+        for b in range(3):
+            np.multiply(Z[_ROWS[a, 0]][_COLS[0, b]](), _SIGNS[a, b], out=R[a, b])
+    return R.transpose(2, 0, 1)
 
 
 def _tire_poses(x: _Context, q: Array) -> Array:
@@ -461,13 +526,12 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     sub = np.arange(0, N, k_sub)
     if sub[-1] != N - 1:
         sub = np.append(sub, N - 1)
-    q0 = q[sub].copy()
+    q0 = q[sub]  # a copy (fancy index)
     q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
     st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
+    poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
-    return CubicSpline(sub, np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1))(
-        np.arange(N))
-
+    return CubicSpline(sub, poses)(np.arange(N))
 
 
 def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
@@ -502,17 +566,21 @@ def _acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) ->
     1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
     equations."""
     A = np.asarray(x.geometry.imu_axes, dtype=float)
-    w6f = _lowpass(w6, x)
-    dw6 = derivative(w6f, x.fs, axis=0)
     r_imu = np.asarray(x.geometry.imu_position, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    a_imu0 = _lowpass(np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity), x)
+    # the rates and the unit's acceleration through one low-pass of 6 columns
+    low = _lowpass(np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1),
+                   x)
+    w6f, a_imu0 = low[:, :3], low[:, 3:]
+    dw6 = derivative(w6f, x.fs, axis=0)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
 
 
-def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array) -> None:
+def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array,
+              deflections: tuple[Array, Array, Array] | None = None) -> None:
     """Position and velocity of O6 along x0, y0 into q, qd (columns 0:2): the Correvit (or a GNSS/INS) gives the
-    horizontal components (chassis x, y), the height's rate (qd column 2) the vertical."""
+    horizontal components (chassis x, y), the height's rate (qd column 2) the vertical. deflections: (qdd, pz_zz,
+    z_laser), `_deflections`' arguments: done too, its columns through the same call of the low-pass."""
     g = x.geometry
     N = q.shape[0]
     tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in x.suite.names else ("gnss", gnss_point(g))
@@ -522,15 +590,26 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
     s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
     v0 = v_known + s[:, None] * (R6 @ ez6)
-    v = _lowpass(v0[:, :2], x)
+    if deflections is None:
+        v = _lowpass(v0[:, :2], x)
+    else:  # the velocity's 2 columns and the 4 deflections through one low-pass
+        qdd, pz_zz, z_laser = deflections
+        low = _lowpass(np.concatenate([v0[:, :2], _deflection(pz_zz, z_laser)], axis=1), x)
+        v = low[:, :2]
+        _deflected(x, q, qd, qdd, low[:, 2:])
     q[:, :2], qd[:, :2] = integrate(v, x.fs), v
 
 
-def _deflections(x: _Context, q: Array, qd: Array, qdd: Array, pz_zz: Array, z_laser: Array) -> None:
-    """The tire deflections into q, qd, qdd: each tire frame's origin on the ground under its corner's height."""
-    deflection = -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+def _deflection(pz_zz: Array, z_laser: Array) -> Array:
+    """The four tires' deflections (N, 4), before the low-pass."""
+    return -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+
+
+def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
+    """The low-passed deflections and their central differences (`_smooth`'s) into the tire columns."""
     cols = [f - 1 for f in TIRES]
-    q[:, cols], qd[:, cols], qdd[:, cols] = _smooth(deflection, x)
+    d = derivative(low, x.fs)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
@@ -540,3 +619,12 @@ def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, h
     ww = filtered[:, 17:41].reshape(N, 4, len(WFT_COMPONENTS))
     spin = filtered[:, 41:45] if has_spin else None
     return CarTrajectory(np.arange(N) / x.fs, q, qd, qdd, ww, spin, steering).trimmed(x.border)
+
+
+# the compiled pass (numba's cache: compiled once per machine, loaded in ms afterwards)
+try:
+    from numba import njit
+
+    _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
+except ImportError:  # pragma: no cover - exercised only without numba
+    _corner_kernel = None
