@@ -50,7 +50,7 @@ from threadpoolctl import threadpool_limits
 from ..atomic import write_atomic
 from ..estimation import StreamingLS
 from ..estimation.errors import EstimationWarning
-from ..estimation.offsets import OffsetFactors, solve_with_offsets
+from ..estimation.offsets import NoiseScores, OffsetFactors, solve_with_offsets
 from ..estimation.systematic import BiasAccumulator
 from ..report.build import car_engineering
 from ..shipped import DEMO_VEHICLE
@@ -304,6 +304,9 @@ class Piece:
     noisy: tuple[StreamingLS, ...]
     zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
     quiet: StreamingLS | None = None  # a draw of the sensors' noise without zero offsets: the rows' own noise
+    # that draw's rows less the noise-free ones, scored (the spread's sandwich: the noise's correlation across groups
+    # and between neighbouring rows kept)
+    scores: NoiseScores | None = None
 
     @cached_property
     def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -373,21 +376,37 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     wanted = required_channels(spin=False, suite=setup.vehicle.suite)
     cond = setup.conditioning
     jobs = []
-    for spec in cfg.tests:
-        plan = plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
-                             lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
+    plans = {spec.name: plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
+                                      lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
+             for spec in cfg.tests}
+    for name, plan in plans.items():
         # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
+        with_offsets = NOISY not in name and QUIET not in name and bool(moved)
+        quiet_plan = plans.get(f"{name}{QUIET}")
+        if with_offsets and quiet_plan is not None and quiet_plan.segments != plan.segments:
+            raise ValueError(f"plan.reduce_candidates: {name}'s noise draw has other segments than its noise-free "
+                             "file; write both from one simulation")
         for i, (lo, hi) in enumerate(plan.segments):
-            with_offsets = NOISY not in spec.name and QUIET not in spec.name and bool(moved)
+            # and the noise draw's rows on the same window: the noise as it is, for the spread (NoiseScores)
+            noise = segment_window(quiet_plan, lo, hi) if with_offsets and quiet_plan is not None else None
             jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
-                               1.0, estimate_offsets=with_offsets))
+                               1.0, estimate_offsets=with_offsets, noise=noise,
+                               noise_lag=noise_lag(plan.fs, setup.settings.decimate, cond.cutoff)))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
         f"{draws} noisy draws and one of the noise alone each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
     pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),
-                       parts[k].zeros, parts[f"{k}{QUIET}"].ls) for k in results}
+                       parts[k].zeros, parts[f"{k}{QUIET}"].ls, parts[k].noise) for k in results}
     return pieces, setup
+
+
+def noise_lag(fs: float, decimate: Sequence[int], cutoff: float) -> int:
+    """The rows' neighbours the conditioned noise still correlates: the noise is white up to the low-pass' cutoff
+    and gone above it, so rows at rate r = fs / Π decimate oversample its band r / (2 cutoff) times and each row
+    shares it with ceil(r / (2 cutoff)) − 1 neighbours on either side (the demo's 12.5 rows/s, 4 Hz: 1.56x, one)."""
+    rate = fs / math.prod(decimate)
+    return max(0, math.ceil(rate / (2.0 * cutoff) - 1e-9) - 1)
 
 
 # ------------------------------------------------------------------------------- a combination, without the data
@@ -506,6 +525,7 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
                          "offsets from; reduce it with the offsets estimated or call predict(..., estimate=False)")
     first = pieces[0].zeros
     acc = OffsetFactors(first.columns, first.known_columns, first.known_values, first.x0)
+    owner = {}  # acc's test -> its piece's noise scores and test (a repeat: the same rows, a new draw of the noise)
     for p in pieces:  # the factors are shared, not copied: solve_with_offsets only reads them
         for test, per in p.zeros.factors.items():
             name, k = test, 1
@@ -513,11 +533,15 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
                 k += 1
                 name = f"{test} (repeat {k})"
             acc.sources[name], acc.factors[name], acc.rows[name] = p.zeros.sources[test], per, p.zeros.rows[test]
+            owner[name] = (p.scores, test)
+    scored = all(p.scores is not None for p in pieces)
     est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
     reported = est.solution.covariance + est.systematic.covariance
     q = len(names)
     Ainv = reported / s2  # A_r⁻¹ of the weighted rows (solve_with_offsets' total is s² A_r⁻¹)
     moved, shifts = [], []
+    S = np.zeros((q, q))  # the scores' covariance of the noise as it is (NoiseScores)
+    w = {g: sigma ** -2.0 for g, sigma in sigmas.items()}
     for test, per in acc.factors.items():
         m = len(acc.sources[test])
         blocks = [R / sigmas[g] for g, R in per.items()]
@@ -525,12 +549,18 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
         Ruu, Rux = R[:m, :m], R[:m, m:m + q]
         T = solve_triangular(Ruu, Rux)
         profile = np.vstack([-T, np.eye(q)])  # [C W] profile = Z: the rows with the offsets read taken out
-        rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
-        moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
+        if scored:
+            scores, own = owner[test]
+            S += scores.covariance(own, w, profile)
+        else:
+            rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
+            moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
         shifts.append(Rux.T @ solve_triangular(Ruu, np.eye(m)).T)
-    L = np.linalg.qr(np.vstack(moved), mode="r")
-    B = L @ Ainv
-    C_stat = B.T @ B
+    if scored:
+        C_stat = Ainv @ S @ Ainv
+    else:
+        B = np.linalg.qr(np.vstack(moved), mode="r") @ Ainv
+        C_stat = B.T @ B
     D = Ainv @ np.hstack(shifts)
     C_sys = D @ D.T
     return Prediction(tuple(names), est.solution.x, np.sqrt(np.clip(np.diag(C_stat), 0, None)),
