@@ -211,48 +211,60 @@ class NoiseScores:
     weights reweights them without the rows."""
 
     lag: int
-    chunks: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = field(default_factory=dict)
-    _dense: dict[str, tuple[tuple[str, ...], np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
+    # test -> draw of the noise -> its segments' (stamps, groups, [C | W] e)
+    chunks: dict[str, dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]] = field(default_factory=dict)
+    _dense: dict[tuple[str, int], tuple[tuple[str, ...], np.ndarray]] = field(default_factory=dict, repr=False,
+                                                                             compare=False)
 
-    def add(self, test: str, stamps: ArrayLike, groups: ArrayLike, CW: ArrayLike, e: ArrayLike) -> None:
-        """A segment's rows of `test`: their time stamps (integer, in rows), groups, noise-free [C | W] and noise e."""
+    def add(self, test: str, stamps: ArrayLike, groups: ArrayLike, CW: ArrayLike, e: ArrayLike, draw: int = 0
+            ) -> None:
+        """A segment's rows of `test`: their time stamps (integer, in rows), groups, noise-free [C | W] and noise e
+        of one draw of the noise (several draws: S their mean)."""
         CW, e = np.asarray(CW, dtype=float), np.asarray(e, dtype=float)
         if CW.shape[0] != len(e):
             raise IdentificationError(f"NoiseScores.add, test {test!r}: {CW.shape[0]} rows of [C | W] for {len(e)} "
                                       "of noise; give both of the same (kept) rows")
-        self.chunks.setdefault(test, []).append((np.asarray(stamps, dtype=np.int64), np.asarray(groups),
-                                                 CW * e[:, None]))
+        self.chunks.setdefault(test, {}).setdefault(draw, []).append(
+            (np.asarray(stamps, dtype=np.int64), np.asarray(groups), CW * e[:, None]))
 
     def merge(self, other: NoiseScores) -> NoiseScores:
         """A new accumulator with both one's rows (segments reduced apart, combined)."""
         if other.lag != self.lag:
             raise IdentificationError(f"NoiseScores.merge: lags {self.lag} and {other.lag}; reduce every segment "
                                       "with one conditioning")
-        out = NoiseScores(self.lag, {t: list(c) for t, c in self.chunks.items()})
-        for t, c in other.chunks.items():
-            out.chunks.setdefault(t, []).extend(c)
+        out = NoiseScores(self.lag, {t: {d: list(c) for d, c in per.items()} for t, per in self.chunks.items()})
+        for t, per in other.chunks.items():
+            for d, c in per.items():
+                out.chunks.setdefault(t, {}).setdefault(d, []).extend(c)
         return out
 
-    def dense(self, test: str) -> tuple[tuple[str, ...], np.ndarray]:
-        """The test's groups and its sums a (stamps, groups, m + q), every stamp from the first to the last (zero
-        where no row falls: a gap is no neighbour)."""
-        if test not in self._dense:
-            stamps = np.concatenate([c[0] for c in self.chunks[test]])
-            groups = np.concatenate([c[1] for c in self.chunks[test]])
-            rows = np.vstack([c[2] for c in self.chunks[test]])
+    def dense(self, test: str, draw: int = 0) -> tuple[tuple[str, ...], np.ndarray]:
+        """The test's groups and a draw's sums a (stamps, groups, m + q), every stamp from the first to the last
+        (zero where no row falls: a gap is no neighbour)."""
+        key = (test, draw)
+        if key not in self._dense:
+            chunks = self.chunks[test][draw]
+            stamps = np.concatenate([c[0] for c in chunks])
+            groups = np.concatenate([c[1] for c in chunks])
+            rows = np.vstack([c[2] for c in chunks])
             names, gi = np.unique(groups, return_inverse=True)
             a = np.zeros((int(stamps.max() - stamps.min()) + 1, len(names), rows.shape[1]))
             np.add.at(a, (stamps - stamps.min(), gi), rows)
-            self._dense[test] = (tuple(names.tolist()), a)
-        return self._dense[test]
+            self._dense[key] = (tuple(names.tolist()), a)
+        return self._dense[key]
 
     def covariance(self, test: str, weights: Mapping[str, float], profile: np.ndarray) -> np.ndarray:
-        """S (q, q) of the test's scores at weights {group: w_g} (1 / σ_g²) and profile P (m + q, q) (class doc)."""
-        groups, a = self.dense(test)
-        w = np.array([weights[g] for g in groups])
-        s = np.einsum("tgk,g->tk", a, w) @ profile  # (stamps, q): the scores summed over a stamp's groups
-        S = s.T @ s
-        for lag in range(1, min(self.lag, len(s) - 1) + 1):
-            G = s[lag:].T @ s[:-lag]
-            S += G + G.T
-        return S
+        """S (q, q) of the test's scores at weights {group: w_g} (1 / σ_g²) and profile P (m + q, q) (class doc),
+        the mean over the draws of the noise."""
+        q = profile.shape[1]
+        S = np.zeros((q, q))
+        draws = self.chunks[test]
+        for d in draws:
+            groups, a = self.dense(test, d)
+            w = np.array([weights[g] for g in groups])
+            s = np.einsum("tgk,g->tk", a, w) @ profile  # (stamps, q): the scores summed over a stamp's groups
+            S += s.T @ s
+            for lag in range(1, min(self.lag, len(s) - 1) + 1):
+                G = s[lag:].T @ s[:-lag]
+                S += G + G.T
+        return S / len(draws)

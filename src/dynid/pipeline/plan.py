@@ -343,10 +343,13 @@ QUIET = " (noise, no offsets)"
 
 
 DRAWS = 0  # noisy draws per candidate (the weights' draws are `offset_weights`', from the noise-free factors)
+# draws of the noise alone per candidate the spread's noise part averages (`NoiseScores`): one draw's scatters
+# (the 406's plan, six draws: 5 % median over the parameters, YY6 39 %)
+NOISE_DRAWS = 4
 
 
 def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path, seed: int = 2900,
-                      say: Progress | None = None, scheduler=None, draws: int = DRAWS
+                      say: Progress | None = None, scheduler=None, draws: int = DRAWS, noise_draws: int = NOISE_DRAWS
                       ) -> tuple[dict[str, Piece], object]:
     """Each simulated test (key -> SimulationResult) written noise-free and with `draws` draws of the suite's noise
     and zero offsets (seeds seed + 100 d + its index) into `folder`, each file reduced once by the identification's
@@ -365,8 +368,10 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
             path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.parquet",
                                  seed=seed + 100 * d + i, noise=d >= 0, suite=suite)
             files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
-        path, _ = write_test(result, data / f"{key}-quiet.parquet", seed=seed + 100 * draws + i, suite=quiet)
-        files[f"{key}{QUIET}"] = path.relative_to(folder).as_posix()
+        for j in range(max(noise_draws, 1)):  # the first also gives the groups' noise σ (Piece.quiet)
+            path, _ = write_test(result, data / f"{key}-quiet{'' if j == 0 else j}.parquet",
+                                 seed=seed + 100 * (draws + j) + i, suite=quiet)
+            files[f"{key}{QUIET}{'' if j == 0 else f' {j}'}"] = path.relative_to(folder).as_posix()
     offsets = {c.name: c.bias for c in suite if c.bias}
     where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
     cfg_path = folder / "candidates.toml"
@@ -382,20 +387,23 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
                                       lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
              for spec in cfg.tests}
     for name, plan in plans.items():
+        if QUIET in name and not name.endswith(QUIET):
+            continue  # a further draw of the noise alone: read by its noise-free file's jobs only
         # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
         with_offsets = NOISY not in name and QUIET not in name and bool(moved)
-        quiet_plan = plans.get(f"{name}{QUIET}")
-        if with_offsets and quiet_plan is not None and quiet_plan.segments != plan.segments:
-            raise ValueError(f"plan.reduce_candidates: {name}'s noise draw has other segments than its noise-free "
-                             "file; write both from one simulation")
+        quiet_plans = [plans[k] for k in (f"{name}{QUIET}", *(f"{name}{QUIET} {j}" for j in range(1, noise_draws)))
+                       if k in plans] if with_offsets and noise_draws > 0 else []
+        if any(qp.segments != plan.segments for qp in quiet_plans):
+            raise ValueError(f"plan.reduce_candidates: {name}'s noise draws have other segments than its noise-free "
+                             "file; write them from one simulation")
         for i, (lo, hi) in enumerate(plan.segments):
-            # and the noise draw's rows on the same window: the noise as it is, for the spread (NoiseScores)
-            noise = segment_window(quiet_plan, lo, hi) if with_offsets and quiet_plan is not None else None
+            # and the noise draws' rows on the same window: the noise as it is, for the spread (NoiseScores)
+            noise = tuple(segment_window(qp, lo, hi) for qp in quiet_plans)
             jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
                                1.0, estimate_offsets=with_offsets, noise=noise,
                                noise_lag=noise_lag(plan.fs, setup.settings.decimate, cond.cutoff)))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
-        f"{draws} noisy draws and one of the noise alone each)")
+        f"{draws} noisy draws and {noise_draws} of the noise alone each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
     pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),

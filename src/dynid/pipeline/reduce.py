@@ -94,9 +94,9 @@ class CarJob:
     # segments each answer for theirs: segments overlap by the filter's borders); None: not gathered here
     health: tuple[float, float, bool] | None = None
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
-    # the plan's: this window of a file with one draw of the noise alone (with estimate_offsets): the rows' noise as
-    # it is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
-    noise: SegmentWindow | None = None
+    # the plan's: this window of files with draws of the noise alone (with estimate_offsets): the rows' noise as it
+    # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
+    noise: tuple[SegmentWindow, ...] = ()
     noise_lag: int = 0
 
     @property
@@ -347,7 +347,7 @@ def reduce_car_segment(job: CarJob) -> Partial:
             part.zeros = OffsetFactors(acc.columns, acc.known_columns, acc.known_values, setup.a_priori[acc.columns])
             part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
                            [m[1] for m in moved], sys.groups)
-            if job.noise is not None:
+            if job.noise:
                 part.noise = _noise_scores(setup, job, sys, part.zeros, moved, lags)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
@@ -363,11 +363,9 @@ def reduce_car_segment(job: CarJob) -> Partial:
 
 def _noise_scores(setup: CarSetup, job: CarJob, sys: GroupedSystem, zeros: OffsetFactors, moved: Sequence,
                   lags: Mapping[str, float]) -> NoiseScores:
-    """The noise draw's rows (job.noise: the same window of the noisy file) on the noise-free rows' kept rows: their
+    """Each noise draw's rows (job.noise: the same window of its file) on the noise-free rows' kept rows: their
     residual at x0 less the noise-free one, row by row, scored by the noise-free [C | W] (`NoiseScores`)."""
     fs = job.window.fs
-    channels = read_segment(job.noise)
-    noisy = setup.rows(setup.trajectory(channels, fs, lags), fs, job.instruments, keep=sys.kept)
 
     def residual(s: GroupedSystem) -> np.ndarray:
         return s.Y - s.W[:, zeros.known_columns] @ zeros.known_values - s.W[:, zeros.columns] @ zeros.x0
@@ -375,8 +373,10 @@ def _noise_scores(setup: CarSetup, job: CarJob, sys: GroupedSystem, zeros: Offse
     C = zeros.offset_columns([m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
     rate = fs / math.prod(setup.settings.decimate)  # the rows' rate: stamps in rows
     out = NoiseScores(job.noise_lag)
-    out.add(job.window.test, np.rint(np.asarray(sys.t) * rate), sys.groups,
-            np.column_stack([C, sys.W[:, zeros.columns]]), residual(noisy) - residual(sys))
+    CW, stamps, clean = np.column_stack([C, sys.W[:, zeros.columns]]), np.rint(np.asarray(sys.t) * rate), residual(sys)
+    for d, window in enumerate(job.noise):
+        noisy = setup.rows(setup.trajectory(read_segment(window), fs, lags), fs, job.instruments, keep=sys.kept)
+        out.add(job.window.test, stamps, sys.groups, CW, residual(noisy) - clean, d)
     return out
 
 
@@ -480,9 +480,9 @@ class RobotJob:
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
-    # the plan's: this window of a file with one draw of the noise alone (with estimate_offsets): the rows' noise as
-    # it is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
-    noise: SegmentWindow | None = None
+    # the plan's: this window of files with draws of the noise alone (with estimate_offsets): the rows' noise as it
+    # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
+    noise: tuple[SegmentWindow, ...] = ()
     noise_lag: int = 0
 
     @property
