@@ -1,13 +1,13 @@
 """`dynid plan`: the shortest set of track tests whose identification meets an engineer's targets (issue 29).
 
 Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
-sensor suite noise-free and with one seeded draw of the suite's noise alone (no zero offsets). Each file is reduced
-once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free rows give
-the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per offset
-(`estimation.offsets.OffsetFactors`), the noisy draw the equation groups' noise levels and, row by row against
-the noise-free rows, the noise as it is for the spread (`estimation.offsets.NoiseScores`: one sensor in several
-groups, neighbouring rows correlated). A combination of tests is
-then evaluated without simulating or reading anything again, at draws of the weights σ_g (paper eq. (8)) and the
+sensor suite noise-free and with NOISE_DRAWS seeded draws of the suite's noise alone (no zero offsets). Each file is
+reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
+rows give the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per
+offset (`estimation.offsets.OffsetFactors`), the first noisy draw the equation groups' noise levels, and every draw,
+row by row against the noise-free rows, the noise as it is for the spread (`estimation.offsets.NoiseScores`: one
+sensor in several groups, neighbouring rows correlated). A combination of tests is then
+evaluated without simulating or reading anything again, at draws of the weights σ_g (paper eq. (8)) and the
 scale s² `dynid identify` takes (`offset_weights`: each draw of the tests' zero offsets put into the noise-free
 rows' residuals, as eq. (8) reads them), as identify computes it:
 
@@ -306,8 +306,8 @@ class Piece:
     noisy: tuple[StreamingLS, ...]
     zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
     quiet: StreamingLS | None = None  # a draw of the sensors' noise without zero offsets: the rows' own noise
-    # that draw's rows less the noise-free ones, scored (the spread's sandwich: the noise's correlation across groups
-    # and between neighbouring rows kept)
+    # draws of the noise alone (NOISE_DRAWS, the first `quiet`'s), their rows less the noise-free ones, scored (the
+    # spread's sandwich: the noise's correlation across groups and between neighbouring rows kept)
     scores: NoiseScores | None = None
 
     @cached_property
@@ -532,10 +532,11 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
 
     That white per-group noise is not the rows' (the SUV's plan, 40 draws: M6's noise part 1.59 x it, MZ6 1.19,
     XY6 1.35): one accelerometer axis is the noise of several groups at equal samples, and rows 0.08 s apart
-    oversample the 4 Hz conditioning band 1.56 x (neighbours correlated). So a piece with `scores` (its noise draw
-    as it is, `NoiseScores`) gives its test's part of Σ_t Z_tᵀ e_t from that draw instead: the profiled scores summed
-    per time stamp over the groups, lag `noise_lag` (S0 + S1 + S1ᵀ), A_r⁻¹ S A_r⁻¹ (one draw against the 40 draws'
-    spread: M6 0.96, 10-90 % 0.80-1.16; every parameter median 1.08)."""
+    oversample the 4 Hz conditioning band 1.56 x (neighbours correlated). So a piece with `scores` (its draws of the
+    noise as it is, `NoiseScores`) gives its test's part of Σ_t Z_tᵀ e_t from them instead: the profiled scores
+    summed per time stamp over the groups, lag `noise_lag` (S0 + S1 + S1ᵀ), their mean over the draws,
+    A_r⁻¹ S A_r⁻¹ (one draw against the 40 draws' spread: M6 0.96, 10-90 % 0.80-1.16; every parameter median 1.08;
+    NOISE_DRAWS of them halve that scatter)."""
     missing = [i for i, p in enumerate(pieces) if p.zeros is None]
     if missing:
         raise ValueError(f"plan.predict: piece {missing[0]} has no offsets' factors (Piece.zeros) to estimate its "
