@@ -194,3 +194,77 @@ def solve_with_offsets(acc: OffsetFactors, names: Sequence[str], sigmas: Mapping
                            statistical, total.condition_number)
     weights = {g: 1.0 if sigmas is None else float(sigmas[g]) for per in acc.factors.values() for g in per}
     return OffsetEstimate(solution, systematic, offsets, us, total.inv_gram, profile, tuple(exclude), weights)
+
+
+@dataclass
+class NoiseScores:
+    """One draw of the rows' noise as it is, for the estimator's spread (a sandwich that keeps the noise's
+    correlation across equation groups and between neighbouring rows).
+
+    Per test, e (the noisy rows' residual at x0 less the noise-free rows', row by row: the noise the rows carry)
+    times the noise-free rows' [C | W] (`OffsetFactors`' columns), summed per equation group and row time stamp
+    (integer, in rows): a_{g,t} (m + q). At weights w_g = 1 / σ_g² and a test's profile P = [−R_uu⁻¹ R_ux; I]
+    ((m + q, q): its offsets read taken out) the scores are s_t = Pᵀ Σ_g w_g a_{g,t} summed over the groups of
+    one stamp (one sensor's noise sits in several groups' rows at once), and their covariance is
+    S = Σ_{|l| ≤ lag} Σ_t s_t s_{t−l}ᵀ (uniform kernel: rows closer than the conditioning's correlation time);
+    the estimate's noise covariance is A_r⁻¹ (Σ_tests S) A_r⁻¹. The sums are kept per group, so any draw of the
+    weights reweights them without the rows."""
+
+    lag: int
+    # test -> draw of the noise -> its segments' (stamps, groups, [C | W] e)
+    chunks: dict[str, dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]] = field(default_factory=dict)
+    _dense: dict[tuple[str, int], tuple[tuple[str, ...], np.ndarray]] = field(default_factory=dict, repr=False,
+                                                                             compare=False)
+
+    def add(self, test: str, stamps: ArrayLike, groups: ArrayLike, CW: ArrayLike, e: ArrayLike, draw: int = 0
+            ) -> None:
+        """A segment's rows of `test`: their time stamps (integer, in rows), groups, noise-free [C | W] and noise e
+        of one draw of the noise (several draws: S their mean)."""
+        CW, e = np.asarray(CW, dtype=float), np.asarray(e, dtype=float)
+        if CW.shape[0] != len(e):
+            raise IdentificationError(f"NoiseScores.add, test {test!r}: {CW.shape[0]} rows of [C | W] for {len(e)} "
+                                      "of noise; give both of the same (kept) rows")
+        self.chunks.setdefault(test, {}).setdefault(draw, []).append(
+            (np.asarray(stamps, dtype=np.int64), np.asarray(groups), CW * e[:, None]))
+
+    def merge(self, other: NoiseScores) -> NoiseScores:
+        """A new accumulator with both one's rows (segments reduced apart, combined)."""
+        if other.lag != self.lag:
+            raise IdentificationError(f"NoiseScores.merge: lags {self.lag} and {other.lag}; reduce every segment "
+                                      "with one conditioning")
+        out = NoiseScores(self.lag, {t: {d: list(c) for d, c in per.items()} for t, per in self.chunks.items()})
+        for t, per in other.chunks.items():
+            for d, c in per.items():
+                out.chunks.setdefault(t, {}).setdefault(d, []).extend(c)
+        return out
+
+    def dense(self, test: str, draw: int = 0) -> tuple[tuple[str, ...], np.ndarray]:
+        """The test's groups and a draw's sums a (stamps, groups, m + q), every stamp from the first to the last
+        (zero where no row falls: a gap is no neighbour)."""
+        key = (test, draw)
+        if key not in self._dense:
+            chunks = self.chunks[test][draw]
+            stamps = np.concatenate([c[0] for c in chunks])
+            groups = np.concatenate([c[1] for c in chunks])
+            rows = np.vstack([c[2] for c in chunks])
+            names, gi = np.unique(groups, return_inverse=True)
+            a = np.zeros((int(stamps.max() - stamps.min()) + 1, len(names), rows.shape[1]))
+            np.add.at(a, (stamps - stamps.min(), gi), rows)
+            self._dense[key] = (tuple(names.tolist()), a)
+        return self._dense[key]
+
+    def covariance(self, test: str, weights: Mapping[str, float], profile: np.ndarray) -> np.ndarray:
+        """S (q, q) of the test's scores at weights {group: w_g} (1 / σ_g²) and profile P (m + q, q) (class doc),
+        the mean over the draws of the noise."""
+        q = profile.shape[1]
+        S = np.zeros((q, q))
+        draws = self.chunks[test]
+        for d in draws:
+            groups, a = self.dense(test, d)
+            w = np.array([weights[g] for g in groups])
+            s = np.einsum("tgk,g->tk", a, w) @ profile  # (stamps, q): the scores summed over a stamp's groups
+            S += s.T @ s
+            for lag in range(1, min(self.lag, len(s) - 1) + 1):
+                G = s[lag:].T @ s[:-lag]
+                S += G + G.T
+        return S / len(draws)

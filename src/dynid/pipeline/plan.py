@@ -1,11 +1,13 @@
 """`dynid plan`: the shortest set of track tests whose identification meets an engineer's targets (issue 29).
 
 Each candidate test is simulated once with the vehicle's [truth] set (its a priori car) and written through its
-sensor suite noise-free and with one seeded draw of the suite's noise alone (no zero offsets). Each file is reduced
-once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free rows give
-the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per offset
-(`estimation.offsets.OffsetFactors`), the noisy draw the equation groups' noise levels. A combination of tests is
-then evaluated without simulating or reading anything again, at draws of the weights σ_g (paper eq. (8)) and the
+sensor suite noise-free and with NOISE_DRAWS seeded draws of the suite's noise alone (no zero offsets). Each file is
+reduced once by the identification's own map (`reduce.reduce_car_segment`, the demo's conditioning): the noise-free
+rows give the normal matrix, the zero offsets' sensitivities (`BiasAccumulator`) and the rows with one column per
+offset (`estimation.offsets.OffsetFactors`), the first noisy draw the equation groups' noise levels, and every draw,
+row by row against the noise-free rows, the noise as it is for the spread (`estimation.offsets.NoiseScores`: one
+sensor in several groups, neighbouring rows correlated). A combination of tests is then
+evaluated without simulating or reading anything again, at draws of the weights σ_g (paper eq. (8)) and the
 scale s² `dynid identify` takes (`offset_weights`: each draw of the tests' zero offsets put into the noise-free
 rows' residuals, as eq. (8) reads them), as identify computes it:
 
@@ -50,7 +52,7 @@ from threadpoolctl import threadpool_limits
 from ..atomic import write_atomic
 from ..estimation import StreamingLS
 from ..estimation.errors import EstimationWarning
-from ..estimation.offsets import OffsetFactors, solve_with_offsets
+from ..estimation.offsets import NoiseScores, OffsetFactors, solve_with_offsets
 from ..estimation.systematic import BiasAccumulator
 from ..report.build import car_engineering
 from ..shipped import DEMO_VEHICLE
@@ -304,6 +306,9 @@ class Piece:
     noisy: tuple[StreamingLS, ...]
     zeros: OffsetFactors | None = None  # the noise-free rows with the offsets' columns (estimation.offsets)
     quiet: StreamingLS | None = None  # a draw of the sensors' noise without zero offsets: the rows' own noise
+    # draws of the noise alone (NOISE_DRAWS, the first `quiet`'s), their rows less the noise-free ones, scored (the
+    # spread's sandwich: the noise's correlation across groups and between neighbouring rows kept)
+    scores: NoiseScores | None = None
 
     @cached_property
     def offsets(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -338,10 +343,13 @@ QUIET = " (noise, no offsets)"
 
 
 DRAWS = 0  # noisy draws per candidate (the weights' draws are `offset_weights`', from the noise-free factors)
+# draws of the noise alone per candidate the spread's noise part averages (`NoiseScores`): one draw's scatters
+# (the 406's plan, six draws: 5 % median over the parameters, YY6 39 %)
+NOISE_DRAWS = 4
 
 
 def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path, seed: int = 2900,
-                      say: Progress | None = None, scheduler=None, draws: int = DRAWS
+                      say: Progress | None = None, scheduler=None, draws: int = DRAWS, noise_draws: int = NOISE_DRAWS
                       ) -> tuple[dict[str, Piece], object]:
     """Each simulated test (key -> SimulationResult) written noise-free and with `draws` draws of the suite's noise
     and zero offsets (seeds seed + 100 d + its index) into `folder`, each file reduced once by the identification's
@@ -360,8 +368,10 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
             path, _ = write_test(result, data / f"{key}{'' if d < 0 else f'-noisy{d}'}.parquet",
                                  seed=seed + 100 * d + i, noise=d >= 0, suite=suite)
             files[key if d < 0 else f"{key}{NOISY}{d}"] = path.relative_to(folder).as_posix()
-        path, _ = write_test(result, data / f"{key}-quiet.parquet", seed=seed + 100 * draws + i, suite=quiet)
-        files[f"{key}{QUIET}"] = path.relative_to(folder).as_posix()
+        for j in range(max(noise_draws, 1)):  # the first also gives the groups' noise σ (Piece.quiet)
+            path, _ = write_test(result, data / f"{key}-quiet{'' if j == 0 else j}.parquet",
+                                 seed=seed + 100 * (draws + j) + i, suite=quiet)
+            files[f"{key}{QUIET}{'' if j == 0 else f' {j}'}"] = path.relative_to(folder).as_posix()
     offsets = {c.name: c.bias for c in suite if c.bias}
     where = Path(vehicle).resolve().as_posix() if str(vehicle).endswith(".toml") else str(vehicle)
     cfg_path = folder / "candidates.toml"
@@ -373,21 +383,40 @@ def reduce_candidates(results: Mapping[str, object], vehicle: str, folder: Path,
     wanted = required_channels(spin=False, suite=setup.vehicle.suite)
     cond = setup.conditioning
     jobs = []
-    for spec in cfg.tests:
-        plan = plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
-                             lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
+    plans = {spec.name: plan_car_test(cfg, spec, wanted, setup.vehicle.suite.units, cfg.car.segment,
+                                      lambda fs: border_samples(fs, cond.cutoff, cond.order), None)
+             for spec in cfg.tests}
+    for name, plan in plans.items():
+        if QUIET in name and not name.endswith(QUIET):
+            continue  # a further draw of the noise alone: read by its noise-free file's jobs only
         # every segment carries the offsets' rows (their estimate needs them all, as `identify`'s), weight 1
+        with_offsets = NOISY not in name and QUIET not in name and bool(moved)
+        quiet_plans = [plans[k] for k in (f"{name}{QUIET}", *(f"{name}{QUIET} {j}" for j in range(1, noise_draws)))
+                       if k in plans] if with_offsets and noise_draws > 0 else []
+        if any(qp.segments != plan.segments for qp in quiet_plans):
+            raise ValueError(f"plan.reduce_candidates: {name}'s noise draws have other segments than its noise-free "
+                             "file; write them from one simulation")
         for i, (lo, hi) in enumerate(plan.segments):
-            with_offsets = NOISY not in spec.name and QUIET not in spec.name and bool(moved)
+            # and the noise draws' rows on the same window: the noise as it is, for the spread (NoiseScores)
+            noise = tuple(segment_window(qp, lo, hi) for qp in quiet_plans)
             jobs.append(CarJob(cfg, segment_window(plan, lo, hi), "identify", i + 1, moved if with_offsets else (),
-                               1.0, estimate_offsets=with_offsets))
+                               1.0, estimate_offsets=with_offsets, noise=noise,
+                               noise_lag=noise_lag(plan.fs, setup.settings.decimate, cond.cutoff)))
     say(f"reducing {len(results)} candidate tests (noise-free with the {len(moved)} zero offsets' effects, and "
-        f"{draws} noisy draws and one of the noise alone each)")
+        f"{draws} noisy draws and {noise_draws} of the noise alone each)")
     scheduler = scheduler or LocalScheduler()
     parts: dict[str, Partial] = scheduler.map_reduce(reduce_car_segment, jobs, lambda j: j.test, combine, say)
     pieces = {k: Piece(parts[k].ls, parts[k].bias, tuple(parts[f"{k}{NOISY}{d}"].ls for d in range(draws)),
-                       parts[k].zeros, parts[f"{k}{QUIET}"].ls) for k in results}
+                       parts[k].zeros, parts[f"{k}{QUIET}"].ls, parts[k].noise) for k in results}
     return pieces, setup
+
+
+def noise_lag(fs: float, decimate: Sequence[int], cutoff: float) -> int:
+    """The rows' neighbours the conditioned noise still correlates: the noise is white up to the low-pass' cutoff
+    and gone above it, so rows at rate r = fs / Π decimate oversample its band r / (2 cutoff) times and each row
+    shares it with ceil(r / (2 cutoff)) − 1 neighbours on either side (the demo's 12.5 rows/s, 4 Hz: 1.56x, one)."""
+    rate = fs / math.prod(decimate)
+    return max(0, math.ceil(rate / (2.0 * cutoff) - 1e-9) - 1)
 
 
 # ------------------------------------------------------------------------------- a combination, without the data
@@ -499,13 +528,22 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
     the noise moves x by A_r⁻¹ Σ_t Z_tᵀ e_t, each group's rows of noise ρ_g = noise_g / σ_g in the weighted scale
     (noise_g: the rows' σ without offsets, `Piece.quiet`), and each offset of one declared σ by
     ΔX_k = A_r⁻¹ R_uxᵀ R_uu⁻ᵀ e_k; with ρ_g = 1 the two add up to A_r⁻¹. noise None: ρ_g = s (the weights taken
-    for the rows' noise)."""
+    for the rows' noise).
+
+    That white per-group noise is not the rows' (the SUV's plan, 40 draws: M6's noise part 1.59 x it, MZ6 1.19,
+    XY6 1.35): one accelerometer axis is the noise of several groups at equal samples, and rows 0.08 s apart
+    oversample the 4 Hz conditioning band 1.56 x (neighbours correlated). So a piece with `scores` (its draws of the
+    noise as it is, `NoiseScores`) gives its test's part of Σ_t Z_tᵀ e_t from them instead: the profiled scores
+    summed per time stamp over the groups, lag `noise_lag` (S0 + S1 + S1ᵀ), their mean over the draws,
+    A_r⁻¹ S A_r⁻¹ (one draw against the 40 draws' spread: M6 0.96, 10-90 % 0.80-1.16; every parameter median 1.08;
+    NOISE_DRAWS of them halve that scatter)."""
     missing = [i for i, p in enumerate(pieces) if p.zeros is None]
     if missing:
         raise ValueError(f"plan.predict: piece {missing[0]} has no offsets' factors (Piece.zeros) to estimate its "
                          "offsets from; reduce it with the offsets estimated or call predict(..., estimate=False)")
     first = pieces[0].zeros
     acc = OffsetFactors(first.columns, first.known_columns, first.known_values, first.x0)
+    owner = {}  # acc's test -> its piece's noise scores and test (a repeat: the same rows, a new draw of the noise)
     for p in pieces:  # the factors are shared, not copied: solve_with_offsets only reads them
         for test, per in p.zeros.factors.items():
             name, k = test, 1
@@ -513,11 +551,14 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
                 k += 1
                 name = f"{test} (repeat {k})"
             acc.sources[name], acc.factors[name], acc.rows[name] = p.zeros.sources[test], per, p.zeros.rows[test]
+            owner[name] = (p.scores, test)
     est = solve_with_offsets(acc, names, sigmas, sigma2=s2)
     reported = est.solution.covariance + est.systematic.covariance
     q = len(names)
     Ainv = reported / s2  # A_r⁻¹ of the weighted rows (solve_with_offsets' total is s² A_r⁻¹)
     moved, shifts = [], []
+    S = np.zeros((q, q))  # the scores' covariance of the noise as it is (NoiseScores)
+    w = {g: sigma ** -2.0 for g, sigma in sigmas.items()}
     for test, per in acc.factors.items():
         m = len(acc.sources[test])
         blocks = [R / sigmas[g] for g, R in per.items()]
@@ -525,12 +566,17 @@ def _with_offsets_estimated(pieces: Sequence[Piece], names: Sequence[str], sigma
         Ruu, Rux = R[:m, :m], R[:m, m:m + q]
         T = solve_triangular(Ruu, Rux)
         profile = np.vstack([-T, np.eye(q)])  # [C W] profile = Z: the rows with the offsets read taken out
-        rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
-        moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
+        scores, own = owner[test]
+        if scores is not None:  # the noise as it is
+            S += scores.covariance(own, w, profile)
+        else:  # white per group, of the noise's σ (or the weights' scale)
+            rho = {g: noise[g] / sigmas[g] if noise is not None else math.sqrt(s2) for g in per}
+            moved += [rho[g] * (b[:, :m + q] @ profile) for g, b in zip(per, blocks, strict=True)]
         shifts.append(Rux.T @ solve_triangular(Ruu, np.eye(m)).T)
-    L = np.linalg.qr(np.vstack(moved), mode="r")
-    B = L @ Ainv
-    C_stat = B.T @ B
+    if moved:
+        L = np.linalg.qr(np.vstack(moved), mode="r")
+        S += L.T @ L
+    C_stat = Ainv @ S @ Ainv
     D = Ainv @ np.hstack(shifts)
     C_sys = D @ D.T
     return Prediction(tuple(names), est.solution.x, np.sqrt(np.clip(np.diag(C_stat), 0, None)),

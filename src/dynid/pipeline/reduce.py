@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import math
 import os
 import pickle
 import threading
@@ -41,7 +42,7 @@ from ..estimation import StreamingLS
 from ..estimation.fit import ErrorEffect
 from ..estimation.hac import HACSums
 from ..estimation.iv import InstrumentSums
-from ..estimation.offsets import OffsetFactors
+from ..estimation.offsets import NoiseScores, OffsetFactors
 from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io import Channel
@@ -93,6 +94,10 @@ class CarJob:
     # segments each answer for theirs: segments overlap by the filter's borders); None: not gathered here
     health: tuple[float, float, bool] | None = None
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
+    # the plan's: this window of files with draws of the noise alone (with estimate_offsets): the rows' noise as it
+    # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
+    noise: tuple[SegmentWindow, ...] = ()
+    noise_lag: int = 0
 
     @property
     def test(self) -> str:
@@ -118,6 +123,7 @@ class Partial:
     # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
     health: dict[str, CarHealth | RobotHealth] = field(default_factory=dict)
     hac: HACSums | None = None  # the Newey–West sums of a HAC covariance's second pass (estimation.hac)
+    noise: NoiseScores | None = None  # the plan's: one draw of the rows' noise, scored (CarJob.noise)
 
 
 def combine(a: Partial, b: Partial) -> Partial:
@@ -131,7 +137,7 @@ def combine(a: Partial, b: Partial) -> Partial:
     return Partial(a.ls.merge(b.ls), both(a.bias, b.bias), both(a.iv, b.iv), rows,
                    a.segments + b.segments, both(a.errors, b.errors), both(a.shifts, b.shifts),
                    both(a.tires, b.tires), both(a.zeros, b.zeros), both(a.knees, b.knees), {**b.health, **health},
-                   both(a.hac, b.hac))
+                   both(a.hac, b.hac), both(a.noise, b.noise))
 
 
 class CarSetup:
@@ -341,6 +347,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
             part.zeros = OffsetFactors(acc.columns, acc.known_columns, acc.known_values, setup.a_priori[acc.columns])
             part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
                            [m[1] for m in moved], sys.groups)
+            if job.noise:
+                part.noise = _noise_scores(setup, job, sys, part.zeros, moved, lags)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
@@ -351,6 +359,25 @@ def reduce_car_segment(job: CarJob) -> Partial:
             noisy[-1].add(p.W, p.Y, sys.groups)
         part.errors = ErrorEffect(ls, *noisy)
     return part
+
+
+def _noise_scores(setup: CarSetup, job: CarJob, sys: GroupedSystem, zeros: OffsetFactors, moved: Sequence,
+                  lags: Mapping[str, float]) -> NoiseScores:
+    """Each noise draw's rows (job.noise: the same window of its file) on the noise-free rows' kept rows: their
+    residual at x0 less the noise-free one, row by row, scored by the noise-free [C | W] (`NoiseScores`)."""
+    fs = job.window.fs
+
+    def residual(s: GroupedSystem) -> np.ndarray:
+        return s.Y - s.W[:, zeros.known_columns] @ zeros.known_values - s.W[:, zeros.columns] @ zeros.x0
+
+    C = zeros.offset_columns([m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
+    rate = fs / math.prod(setup.settings.decimate)  # the rows' rate: stamps in rows
+    out = NoiseScores(job.noise_lag)
+    CW, stamps, clean = np.column_stack([C, sys.W[:, zeros.columns]]), np.rint(np.asarray(sys.t) * rate), residual(sys)
+    for d, window in enumerate(job.noise):
+        noisy = setup.rows(setup.trajectory(read_segment(window), fs, lags), fs, job.instruments, keep=sys.kept)
+        out.add(job.window.test, stamps, sys.groups, CW, residual(noisy) - clean, d)
+    return out
 
 
 def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
@@ -453,6 +480,10 @@ class RobotJob:
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
+    # the plan's: this window of files with draws of the noise alone (with estimate_offsets): the rows' noise as it
+    # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
+    noise: tuple[SegmentWindow, ...] = ()
+    noise_lag: int = 0
 
     @property
     def test(self) -> str:
