@@ -26,6 +26,18 @@ except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
 
+def _sections(sos, z0, z1, v):  # pragma: no cover - compiled
+    """One sample of every channel (v, C) through every section in turn, in place: scipy sosfilt's recursion
+    (direct form II transposed), the states z0, z1 (S, C) carried; the channels the inner loop (SIMD)."""
+    for s in range(sos.shape[0]):
+        b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
+        for c in range(v.shape[0]):
+            y = b0 * v[c] + z0[s, c]
+            z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
+            z1[s, c] = b2 * v[c] - a2 * y
+            v[c] = y
+
+
 def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
     """x (n, C): every column filtered forward then backward; ext (n + 2 pad, C) work and result.
     The channels are the inner loop: their recursions are independent, so they run side by side
@@ -54,13 +66,7 @@ def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
             i = k if direction == 0 else L - 1 - k
             for c in range(C):
                 v[c] = ext[i, c]
-            for s in range(S):
-                b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
-                for c in range(C):
-                    y = b0 * v[c] + z0[s, c]
-                    z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
-                    z1[s, c] = b2 * v[c] - a2 * y
-                    v[c] = y
+            _sections(sos, z0, z1, v)
             for c in range(C):
                 ext[i, c] = v[c]
 
@@ -82,13 +88,7 @@ def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
     for i in range(n - 1, -1, -1):
         for c in range(C):
             v[c] = x[i, c]
-        for s in range(S):
-            b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
-            for c in range(C):
-                y = b0 * v[c] + z0[s, c]
-                z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
-                z1[s, c] = b2 * v[c] - a2 * y
-                v[c] = y
+        _sections(sos, z0, z1, v)
         for c in range(C):
             out[c, i] = v[c]
 
@@ -104,18 +104,13 @@ def _forward_columns(sos, x, out):  # pragma: no cover - compiled
     for i in range(n):
         for c in range(C):
             v[c] = x[i, c]
-        for s in range(S):
-            b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
-            for c in range(C):
-                y = b0 * v[c] + z0[s, c]
-                z0[s, c] = b1 * v[c] - a1 * y + z1[s, c]
-                z1[s, c] = b2 * v[c] - a2 * y
-                v[c] = y
+        _sections(sos, z0, z1, v)
         for c in range(C):
             out[i, c] = v[c]
 
 
-if HAVE_NUMBA:
+if HAVE_NUMBA:  # the step first: the passes call the compiled one
+    _sections = njit(inline="always")(_sections)
     _filtfilt_columns = njit(cache=True, nogil=True)(_filtfilt_columns)
     _reverse_columns = njit(cache=True, nogil=True)(_reverse_columns)
     _forward_columns = njit(cache=True, nogil=True)(_forward_columns)
