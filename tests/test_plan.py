@@ -444,7 +444,7 @@ def test_every_parameter_of_the_plan_within_the_spreads_band(vehicle_plan, vehic
     of the suite's noise without offsets, their rows less the noise-free rows, scored by the noise-free rows with each
     test's offsets profiled out, summed per time stamp over the groups, one row of lag: the rows at 12.5 /s
     oversample the 4 Hz conditioning band 1.56 x). White per group (σ_g per group, rows independent) it left the
-    SUV's M6 at 2.32, MZ6 1.99, XY6 1.89, outside the band (the 406: 0.62 to 1.61). The cause (h-slow, /tmp/slow,
+    SUV's M6 at 2.32, MZ6 1.99, XY6 1.89, outside the band (the 406: 0.62 to 1.61). The cause (found by experiment,
     27 Nov: one sensor's noise at a time, offsets 0 but estimated, the rows' true noise through the estimator's
     linear map at fixed weights, 40 draws): no slow noise; every group's row noise is flat below 3 Hz and gone above
     5 Hz, so rows 0.08 s apart carry the low frequencies M6 is read at with 1.7 x the density of a white noise of
