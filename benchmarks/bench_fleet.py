@@ -99,7 +99,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="*", default=[1, 2], help="LocalCluster sizes to time (none: skip)")
     ap.add_argument("--format", default="parquet", choices=["parquet", "csv", "mf4"])
     ap.add_argument("--vs", metavar="SRC", nargs="*", default=[], help="other trees' src folders (e.g. "
-                    "../wt-base/src, an older commit's worktree): their 2-thread runs of each length timed in the same run, "
+                    "../wt-base/src, an older commit's worktree): each length's 2-thread run timed in this run, "
                     "alternating with this tree's; a version that predates CONFIG's keys (data_health, [uncertainty]) "
                     "reads the config without them (it has neither the data health check nor the offsets)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each tree per length (the median is reported)")
