@@ -480,10 +480,6 @@ class RobotJob:
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
-    # the plan's: this window of files with draws of the noise alone (with estimate_offsets): the rows' noise as it
-    # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
-    noise: tuple[SegmentWindow, ...] = ()
-    noise_lag: int = 0
 
     @property
     def test(self) -> str:
