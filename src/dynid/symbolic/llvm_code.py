@@ -287,7 +287,7 @@ def straight_line(fn: Callable, symbol: str):
     The IR is built when Numba first compiles a call (not when a cached caller is loaded); a source
     outside the language raises UnsupportedSourceError then (numba_backend checks it before choosing this path)."""
     # start-up: numba 0.5 s
-    from numba.core import cgutils, types
+    from numba.core import types
     from numba.core.errors import TypingError
     from numba.extending import intrinsic
 
@@ -301,17 +301,27 @@ def straight_line(fn: Callable, symbol: str):
             raise TypingError(f"{symbol}: expects a tuple of {nargs} C-contiguous float64 arrays, got {arrays}")
 
         def codegen(context, builder, sig, llargs):
-            values = []
-            for k, aty in enumerate(sig.args[0]):
-                ary = context.make_array(aty)(context, builder, builder.extract_value(llargs[0], k))
-                shape = cgutils.unpack_tuple(builder, ary.shape, aty.ndim)
-                values += [ary.data, ary.nitems, shape[-1]]
+            values = array_arguments(context, builder, sig.args[0], llargs[0])
             call_ir(context, builder, ir_text(), symbol, values)
             return context.get_constant(types.int64, 0)
 
         return types.int64(arrays), codegen
 
     return call
+
+
+def array_arguments(context, builder, tuple_type, packed) -> list:
+    """The LLVM values function_ir's convention passes for a tuple of arrays (inside a Numba intrinsic's
+    codegen): each array's data pointer, number of elements and last dimension."""
+    # start-up: numba 0.5 s (called only while Numba compiles, when it is loaded)
+    from numba.core import cgutils
+
+    values = []
+    for k, aty in enumerate(tuple_type):
+        ary = context.make_array(aty)(context, builder, builder.extract_value(packed, k))
+        shape = cgutils.unpack_tuple(builder, ary.shape, aty.ndim)
+        values += [ary.data, ary.nitems, shape[-1]]
+    return values
 
 
 @functools.cache
@@ -322,7 +332,7 @@ def address_call():
     caller compiled once serves every vehicle's generated models (the simulator's kernel: issue 28)."""
     # start-up: numba 0.5 s
     from llvmlite import ir
-    from numba.core import cgutils, types
+    from numba.core import types
     from numba.core.errors import TypingError
     from numba.extending import intrinsic
 
@@ -334,11 +344,7 @@ def address_call():
                               f"arrays, got {address}, {arrays}")
 
         def codegen(context, builder, sig, llargs):
-            values = []
-            for k, aty in enumerate(sig.args[1]):
-                ary = context.make_array(aty)(context, builder, builder.extract_value(llargs[1], k))
-                shape = cgutils.unpack_tuple(builder, ary.shape, aty.ndim)
-                values += [ary.data, ary.nitems, shape[-1]]
+            values = array_arguments(context, builder, sig.args[1], llargs[1])
             fnty = ir.FunctionType(ir.VoidType(), [v.type for v in values])
             builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), values)
             return context.get_constant(types.int64, 0)
