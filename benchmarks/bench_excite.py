@@ -18,7 +18,6 @@ Writes benchmarks/results/excite.json.
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 import tempfile
@@ -29,6 +28,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
 
 # link: mass kg, centre of mass in frame j (m), central principal inertias kg m²
 LINKS = [
@@ -120,9 +122,7 @@ def main() -> None:
         r, o = out[scale]["random_median"], out[scale]["optimised"]
         print(f"{label:<28} {r:22.4g} {o:12.4g} {r / o:8.1f}")
     print(f"(the design minimised the columns-scaled criterion; its best of 20 random starts: {best_start:.4g})")
-    results = HERE / "results"
-    results.mkdir(exist_ok=True)
-    (results / "excite.json").write_text(json.dumps(out, indent=2) + "\n")
+    write_results("excite", out)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ and with the cache filled. Prints a table and writes benchmarks/results/numeric.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -44,6 +43,7 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
 
 from oracles import PinModel, random_states  # noqa: E402
+from results_file import write_results  # noqa: E402
 
 import dynid  # noqa: E402
 from dynid import Model  # noqa: E402
@@ -251,13 +251,9 @@ def main() -> None:
     ]
     print_table(results, compile_s)
     roof = roofline(results, car)
-    out = HERE / "results" / "numeric.json"
-    out.parent.mkdir(exist_ok=True)
-    tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"machine": os.uname().machine, "cpus": os.cpu_count(), "engine": "numba",
-                               "first_call_s": compile_s, "results": results, "roofline": roof}, indent=2))
-    tmp.replace(out)
-    print(f"\nwrote {out.relative_to(HERE.parent)}")
+    print()
+    write_results("numeric", {"machine": os.uname().machine, "cpus": os.cpu_count(), "engine": "numba",
+                              "first_call_s": compile_s, "results": results, "roofline": roof})
 
 
 if __name__ == "__main__":

@@ -12,12 +12,15 @@ Writes benchmarks/results/report.json.
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
 
 
 def main() -> None:
@@ -41,9 +44,7 @@ def main() -> None:
                   f"report.html {(out / f'report{k}' / 'report.html').stat().st_size / 1e6:.2f} MB", flush=True)
     best = min(t for t, _ in times)
     print(f"best {best:.2f} s wall (target <= 3 s), first {times[0][0]:.2f} s (with matplotlib's import)")
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "report.json").write_text(json.dumps(
-        {"wall_s": [t for t, _ in times], "cpu_s": [c for _, c in times], "quick": not args.full}, indent=2) + "\n")
+    write_results("report", {"wall_s": [t for t, _ in times], "cpu_s": [c for _, c in times], "quick": not args.full})
 
 
 if __name__ == "__main__":

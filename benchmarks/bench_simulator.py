@@ -20,6 +20,11 @@ import tempfile
 import time
 from pathlib import Path
 
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
+
 TESTS = (("sine", 20.0), ("spiral", 30.0), ("braking", 10.0))
 
 
@@ -57,8 +62,8 @@ def main() -> None:
     if "--child" in sys.argv:
         print(json.dumps(drive()))
         return
-    with tempfile.TemporaryDirectory() as cache:  # first run: an empty cache, everything compiled
-        env = {**os.environ, "DYNID_CACHE": cache}
+    with tempfile.TemporaryDirectory() as cache:  # first run: empty caches (dynid's and Numba's), everything compiled
+        env = {**os.environ, "DYNID_CACHE": cache, "NUMBA_CACHE_DIR": f"{cache}/numba"}
         t0 = time.perf_counter()
         cold = json.loads(subprocess.run([sys.executable, __file__, "--child"], env=env, check=True,
                                          capture_output=True, text=True).stdout)
@@ -75,10 +80,7 @@ def main() -> None:
           f"real-time factor {warm['real_time_factor']:.1f}x (target >= 20x)")
     print(f"compile: first run {cold['startup_s']:.1f} s (empty cache); cached start-up {warm['startup_s']:.2f} s")
     print(f"peak memory (max RSS): {warm['peak_rss_mb']:.0f} MB")
-    out = Path(__file__).parent / "results" / "simulator.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=1))
-    print(f"wrote {out}")
+    write_results("simulator", res)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,6 @@ Run: python benchmarks/bench_symbolic.py   (writes benchmarks/results/symbolic.j
 from __future__ import annotations
 
 import ctypes
-import json
 import math
 import os
 import platform
@@ -44,6 +43,10 @@ from dynid.vehicle.template import paper_parameter_names
 CAR_COLS = tuple(paper_parameter_names())
 
 HERE = Path(__file__).parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
+
 MODELS = ("dgm", "idm", "regressor", "inertia")
 
 
@@ -205,9 +208,7 @@ def main() -> int:
                       "c_O2_us": None if t_c is None else t_c * 1e6}
     res["per_sample"] = speed
 
-    out = HERE / "results" / "symbolic.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=2) + "\n")
+    write_results("symbolic", res)  # once here, again with the block kernels' figures below
     print("generation time (s):")
     for key, d in gen.items():
         print(f"  {key:<8} " + "  ".join(f"{m} {v:.3f}" for m, v in d.items()))
@@ -228,7 +229,6 @@ def main() -> int:
               f"numpy writeable {d['numpy_writeable_us']:.3f} ({spw})  fresh buffers "
               f"{d['numpy_fresh_buffers_us']:.3f}  C -O2 {c_s}")
     try:
-        sys.path.insert(0, str(HERE))
         from roofline import peak_flops
 
         peak = peak_flops()
@@ -257,8 +257,7 @@ def main() -> int:
                     d[what.replace("_us", "_fraction_of_peak")] = rate / peak
                     print(f"           roofline {what[:-3]}: {d['ops']} ops + {d['functions']} sin/cos, "
                           f"{rate / 1e9:.2f} Gop/s, {100 * rate / peak:.1f} % of this core's {peak / 1e9:.1f} Gop/s")
-    out.write_text(json.dumps(res, indent=2) + "\n")
-    print(f"wrote {out}")
+    write_results("symbolic", res)
     return 0
 
 

@@ -14,7 +14,6 @@ Writes benchmarks/results/vehicle.json.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -23,6 +22,9 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE)]
+
+from results_file import write_results  # noqa: E402
 
 
 def build_models(name: str) -> float:
@@ -75,10 +77,7 @@ def main() -> None:
         res["demo --vehicle compact_suv, warm"] = demo(["--vehicle", "compact_suv", "--out", str(folder / "full")])
         print(f"dynid demo --vehicle compact_suv, warm                           "
               f"{res['demo --vehicle compact_suv, warm']:.1f} s   target <= 30 s", flush=True)
-    out = HERE / "results"
-    out.mkdir(exist_ok=True)
-    (out / "vehicle.json").write_text(json.dumps({"command": "python benchmarks/bench_vehicle.py", **res}, indent=1))
-    print(f"wrote {out / 'vehicle.json'}")
+    write_results("vehicle", {"command": "python benchmarks/bench_vehicle.py", **res})
 
 
 if __name__ == "__main__":
