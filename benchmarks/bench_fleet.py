@@ -47,7 +47,7 @@ from bench_pipeline import CONFIG, write_hour  # noqa: E402
 from results_file import write_results  # noqa: E402
 
 CHILD = """
-import json, sys, time
+import json, resource, sys, time
 from dynid.pipeline.config import load_config
 from dynid.pipeline.run import identify
 from dynid.pipeline.schedulers import scheduler_for
@@ -64,13 +64,17 @@ except Exception as exc:  # a version that predates CONFIG's keys reads the plai
 address = None if sys.argv[2] == "threads" else "local"
 scheduler = scheduler_for(address, int(sys.argv[3]))
 car_setup(cfg).regressor  # imports, the vehicle and the engine's cache loaded before the clock starts
-walls = []
+def cpu_s():  # this process's user + system seconds (comparable under a shared machine's load, unlike wall)
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+walls, cpus = [], []
 for _ in range(1 if address is None else 2):  # a cluster: its workers cold (first run), then warm
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_s()
     run = identify(cfg, scheduler=scheduler)
     walls.append(time.perf_counter() - t0)
+    cpus.append(cpu_s() - c0)
 getattr(scheduler, "close", lambda: None)()
-print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.identify.W.shape[0]),
+print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "cpu_s": cpus[-1], "rows": int(run.identify.W.shape[0]),
                   "M6": float(run.result.value("M6")),
                   "peak_gb": peak_gb()}))
 """
@@ -90,7 +94,11 @@ def child(config: Path, where: str, workers: int, src: str | None = None) -> dic
 
 
 def _walls(runs: list[dict]) -> str:
-    return ", ".join(f"{x['wall_s']:.2f}" for x in runs)
+    return ", ".join(f"{x['wall_s']:.2f}" for x in runs) + "; CPU s " + ", ".join(f"{x['cpu_s']:.2f}" for x in runs)
+
+
+def _cpu(runs: list[dict]) -> float:  # the median CPU seconds (threads only: a cluster's are its workers')
+    return sorted(x["cpu_s"] for x in runs)[len(runs) // 2]
 
 
 def main() -> None:
@@ -129,16 +137,17 @@ def main() -> None:
             r = sorted(runs, key=lambda x: x["wall_s"])[len(runs) // 2]
             threads[hours] = r
             res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r,
-                                "walls_s": [x["wall_s"] for x in runs]})
+                                "walls_s": [x["wall_s"] for x in runs], "cpus_s": [x["cpu_s"] for x in runs]})
             print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
                   f"{r['peak_gb']:8.2f}   runs {_walls(runs)}", flush=True)
             for src, other in vs.items():
                 b = sorted(other, key=lambda x: x["wall_s"])[len(other) // 2]
                 res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": src, **b,
-                                    "walls_s": [x["wall_s"] for x in other]})
+                                    "walls_s": [x["wall_s"] for x in other], "cpus_s": [x["cpu_s"] for x in other]})
                 print(f"{hours:>5g}h {'2 threads, ' + Path(src).parent.name:>22} {b['wall_s']:8.2f} "
                       f"{8 * hours / b['wall_s']:10.2f} {b['peak_gb']:8.2f}   runs {_walls(other)}; this tree's "
-                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians)", flush=True)
+                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians), "
+                      f"CPU {_cpu(other) / _cpu(runs):.2f} x", flush=True)
         hours = min(configs)
         cluster = {}
         for n in args.workers:
