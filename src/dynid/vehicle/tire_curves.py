@@ -910,7 +910,10 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     t0, c0 = time.perf_counter(), time.process_time()
     s = _ordered(samples)
     out = TireCurves(wheel_radius, reach=slip_reach(s))
-    lat, lon = pure_lateral(s), pure_longitudinal(s)
+    # the pure lateral slip's samples (`pure_lateral`), the wheels' free-rolling slips found once for them and for
+    # the samples kept
+    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
+    lat, lon = s.select(pure_y & (s.vx >= MIN_SPEED) & (s.fz > 0)), pure_longitudinal(s)
     # the free-rolling samples at any slip angle (those of lon left out: each sample once): κ0's load line
     rolling = s.select((np.abs(s.fx) <= FREE_ROLLING * s.fz) & (s.vx >= MIN_SPEED) & (s.fz > 0)
                        & (np.abs(s.alpha) > ALPHA_PURE))
@@ -943,7 +946,6 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
                 getattr(out, kind)[key] = found[kind, key]
     for r in out.reach:
         r.update(_regime(out, r))
-    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
     out.samples = s.select((pure_y | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
     out.seconds, out.cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     return out
