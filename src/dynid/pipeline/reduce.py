@@ -103,12 +103,6 @@ class CarJob:
     def test(self) -> str:
         return self.window.test
 
-    @property
-    def cost(self) -> int:
-        """About how many passes of the estimator and the equations the job does (the scheduler starts the costliest
-        first): the error draws' two, about two for the delays' groups, one for the offsets, one per noise draw."""
-        return 1 + 2 * self.errors + 2 * self.delays + bool(self.offsets) + len(self.noise)
-
 
 @dataclass
 class Partial:

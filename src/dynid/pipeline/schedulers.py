@@ -84,10 +84,7 @@ class LocalScheduler:
         done = 0
         with ThreadPoolExecutor(self.workers) as pool, threadpool_limits(limits=1, user_api="blas"):
             running: dict = {}
-            # the costliest jobs first (`cost`, where a job says it: a car segment with the error draws or the delays
-            # does several passes): last, one would run alone while the other workers idle. The fold is by the jobs'
-            # order, whatever the order they finish in: the same bits
-            todo = sorted(range(len(jobs)), key=lambda i: -getattr(jobs[i], "cost", 1))
+            todo = iter(range(len(jobs)))
             for i in todo:
                 running[pool.submit(_trimmed if i % TRIM_EVERY == TRIM_EVERY - 1 else _plain, fn, jobs[i])] = i
                 if len(running) < 2 * self.workers:
