@@ -27,6 +27,15 @@ its throughput; fddb8ab 11.19 s (13.95, 11.19, 7.81), with its plain config (it 
 error draws, the delays and the tire curves): 0.86 x its throughput, far from the 3 x target. Peak 0.99 GB.
 Of the hour's ~13 s, the tire curves' fit after the segments is ~2 s on one thread, the segments ~9 s at 1.6
 cores.
+
+Measured 2026-11-27 (issue 28, h-thru2, the same command with --vs <main 07e3a6a>/src <fddb8ab>/src; the machine at
+load averages 10 to 13, every wall several times an idle one: CPU seconds, comparable under load, are printed
+now): branch h-thru2 (the tire fits on 2 threads, results the same bits) CPU 31.03 s (30.30, 31.18, 31.03), main
+31.04 (30.59, 31.04, 32.12): 1.00 x, as expected (the segments' code unchanged, the fit's arithmetic the same);
+fddb8ab 25.58 (24.01, 25.58, 27.49): its CPU 0.82 x this tree's, its throughput in CPU terms 1.21 x this tree's:
+the 3 x target is far. Walls (medians 96.8, 110.8, 93.4 s) say nothing at that load. A branch that started the
+costliest segments first (the last carries the error draws and the delays: it ran alone at the end) peaked at
+1.07 GB (the first and last segments, the two heaviest, at once): reverted; this tree's peak 0.95 GB.
 """
 
 from __future__ import annotations

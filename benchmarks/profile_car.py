@@ -42,6 +42,17 @@ more kernels (tire poses, Euler rates, rotation) read joints 4.59 -> 3.35, but t
 on a first run for 1-2 ms per pass: left out (the cold start). Rows, results.json and every parameter are
 main's to the bit (the tire curves' σ to 4e-16: their instants' labels are integers now, their groups summed in
 another order). Not in the table: the tire curves' fit after the segments (1 hour's samples: 2.48 -> 1.94 s).
+
+Measured 2026-11-27 (issue 28, h-thru2; --minutes 5 --cpu, main 07e3a6a then branch h-thru2 in turn, bench_fleet's
+workload; the 2-core EPYC at load averages 10 to 13, so every wall figure here is several times an idle one and
+only the CPU columns compare): the segments' stages 14.99 -> 14.94 CPU s per hour (their code unchanged: joints
+7.79 / 7.37, read 1.02 / 1.13, decimation 1.24 / 1.36, compensation 1.30 / 1.35); the tire curves' fit per hour
+CPU 8.20 -> 7.36 s, wall 97.0 -> 29.1 s (its fits on 2 threads now: the loaded machine's figure, not a ratio to
+quote). Before, this profile ran with the offsets estimated (the default): each segment then evaluated each
+offset's moved rows, 24 of 39 s of a 10 min identification (cProfile, one thread), hidden in the fixed line.
+The whole hour, cProfile of main (one thread, inline, 60 min): the segments 83 % (joints 32 %,
+reading 14 %, rows 13 %, the data health 9 %, compensation 6 %, tire samples 4 %), the tire fit 15 %
+(4.4-4.9 CPU s: 14 least-squares problems on 290k wheel samples), the rest 5 %.
 """
 
 from __future__ import annotations
