@@ -27,6 +27,15 @@ its throughput; fddb8ab 11.19 s (13.95, 11.19, 7.81), with its plain config (it 
 error draws, the delays and the tire curves): 0.86 x its throughput, far from the 3 x target. Peak 0.99 GB.
 Of the hour's ~13 s, the tire curves' fit after the segments is ~2 s on one thread, the segments ~9 s at 1.6
 cores.
+
+Measured 2026-11-27 (issue 28, h-thru2, the same command with --vs <main 07e3a6a>/src <fddb8ab>/src; the machine at
+load averages 10 to 13, every wall several times an idle one: CPU seconds, comparable under load, are printed
+now): branch h-thru2 (the tire fits on 2 threads, results the same bits) CPU 31.03 s (30.30, 31.18, 31.03), main
+31.04 (30.59, 31.04, 32.12): 1.00 x, as expected (the segments' code unchanged, the fit's arithmetic the same);
+fddb8ab 25.58 (24.01, 25.58, 27.49): its CPU 0.82 x this tree's, its throughput in CPU terms 1.21 x this tree's:
+the 3 x target is far. Walls (medians 96.8, 110.8, 93.4 s) say nothing at that load. A branch that started the
+costliest segments first (the last carries the error draws and the delays: it ran alone at the end) peaked at
+1.07 GB (the first and last segments, the two heaviest, at once): reverted; this tree's peak 0.95 GB.
 """
 
 from __future__ import annotations
@@ -47,7 +56,7 @@ from bench_pipeline import CONFIG, write_hour  # noqa: E402
 from results_file import write_results  # noqa: E402
 
 CHILD = """
-import json, sys, time
+import json, resource, sys, time
 from dynid.pipeline.config import load_config
 from dynid.pipeline.run import identify
 from dynid.pipeline.schedulers import scheduler_for
@@ -64,13 +73,17 @@ except Exception as exc:  # a version that predates CONFIG's keys reads the plai
 address = None if sys.argv[2] == "threads" else "local"
 scheduler = scheduler_for(address, int(sys.argv[3]))
 car_setup(cfg).regressor  # imports, the vehicle and the engine's cache loaded before the clock starts
-walls = []
+def cpu_s():  # this process's user + system seconds (comparable under a shared machine's load, unlike wall)
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+walls, cpus = [], []
 for _ in range(1 if address is None else 2):  # a cluster: its workers cold (first run), then warm
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_s()
     run = identify(cfg, scheduler=scheduler)
     walls.append(time.perf_counter() - t0)
+    cpus.append(cpu_s() - c0)
 getattr(scheduler, "close", lambda: None)()
-print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "rows": int(run.identify.W.shape[0]),
+print(json.dumps({"wall_s": walls[-1], "cold_s": walls[0], "cpu_s": cpus[-1], "rows": int(run.identify.W.shape[0]),
                   "M6": float(run.result.value("M6")),
                   "peak_gb": peak_gb()}))
 """
@@ -90,7 +103,11 @@ def child(config: Path, where: str, workers: int, src: str | None = None) -> dic
 
 
 def _walls(runs: list[dict]) -> str:
-    return ", ".join(f"{x['wall_s']:.2f}" for x in runs)
+    return ", ".join(f"{x['wall_s']:.2f}" for x in runs) + "; CPU s " + ", ".join(f"{x['cpu_s']:.2f}" for x in runs)
+
+
+def _cpu(runs: list[dict]) -> float:  # the median CPU seconds (threads only: a cluster's are its workers')
+    return sorted(x["cpu_s"] for x in runs)[len(runs) // 2]
 
 
 def main() -> None:
@@ -129,16 +146,17 @@ def main() -> None:
             r = sorted(runs, key=lambda x: x["wall_s"])[len(runs) // 2]
             threads[hours] = r
             res["runs"].append({"hours": hours, "where": "threads", "workers": 2, **r,
-                                "walls_s": [x["wall_s"] for x in runs]})
+                                "walls_s": [x["wall_s"] for x in runs], "cpus_s": [x["cpu_s"] for x in runs]})
             print(f"{hours:>5g}h {'2 threads':>22} {r['wall_s']:8.2f} {8 * hours / r['wall_s']:10.2f} "
                   f"{r['peak_gb']:8.2f}   runs {_walls(runs)}", flush=True)
             for src, other in vs.items():
                 b = sorted(other, key=lambda x: x["wall_s"])[len(other) // 2]
                 res["runs"].append({"hours": hours, "where": "threads", "workers": 2, "tree": src, **b,
-                                    "walls_s": [x["wall_s"] for x in other]})
+                                    "walls_s": [x["wall_s"] for x in other], "cpus_s": [x["cpu_s"] for x in other]})
                 print(f"{hours:>5g}h {'2 threads, ' + Path(src).parent.name:>22} {b['wall_s']:8.2f} "
                       f"{8 * hours / b['wall_s']:10.2f} {b['peak_gb']:8.2f}   runs {_walls(other)}; this tree's "
-                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians)", flush=True)
+                      f"throughput {b['wall_s'] / r['wall_s']:.2f} x its (medians), "
+                      f"CPU {_cpu(other) / _cpu(runs):.2f} x", flush=True)
         hours = min(configs)
         cluster = {}
         for n in args.workers:

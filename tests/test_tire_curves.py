@@ -425,3 +425,31 @@ def test_the_runs_and_instants_group_as_their_string_keys():
     key = np.array([f"{a}/{c}" for a, c in zip(test, corner, strict=True)], dtype=object)
     runs = np.cumsum(np.r_[True, (key[1:] != key[:-1]) | (np.abs(dt - step) > 0.5 * step)])
     np.testing.assert_array_equal(_runs(s), runs)
+
+
+def test_the_fits_on_threads_are_the_fits_in_turn():
+    """`fit_tire_curves` runs its fits on threads: each curve, and what is missing and in which order, must be the
+    fits in turn to the bit. Oracle: the public fits called here one after the other (per axle its lateral law, its
+    longitudinal law, then per tire both), on two axles whose lateral laws fit and whose longitudinal ones cannot
+    (no braking: said in `missing`)."""
+    from dynid.vehicle.tire_curves import AXLES, CORNER_TAGS, fit_tire, fit_tire_curves
+
+    rear, front = _synthetic_axle(3, 6.0), _synthetic_axle(4, 6.0)
+    front = TireSamples(front.test, front.corner + 2, *(getattr(front, f) for f in
+                                                       ("t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")))
+    s = rear.merge(front)
+    threads, alone = fit_tire_curves(s, 0.3, workers=2), fit_tire_curves(s, 0.3, workers=1)
+    lateral, per_tire, missing = {}, {}, []
+    for axle, corners in AXLES.items():
+        lateral[axle] = fit_lateral(s.select(np.isin(s.corner, corners)))
+        missing.append(f"{axle} longitudinal")
+        for k in corners:
+            per_tire[CORNER_TAGS[k]] = fit_tire(s.select(s.corner == k), lateral[axle])
+            missing.append(f"tire {CORNER_TAGS[k]} longitudinal")
+    for got in (threads, alone):
+        assert list(got.lateral) == list(lateral) and list(got.per_tire) == list(per_tire)
+        assert list(got.missing) == missing and not got.longitudinal
+        for mine, theirs in ((got.lateral, lateral), (got.per_tire, per_tire)):
+            for key, curve in theirs.items():
+                np.testing.assert_array_equal(mine[key].fit.values, curve.fit.values)
+                np.testing.assert_array_equal(mine[key].fit.cov, curve.fit.cov)

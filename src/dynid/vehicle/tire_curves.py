@@ -57,8 +57,10 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import time
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -168,6 +170,8 @@ def empty_samples() -> TireSamples:
 def magic_formula(x: Array, B: Array | float, C: Array | float, D: Array | float, E: Array | float) -> Array:
     """Pacejka's pure-slip curve D sin(C atan(B x - E (B x - atan(B x)))) (its slope at 0 is B C D)."""
     bx = B * x
+    if np.ndim(E) == 0 and E == 0 and np.isfinite(bx).all():  # E (bx - atan(bx)) is 0: the same bits, one atan less
+        return D * np.sin(C * np.arctan(bx))
     return D * np.sin(C * np.arctan(bx - E * (bx - np.arctan(bx))))
 
 
@@ -374,22 +378,24 @@ class LateralCurve:
         return out
 
 
-def _mu(p: Mapping[str, float], fz0: float, fz: Array | float) -> Array | float:
-    return p["mu0"] * (1 + p.get("pD2", 0.0) * (np.asarray(fz) / fz0 - 1))
+def _mu(p: Mapping[str, float], fz0: float, fz: Array | float, dfz: Array | None = None) -> Array | float:
+    return p["mu0"] * (1 + p.get("pD2", 0.0) * (np.asarray(fz) / fz0 - 1 if dfz is None else dfz))
 
 
-def _stiffness(p: Mapping[str, float], fz0: float, fz: Array | float) -> Array | float:
-    return p["k0"] * np.asarray(fz) * (1 + p.get("pK2", 0.0) * (np.asarray(fz) / fz0 - 1))
+def _stiffness(p: Mapping[str, float], fz0: float, fz: Array | float, dfz: Array | None = None) -> Array | float:
+    return p["k0"] * np.asarray(fz) * (1 + p.get("pK2", 0.0) * (np.asarray(fz) / fz0 - 1 if dfz is None else dfz))
 
 
-def lateral_force(p: Mapping[str, float], fz0: float, alpha: Array, fz: Array, magic: bool = True) -> Array:
+def lateral_force(p: Mapping[str, float], fz0: float, alpha: Array, fz: Array, magic: bool = True,
+                  dfz: Array | None = None) -> Array:
     """Fy (N, ground on wheel, W axes) at slip angle alpha (rad) and load fz (N): -K x (linear) or the Magic
-    Formula with K = B C D, x = alpha + Sh (parameters: `LateralCurve`)."""
+    Formula with K = B C D, x = alpha + Sh (parameters: `LateralCurve`). dfz: fz / fz0 - 1 when the caller has
+    it (a fit evaluates it once, not twice per call)."""
     x = alpha + p.get("Sh", 0.0)
-    K = _stiffness(p, fz0, fz)
+    K = _stiffness(p, fz0, fz, dfz)
     if not magic:
         return -K * x
-    D = _mu(p, fz0, fz) * fz
+    D = _mu(p, fz0, fz, dfz) * fz
     C = p["C"]
     return -magic_formula(x, K / (C * D), C, D, p["E"])
 
@@ -532,8 +538,10 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     names = ["k0", "Sh"] + (["pK2"] if load else [])
     fixed = shape | ({} if load else {"pK2": 0.0})
 
+    dfz = fz / axle.fz0 - 1  # the same every call: once
+
     def fun(v: Array) -> Array:
-        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a, fz) - fy
+        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a, fz, dfz=dfz) - fy
 
     start = [axle.fit.value("k0"), axle.fit.value("Sh")] + ([axle.fit.value("pK2")] if load else [])
     fit = _least_squares(fun, [start], np.array([1e-3, -0.1] + ([-0.9] if load else [])),
@@ -547,9 +555,11 @@ def _fit_linear(a: Array, fz: Array, fy: Array, fz0: float, load: bool, runs: Ar
     names = ["k0", "Sh"] + (["pK2"] if load else [])
     fixed = {} if load else {"pK2": 0.0}
 
+    dfz = fz / fz0 - 1  # the same every call: once
+
     def fun(v: Array) -> Array:
         p = dict(zip(names, v, strict=True))
-        return lateral_force({**fixed, **p}, fz0, a, fz, magic=False) - fy
+        return lateral_force({**fixed, **p}, fz0, a, fz, magic=False, dfz=dfz) - fy
 
     k0 = float(-np.sum(fy * a * fz) / max(np.sum((a * fz) ** 2), 1e-12))
     start = [k0, 0.0] + ([0.0] if load else [])
@@ -563,8 +573,10 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
     names = ["k0", "mu0", "C", "Sh"] + ([] if E is not None else ["E"]) + (["pK2", "pD2"] if load else [])
     fixed = ({} if E is None else {"E": E}) | ({} if load else {"pK2": 0.0, "pD2": 0.0})
 
+    dfz = fz / fz0 - 1  # the same every call: once
+
     def fun(v: Array) -> Array:
-        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz) - fy
+        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz, dfz=dfz) - fy
 
     lo = {"k0": 1e-3, "mu0": 0.05, "C": MF_C_BOUNDS[0], "Sh": -0.1, "E": -10.0, "pK2": -0.9, "pD2": -0.9}
     hi = {"k0": 200.0, "mu0": 5.0, "C": MF_C_BOUNDS[1], "Sh": 0.1, "E": 1.0, "pK2": 5.0, "pD2": 5.0}
@@ -621,8 +633,10 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
 
     def fun(v: Array) -> Array:
         p = {**fixed, **dict(zip(names, v, strict=True))}
-        k0 = p["kappa0"] + p["kappa0_fz"] * load_free
-        return (k0 - fx / (p["kx0"] * fz * (1 + p["pKx2"] * load_nominal)) - k) * weight
+        # a term held at 0 adds nothing: left out (its product is ±0, its sum the other term: the same bits)
+        k0 = p["kappa0"] + p["kappa0_fz"] * load_free if radius_load else p["kappa0"]
+        kx = p["kx0"] * fz * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz
+        return (k0 - fx / kx - k) * weight
 
     kx = float(-np.sum(fx * k * fz) / max(np.sum((k * fz) ** 2), 1e-12))
     fit = _least_squares(fun, [[kx, 0.0] + ([0.0] if load else []) + ([0.0] if radius_load else [])],
@@ -853,51 +867,85 @@ def _regime(curves: TireCurves, row: dict) -> dict:
     return out
 
 
-def fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
+def fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int | None = None) -> TireCurves:
     """Every curve the samples support (module doc); what they do not is said in `missing`. BLAS on one thread:
     the problems are a few thousand rows by a few columns, where threads cost more than they give (on a loaded
-    machine, 3 s of wall time against 0.4 s)."""
+    machine, 3 s of wall time against 0.4 s). The independent fits (each axle's lateral law and then its tires',
+    each axle's and tire's longitudinal law) run on `workers` threads (default: up to 2, as the segments' map):
+    their arithmetic is NumPy's on arrays of tens of thousands of samples, which releases the GIL, and each fit
+    is the same sequence of operations as in turn, so the curves are the same bits."""
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return _fit_tire_curves(samples, wheel_radius)
+        return _fit_tire_curves(samples, wheel_radius, workers or min(2, os.cpu_count() or 1))
 
 
-def _fit_tire_curves(samples: TireSamples, wheel_radius: float) -> TireCurves:
+def _lateral_chain(lat: TireSamples, axle: str, corners: tuple[int, ...]) -> list[tuple[str, str, object]]:
+    """The axle's lateral law, then each of its tires' (which take the axle's shape): (kind, key, curve or the
+    reason it is missing), in the order the results list them."""
+    out: list[tuple[str, str, object]] = []
+    curve = None
+    try:
+        curve = fit_lateral(lat.select(np.isin(lat.corner, corners)))
+        out.append(("lateral", axle, curve))
+    except TireCurveError as exc:
+        out.append(("missing", f"{axle} lateral", str(exc)))
+    for k in corners:
+        try:
+            out.append(("per_tire", CORNER_TAGS[k], fit_tire(lat.select(lat.corner == k), curve)))
+        except TireCurveError as exc:
+            out.append(("missing", f"tire {CORNER_TAGS[k]} lateral", str(exc)))
+    return out
+
+
+def _longitudinal_one(lon: TireSamples, rolling: TireSamples, kind: str, key: str, missing: str
+                      ) -> tuple[str, str, object]:
+    try:
+        return kind, key, fit_longitudinal(lon, rolling)
+    except TireCurveError as exc:
+        return "missing", missing, str(exc)
+
+
+def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1) -> TireCurves:
 
     t0, c0 = time.perf_counter(), time.process_time()
     s = _ordered(samples)
     out = TireCurves(wheel_radius, reach=slip_reach(s))
-    lat, lon = pure_lateral(s), pure_longitudinal(s)
+    # the pure lateral slip's samples (`pure_lateral`), the wheels' free-rolling slips found once for them and for
+    # the samples kept
+    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
+    lat, lon = s.select(pure_y & (s.vx >= MIN_SPEED) & (s.fz > 0)), pure_longitudinal(s)
     # the free-rolling samples at any slip angle (those of lon left out: each sample once): κ0's load line
     rolling = s.select((np.abs(s.fx) <= FREE_ROLLING * s.fz) & (s.vx >= MIN_SPEED) & (s.fz > 0)
                        & (np.abs(s.alpha) > ALPHA_PURE))
-    keep = []
+    # the fits, each axle's lateral chain first (the longest), then the longitudinal laws
+    tasks = [(_lateral_chain, lat, axle, corners) for axle, corners in AXLES.items()]
     for axle, corners in AXLES.items():
-        m = np.isin(lat.corner, corners)
-        try:
-            out.lateral[axle] = fit_lateral(lat.select(m))
-            keep.append(m)
-        except TireCurveError as exc:
-            out.missing[f"{axle} lateral"] = str(exc)
-        try:
-            out.longitudinal[axle] = fit_longitudinal(lon.select(np.isin(lon.corner, corners)),
-                                                      rolling.select(np.isin(rolling.corner, corners)))
-        except TireCurveError as exc:
-            out.missing[f"{axle} longitudinal"] = str(exc)
+        tasks.append((_longitudinal_one, lon.select(np.isin(lon.corner, corners)),
+                      rolling.select(np.isin(rolling.corner, corners)), "longitudinal", axle, f"{axle} longitudinal"))
+        tasks += [(_longitudinal_one, lon.select(lon.corner == k), rolling.select(rolling.corner == k),
+                   "longitudinal_per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} longitudinal") for k in corners]
+    if workers > 1:
+        with ThreadPoolExecutor(min(workers, len(tasks))) as pool:
+            done = [f.result() for f in [pool.submit(*t) for t in tasks]]
+    else:
+        done = [t[0](*t[1:]) for t in tasks]
+    found = {}
+    for d in done:
+        for kind, key, value in d if isinstance(d, list) else [d]:
+            found[kind, key] = value
+    # the results in the order a fit in turn gave them: per axle its lateral law, longitudinal law, then per tire
+    for axle, corners in AXLES.items():
+        slots = [("lateral", axle, f"{axle} lateral"), ("longitudinal", axle, f"{axle} longitudinal")]
         for k in corners:
-            m = lat.corner == k
-            try:
-                out.per_tire[CORNER_TAGS[k]] = fit_tire(lat.select(m), out.lateral.get(axle))
-            except TireCurveError as exc:
-                out.missing[f"tire {CORNER_TAGS[k]} lateral"] = str(exc)
-            try:
-                out.longitudinal_per_tire[CORNER_TAGS[k]] = fit_longitudinal(lon.select(lon.corner == k),
-                                                                             rolling.select(rolling.corner == k))
-            except TireCurveError as exc:
-                out.missing[f"tire {CORNER_TAGS[k]} longitudinal"] = str(exc)
+            slots += [("per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} lateral"),
+                      ("longitudinal_per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} longitudinal")]
+        for kind, key, missing in slots:
+            if ("missing", missing) in found:
+                out.missing[missing] = found["missing", missing]
+            else:
+                getattr(out, kind)[key] = found[kind, key]
     for r in out.reach:
         r.update(_regime(out, r))
-    pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
     out.samples = s.select((pure_y | (np.abs(s.alpha) <= ALPHA_PURE)) & (s.vx >= MIN_SPEED))
     out.seconds, out.cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     return out
