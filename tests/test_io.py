@@ -262,6 +262,41 @@ def test_csv_layout_written(tmp_path: Path) -> None:
     assert lines[3].startswith("0.0,") and lines[3].endswith(",")  # z9 has no sample at t = 0
 
 
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rec=sparse_recordings(), repeat=st.integers(1, 3))
+def test_csv_cells_are_each_value_s_shortest_repr(tmp_path: Path, rec: Recording, repeat: int) -> None:
+    """The writer formats each distinct value once (by bit pattern); the text must be the per-cell repr all the
+    same: the oracle writes every cell itself, -0.0 as -0.0, NaN of any payload as nan, no sample as empty."""
+    chans = [Channel(c.name, c.unit, np.tile(c.values, repeat), np.concatenate(
+        [c.time + 1000.0 * k for k in range(repeat)])) for c in rec.channels.values()]  # the grid spans < 250 s
+    rec = Recording.from_channels(chans)
+    text = write_recording(rec, tmp_path / "any.csv").read_text().splitlines()
+    times = np.unique(np.concatenate([c.time for c in chans]))
+    rows = []
+    for t in times.tolist():
+        cells = [repr(t)]
+        for c in chans:
+            hit = np.flatnonzero(c.time == t)
+            cells.append(repr(float(c.values[hit[0]])) if hit.size else "")
+        rows.append(",".join(cells))
+    assert text[-len(rows):] == rows
+
+
+def test_csv_cells_keep_signed_zeros_and_the_extremes_apart(tmp_path: Path) -> None:
+    """0.0 and -0.0 compare equal but are written apart; NaN of any sign or payload is nan; repr's switches to
+    exponent notation (below 1e-4, from 1e16) and the subnormals kept: the text is repr's, cell by cell."""
+    special = [0.0, -0.0, np.nan, -np.nan, np.inf, -np.inf, 1e-5, 1e-4, 1e16, 9999999999999998.0, 0.1 + 0.2, 5e-324,
+               np.frombuffer(np.array([0x7FF8000000000001], dtype=np.int64).tobytes())[0]]
+    values = np.array(special * 3)
+    rng = np.random.default_rng(3)
+    values = values[rng.permutation(values.size)]
+    t = np.arange(values.size) / 8.0
+    path = write_recording(Recording.from_channels([Channel("x", "", values, t), Channel("y", "m", -values, t)]),
+                           tmp_path / "z.csv")
+    expected = [f"{a!r},{float(b)!r},{float(-b)!r}" for a, b in zip(t.tolist(), values, strict=True)]
+    assert path.read_text().splitlines()[-values.size:] == expected
+
+
 # ---------------------------------------------------------------------------------------------
 # Same data, different units -> same SI result
 

@@ -390,24 +390,24 @@ def _write_grid(out: io.TextIOBase, recording: Recording, grid: Grid, delimiter:
         out.write(f"# {_one_line(key).replace(':', '_')}: {_one_line(value)}\n")
     writer = csv.writer(out, delimiter=delimiter, lineterminator="\n")
     writer.writerow(["time [s]"] + [_header_cell(n, u) for n, u in zip(grid.names, grid.units, strict=True)])
-    matrix = np.column_stack([grid.time, *grid.values])
-    fmt = float.__repr__
-    if all(p is None for p in grid.present):
-        for row in matrix.tolist():
-            out.write(delimiter.join(map(fmt, row)))
-            out.write("\n")
-        return
-    present = np.column_stack(
-        [np.ones(grid.time.size, dtype=bool)]
-        + [np.ones(grid.time.size, dtype=bool) if p is None else p for p in grid.present]
-    )
-    full = present.all(axis=1)
-    for i, row in enumerate(matrix.tolist()):
-        if full[i]:
-            out.write(delimiter.join(map(fmt, row)))
-        else:
-            out.write(delimiter.join(fmt(v) if p else "" for v, p in zip(row, present[i].tolist(), strict=True)))
+    columns = []
+    for col, present in zip([grid.time, *grid.values], [None, *grid.present], strict=True):
+        cells = _cells(col)
+        if present is not None:
+            cells[~present] = ""  # no sample at that time
+        columns.append(cells.tolist())
+    if grid.time.size:
+        out.write("\n".join(map(delimiter.join, zip(*columns, strict=True))))  # zip reuses its row tuple
         out.write("\n")
+
+
+def _cells(values: NDArray[np.float64]) -> NDArray[np.object_]:
+    """Each value's shortest repr (exact: float() reads it back to the bit), formatted once per distinct value: a
+    logger's channel repeats its quantised values (a demo file has 1 distinct value in 7), so this is 3-5 times
+    faster than a repr per cell. Distinct by bit pattern, so -0.0 stays -0.0."""
+    distinct, where = np.unique(np.ascontiguousarray(values, dtype=np.float64).view(np.int64), return_inverse=True)
+    text = np.array(list(map(float.__repr__, distinct.view(np.float64).tolist())), dtype=object)
+    return text[where.reshape(-1)]
 
 
 def _one_line(text: str) -> str:

@@ -60,7 +60,10 @@ def tire_figure(tires) -> bytes:
         ax.set_ylabel("Fx / Fz")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
+    # fixed margins, tight_layout's for the demo's car: it measured every tick label for 40 % of the figure's time
+    # (0.6 of 1.6 s CPU); the axes are ratios (Fy/Fz, Fx/Fz, degrees, slip) of a few digits whatever the car, the
+    # colour bars' loads four or five
+    fig.subplots_adjust(left=0.0872, right=0.96, top=0.9481, bottom=0.0836, wspace=0.295, hspace=0.304)
     return _png(fig, plt)
 
 
