@@ -18,21 +18,20 @@ imports 149 MB against 172, and no car or robot identification loads scipy.signa
 Before: pandas (pyarrow's to_numpy imported it), the heap the plan's pass over the stamps left (trimmed), half of
 each worker's block of the full-rate W.
 
-Measured 2026-11-27 (22:47-23:26 UTC, load average 7-13 on the 2 cores: other sessions, and this branch's test
-run during the first call): peak 472 and 477 MiB against main's 508 and 505 at 07e3a6a (two farm-bench calls, 3 runs
-each alternated A B A B, medians; -28..-36 MB); CPU 1.05 x (pairs 1.02-1.05, the call beside the test run) and
-0.94 x (0.93-0.95): noise of +-5 %; the work added, timed alone: 0.28 s to compare the stamps when planned and
-0.28 s to read the 65 chunks' stamps, ~1 % of the 58 s. What went: the clock (`sources.FileClock`: the rows of
-the file's time column, read back by a chunk from the row groups it reads anyway, `io.windows.stamp_rows`, every
-stamp compared once when planned): the resident set before the map 274 -> 245 MB (an RSS trace around the
-stages). The estimate, its sigmas and the errors are bit-equal to main's. Tried and left, one run each on the
-loaded machine (peaks there move by +-20 MB): the block cache off (windows.CACHE_BLOCKS = 0): -24 MB before the
-map, ~-20 at the peak, each chunk decoding its two row groups again (40 ms of CPU a group here, ~+2.5 %);
-MALLOC_ARENA_MAX=1 (the two workers' threads in one glibc arena): -22 MB, CPU equal in that pair, a lever like
-the thresholds. A correction to the floor below: scipy.interpolate is first imported by `signals.resampling` (make_interp_spline,
-for `io.align`'s cubic resampling of q off the clock), which every robot run imports, and again by the vehicle
-package (`vehicle.table_poly`'s BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside
-NumPy, scipy.linalg and Numba).
+Measured 2026-11-27 (22:47-23:26 UTC, load average 7-13 on the 2 cores: other sessions, and this branch's test run
+during the first call): peak 472 and 477 MiB against main's 508 and 505 at 07e3a6a (two farm-bench calls, 3 runs
+each alternated A B A B, medians; -28..-36 MB); CPU 1.05 x (pairs 1.02-1.05, the call beside the test run) and 0.94
+x (0.93-0.95): noise of +-5 %; the work added, timed alone: 0.28 s to compare the stamps when planned and 0.28 s to
+read the 65 chunks' stamps, ~1 % of the 58 s. What went: the clock (`sources.FileClock`: the rows of the file's time
+column, read back by a chunk from the row groups it reads anyway, `io.windows.stamp_rows`, every stamp compared once
+when planned): the resident set before the map 274 -> 245 MB (an RSS trace around the stages). The estimate, its
+sigmas and the errors are bit-equal to main's. Tried and left, one run each on the loaded machine (peaks there move
+by +-20 MB): the block cache off (windows.CACHE_BLOCKS = 0): -24 MB before the map, ~-20 at the peak, each chunk
+decoding its two row groups again (40 ms of CPU a group here, ~+2.5 %); MALLOC_ARENA_MAX=1 (the two workers' threads
+in one glibc arena): -22 MB, CPU equal in that pair, a lever like the thresholds. A correction to the floor below:
+scipy.interpolate is first imported by `signals.resampling` (make_interp_spline, for `io.align`'s cubic resampling
+of q off the clock), which every robot run imports, and again by the vehicle package (`vehicle.table_poly`'s
+BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside NumPy, scipy.linalg and Numba).
 
 Not met: 300 MB is ~175 MB away. The floor before the clock went (at 07e3a6a), measured as resident-set steps with
 one worker (peak 439 MB): 149 MB of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and
