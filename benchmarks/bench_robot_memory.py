@@ -18,21 +18,41 @@ imports 149 MB against 172, and no car or robot identification loads scipy.signa
 Before: pandas (pyarrow's to_numpy imported it), the heap the plan's pass over the stamps left (trimmed), half of
 each worker's block of the full-rate W.
 
-Not met: 300 MB is ~210 MB away. The floor, measured as resident-set steps with one worker (peak 439 MB): 149 MB
-of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and spatial: the vehicle modules that
-pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then the plan +94 (pyarrow 30 on the
-first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the file's own stamps when uniform,
-so not a formula; the rest the plan pass's heap), the data-health check +82 (Numba's code generator 47 on the
-first compiled call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24 MB, constant in the
-log's length), so 318 MB before the first chunk. The map then adds ~60 MB per worker (its chunk's samples read
-and filtered, one 8 MiB block of W with its transient, the first decimation stage's output for the chunk,
-16 MB: all set by SEGMENT_BYTES and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB chunks
--31 MB, +30 % CPU, the 5.5 k-sample decimation transient read around each chunk) and the plots' rows
+Measured 2026-11-27 (22:47-23:26 UTC, load average 7-13 on the 2 cores: other sessions, and this branch's test run
+during the first call): peak 472 and 477 MiB against main's 508 and 505 at 07e3a6a (two farm-bench calls, 3 runs
+each alternated A B A B, medians; -28..-36 MB); CPU 1.05 x (pairs 1.02-1.05, the call beside the test run) and 0.94
+x (0.93-0.95): noise of +-5 %; the work added, timed alone: 0.28 s to compare the stamps when planned and 0.28 s to
+read the 65 chunks' stamps, ~1 % of the 58 s. What went: the clock (`sources.FileClock`: the rows of the file's time
+column, read back by a chunk from the row groups it reads anyway, `io.windows.stamp_rows`, every stamp compared once
+when planned): the resident set before the map 274 -> 245 MB (an RSS trace around the stages). The estimate, its
+sigmas and the errors are bit-equal to main's. Tried and left, one run each on the loaded machine (peaks there move
+by +-20 MB): the block cache off (windows.CACHE_BLOCKS = 0): -24 MB before the map, ~-20 at the peak, each chunk
+decoding its two row groups again (40 ms of CPU a group here, ~+2.5 %); MALLOC_ARENA_MAX=1 (the two workers' threads
+in one glibc arena): -22 MB, CPU equal in that pair, a lever like the thresholds. A correction to the floor below:
+scipy.interpolate is first imported by `signals.resampling` (make_interp_spline, for `io.align`'s cubic resampling
+of q off the clock), which every robot run imports, and again by the vehicle package (`vehicle.table_poly`'s
+BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside NumPy, scipy.linalg and Numba).
+
+Not met: 300 MB is ~175 MB away. The floor before the clock went (at 07e3a6a), measured as resident-set steps with
+one worker (peak 439 MB): 149 MB of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and
+spatial: the vehicle modules that pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then
+the plan +94 (pyarrow 30 on the first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the
+file's own stamps when uniform, so not a formula; the rest the plan pass's heap), the data-health check +82 (Numba's
+code generator 47 on the first compiled call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24
+MB, constant in the log's length), so 318 MB before the first chunk. The map then adds ~60 MB per worker (its
+chunk's samples read and filtered, one 8 MiB block of W with its transient, the first decimation stage's output for
+the chunk, 16 MB: all set by SEGMENT_BYTES and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB
+chunks -31 MB, +30 % CPU, the 5.5 k-sample decimation transient read around each chunk) and the plots' rows
 (`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the scipy.stats it imports, 20) comes after the map (the physical
 check of the estimate, a function-level import in `estimation.physical`): not in the peak. glibc's thresholds
-(MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take 45-70 MB off at 1.8 x the CPU. The levers left: the clock
-(a chunk could read its stamps from the file's blocks instead), scipy.interpolate and the car's modules out of a
-robot's imports, Numba's code generator on a robot's path, streaming the second decimation stage.
+(MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take 45-70 MB off at 1.8 x the CPU. Per worker, traced
+(tracemalloc, one chunk of 55,700 samples): 65 MB at its peak: the window's q and tau 7, the filtered q, qd, qdd
+10.7, the first stage's output W1 15.7 (only 190 of its 7 x 43 columns are not structurally zero: 5.8 MB of it
+zeros), one block of W 11.3 and the filter's work 13; the rest of the map's ~215 MB over the base is not traced:
+glibc's free blocks (the two threads' arenas: one arena took 22 MB off) and the plots' rows. The levers left:
+scipy.interpolate out of a robot's imports (signals.resampling and the vehicle package), W1 without its zero
+columns, streaming the second decimation stage (changes the bits at 1e-15: the overlaps), Numba's code generator on
+a robot's path.
 """
 
 from __future__ import annotations

@@ -305,3 +305,32 @@ def test_holes_in_several_blocks_name_the_first_and_count_them_all():
     t, _ = _stamps_over_blocks()
     with pytest.raises(GapError, match=r"sample 1000 .*over max_gap = 1.5 \(3 such gap\(s\) in all\)"):
         stream([Channel("time", "s", t, t)], "f.csv", True, 1.5)  # holes of 2, 3 and 2 periods (jitter 0.1)
+
+
+def test_a_parquet_clock_stays_in_the_file_and_gives_the_estimate_of_the_held_clock(logs, tmp_path):
+    """The plan keeps a Parquet file's clock as rows of the file (`sources.FileClock`), read back a window at a
+    time. Oracles: pyarrow's own read of the time column, cut to start..end by hand (the windows' stamps, bit for
+    bit); and the run on the same rows as CSV, whose clock the plan holds (the estimate to the last bit)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from dynid.pipeline.sources import FileClock, clock_read, clock_window, plan_robot_test
+
+    d, _ = logs
+    clean = np.loadtxt(d / "clean.csv", delimiter=",", skiprows=1)
+    names = ["time", *(f"j{i + 1}" for i in range(6)), *(f"tau{i + 1}" for i in range(6))]
+    pq.write_table(pa.table({n: clean[:, i] for i, n in enumerate(names)}), tmp_path / "clean.parquet",
+                   row_group_size=4000)  # six row groups: windows across their edges
+    window = "start = 2.5\nend = 20.0"
+    cfg = load_config(config(d, "pq", q=str(tmp_path / "clean.parquet"), extra=window))
+    plan = plan_robot_test(cfg, cfg.tests[0])
+    t = pq.read_table(tmp_path / "clean.parquet", columns=["time"]).column(0).to_numpy()
+    t = t[(t >= 2.5) & (t <= 20.0)]
+    assert isinstance(plan.clock, FileClock) and plan.samples == t.size
+    assert plan.clock[0] == t[0] and plan.clock[-1] == t[-1]
+    for lo, hi in ((0, t.size), (3990, 4017), (1500, 9000), (t.size - 7, t.size)):
+        w = clock_read(clock_window(plan, lo, hi))
+        assert w.first == lo and np.array_equal(w.clock, t[lo:hi])
+    on_file = estimate(config(d, "pq", q=str(tmp_path / "clean.parquet"), extra=window))
+    held = estimate(config(d, "csv", q="clean.csv", extra=window))
+    assert np.array_equal(on_file[0], held[0]) and np.array_equal(on_file[1], held[1])

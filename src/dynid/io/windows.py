@@ -399,6 +399,34 @@ def _parquet_stamps(index: FileIndex) -> NDArray[np.float64]:
     return out[:at]
 
 
+def stamp_rows(index: FileIndex, lo: int, hi: int, store: bool = True) -> NDArray[np.float64]:
+    """Stamps lo..hi of a Parquet file's time column (or row / fs), the rows of `_parquet_stamps` (what `time_bases`
+    gives a dense file), decoded block by block as it decodes them, so the same bits: a planner's clock read back
+    a window at a time instead of held whole. store: keep the decoded blocks (a window's read next needs them)."""
+    if index.format != "parquet":
+        raise ValueError(f"stamp_rows reads a Parquet file's stamps, not a {index.format} file's")
+    _check_unchanged(index)
+    opened: list[Any] = []
+    out = np.empty(max(0, hi - lo))
+    at = row = 0  # rows filled; the block's first row among the stamps
+    for b in index.blocks:
+        if row >= hi:
+            break
+        if not b.rows or row + b.rows <= lo:
+            row += b.rows
+            continue
+        if index.time_column is None:
+            part = uniform_time(b.rows, index.option("fs"), index.path, b.row0)
+        else:
+            col = _parquet_column(index, b, index.time_column, opened, store=store)
+            part = table_time([col], index.time_column, None, index.path, None, b.row0)
+        cut = part[max(lo - row, 0):hi - row]
+        out[at:at + cut.size] = cut
+        at += cut.size
+        row += part.size
+    return out[:at]
+
+
 def clear_cache() -> None:
     """Forget the decoded blocks kept by this process."""
     with _lock:

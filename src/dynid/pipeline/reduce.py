@@ -61,7 +61,16 @@ from .car import car_load_changes, car_moved_rows, car_system, knee_rows
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
-from .sources import RobotTestPlan, SegmentWindow, config_joints, driven, gain_names, read_robot_window, read_segment
+from .sources import (
+    RobotTestPlan,
+    SegmentWindow,
+    clock_read,
+    config_joints,
+    driven,
+    gain_names,
+    read_robot_window,
+    read_segment,
+)
 
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
@@ -522,7 +531,7 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
     the drive gains' columns when they are identified, and the test's payload torque taken off), reduced to their
     per-joint factors (every column: `StreamingLS.reparametrised` applies the known values when solving)."""
     setup = robot_setup(job.cfg)
-    w = job.window
+    w = clock_read(job.window)  # its stamps read once (a file's clock is not held by the plan)
     arrays = read_robot_window(w, 0, w.samples)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))

@@ -86,6 +86,7 @@ from .robot import (
 )
 from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
+    clock_window,
     plan_car_test,
     plan_robot_test,
     read_robot_window,
@@ -226,7 +227,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
         row_bytes = 8 * len(model.tree.equations) * len(robot_setup(cfg).names) / np.prod(cfg.conditioning.decimate)
         for i, (s, e) in enumerate(robot_chunks(N, plan.fs, model, base, cfg.conditioning)):
             lo, hi = max(0, s - pad), min(N, e + pad)
-            window = dataclasses.replace(plan, clock=plan.clock[lo:hi], first=lo)
+            window = clock_window(plan, lo, hi)
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
             jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True))
             kept += (e - s) * row_bytes

@@ -32,7 +32,7 @@ from ..io import Channel, DataError, FileFormatError, align, format_of, to_si, u
 from ..io.align import InterpSpec
 from ..io.rosbag_format import first_joints, is_bag
 from ..io.units import same_unit
-from ..io.windows import FileIndex, index_file, read_window, time_bases
+from ..io.windows import FileIndex, index_file, read_window, stamp_rows, time_bases
 from ..model.tree import PRISMATIC, ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .robot import DataJoints, data_joints
@@ -321,6 +321,70 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
 
 # -------------------------------------------------------------------------------------------------- a robot's test
 @dataclass(frozen=True)
+class FileClock:
+    """A clock that is the rows first..first + size of a Parquet file's stamps, read back from the file when asked
+    (`io.windows.stamp_rows`: the same bits) instead of held whole: 8 bytes a sample (29 MB an hour at 1 kHz) kept
+    by the plan and by the jobs cut from it while the map runs. Sliced, a window's stamps (an array); `cut`, a
+    window of it still in the file."""
+
+    index: FileIndex
+    first: int
+    size: int
+
+    def __len__(self) -> int:
+        return self.size
+
+    def __getitem__(self, key: int | slice) -> NDArray[np.float64] | float:
+        if isinstance(key, slice):
+            lo, hi, step = key.indices(self.size)
+            if step != 1:
+                raise IndexError("a file's clock is read in contiguous windows")
+            return stamp_rows(self.index, self.first + lo, self.first + max(lo, hi))
+        k = key + self.size if key < 0 else key
+        if not 0 <= k < self.size:
+            raise IndexError(f"sample {key} of a clock of {self.size}")
+        return float(stamp_rows(self.index, self.first + k, self.first + k + 1, store=False)[0])
+
+    def cut(self, lo: int, hi: int) -> FileClock:
+        return FileClock(self.index, self.first + lo, max(0, hi - lo))
+
+
+def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | None:
+    """The clock as rows of the file's stamps when it is (every stamp compared, a block at a time), else None."""
+    if index.format != "parquet" or clock.size < 2:
+        return None
+    start = 0  # the clock's first row among the file's stamps
+    for b in index.blocks:  # the block holding the clock's first stamp
+        if b.rows and b.t_min <= clock[0] <= b.t_max:
+            head = stamp_rows(index, start, start + b.rows, store=False)
+            at = np.flatnonzero(head == clock[0])
+            if at.size != 1:
+                return None
+            start += int(at[0])
+            break
+        start += b.rows
+    else:
+        return None
+    step = max(b.rows for b in index.blocks)
+    for lo in range(0, clock.size, step):
+        hi = min(clock.size, lo + step)
+        if not np.array_equal(stamp_rows(index, start + lo, start + hi, store=False), clock[lo:hi]):
+            return None
+    return FileClock(index, start, int(clock.size))
+
+
+def clock_window(plan: RobotTestPlan, lo: int, hi: int) -> RobotTestPlan:
+    """The plan cut to its clock's samples lo..hi (a job's window): a file's clock stays in the file."""
+    clock = plan.clock.cut(lo, hi) if isinstance(plan.clock, FileClock) else plan.clock[lo:hi]
+    return dataclasses.replace(plan, clock=clock, first=plan.first + lo)
+
+
+def clock_read(plan: RobotTestPlan) -> RobotTestPlan:
+    """The plan with its clock's stamps in memory (a window's, read from the file when a `FileClock`)."""
+    return dataclasses.replace(plan, clock=plan.clock[0:plan.samples]) if isinstance(plan.clock, FileClock) else plan
+
+
+@dataclass(frozen=True)
 class RobotTestPlan:
     """One robot test's files (q and its effort, tau or current; one file or two) and their clock (q's); cut to the
     samples a chunk reads (`first` onwards), what a chunk's job carries."""
@@ -330,7 +394,7 @@ class RobotTestPlan:
     indexes: dict[str, FileIndex]  # quantity -> its file's index
     channels: dict[str, tuple[str, ...]]  # quantity -> its channels, one per joint
     units: dict[str, tuple[str, ...]]  # quantity -> each channel's unit (the config's, else the file's)
-    clock: NDArray[np.float64]
+    clock: NDArray[np.float64] | FileClock  # the file's own stamps stay in the file (`FileClock`)
     fs: float
     timed: bool
     max_gap: float
@@ -412,8 +476,10 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     units = bag[2] if bag is not None else {
         q: tuple(channel_unit(cfg, q, n, indexes[q].units.get(n, ""), str(spec.files[q]))
                  for n in cfg.channels[q].channels) for q in quantities}
-    return RobotTestPlan(spec.name, spec.role, indexes, chans, units, clock, fs, timed, spec.max_gap,
-                         window_margin(spec.max_gap, [s.h for s in every]))
+    margin = window_margin(spec.max_gap, [s.h for s in every])
+    kept = _file_clock(indexes["q"], clock)
+    return RobotTestPlan(spec.name, spec.role, indexes, chans, units, clock if kept is None else kept, fs, timed,
+                         spec.max_gap, margin)
 
 
 def config_joints(cfg: IdentifyConfig, tree: Tree) -> DataJoints:
@@ -561,7 +627,7 @@ def read_robot_window(plan: RobotTestPlan, lo: int, hi: int) -> dict[str, NDArra
     """{"q": (hi - lo, channels), "tau" or "current": ...} in SI: the clock samples lo..hi of the test, each channel
     from its file's samples around them, interpolated where not on the clock (cubic for q, linear for the effort)."""
 
-    clock = plan.clock[lo:hi]
+    clock = np.asarray(plan.clock[lo:hi])
     out = {}
     effort = ("current", "linear", ("A",)) if plan.effort == "current" else ("tau", "linear", ("N*m", "N"))
     for quantity, kind, expect in (("q", "cubic", ("rad", "m")), effort):
