@@ -21,9 +21,10 @@ from ..progress import notice_if_slow
 from ..shipped import DEMO_VEHICLE
 from ..vehicle.description import VehicleError, load_vehicle
 from ..vehicle.sim import CarSimulator
-from ..vehicle.sim.car import kernel_cached, prebuild_kernel
+from ..vehicle.sim.car import kernel_cached, prebuild_kernel, while_kernel_builds
 from ..vehicle.sim.recording import write_test
 from .config import load_config
+from .first_run import warm_identification
 from .run import IdentificationRun, identify
 
 Progress = Callable[[str], None]
@@ -161,6 +162,7 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
              simulation_progress=None, vehicle: str = DEMO_VEHICLE) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
+    while_kernel_builds(lambda: warm_identification(vehicle, demo_config, [t[1] for t in TESTS]))  # a first run
     results = simulate_tests(quick, say, simulation_progress, vehicle)
     say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
     run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)
