@@ -90,15 +90,15 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
 # them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
 SLOW_BUILD_S = 3.0
-# what a user waits for on a first run, measured (benchmarks/profile_cold_start.py --in-process, CPU seconds on a
-# 2-core AMD EPYC; a busy machine's wall time is longer): the simulator's kernel compiled 9.5-10 s, in a forked
-# process (vehicle.sim.car.prebuild_kernel) while this one loads the vehicle (its rest state compiles the engine's
-# dynamics, 3 s) and generates and compiles its models; a new vehicle once the kernel is cached: `dynid simulate sine`
-# of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared (farm-bench, 3 pairs)
-GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 10, 10, 2
+# what a user waits for on a first run, measured (CPU seconds on a 2-core AMD EPYC loaded 7-11x, which inflates
+# them somewhat; a busy machine's wall time is longer): the simulator's kernel compiles 18-22 s in a forked process
+# (vehicle.sim.car.prebuild_kernel) while this one loads the vehicle, generates its models and compiles the
+# identification's kernels (pipeline.first_run, 12-16 s); a new vehicle once the kernel is cached: `dynid simulate
+# sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared (farm-bench, 3 pairs)
+GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 20, 20, 2
 GENERATING = (f"building the car: the simulator's kernel compiles on the other core while the car's models are "
-              f"generated (once per dynid version, about {GENERATE_S} s on a free machine; a new vehicle's models "
-              f"about {NEW_VEHICLE_S} s; cached for later runs)")
+              f"generated and, in a demo, the identification compiles (once per dynid version, about {GENERATE_S} s "
+              f"on a free machine; a new vehicle's models about {NEW_VEHICLE_S} s; cached for later runs)")
 COMPILING = (f"compiling the simulator's kernel (first run only, about {COMPILE_S} s on a free core; cached for "
              "later runs)")
 LOADING = f"loading the simulator's compiled kernel (about {COMPILE_S} s of compiling if it is not cached)"
