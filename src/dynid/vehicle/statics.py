@@ -22,7 +22,7 @@ from scipy.optimize import root
 
 from ..dynamics import Model, Wrench
 from ..model.files import tree_to_toml
-from ..model.tree import Tree
+from ..model.tree import ModelError, Tree
 from .geometry import GeometryError
 from .tables import default_tables
 from .template import CORNERS, DAMPERS, TIRES, WHEELS
@@ -53,8 +53,13 @@ _SOLVED_KEPT = 16
 _SOLVED_LOCK = threading.Lock()
 
 
-def _rest_key(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) -> bytes:
-    h = hashlib.sha256(tree_to_toml(tree).encode())
+def _rest_key(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) -> bytes | None:
+    """The content key of a rest state; None (not kept) for a tree no model file can hold (load terms)."""
+    try:
+        text = tree_to_toml(tree)
+    except ModelError:
+        return None
+    h = hashlib.sha256(text.encode())
     h.update(repr((tuple(float(g) for g in tree.gravity), bool(fix_dampers), float(steering_wheel))).encode())
     for corner in tables.tables:
         for name in sorted(corner):
@@ -74,6 +79,8 @@ def rest_state(tree: Tree, tables=None, fix_dampers: bool = False, steering_whee
 
     tables = default_tables() if tables is None else tables
     key = _rest_key(tree, tables, fix_dampers, steering_wheel)
+    if key is None:
+        return _solve_rest(tree, tables, fix_dampers, steering_wheel)
     with _SOLVED_LOCK:
         rest = _SOLVED.get(key)
     if rest is None:
