@@ -73,10 +73,11 @@ def main() -> None:
         event.register("numba:compile", Listener())
         from dynid.cli.main import main as dynid
 
-        if args.in_process:
+        if args.in_process:  # both callers: the demo command (before its vehicle check) and simulated_car
             import dynid.pipeline.demo as demo
+            import dynid.vehicle.sim.car as car
 
-            demo.prebuild_kernel = lambda: False
+            demo.prebuild_kernel = car.prebuild_kernel = lambda: False
 
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             code = dynid(args.command.format(tmp=tmp).split())

@@ -21,9 +21,10 @@ from ..progress import notice_if_slow
 from ..shipped import DEMO_VEHICLE
 from ..vehicle.description import VehicleError, load_vehicle
 from ..vehicle.sim import CarSimulator
-from ..vehicle.sim.car import kernel_cached, prebuild_kernel
+from ..vehicle.sim.car import kernel_cached, prebuild_kernel, while_kernel_builds
 from ..vehicle.sim.recording import write_test
 from .config import load_config
+from .first_run import warm_identification
 from .run import IdentificationRun, identify
 
 Progress = Callable[[str], None]
@@ -89,15 +90,15 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
 # them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
 SLOW_BUILD_S = 3.0
-# what a user waits for on a first run, measured (benchmarks/profile_cold_start.py --in-process, CPU seconds on a
-# 2-core AMD EPYC; a busy machine's wall time is longer): the simulator's kernel compiled 9.5-10 s, in a forked
-# process (vehicle.sim.car.prebuild_kernel) while this one loads the vehicle (its rest state compiles the engine's
-# dynamics, 3 s) and generates and compiles its models; a new vehicle once the kernel is cached: `dynid simulate sine`
-# of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared (farm-bench, 3 pairs)
-GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 10, 10, 2
+# what a user waits for on a first run, measured (CPU seconds on a 2-core AMD EPYC loaded 7-11x, which inflates
+# them somewhat; a busy machine's wall time is longer): the simulator's kernel compiles 18-22 s in a forked process
+# (vehicle.sim.car.prebuild_kernel) while this one loads the vehicle, generates its models and compiles the
+# identification's kernels (pipeline.first_run, 12-16 s); a new vehicle once the kernel is cached: `dynid simulate
+# sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared (farm-bench, 3 pairs)
+GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 20, 20, 2
 GENERATING = (f"building the car: the simulator's kernel compiles on the other core while the car's models are "
-              f"generated (once per dynid version, about {GENERATE_S} s on a free machine; a new vehicle's models "
-              f"about {NEW_VEHICLE_S} s; cached for later runs)")
+              f"generated and, in a demo, the identification compiles (once per dynid version, about {GENERATE_S} s "
+              f"on a free machine; a new vehicle's models about {NEW_VEHICLE_S} s; cached for later runs)")
 COMPILING = (f"compiling the simulator's kernel (first run only, about {COMPILE_S} s on a free core; cached for "
              "later runs)")
 LOADING = f"loading the simulator's compiled kernel (about {COMPILE_S} s of compiling if it is not cached)"
@@ -161,6 +162,7 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
              simulation_progress=None, vehicle: str = DEMO_VEHICLE) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
+    while_kernel_builds(lambda: warm_identification(vehicle, demo_config, [t[1] for t in TESTS]))  # a first run
     results = simulate_tests(quick, say, simulation_progress, vehicle)
     say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
     run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)

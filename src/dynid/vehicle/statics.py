@@ -12,13 +12,17 @@ inverse dynamics, so it holds for any geometry and parameter set.
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import root
 
 from ..dynamics import Model, Wrench
-from ..model.tree import Tree
+from ..model.files import tree_to_toml
+from ..model.tree import ModelError, Tree
 from .geometry import GeometryError
 from .tables import default_tables
 from .template import CORNERS, DAMPERS, TIRES, WHEELS
@@ -42,14 +46,54 @@ class RestState:
         return self.q[np.array(DAMPERS) - 1]
 
 
+# rest states solved in this process, by the content of what they depend on: a demo asks for the same few (the
+# vehicle file's check, its a priori and truth trees, the simulator's) a dozen times, 0.2-0.4 s each
+_SOLVED: OrderedDict[bytes, RestState] = OrderedDict()
+_SOLVED_KEPT = 16
+_SOLVED_LOCK = threading.Lock()
+
+
+def _rest_key(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) -> bytes | None:
+    """The content key of a rest state; None (not kept) for a tree no model file can hold (load terms)."""
+    try:
+        text = tree_to_toml(tree)
+    except ModelError:
+        return None
+    h = hashlib.sha256(text.encode())
+    h.update(repr((tuple(float(g) for g in tree.gravity), bool(fix_dampers), float(steering_wheel))).encode())
+    for corner in tables.tables:
+        for name in sorted(corner):
+            t = corner[name]
+            for a in (t.travel, t.values, t.steering):
+                h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=float).tobytes() + repr(a.shape).encode())
+    return h.digest()
+
+
 def rest_state(tree: Tree, tables=None, fix_dampers: bool = False, steering_wheel: float = 0.0) -> RestState:
     """Equilibrium at rest on flat ground (q1 = q2 = q4 = 0); raises GeometryError if a wheel floats.
 
     tables: KinematicTables for the tabulated joints (default: the 406's); fix_dampers: hold
     the dampers at q = 0 (their equations are then not imposed: see `design_preloads`).
+    Solved once per process for the same tree and tables (a copy of the same arrays after).
     """
 
     tables = default_tables() if tables is None else tables
+    key = _rest_key(tree, tables, fix_dampers, steering_wheel)
+    if key is None:
+        return _solve_rest(tree, tables, fix_dampers, steering_wheel)
+    with _SOLVED_LOCK:
+        rest = _SOLVED.get(key)
+    if rest is None:
+        rest = _solve_rest(tree, tables, fix_dampers, steering_wheel)
+        with _SOLVED_LOCK:
+            _SOLVED[key] = rest
+            while len(_SOLVED) > _SOLVED_KEPT:
+                _SOLVED.popitem(last=False)
+    return RestState(rest.q.copy(), rest.loads.copy())
+
+
+def _solve_rest(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) -> RestState:
+    """rest_state's Newton solve."""
     model = Model(tree)
     weight = -tree.gravity[2] * sum(tree.values.get(f"M{j}", 0.0) for j in range(1, tree.n + 1))
     kts = [tree.values.get(f"K{t}", 0.0) for t in TIRES]

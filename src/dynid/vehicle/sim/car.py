@@ -32,6 +32,7 @@ states the law.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import dataclasses
 import hashlib
 import inspect
@@ -229,8 +230,27 @@ def kernel_module():
         module = nb.compile_source(_kernel_body(), list(K.JITTED), key, prefix="dynid_simk")
     build = _PREBUILD.pop(key, None)
     if build is not None:
+        _run_meanwhile()
         build.wait()
     return module
+
+
+_MEANWHILE: list[Callable[[], object]] = []
+
+
+def while_kernel_builds(task: Callable[[], object]) -> None:
+    """Run `task` in this process while it waits for the kernel's build (prebuild_kernel) at the next
+    kernel_module(): a first run's idle core then compiles what the run needs later (pipeline.first_run). Call it
+    before prebuild_kernel, which drops it when the kernel is cached (no wait). Its errors are dropped: it may only
+    save time, never fail the run."""
+    _MEANWHILE.append(task)
+
+
+def _run_meanwhile() -> None:
+    while _MEANWHILE:
+        task = _MEANWHILE.pop(0)
+        with contextlib.suppress(Exception):  # a head start only: what it did not compile compiles when used
+            task()
 
 
 def compile_lock():
@@ -312,12 +332,14 @@ def prebuild_kernel() -> bool:
     its generated models) runs meanwhile on the other core. The next kernel_module() waits for it. Returns
     whether a build was started."""
     if not nb.have_numba():
+        _MEANWHILE.clear()  # no wait to fill (while_kernel_builds)
         return False
     key = _kernel_key()
     if key in _PREBUILD:
         return True
     module = kernel_module()
     if kernel_cached(module) is not False:
+        _MEANWHILE.clear()
         return False
     _PREBUILD[key] = _Build(key)
     return True
