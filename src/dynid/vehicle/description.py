@@ -67,10 +67,8 @@ valid one.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 import os
-import pickle
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -739,32 +737,12 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
     return out
 
 
-# the truth sets solved in this process, by their inputs' digest: each solve is rest states (0.3-0.7 s) and a demo
-# or identification loads its vehicle several times (the config's check, the simulator, the logger files, the
-# reduction); keyed by content, so an edited file (or its tables) is solved anew
-_TRUTHS: dict[str, ParameterSet] = {}
-
-
 def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
            tables: KinematicTables, where: str, knees: dict[int, tuple[float, float]]) -> ParameterSet:
     """The simulation's set: the file's [truth], the known values and the a priori values for the rest; a damper
     offset not given is the static preload that holds the damper at its design position. A damper whose curve
     slopes [truth] gives drives with that curve (a slope not given: the truth's h); the others with h (the a
-    priori's when the a priori set has a curve). Solved once per process for the same inputs (a fresh copy each
-    call: the caller may change its dicts)."""
-
-    grids = [(t.name, t.corner, t.travel.tobytes(), t.values.tobytes(),
-              None if t.steering is None else t.steering.tobytes())
-             for corner in tables.tables for _, t in sorted(corner.items())]
-    key = hashlib.sha256(pickle.dumps((given, a_priori, known, g, grids, where, knees))).hexdigest()
-    if key not in _TRUTHS:
-        _TRUTHS[key] = _solve_truth(given, a_priori, known, g, tables, where, knees)
-    done = _TRUTHS[key]
-    return ParameterSet(done.name, dict(done.values), dict(done.sources))
-
-
-def _solve_truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
-                 tables: KinematicTables, where: str, knees: dict[int, tuple[float, float]]) -> ParameterSet:
+    priori's when the a priori set has a curve). Its rest states are solved once per process (statics.rest_state)."""
     curved = {d for d in DAMPERS if any(n in given for n in _curve_names(d))}
     values = {**a_priori, **known, **given}
     for d in DAMPERS:
