@@ -129,13 +129,13 @@ def test_a_car_hac_with_its_offsets_estimated_equals_statsmodels(tmp_path, monke
     from dynid.pipeline.demo import simulate_tests, write_demo
 
     caught = {}
-    add = offsets_module.OffsetFactors.add
+    add = offsets_module.OffsetFactors.add_columns
 
-    def catch(self, test, sources, W, Y, dW, dY, groups):
-        caught[test] = (self.offset_columns(dW, dY, len(Y)), self.columns.copy())
-        return add(self, test, sources, W, Y, dW, dY, groups)
+    def catch(self, test, sources, W, Y, C, groups):
+        caught[test] = (np.array(C), self.columns.copy())
+        return add(self, test, sources, W, Y, C, groups)
 
-    monkeypatch.setattr(offsets_module.OffsetFactors, "add", catch)
+    monkeypatch.setattr(offsets_module.OffsetFactors, "add_columns", catch)
     config = write_demo(tmp_path, simulate_tests(quick=True), seed=2, noise=True, fmt="parquet")
     text = config.read_text().replace('method = "wls"', f'method = "wls"\ncov_type = "{kind}"\nhac_lags = 3')
     config.write_text(text.replace("[conditioning]\n", "[conditioning]\nsegment = 1000.0\n"))

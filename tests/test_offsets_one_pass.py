@@ -131,6 +131,22 @@ def assert_one_pass_equals_reruns(config, test: int, iv: bool = True) -> None:
         assert np.abs(dY - dY0).max() <= 1e-12 * scale, q
         assert np.abs(shifts[0][q] - shifts[1][q]).max() <= 1e-6 * np.abs(shifts[1][q]).max(), q
 
+    # the offsets' estimate's columns C_k = Δ(Y − W x0) from the moved residuals (W x0 formed before the decimation,
+    # the staged passes on the equations' samples alone) against those of the re-runs' (ΔW, ΔY). Round-off: each
+    # side rounds Y − W x0 at ε (|Y| + |W| |x0|) row by row, summed over the filters' taps (a hundred at most):
+    # 1e-14 of that scale, allowed 1e-13 (measured on a 60 s segment of profile_car.py's data: 3e-15)
+    from dynid.estimation.offsets import OffsetFactors
+    from dynid.pipeline.reduce import _columns, offset_residuals
+
+    columns, known, values = _columns(ls)
+    zeros = OffsetFactors(columns, known, values, setup.a_priori[columns])
+    x0 = zeros.point(sys.W.shape[1])
+    C = offset_residuals(setup, channels, fs, {}, compensated, joints, sys, offsets, x0)
+    C0 = zeros.offset_columns([c[0] for c in changes[1]], [c[1] for c in changes[1]], len(sys.Y))
+    tol = 1e-13 * (np.abs(sys.Y) + np.abs(sys.W) @ np.abs(x0)).max()
+    assert np.abs(C0).max(axis=0).min() > 1e3 * tol  # every offset moves the residual far above round-off
+    assert np.abs(C - C0).max() <= tol
+
     if not iv:
         return
     # an IDIM-IV pass: the loads move the instruments (the simulated suspensions) too
@@ -171,6 +187,25 @@ def test_the_moved_stages_equal_the_whole_pass(noisy):
         assert np.abs(moved.wheel_wrenches - whole.wheel_wrenches).max() <= 1e-12 * np.abs(whole.wheel_wrenches).max()
     with pytest.raises(ValueError, match="clearance_rl"):
         joints.moved("clearance_rl", 1e-3)
+
+
+def test_the_moved_stages_on_every_kth_sample_are_the_whole_rates(noisy):
+    """`JointsPass.moved(..., every=k)` (the rows' equations' samples alone, the whole-rate arrays never made) is
+    the whole-rate moved trajectory's every k-th sample, to the bit (the same operations on the same numbers), and
+    its full-rate rates are the whole-rate trajectory's."""
+    from dynid.pipeline.car import _every, coarse_step
+
+    _, setup, fs, channels, _, joints, _ = segment(noisy, 0)
+    k = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
+    assert k > 1
+    for q in [q for q in channels if joints.movable(q)]:
+        b = 1e-3 * max(1.0, np.abs(channels[q]).max())
+        whole, coarse = joints.moved(q, b), joints.moved(q, b, every=k)
+        expected = _every(whole, k)
+        for name in ("t", "q", "qd", "qdd", "wheel_wrenches", "steering_wheel"):
+            assert np.array_equal(getattr(coarse.traj, name), getattr(expected, name)), (q, name)
+        cols = [8, 14, 17, 41]  # a damper, a tire, a damper, a tire: the dry-friction columns' joints
+        assert np.array_equal(coarse.qd[:, cols], whole.qd[:, cols]), q
 
 
 def test_the_loads_rows_are_the_engines(noisy):

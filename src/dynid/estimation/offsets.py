@@ -58,14 +58,22 @@ class OffsetFactors:
             dY: Sequence[ArrayLike], groups: ArrayLike) -> None:
         """A segment's rows of `test` and, per source (its declared offsets, the same for every segment of the
         test), the rows' change for a one-σ offset (a dW of None: W unchanged)."""
+        self.add_columns(test, sources, W, Y, self.offset_columns(dW, dY, np.shape(Y)[0]), groups)
+
+    def add_columns(self, test: str, sources: Sequence[str], W: ArrayLike, Y: ArrayLike, C: ArrayLike,
+                    groups: ArrayLike) -> None:
+        """`add` with the offsets' columns C (rows, m) given (`offset_columns`, or the rows' residual at `point`
+        moved by each offset)."""
         sources = tuple(sources)
         if self.sources.setdefault(test, sources) != sources:
             raise IdentificationError(f"test {test!r}: its segments declare other offsets ({sources} against "
                                       f"{self.sources[test]}); a test's offsets are the same on every segment")
-        W, Y = np.asarray(W, dtype=float), np.asarray(Y, dtype=float)
+        W, Y, C = np.asarray(W, dtype=float), np.asarray(Y, dtype=float), np.asarray(C, dtype=float)
+        if C.shape != (len(Y), len(sources)):
+            raise IdentificationError(f"test {test!r}: offsets' columns of shape {C.shape} for {len(Y)} rows and "
+                                      f"{len(sources)} offsets")
         groups = np.asarray(groups)
         Y = Y - W[:, self.known_columns] @ self.known_values
-        C = self.offset_columns(dW, dY, len(Y))
         block = np.column_stack([C, W[:, self.columns], Y])
         per, counts = self.factors.setdefault(test, {}), self.rows.setdefault(test, {})
         for g in dict.fromkeys(groups.tolist()):
@@ -73,6 +81,14 @@ class OffsetFactors:
             stacked = block[rows] if g not in per else np.vstack([per[g], block[rows]])
             per[g] = np.linalg.qr(stacked, mode="r")
             counts[g] = counts.get(g, 0) + int(rows.sum())
+
+    def point(self, width: int) -> np.ndarray:
+        """The linearisation point as one value per column of W (`width` columns): x0 in the estimated ones, the
+        known values in the known ones, 0 elsewhere; C_k = Δ(Y − W point) for offset k (`offset_columns`)."""
+        x = np.zeros(width)
+        x[self.known_columns] = self.known_values
+        x[self.columns] = self.x0
+        return x
 
     def offset_columns(self, dW: Sequence[ArrayLike | None], dY: Sequence[ArrayLike], rows: int) -> np.ndarray:
         """(rows, m) the offsets' columns C_k = ΔY_k − ΔW_k x0 (the known parameters' columns at their values) of

@@ -16,7 +16,7 @@ from ..signals import decimate_parallel, lowpass
 from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.dampers import KneeSearch
 from ..vehicle.equations import group_name, load_rows
-from ..vehicle.estimate import CarTrajectory, required_channels
+from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
 from ..vehicle.sensors import CORNER_TAGS
 from .robot import GroupedSystem
@@ -61,7 +61,7 @@ def car_system(
     through the same filters. None: not (the columns are s(qd) decimated only).
     """
     decimate = tuple(decimate or ())
-    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    k, rest = coarse_step(traj, fs, decimate, cutoff)
     coarse = _every(traj, k)
     aw = aero_wrench(model, coarse.q, coarse.qd, aero) if aero is not None else None
     eq = car_identification(model, coarse.q, coarse.qd, coarse.qdd, coarse.wheel_wrenches, aw, base=base,
@@ -104,7 +104,7 @@ def knee_rows(sys: GroupedSystem, traj: CarTrajectory, fs: float, decimate: tupl
     """Add to `search` each damper's group rows of `sys` (car_system's rows of traj, the linear law) with the
     candidate curves' columns (`KneeSearch.hinges`) computed and decimated as W is, and the rows' rates."""
     decimate = tuple(decimate or ())
-    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    k, rest = coarse_step(traj, fs, decimate, cutoff)
     rate = traj.qd[::k][:, [d - 1 for d in dampers]]
     cols = np.concatenate([rate, *(search.hinges(rate[:, i]) for i in range(len(dampers)))], axis=1)
     if rest:
@@ -131,7 +131,7 @@ def _every(traj: CarTrajectory, k: int) -> CarTrajectory:
 def car_moved_rows(
     model: Model,
     traj: CarTrajectory,
-    moved: Iterable[CarTrajectory],
+    moved: Iterable[CarTrajectory | CoarseTrajectory],
     fs: float,
     keep: np.ndarray,
     decimate: tuple[int, ...] = (5, 10),
@@ -140,13 +140,19 @@ def car_moved_rows(
     regressor=None,
     cutoff: float | None = None,
     friction_lowpass: int | None = None,
-) -> list[tuple[np.ndarray, np.ndarray]]:
+    x: np.ndarray | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
     """(W, Y) of each moved trajectory (traj with some input changed: a sensor offset's), the rows `keep` selects
     (`car_system(model, m, ..., keep=keep)`'s, the other arguments `car_system`'s), all in one evaluation of the
     equations and one parallel decimation. The equations are computed on traj's coarse samples (its wheel spin
-    chooses the step: an offset's effect on it is far below the margin of that choice)."""
+    chooses the step: an offset's effect on it is far below the margin of that choice); a moved trajectory may come
+    on those samples already (`CoarseTrajectory`, on every `coarse_step(traj, ...)[0]`-th).
+
+    x: parameter values (one per column of W): then each trajectory's residual Y − W x of those rows alone, W x
+    formed before the decimation (it is linear), so one column per equation goes through it instead of W's ~10
+    (what the offsets' estimate needs: their columns C = Δ(Y − W x0), `estimation.offsets`)."""
     decimate = tuple(decimate or ())
-    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    k, rest = coarse_step(traj, fs, decimate, cutoff)
     lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
     keep = np.asarray(keep, dtype=bool)
     # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
@@ -154,13 +160,22 @@ def car_moved_rows(
     # segment's, whatever the number of offsets
     per = max(1, MOVED_SAMPLES // max(1, len(traj.t[::k])))
     out = []
+    seen: list = []  # the dry-friction columns' sets made so far (most offsets leave the dampers' rates alone)
     pending = iter(moved)
     while chunk := list(itertools.islice(pending, per)):
-        coarse = [_every(m, k) for m in chunk]
+        coarse = [m.traj if isinstance(m, CoarseTrajectory) else _every(m, k) for m in chunk]
+        if any(len(c.t) != len(traj.t[::k]) for c in coarse):
+            raise ValueError(f"car_moved_rows: a moved trajectory on other samples than every {k}-th of traj's "
+                             "(JointsPass.moved(..., every=coarse_step(...)[0]))")
         q, qd, qdd, ww = (np.concatenate([getattr(c, a) for c in coarse])
                           for a in ("q", "qd", "qdd", "wheel_wrenches"))
         aw = aero_wrench(model, q, qd, aero) if aero is not None else None
         eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
+        if x is not None:
+            r = _decimated_residual(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp, x, seen)
+            out += [r[:, v].T.reshape(-1)[keep] for v in range(len(coarse))]
+            del chunk, coarse, q, qd, qdd, ww, aw, eq, r
+            continue
         W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp)
         rows, m = len(eq.rows), W.shape[0]
         out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
@@ -188,7 +203,7 @@ def car_load_changes(
     if not moved:
         return []
     decimate = tuple(decimate or ())
-    k, rest = _coarse_step(traj, fs, decimate, cutoff)
+    k, rest = coarse_step(traj, fs, decimate, cutoff)
     unit = load_rows(model, _every(traj, k).q, EQUATION_ROWS)  # (n, rows, 4, 6)
     n, rows = unit.shape[:2]
     dY = np.stack([b * unit[:, :, wheel, comp] for wheel, comp, b in moved], axis=1).reshape(n, -1)
@@ -199,7 +214,7 @@ def car_load_changes(
     return [dY[:, v].T.reshape(-1)[keep] for v in range(len(moved))]
 
 
-def _coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
+def coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
                  ) -> tuple[int, tuple[int, ...]]:
     """k, the step of the samples the equations are computed on, and the rest of the decimation (`car_system`)."""
     # the wheels' diametral-inertia columns oscillate at twice the spin frequency: keep it below the new Nyquist
@@ -242,26 +257,75 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
         fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
                    if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
         if fs_cols:
-            # one set of columns per distinct full-rate velocity of those joints (an offset that does not reach
-            # them shares the unmoved trajectory's)
-            joints = [j - 1 for _, _, j in fs_cols]
-            distinct: list[np.ndarray] = []
-            which = []
-            for a in qd_full:
-                cols = a[:, joints]
-                which.append(next((i for i, d in enumerate(distinct) if np.array_equal(d, cols)), len(distinct)))
-                if which[-1] == len(distinct):
-                    distinct.append(cols)
-            signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
-                                             axis=1) for d in distinct], axis=1)
-            if lowpass_fs:
-                signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
-            dec, _ = decimate_parallel(signs, None, decimate, fs)
-            n = min(len(dec), W.shape[0])
-            for v, d in enumerate(which):
+            sets = _friction_columns(qd_full, [j - 1 for _, _, j in fs_cols], fs, decimate, tree, lowpass_fs)
+            for v, dec in enumerate(sets):
+                n = min(len(dec), W.shape[0])
                 for i, (c, r, _) in enumerate(fs_cols):
-                    W[:n, v, r, c] = dec[:n, d * len(fs_cols) + i]
+                    W[:n, v, r, c] = dec[:n, i]
     return W, Y
+
+
+def _friction_columns(qd_full: Sequence[np.ndarray], joints: Sequence[int], fs: float, decimate: tuple[int, ...],
+                      tree, lowpass_fs: tuple[float, int] | None, seen: list | None = None) -> list[np.ndarray]:
+    """Each trajectory's dry-friction columns s(qd) of `joints` (0-based), decimated from the full rate (low-passed
+    first at lowpass_fs): one set per distinct full-rate velocity of those joints (an offset that does not reach them
+    shares the unmoved trajectory's), all new ones through one filter; seen: [(velocities, set)] already made (a
+    caller's earlier chunks), extended."""
+    seen = [] if seen is None else seen
+    which = []
+    fresh: list[np.ndarray] = []
+    for a in qd_full:
+        cols = a[:, joints]
+        i = next((i for i, (d, _) in enumerate(seen) if np.array_equal(d, cols)), None)
+        if i is None:
+            i = next((len(seen) + j for j, d in enumerate(fresh) if np.array_equal(d, cols)), None)
+        if i is None:
+            fresh.append(cols)
+            i = len(seen) + len(fresh) - 1
+        which.append(i)
+    if fresh:
+        signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
+                                         axis=1) for d in fresh], axis=1)
+        if lowpass_fs:
+            signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
+        dec = decimate_parallel(signs, None, decimate, fs)[0]
+        seen += [(d, dec[:, f * len(joints):(f + 1) * len(joints)]) for f, d in enumerate(fresh)]
+    return [seen[i][1] for i in which]
+
+
+def _decimated_residual(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple[int, ...],
+                        decimate: tuple[int, ...], tree, lowpass_fs: tuple[float, int] | None, x: np.ndarray,
+                        seen: list | None = None) -> np.ndarray:
+    """Y − W x (n, V, rows) of `_decimated`'s W and Y (its arguments), W x formed before the decimation: the coarse
+    columns times x through one parallel filter, then the dry-friction columns `_decimated` replaces by their
+    full-rate ones exchanged (their coarse part out, the full-rate part in: each decimated as there); seen:
+    `_friction_columns`' sets made for earlier chunks."""
+    rows, p = len(eq.rows), eq.per_sample.shape[2]
+    V = len(qd_full)
+    W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
+    N = W4.shape[1]
+    Wx = np.dot(eq.per_sample, x).reshape(V, N, rows)  # per_sample is a view of a wider array: not reshaped
+    r = eq.Y.reshape(rows, V, N).transpose(2, 1, 0) - Wx.transpose(1, 0, 2)  # (N, V, rows)
+    fs_cols = []
+    if k > 1 or lowpass_fs:  # as `_decimated`: these columns' coarse samples are replaced by full-rate ones
+        fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
+                   if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
+    both = np.empty((N, V, rows + len(fs_cols)))
+    both[:, :, :rows] = r
+    for i, (c, row, _) in enumerate(fs_cols):
+        both[:, :, rows + i] = W4[:, :, row, c].T
+    both = both.reshape(N, -1)
+    if rest:
+        both, _ = decimate_parallel(both, None, rest, fs / k)
+    both = both.reshape(both.shape[0], V, rows + len(fs_cols))
+    r = both[:, :, :rows].copy()
+    if fs_cols:
+        sets = _friction_columns(qd_full, [j - 1 for _, _, j in fs_cols], fs, decimate, tree, lowpass_fs, seen)
+        for v, dec in enumerate(sets):
+            n = min(len(dec), r.shape[0])
+            for i, (c, row, _) in enumerate(fs_cols):
+                r[:n, v, row] += (both[:n, v, rows + i] - dec[:n, i]) * x[c]
+    return r
 
 
 def _simulated_suspensions(tree, traj: CarTrajectory, coarse: CarTrajectory, eq, values: Mapping[str, float]):

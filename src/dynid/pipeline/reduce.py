@@ -57,7 +57,7 @@ from ..vehicle.equations import group_name
 from ..vehicle.estimate import CarConditioning, compensated_channels, joints_pass
 from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS, sample_and_hold
 from ..vehicle.tire_curves import tire_samples
-from .car import car_load_changes, car_moved_rows, car_system, knee_rows
+from .car import car_load_changes, car_moved_rows, car_system, coarse_step, knee_rows
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
@@ -74,7 +74,7 @@ from .sources import (
 
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
-    from ..vehicle.estimate import CarTrajectory, JointsPass
+    from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, JointsPass
     from ..vehicle.tire_curves import TireSamples
 
 
@@ -98,6 +98,8 @@ class CarJob:
     delays: bool = False
     lags: tuple[tuple[str, float], ...] = ()  # channel group -> s later than declared (the delays' refinement)
     estimate_offsets: bool = False  # the offsets' rows kept for their estimate (estimation.offsets), weight 1
+    # the offsets' propagation's sums (Partial.bias) too; identify's estimate needs only the offsets' columns
+    propagate_offsets: bool = True
     knees: bool = False  # the knees' search alone (vehicle.dampers.KneeSearch): the dampers' rows and candidates
     # the part of the test whose data health this segment gathers: (t_start, t_end, end included), s (the first map's
     # segments each answer for theirs: segments overlap by the filter's borders); None: not gathered here
@@ -233,14 +235,15 @@ class CarSetup:
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
 
-    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass."""
+    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray,
+                   x: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
+        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass; with x
+        (a value per column of W) their residuals Y − W x alone (`car_moved_rows`)."""
 
         s = self.settings
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
                               regressor=self.regressor, cutoff=self.conditioning.cutoff,
-                              friction_lowpass=s.order if s.friction_lowpass else None)
+                              friction_lowpass=s.order if s.friction_lowpass else None, x=x)
 
     def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
                      ) -> list[np.ndarray]:
@@ -313,9 +316,9 @@ def reduce_car_segment(job: CarJob) -> Partial:
         C = None
         if w.test in job.hac.profile:  # the test's offsets estimated: the scores of the profiled rows need C
             h = job.hac
-            moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets)
-            C = OffsetFactors(h.columns, h.known_columns, h.known_values, setup.a_priori[h.columns]).offset_columns(
-                [m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
+            zeros = OffsetFactors(h.columns, h.known_columns, h.known_values, setup.a_priori[h.columns])
+            C = offset_residuals(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets,
+                                 zeros.point(sys.W.shape[1]))
         return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test, C))
     if job.knees:
         search = KneeSearch()
@@ -346,18 +349,24 @@ def reduce_car_segment(job: CarJob) -> Partial:
         part.shifts.add(sys.W[used], sys.Y[used], [(p.W - sys.W)[used] / h for p in moved],
                         [(p.Y - sys.Y)[used] / h for p in moved], sys.groups[used])
     if job.offsets:
-        part.bias = ls.bias_accumulator()
-        moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets, job.instruments)
-        part.bias.add_many([f"{w.test}: {q}" for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
-                           [m[1] for m in moved], sys.groups, job.weight,
-                           *(() if job.instruments is None else (sys.Z, [m[2] for m in moved])))
+        moved = None
+        if job.propagate_offsets or not job.estimate_offsets:
+            part.bias = ls.bias_accumulator()
+            moved = offset_changes(setup, channels, w.fs, lags, compensated, joints, sys, job.offsets,
+                                   job.instruments)
+            part.bias.add_many([f"{w.test}: {q}" for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
+                               [m[1] for m in moved], sys.groups, job.weight,
+                               *(() if job.instruments is None else (sys.Z, [m[2] for m in moved])))
         if job.estimate_offsets:
-            acc = part.bias
-            part.zeros = OffsetFactors(acc.columns, acc.known_columns, acc.known_values, setup.a_priori[acc.columns])
-            part.zeros.add(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, [m[0] for m in moved],
-                           [m[1] for m in moved], sys.groups)
+            columns, known, values = _columns(ls)
+            part.zeros = OffsetFactors(columns, known, values, setup.a_priori[columns])
+            # the offsets' columns from the changes when the propagation made them, else from the moved residuals
+            C = (part.zeros.offset_columns([m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
+                 if moved is not None else offset_residuals(setup, channels, w.fs, lags, compensated, joints, sys,
+                                                            job.offsets, part.zeros.point(sys.W.shape[1])))
+            part.zeros.add_columns(w.test, [q for q, _ in job.offsets], sys.W, sys.Y, C, sys.groups)
             if job.noise:
-                part.noise = _noise_scores(setup, job, sys, part.zeros, moved, lags)
+                part.noise = _noise_scores(setup, job, sys, part.zeros, C, lags)
     if job.errors:
         seed = zlib.crc32(f"{w.test}/{job.number}".encode())  # the same draw on threads and on a cluster
         noisy = []
@@ -370,16 +379,16 @@ def reduce_car_segment(job: CarJob) -> Partial:
     return part
 
 
-def _noise_scores(setup: CarSetup, job: CarJob, sys: GroupedSystem, zeros: OffsetFactors, moved: Sequence,
+def _noise_scores(setup: CarSetup, job: CarJob, sys: GroupedSystem, zeros: OffsetFactors, C: np.ndarray,
                   lags: Mapping[str, float]) -> NoiseScores:
     """Each noise draw's rows (job.noise: the same window of its file) on the noise-free rows' kept rows: their
-    residual at x0 less the noise-free one, row by row, scored by the noise-free [C | W] (`NoiseScores`)."""
+    residual at x0 less the noise-free one, row by row, scored by the noise-free [C | W] (`NoiseScores`; C: the
+    offsets' columns of sys)."""
     fs = job.window.fs
 
     def residual(s: GroupedSystem) -> np.ndarray:
         return s.Y - s.W[:, zeros.known_columns] @ zeros.known_values - s.W[:, zeros.columns] @ zeros.x0
 
-    C = zeros.offset_columns([m[0] for m in moved], [m[1] for m in moved], len(sys.Y))
     rate = fs / math.prod(setup.settings.decimate)  # the rows' rate: stamps in rows
     out = NoiseScores(job.noise_lag)
     CW, stamps, clean = np.column_stack([C, sys.W[:, zeros.columns]]), np.rint(np.asarray(sys.t) * rate), residual(sys)
@@ -429,18 +438,44 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
     return [changes[q] for q, _ in offsets]
 
 
+def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
+                     compensated: dict[str, np.ndarray], joints: JointsPass, sys: GroupedSystem,
+                     offsets: Sequence[tuple[str, float]], x: np.ndarray) -> np.ndarray:
+    """C (rows, m): the change of the kept rows' residual Y − W x (x: a value per column of W,
+    `OffsetFactors.point`) for each (channel, one-σ zero offset SI): the offsets' columns of their estimate
+    (C_k = ΔY_k − ΔW_k x0, `estimation.offsets`) from `offset_changes`' moved trajectories without ΔW: a wheel load's
+    ΔY by its change per unit load; the others' residuals W x formed before the decimation (`car_moved_rows` with
+    x: one column per equation decimated, not W's). Equal to `offset_columns` of `offset_changes` to round-off."""
+    linear = not setup.tree.load_terms
+    loads = [(q, b) for q, b in offsets if linear and setup.load_only(q)]
+    others = [(q, b) for q, b in offsets if not (linear and setup.load_only(q))]
+    index = {q: k for k, (q, _) in enumerate(offsets)}
+    C = np.empty((len(sys.Y), len(offsets)))
+    for (q, _), dY in zip(loads, setup.load_changes(joints.traj, loads, fs, sys.kept), strict=True):
+        C[:, index[q]] = dY  # W does not depend on the loads
+    if others:
+        base = sys.Y - sys.W @ x
+        # the staged passes' trajectories on the equations' samples alone (their whole-rate arrays never made)
+        every = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
+        trajs = _moved_trajectories(setup, channels, fs, lags, compensated, joints, others, True, every)
+        for (q, _), r in zip(others, setup.moved_rows(joints.traj, trajs, fs, sys.kept, x), strict=True):
+            C[:, index[q]] = r - base
+    return C
+
+
 def _moved_trajectories(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float],
                         compensated: dict[str, np.ndarray], joints: JointsPass, offsets: Sequence[tuple[str, float]],
-                        staged: bool) -> Iterator[CarTrajectory]:
+                        staged: bool, every: int = 1) -> Iterator[CarTrajectory | CoarseTrajectory]:
     """The trajectory with each offset's channel moved (`offset_changes`), one at a time (each is the size of the
-    segment's); staged: through the stages it reaches only, where it can (`JointsPass.moved`)."""
+    segment's); staged: through the stages it reaches only, where it can (`JointsPass.moved`, on every `every`-th
+    sample)."""
     for q, b in offsets:  # each sensor's zero moved by its standard deviation (SI), rows unchanged
         if setup.load_only(q):  # the joints unchanged: a tenth of the work (CarSetup.load_only)
             yield shifted_load(joints.traj, q, b)
         elif q.startswith(CAMERAS):  # a camera's offset moves what its range clips: the whole pass
             yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags)
         elif staged and joints.movable(q):
-            yield joints.moved(q, b)
+            yield joints.moved(q, b, every)
         else:  # undoing the dynamics is affine with unit gain at 0 Hz: the offset passes through it as is
             yield setup.trajectory({**channels, q: channels[q] + b}, fs, lags, {**compensated, q: compensated[q] + b})
 

@@ -383,6 +383,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                   instruments, keep_rows=i == 0 and instruments is None
                                   and (plan.role == "identify" or plan.test in shown), errors=i in errors,
                                   delays=i in timed, estimate_offsets=estimating and i in picks,
+                                  propagate_offsets=not estimating,
                                   health=own if health else None))
         return out
 

@@ -65,6 +65,8 @@ class Aerodynamics:
     cn: np.ndarray = field(default_factory=lambda: _default("cn"))
     point: Sequence[float] | None = None  # reference point in frame 6; None: from the geometry
     min_speed: float = 1.0
+    # the tables' splines, built once with the tables (every segment's rows and every offset's evaluate them)
+    _splines: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         b = np.asarray(self.beta, dtype=float)
@@ -77,6 +79,7 @@ class Aerodynamics:
         for name in ("rho", "area", "length"):
             if not getattr(self, name) > 0:
                 raise AeroError(f"aerodynamics: {name} = {getattr(self, name)} must be positive")
+        object.__setattr__(self, "_splines", tuple(CubicSpline(self.beta, getattr(self, n)) for n in COEFFICIENTS))
 
     def coefficients(self, beta: np.ndarray) -> np.ndarray:
         """(N, 6) coefficients Cx Cy Cz Cl Cm Cn at the sideslips beta (N,)."""
@@ -89,7 +92,7 @@ class Aerodynamics:
                 f"aerodynamic tables: sideslip β = {np.degrees(beta[i]):.4g}° at sample {i} is outside the tables "
                 f"[{np.degrees(lo):.4g}°, {np.degrees(hi):.4g}°] (is the car reversing?)"
             )
-        return np.stack([CubicSpline(self.beta, getattr(self, n))(beta) for n in COEFFICIENTS], axis=1)
+        return np.stack([spline(beta) for spline in self._splines], axis=1)
 
 
 def reference_point(geometry: CarGeometry | None = None) -> np.ndarray:

@@ -23,7 +23,7 @@ of Y = W X carry the same band.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -279,6 +279,77 @@ class _Context:
     border: int
 
 
+class _Moved:
+    """A moved pass's q, qd or qdd: the whole pass's (N, 42) array with the columns the moved stages write kept
+    apart. The stages index it as that array (whole columns: `a[:, j]`, `a[:, 3:6]`, `a[:, [..]]`; rows: `a[rows]`),
+    so a pass copies the few columns it changes, not the 42; `whole` and `every` make the arrays the trajectory
+    holds, each entry the value the stages wrote or the whole pass's."""
+
+    def __init__(self, base: Array) -> None:
+        self.base = base
+        self.shape = base.shape
+        self.columns: dict[int, Array] = {}
+
+    def _which(self, key) -> list[int]:
+        rows, cols = key
+        if rows != slice(None):
+            raise TypeError("a moved pass's joints are indexed by whole columns")
+        if isinstance(cols, slice):
+            return list(range(self.shape[1]))[cols]
+        return [int(cols)] if np.ndim(cols) == 0 else [int(j) for j in cols]
+
+    def __setitem__(self, key, value) -> None:
+        which = self._which(key)
+        value = np.asarray(value, dtype=float).reshape(self.shape[0], -1)
+        for i, j in enumerate(which):
+            self.columns[j] = value[:, i].copy()
+
+    def __getitem__(self, key):
+        if not isinstance(key, tuple):  # rows, every column
+            out = self.base[key]
+            for j, c in self.columns.items():
+                out[:, j] = c[key]
+            return out
+        which = self._which(key)
+        cols = [self.columns[j] if j in self.columns else self.base[:, j] for j in which]
+        return cols[0] if np.ndim(key[1]) == 0 else np.stack(cols, axis=1)
+
+    def whole(self) -> Array:
+        """The (N, 42) array, column-major as the whole pass's."""
+        out = self.base.copy(order="F")
+        for j, c in self.columns.items():
+            out[:, j] = c
+        return out
+
+    def every(self, base: Array, lo: int, hi: int, k: int) -> Array:
+        """Rows lo, lo + k, ... < hi, C order (`base`: the whole pass's rows there)."""
+        out = base.copy()
+        for j, c in self.columns.items():
+            out[:, j] = c[lo:hi:k]
+        return out
+
+
+class _Trimmed:
+    """A moved pass's full-rate joint rates, trimmed as its trajectory (`CoarseTrajectory.qd`): whole columns
+    (`a[:, j]`, `a[:, [..]]`), made when asked."""
+
+    def __init__(self, moved: _Moved, lo: int, hi: int) -> None:
+        self.moved, self.lo, self.hi = moved, lo, hi
+
+    def __getitem__(self, key):
+        return self.moved[key][self.lo:self.hi]
+
+
+@dataclass(frozen=True)
+class CoarseTrajectory:
+    """A moved pass's trajectory on every k-th sample (`traj`: what the rows' equations are computed on, as
+    `pipeline.car`'s coarse samples) with its full-rate joint rates (`qd`: indexed by whole columns; the dry-friction
+    columns are built from them at the full rate)."""
+
+    traj: CarTrajectory
+    qd: object
+
+
 @dataclass(frozen=True)
 class JointsPass:
     """One pass of `estimate_joints`: its trajectory, and the stages' results that the pass with one channel's
@@ -299,6 +370,8 @@ class JointsPass:
     w6: Array
     pz_zz: Array
     z_laser: Array
+    # k -> the trajectory's q, qd, qdd on every k-th sample (C order): what `moved(..., every=k)` starts from
+    _coarse: dict = field(default_factory=dict, compare=False, repr=False)
 
     def movable(self, channel: str) -> bool:
         """Whether `moved` takes a zero offset of `channel` (the others: the whole pass)."""
@@ -306,18 +379,19 @@ class JointsPass:
         return channel in self.ch and (channel in (*_ATTITUDE, *_ACCELERATION, *_VELOCITY) or load
                                        or channel.startswith("laser_height_"))
 
-    def moved(self, channel: str, b: float) -> CarTrajectory:
+    def moved(self, channel: str, b: float, every: int = 1) -> CarTrajectory | CoarseTrajectory:
         """The trajectory of these channels with `channel`'s zero moved by b (SI), equal to the whole pass's
         (`estimate_joints` of the channels with b added) to round-off: each stage the channel reaches is run
         again on it, the others' results are reused. Its offset enters the stages as these channels plus b (the
         sensor dynamics' undoing is affine with unit gain at 0 Hz), a low-passed column as that column plus the
-        low-passed constant (the filter is linear)."""
+        low-passed constant (the filter is linear). every > 1: its samples every `every` (`CoarseTrajectory`, the
+        same values), without the whole-rate arrays (the rows' equations read no others)."""
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
         ch = {**self.ch, channel: self.ch[channel] + b}
-        # column-major as the whole pass's (one layout for the compiled stages: one compile each)
-        q, qd, qdd = (a.copy(order="F") for a in (self.q, self.qd, self.qdd))
+        # the columns the stages write, apart: the rest is the whole pass's
+        q, qd, qdd = (_Moved(a) for a in (self.q, self.qd, self.qdd))
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
         attitude = channel in _ATTITUDE
         heights = attitude or channel.startswith("laser_height_")
@@ -337,7 +411,17 @@ class JointsPass:
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
         elif channel in _VELOCITY:
             _velocity(ch, x, q, qd, R6, w6)
-        return _trajectory(x, q, qd, qdd, filtered, self.has_spin, self.steering[0])
+        if every == 1:
+            return _trajectory(x, q.whole(), qd.whole(), qdd.whole(), filtered, self.has_spin, self.steering[0])
+        N, lo = q.shape[0], x.border
+        hi = N - lo
+        if every not in self._coarse:
+            self._coarse[every] = tuple(np.ascontiguousarray(a[lo:hi:every]) for a in (self.q, self.qd, self.qdd))
+        qc, qdc, qddc = (m.every(c, lo, hi, every) for m, c in zip((q, qd, qdd), self._coarse[every], strict=True))
+        whole = _trajectory_parts(x, filtered, self.has_spin, self.steering[0], N)
+        coarse = CarTrajectory(whole[0][lo:hi:every], qc, qdc, qddc, whole[1][lo:hi:every],
+                               None if whole[2] is None else whole[2][lo:hi:every], whole[3][lo:hi:every])
+        return CoarseTrajectory(coarse, _Trimmed(qd, lo, hi))
 
 
 def joints_pass(
@@ -615,10 +699,15 @@ def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
                 steering: Array) -> CarTrajectory:
     """The joints and the low-passed loads, trimmed of the filters' borders."""
-    N = q.shape[0]
+    t, ww, spin, steering = _trajectory_parts(x, filtered, has_spin, steering, q.shape[0])
+    return CarTrajectory(t, q, qd, qdd, ww, spin, steering).trimmed(x.border)
+
+
+def _trajectory_parts(x: _Context, filtered: Array, has_spin: bool, steering: Array, N: int
+                      ) -> tuple[Array, Array, Array | None, Array]:
+    """A trajectory's times, loads, spin torques and steering wheel, untrimmed."""
     ww = filtered[:, 17:41].reshape(N, 4, len(WFT_COMPONENTS))
-    spin = filtered[:, 41:45] if has_spin else None
-    return CarTrajectory(np.arange(N) / x.fs, q, qd, qdd, ww, spin, steering).trimmed(x.border)
+    return np.arange(N) / x.fs, ww, filtered[:, 41:45] if has_spin else None, steering
 
 
 # the compiled pass (numba's cache: compiled once per machine, loaded in ms afterwards)
