@@ -33,7 +33,41 @@ scipy.interpolate is first imported by `signals.resampling` (make_interp_spline,
 of q off the clock), which every robot run imports, and again by the vehicle package (`vehicle.table_poly`'s
 BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside NumPy, scipy.linalg and Numba).
 
-Not met: 300 MB is ~175 MB away. The floor before the clock went (at 07e3a6a), measured as resident-set steps with
+Measured 2026-11-28 (01:25-02:40 UTC, load average 5-8 on the 2 cores: other sessions' tests and demos): peak 463.8
+MiB against main's 467.4 at ae30552 (farm-bench, 3 runs each alternated A B A B, medians; pairs' range 463-478
+against 465-473: noise), CPU 1.04 x (0.99-1.07; wall 53-177 s a run: the load), the estimate, its sigmas and the
+errors bit-equal to main's (and with one worker). What went: (1) W1, the first decimation stage's output, holds W's
+live columns alone (`decimate_parallel_blocked`; 190 of 301 for the Panda): 15.7 -> 9.9 MB a worker, not seen at the
+peak through the noise. (2) The car's imports off a robot's path (`signals.resampling` imports scipy.interpolate
+where a clock is resampled; pipeline.config, pipeline.run and report.build import the vehicle package, pipeline.car,
+pipeline.delays and report.tires in the car's functions): with pipeline/reduce.py's car imports moved too (a patch
+for that file's owner, not in this tree) a robot run loads no vehicle module and no scipy.interpolate, optimize or
+spatial: the resident set after the imports 149 -> 125 MB; the peak 450.6 MiB against main's 481.5 (3 runs each
+alternated, medians; 446-454 against 462-484) and 449.4 against 469.5 in a second call (437-456 against 461-474),
+estimate bit-equal; CPU not settled: 1.11 x and 1.16 x in those calls (pairs 0.95-1.24; the patched runs' system time
+5.3-8.9 s against 2.0-5.3, page faults), 0.99 x in a pair run side by side under /usr/bin/time (system 2.55 s, 364 k
+minor faults against 4.13 s, 849 k: the faults vary 2 x from run to run). Without that patch a robot still loads them
+through pipeline.reduce (149 MB). Corrections to the floor below: "Numba's code generator, 47 MB" is numba's target
+context refreshed before the first function it loads from its cache (`numba.core.caching.Cache.load_overload`): 86
+modules of its lowering registries (numba.np, numba.cpython, the typed containers, cffi and pycparser) +37 MB, its
+typing +3 MB, 3 s of CPU here; the code generator itself is 4.6 MB, made at import (a dispatcher built by
+`_zero_phase`). The first such call is `robot.chunk_pad`'s `border_samples` (its impulse response through
+`sosfilt_forward`), before the map, not the data-health check. Skipping that refresh on a cache hit (a patched
+`load_overload`, only the runtime initialised) ran bit-equal at a peak of 447 against 472.5 MiB, CPU 53.9 against
+55.5 s (one run each): not kept, it patches a private numba method; any compiled call on a robot's path brings the
+refresh. Tried and left, one run each: the block cache at 2 row groups a file (`windows.CACHE_BLOCKS`, 3 now): 1,806
+decodes against 1,775, peak 469 against 468; at 1: 3,017 decodes (+70 %), peak 460.5 (-8, within the noise), CPU 55.0
+against 56.8 s. glibc's arenas: each worker already trims after its chunk (`heap.trim_heap`), so the peak is the two
+workers' high water inside their chunks (~85 MB each over the 290 MB before the map: the window's samples, their
+filtering, one block of W with the filter's work, W1); a worker's arrays allocated once and reused would be the
+design lever, not tried.
+
+Not met: 300 MB is ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125 MB after
+the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224, 284 after
+the first compiled call (numba's registries, 40 of it measured alone), then the map: ~85-115 MB a worker over that at
+the peak (the window's samples, their filtering, one block of W and the filter's work, W1), 463-518 MB in all
+depending on how the two workers' chunks overlap. Before 2026-11-28: 300 MB was ~175 MB away. The floor before the
+clock went (at 07e3a6a), measured as resident-set steps with
 one worker (peak 439 MB): 149 MB of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and
 spatial: the vehicle modules that pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then
 the plan +94 (pyarrow 30 on the first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the

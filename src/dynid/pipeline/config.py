@@ -145,9 +145,6 @@ from ..io.rosbag_format import is_bag, is_bag_folder
 from ..model import ModelError
 from ..model.files import did_you_mean, parse_number, read_toml, unknown_keys
 from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
-from ..vehicle.description import load_vehicle
-from ..vehicle.estimate import required_channels
-from ..vehicle.sensors import fitted_suite
 from .reference import parse_combination, reference_text
 from .robot import Conditioning
 from .schedulers import address_problem
@@ -1053,7 +1050,11 @@ class _VehicleChannels:
 
     @property
     def valid(self) -> list[str]:
-        if self._valid is None:  # imported here: the vehicle's modules are not needed to read a robot's config
+        if self._valid is None:
+            # start-up: the vehicle's modules (scipy.interpolate and optimize, 18 MB) are not needed to read a robot's
+            from ..vehicle.description import load_vehicle
+            from ..vehicle.estimate import required_channels
+
             self._vehicle = load_vehicle(self.ref)
             self._valid = required_channels(spin=False, suite=self._vehicle.suite)
         return self._valid
@@ -1080,5 +1081,8 @@ class _VehicleChannels:
 
 def _every_channel() -> set[str]:
     """Every channel the estimator knows, whatever the suite: the paper's and a GNSS/INS car's."""
+    # start-up: the vehicle's modules (scipy.interpolate and optimize, 18 MB) are not needed to read a robot's config
+    from ..vehicle.estimate import required_channels
+    from ..vehicle.sensors import fitted_suite
 
     return {*required_channels(spin=False), *required_channels(spin=False, suite=fitted_suite(correvit=False))}

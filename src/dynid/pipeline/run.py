@@ -51,15 +51,7 @@ from ..report.build import build_report, car_engineering
 from ..report.tables import engineering_block
 from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from ..signals import border_samples
-from ..vehicle.description import load_vehicle
-from ..vehicle.estimate import required_channels
-from ..vehicle.excitation import excitation_hint
-from ..vehicle.sensors import CORNER_TAGS, gnss_point
-from ..vehicle.template import DAMPERS, meaning
-from ..vehicle.tire_curves import fit_tire_curves
-from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
 from .config import ConfigError, IdentifyConfig, TestSpec, load_config
-from .delays import DELAY_SEGMENTS, DELAY_SOURCE, MAX_STEPS, delay_check
 from .health import check_car_tests, check_robot_joints, check_robot_test, health_note
 from .heap import trim_heap
 from .reduce import (
@@ -137,6 +129,9 @@ class IdentificationRun:
         sheet, then the notes."""
         meanings = None
         if self.vehicle is not None:
+            # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB)
+            from ..vehicle.template import meaning
+
             found = {n: meaning(n) for n in self.result.names}
             meanings = {n: (m.text(), m.unit) for n, m in found.items() if m is not None}
         text = parameter_table(self.result, self.sections, meanings=meanings)
@@ -251,6 +246,9 @@ def load_car_channels(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | 
     each to SI, and the sample rate: the plan of `sources.plan_car_test` (time stamps checked, the rates and the
     resampling reported through `progress`) read as one window. The identification reads a segment at a time
     instead; this is for looking at a test. suite: the sensors fitted (default: the config's vehicle's)."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from ..vehicle.description import load_vehicle
+    from ..vehicle.estimate import required_channels
 
     suite = load_vehicle(cfg.vehicle or DEMO_VEHICLE).suite if suite is None else suite
     plan = plan_car_test(cfg, spec, required_channels(spin=False, suite=suite), suite.units, None, lambda fs: 0,
@@ -313,6 +311,11 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     segment to per-group factors (`reduce.reduce_car_segment`: joints, 14 equations, parallel decimation) on the
     scheduler's workers, fold them (`reduce.combine`), solve; IDIM-IV passes map again with the last estimate.
     W is never held whole, whatever the tests' length."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from ..vehicle.estimate import required_channels
+    from ..vehicle.excitation import excitation_hint
+    from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
+    from .delays import DELAY_SEGMENTS
 
     if cfg.model != CAR_TEMPLATE:
         raise ConfigError(f"{cfg.path}: [model] template = {cfg.model!r}; templates: {CAR_TEMPLATE}")
@@ -497,6 +500,9 @@ def _knees_from_data(cfg: IdentifyConfig, setup, plans, scheduler: Scheduler, sa
                      ) -> tuple[IdentifyConfig, str]:
     """The knees of the dampers the vehicle file gives none (`vehicle.dampers.KneeSearch` on every identification
     segment's rows): the config that carries them, and the results' note saying what was chosen."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from ..vehicle.sensors import CORNER_TAGS
+    from ..vehicle.template import DAMPERS
 
     dampers = setup.vehicle.knees_from_data
     say(f"choosing the knees of {len(dampers)} damper curve(s) from the data's clearance rates")
@@ -539,6 +545,8 @@ def without_each_test(names: list[str], kw: dict, per_test: dict,
 
 def _tire_curves(parts: dict, vehicle, say: Progress):
     """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from ..vehicle.tire_curves import fit_tire_curves
 
     samples = [p.tires for p in parts.values() if p.tires is not None]
     if not samples:
@@ -558,6 +566,9 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
     groups' extra delays, the first on the sums the identification's map gathered, the next (while a step moves a
     delay by more than a tenth of a sample, and only when one is more than a sample off) on the same segments
     mapped again about the delays found. The warnings go to `say`."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from .delays import MAX_STEPS, delay_check
+
     names = result.estimated_names
     x = np.array([result.value(n) for n in names])
     fs = plans[0].fs
@@ -584,6 +595,8 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
 
 def sensors_note(vehicle) -> str:
     """What the sensors not fitted change (empty for the paper's suite)."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from ..vehicle.sensors import gnss_point
 
     out = ""
     if not vehicle.cameras:
@@ -612,6 +625,9 @@ def offsets_note(result, offsets, estimates: dict[str, tuple[float, float]] | No
     """Which sensor zero offsets were propagated or estimated (`car.SensorOffsets`; estimates: source -> the offset
     and its σ, in units of its declared σ), where they came from, what %σ total means and which offsets weigh most;
     and whether σ total holds a channel-delay mismatch's shift (`pipeline.delays`)."""
+    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
+    from .delays import DELAY_SOURCE
+
     where = {"vehicle": f"from the vehicle's sensor suite ({offsets.vehicle}: each channel's zero offset; "
                         "[uncertainty] offsets = {...} in the config replaces them, offsets = \"none\" turns them off)",
              "config": "from the config's [uncertainty] offsets (they replace the vehicle's sensor suite's)"}

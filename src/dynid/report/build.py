@@ -24,11 +24,6 @@ from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
 from ..shipped import DEMO_VEHICLE
-from ..vehicle.dampers import damper_curve, damper_slopes
-from ..vehicle.description import load_vehicle, vehicle_path
-from ..vehicle.engineering import car_quantities, damper_vertical, engineering_figures, jacobian
-from ..vehicle.excitation import excitation_hint
-from ..vehicle.template import CORNERS, DAMPERS, meaning
 from .axes import CHASSIS_AXES, ISO_TEXT, axis_label, to_iso
 from .figures import (
     NOT_EXCITED,
@@ -43,7 +38,6 @@ from .figures import (
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
 from .html import Cell, Section, Table, esc, render_html, table_html
 from .tables import consistency_section as robot_verdict
-from .tires import tire_section
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
 CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
@@ -90,6 +84,8 @@ def meanings(run) -> dict[str, tuple[str, str]]:
     """A car's parameters' (corner, quantity) by name (`vehicle.template.meaning`); {} for a robot."""
     if not _is_car(run):
         return {}
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.template import meaning
 
     found = {n: meaning(n) for n in run.result.names}
     return {n: (m.corner, m.quantity) for n, m in found.items() if m is not None}
@@ -188,6 +184,9 @@ def flag_legend(run) -> str:
     ]
     out = '<dl class="legend">' + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in items) + "</dl>"
     if uncertain and getattr(run.config, "kind", None) == "car":
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from ..vehicle.excitation import excitation_hint
+
         hint = excitation_hint(list(uncertain))
         if hint:
             out += "<p>" + "<br>".join(esc(line.strip()) for line in hint.split("\n")) + "</p>"
@@ -250,6 +249,9 @@ def _covariance(r) -> tuple[np.ndarray, str]:
 def _vehicle(run):
     if getattr(run, "vehicle", None) is not None:
         return run.vehicle
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.description import load_vehicle
+
     cfg = run.config
     return load_vehicle((getattr(cfg, "vehicle", None) or DEMO_VEHICLE) if cfg is not None else DEMO_VEHICLE)
 
@@ -257,6 +259,8 @@ def _vehicle(run):
 def car_engineering(run) -> tuple[list, str, Any, dict[str, float]]:
     """The engineering figures of the estimate (with σ), which covariance they used, the vehicle, and all the
     parameter values (estimates and the tree's known ones)."""
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.engineering import engineering_figures
 
     r, tree = run.result, run.model.tree
     vehicle = _vehicle(run)
@@ -280,6 +284,9 @@ class _Estimates:
 def damper_section(run) -> tuple[Section, bytes] | None:
     """The dampers' curves (car_model.car_template(damper_knees=...)): each corner's slopes with σ and 95 %
     interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.dampers import damper_curve, damper_slopes
+    from ..vehicle.template import CORNERS, DAMPERS
 
     r, tree = run.result, run.model.tree
     curved = [d for d in DAMPERS if f"FVPL{d}" in r.names]
@@ -321,6 +328,9 @@ def damper_section(run) -> tuple[Section, bytes] | None:
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.engineering import car_quantities, damper_vertical
+
     r = run.result
     truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
     prior = car_quantities({**values, **r.a_priori}, vehicle.geometry) if r.a_priori else None
@@ -373,6 +383,9 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
 
 
 def cog_figure(run, quantities, vehicle, values) -> bytes:
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.engineering import car_quantities, jacobian
+
     r, g = run.result, vehicle.geometry
     by = {q.key: q for q in quantities}
     C, _ = _covariance(r)
@@ -737,6 +750,9 @@ def input_files(cfg) -> list[tuple[str, Path]]:
         if isinstance(p, Path) or (isinstance(p, str) and p.endswith(".toml")):
             out.append((what, Path(p)))
     if cfg.kind == "car" and not isinstance(cfg.vehicle, Path):  # a shipped vehicle: its file, as installed
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from ..vehicle.description import vehicle_path
+
         out.append(("vehicle (shipped)", vehicle_path(cfg.vehicle or DEMO_VEHICLE)))
     for t in cfg.tests:
         for q, p in t.files.items():
@@ -850,6 +866,9 @@ def build_report(run, title: str) -> Report:
             out_sections.append(Section(dampers[0].heading, dampers[0].text, figures=[figs_written[-1][1:]],
                                         tables=dampers[0].tables, anchor=dampers[0].anchor))
     if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from .tires import tire_section
+
         section, tire_files = tire_section(run.tires)
         out_sections.append(section)
         files.update(tire_files)

@@ -99,18 +99,19 @@ def _stages(n: int, factors: tuple[int, ...], fs: float, order: int, cutoff) -> 
 
 
 def _decimate_columns(
-    a: NDArray[np.float64], stages: list[_Stage], block: int, columns: NDArray[np.intp] | None = None
+    a: NDArray[np.float64], stages: list[_Stage], block: int, columns: NDArray[np.intp] | None = None,
+    compact: bool = False,
 ) -> NDArray[np.float64]:
     """Filter and decimate the columns (all, or those listed) of a 2-D (N, C) array, `block` at a time;
-    the columns not listed are left zero."""
-    out = np.zeros((stages[-1].n_out, a.shape[1]))
+    the columns not listed are left zero (compact: left out, the output's columns are the listed ones, in order)."""
     columns = np.arange(a.shape[1]) if columns is None else columns
+    out = np.zeros((stages[-1].n_out, len(columns) if compact else a.shape[1]))
     for c0 in range(0, len(columns), block):
         cols = columns[c0 : c0 + block]
         work = a[:, cols]  # (N, block): the filter runs the block's columns side by side
         for s in stages:
             work = sos_filtfilt(s.sos, work, 0, pad_length(s.sos))[:: s.factor]
-        out[:, cols] = work
+        out[:, slice(c0, c0 + len(cols)) if compact else cols] = work
     return out
 
 
@@ -235,7 +236,10 @@ def decimate_parallel_blocked(
     if len(starts) > 1 and n - starts[-1] < step // 2:  # no short last block: it merges with the one before
         starts.pop()
     ends = [*starts[1:], n]
+    # W1: the first stage's output of W's live columns alone (`held`, full-width indices, sorted), the structural
+    # zeros (a joint's row holds only its subtree's parameters: 111 of a 7-joint arm's 301) never stored
     W1 = Y1 = None
+    held = np.zeros(0, dtype=np.intp)
     for a, e in zip(starts, ends, strict=True):
         lo, hi = max(0, a - ov), min(n, e + ov)
         W, Y = rows(lo, hi)
@@ -245,24 +249,34 @@ def decimate_parallel_blocked(
                               f"({hi - lo}, m, p) and Y ({hi - lo}, m)")
         _checks.finite(Wa, "W", 0, "remove or repair those samples before decimating")
         _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
-        if W1 is None:
-            W1 = np.zeros((first.n_out, *Wa.shape[1:]))
+        if Y1 is None:
+            shape, width = Wa.shape[1:], int(np.prod(Wa.shape[1:]))
             Y1 = np.zeros((first.n_out, *Ya.shape[1:]))
         stage = [dataclasses.replace(first, n_in=hi - lo)]
         keep = slice((a - lo) // f, (a - lo) // f + -(-(e - a) // f))  # output k of the block is input lo + k f
         W2 = Wa.reshape(hi - lo, -1)
         live = np.flatnonzero(np.any(W2 != 0, axis=0))  # structural zeros stay zero (decimate_parallel)
+        if W1 is None or not np.isin(live, held).all():  # a column live for the first time: W1 widened (rare)
+            wider = np.union1d(held, live)
+            grown = np.zeros((first.n_out, len(wider)))
+            if W1 is not None:
+                grown[:, np.searchsorted(wider, held)] = W1
+            W1, held = grown, wider
         block = max(1, WORK_BYTES // (8 * (hi - lo)))
-        W1[a // f : -(-e // f)] = _decimate_columns(W2, stage, block, live)[keep].reshape(-1, *Wa.shape[1:])
+        W1[a // f : -(-e // f), np.searchsorted(held, live)] = _decimate_columns(W2, stage, block, live,
+                                                                                 compact=True)[keep]
         Y1[a // f : -(-e // f)] = _decimate_columns(Ya.reshape(hi - lo, -1), stage, block)[keep].reshape(
             -1, *Ya.shape[1:])
         del W, Wa, W2
+    n1 = first.n_out
     if len(stages) == 1:
-        return W1, Y1
-    rest, n1 = stages[1:], first.n_out
-    W2 = W1.reshape(n1, -1)
+        full = np.zeros((n1, width))
+        full[:, held] = W1
+        return full.reshape(n1, *shape), Y1
+    rest = stages[1:]
     block = max(1, WORK_BYTES // (8 * n1))
-    live = np.flatnonzero(np.any(W2 != 0, axis=0))
+    live = np.flatnonzero(np.any(W1 != 0, axis=0))  # of the held columns (their filtered outputs all zero: left out)
     nd = rest[-1].n_out
-    Wd = _decimate_columns(W2, rest, block, live).reshape((nd, *W1.shape[1:]))
-    return Wd, _decimate_columns(Y1.reshape(n1, -1), rest, block).reshape((nd, *Y1.shape[1:]))
+    Wd = np.zeros((nd, width))
+    Wd[:, held[live]] = _decimate_columns(W1, rest, block, live, compact=True)
+    return Wd.reshape((nd, *shape)), _decimate_columns(Y1.reshape(n1, -1), rest, block).reshape((nd, *Y1.shape[1:]))

@@ -17,7 +17,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import make_interp_spline
 
 from . import _checks
 from .errors import SignalError
@@ -96,6 +95,9 @@ def resample(t: ArrayLike, x: ArrayLike, t_new: ArrayLike, kind: str = "cubic", 
             f"({outside.size} time(s) outside in all); resample does not extrapolate: restrict t_new "
             "(see common_clock)"
         )
+    # start-up: scipy.interpolate with the optimize and spatial it loads, 14 MB resident, only for a clock resampled
+    from scipy.interpolate import make_interp_spline
+
     spline = make_interp_spline(times, a, k=degree, axis=ax)
     return np.asarray(spline(new), dtype=np.float64)
 
