@@ -179,11 +179,17 @@ class ChannelScan:
     def add(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """One block of the channel: its time stamps (s) and values (the channel's unit), (n,) each."""
         t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
-        keep = np.isfinite(x)  # non-finite values are the time-base checks' business
-        if not keep.all():
-            t, x = t[keep], x[keep]
         if x.size == 0:
             return
+        # the extremes, which the range and the plateaus need, tell whether every value is finite (min and max
+        # propagate NaN; an infinity is one of them): one pass, not an isfinite pass and its all()
+        lo, hi = float(x.min()), float(x.max())
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            keep = np.isfinite(x)  # non-finite values are the time-base checks' business
+            t, x = t[keep], x[keep]
+            if x.size == 0:
+                return
+            lo, hi = float(x.min()), float(x.max())
         if self.binary:
             zero, one = x == 0.0, x == 1.0
             self.binary = bool(np.all(zero | one))
@@ -198,11 +204,11 @@ class ChannelScan:
             self.first_value, self.t_first = float(x[0]), float(t[0])
         self.t_last = max(float(t[-1]), self.t_last) if self.n else float(t[-1])
         self.n += x.size
-        self._limits(t, x)
+        self._limits(t, x, lo, hi)
         if still or x.size < 3:
             return
-        y = x if starts.size == x.size else x[starts]  # the holds' values
-        self._plateaus(t, x, y, starts, lengths)
+        y = x if starts.size == x.size else x[starts]  # the holds' values (every value of x: its extremes too)
+        self._plateaus(t, x, y, starts, lengths, lo, hi)
         self._spikes(t, x, y, starts)
 
     def merge(self, other: ChannelScan) -> ChannelScan:
@@ -226,11 +232,11 @@ class ChannelScan:
         out.span = (min(a.span[0], b.span[0]), max(a.span[1], b.span[1]))
         return out
 
-    def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
+    def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64], x_min: float, x_max: float) -> None:
         if self.limits is None:
             return
         lo, hi = self.limits
-        if lo < float(x.min()) and float(x.max()) < hi:  # the usual block: nowhere near the range
+        if lo < x_min and x_max < hi:  # the usual block: nowhere near the range
             return
         s, e = _runs((x > hi) | (x < lo))
         for a, b in zip(s, e, strict=True):
@@ -241,12 +247,16 @@ class ChannelScan:
                 if b - a >= self.min_samples:
                     self.at_limit.add(float(t[a]), float(t[b - 1]), int(b - a), limit)
 
-    def _plateaus(self, t, x, y, starts, lengths) -> None:
-        top, bottom = float(y.max()), float(y.min())
+    def _plateaus(self, t, x, y, starts, lengths, bottom: float, top: float) -> None:
+        """bottom, top: x's (and so y's) extremes."""
         ranged = set(self.limits or ())  # values at the declared range are counted there
-        # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free)
-        many = {v for v in {top, bottom} - ranged
-                if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
+        # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free; x's
+        # count is y's when no value is held)
+        many = set()
+        for v in {top, bottom} - ranged:
+            held = np.count_nonzero(y == v)
+            if held >= MANY and (held if y is x else np.count_nonzero(x == v)) >= SHARE * x.size:
+                many.add(v)
         clipped = many if many and np.unique(y).size >= LEVELS else set()
         if lengths.size == x.size:  # no value held: every hold one sample
             hold = 1
@@ -254,8 +264,11 @@ class ChannelScan:
             counts = np.cumsum(np.bincount(lengths))  # the median hold, from the lengths' histogram (no sort)
             hold = max(1, int(np.searchsorted(counts, (lengths.size + 1) // 2)))
         longest = max(self.min_run, 8 * hold)
-        long = np.flatnonzero(lengths >= longest)  # seen from the shape
-        long = long[(y[long] == top) | (y[long] == bottom)]
+        if hold == 1 and lengths.size == x.size and longest > 1:  # every hold one sample: none is long
+            long = np.empty(0, np.intp)
+        else:
+            long = np.flatnonzero(lengths >= longest)  # seen from the shape
+            long = long[(y[long] == top) | (y[long] == bottom)]
         if long.size:
             gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
             jump = KINK * noise_deviation(x, self.resolution) + self.resolution
@@ -292,7 +305,8 @@ class ChannelScan:
 
         if below(float(size.max())):
             return
-        pair = np.where(np.signbit(step[:-1]) != np.signbit(step[1:]), np.minimum(size[:-1], size[1:]), 0.0)
+        sign = np.signbit(step)
+        pair = np.where(sign[:-1] != sign[1:], np.minimum(size[:-1], size[1:]), 0.0)
         if below(float(pair.max())):
             return
         big = SPIKE * float(np.quantile(size, 0.99))

@@ -206,6 +206,7 @@ def to_numpy(pa: Any, col: Any, dtype: type, copy: bool = True) -> np.ndarray:
         else:
             parts.append(np.frombuffer(buf, dtype=dtype, count=n, offset=dtype.itemsize * ch.offset))
     if not copy and len(parts) == 1 and parts[0].dtype == dtype:
+        parts[0].flags.writeable = False  # Arrow's buffers are immutable (pyarrow's may still lend them writable)
         return parts[0]
     return np.concatenate(parts).astype(dtype, copy=False) if parts else np.empty(0, dtype)
 

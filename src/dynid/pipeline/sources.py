@@ -244,9 +244,9 @@ def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Chan
     """{quantity: values on the window's clock slice, SI (or the file's unit)}: the file's samples around the slice,
     repeated stamps merged, each channel not already on the clock interpolated onto it (cubic). file_samples: a dict
     to receive {file channel: its samples as read (file unit, own stamps; the slice's, or around it when
-    interpolated)}, the data health's scan (`pipeline.health.segment_health`). A channel on the clock in SI already
-    is the file's samples, a read-only view (x * 1.0 is x to the bit; the product's fresh array cost a sixth of the
-    read in page faults)."""
+    interpolated)}, the data health's scan (`pipeline.health.segment_health`). A channel whose factor to SI is 1 is
+    given as read, not multiplied (x * 1.0 is x to the bit): a read-only view where it is the file's samples (the
+    product's fresh array cost a sixth of a segment's read, in page faults)."""
     al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples)
     return {q: al[name] * w.factors[q] if si and w.factors[q] != 1.0 else al[name]
             for q, name in w.quantity_names.items()}
