@@ -116,6 +116,18 @@ def holds(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     return starts, np.diff(starts, append=x.size)
 
 
+def _held(x: NDArray[np.float64]) -> tuple[NDArray[np.intp] | None, NDArray[np.intp] | None]:
+    """`holds(x)` of a non-empty x, or (None, None) when no value is held (every hold one sample, the usual noisy
+    channel): its index arrays (the starts 0..n-1, the lengths all 1) not built, a third of a channel's scan."""
+    new = np.empty(x.size, dtype=bool)
+    new[0] = True
+    np.not_equal(x[1:], x[:-1], out=new[1:])
+    if np.count_nonzero(new) == x.size:
+        return None, None
+    starts = np.flatnonzero(new)
+    return starts, np.diff(starts, append=x.size)
+
+
 def noise_deviation(x: NDArray[np.float64], resolution: float = 0.0) -> float:
     """Robust standard deviation of x's noise, in x's unit; at least `resolution`: 1.4826 x the median absolute
     deviation of the second differences of its holds, over sqrt(6) (a second difference holds three samples'
@@ -179,30 +191,36 @@ class ChannelScan:
     def add(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """One block of the channel: its time stamps (s) and values (the channel's unit), (n,) each."""
         t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
-        keep = np.isfinite(x)  # non-finite values are the time-base checks' business
-        if not keep.all():
-            t, x = t[keep], x[keep]
         if x.size == 0:
             return
+        # the extremes, which the range and the plateaus need, tell whether every value is finite (min and max
+        # propagate NaN; an infinity is one of them): one pass, not an isfinite pass and its all()
+        lo, hi = float(x.min()), float(x.max())
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            keep = np.isfinite(x)  # non-finite values are the time-base checks' business
+            t, x = t[keep], x[keep]
+            if x.size == 0:
+                return
+            lo, hi = float(x.min()), float(x.max())
         if self.binary:
             zero, one = x == 0.0, x == 1.0
             self.binary = bool(np.all(zero | one))
             seen = self.zeros_and_ones
             self.zeros_and_ones = (seen[0] or bool(zero.any()), seen[1] or bool(one.any()))
-        starts, lengths = holds(x)
+        starts, lengths = _held(x)  # None: no value held
         # one value over the block: nothing but the range to judge in it (blocks may come in any order: the channel
         # is constant when every block is, at one value)
-        still = starts.size == 1
+        still = starts is not None and starts.size == 1
         self.constant = self.constant and still and (self.first_value is None or float(x[0]) == self.first_value)
         if self.first_value is None or t[0] < self.t_first:
             self.first_value, self.t_first = float(x[0]), float(t[0])
         self.t_last = max(float(t[-1]), self.t_last) if self.n else float(t[-1])
         self.n += x.size
-        self._limits(t, x)
+        self._limits(t, x, lo, hi)
         if still or x.size < 3:
             return
-        y = x if starts.size == x.size else x[starts]  # the holds' values
-        self._plateaus(t, x, y, starts, lengths)
+        y = x if starts is None else x[starts]  # the holds' values (every value of x: its extremes too)
+        self._plateaus(t, x, y, starts, lengths, lo, hi)
         self._spikes(t, x, y, starts)
 
     def merge(self, other: ChannelScan) -> ChannelScan:
@@ -226,11 +244,11 @@ class ChannelScan:
         out.span = (min(a.span[0], b.span[0]), max(a.span[1], b.span[1]))
         return out
 
-    def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
+    def _limits(self, t: NDArray[np.float64], x: NDArray[np.float64], x_min: float, x_max: float) -> None:
         if self.limits is None:
             return
         lo, hi = self.limits
-        if lo < float(x.min()) and float(x.max()) < hi:  # the usual block: nowhere near the range
+        if lo < x_min and x_max < hi:  # the usual block: nowhere near the range
             return
         s, e = _runs((x > hi) | (x < lo))
         for a, b in zip(s, e, strict=True):
@@ -241,21 +259,28 @@ class ChannelScan:
                 if b - a >= self.min_samples:
                     self.at_limit.add(float(t[a]), float(t[b - 1]), int(b - a), limit)
 
-    def _plateaus(self, t, x, y, starts, lengths) -> None:
-        top, bottom = float(y.max()), float(y.min())
+    def _plateaus(self, t, x, y, starts, lengths, bottom: float, top: float) -> None:
+        """bottom, top: x's (and so y's) extremes; starts, lengths: x's holds (None: no value held)."""
         ranged = set(self.limits or ())  # values at the declared range are counted there
-        # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free)
-        many = {v for v in {top, bottom} - ranged
-                if np.count_nonzero(y == v) >= MANY and np.count_nonzero(x == v) >= SHARE * x.size}
+        # seen from the count (the distinct values counted only for a candidate: a sort per channel is not free; x's
+        # count is y's when no value is held)
+        many = set()
+        for v in {top, bottom} - ranged:
+            held = np.count_nonzero(y == v)
+            if held >= MANY and (held if y is x else np.count_nonzero(x == v)) >= SHARE * x.size:
+                many.add(v)
         clipped = many if many and np.unique(y).size >= LEVELS else set()
-        if lengths.size == x.size:  # no value held: every hold one sample
+        if starts is None:  # no value held: every hold one sample
             hold = 1
         else:
             counts = np.cumsum(np.bincount(lengths))  # the median hold, from the lengths' histogram (no sort)
             hold = max(1, int(np.searchsorted(counts, (lengths.size + 1) // 2)))
         longest = max(self.min_run, 8 * hold)
-        long = np.flatnonzero(lengths >= longest)  # seen from the shape
-        long = long[(y[long] == top) | (y[long] == bottom)]
+        if starts is None:  # every hold one sample: none as long as 8 holds
+            long = np.empty(0, np.intp)
+        else:
+            long = np.flatnonzero(lengths >= longest)  # seen from the shape
+            long = long[(y[long] == top) | (y[long] == bottom)]
         if long.size:
             gap = 2 * hold + 1  # samples before and after a plateau where the approach is read
             jump = KINK * noise_deviation(x, self.resolution) + self.resolution
@@ -292,18 +317,19 @@ class ChannelScan:
 
         if below(float(size.max())):
             return
-        pair = np.where(np.signbit(step[:-1]) != np.signbit(step[1:]), np.minimum(size[:-1], size[1:]), 0.0)
+        sign = np.signbit(step)
+        pair = np.where(sign[:-1] != sign[1:], np.minimum(size[:-1], size[1:]), 0.0)
         if below(float(pair.max())):
             return
         big = SPIKE * float(np.quantile(size, 0.99))
         hit = np.flatnonzero((pair > big) & (pair > 2 * self.resolution))
-        ends = np.append(starts[1:], x.size)
         if hit.size:
             lo, hi = (float(v) for v in np.quantile(y, [0.001, 0.999]))
             self.span = (min(self.span[0], lo), max(self.span[1], hi))
             width = max(hi - lo, self.resolution, np.finfo(float).tiny)
         for k in hit + 1:
-            a, b = int(starts[k]), int(ends[k])
+            a = int(k if starts is None else starts[k])  # the hold's samples (one when none is held)
+            b = a + 1 if starts is None else int(starts[k + 1]) if k + 1 < starts.size else x.size
             self.spikes.add(float(t[a]), float(t[b - 1]), b - a, float(y[k]))
             if abs(y[k] - 0.5 * (y[k - 1] + y[k + 1])) > WILD * width:
                 self.wild.add(float(t[a]), float(t[b - 1]), b - a, float(y[k]))

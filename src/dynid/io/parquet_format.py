@@ -187,10 +187,12 @@ def first_tick(pa: Any, col: Any) -> int | None:
     return int(to_numpy(pa, col.slice(0, 1).cast(pa.int64()).fill_null(0), np.int64)[0])
 
 
-def to_numpy(pa: Any, col: Any, dtype: type) -> np.ndarray:
+def to_numpy(pa: Any, col: Any, dtype: type, copy: bool = True) -> np.ndarray:
     """A primitive Arrow array or chunked array (float64, int64 or boolean, without nulls where it matters) as a
     NumPy copy, from its buffers: pyarrow's own ``to_numpy`` imports pandas to check for it (64 MB of resident
-    memory on the first Parquet read, a third of a robot run's floor, for nothing)."""
+    memory on the first Parquet read, a third of a robot run's floor, for nothing). copy=False: a read-only view of
+    the Arrow buffer when the column is one chunk of that dtype (it keeps the buffer alive; a copy costs its page
+    faults, a third of a Parquet window's read)."""
     dtype = np.dtype(dtype)
     parts = []
     for ch in getattr(col, "chunks", [col]):
@@ -203,17 +205,21 @@ def to_numpy(pa: Any, col: Any, dtype: type) -> np.ndarray:
             parts.append(bits[ch.offset:ch.offset + n].astype(bool))
         else:
             parts.append(np.frombuffer(buf, dtype=dtype, count=n, offset=dtype.itemsize * ch.offset))
+    if not copy and len(parts) == 1 and parts[0].dtype == dtype:
+        parts[0].flags.writeable = False  # Arrow's buffers are immutable (pyarrow's may still lend them writable)
+        return parts[0]
     return np.concatenate(parts).astype(dtype, copy=False) if parts else np.empty(0, dtype)
 
 
-def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str = "") -> Column:
+def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str = "", copy: bool = True) -> Column:
     """One numeric Arrow column (or a run of its rows) as a `Column` of float64 samples.
 
     A timestamp column becomes seconds since `tick0`, the integer tick of the FILE's
     first row (exact integer difference, then one division: epoch ns do not fit a
     float64), so rows converted in pieces equal the whole column bit for bit. Integers
     and booleans are cast to float64; nulls are rows without a sample. The column is named by its channel
-    ("yaw_rate [deg/s]" is yaw_rate, in deg/s); `label` names the file in an error.
+    ("yaw_rate [deg/s]" is yaw_rate, in deg/s); `label` names the file in an error. copy=False: a float64 column
+    without nulls is a read-only view of its Arrow buffer (`to_numpy`).
     """
     name, unit = name_and_unit(field.name, _unit_of(field), label)
     kind = field.type
@@ -225,7 +231,7 @@ def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str 
             values = ticks.astype(np.float64)
         unit = "s"
     else:
-        values = to_numpy(pa, col.cast(pa.float64()), np.float64)
+        values = to_numpy(pa, col.cast(pa.float64()), np.float64, copy)
     present = ~to_numpy(pa, col.is_null(), bool) if col.null_count else None
     return Column(name, unit, values if present is None else values[present], present)
 

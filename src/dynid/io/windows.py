@@ -284,10 +284,11 @@ def read_window(index: FileIndex, channels: Sequence[str], t0: float, t1: float)
         hit = [i for i in hit if index.blocks[i].group in groups]
     tables = (_block_recording(index, i, names, (lo, hi)) for i in hit)
     for rec in _runs(index, hit, names) if grouped else tables:
+        kept: dict[int, tuple] = {}  # a block's channels share their time stamps: each array cut once
         for n in names:
             ch = rec.channels.get(n)
             if ch is not None and len(ch):
-                pieces[n].append(_inside(ch, lo, hi))
+                pieces[n].append(_inside(ch, lo, hi, kept))
     return _assembled(index, names, pieces)
 
 
@@ -545,18 +546,29 @@ def _check_unchanged(index: FileIndex) -> None:
         )
 
 
-def _inside(ch: Channel, lo: float, hi: float) -> Channel:
-    keep = (ch.time >= lo) & (ch.time <= hi)
-    if keep.all():
+def _inside(ch: Channel, lo: float, hi: float, kept: dict[int, tuple] | None = None) -> Channel:
+    """The channel's samples with lo <= t <= hi. kept: id(time) -> (time, its mask, its time and lines kept), so
+    that channels sharing a time base share the kept time (and lines), computed once."""
+    memo = None if kept is None else kept.get(id(ch.time))
+    if memo is None or memo[0] is not ch.time or memo[4] is not ch.lines:
+        keep = (ch.time >= lo) & (ch.time <= hi)
+        every = bool(keep.all())
+        memo = (ch.time, keep, None if every else ch.time[keep],
+                None if every or ch.lines is None else ch.lines[keep], ch.lines, every)
+        if kept is not None:
+            kept[id(ch.time)] = memo
+    if memo[5]:
         return ch
-    return Channel(ch.name, ch.unit, ch.values[keep], ch.time[keep], None if ch.lines is None else ch.lines[keep])
+    return Channel(ch.name, ch.unit, ch.values[memo[1]], memo[2], memo[3])
 
 
 def _assembled(index: FileIndex, names: list[str], pieces: dict[str, list[Channel]]) -> Recording:
-    """One recording of the pieces of each channel, in order; 0-sample channels for those without any."""
+    """One recording of the pieces of each channel, in order; 0-sample channels for those without any. Channels
+    whose pieces share their time stamps (and lines) share the assembled ones: one concatenation each."""
     units = index.units
     text = index.format == "csv"
     out = {}
+    joined: dict[tuple[int, ...], tuple] = {}  # ids of the pieces' arrays -> (the pieces, their concatenation)
     for n in names:
         got = pieces[n]
         if len(got) == 1:
@@ -564,10 +576,20 @@ def _assembled(index: FileIndex, names: list[str], pieces: dict[str, list[Channe
         elif not got:
             out[n] = Channel(n, units[n], _EMPTY_F, _EMPTY_F, _EMPTY_I if text else None)
         else:
-            lines = np.concatenate([c.lines for c in got]) if text else None
+            lines = _joined([c.lines for c in got], joined) if text else None
             values = np.concatenate([c.values for c in got])
-            out[n] = Channel(n, got[0].unit, values, np.concatenate([c.time for c in got]), lines)
+            out[n] = Channel(n, got[0].unit, values, _joined([c.time for c in got], joined), lines)
     return Recording(Path(index.path), out, dict(index.metadata), dict(index.skipped))
+
+
+def _joined(arrays: list[NDArray], memo: dict[tuple[int, ...], tuple]) -> NDArray:
+    """np.concatenate(arrays), the same array for the same arrays (memo: their ids -> (them, the result); the
+    arrays kept in it so that an id is not reused while it lives)."""
+    key = tuple(id(a) for a in arrays)
+    hit = memo.get(key)
+    if hit is None:
+        hit = memo[key] = (arrays, np.concatenate(arrays))
+    return hit[1]
 
 
 def _stamp_summary(t: NDArray[np.float64]) -> tuple[float, float, bool]:
@@ -942,13 +964,16 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
 def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any], store: bool) -> Column:
     def make() -> Column:
         pa = require("pyarrow", "Reading Parquet files")
-        if not opened:
-            opened.append(_open_parquet(index.path))
-        pfile = opened[0]
+        if not opened:  # the file and its Arrow schema (built anew by each `schema_arrow`: 0.1 ms a column)
+            pfile = _open_parquet(index.path)
+            opened.extend((pfile, pfile.schema_arrow))
+        pfile, schema = opened
         column = index.info("columns", {}).get(name, name)  # the file's name of the channel
-        field = pfile.schema_arrow.field(column)
+        field = schema.field(column)
         col = parquet_format.read_columns(pfile, index.path, [column], block.group).column(0)
-        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path)
+        # read-only views of the decoded buffers, not copies: what the cache keeps is shared by every window anyway
+        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path,
+                                             copy=False)
 
     return _cached(_key(index, block.group, name), make, _columns_nbytes, store)
 

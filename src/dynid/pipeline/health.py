@@ -142,22 +142,49 @@ class CarHealth:
         return CarHealth({q: s.merge(other.scans[q]) for q, s in self.scans.items()}, self.sums.merged(other.sums))
 
 
+# per process: what the health of a vehicle's windows needs, made once, not for every segment (the vehicle's suite is
+# built anew by each `Vehicle.suite`: 3.5 ms of a segment's set-up, a sixth of its scan). (what, id(vehicle), key) ->
+# (the vehicle, kept so that its id is not reused while the entry lives; the value)
+_MEMO: dict[tuple, tuple[object, object]] = {}
+_MEMO_SIZE = 64
+
+
+def _memo(what: str, vehicle, key: tuple, make: Callable[[], object]):
+    """make(), once per process for this vehicle (the same object) and key."""
+    k = (what, id(vehicle), key)
+    hit = _MEMO.get(k)
+    if hit is None or hit[0] is not vehicle:
+        if len(_MEMO) >= _MEMO_SIZE:
+            _MEMO.clear()
+        hit = _MEMO[k] = (vehicle, make())
+    return hit[1]
+
+
 def car_scans(window, vehicle) -> dict[str, ChannelScan]:
     """quantity -> an empty `ChannelScan` of its file channel: the sensor's declared range and resolution (the
     vehicle's suite) in the file's unit, what a still channel means, the shortest plateau (0.1 s). window: a
-    `CarTestPlan` or a `SegmentWindow` (their channels, units and factors)."""
+    `CarTestPlan` or a `SegmentWindow` (their channels, units and factors). The scans' settings are made once per
+    process for a vehicle and a file's channels (`_scan_settings`), the scans anew each call."""
+    key = (tuple(window.quantity_names.items()), tuple(window.factors.items()), window.index.channels, window.fs)
+    settings = _memo("scans", vehicle, key, lambda: _scan_settings(window, vehicle))
+    return {q: ChannelScan(*args, **options) for q, args, options in settings}
+
+
+def _scan_settings(window, vehicle) -> tuple[tuple[str, tuple, dict], ...]:
+    """(quantity, ChannelScan's arguments, its keywords) of each of the window's quantities (`car_scans`)."""
     suite = vehicle.suite
     units = window.index.units
-    scans = {}
+    fitted = set(suite.names)
+    out = []
     for q, name in window.quantity_names.items():
-        c = suite[q] if q in suite.names else None
+        c = suite[q] if q in fitted else None
         # the suite's figures are in its unit, the values in the file's: x_file = x_suite * f_suite / f_file
         k = unit_factor(c.unit)[0] / window.factors[q] if c is not None else 1.0
         limits = None if c is None or c.range is None else tuple(sorted((c.range[0] * k, c.range[1] * k)))
-        scans[q] = ChannelScan(name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0,
-                               still=next((w for key, w in _STILL.items() if q.startswith(key)), None),
-                               min_run=max(5, round(0.1 * window.fs)))
-    return scans
+        out.append((q, (name, units.get(name, ""), limits, abs(c.resolution * k) if c else 0.0),
+                    {"still": next((w for key, w in _STILL.items() if q.startswith(key)), None),
+                     "min_run": max(5, round(0.1 * window.fs))}))
+    return tuple(out)
 
 
 def segment_health(w: SegmentWindow, vehicle, own: tuple[float, float, bool], samples: Mapping[str, Channel],
@@ -312,7 +339,11 @@ def _coefficients(row: NDArray, used: Sequence[int]) -> str:
 
 def _vertical_axis(vehicle) -> tuple[str, float] | None:
     """The accelerometer channel closest to the chassis' vertical and what it reads at rest, m/s^2 (specific
-    force: +g on an axis pointing up), or None without one within 30 degrees of it."""
+    force: +g on an axis pointing up), or None without one within 30 degrees of it. Once per process and vehicle."""
+    return _memo("up", vehicle, (), lambda: _up_axis(vehicle))
+
+
+def _up_axis(vehicle) -> tuple[str, float] | None:
     A = np.asarray(vehicle.geometry.imu_axes, dtype=float)  # rows: the unit's x, y, z in frame 6 (x6 up)
     i = int(np.argmax(np.abs(A[:, 0])))
     if abs(A[i, 0]) < math.cos(math.radians(30.0)):

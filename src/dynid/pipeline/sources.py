@@ -244,9 +244,12 @@ def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Chan
     """{quantity: values on the window's clock slice, SI (or the file's unit)}: the file's samples around the slice,
     repeated stamps merged, each channel not already on the clock interpolated onto it (cubic). file_samples: a dict
     to receive {file channel: its samples as read (file unit, own stamps; the slice's, or around it when
-    interpolated)}, the data health's scan (`pipeline.health.segment_health`)."""
+    interpolated)}, the data health's scan (`pipeline.health.segment_health`). A channel whose factor to SI is 1 is
+    given as read, not multiplied (x * 1.0 is x to the bit): a read-only view where it is the file's samples (the
+    product's fresh array cost a sixth of a segment's read, in page faults)."""
     al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples)
-    return {q: al[name] * w.factors[q] if si else al[name] for q, name in w.quantity_names.items()}
+    return {q: al[name] * w.factors[q] if si and w.factors[q] != 1.0 else al[name]
+            for q, name in w.quantity_names.items()}
 
 
 def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64], margin: float, timed: bool,
@@ -259,7 +262,7 @@ def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64
     specs, exact = [], True
     with _samples_of_the_test(first, True):
         for members in _shared_bases(rec, names):
-            s = stream(members, rec.label, timed, np.inf)
+            s = stream(members, rec.label, timed, np.inf, fit=False)  # the plan fitted the base's clock
             cut = _on_clock(s, clock)
             exact = exact and cut is not None
             specs += [InterpSpec(n, c, kind(n)) for n, c in (cut or s.channels).items()]
@@ -307,9 +310,14 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
     """A stream's channels cut to the clock's samples when every clock instant is one of its stamps (used as they
     are, bit for bit), else None (to be interpolated)."""
     t = s.t
-    k = np.searchsorted(t, clock)
-    if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)], clock):
-        rows = slice(int(k[0]), int(k[-1]) + 1)
+    k0 = int(np.searchsorted(t, clock[0]))
+    if np.array_equal(t[k0:k0 + clock.size], clock):  # the usual case, consecutive stamps: no search of each instant
+        rows = slice(k0, k0 + clock.size)
+    else:
+        k = np.searchsorted(t, clock)
+        rows = (slice(int(k[0]), int(k[-1]) + 1) if k[-1] < t.size and np.array_equal(t[np.minimum(k, t.size - 1)],
+                                                                                        clock) else None)
+    if rows is not None:
         # one time array (and one lines array) shared by the channels, as in the stream: `align` checks a
         # time base once per array, not once per channel
         tr, lines = t[rows], {}

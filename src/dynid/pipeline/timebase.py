@@ -76,9 +76,11 @@ def opened(open_file: Callable[..., T], path: Path, fs: float | None, test: str,
 
 
 def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
-           window: tuple[float | None, float | None] = (None, None)) -> Stream:
+           window: tuple[float | None, float | None] = (None, None), fit: bool = True) -> Stream:
     """The channels (one time base) with repeated stamps averaged, checked for stamps going back and holes;
-    with a window (start, end), only the rows from just before start to just after end."""
+    with a window (start, end), only the rows from just before start to just after end. fit: False for a window of
+    a base the plan fitted already (a segment's read): the stamps checked (finite, not going back) and repeated ones
+    merged, no hole looked for and no clock fitted (h NaN, not uniform: a third of a segment's read)."""
     t, lines = chans[0].time, chans[0].lines
     offset = 0  # of the first row kept, for messages
     if timed and window != (None, None) and t.size > 2:
@@ -133,6 +135,9 @@ def stream(chans: list[Channel], source: str, timed: bool, max_gap: float,
                             f"{float(t[0]):.6g} s: the time column does not advance; fix the logger export (is it "
                             "the right column?), or drop the time column and give the test's fs",
                             source=source, sample=offset)
+    if not fit:
+        return Stream(source, timed, chans[0].time, {c.name: c for c in chans}, float("nan"), False,
+                      float(t[0]), repeated)
     su = np.diff(tu) if repeated else step
     del step
     largest = float(np.max(su))
