@@ -174,6 +174,9 @@ def test_covariance_parse():
     assert Covariance.parse("hac", 4).lags_for(10 ** 6) == 4
 
 
+# 400 Monte Carlo draws, 6 s of CPU: slow; the quick run keeps the same HAC code against statsmodels
+# (test_one_group_ols_equals_statsmodels_hac, test_wls_equals_statsmodels_hac_panel)
+@pytest.mark.slow
 def test_monte_carlo_ar1_hac_covers_nonrobust_does_not():
     """AR(1) errors (φ = 0.8) on smooth regressors: the nonrobust 95 % interval covers the truth far less often
     than 95 %; the HAC one (Newey–West lags) near its level. 400 draws: a coverage's binomial σ is ≤ 2.5 %, the

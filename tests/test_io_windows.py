@@ -268,6 +268,10 @@ def test_csv_stamps_going_back_do_not_lose_rows(tmp_path: Path) -> None:
 # Parquet
 
 
+# 40 examples, 7 s of CPU: slow; the quick run keeps Parquet windows against the whole file's values in
+# test_window_reads_only_the_row_groups_it_overlaps, test_parquet_without_time_column_and_timestamp_channel and
+# test_urls_read_through_fsspec_as_local_files[parquet]
+@pytest.mark.slow
 @needs_pyarrow
 @SETTINGS
 @given(t=stamps(), data=st.data())

@@ -143,21 +143,31 @@ def base_of(run) -> tuple[np.ndarray, np.ndarray]:
     return np.array([r.value(n) for n in names]), np.array([r.std[r.index(n)] for n in names])
 
 
+# The logs are written once per module (about 2.5 s a pair of tests) and only read: every test that needs the
+# noise-free or the noisy files of these seeds shares them and writes its own config beside its own tmp_path.
 @pytest.fixture(scope="module")
-def noise_free(tmp_path_factory):
-    d = tmp_path_factory.mktemp("gains_exact")
-    logs = write(d, 0.0)
-    torque = identify(load_config(config(d, logs, "tau", "torque")))
-    current = identify(load_config(config(d, logs, "current", "current", gains_drive(SHEET))))
+def exact_logs(tmp_path_factory) -> dict[str, Path]:
+    return write(tmp_path_factory.mktemp("gains_exact"), 0.0)
+
+
+@pytest.fixture(scope="module")
+def noisy_logs(tmp_path_factory) -> dict[str, Path]:
+    return write(tmp_path_factory.mktemp("gains_noisy"), 0.02)  # 2 % of each current's RMS, white at 1 kHz
+
+
+@pytest.fixture(scope="module")
+def noise_free(tmp_path_factory, exact_logs):
+    d = tmp_path_factory.mktemp("gains_exact_runs")
+    torque = identify(load_config(config(d, exact_logs, "tau", "torque")))
+    current = identify(load_config(config(d, exact_logs, "current", "current", gains_drive(SHEET))))
     return torque, current
 
 
 @pytest.fixture(scope="module")
-def noisy(tmp_path_factory):
-    d = tmp_path_factory.mktemp("gains_noisy")
-    logs = write(d, 0.02)  # 2 % of each current's RMS, white at 1 kHz
-    torque = identify(load_config(config(d, logs, "tau", "torque")))
-    current = identify(load_config(config(d, logs, "current", "current", gains_drive(SHEET))))
+def noisy(tmp_path_factory, noisy_logs):
+    d = tmp_path_factory.mktemp("gains_noisy_runs")
+    torque = identify(load_config(config(d, noisy_logs, "tau", "torque")))
+    current = identify(load_config(config(d, noisy_logs, "current", "current", gains_drive(SHEET))))
     return torque, current
 
 
@@ -190,21 +200,21 @@ def test_noisy_gains_within_one_percent(noisy):
     assert np.all(np.abs(x_c - x_t) <= 4 * s_c), np.max(np.abs(x_c - x_t) / s_c)
 
 
-def test_known_gains_are_a_scaling(tmp_path):
-    """The right gains known: the current log identifies to the torque log's estimate (round-off)."""
-    logs = write(tmp_path, 0.02)
-    torque = identify(load_config(config(tmp_path, logs, "tau", "torque")))
-    current = identify(load_config(config(tmp_path, logs, "current", "known", gains_drive(G_TRUE, "false"))))
+def test_known_gains_are_a_scaling(tmp_path, noisy_logs, noisy):
+    """The right gains known: the current log identifies to the torque log's estimate (round-off). The torque
+    route's run is the noisy fixture's: the same files (noise 0.02, seed 3) and the same config."""
+    torque, _ = noisy
+    current = identify(load_config(config(tmp_path, noisy_logs, "current", "known", gains_drive(G_TRUE, "false"))))
     assert list(current.result.names) == list(torque.result.names)
     np.testing.assert_allclose(current.result.values, torque.result.values, rtol=1e-10, atol=0)
     np.testing.assert_allclose(current.result.std, torque.result.std, rtol=1e-8)
 
 
-def test_one_known_gain_fixes_the_scale(tmp_path):
+def test_one_known_gain_fixes_the_scale(tmp_path, exact_logs):
     """Without a payload, one gain known (joint 1's, the true value) fixes the scale of the others: through the
     links' shares of joint 1's torque, small for the wrist (its gains come back to 6e-5 on noise-free files whose
     conditioning leaves a 1.5e-7 relative residual; 1e-7 for the arm's), so 2e-4."""
-    logs = write(tmp_path, 0.0)
+    logs = exact_logs
     drive = gains_drive(np.r_[G_TRUE[0], SHEET[1:]], json.dumps([f"c{j}" for j in range(2, 7)]))
     run = identify(load_config(config(tmp_path, logs, "current", "one", drive, payload=False)))
     r = run.result
@@ -242,8 +252,8 @@ def _text(tmp_path: Path, logs, drive: str = "", payload: bool = True, method: s
 
 
 @pytest.fixture
-def logs(tmp_path):
-    return write(tmp_path, 0.0)
+def logs(exact_logs):
+    return exact_logs
 
 
 def test_a_current_channel_without_a_gain(tmp_path, logs, capsys):

@@ -172,13 +172,20 @@ def test_zero_samples_and_bad_shapes():
         kernel(np.zeros((3, 6)), np.zeros((3, 6)), np.zeros((3, 6)), out={"out": np.zeros((3, kernel.outputs["out"]))})
 
 
+def _wheel_wrenches(N: int) -> list[Wrench]:
+    """The paper case's rows, columns and wheel wrench sites (test_car_identification_model_through_generated_
+    regressor[paper]): the buffer tests below use its kernel, compiled once per session (4 s a kernel), since what
+    they prove (buffers, threads) does not depend on which kernel fills the buffers."""
+    return [Wrench(t, np.ones((N, 6)), (0.0, 0.1, -0.2), frame=t) for t in (15, 24, 33, 42)]
+
+
 def test_generated_regressor_results_are_read_only_and_never_reused_while_alive():
     tree = car_template()
     g = GeneratedRegressor(tree)
-    rows, cols = list(EQUATION_ROWS), paper_parameter_names()
+    rows, cols = list(EQUATION_ROWS), identified(tree)
     N = 3 * LANES
     states = [random_states(tree, N, seed=s) for s in (20, 21)]
-    wrench = [Wrench(15, np.ones((N, 6)), (0.0, 0.0, 0.0), frame=15)]
+    wrench = _wheel_wrenches(N)
     W1, _ = g(*states[0], wrench, rows, cols)
     keep = W1.copy()
     with pytest.raises(ValueError):
@@ -214,12 +221,18 @@ def _call(fn, N, *arrays, out_shapes):
     return outs
 
 
-@pytest.mark.parametrize("N", [*SIZES, 0])
-def test_c_block_regressor_matches_engine_and_pinocchio(N, tmp_path):
+@pytest.fixture(scope="module")
+def rnd6_c(tmp_path_factory):
+    """The random 6-joint tree's C block regressor, built and compiled once for every N (2.4 s of build and cc)."""
     tree = random_tree(1, 6, fixed=False, serial=True)
-    q, qd, qdd = random_states(tree, N, seed=N + 30)
     prog = build(tree, "regressor")
-    lib = _compile(tmp_path, prog, "rnd6")
+    return tree, prog, _compile(tmp_path_factory.mktemp("rnd6"), prog, "rnd6")
+
+
+@pytest.mark.parametrize("N", [*SIZES, 0])
+def test_c_block_regressor_matches_engine_and_pinocchio(N, rnd6_c):
+    tree, prog, lib = rnd6_c
+    q, qd, qdd = random_states(tree, N, seed=N + 30)
     (W,) = _call(lib.rnd6_regressor_block, N, q, qd, qdd, out_shapes=[prog.shape])
     close(W, Model(tree).regressor(q, qd, qdd))
     if N:
@@ -284,9 +297,9 @@ def test_generated_regressor_from_two_threads():
 
     tree = car_template()
     g = GeneratedRegressor(tree)
-    rows, cols = list(EQUATION_ROWS), paper_parameter_names()
+    rows, cols = list(EQUATION_ROWS), identified(tree)
     N = 4 * LANES + 3
-    wrench = [Wrench(24, np.ones((N, 6)), (0.0, 0.0, 0.0), frame=24)]
+    wrench = _wheel_wrenches(N)
     states = [random_states(tree, N, seed=40 + i) for i in range(8)]
     expected = [Model(tree).regressor(*s, wrench, rows=rows, cols=cols)[0] for s in states]
 
