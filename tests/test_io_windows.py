@@ -378,6 +378,37 @@ def test_csv_window_parses_only_the_blocks_it_overlaps(tmp_path: Path, monkeypat
     assert got.channels["a"].lines[0] == 1202  # row 1200 (12 s): header on line 1, row 0 on line 2
 
 
+@pytest.mark.parametrize("blocks, kept", [(2, True), (windows.CACHE_BLOCKS + 2, False)])
+def test_a_csv_of_few_blocks_is_parsed_once_for_its_time_bases_and_its_windows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, blocks: int, kept: bool
+) -> None:
+    """The plan's time bases decode every block; a file of at most CACHE_BLOCKS blocks keeps them for the windows
+    read next (the demo's CSVs were parsed twice: 15 % of its run), a longer one does not (memory per file bounded)."""
+    n, fs = 100 * blocks, 100.0
+    t = np.arange(n) / fs
+    slow = Channel("s", "deg", np.sin(t[::4]), t[::4])  # another time base: empty cells between its samples
+    path = tmp_path / "log.csv"
+    write_recording(Recording.from_channels([Channel("a", "m", np.cos(t), t), slow]), path)
+    index = index_file(path, block_rows=100)
+    parsed: list[int] = []
+    original = windows._csv_block
+
+    def counting(index_: FileIndex, block: windows.Block):
+        parsed.append(block.row0)
+        return original(index_, block)
+
+    monkeypatch.setattr(windows, "_csv_block", counting)
+    windows.clear_cache()
+    bases = time_bases(index, ["a", "s"])
+    assert sorted(len(b[1]) for b in bases) == [len(slow.time), n]
+    got = read_window(index, ["a", "s"], 0.0, t[-1])
+    want = read_recording(path, channels=["a", "s"])
+    for name in ("a", "s"):
+        np.testing.assert_array_equal(got.channels[name].values, want.channels[name].values)
+        np.testing.assert_array_equal(got.channels[name].time, want.channels[name].time)
+    assert sorted(parsed) == sorted([100 * i for i in range(blocks)] * (1 if kept else 2))
+
+
 @needs_pyarrow
 def test_changed_file_is_refused(tmp_path: Path) -> None:
     t = np.arange(100) / 10.0
