@@ -8,6 +8,20 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-28 (20:11-20:15 UTC, load average ~1.5 on the 2 cores: two other sessions): peak 408.5 MiB
+against main's 483.2 at 95b12f4 (farm-bench, 4 runs each alternated A B A B after a warm-up each, medians; 401-411
+against 482-485), CPU 0.89 x (pairs 0.84-0.96; 41.6 s against 46.6 s), the estimate, its sigmas, covariance and the
+errors bit-equal to main's (one hash over the 10 runs). What went: (1) the car's imports of pipeline/reduce.py into
+the car's functions: a robot run loads no vehicle module nor scipy.interpolate, optimize or spatial (after the
+imports 125 MB against 149); (2) the blocked decimation's work space (`decimation.WORK_BYTES`) 4 -> 1 MiB, the same
+bits (each column filtered alone); (3) pyarrow's default pool the system allocator (`heap.arrow_system_pool`, unless
+ARROW_DEFAULT_MEMORY_POOL is set) before the plan's first read: mimalloc's arenas held their pages; (4) the heap
+trimmed after the map; (5) the estimate's physical-consistency check given to Clarabel without cvxpy
+(`estimation.physical.feasible_standard`): cvxpy's import, 56 MB after the map, had set the peak (432-445 in RSS
+traces, the map's own high water ~400-410). The peak is now the map's: one worker's chunk, traced alone, rises 66 MB
+over the resident set before it (43 MB of it NumPy's, tracemalloc), two workers ~130-150 MB over the ~250 MB left
+after the plan and the data-health check.
+
 Measured 2026-11-27 (19:25-19:35 UTC) on the 2-core machine, busy (~5 other sessions and a test run): 1 h,
 251,986 rows of 43 parameters, peak 508 MiB against main's 524 at d8e0370 (farm-bench medians of 3, A B A B in one
 run; CPU 1.05 x, range 0.92-1.09, wall 1.05 x: noise, the change removes work), 529 at 77e8e1a, 937 MB at 54648a4,

@@ -21,7 +21,8 @@ I the inertia matrix about O_j in frame j (XX XY XZ; XY YY YZ; XZ YZ ZZ). J ⪰ 
 non-negative mass distribution has these moments; J ≻ 0 is exactly `model.consistency.check_body`'s three
 conditions (M > 0, inertia at the centre of mass positive definite, strict triangle inequalities).
 
-Solved with cvxpy and Clarabel (interior point), the optional `pc` extra: ``pip install cvxpy clarabel``.
+Solved with cvxpy and Clarabel (interior point), the optional `pc` extra: ``pip install cvxpy clarabel``; the
+feasibility check of an estimate (every robot identification's) is given to Clarabel directly, without cvxpy.
 This module works on arrays and names (K, the positions of each body's ten parameters, the non-negative
 ones); `pipeline.run` builds them from a tree and its base parameters.
 """
@@ -555,8 +556,10 @@ def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str,
 
     max t  s.t.  K s = b,  J_j(s) ⪰ t I4,  s_i >= 0 (IA, FV, FS),  t <= 1 (a body whose parameters are all
     free would make t unbounded; 1 is far above any margin of interest)."""
-    cp = require_cvxpy()
     b = np.array([float(base_values[n]) for n in structure.base_names])
+    if solver == "CLARABEL":
+        return _feasible_clarabel(structure, b, margin)
+    cp = require_cvxpy()
     s = cp.Variable(len(structure.standard_names))
     t = cp.Variable()
     cons = [structure.base_map @ s == b, t <= 1.0]
@@ -577,6 +580,67 @@ def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str,
     tight = tuple(j for j, v in eig.items() if v <= tv + 1e-6 * max(abs(tv), margin))
     return Feasibility(tv >= margin, tv, dict(zip(structure.standard_names, sv.tolist(), strict=True)), tight,
                        str(prob.status))
+
+
+# cvxpy's names for Clarabel's statuses (what Feasibility.status has said)
+_CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate", "PrimalInfeasible": "infeasible",
+                    "AlmostPrimalInfeasible": "infeasible_inaccurate", "DualInfeasible": "unbounded",
+                    "AlmostDualInfeasible": "unbounded_inaccurate"}
+# the upper triangle of a symmetric 4x4, column by column (Clarabel's PSD triangle cone), and its scaling
+_TRIU = [(i, j) for j in range(4) for i in range(j + 1)]
+_SVEC = np.array([1.0 if i == j else np.sqrt(2.0) for i, j in _TRIU])
+
+
+def _feasible_clarabel(structure: ConsistencyStructure, b: np.ndarray, margin: float) -> Feasibility:
+    """`feasible_standard`'s program given to Clarabel as a conic program, without cvxpy (whose import is 56 MB
+    of a robot identification's resident set, every robot run's check): x = (s, t), min -t s.t. K s = b (zero
+    cone), 1 - t >= 0 and s_i >= 0 (non-negative cone), svec(J_j(s) - t I4) in the PSD triangle cone."""
+    try:
+        import clarabel  # optional: clarabel (the pc extra)
+        import scipy.sparse as sp  # start-up: scipy.sparse only for the check (clarabel imports it anyway)
+    except ImportError:
+        raise IdentificationError(_SOLVER_ERROR) from None
+    n = len(structure.standard_names)
+    K = np.asarray(structure.base_map, dtype=float)
+    nonneg = list(structure.nonnegative)
+    rows = [np.hstack([K, np.zeros((len(K), 1))])]  # A x + z = rhs, z in the cone
+    rhs = [b]
+    bound = np.zeros((1 + len(nonneg), n + 1))
+    bound[0, n] = 1.0  # z = 1 - t
+    bound[np.arange(1, 1 + len(nonneg)), nonneg] = -1.0  # z = s_i
+    rows.append(bound)
+    rhs.append(np.r_[1.0, np.zeros(len(nonneg))])
+    sym = 0.5 * (_T.reshape(4, 4, 10) + _T.reshape(4, 4, 10).transpose(1, 0, 2))  # as cvxpy's 0.5 (J + Jᵀ)
+    tri = np.array([sym[i, j] for i, j in _TRIU]) * _SVEC[:, None]  # svec(J) = tri @ p
+    eye = np.array([1.0 if i == j else 0.0 for i, j in _TRIU])
+    for idx in structure.bodies.values():
+        block = np.zeros((len(_TRIU), n + 1))
+        block[:, list(idx)] = -tri
+        block[:, n] = eye  # z = svec(J(s)) - t svec(I4)
+        rows.append(block)
+        rhs.append(np.zeros(len(_TRIU)))
+    cones = [clarabel.ZeroConeT(len(K)), clarabel.NonnegativeConeT(1 + len(nonneg))]
+    cones += [clarabel.PSDTriangleConeT(4) for _ in structure.bodies]
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    q = np.zeros(n + 1)
+    q[n] = -1.0
+    try:
+        sol = clarabel.DefaultSolver(sp.csc_matrix((n + 1, n + 1)), q, sp.csc_matrix(np.vstack(rows)),
+                                     np.concatenate(rhs), cones, settings).solve()
+    except Exception as exc:  # Clarabel's own errors
+        raise IdentificationError(f"the physical-consistency check failed in CLARABEL: {exc}") from None
+    status = _CLARABEL_STATUS.get(str(sol.status), str(sol.status))
+    if status in ("infeasible", "infeasible_inaccurate"):  # a non-negative term's base value is negative
+        return Feasibility(False, float("-inf"), {}, (), status)
+    if status not in ("optimal", "optimal_inaccurate"):
+        raise IdentificationError(f"the physical-consistency check failed: CLARABEL says {status}")
+    x = np.asarray(sol.x, dtype=float)
+    sv, tv = x[:n], float(x[n])
+    eig = _min_eigs(structure, sv)
+    tight = tuple(j for j, v in eig.items() if v <= tv + 1e-6 * max(abs(tv), margin))
+    return Feasibility(tv >= margin, tv, dict(zip(structure.standard_names, sv.tolist(), strict=True)), tight,
+                       status)
 
 
 __all__ = ["ACTIVE_PRICE", "MARGIN", "PLAUSIBLE_MARGIN", "PRIOR_SPREAD", "ConsistencyStructure", "Feasibility",

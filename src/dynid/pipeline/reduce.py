@@ -49,15 +49,6 @@ from ..io import Channel
 from ..io.units import unit_factor
 from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
-from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
-from ..vehicle.dampers import KneeSearch
-from ..vehicle.description import load_vehicle
-from ..vehicle.dynamics import group_channels
-from ..vehicle.equations import group_name
-from ..vehicle.estimate import CarConditioning, compensated_channels, joints_pass
-from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS, sample_and_hold
-from ..vehicle.tire_curves import tire_samples
-from .car import car_load_changes, car_moved_rows, car_system, coarse_step, knee_rows
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
 from .robot import GroupedSystem, chunk_rows, to_frames
@@ -156,6 +147,13 @@ class CarSetup:
     the base parameters, the conditioning, the generated identification model."""
 
     def __init__(self, cfg: IdentifyConfig) -> None:
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, car_base_parameters
+        from ..vehicle.description import load_vehicle
+        from ..vehicle.dynamics import group_channels
+        from ..vehicle.equations import group_name
+        from ..vehicle.estimate import CarConditioning
+
         settings = self.settings = cfg.car
         vehicle = load_vehicle(cfg.vehicle or DEMO_VEHICLE)
         if settings.knees:  # the knees the search chose from the data (pipeline.run)
@@ -208,6 +206,7 @@ class CarSetup:
     def joints(self, channels: dict[str, np.ndarray], fs: float, lags: Mapping[str, float] | None = None,
                compensated: Mapping[str, np.ndarray] | None = None) -> JointsPass:
         """`trajectory` with what a pass with one channel's zero moved reuses (`vehicle.estimate.JointsPass`)."""
+        from ..vehicle.estimate import joints_pass  # start-up: a car's alone (CarSetup.__init__)
 
         return joints_pass(channels, fs, self.model, self.vehicle.geometry, self.vehicle.tables, self.conditioning,
                            self.vehicle.suite, self.logger.channels, self._lags(channels, lags), compensated)
@@ -216,6 +215,7 @@ class CarSetup:
                     lags: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
         """The channels with the declared dynamics undone and the groups' lags advanced (`trajectory`'s first
         step), to be reused by passes that move one channel by a constant."""
+        from ..vehicle.estimate import compensated_channels  # start-up: a car's alone (CarSetup.__init__)
 
         return compensated_channels(channels, fs, self.conditioning, self.vehicle.suite, self.logger.channels,
                                     self._lags(channels, lags))
@@ -223,12 +223,14 @@ class CarSetup:
     @staticmethod
     def _lags(channels, lags: Mapping[str, float] | None) -> dict[str, float]:
         """channel -> s of the groups' lags."""
+        from ..vehicle.dynamics import group_channels  # start-up: a car's alone (CarSetup.__init__)
 
         return {n: d for g, d in (lags or {}).items() for n in group_channels(g, channels)}
 
     def rows(self, traj: CarTrajectory, fs: float, instruments: dict[str, float] | None = None,
              keep: np.ndarray | None = None) -> GroupedSystem:
         """The decimated rows of one segment's trajectory."""
+        from .car import car_system  # start-up: a car's alone (CarSetup.__init__)
 
         s = self.settings
         return car_system(self.model, traj, fs, s.decimate, base=self.base, aero=self.aero, regressor=self.regressor,
@@ -239,6 +241,7 @@ class CarSetup:
                    x: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
         """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass; with x
         (a value per column of W) their residuals Y − W x alone (`car_moved_rows`)."""
+        from .car import car_moved_rows  # start-up: a car's alone (CarSetup.__init__)
 
         s = self.settings
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
@@ -248,6 +251,8 @@ class CarSetup:
     def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
                      ) -> list[np.ndarray]:
         """ΔY of the kept rows for each (wheel-load channel, offset SI) (`load_only` channels: W unchanged)."""
+        from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS  # start-up: a car's alone (CarSetup.__init__)
+        from .car import car_load_changes
 
         which = [(CORNER_TAGS.index(q.split("_")[1]), WFT_COMPONENTS.index(q.split("_")[2]), b) for q, b in moved]
         return car_load_changes(self.model, traj, which, fs, keep, self.settings.decimate,
@@ -303,6 +308,10 @@ def car_setup(cfg: IdentifyConfig) -> CarSetup:
 
 def reduce_car_segment(job: CarJob) -> Partial:
     """The job's segment read, turned into rows and reduced (module doc)."""
+    from ..vehicle.dampers import KneeSearch  # start-up: a car's alone (CarSetup.__init__)
+    from ..vehicle.tire_curves import tire_samples
+    from .car import knee_rows
+
     setup = car_setup(job.cfg)
     w = job.window
     samples: dict[str, Channel] | None = None if job.health is None else {}
@@ -446,6 +455,8 @@ def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float
     (C_k = ΔY_k − ΔW_k x0, `estimation.offsets`) from `offset_changes`' moved trajectories without ΔW: a wheel load's
     ΔY by its change per unit load; the others' residuals W x formed before the decimation (`car_moved_rows` with
     x: one column per equation decimated, not W's). Equal to `offset_columns` of `offset_changes` to round-off."""
+    from .car import coarse_step  # start-up: a car's alone (CarSetup.__init__)
+
     linear = not setup.tree.load_terms
     loads = [(q, b) for q, b in offsets if linear and setup.load_only(q)]
     others = [(q, b) for q, b in offsets if not (linear and setup.load_only(q))]
@@ -485,6 +496,7 @@ def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) 
     noise of each channel's accuracy held at the sensor's own rate, as the suite's chain holds it
     (`vehicle.sensors.corrupt`: a 125 Hz unit's noise is 5 samples long, so more of it passes the low-pass), and
     its zero offset (bias) with a random sign (channel units; estimation/fit.py says why)."""
+    from ..vehicle.sensors import sample_and_hold  # start-up: a car's alone (CarSetup.__init__)
 
     rng = np.random.default_rng(seed)
     e = {}
@@ -499,6 +511,7 @@ def sensor_errors(channels: dict[str, np.ndarray], suite, seed: int, fs: float) 
 
 def shifted_load(traj: CarTrajectory, channel: str, b: float) -> CarTrajectory:
     """traj with the wheel-wrench component of the channel wft_{corner}_{component} moved by b (SI)."""
+    from ..vehicle.sensors import CORNER_TAGS, WFT_COMPONENTS  # start-up: a car's alone (CarSetup.__init__)
 
     _, corner, comp = channel.split("_")
     ww = traj.wheel_wrenches.copy()

@@ -227,6 +227,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True))
             kept += (e - s) * row_bytes
     parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
+    trim_heap()  # the workers' freed chunks (glibc keeps ~25 MB of them otherwise, under the solve and the check)
     setup = robot_setup(cfg)
     for spec in cfg.tests:  # the joints against the model, as the chunks gathered them: an error stops here
         plan, broken = plans[spec.name]

@@ -35,6 +35,7 @@ from ..io.units import same_unit
 from ..io.windows import FileIndex, index_file, read_window, stamp_rows, time_bases
 from ..model.tree import PRISMATIC, ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
+from .heap import arrow_system_pool
 from .robot import DataJoints, data_joints
 from .timebase import RATE_TOLERANCE, Stream, _rate, opened, stream
 
@@ -423,6 +424,7 @@ def plan_robot_test(cfg: IdentifyConfig, spec: TestSpec, progress: Progress | No
     """The robot test's files indexed and its clock planned (`timebase`'s rules: q's stamps set the clock, cut to
     the span every file covers and to start..end), from a pass over the time stamps only."""
     say = progress or (lambda _m: None)
+    arrow_system_pool()  # before the first Parquet read: pyarrow's own allocator kept its arenas' pages (~30 MB)
     indexes: dict[str, FileIndex] = {}
     by_file: dict[Path, FileIndex] = {}
     streams: dict[str, list] = {}  # quantity -> [(members, Stream)] of its file's bases holding its channels
