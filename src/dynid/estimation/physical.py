@@ -559,6 +559,11 @@ def feasible_standard(structure: ConsistencyStructure, base_values: Mapping[str,
     b = np.array([float(base_values[n]) for n in structure.base_names])
     if solver == "CLARABEL":
         return _feasible_clarabel(structure, b, margin)
+    return _feasible_cvxpy(structure, b, margin, solver)
+
+
+def _feasible_cvxpy(structure: ConsistencyStructure, b: np.ndarray, margin: float, solver: str) -> Feasibility:
+    """`feasible_standard`'s program written in cvxpy (any of its solvers; the oracle of `_feasible_clarabel`)."""
     cp = require_cvxpy()
     s = cp.Variable(len(structure.standard_names))
     t = cp.Variable()
