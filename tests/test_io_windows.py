@@ -358,12 +358,8 @@ def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatc
     assert sorted(read) == [7, 7, 8, 8]
 
 
-def test_csv_window_parses_only_the_blocks_it_overlaps(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    n, fs = 5000, 100.0
-    t = np.arange(n) / fs
-    path = tmp_path / "log.csv"
-    write_recording(Recording.from_channels([Channel("a", "m", np.cos(t), t)]), path)
-    index = index_file(path, block_rows=500)  # 10 blocks of 5 s
+def csv_parses(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The first rows of the CSV blocks parsed from now on (the block cache emptied), in the order parsed."""
     parsed: list[int] = []
     original = windows._csv_block
 
@@ -373,6 +369,16 @@ def test_csv_window_parses_only_the_blocks_it_overlaps(tmp_path: Path, monkeypat
 
     monkeypatch.setattr(windows, "_csv_block", counting)
     windows.clear_cache()
+    return parsed
+
+
+def test_csv_window_parses_only_the_blocks_it_overlaps(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    n, fs = 5000, 100.0
+    t = np.arange(n) / fs
+    path = tmp_path / "log.csv"
+    write_recording(Recording.from_channels([Channel("a", "m", np.cos(t), t)]), path)
+    index = index_file(path, block_rows=500)  # 10 blocks of 5 s
+    parsed = csv_parses(monkeypatch)
     got = read_window(index, ["a"], 12.0, 17.5)
     assert parsed == [1000, 1500]
     assert got.channels["a"].lines[0] == 1202  # row 1200 (12 s): header on line 1, row 0 on line 2
@@ -390,15 +396,7 @@ def test_a_csv_of_few_blocks_is_parsed_once_for_its_time_bases_and_its_windows(
     path = tmp_path / "log.csv"
     write_recording(Recording.from_channels([Channel("a", "m", np.cos(t), t), slow]), path)
     index = index_file(path, block_rows=100)
-    parsed: list[int] = []
-    original = windows._csv_block
-
-    def counting(index_: FileIndex, block: windows.Block):
-        parsed.append(block.row0)
-        return original(index_, block)
-
-    monkeypatch.setattr(windows, "_csv_block", counting)
-    windows.clear_cache()
+    parsed = csv_parses(monkeypatch)
     bases = time_bases(index, ["a", "s"])
     assert sorted(len(b[1]) for b in bases) == [len(slow.time), n]
     got = read_window(index, ["a", "s"], 0.0, t[-1])
