@@ -274,15 +274,16 @@ def simultaneity_factor(r: Array, instants: Array | None) -> float:
 
 
 def _least_squares(fun, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
-                   runs: Array | None, fixed: dict[str, float], instants: Array | None = None) -> Fit:
-    """The best of the starts, and its covariance (module doc)."""
+                   runs: Array | None, fixed: dict[str, float], instants: Array | None = None, jac=None) -> Fit:
+    """The best of the starts, and its covariance (module doc); jac: fun's Jacobian (default: finite differences)."""
     span = upper - lower
     margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
     best = None
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, dtype=float), lower + margin, upper - margin)
         try:
-            r = least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac", max_nfev=200)
+            r = least_squares(fun, x0, jac="2-point" if jac is None else jac, bounds=(lower, upper), method="trf",
+                              x_scale="jac", max_nfev=200)
         except ValueError:
             continue
         if np.all(np.isfinite(r.fun)) and (best is None or r.cost < best.cost):
@@ -398,6 +399,38 @@ def lateral_force(p: Mapping[str, float], fz0: float, alpha: Array, fz: Array, m
     D = _mu(p, fz0, fz, dfz) * fz
     C = p["C"]
     return -magic_formula(x, K / (C * D), C, D, p["E"])
+
+
+LATERAL_PARAMETERS = ("k0", "mu0", "C", "Sh", "E", "pK2", "pD2")
+
+
+def lateral_force_jacobian(p: Mapping[str, float], fz0: float, alpha: Array, fz: Array, dfz: Array) -> Array:
+    """d Fy / d (k0, mu0, C, Sh, E, pK2, pD2) of the Magic Formula `lateral_force` (N, 7), in closed form: a fit's
+    Jacobian in one evaluation instead of one per parameter (finite differences were half of the lateral fits'
+    time). With u = (1 - E) B x + E atan(B x) and Fy = -D sin(C atan u), B x = K x / (C D)."""
+    k0, mu0, C, E = p["k0"], p["mu0"], p["C"], p["E"]
+    pK2, pD2 = p.get("pK2", 0.0), p.get("pD2", 0.0)
+    x = alpha + p.get("Sh", 0.0)
+    dK_dk0 = fz * (1 + pK2 * dfz)
+    dD_dmu0 = fz * (1 + pD2 * dfz)
+    K, D = k0 * dK_dk0, mu0 * dD_dmu0
+    bx = K * x / (C * D)
+    at = np.arctan(bx)
+    u = bx - E * (bx - at)
+    au = np.arctan(u)
+    cos_ = np.cos(C * au)
+    dF_dbx = -D * cos_ * C / (1 + u * u) * ((1 - E) + E / (1 + bx * bx))  # through u
+    dF_dD = -np.sin(C * au) - dF_dbx * bx / D  # D's own factor, and through B = K / (C D)
+    dF_dK = dF_dbx * x / (C * D)
+    out = np.empty((np.size(x), len(LATERAL_PARAMETERS)))
+    out[:, 0] = dF_dK * dK_dk0
+    out[:, 1] = dF_dD * dD_dmu0
+    out[:, 2] = -D * cos_ * au - dF_dbx * bx / C
+    out[:, 3] = dF_dbx * K / (C * D)
+    out[:, 4] = D * cos_ * C / (1 + u * u) * (bx - at)
+    out[:, 5] = dF_dK * k0 * fz * dfz
+    out[:, 6] = dF_dD * mu0 * fz * dfz
+    return out
 
 
 @dataclass
@@ -578,6 +611,10 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
     def fun(v: Array) -> Array:
         return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz, dfz=dfz) - fy
 
+    def jac(v: Array) -> Array:
+        return lateral_force_jacobian({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz, dfz)[:, [
+            LATERAL_PARAMETERS.index(n) for n in names]]
+
     lo = {"k0": 1e-3, "mu0": 0.05, "C": MF_C_BOUNDS[0], "Sh": -0.1, "E": -10.0, "pK2": -0.9, "pD2": -0.9}
     hi = {"k0": 200.0, "mu0": 5.0, "C": MF_C_BOUNDS[1], "Sh": 0.1, "E": 1.0, "pK2": 5.0, "pD2": 5.0}
     mu_seen = float(np.max(np.abs(fy) / fz))
@@ -590,7 +627,7 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
                 x.setdefault("pD2", 0.0)
                 starts.append([x.get(n, 0.0) for n in names])
     return _least_squares(fun, starts, np.array([lo[n] for n in names]), np.array([hi[n] for n in names]), names,
-                          runs, fixed, instants)
+                          runs, fixed, instants, jac)
 
 
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
