@@ -316,6 +316,10 @@ def reduce_car_segment(job: CarJob) -> Partial:
     w = job.window
     samples: dict[str, Channel] | None = None if job.health is None else {}
     channels = read_segment(w, file_samples=samples)
+    health = None
+    if samples is not None and job.hac is None and not job.knees:  # the segment's data health, its samples then let go
+        health = {w.test: segment_health(w, setup.vehicle, job.health, samples, channels)}
+    samples = None  # the file's samples (the health scan's alone) not held through the segment's work
     lags = dict(job.lags)
     compensated = setup.compensated(channels, w.fs, lags)
     joints = setup.joints(channels, w.fs, lags, compensated)
@@ -337,13 +341,15 @@ def reduce_car_segment(job: CarJob) -> Partial:
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     part = Partial(ls, rows={w.test: sys} if job.keep_rows else {})
-    if job.health is not None:  # the data health of the part of the test this segment answers for
-        part.health = {w.test: segment_health(w, setup.vehicle, job.health, samples, channels)}
+    if health is not None:  # the data health of the part of the test this segment answers for
+        part.health = health
     if setup.settings.tire_curves and job.instruments is None and not job.lags:
         # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
         step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
         part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
                                   step)
+    if not job.offsets:  # the main pass is the offsets' alone from here: not held beside the passes below
+        joints = compensated = traj = None
     if job.instruments is not None:
         part.iv = ls.instrument_sums()
         part.iv.add(sys.W, sys.Y, sys.Z, sys.groups)
