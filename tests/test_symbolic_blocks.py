@@ -334,3 +334,92 @@ def test_generated_regressor_without_numba_uses_the_numpy_code(monkeypatch):
     We, Qe = Model(tree).regressor(q, qd, qdd, wrench, rows=rows, cols=cols)
     close(W, We)
     close(Q, Qe)
+
+
+def _numba_path(kernel):
+    """The oracle of the native path: the same IR linked into a Numba caller (blocks.block_intrinsic, how the
+    kernels were compiled before), given the descriptor the kernel builds."""
+    from numba import njit
+
+    from dynid.symbolic.blocks import _SLOTS, block_intrinsic
+
+    m = kernel.module
+    call = block_intrinsic(getattr(m, m.FUNCTION), m.SYMBOL, m.LANES)
+
+    @njit
+    def run(N, desc):
+        return call(N, desc)
+
+    size = len(kernel.args) * _SLOTS
+    return lambda N, address: run(N, np.ctypeslib.as_array((ctypes.c_int64 * size).from_address(address)))
+
+
+def test_native_kernels_equal_numbas_compile_of_the_same_ir_to_the_bit():
+    """The block kernels' machine code made by llvmlite alone (blocks.native_address: Numba's passes and target
+    machine, no Numba caller) against Numba's compile of the same IR linked into a jitted caller: the same bits, on
+    the car's identification regressor with wheel wrenches, a numeric inverse dynamics, tanh friction lane by lane,
+    angles beyond the polynomials and NaN, full blocks, a tail and unaligned outputs."""
+    from test_friction_shapes import states as friction_states
+    from test_friction_shapes import tx40_shaped
+
+    car = car_template()
+    sites = [WrenchSite(t, (0.0, 0.1, -0.2), t) for t in (15, 24, 33, 42)]
+    puma = dynid.load_model("puma560").tree
+    cases = [(car, "regressor", {"rows": list(EQUATION_ROWS), "cols": identified(car), "wrenches": sites}),
+             (puma, "idm", {"parameters": "numeric"}), (puma, "regressor", {}), (tx40_shaped(), "regressor", {})]
+    for tree, model, opts in cases:
+        N = 3 * LANES + 3
+        q, qd, qdd = random_states(tree, N, seed=5)
+        if tree is puma:
+            q[3, 1], q[9, 2], q[5, 1] = 2.5e5, -1e7, np.nan
+        if tree is not car and tree is not puma:
+            q, qd, qdd = friction_states(tree.n, N)
+        wrench = np.random.default_rng(1).normal(size=(N, 4, 6)) if tree is car else None
+        native = block_model(tree, model, **opts)
+        oracle = block_model(tree, model, **opts)
+        oracle._run = _numba_path(oracle)
+        for n in (N, 2 * LANES):
+            for unaligned in (False, True):
+                outs = []
+                for k in (native, oracle):
+                    out = None
+                    if unaligned:  # off the cache lines: every block through the scratch
+                        out = {name: np.zeros((size, n + 1))[:, 1:] for name, size in k.outputs.items()}
+                    res = k(q[:n], qd[:n], qdd[:n], wrench=None if wrench is None else wrench[:n], out=out)
+                    outs.append({name: np.array(v) for name, v in res.items()})
+                for name in outs[0]:
+                    a, b = outs[0][name], outs[1][name]
+                    assert a.tobytes() == b.tobytes(), (model, name, n, unaligned)
+                    assert np.isfinite(a).any()
+
+
+def test_native_object_code_is_cached_and_a_damaged_file_compiled_again(tmp_path, monkeypatch):
+    """The object code is written once (atomically, under its key) and loaded by the next process without a
+    compile; a damaged file is compiled again, never trusted. Oracle: the engine's own numbers."""
+    import subprocess
+    import sys
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    script = ("import numpy as np, dynid, sys\n"
+              "import dynid.symbolic.blocks as B\n"
+              "compiled = []\n"
+              "real = B.object_code\n"
+              "B.object_code = lambda text: compiled.append(1) or real(text)\n"
+              "tree = dynid.load_model('puma560').tree\n"
+              "rng = np.random.default_rng(0)\n"
+              "q, qd, qdd = (rng.normal(size=(21, 6)) for _ in range(3))\n"
+              "W = B.block_model(tree, 'regressor')(q, qd, qdd)['out']\n"
+              "ref = np.moveaxis(dynid.Model(tree).regressor(q, qd, qdd), 0, -1).reshape(W.shape)\n"
+              "assert np.abs(W - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max())\n"
+              "print(len(compiled))\n")
+
+    def run() -> int:
+        out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+        return int(out.stdout.split()[-1])
+
+    assert run() == 1
+    (obj,) = (tmp_path / "native").glob("*.o")
+    assert run() == 0
+    obj.write_bytes(obj.read_bytes()[:100])
+    assert run() == 1
+    assert run() == 0
