@@ -1,4 +1,4 @@
-"""Generated kernels that evaluate LANES samples side by side, from vector LLVM IR compiled by llvmlite.
+"""Generated kernels that evaluate LANES samples side by side, from vector LLVM IR compiled through Numba.
 
 Why: the per-sample code (numba_backend, C) runs one sample's straight line with scalar
 instructions and libm's sin and cos; the NumPy code streams each operation over thousands of
@@ -26,20 +26,13 @@ sine and cosine, dynamics.trig's steps in vector form (the generated NumPy's and
 within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
 takes libm's values.
 
-`block_model(tree, model, **options)` generates, caches on disk (the source, numba_backend.compile_source)
-and returns a `BlockKernel`, whose first call loads the object code (`native_address`): from the disk
-cache, or compiled from the IR by llvmlite alone with Numba's passes and target machine (the code Numba
-made of the same IR linked into a jitted caller, to the bit, without Numba's typing and lowering of that
-caller: the car's identification regressor's first call 3.1-3.2 -> 2.7 s of CPU, of which LLVM's code
-generation is 2.2 s), called through ctypes.
+`block_model(tree, model, **options)` generates, caches on disk (the source beside Numba's
+machine code, numba_backend.compile_source) and returns a `BlockKernel`.
 """
 
 from __future__ import annotations
 
 import ast
-import contextlib
-import ctypes
-import hashlib
 import inspect
 import threading
 from collections.abc import Callable, Sequence
@@ -48,22 +41,10 @@ import numpy as np
 
 from ..dynamics import trig
 from ..model.tree import Tree
-from .cache import cache_dir, model_hash, write_atomic
-from .llvm_code import (
-    OBJECT_PIPELINE,
-    Emitter,
-    UnsupportedSourceError,
-    _double,
-    call_ir,
-    host_target,
-    lazy_text,
-    llvm_lock,
-    load_object,
-    object_code,
-    parse_function,
-)
+from .cache import model_hash
+from .llvm_code import Emitter, UnsupportedSourceError, _double, call_ir, lazy_text, parse_function
 from .models import build
-from .numba_backend import arguments, compile_source, have_numba, scalar_source, source_key
+from .numba_backend import arguments, compile_source, scalar_source, source_key
 
 LANES = 8  # samples per vector: a cache line per store (non-temporal); 4 and 16 measured slower on both models
 # one generation (and one parse of a generated source) at a time: CPython 3.11's ast.parse is not safe
@@ -347,9 +328,8 @@ def _next(args: list[str], outputs: set[str], a: str) -> str:
 
 
 def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Sequence[str] = ("X",)):
-    """A Numba intrinsic `call(N, desc)` running `fn`'s source as block_ir (desc: a C-contiguous int64 array), for a
-    jitted caller (the kernels' former path, the oracle of native_address in the tests). The IR is built when
-    Numba first compiles a caller (not when a cached one is loaded)."""
+    """A Numba intrinsic `call(N, desc)` running `fn`'s source as block_ir (desc: a C-contiguous int64 array).
+    The IR is built when Numba first compiles a caller (not when a cached one is loaded)."""
     # start-up: numba 0.5 s
     from numba.core import types
     from numba.core.errors import TypingError
@@ -378,55 +358,24 @@ def block_intrinsic(fn: Callable, symbol: str, lanes: int = LANES, shared: Seque
     return call
 
 
-# ----- the generated module and its machine code ---------------------------------------------------------------
+# ----- the generated module and its caller -------------------------------------------------------------------
 _FOOTER = '''
 
-FUNCTION = {name!r}
 LANES = {lanes}
 SYMBOL = {symbol!r}
+try:
+    from numba import njit as _njit
+
+    from dynid.symbolic.blocks import block_intrinsic as _block_intrinsic
+except ImportError:
+    run = None
+else:
+    _run = _block_intrinsic({name}, SYMBOL, LANES)
+
+    @_njit(cache=True, nogil=True)
+    def run(N, desc):
+        return _run(N, desc)
 '''
-
-
-def object_key(ir_hash: str) -> str:
-    """The key of a block kernel's object code: its IR, and what makes machine code of it (llvmlite's version, the
-    passes, the CPU's name and features)."""
-    import llvmlite  # start-up: numba 0.5 s (imported by then)
-
-    payload = "\0".join((ir_hash, llvmlite.__version__, OBJECT_PIPELINE, *host_target()))
-    return hashlib.sha256(payload.encode()).hexdigest()[:20]
-
-
-def _module_ir(module) -> str:
-    with _GENERATION_LOCK:
-        return block_ir(inspect.getsource(getattr(module, module.FUNCTION)), module.SYMBOL, module.LANES)
-
-
-_NATIVE: dict[str, int] = {}  # object key -> the function's address (its code loaded once per process)
-
-
-def native_address(module) -> int:
-    """The address of a generated module's block function (`void f(i64 N, ptr desc)`): its object code from the
-    disk cache (`cache_dir()/native/<module>_<object key>.o`: its SHA-256, then the code), or compiled from its IR
-    by llvmlite alone (llvm_code.object_code: no Numba typing and lowering of a wrapper) and written there
-    atomically. Loaded once per process."""
-    key = object_key(module.IR_HASH)
-    with llvm_lock():
-        if key in _NATIVE:
-            return _NATIVE[key]
-        path = cache_dir() / "native" / f"{module.__name__}_{key}.o"
-        data = None
-        with contextlib.suppress(OSError):  # absent or unreadable: compiled
-            stored = path.read_bytes()
-            # a file whose digest does not match (damaged) is compiled again: LLVM would trust its contents
-            if hashlib.sha256(stored[32:]).digest() == stored[:32]:
-                data = stored[32:]
-        if data is None:
-            data = object_code(_module_ir(module))
-            with contextlib.suppress(OSError):  # a read-only cache: compiled again next run
-                write_atomic(path, hashlib.sha256(data).digest() + data)
-        (address,) = load_object(data, [module.SYMBOL])
-        _NATIVE[key] = address
-        return address
 
 
 def _data_address(a):
@@ -470,18 +419,11 @@ class BlockKernel:
         self.outputs: dict[str, int] = dict(module.OUTPUTS)
         self.zero_rows: dict[str, tuple[tuple[int, int], ...]] = dict(module.ZERO_ROWS)
         self.n, self.n_sites, self.shape = int(module.N), int(module.N_SITES), tuple(module.SHAPE)
-        self._run: Callable | None = None  # the native function, loaded at the first call
-
-    def _native(self) -> Callable:
-        if self._run is None:
-            # CFUNCTYPE releases the GIL during the call, as the njit(nogil=True) caller did
-            self._run = ctypes.CFUNCTYPE(None, ctypes.c_int64, ctypes.c_void_p)(native_address(self.module))
-        return self._run
 
     @property
     def available(self) -> bool:
         """False without numba, or for a model outside the block language (the caller then uses the NumPy code)."""
-        return have_numba() and hasattr(self.module, "IR_HASH") and not hasattr(self.module, "UNSUPPORTED")
+        return getattr(self.module, "run", None) is not None and not hasattr(self.module, "UNSUPPORTED")
 
     def __call__(self, q: np.ndarray, qd: np.ndarray | None = None, qdd: np.ndarray | None = None,
                  X: np.ndarray | None = None, wrench: np.ndarray | None = None,
@@ -530,7 +472,7 @@ class BlockKernel:
                     raise ValueError(f"{a} has shape {arr.shape}; expected {want}")
                 d[:1 + arr.ndim] = (address(arr), *arr.strides)
             keep.append(arr)
-        self._native()(N, desc.ctypes.data)
+        self.module.run(N, desc)
         del keep
         return out
 
@@ -544,7 +486,7 @@ def kernel_source(prog, name: str) -> str:
 def block_model(tree: Tree, model: str, **options) -> BlockKernel:
     """The BlockKernel of a model (dgm, idm, regressor, inertia) of a tree; options as for dynid.symbolic.build.
 
-    Generated once, then loaded from the disk cache (source, and object code at the first call)."""
+    Generated once, then loaded from the disk cache (source and Numba's machine code)."""
 
     key = source_key(model_hash(tree, model, options), "blocks", str(LANES))
     name = f"{model}_{key}"
@@ -566,12 +508,10 @@ def _generate(tree: Tree, model: str, options: dict, key: str, name: str):
             "ZERO_ROWS": {o: _zero_runs(s, e) for o, s, e in outs},
             "N": tree.n, "N_SITES": len(prog.meta.get("sites", [])), "SHAPE": tuple(prog.shape)}
     text = kernel_source(prog, name)
-    try:  # checked now: inside a compile an error would surface far from its cause
-        ir = block_ir(scalar_source(prog, name), f"dynid_blk_{name}")
+    try:  # checked now: inside Numba's compilation an error would surface far from its cause
+        block_ir(scalar_source(prog, name), "check")
     except UnsupportedSourceError as e:
         meta["UNSUPPORTED"] = str(e)
-    else:  # the object code's key (native_address): the IR is not built again to look it up
-        meta["IR_HASH"] = hashlib.sha256(ir.encode()).hexdigest()[:20]
     text += "".join(f"{k} = {v!r}\n" for k, v in meta.items())
     return compile_source(text, [], key, prefix="dynid_blk")
 
@@ -595,5 +535,4 @@ def _zero_runs(shape: tuple[int, ...], entries) -> tuple[tuple[int, int], ...]:
     return tuple(runs)
 
 
-__all__ = ["LANES", "BlockKernel", "aligned_zeros", "block_intrinsic", "block_ir", "block_model", "kernel_source",
-           "native_address", "object_key"]
+__all__ = ["LANES", "BlockKernel", "aligned_zeros", "block_intrinsic", "block_ir", "block_model", "kernel_source"]

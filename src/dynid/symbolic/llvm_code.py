@@ -270,7 +270,7 @@ def call_ir(context, builder, text: str, symbol: str, values: list) -> None:
     """In a Numba intrinsic's codegen: link the IR module `text` into the library being compiled and call its
     `void @symbol(values...)` (parsed again for each caller: a linked module is consumed)."""
     # start-up: numba 0.5 s
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
+    import llvmlite.binding as ll
     from llvmlite import ir
     from numba.core import cgutils
 
@@ -359,7 +359,7 @@ def native_library(name: str, texts: list[str]):
     machine code by Numba's own code generator (its passes, target machine and JIT: the code Numba makes of
     the same IR when a caller links it), with object caching on (`serialize_using_object_code`)."""
     # start-up: numba 0.5 s
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
+    import llvmlite.binding as ll
     from numba.core.compiler_lock import global_compiler_lock
     from numba.core.registry import cpu_target
 
@@ -396,98 +396,5 @@ def load_library(state: tuple):
         return codegen.unserialize_library(serialized)
 
 
-# ----- IR compiled to object code by llvmlite alone (the block kernels: no Numba typing of a wrapper) ----------
-OBJECT_PIPELINE = "numba-o3-1"  # the passes and target machine below (in the object files' key): Numba's, for its code
-
-
-def llvm_lock():
-    """The lock of LLVM's global context: Numba's compiler lock (its compiles, in any thread, hold it and use the
-    same context), a lock of our own without numba."""
-    try:
-        from numba.core.compiler_lock import global_compiler_lock  # start-up: numba 0.5 s (imported by then)
-    except ImportError:
-        return _OWN_LOCK
-    return global_compiler_lock
-
-
-_OWN_LOCK = threading.RLock()
-
-
-@functools.cache
-def host_target() -> tuple[str, str, str]:
-    """(triple, CPU name, CPU features) of the machine code: the host's, as Numba's JIT targets it."""
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
-
-    ll.initialize_native_target()
-    ll.initialize_native_asmprinter()
-    try:
-        features = ll.get_host_cpu_features().flatten()
-    except RuntimeError:  # LLVM cannot tell: the CPU name's defaults (as Numba)
-        features = ""
-    return ll.get_process_triple(), ll.get_host_cpu_name(), features
-
-
-def _target_machine(codegen_opt: int = 3):
-    """A target machine for the host with Numba's JIT options (static relocation on x86, JIT code model)."""
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
-
-    triple, cpu, features = host_target()
-    reloc = "static" if ll.Target.from_default_triple().name.startswith("x86") else "default"
-    return ll.Target.from_triple(triple).create_target_machine(cpu=cpu, features=features, opt=codegen_opt,
-                                                               reloc=reloc, codemodel="jitdefault", jit=True)
-
-
-def object_code(text: str) -> bytes:
-    """The IR module `text` optimised as Numba optimises a library (per function at O3, its cheap module pass,
-    then the module at O3; loop vectorisation on, SLP off: numba.core.codegen) and compiled to object code for
-    the host. Call it holding llvm_lock()."""
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
-
-    tm = _target_machine()
-    module = ll.parse_assembly(text)
-    module.verify()  # a malformed module would abort the process inside LLVM's passes
-    module.triple, module.data_layout = host_target()[0], str(tm.target_data)
-
-    def builder(opt: int, loops: bool):
-        pto = ll.create_pipeline_tuning_options()
-        pto.speed_level, pto.loop_vectorization, pto.slp_vectorization = opt, loops, False
-        return ll.create_pass_builder(tm, pto)
-
-    for fn in module.functions:
-        if not fn.is_declaration:
-            pb = builder(3, True)
-            pb.getFunctionPassManager().run(fn, pb)
-    pb = builder(0, False)
-    cheap = pb.getModulePassManager()
-    cheap.add_loop_rotate_pass()
-    cheap.add_instruction_combine_pass()
-    cheap.add_jump_threading_pass()
-    cheap.run(module, pb)
-    pb = builder(3, True)
-    pb.getModulePassManager().run(module, pb)
-    return tm.emit_object(module)
-
-
-_ENGINE: list = []
-
-
-def load_object(data: bytes, symbols: list[str]) -> list[int]:
-    """Load object code (object_code's) into this process's execution engine (MCJIT: it links the calls to libm)
-    and return the addresses of `symbols`. The code lives as long as the process. Call it holding llvm_lock()."""
-    import llvmlite.binding as ll  # start-up: llvmlite 0.05 s (numba imports it anyway)
-
-    if not _ENGINE:
-        host_target()
-        _ENGINE.append(ll.create_mcjit_compiler(ll.parse_assembly(""), _target_machine()))
-    engine = _ENGINE[0]
-    engine.add_object_file(ll.ObjectFileRef.from_data(data))
-    engine.finalize_object()
-    out = [engine.get_function_address(s) for s in symbols]
-    if not all(out):
-        raise RuntimeError(f"symbols {symbols} not all found in the object code")
-    return out
-
-
-__all__ = ["OBJECT_PIPELINE", "Emitter", "UnsupportedSourceError", "address_call", "call_ir", "function_ir",
-           "host_target", "lazy_text", "library_state", "llvm_lock", "load_library", "load_object", "native_library",
-           "object_code", "parse_function", "straight_line"]
+__all__ = ["Emitter", "UnsupportedSourceError", "address_call", "call_ir", "function_ir", "lazy_text", "library_state",
+           "load_library", "native_library", "parse_function", "straight_line"]
