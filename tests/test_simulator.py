@@ -316,6 +316,23 @@ def test_bad_input(sim, tmp_path):
     assert kernel.NY == 39
 
 
+def test_a_division_by_zero_in_the_kernel_is_a_non_finite_state(sim, monkeypatch):
+    """The kernel is compiled with Numba's error model "numpy" (car.KERNEL_ERROR_MODEL): a division by zero gives
+    NaN or inf, not a ZeroDivisionError, and the state check turns it into the SimulationError of a non-finite
+    state. Oracle: IEEE 0 / 0 = NaN. Zero relaxation lengths make the first stage's slip kappa = ux / sx = 0 / 0."""
+    import inspect
+
+    from dynid.vehicle.sim import car
+    from dynid.vehicle.sim.car import SimulationError
+
+    assert car.KERNEL_ERROR_MODEL == "numpy" and "error_model='numpy'" in inspect.getsource(sim.module)
+    tire = sim._tire()
+    tire[:, 20] = 0.0  # sigma_x of the four tires
+    monkeypatch.setattr(sim, "_tire", lambda: tire)
+    with pytest.raises(SimulationError, match=r"sample 0\): the state became non-finite"):
+        sim.run("sine", duration=0.5)
+
+
 def test_residual_through_the_sensor_suite_is_of_the_order_the_accuracies_predict(sim):
     """Every channel through the sensor models (Table 1: noise, biases, band limits, holds) and the
     estimator: the true parameters leave a residual of the order a first-order error budget of the

@@ -157,19 +157,20 @@ def _sign(x):
 '''
 
 
-def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]]) -> str:
+def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], error_model: str = "python") -> str:
     """jit every name; those in `straight` (name -> its arguments) through their LLVM IR (llvm_code):
     a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher."""
+    opts = "cache=True" if error_model == "python" else f"cache=True, error_model={error_model!r}"
     lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
-             "    _sign = njit(cache=True)(_sign)"]
-    lines += [f"    {n} = njit(cache=True)({n})" for n in names if n not in straight]
+             f"    _sign = njit({opts})(_sign)"]
+    lines += [f"    {n} = njit({opts})({n})" for n in names if n not in straight]
     if straight:
         lines.append("    from dynid.symbolic.llvm_code import straight_line")
     for n, args in straight.items():
         a = ", ".join(args)
         lines += ["", f"    _ir_{n} = straight_line({n}, {f'{mod_name}.{n}'!r})", "",
-                  "    @njit(cache=True)", f"    def {n}({a}):  # noqa: F811 - replaces the Python version",
+                  f"    @njit({opts})", f"    def {n}({a}):  # noqa: F811 - replaces the Python version",
                   f"        return _ir_{n}(({a},))"]
     return "\n".join(lines) + "\n"
 
@@ -193,13 +194,14 @@ def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
 
 
 def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb",
-                   straight: Sequence[str] = ()) -> ModuleType | None:
+                   straight: Sequence[str] = (), error_model: str = "python") -> ModuleType | None:
     """Import (cache.load_module: from the disk cache, or after writing it) a module HEADER + body whose
     functions `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
     (NOT of the text: the generator's factoring order may vary between processes), naming the module.
     `straight`: those of `names` that are generated straight-line code (scalar_source), compiled
     from their LLVM IR (llvm_code: seconds less each than numba's typing of every statement, the
-    same numbers).
+    same numbers). error_model: numba's ("numpy": a division by zero gives inf or NaN instead of raising, so
+    Numba types and lowers no check per division; it changes the machine code, so the caller's key must hold it).
 
     Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
@@ -208,7 +210,8 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
 
     def source() -> str:
         assert body is not None
-        return HEADER + body + _footer(names, mod_name, _straight_arguments(body, [n for n in straight if n in names]))
+        straight_args = _straight_arguments(body, [n for n in straight if n in names])
+        return HEADER + body + _footer(names, mod_name, straight_args, error_model)
 
     mod_name = f"{prefix}_{key}"
     mod = load_module("numba", mod_name, key, None if body is None else source)
