@@ -65,7 +65,7 @@ def test_the_method_line_and_results_json_say_which(runs):
     assert np.nanmedian(ratio) > 1.0
 
 
-def test_config_keys(tmp_path):
+def test_config_keys(tmp_path, tx40_data):  # the config names the TX40 files: loading it checks they exist
     text = CONFIG.read_text().replace("../../../shared", str(CONFIG.parents[3] / "shared"))
     ok = tmp_path / "ok.toml"
     ok.write_text(text.replace('method = "wls"', 'method = "wls"\ncov_type = "hac"\nhac_lags = 3'))

@@ -308,7 +308,7 @@ def test_pseudo_inertia_of_a_point_mass():
     assert np.allclose(pseudo_inertia(p), m * np.outer(v, v))
 
 
-def test_the_config_takes_wls_pc_for_a_robot_only(tmp_path):
+def test_the_config_takes_wls_pc_for_a_robot_only(tmp_path, tx40_data):  # its config names the TX40 files
     from dynid.pipeline.config import ConfigError
 
     text = CONFIG.read_text().replace('method = "wls"', 'method = "wls-pc"')
