@@ -210,6 +210,37 @@ def test_csv_windows_and_blocks_equal_the_whole_file(data: st.DataObject, t: np.
 
 
 @SETTINGS
+@given(data=st.data(), t=stamps(), odd=st.sampled_from(["none", "blank", "nan", "inf", "empty", "extra cell"]))
+def test_csv_blocks_of_plain_rows_parsed_whole_equal_the_whole_file(data: st.DataObject, t: np.ndarray, odd: str):
+    """Every cell present, so the window reader parses a block of plain rows in one call (`parse_plain`); at
+    most one line somewhere is not plain (a blank line, a literal nan or inf, an empty cell, a cell too many),
+    so its block goes the line-by-line way: both against the whole-file read (`parse_rows`), bit for bit. A cell
+    too many is refused by both, naming its line."""
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    cols = [("roll", "deg", values_for(t.size, seed), None), ("Fz", "N", values_for(t.size, seed + 1), None)]
+    at = data.draw(st.integers(0, t.size - 1))
+    if odd in ("nan", "inf"):
+        cols[1][2][at] = float(odd)
+    elif odd == "empty":
+        cols = [cols[0], ("Fz", "N", cols[1][2], np.arange(t.size) != at)]
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "log.csv"
+        write_csv_text(path, t, cols, units="header", decimal=".")
+        if odd in ("blank", "extra cell"):
+            lines = path.read_text().split("\n")
+            k = 2 + at  # the comment and the header first
+            lines[k] = lines[k] + ",1.0" if odd == "extra cell" else lines[k] + "\n"
+            path.write_text("\n".join(lines))
+        if odd == "extra cell":
+            for read in (lambda: read_recording(path), lambda: list(iter_blocks(index_file(path, block_rows=7),
+                                                                                ["roll", "Fz"]))):
+                with pytest.raises(FileFormatError, match=f"line {3 + at}: 4 cell"):
+                    read()
+            return
+        check_windows_and_blocks(path, ["roll", "Fz"], data.draw(window_list(t)))
+
+
+@SETTINGS
 @given(n=st.integers(1, 80), fs=st.sampled_from([625.0, 1000.0 / 3.0, 7.3]), seed=st.integers(0, 2**32 - 1),
        data=st.data())
 def test_csv_without_time_column_uses_the_file_row_over_fs(n: int, fs: float, seed: int, data: st.DataObject):

@@ -771,18 +771,20 @@ def _decode_error(label: str, p: Path, encoding: str, exc: UnicodeDecodeError) -
     return FileFormatError(f"{label}: {why}", source=label)
 
 
-def _lines_of(raw: bytes, first_line: int, encoding: str, label: str) -> list[tuple[int, str]]:
-    """Numbered lines of a byte range, as `read_csv`'s text reading (newline="") gives them."""
+def _lines_of(raw: bytes, first_line: int, encoding: str, label: str, text: str | None = None
+              ) -> list[tuple[int, str]]:
+    """Numbered lines of a byte range, as `read_csv`'s text reading (newline="") gives them (text: the range
+    already decoded)."""
     if raw.count(b"\r") != raw.count(b"\r\n"):
         raise FileFormatError(
             f"{label}: a line ends with a lone carriage return (old Mac line ends); windows of this file cannot be "
             "read: convert its line ends to \\n, or read it whole (read_recording)",
             source=label,
         )
-    parts = raw.decode(encoding).split("\n")
+    parts = (raw.decode(encoding) if text is None else text).split("\n")
     if parts and parts[-1] == "":
         parts.pop()
-    return [(first_line + k, text.rstrip("\r\n")) for k, text in enumerate(parts)]
+    return [(first_line + k, line.rstrip("\r\n")) for k, line in enumerate(parts)]
 
 
 def _csv_head(index: FileIndex) -> csv_format.CsvHeader:
@@ -807,10 +809,14 @@ def _csv_block(index: FileIndex, block: Block) -> tuple[list[Column], NDArray[np
         fh.seek(block.offset)
         raw = fh.read(block.end - block.offset)
     try:
-        numbered = _lines_of(raw, block.line, rest if block.offset else encoding, label)
+        text = raw.decode(rest if block.offset else encoding)
     except UnicodeDecodeError as exc:
         raise _decode_error(label, Path(index.path), encoding, exc) from None
-    return _csv_columns(numbered, _csv_head(index), index.option("decimal", "."), label)
+    head, decimal = _csv_head(index), index.option("decimal", ".")
+    values = csv_format.parse_plain(text, len(head.names), head.delimiter, decimal)
+    if values is not None:  # every line a plain row (a logger's usual block): one parse
+        return csv_format.columns_of(values, None, head), block.line + np.arange(len(values), dtype=np.int64)
+    return _csv_columns(_lines_of(raw, block.line, "", label, text), head, decimal, label)
 
 
 def _csv_stamps(
