@@ -25,55 +25,18 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tx40_case import QS, TAUS, tx40_config, tx40_log
 
 from dynid.cli.main import main
 
-N, FS, JOINTS = 3000, 500.0, 6
+N, FS = 3000, 500.0
 
 
 def _robot_log(folder: Path) -> None:
-    """A TX40 moving on six sines, torques from its own inverse dynamics (so the baseline identifies)."""
-    from dynid import load_model
-
-    model = load_model("tx40")
-    t = np.arange(N) / FS
-    q = np.stack([0.5 * np.sin(2 * np.pi * (0.3 + 0.1 * j) * t + j) for j in range(JOINTS)], axis=1)
-    qd = np.gradient(q, 1 / FS, axis=0)
-    qdd = np.gradient(qd, 1 / FS, axis=0)
-    tau = model.inverse_dynamics(q, qd, qdd)
-    head = ",".join(["time [s]"] + [f"q{j + 1} [rad]" for j in range(JOINTS)] + [f"tau{j + 1} [N.m]"
-                                                                                 for j in range(JOINTS)])
-    np.savetxt(folder / "log.csv", np.column_stack([t, q, tau]), delimiter=",", header=head, comments="",
-               fmt="%.10g")
+    (folder / "log.csv").write_text(tx40_log(N, FS))
 
 
-QS = ", ".join(f'"q{j + 1}"' for j in range(JOINTS))
-TAUS = ", ".join(f'"tau{j + 1}"' for j in range(JOINTS))
-CONFIG = f"""[model]
-example = "tx40"
-
-[[tests]]
-name = "a"
-role = "identify"
-files = {{ q = "log.csv", tau = "log.csv" }}
-
-[[tests]]
-name = "b"
-role = "validate"
-files = {{ q = "log.csv", tau = "log.csv" }}
-
-[channels]
-q = {{ channels = [{QS}] }}
-tau = {{ channels = [{TAUS}] }}
-
-[conditioning]
-cutoff = 20.0
-order = 4
-decimate = [5]
-
-[identification]
-method = "wls"
-"""
+CONFIG = tx40_config(decimate=5)
 
 MODEL = """name = "two links"
 gravity = [0.0, 0.0, -9.81]

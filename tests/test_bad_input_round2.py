@@ -26,40 +26,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tx40_case import QS, TAUS, tx40_config, tx40_log
 
 from dynid.cli.main import main
 
 # 303 command-line runs, ~75 s: in .ci/run's full run; the quick selection keeps the first round (test_bad_input.py)
 pytestmark = pytest.mark.slow
 
-N, FS, JOINTS = 1500, 250.0, 6
-QS = ", ".join(f'"q{j + 1}"' for j in range(JOINTS))
-TAUS = ", ".join(f'"tau{j + 1}"' for j in range(JOINTS))
-ROBOT = f"""[model]
-example = "tx40"
-
-[[tests]]
-name = "a"
-role = "identify"
-files = {{ q = "log.csv", tau = "log.csv" }}
-
-[[tests]]
-name = "b"
-role = "validate"
-files = {{ q = "log.csv", tau = "log.csv" }}
-
-[channels]
-q = {{ channels = [{QS}] }}
-tau = {{ channels = [{TAUS}] }}
-
-[conditioning]
-cutoff = 20.0
-order = 4
-decimate = [2]
-
-[identification]
-method = "wls"
-"""
+N, FS = 1500, 250.0
+ROBOT = tx40_config(decimate=2)
 
 CAR = """[model]
 vehicle = "peugeot406"
@@ -117,20 +92,7 @@ URDF = ('<?xml version="1.0"?>\n<robot name="arm">\n' + _link("base") + _link("l
 
 
 def _robot_log() -> str:
-    """A TX40 on six sines, torques from its own inverse dynamics (the baseline identifies them)."""
-    from dynid import load_model
-
-    model = load_model("tx40")
-    t = np.arange(N) / FS
-    q = np.stack([0.5 * np.sin(2 * np.pi * (0.3 + 0.1 * j) * t + j) for j in range(JOINTS)], axis=1)
-    qd = np.gradient(q, 1 / FS, axis=0)
-    qdd = np.gradient(qd, 1 / FS, axis=0)
-    tau = model.inverse_dynamics(q, qd, qdd)
-    head = ",".join(["time [s]"] + [f"q{j + 1} [rad]" for j in range(JOINTS)]
-                    + [f"tau{j + 1} [N.m]" for j in range(JOINTS)])
-    buf = io.StringIO()
-    np.savetxt(buf, np.column_stack([t, q, tau]), delimiter=",", header=head, comments="", fmt="%.10g")
-    return buf.getvalue()
+    return tx40_log(N, FS)
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,7 @@
-"""The compiled (Numba) engine against Pinocchio and against the NumPy reference engine.
-
-Pinocchio is the independent oracle for the rigid-body models (inverse dynamics, regressor,
-inertia matrix); the NumPy engine, itself checked against Pinocchio in
-test_pinocchio_oracle.py, is the oracle for what Pinocchio does not model: joint terms,
-couplings, external wrenches, restricted rows and columns.
+"""The compiled (Numba) engine against the NumPy reference engine, for what Pinocchio does not model: joint terms,
+couplings, external wrenches, restricted rows and columns. Both engines are compared with Pinocchio, the
+independent oracle for the rigid-body models (inverse dynamics, regressor, inertia matrix), on the same trees in
+test_pinocchio_oracle.py.
 """
 
 import dataclasses
@@ -12,7 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
-from oracles import PinModel, random_inertia, random_states, random_tree, rigid
+from oracles import random_states
 
 import dynid
 from dynid import Model, Wrench, load_model
@@ -24,68 +22,10 @@ from dynid.vehicle.template import EQUATION_ROWS, paper_parameter_names
 compiled = pytest.importorskip("dynid.dynamics.compiled")
 if not compiled.HAVE_NUMBA:
     pytest.skip("numba is not installed", allow_module_level=True)
-pin = pytest.importorskip("pinocchio")
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
-
-
-TREES = {
-    "puma560": lambda: rigid(load_model("puma560").tree),
-    "tx40": lambda: rigid(load_model("tx40").tree),
-    "floating_tree": lambda: rigid(load_model("floating_tree").tree),
-    "branched12": lambda: random_tree(seed=2, n=12),
-    "floating20": lambda: random_tree(seed=3, n=20, floating=True),
-    "branched42": lambda: random_tree(seed=4, n=42),
-    "floating42": lambda: random_tree(seed=5, n=42, floating=True),
-    "car": lambda: rigid(car_template()),
-}
-
-
-@pytest.fixture(params=list(TREES), scope="module")
-def tree(request):
-    return TREES[request.param]()
-
-
-# ----- against Pinocchio -------------------------------------------------------------------
-
-
-def test_inverse_dynamics_matches_pinocchio(tree):
-    q, qd, qdd = random_states(tree, 20, seed=11)
-    tau = Model(tree).inverse_dynamics(q, qd, qdd, backend="numba")
-    assert rel(tau, PinModel(tree).rnea(q, qd, qdd)) < 1e-10
-
-
-def test_regressor_matches_pinocchio(tree):
-    """Moving frames' columns equal Pinocchio's regressor; all columns (fixed frames' included,
-    which Pinocchio folds into their parent joint) through W X = rnea for random inertias X."""
-    pm = PinModel(tree)
-    q, qd, qdd = random_states(tree, 5, seed=12)
-    W = Model(tree).regressor(q, qd, qdd, backend="numba")
-    names = tree.parameter_names
-    moving_cols = [names.index(f"XX{j}") + i for j in pm.moving for i in range(10)]
-    for s in range(q.shape[0]):
-        assert rel(W[s][np.ix_(pm.cols, moving_cols)], pm.regressor(q[s], qd[s], qdd[s])) < 1e-10
-    rng = np.random.default_rng(0)
-    X = np.zeros(tree.p)
-    for f in tree.frames:
-        X[names.index(f"XX{f.j}") : names.index(f"XX{f.j}") + 10] = random_inertia(rng)
-    assert rel(W @ X, PinModel(tree, X).rnea(q, qd, qdd)) < 1e-10
-
-
-def test_inertia_matrix_matches_pinocchio(tree):
-    """Columns of M are Pinocchio's rnea for qd = 0, qdd = e_i, no gravity (its crba assumes joints
-    numbered depth-first, which a branched MDH tree need not be)."""
-    pm = PinModel(tree)
-    pm.model.gravity = pin.Motion.Zero()
-    q, _, _ = random_states(tree, 3, seed=13)
-    M = Model(tree).inertia_matrix(q, backend="numba")
-    c = pm.cols
-    eye = np.eye(len(c))
-    for s in range(q.shape[0]):
-        Mp = np.stack([pin.rnea(pm.model, pm.data, q[s, c], 0 * eye[i], eye[i]) for i in range(len(c))], axis=1)
-        assert rel(M[s][np.ix_(c, c)], Mp) < 1e-10
 
 
 # ----- against the NumPy engine: joint terms, couplings, wrenches, restrictions --------------
