@@ -56,6 +56,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ..car_frames import WHEELS
 from ..io import Channel, read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
 from ..signals import border_samples, filtered_derivatives
@@ -277,7 +278,7 @@ def expected_loads(vehicle) -> tuple[NDArray[np.float64], float]:
     a priori weight, N (module doc; ax forward, ay left, ISO: braking loads the front, a left turn the right)."""
     v = {**vehicle.a_priori.values, **vehicle.known}
     g = vehicle.geometry
-    m = v["M6"] + sum(v.get(f"M{j}", 0.0) for j in (14, 23, 32, 41))
+    m = v["M6"] + sum(v.get(f"M{j}", 0.0) for j in WHEELS)
     xg, zg = v["MX6"] / v["M6"], v["MZ6"] / v["M6"]
     h = xg - (g.wheel_centre_height - g.wheel_radius)  # the centre of mass above the ground
     L = g.wheelbase

@@ -57,6 +57,7 @@ from ..estimation.systematic import BiasAccumulator
 from ..report.build import car_engineering
 from ..shipped import DEMO_VEHICLE
 from ..signals import border_samples, lowpass
+from ..vehicle import DAMPERS
 from ..vehicle.description import load_vehicle
 from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
 from ..vehicle.estimate import required_channels
@@ -275,7 +276,7 @@ def targets_for(spec: TargetSpec, names: Sequence[str], values: Mapping[str, flo
     for n in names:
         kind = n.rstrip("0123456789")
         j = int(n[len(kind):]) if kind != n else None
-        category = ("springs" if n in ("karf", "karr") or (kind == "K" and j in (9, 18, 27, 36))
+        category = ("springs" if n in ("karf", "karr") or (kind == "K" and j in DAMPERS)
                     else "tires" if kind == "K" else _PARAMETER_KINDS.get(kind))
         pct = overrides.get(n, cat.get(category) if category else None)
         if pct is not None:
