@@ -61,9 +61,10 @@ from ..vehicle import DAMPERS
 from ..vehicle.description import load_vehicle
 from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
 from ..vehicle.estimate import required_channels
+from ..vehicle.presentation import car_scales
 from ..vehicle.sensors import SensorSuite
 from ..vehicle.sim.recording import write_test
-from .car import car_scales, sensor_offsets
+from .car import sensor_offsets
 from .config import ConfigError, load_config
 from .demo import conditioning_toml, simulated_car
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
@@ -1064,8 +1065,8 @@ class TestPlan:
 
     @property
     def scales(self) -> dict[str, float]:
-        """Each parameter's engineering scale (`car.car_scales`: products against the smallest moment, first
-        moments against M6 x 0.2 m; the others their own value)."""
+        """Each parameter's engineering scale (`vehicle.presentation.car_scales`: products against the smallest
+        moment, first moments against M6 x 0.2 m; the others their own value)."""
 
         found = car_scales(self.values)
         return {n: found.get(n, abs(v)) for n, v in self.values.items()}
