@@ -42,7 +42,10 @@ TESTS = (  # name, file, manoeuvre and its parameters, role, duration (s) full /
 
 
 def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) -> str:
-    lines = ["# The simulated Peugeot 406 of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
+    """The demo's identification config: its tests' files (test key -> path relative to the config), the vehicle (a
+    shipped name or a vehicle file's absolute path, whose name the header says) and the zero offsets (1 σ)."""
+    name = load_vehicle(vehicle).name
+    lines = [f"# The simulated {name} of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
              "# Identified on the sine, spiral, braking (its heave separates the springs from the anti-roll bars)",
              "# and a lane change, cross-validated on a step steer and a gentler braking.",
              "", "[model]", "# the car: a shipped vehicle's name or a vehicle file (its geometry, tables, a priori and",
