@@ -1,11 +1,12 @@
 """The car template's frame numbers (vehicle/template.py builds the frames and says what each one is): the chassis is
-frame 6 and corner k (0 rear left, 1 rear right, 2 front left, 3 front right) uses frames 7+9k .. 15+9k. A leaf, so
-that code which must not load the vehicle layer (a config's reader, on a robot's path too) names a corner's frames
-through the same helpers as the car's own modules."""
+frame 6 and corner k (0 rear left, 1 rear right, 2 front left, 3 front right) uses frames 7+9k .. 15+9k; the corners'
+tags in channel names. A leaf, so that code which must not load the vehicle layer (a config's reader, the data health
+checks: on a robot's path too) names a corner and its frames through the same helpers as the car's own modules."""
 
 from __future__ import annotations
 
 CHASSIS = 6
+CORNER_TAGS = ("rl", "rr", "fl", "fr")  # corner k's tag in channel names (wft_rl_Fz, wheel_speed_fr, ...)
 CORNER_FRAMES = 9  # a corner's: half track, half wheelbase, damper, steering, camber, caster, kingpin, wheel, tire
 
 

@@ -41,8 +41,9 @@ from .html import Cell, Section, Table, esc, render_html, table_html
 from .tables import consistency_section as robot_verdict
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
-# a car's split of its equation groups into the validation figures: groups -> [(section, its groups)]
-Split = Callable[[list[str]], list[tuple[str, list[str]]]]
+# a car's split of its equation groups into the validation figures: groups -> [(section, its groups, the paper's
+# figures of it or "")]
+Split = Callable[[list[str]], list[tuple[str, list[str], str]]]
 
 
 @dataclass
@@ -306,6 +307,7 @@ def damper_section(run) -> tuple[Section, bytes] | None:
     interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
     # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
     from ..vehicle.dampers import damper_curve, damper_slopes
+    from ..vehicle.notes import DAMPER_CURVES_TEXT
     from ..vehicle.template import CORNERS, DAMPERS
 
     r, tree = run.result, run.model.tree
@@ -340,11 +342,7 @@ def damper_section(run) -> tuple[Section, bytes] | None:
         force, std = damper_curve(est, d, v, knees)
         curves.append(DamperCurve(f"damper {d} ({corner})", v, force, std,
                                   None if truth is None else damper_curve(truth, d, v, knees)[0], knees))
-    text = ("Each damper's viscous force is a piecewise-linear curve of its clearance rate (bump, the wheel moving "
-            "towards the body, is positive): four slopes identified in place of h, below and above the knees of the "
-            "vehicle file's [dampers]. The dry friction fs is its own row of the suspension table. The band is the "
-            "estimate's 95 % interval at each rate (the slopes' covariance included).")
-    return Section("Damper curves", text, tables=tables, anchor="dampers"), damper_curve_figure(curves)
+    return Section("Damper curves", DAMPER_CURVES_TEXT, tables=tables, anchor="dampers"), damper_curve_figure(curves)
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
@@ -494,17 +492,16 @@ def validation_figures(signals, tree, noise: dict[str, float] | None = None, cha
     corners = panel_corners(signals, noise or {})
     tests = [(kind, test, per) for kind, by_test in signals.items() for test, per in by_test.items()]
     groups = list(dict.fromkeys(g for _, _, per in tests for g in per))
-    paper = {"chassis": "4 and 7", "suspensions": "5 and 8", "tires": "6"}
     # each test's time axis from all its equations, the same in every figure
     spans = {test: (min(float(v[0][0]) for v in per.values() if len(v[0])),
                     max(float(v[0][-1]) for v in per.values() if len(v[0])))
              for _, test, per in tests if any(len(v[0]) for v in per.values())}
     figs = []
     data = {(axis_label(g), test): (per[g][0], *to_iso(g, *per[g][1:])) for _, test, per in tests for g in per}
-    for section, gs in (split(groups) if split is not None else [("joints", groups)]):
+    for section, gs, paper in (split(groups) if split is not None else [("joints", groups, "")]):
         caption = (f"Validation, {section}: measured Y and model W X per equation and test, direct (identification "
                    "tests) then cross (tests not used for the estimate)"
-                   + (f"; the paper's Figures {paper[section]}" if section in paper else ""))
+                   + (f"; the paper's Figures {paper}" if paper else ""))
         figs.append((caption, validation_grid(f"{section}: measured and predicted forces",
                                               [(axis_label(g), group_unit(g, tree, chassis)) for g in gs],
                                               [t for _, t, _ in tests], data, kinds=[k for k, _, _ in tests],

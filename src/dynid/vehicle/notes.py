@@ -1,6 +1,7 @@
 """What the car's run and report say in words: the chassis frame the parameters are given in, the sprung and the
-total mass, the physical-consistency verdict, what the sensors not fitted change, the demo's test plan and how the
-engineering figures were computed. Numbers the report rounds come in as its text (the report's rounding is its own)."""
+total mass, the physical-consistency verdict, what the sensors not fitted change, the demo's test plan, what the
+damper curves are and how the engineering figures were computed. Numbers the report rounds come in as its text (the
+report's rounding is its own)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,13 @@ TEST_PLAN = (
     "zero offsets, drawn anew at each test's zeroing: the offsets, not the noise, dominate the chassis products "
     "of inertia (XY6 sigma total 1.7 % of the smallest principal moment on three tests, 1.3 % on four, "
     "ten seeds).\n")  # the demo's tests (pipeline.demo.TESTS): why the braking moved to the identification
+
+# the report's words over the damper curves' tables (car_model.car_template(damper_knees=...))
+DAMPER_CURVES_TEXT = ("Each damper's viscous force is a piecewise-linear curve of its clearance rate (bump, the wheel "
+                      "moving towards the body, is positive): four slopes identified in place of h, below and above "
+                      "the knees of the vehicle file's [dampers]. The dry friction fs is its own row of the suspension "
+                      "table. The band is the estimate's 95 % interval at each rate (the slopes' covariance "
+                      "included).")
 
 
 def masses_note(result, tree) -> str:

@@ -50,10 +50,14 @@ def car_sections(names: list[str]) -> list[tuple[str, list[str]]]:
     return [(title, group) for title, group in sections if group]
 
 
-def equation_sections(groups: list[str]) -> list[tuple[str, list[str]]]:
-    """The paper's figure split of the car's equation groups: chassis, suspensions, tires (and any other)."""
+PAPER_FIGURES = {"chassis": "4 and 7", "suspensions": "5 and 8", "tires": "6"}  # the paper's validation figures
+
+
+def equation_sections(groups: list[str]) -> list[tuple[str, list[str], str]]:
+    """The paper's figure split of the car's equation groups: chassis, suspensions, tires (and any other), each
+    with the paper's figures that show it ("" for none)."""
     out = [("chassis", [g for g in CHASSIS_GROUPS if g in groups]),
            ("suspensions", [g for g in groups if g.startswith("susp")]),
            ("tires", [g for g in groups if g.startswith("tire")])]
     rest = [g for g in groups if not any(g in s for _, s in out)]
-    return [(t, s) for t, s in [*out, ("other", rest)] if s]
+    return [(t, s, PAPER_FIGURES.get(t, "")) for t, s in [*out, ("other", rest)] if s]
