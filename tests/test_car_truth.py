@@ -43,7 +43,7 @@ def simulated(vehicle: str) -> dict:
 
 def judged(result) -> dict[str, tuple[float, float, float, str]]:
     """name -> (error / scale, std_total / scale, truth, flag) of every estimated parameter."""
-    from dynid.pipeline.car import car_scales
+    from dynid.vehicle.presentation import car_scales
 
     scales = car_scales(result.truth)
     out = {}

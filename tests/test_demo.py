@@ -111,3 +111,16 @@ def test_tire_slip_stiffness_against_the_simulators_tires(demo):
         assert 0.01 < slip < 0.06  # the brakings' slip
         magic_formula(tires[k].pack(), c["fz0_N"], -slip, 0.0, out)  # the simulator's slip is > 0 driving
         assert c["slip_stiffness_N_per_unit_slip"] == pytest.approx(-out[0] / slip, rel=0.08), axle
+
+
+@pytest.mark.parametrize("vehicle", ["peugeot406", "compact_suv"])
+def test_the_config_names_the_vehicle_it_was_given(vehicle):
+    """The config's header names the simulated vehicle from its own file, whichever vehicle the demo drove."""
+    from dynid.pipeline.demo import TESTS, demo_config
+    from dynid.vehicle.description import load_vehicle, shipped_vehicles
+
+    text = demo_config({t[1]: f"data/{t[1]}.csv" for t in TESTS}, vehicle, {})
+    header = text.splitlines()[0]
+    assert header.startswith(f"# The simulated {load_vehicle(vehicle).name} of `dynid demo`")
+    others = [load_vehicle(v).name for v in shipped_vehicles() if v != vehicle]
+    assert others and not any(name in header for name in others)

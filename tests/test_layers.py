@@ -24,7 +24,8 @@ PACKAGE = Path(dynid.__file__).parent
 # PEERS allows. "dynid" is the package's face (dynid/__init__.py), above everything it re-exports.
 TIERS: tuple[frozenset[str], ...] = tuple(frozenset(t) for t in (
     {"_version"},
-    {"resources", "textfiles", "atomic", "progress", "pysource", "shipped"},  # leaves: no dynid import but _version
+    # leaves: no dynid import but _version
+    {"resources", "textfiles", "atomic", "progress", "pysource", "shipped", "car_frames"},
     {"signals", "model", "io", "estimation"},
     {"kinematics"},
     {"dynamics"},

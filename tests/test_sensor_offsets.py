@@ -65,7 +65,7 @@ def renamed_in_kmh(csv: Path, channel: str, name: str) -> None:
 
 def estimated_errors(result) -> dict[str, float]:
     """name -> (estimate - truth) / scale for every estimated parameter (`car_scales`; else its own value)."""
-    from dynid.pipeline.car import car_scales
+    from dynid.vehicle.presentation import car_scales
 
     scales = car_scales(result.truth)
     return {n: (result.values[i] - result.truth[n]) / scales.get(n, abs(result.truth[n]))

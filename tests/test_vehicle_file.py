@@ -267,7 +267,7 @@ def test_the_tables_a_file_does_not_give_are_named_as_dynid_s_defaults(tmp_path)
     says the caster ones were used (no sensor measures the caster; the default turns the hubs with the damper travel);
     a file giving some keeps the defaults for the rest and the note lists those the estimator uses; the MuJoCo
     example, which gives all, has none and no note. Oracle: the files' own [tables]."""
-    from dynid.pipeline.run import sensors_note
+    from dynid.vehicle.notes import sensors_note
 
     bare = load_vehicle(write(tmp_path, SHIPPED))
     assert len(bare.defaulted_tables) == 16 and "every caster table" in sensors_note(bare)

@@ -11,9 +11,8 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
-from ..model import check_physical
 from ..signals import decimate_parallel, lowpass
-from ..vehicle import DAMPERS, EQUATION_ROWS, TIRES, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
 from ..vehicle.dampers import KneeSearch
 from ..vehicle.equations import group_name, load_rows
 from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, required_channels
@@ -403,71 +402,3 @@ def sensor_offsets(settings, vehicle) -> SensorOffsets:
         return SensorOffsets("vehicle", values, label, settings.offset_segments)
     values = {q: (v, suite.units[q]) for q, v in settings.offsets.items()}
     return SensorOffsets("config" if values else "none", values, label, settings.offset_segments)
-
-
-COM_SCALE = 0.2  # m: a first moment's scale is M6 x 0.2 m, so that 5 % of it is 1 cm of centre-of-mass shift
-
-
-def car_scales(values: Mapping[str, float]) -> dict[str, float]:
-    """The engineering scale of the parameters whose value may be near zero: products of inertia against the
-    smallest principal moment of the chassis inertia about O6, first moments against a centre-of-mass shift
-    (M6 x COM_SCALE), a tire's lateral-force term ktfy against kt / (M6 g / 4)². The others are judged against
-    their own value (the default)."""
-    v = {n: float(values.get(n, 0.0)) for n in ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "M6")}
-    inertia = np.array([[v["XX6"], v["XY6"], v["XZ6"]], [v["XY6"], v["YY6"], v["YZ6"]],
-                        [v["XZ6"], v["YZ6"], v["ZZ6"]]])
-    out = dict.fromkeys(("XY6", "XZ6", "YZ6"), abs(float(np.linalg.eigvalsh(inertia).min())))
-    out.update(dict.fromkeys(("MX6", "MY6", "MZ6"), COM_SCALE * abs(v["M6"])))
-    # a tire's lateral-force term (-ktfy Fy² q), near 0 on a tire that keeps its stiffness: against the ktfy that
-    # takes its whole kt away at a lateral force of a quarter of the sprung weight (the Magic Formula's qFcy = 1)
-    load = abs(v["M6"]) * 9.81 / 4
-    for n in values:
-        if n.startswith("KFY") and load > 0:
-            out[n] = abs(float(values.get(f"K{n[3:]}", 0.0))) / load**2
-    return {n: s for n, s in out.items() if n in values}
-
-
-def car_sections(names: list[str], tree) -> list[tuple[str, list[str]]]:
-    """The paper's tables: chassis (Table 2), suspensions and anti-roll bars (Table 3), wheels, tires (Table 5)."""
-
-    def joint(n: str) -> int | None:
-        digits = n[len(n.rstrip("0123456789")):]
-        return int(digits) if digits else None
-
-    chassis = [n for n in names if joint(n) == 6]
-    susp = [n for n in names if joint(n) in DAMPERS] + [n for n in names if joint(n) is None]
-    wheels = [n for n in names if joint(n) in WHEELS]
-    tires = [n for n in names if joint(n) in TIRES]
-    sections = [("Chassis (paper Table 2)", chassis), ("Suspensions and anti-roll bars (paper Table 3)", susp),
-                ("Wheels", wheels), ("Tire vertical stiffness (paper Table 5)", tires)]
-    return [(title, group) for title, group in sections if group]
-
-
-def masses_note(result, tree) -> str:
-    """What M6 is and how it makes the car's total mass (the demo prints a total beside a table that shows M6)."""
-    if "M6" not in result.names:
-        return ""
-    wheels = [f"M{w}" for w in WHEELS]
-    m_w = sum(result.value(n) if n in result.names else tree.values.get(n, 0.0) for n in wheels)
-    known = all(n not in result.estimated_names for n in wheels)
-    m6 = result.value("M6")
-    return (f"M6 = {m6:.1f} kg is the sprung mass: the chassis body alone, what the chassis equations weigh above the "
-            f"suspensions. The car's total mass adds the four wheels (unsprung, {m_w:.1f} kg, "
-            f"{'known from the bench' if known else 'estimated'}): {m6 + m_w:.1f} kg.\n")
-
-
-def consistency_text(result, base: BaseParameters, tree=None) -> str:
-    """Whether the estimated chassis and wheels are physically realisable (only meaningful without regrouping);
-    parameters fixed as known take the tree's values."""
-
-    if base.regrouped:
-        return ("Inertial parameters regroup in this base set (" + ", ".join(base.regrouped)
-                + "): the physical-consistency check applies to standard parameters only.")
-    values = {n: tree.values.get(n, 0.0) for n in (tree.known if tree is not None else ())}
-    values.update(zip(result.names, (float(v) for v in result.values), strict=True))
-    problems = check_physical(values, frames=[6, *WHEELS])
-    if not problems:
-        return "The estimated chassis and wheels are physically realisable (mass > 0, inertia at the centre of " \
-               "mass positive definite, triangle inequalities hold)."
-    return "NOT physically realisable:\n" + "\n".join(f"  {p}" for p in problems)
-

@@ -139,6 +139,7 @@ from typing import Any
 
 import numpy as np
 
+from ..car_frames import DAMPERS
 from ..estimation.errors import IdentificationError
 from ..estimation.method import Covariance, Method
 from ..io.rosbag_format import is_bag, is_bag_folder
@@ -220,7 +221,7 @@ class CarSettings:
     attitude_crossover: float = 0.2
     segment: float = 60.0
     compensate_delays: bool = True
-    min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPER_FRAMES, 0.01))
+    min_speed: dict[int, float] = field(default_factory=lambda: dict.fromkeys(DAMPERS, 0.01))
     friction_lowpass: bool = True  # the dry-friction columns through the loads' low-pass (pipeline.car.car_system)
     base: str = "generic"
     aero: bool = True
@@ -901,20 +902,18 @@ def _iv_passes(ident: dict, err: Err) -> int:
     return n
 
 
-DAMPER_FRAMES = (9, 18, 27, 36)
-
 
 def _car_min_speed(c: dict, err: Err) -> dict[int, float]:
     """[conditioning] min_speed for a car: one speed (m/s) for the four dampers, or { 9 = 0.01, ... }."""
     raw = c.get("min_speed", 0.01)
-    table = dict.fromkeys(DAMPER_FRAMES, raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else raw
+    table = dict.fromkeys(DAMPERS, raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else raw
     if not isinstance(table, dict):
         raise err("[conditioning]", f"min_speed = {raw!r}; use a speed in m/s (0.01) or {{ 9 = 0.01, 27 = 0.02 }}")
     out = {}
     for k, v in table.items():
-        if str(k) not in {str(d) for d in DAMPER_FRAMES} or not _number(v, lambda x: x >= 0):
+        if str(k) not in {str(d) for d in DAMPERS} or not _number(v, lambda x: x >= 0):
             raise err("[conditioning]", f"min_speed: {k} = {v!r}; keys are the damper frames "
-                      f"{', '.join(map(str, DAMPER_FRAMES))}, values speeds >= 0 in m/s")
+                      f"{', '.join(map(str, DAMPERS))}, values speeds >= 0 in m/s")
         out[int(k)] = float(v)
     return out
 

@@ -3,7 +3,7 @@
 The simulated car (the vehicle file's [truth] set) is driven through five tests and recorded
 by its sensor suite (Table 1, seeded noise): a sine steer at 90 km/h, a spiral and a
 straight-line braking from 100 km/h, for identification, and a double lane change and a
-step steer, for cross-validation (TEST_PLAN says why the braking moved). The logger files,
+step steer, for cross-validation (vehicle.notes.TEST_PLAN says why the braking moved). The logger files,
 their sidecars and the identification config are written to `<out>/data` and
 `<out>/identify.toml` (run `dynid identify` on it again, or edit it); the identification
 prints the paper's tables with the a priori, true and estimated values and %σ, and writes
@@ -20,6 +20,7 @@ from ..atomic import write_atomic
 from ..progress import notice_if_slow
 from ..shipped import DEMO_VEHICLE
 from ..vehicle.description import VehicleError, load_vehicle
+from ..vehicle.notes import TEST_PLAN
 from ..vehicle.sim import CarSimulator
 from ..vehicle.sim.car import kernel_cached, prebuild_kernel, while_kernel_builds
 from ..vehicle.sim.recording import write_test
@@ -38,20 +39,13 @@ TESTS = (  # name, file, manoeuvre and its parameters, role, duration (s) full /
     ("braking from 80 km/h at 4 m/s²", "braking80", "braking", {"speed": 80.0, "deceleration": 4.0,
                                                                  "front_share": 0.65}, "validate", 8.0, 8.0),
 )
-TEST_PLAN = (
-    "Test plan: identified on the sine, the spiral, the braking AND a double lane change, cross-validated on a "
-    "step steer and a gentler braking. The paper identified on the sine and cross-validated on the braking, but "
-    "a sine and a spiral move the front dampers 16 mm in roll and under 1 mm in heave: the spring stiffness ks "
-    "and the anti-roll bar karf are then separated by less than a millimetre of signal, and YY6 by almost no "
-    "pitch (noise-free files: ks36 +2.2 %, karf -1.6 %; with the sensor suite, five seeds: ks up to -14 %, karf "
-    "up to +8 %). The braking's 20 mm of heave and its pitch separate them. The lane change adds a fourth set of "
-    "zero offsets, drawn anew at each test's zeroing: the offsets, not the noise, dominate the chassis products "
-    "of inertia (XY6 sigma total 1.7 % of the smallest principal moment on three tests, 1.3 % on four, "
-    "ten seeds).\n")
 
 
 def demo_config(files: dict[str, str], vehicle: str, offsets: dict[str, float]) -> str:
-    lines = ["# The simulated Peugeot 406 of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
+    """The demo's identification config: its tests' files (test key -> path relative to the config), the vehicle (a
+    shipped name or a vehicle file's absolute path, whose name the header says) and the zero offsets (1 σ)."""
+    name = load_vehicle(vehicle).name
+    lines = [f"# The simulated {name} of `dynid demo`: rerun with `dynid identify identify.toml --out DIR`.",
              "# Identified on the sine, spiral, braking (its heave separates the springs from the anti-roll bars)",
              "# and a lane change, cross-validated on a step steer and a gentler braking.",
              "", "[model]", "# the car: a shipped vehicle's name or a vehicle file (its geometry, tables, a priori and",

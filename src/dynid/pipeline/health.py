@@ -56,6 +56,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ..car_frames import CORNER_TAGS, WHEELS
 from ..io import Channel, read_window, unit_factor
 from ..io.health import ERROR, NOTE, WARNING, ChannelScan, Finding
 from ..signals import border_samples, filtered_derivatives
@@ -75,7 +76,6 @@ Progress = Callable[[str], None]
 WINDOW_S = 120.0  # s of the file read at a time
 EXCITED = 1.0  # m/s^2: an acceleration's standard deviation over the test above which its load transfer is judged
 G = 9.80665
-CORNERS = ("rl", "rr", "fl", "fr")
 # channels that a test without lateral (longitudinal) acceleration may leave still: judged dead only when the
 # test moves that acceleration by more than EXCITED
 _MOVED_BY = {"imu_yaw_rate": "imu_ay", "imu_roll_rate": "imu_ay", "imu_roll": "imu_ay", "correvit_vy": "imu_ay",
@@ -206,14 +206,14 @@ def segment_health(w: SegmentWindow, vehicle, own: tuple[float, float, bool], sa
         b = w.clock.size
     got = {q: x[a:b] for q, x in channels.items()}
     sums = _Loads()
-    loads = [f"wft_{c}_Fz" for c in CORNERS]
+    loads = [f"wft_{c}_Fz" for c in CORNER_TAGS]
     if b - a > 1 and all(q in got for q in (*loads, "imu_ax", "imu_ay")):
         sums.add(got["imu_ax"], got["imu_ay"], np.column_stack([got[q] for q in loads]))
     for q in ("imu_ax", "imu_ay"):
         if q in got:
             sums.move(q, got[q])
     ground = next((q for q in ("correvit_vx", "gnss_vx") if q in got), None)
-    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in got]
+    wheels = [f"wheel_speed_{c}" for c in CORNER_TAGS if f"wheel_speed_{c}" in got]
     if ground is not None and wheels and b - a > 1:
         w_roll = np.mean([got[q] for q in wheels], axis=0) * vehicle.geometry.wheel_radius
         moving = np.abs(w_roll) > MOVING
@@ -258,11 +258,11 @@ def car_findings(health: CarHealth, vehicle, plan: CarTestPlan) -> list[Finding]
                             fix=f"fine if this test has no such motion ({_MOVED_BY[q]} varies "
                             f"by {acc.std(_MOVED_BY[q]):.2g} m/s^2 RMS); otherwise check the sensor and its wiring")
             out.append(f)
-    loads = [f"wft_{c}_Fz" for c in CORNERS]
+    loads = [f"wft_{c}_Fz" for c in CORNER_TAGS]
     if acc.n > 3:
         out += _wiring(acc, vehicle, [plan.quantity_names[q] for q in loads], t0, t1)
     ground = next((q for q in ("correvit_vx", "gnss_vx") if q in plan.quantity_names), None)
-    wheels = [f"wheel_speed_{c}" for c in CORNERS if f"wheel_speed_{c}" in plan.quantity_names]
+    wheels = [f"wheel_speed_{c}" for c in CORNER_TAGS if f"wheel_speed_{c}" in plan.quantity_names]
     if acc.speeds[2] > 10 and acc.speeds[1] > 0:
         out += _speed(acc.speeds[0] / acc.speeds[1], plan.quantity_names[ground], wheels, t0, t1)
     up = _vertical_axis(vehicle)
@@ -277,7 +277,7 @@ def expected_loads(vehicle) -> tuple[NDArray[np.float64], float]:
     a priori weight, N (module doc; ax forward, ay left, ISO: braking loads the front, a left turn the right)."""
     v = {**vehicle.a_priori.values, **vehicle.known}
     g = vehicle.geometry
-    m = v["M6"] + sum(v.get(f"M{j}", 0.0) for j in (14, 23, 32, 41))
+    m = v["M6"] + sum(v.get(f"M{j}", 0.0) for j in WHEELS)
     xg, zg = v["MX6"] / v["M6"], v["MZ6"] / v["M6"]
     h = xg - (g.wheel_centre_height - g.wheel_radius)  # the centre of mass above the ground
     L = g.wheelbase

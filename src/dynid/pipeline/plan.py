@@ -57,12 +57,14 @@ from ..estimation.systematic import BiasAccumulator
 from ..report.build import car_engineering
 from ..shipped import DEMO_VEHICLE
 from ..signals import border_samples, lowpass
+from ..vehicle import DAMPERS
 from ..vehicle.description import load_vehicle
 from ..vehicle.engineering import QUANTITIES, car_quantities, jacobian
 from ..vehicle.estimate import required_channels
+from ..vehicle.presentation import car_scales
 from ..vehicle.sensors import SensorSuite
 from ..vehicle.sim.recording import write_test
-from .car import car_scales, sensor_offsets
+from .car import sensor_offsets
 from .config import ConfigError, load_config
 from .demo import conditioning_toml, simulated_car
 from .reduce import CarJob, Partial, car_setup, combine, reduce_car_segment
@@ -275,7 +277,7 @@ def targets_for(spec: TargetSpec, names: Sequence[str], values: Mapping[str, flo
     for n in names:
         kind = n.rstrip("0123456789")
         j = int(n[len(kind):]) if kind != n else None
-        category = ("springs" if n in ("karf", "karr") or (kind == "K" and j in (9, 18, 27, 36))
+        category = ("springs" if n in ("karf", "karr") or (kind == "K" and j in DAMPERS)
                     else "tires" if kind == "K" else _PARAMETER_KINDS.get(kind))
         pct = overrides.get(n, cat.get(category) if category else None)
         if pct is not None:
@@ -1063,8 +1065,8 @@ class TestPlan:
 
     @property
     def scales(self) -> dict[str, float]:
-        """Each parameter's engineering scale (`car.car_scales`: products against the smallest moment, first
-        moments against M6 x 0.2 m; the others their own value)."""
+        """Each parameter's engineering scale (`vehicle.presentation.car_scales`: products against the smallest
+        moment, first moments against M6 x 0.2 m; the others their own value)."""
 
         found = car_scales(self.values)
         return {n: found.get(n, abs(v)) for n, v in self.values.items()}

@@ -315,7 +315,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
     from ..vehicle.estimate import required_channels
     from ..vehicle.excitation import excitation_hint
-    from .car import car_scales, car_sections, consistency_text, masses_note, sensor_offsets
+    from ..vehicle.notes import consistency_text, masses_note, sensors_note
+    from ..vehicle.presentation import car_scales, car_sections
+    from .car import sensor_offsets
     from .delays import DELAY_SEGMENTS
 
     if cfg.model != CAR_TEMPLATE:
@@ -475,7 +477,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                  flag_percent=cfg.flag_percent,
                                  misfit=misfit_parameters(fits, ident, result.weights or None))
     run = IdentificationRun(setup.model, setup.base, result, GroupedSystem.stack(
-        [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names, tree),
+        [rows[t.name] for t in cfg.tests if t.role == "identify"]), sections=car_sections(names),
         notes=sensors_note(vehicle) + knees_note
         + offsets_note(result, offsets, offset_estimates and offset_estimates.offsets)
         + fit_note(fits, result.labels, result.misfit)
@@ -592,34 +594,6 @@ def _car_delays(cfg: IdentifyConfig, setup, plans, jobs: list[CarJob], sums, res
     for w in check.warnings():
         say(f"WARNING: {w}")
     return check
-
-
-def sensors_note(vehicle) -> str:
-    """What the sensors not fitted change (empty for the paper's suite)."""
-    # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
-    from ..vehicle.sensors import gnss_point
-
-    out = ""
-    if not vehicle.cameras:
-        out += ("No cameras: the damper clearances come from potentiometers, the steering and camber joints from the "
-                "kinematic tables at the measured clearance and steering-wheel angle.\n")
-    if not vehicle.lasers:
-        out += ("No height lasers: the chassis height and the tire deflections come from the wheel loads through the "
-                "known tire stiffness (kt15, kt24, kt33, kt42 from the vehicle file's [known]); the tire equations "
-                "are then identities and are left out, so the tire stiffness cannot be identified from these tests.\n")
-    if not vehicle.correvit:
-        out += ("No Correvit: the horizontal velocity over ground comes from the GNSS/INS at its antenna point "
-                f"{list(gnss_point(vehicle.geometry))} m in frame 6.\n")
-    used = [t for t in vehicle.defaulted_tables if t.endswith(".caster") or not vehicle.cameras]
-    if used:
-        which = "every caster table" if len(used) == 4 and all(t.endswith(".caster") for t in used) else \
-            ", ".join(used)
-        out += (f"Kinematic tables not in the vehicle file, dynid's defaults used ({which}): a 406-class saloon's, "
-                "whose anti-dive caster (+1 deg/100 mm front) and wind-up (-0.5 deg/100 mm rear) turn the hubs, and "
-                "the measured wheel wrenches with them, as the dampers move. If the car's differ, give them in "
-                "[tables] (zeros where nothing moves): on the MuJoCo test car, which has none, they turned the "
-                "wrenches by a quarter of a degree under braking and the pitch inertia by 4 %.\n")
-    return out
 
 
 def offsets_note(result, offsets, estimates: dict[str, tuple[float, float]] | None = None) -> str:

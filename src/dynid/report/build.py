@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import platform
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -40,14 +41,9 @@ from .html import Cell, Section, Table, esc, render_html, table_html
 from .tables import consistency_section as robot_verdict
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
-CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")  # the car's free joints 1..6
-# the one place the report keeps the paper's axes: its chassis parameters are defined in them
-FRAME6_TEXT = ("The chassis parameters are the paper's, about the origin of its chassis frame 6 (on the rear axle, "
-               "midway between the rear wheel centres, at their height) in that frame's axes: x6 up, y6 right, z6 "
-               "forward. So XX6 is the yaw inertia, YY6 the pitch and ZZ6 the roll one, about that point; MX6, MY6 "
-               "and MZ6 are M6 times the centre of gravity's height above the wheel centres, its offset to the right "
-               "and its distance ahead of the rear axle. \"The car in engineering terms\" gives them about the centre "
-               "of gravity in ISO 8855 axes.")
+# a car's split of its equation groups into the validation figures: groups -> [(section, its groups, the paper's
+# figures of it or "")]
+Split = Callable[[list[str]], list[tuple[str, list[str], str]]]
 
 
 @dataclass
@@ -92,8 +88,30 @@ def meanings(run) -> dict[str, tuple[str, str]]:
 
 
 def _is_car(run) -> bool:
-    r = run.result
-    return getattr(run.config, "kind", None) == "car" or ("M6" in r.names and "karf" in r.names)
+    """Whether the run identified a car: what its config says it is."""
+    return getattr(run.config, "kind", None) == "car"
+
+
+def _car_equations(run) -> tuple[tuple[str, ...], Split | None]:
+    """A car's chassis equation groups (joints 1..6, whose names carry no joint number) and its split of the
+    equation groups into figures (`vehicle.presentation.equation_sections`); ((), None) for a robot."""
+    if not _is_car(run):
+        return (), None
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.presentation import equation_sections
+    from ..vehicle.template import CHASSIS_GROUPS
+
+    return CHASSIS_GROUPS, equation_sections
+
+
+def _frame_text(run) -> str:
+    """The words over the parameter tables: a car's chassis frame (`vehicle.notes.FRAME6_TEXT`); none for a robot."""
+    if not _is_car(run):
+        return ""
+    # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+    from ..vehicle.notes import FRAME6_TEXT
+
+    return FRAME6_TEXT
 
 
 def parameter_tables(run) -> list[Table]:
@@ -147,8 +165,11 @@ def parameter_tables(run) -> list[Table]:
 
 def _scale_rule(run) -> str:
     """How the flag's scales were chosen, for the legend: the car's chassis rule or the robot's per-link rule."""
-    if getattr(run.config, "kind", None) == "car":
-        return "; the smallest principal moment for a product of inertia, M6 × 0.2 m for a first moment"
+    if _is_car(run):
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from ..vehicle.presentation import SCALE_RULE
+
+        return SCALE_RULE
     return ("; for a product of inertia XY_j the largest a real body with the link's a priori moments can have, "
             "sqrt(XX_j YY_j); for a first moment the link's mass × its size (centre-of-mass distance, joint-to-joint "
             "length or radius of gyration, the largest); a base parameter that regroups several sums their scales, "
@@ -286,6 +307,7 @@ def damper_section(run) -> tuple[Section, bytes] | None:
     interval in N·s/m, and the force-velocity figure with its 95 % band; None when no damper has a curve."""
     # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
     from ..vehicle.dampers import damper_curve, damper_slopes
+    from ..vehicle.notes import DAMPER_CURVES_TEXT
     from ..vehicle.template import CORNERS, DAMPERS
 
     r, tree = run.result, run.model.tree
@@ -320,16 +342,13 @@ def damper_section(run) -> tuple[Section, bytes] | None:
         force, std = damper_curve(est, d, v, knees)
         curves.append(DamperCurve(f"damper {d} ({corner})", v, force, std,
                                   None if truth is None else damper_curve(truth, d, v, knees)[0], knees))
-    text = ("Each damper's viscous force is a piecewise-linear curve of its clearance rate (bump, the wheel moving "
-            "towards the body, is positive): four slopes identified in place of h, below and above the knees of the "
-            "vehicle file's [dampers]. The dry friction fs is its own row of the suspension table. The band is the "
-            "estimate's 95 % interval at each rate (the slopes' covariance included).")
-    return Section("Damper curves", text, tables=tables, anchor="dampers"), damper_curve_figure(curves)
+    return Section("Damper curves", DAMPER_CURVES_TEXT, tables=tables, anchor="dampers"), damper_curve_figure(curves)
 
 
 def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
     # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
-    from ..vehicle.engineering import car_quantities, damper_vertical
+    from ..vehicle.engineering import car_quantities
+    from ..vehicle.notes import engineering_text
 
     r = run.result
     truth = car_quantities({**values, **r.truth}, vehicle.geometry) if r.truth else None
@@ -353,32 +372,9 @@ def engineering_section(run, quantities, kind: str, vehicle, values) -> Section:
     if rows:
         tables.append(Table(head, rows, caption=group, sortable=False, cls="eng"))
     by = {q.key: q for q in quantities}
-    wheels_known = all(f"M{w}" not in r.estimated_names for w in (14, 23, 32, 41))
     m6, mu, mt = by["mass_sprung"], by["mass_unsprung"], by["mass_total"]
-    text = (
-        f"M6 in the chassis table is the SPRUNG mass, {fixed(m6.value, decimals(m6.std))} kg: the chassis body "
-        "alone, what the chassis equations weigh above the suspensions. The car's total mass adds the four "
-        f"wheels (the unsprung corners), {fixed(mu.value, 1)} kg "
-        f"{'known from the bench (the vehicle file or config, not identified)' if wheels_known else 'estimated'}: "
-        f"{fixed(mt.value, decimals(mt.std))} kg in all.\n\n"
-        "Each figure is computed from the estimated parameters and the vehicle geometry; σ is propagated to first "
-        "order with the estimate's full covariance, "
-        + ("statistical and the declared sensor offsets (σ total)" if kind == "total"
-           else "statistical only (no sensor offsets declared)")
-        + "; bench-known parameters count as exact. Heights are above flat ground at design ride height (wheel "
-        f"centres at the unloaded tire radius, {vehicle.geometry.wheel_radius:g} m). Inertia is about the centre "
-        "of gravity in ISO 8855 vehicle axes (x forward, y left, z up), products as the inertia matrix's entries "
-        "(Ixz = −∫xz dm). The springs act along the damper axes (the template's slides): with c the vertical "
-        "component of an axle's damper axis "
-        f"(front {damper_vertical(vehicle.geometry, True):.4f}, rear {damper_vertical(vehicle.geometry, False):.4f}), "
-        "a vertical wheel travel z moves the damper z/c, so the wheel rate is ks/c², the anti-roll bar's in roll "
-        "2 k_ar/c² (one wheel alone: half) and the damping h/c². Ride frequency and damping ratio per axle: the "
-        "wheel rates in series with the tires, on the axle's share of the sprung mass, one degree of freedom "
-        "(unsprung masses and dry friction left out). Roll stiffness: springs and anti-roll bar at the wheels, "
-        "K = (ks_l + ks_r + 4 k_ar) t²/c² (t the half track), tires not counted; the roll gradient counts them in "
-        "series and turns about the slides' roll axis (roll centres t·tan(damper lateral tilt) below the ground); "
-        "the pitch gradient turns about the ground (no anti-dive). Corner weights: on a level scale with no "
-        "diagonal preload. Each formula and its assumptions: docs/engineering.md.")
+    text = engineering_text(fixed(m6.value, decimals(m6.std)), fixed(mu.value, 1), fixed(mt.value, decimals(mt.std)),
+                            r.estimated_names, kind, vehicle.geometry)
     return Section("The car in engineering terms", text, tables=tables, anchor="engineering")
 
 
@@ -417,10 +413,11 @@ def cog_figure(run, quantities, vehicle, values) -> bytes:
 # ------------------------------------------------------------------ validation
 
 
-def group_unit(group: str, tree) -> str:
-    """The unit of an equation group's force: N for a prismatic joint's, N·m for a revolute one's."""
-    if group in CHASSIS_GROUPS:
-        j = CHASSIS_GROUPS.index(group) + 1
+def group_unit(group: str, tree, chassis: Sequence[str] = ()) -> str:
+    """The unit of an equation group's force: N for a prismatic joint's, N·m for a revolute one's. chassis: a car's
+    groups of joints 1, 2, ... (`_car_equations`), whose names carry no joint number."""
+    if group in chassis:
+        j = chassis.index(group) + 1
     else:
         digits = group[len(group.rstrip("0123456789")):]
         if not digits:
@@ -428,17 +425,6 @@ def group_unit(group: str, tree) -> str:
         j = int(digits)
     frame = next((f for f in tree.frames if f.j == j), None)
     return force_unit(frame is not None and frame.sigma == 1)
-
-
-def _equation_sections(groups: list[str]) -> list[tuple[str, list[str]]]:
-    """The paper's figure split for the car (chassis, suspensions, tires); one figure otherwise."""
-    if any(g in CHASSIS_GROUPS for g in groups):
-        out = [("chassis", [g for g in CHASSIS_GROUPS if g in groups]),
-               ("suspensions", [g for g in groups if g.startswith("susp")]),
-               ("tires", [g for g in groups if g.startswith("tire")])]
-        rest = [g for g in groups if not any(g in s for _, s in out)]
-        return [(t, s) for t, s in [*out, ("other", rest)] if s]
-    return [("joints", groups)]
 
 
 def validation_signals(run) -> dict[str, dict[str, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]]]:
@@ -467,14 +453,14 @@ def validation_signals(run) -> dict[str, dict[str, dict[str, tuple[np.ndarray, n
     return out
 
 
-def validation_csv(signals, tree) -> str:
+def validation_csv(signals, tree, chassis: Sequence[str] = ()) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["validation", "test", "equation", "quantity", "unit", "t_s", "measured", "predicted"])
     for kind, tests in signals.items():
         for test, groups in tests.items():
             for g, (t, Y, WX) in groups.items():
-                unit, label = group_unit(g, tree), axis_label(g)
+                unit, label = group_unit(g, tree, chassis), axis_label(g)
                 for row in zip(t, *to_iso(g, Y, WX), strict=True):  # the report's signs: ISO 8855 for the chassis
                     w.writerow([kind, test, g, label, unit, *(f"{v:.9g}" for v in row)])
     return buf.getvalue()
@@ -495,27 +481,29 @@ def panel_corners(signals, noise: dict[str, float]) -> dict[tuple[str, str], str
     return out
 
 
-def validation_figures(signals, tree, noise: dict[str, float] | None = None) -> list[tuple[str, bytes]]:
+def validation_figures(signals, tree, noise: dict[str, float] | None = None, chassis: Sequence[str] = (),
+                       split: Split | None = None) -> list[tuple[str, bytes]]:
     """One figure per equation section (the car: chassis, suspensions, tires; a robot: its joints), the direct
     and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each. The chassis
     equations in ISO 8855 axes (`axes`); noise: the identification's residual RMS per group (the run's
-    `residual_rms`), under which a panel says "not excited" instead of a relative error of noise over noise."""
+    `residual_rms`), under which a panel says "not excited" instead of a relative error of noise over noise.
+    chassis, split: a car's chassis groups and its split of the groups into figures (`_car_equations`); without a
+    split, one figure of every joint."""
     corners = panel_corners(signals, noise or {})
     tests = [(kind, test, per) for kind, by_test in signals.items() for test, per in by_test.items()]
     groups = list(dict.fromkeys(g for _, _, per in tests for g in per))
-    paper = {"chassis": "4 and 7", "suspensions": "5 and 8", "tires": "6"}
     # each test's time axis from all its equations, the same in every figure
     spans = {test: (min(float(v[0][0]) for v in per.values() if len(v[0])),
                     max(float(v[0][-1]) for v in per.values() if len(v[0])))
              for _, test, per in tests if any(len(v[0]) for v in per.values())}
     figs = []
     data = {(axis_label(g), test): (per[g][0], *to_iso(g, *per[g][1:])) for _, test, per in tests for g in per}
-    for section, gs in _equation_sections(groups):
+    for section, gs, paper in (split(groups) if split is not None else [("joints", groups, "")]):
         caption = (f"Validation, {section}: measured Y and model W X per equation and test, direct (identification "
                    "tests) then cross (tests not used for the estimate)"
-                   + (f"; the paper's Figures {paper[section]}" if section in paper else ""))
+                   + (f"; the paper's Figures {paper}" if paper else ""))
         figs.append((caption, validation_grid(f"{section}: measured and predicted forces",
-                                              [(axis_label(g), group_unit(g, tree)) for g in gs],
+                                              [(axis_label(g), group_unit(g, tree, chassis)) for g in gs],
                                               [t for _, t, _ in tests], data, kinds=[k for k, _, _ in tests],
                                               spans=spans, corners=corners)))
     return figs
@@ -528,11 +516,12 @@ def validation_table(run) -> Table | None:
     kinds = list(errors)
     marked = {k: set(run.not_excited.get(k, ())) for k in kinds}
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
+    chassis = _car_equations(run)[0]
     rows = []
     for g in groups:
         axis = CHASSIS_AXES.get(g)
         row = [Cell(axis_label(g), title=f"the paper's {axis.paper}" if axis else "", cls="t"),
-               Cell(group_unit(g, run.model.tree), cls="t")]
+               Cell(group_unit(g, run.model.tree, chassis), cls="t")]
         for k in kinds:
             e = errors[k].get(g)
             text = "" if e is None else f"{100 * e:.2f} %" + (" *" if g in marked[k] else "")
@@ -875,7 +864,7 @@ def build_report(run, title: str) -> Report:
     pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
-    out_sections.append(Section("Estimated parameters", FRAME6_TEXT if is_car else "", tables=parameter_tables(run),
+    out_sections.append(Section("Estimated parameters", _frame_text(run), tables=parameter_tables(run),
                                 html=flag_legend(run) + paper_rule_details(run), figures=[figs_written[-1][1:]],
                                 anchor="parameters"))
     if run.offsets is not None:
@@ -889,7 +878,8 @@ def build_report(run, title: str) -> Report:
     out_sections.append(consistency_section(run))
     signals = validation_signals(run)
     vt = validation_table(run)
-    vfigs = validation_figures(signals, tree, run.residual_rms)
+    chassis, split = _car_equations(run)
+    vfigs = validation_figures(signals, tree, run.residual_rms, chassis, split)
     for k, (caption, png) in enumerate(vfigs, start=1):
         figs_written.append((f"figure_validation{k}.png", caption, png))
     vtext = ("Y is the measured side of each equation (forces from the sensors), W X the model's prediction with "
@@ -920,7 +910,7 @@ def build_report(run, title: str) -> Report:
     out_sections.append(provenance_section(run, prov))
     data["provenance"] = prov
     files["parameters.csv"] = parameters_csv(run, sections_list)
-    files["validation.csv"] = validation_csv(signals, tree)
+    files["validation.csv"] = validation_csv(signals, tree, chassis)
     for name, _, png in figs_written:
         files[name] = png
     page = render_html(title, out_sections, subtitle=summary)

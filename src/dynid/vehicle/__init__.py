@@ -1,5 +1,7 @@
 """The paper's car: 42-frame template, parameter sets, kinematic tables, aerodynamics, statics,
-the identification equations and their base parameters (frame conventions: template.py)."""
+the identification equations and their base parameters (frame conventions: template.py; frame numbers:
+dynid.car_frames); how its results are judged and laid out (presentation.py) and what its run and report say
+in words (notes.py)."""
 
 from .aero import Aerodynamics, AeroError, aero_wrench
 from .car_model import car_template

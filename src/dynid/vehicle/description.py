@@ -99,7 +99,7 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, WHEELS, labels, paper_parameter_names
+from .template import CHASSIS, CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, TIRES, WHEELS, labels, paper_parameter_names
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
@@ -599,24 +599,21 @@ def _parameter_names() -> dict[str, str]:
 
 # plausible passenger-car ranges of the paper's 48 parameters (SI): outside them the value is a unit slip (g for kg,
 # N/mm for N/m) or a typo; wide enough for a small city car to a large van. docs/vehicle.md lists them
-_CHASSIS = 6
-WHEEL_FRAMES = (14, 23, 32, 41)
-TIRE_FRAMES = (15, 24, 33, 42)
 
 
 def parameter_range(name: str) -> tuple[float, float, str, str]:
     """(low, high, unit, what) of a template parameter's plausible value for a passenger car."""
     kind, frame = name.rstrip("0123456789"), name[len(name.rstrip("0123456789")):]
     j = int(frame) if frame else 0
-    if j == _CHASSIS:
+    if j == CHASSIS:
         return {"M": (300.0, 4000.0, "kg", "the body's mass, wheels apart"),
                 "XX": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
                 "YY": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
                 "ZZ": (0.0, 2e5, "kg·m²", "a moment of inertia of the body about O6"),
                 }.get(kind, (-2e5, 2e5, "kg·m² or kg·m", "a product of inertia or first moment of the body"))
-    if j in WHEEL_FRAMES:
+    if j in WHEELS:
         return {"M": (1.0, 200.0, "kg", "a wheel's mass")}.get(kind, (0.0, 50.0, "kg·m²", "a wheel's inertia"))
-    if j in TIRE_FRAMES:
+    if j in TIRES:
         return (1e4, 5e6, "N/m", "a tire's vertical stiffness kt")
     if kind in CURVE_LABELS:
         return 0.0, 1e5, "N·s/m", "a damper curve's slope"

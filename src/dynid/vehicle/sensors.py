@@ -66,13 +66,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..car_frames import CORNER_TAGS as CORNER_TAGS  # wheels 14, 23, 32, 41; the car's modules name it from here
 from ..kinematics.forward import forward_kinematics, joint_array
 from .geometry import CarGeometry, side
 from .template import damper, tabulated, tire, wheel
 
 ACQUISITION_RATE = 625.0  # Hz (the paper's sample time 1.6 ms)
 SAMPLE_TIME = 1.0 / ACQUISITION_RATE
-CORNER_TAGS = ("rl", "rr", "fl", "fr")  # wheels 14, 23, 32, 41
 WFT_COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 PAPER = "paper, Table 1"
 CHOSEN = "chosen (not in the paper)"

@@ -55,6 +55,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..car_frames import CHASSIS, CORNER_FRAMES, DAMPERS, TIRES, base, damper, tire, wheel
+from ..car_frames import WHEELS as WHEELS  # the car's modules name these from here
+from ..car_frames import tabulated as tabulated
 from ..model.tree import PRISMATIC, REVOLUTE, Coupling, Frame, Tree
 from .geometry import CarGeometry, side
 
@@ -62,41 +65,11 @@ CORNERS = ("rear left", "rear right", "front left", "front right")
 ROLES = ("half track", "half wheelbase", "damper", "steering", "camber", "caster", "kingpin", "wheel", "tire")
 FREE_JOINTS = (1, 2, 3, 4, 5, 6)
 CHASSIS_GROUPS = ("x", "y", "z", "yaw", "pitch", "roll")
-CHASSIS = 6
 FRAMES = 42
-
-
-def base(corner: int) -> int:
-    """First frame (half track) of a corner: 7, 16, 25, 34."""
-    return 7 + 9 * corner
-
-
-def damper(corner: int) -> int:
-    return base(corner) + 2
-
-
-def wheel(corner: int) -> int:
-    return base(corner) + 7
-
-
-def tire(corner: int) -> int:
-    return base(corner) + 8
-
-
-def tabulated(corner: int) -> tuple[int, int, int, int]:
-    """Steering, camber, caster, kingpin frames of a corner."""
-    b = base(corner)
-    return (b + 3, b + 4, b + 5, b + 6)
-
-
-DAMPERS = tuple(damper(k) for k in range(4))  # 9, 18, 27, 36
-WHEELS = tuple(wheel(k) for k in range(4))  # 14, 23, 32, 41
-TIRES = tuple(tire(k) for k in range(4))  # 15, 24, 33, 42
+# a corner's frames are numbered by ..car_frames (base, damper, wheel, tire, tabulated; DAMPERS, WHEELS, TIRES), a leaf
+# that a config's reader names them from without loading this layer; ROLES has one entry per frame of a corner
 CONSTANT_JOINTS = tuple(j for k in range(4) for j in (base(k), base(k) + 1))
 EQUATION_ROWS = (*FREE_JOINTS, *DAMPERS, *TIRES)
-
-
-CORNER_FRAMES = len(ROLES)  # frames per corner
 
 
 def corner_of(frame: int) -> int:

@@ -67,13 +67,13 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
+from ..car_frames import CORNER_TAGS
 from ..kinematics.forward import forward_kinematics, joint_array, point_velocity
 from .engineering import Quantity
 from .template import WHEELS, tire
 
 Array = np.ndarray
 
-CORNER_TAGS = ("rl", "rr", "fl", "fr")
 AXLES = {"front": (2, 3), "rear": (0, 1)}
 MIN_SPEED = 10.0  # m/s: the slips' noise grows as 1/v (a 0.05 m/s speed error is a slip of 0.012 at 15 km/h)
 KAPPA_PURE = 0.01  # |κ| at most for pure lateral slip: the MuJoCo car's Fy is then within 0.5 % of pure slip
