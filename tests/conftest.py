@@ -4,7 +4,11 @@ from pathlib import Path
 import pytest
 from threadpoolctl import threadpool_limits
 
-sys.path.insert(0, str(Path(__file__).parent))
+# the shared helpers (oracles.py, mujoco_car.py, tx40_case.py) beside this file, and every layer's folder: a test
+# module takes another's fixtures by its name (test_urdf's robots, test_car_truth's judge), wherever it lives
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+sys.path[1:1] = sorted(str(d) for d in HERE.iterdir() if d.is_dir() and not d.name.startswith((".", "_")))
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 TX40_DATA = SHARED / "data" / "tx40"

@@ -1,5 +1,5 @@
 """The MuJoCo test car of ../shared/data/mujoco-car/ through `dynid identify` with the example's vehicle file
-(examples/mujoco_car/): what tests/test_mujoco_car.py and tests/test_mujoco_chassis.py share."""
+(examples/mujoco_car/): what tests/e2e/test_mujoco_car.py and tests/e2e/test_mujoco_chassis.py share."""
 
 import csv
 import json

@@ -24,7 +24,7 @@ from .progress import report as show
 from .usage import command
 
 # the names of vehicle.sim.manoeuvres.DEFAULTS, spelt out because importing the simulator for `dynid --help` costs a
-# second; tests/test_cli.py holds the two equal
+# second; tests/cli/test_cli.py holds the two equal
 MANOEUVRES = ("sine", "braking", "spiral", "step", "lane", "accel", "fishhook", "random", "static")
 
 

@@ -143,7 +143,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     # the shipped files are read as TOML, not loaded as vehicles: loading one builds its tables and template
-    # (NumPy, SciPy: two seconds) for three numbers; tests/test_vehicle_file.py loads every shipped vehicle.
+    # (NumPy, SciPy: two seconds) for three numbers; tests/vehicle/test_vehicle_file.py loads every shipped vehicle.
     # find_spec locates dynid.vehicle without running its __init__ (which imports all of it).
     spec = find_spec("dynid.vehicle")
     folder = Path(next(iter(spec.submodule_search_locations))) / "vehicles"  # type: ignore[union-attr]

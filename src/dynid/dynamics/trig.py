@@ -22,7 +22,7 @@ A change to the steps reaches the generated code at once (the generator's finger
 `python_function`'s own machine code, but not the engine's kernels that inline it, which Numba caches under
 dynamics/compiled.py's stamp: change or touch that file too.
 
-Accuracy: 1 ulp of max(|y|, 1/2) against libm (measured over 1e5 angles, tests/test_trig.py): absolute
+Accuracy: 1 ulp of max(|y|, 1/2) against libm (measured over 1e5 angles, tests/dynamics/test_trig.py): absolute
 near the zeros of sine and cosine, where the two-part pi/2 (86 bits) leaves an error of |k| 2^-87.
 """
 

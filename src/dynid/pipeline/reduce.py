@@ -262,7 +262,8 @@ class CarSetup:
         """Whether a zero offset of `channel` moves the filtered wheel loads alone: a wheel force or moment, except
         the vertical force of a car without height lasers (its heights come from that load). The estimator takes
         such a channel through a delay and a low-pass, both of unit gain at 0 Hz, into the loads: its offset moves
-        them by itself, the joints not at all (tests/test_sensor_offsets.py checks it against the full pass)."""
+        them by itself, the joints not at all (tests/pipeline/test_sensor_offsets.py checks it against the full
+        pass)."""
         return channel.startswith("wft_") and (self.vehicle.lasers or not channel.endswith("_Fz"))
 
 

@@ -491,6 +491,6 @@ def test_the_tx40_measured_files_give_no_robot_finding(tx40_data):
     from dynid.pipeline.reduce import robot_setup
     from dynid.pipeline.sources import plan_robot_test
 
-    cfg = load_config(Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml")
+    cfg = load_config(Path(__file__).resolve().parents[2] / "examples" / "tx40" / "identify.toml")
     setup = robot_setup(cfg)
     assert robot_health(plan_robot_test(cfg, cfg.tests[0]), cfg, setup.model, setup.joints.columns) == []

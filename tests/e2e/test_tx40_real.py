@@ -19,7 +19,7 @@ from dynid.pipeline.run import identify, write_outputs
 # The real TX40 files through the whole pipeline (about 10 s).
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-CONFIG = Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "examples" / "tx40" / "identify.toml"
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ it (issue 26, item 3).
 
 Oracle: the Panda of example-robot-data's panda.urdf, unedited. The log's torques are the inverse dynamics of the
 arm with the gripper held still (the model imported with --joints naming the arm, whose inverse dynamics equal
-Pinocchio's reduced model: tests/test_urdf.py), plus white noise of known σ. Identified through `dynid
+Pinocchio's reduced model: tests/model/test_urdf.py), plus white noise of known σ. Identified through `dynid
 identify` with the model file imported as it is (fingers a mimic pair): the gripper, absent from the log, is held
 still by default, and the estimate must agree with the true base parameters within 4.5 σ. A log that gives the
 finger too identifies it as a mimic pair.

@@ -14,7 +14,7 @@ import pytest
 
 pytest.importorskip("pyarrow")
 
-SRC = str(Path(__file__).resolve().parents[1] / "src")
+SRC = str(Path(__file__).resolve().parents[2] / "src")
 
 PROBE = """
 import json, sys

@@ -34,7 +34,7 @@ from dynid.model.tree import Frame, Tree  # noqa: E402
 from dynid.pipeline.config import load_config  # noqa: E402
 from dynid.pipeline.run import consistency_structure, identify, robot_consistency, write_outputs  # noqa: E402
 
-CONFIG = Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "examples" / "tx40" / "identify.toml"
 AGREE_SIGMA = 1e-2  # see the module doc
 
 

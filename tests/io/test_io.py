@@ -563,11 +563,11 @@ def test_unknown_extension_and_unknown_option(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(
-    not (Path(__file__).resolve().parents[1].parent / "shared/data/tx40/pos_read_data.csv").exists(),
+    not (Path(__file__).resolve().parents[2].parent / "shared/data/tx40/pos_read_data.csv").exists(),
     reason="shared TX40 data not beside the repository",
 )
 def test_real_tx40_csv_reads_with_a_sample_rate() -> None:
-    path = Path(__file__).resolve().parents[1].parent / "shared/data/tx40/pos_read_data.csv"
+    path = Path(__file__).resolve().parents[2].parent / "shared/data/tx40/pos_read_data.csv"
     rec = read_recording(path, fs=5000.0)
     assert rec.names == tuple(f"Joint_{j}" for j in range(1, 7))
     assert len(rec.channel("Joint_1")) == 45000 and rec.channel("Joint_6").time[-1] == pytest.approx(8.9998)

@@ -344,7 +344,7 @@ def test_the_shipped_vehicles_and_examples_are_in_range():
 
     for name in shipped_vehicles():
         load_vehicle(name)
-    load_vehicle(Path(__file__).parents[1] / "examples" / "mujoco_car" / "vehicle.toml")
+    load_vehicle(Path(__file__).parents[2] / "examples" / "mujoco_car" / "vehicle.toml")
 
 
 @pytest.mark.parametrize("code_, words", [("ENOSPC", ["No space left", "free space", "--out"]),

@@ -22,7 +22,7 @@ from dynid.pipeline.run import identify
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-CONFIG = Path(__file__).resolve().parents[1] / "examples" / "tx40" / "identify.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "examples" / "tx40" / "identify.toml"
 sm = pytest.importorskip("statsmodels.api")
 
 
@@ -108,7 +108,7 @@ def test_a_car_hac_equals_statsmodels_on_its_stacked_rows(tmp_path):
     scale = np.sqrt(np.outer(np.diag(ref.cov_params()), np.diag(ref.cov_params())))
     assert np.max(np.abs(r.covariance - ref.cov_params()) / scale) < 1e-7
     assert r.systematic is not None  # the declared offsets' part is still attached
-    # the offsets estimated: the profiled problem's scores (tests/test_hac_offsets.py), both kinds accepted
+    # the offsets estimated: the profiled problem's scores (tests/estimation/test_hac_offsets.py), both kinds accepted
     for kind in ("hac", "hac-groupsum"):
         config.write_text(text.replace("[uncertainty]\nestimate = false\n", "[uncertainty]\n").replace(
             'cov_type = "hac"', f'cov_type = "{kind}"'))
@@ -123,8 +123,8 @@ def test_a_car_hac_with_its_offsets_estimated_equals_statsmodels(tmp_path, monke
     offset, linearised at the a priori values, as the first pass took them: caught on their way into the
     estimate) and the prior's pseudo-rows, weights 1/σ_g; OLS(...).fit()'s bread and residual, the meat over the
     data rows from S_hac_simple per group and test (S_hac_groupsum per test, the sample its time), lags 3; the
-    parameters' block of B S B (tests/test_hac_offsets.py's oracle on the car). Tolerance as the estimate=false
-    car's: κ of the car's weighted [W C] ≈ 1e3-1e4, a few κ² ε, 1e-7 on any CPU."""
+    parameters' block of B S B (tests/estimation/test_hac_offsets.py's oracle on the car). Tolerance as the
+    estimate=false car's: κ of the car's weighted [W C] ≈ 1e3-1e4, a few κ² ε, 1e-7 on any CPU."""
     from dynid.estimation import offsets as offsets_module
     from dynid.pipeline.demo import simulate_tests, write_demo
 

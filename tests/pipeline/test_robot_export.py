@@ -1,9 +1,9 @@
 """The URDF an identification exports is a plausible arm close to the file (issue 26, item 1).
 
-Oracle: a UR5 simulated from example-robot-data's URDF (its own inertias, tests/test_robot_flags.py), identified
-by `dynid identify`'s pipeline (WLS): the exported URDF is read back by Pinocchio (not by dynid), and every link's
-mass must be within 10 % of the file's (the log was simulated from them), its centre of mass within a tenth of
-the link's size of the file's (measured: 2 cm on the 0.44 m upper arm, along its joint axis; under 2 mm
+Oracle: a UR5 simulated from example-robot-data's URDF (its own inertias, tests/pipeline/test_robot_flags.py),
+identified by `dynid identify`'s pipeline (WLS): the exported URDF is read back by Pinocchio (not by dynid), and
+every link's mass must be within 10 % of the file's (the log was simulated from them), its centre of mass within a
+tenth of the link's size of the file's (measured: 2 cm on the 0.44 m upper arm, along its joint axis; under 2 mm
 elsewhere), its inertia at the centre of mass positive definite with the triangle inequalities, and the base
 values within the estimate's σ. An estimate that no body near the file reproduces moves the links and says so,
 by name.

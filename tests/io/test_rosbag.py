@@ -123,7 +123,7 @@ def identify_cli(d: Path, test: str, out: str, capsys=None) -> dict[str, float]:
     if capsys is not None:
         said = capsys.readouterr()
         text = said.out + said.err
-        # the stamps checked and resampled as a CSV time column's are (tests/test_robot_time.py)
+        # the stamps checked and resampled as a CSV time column's are (tests/pipeline/test_robot_time.py)
         assert "resampled onto a uniform clock" in text and "jitter" in text, text
     data = json.loads((d / out / "results.json").read_text())
     return {p["name"]: p["value"] for p in data["parameters"]}
@@ -313,8 +313,8 @@ def test_windows_are_the_whole_reads_samples(log, tmp_path, plugin, layouts):
 
 def test_a_panda_bag_without_the_gripper_holds_it_still(tmp_path):
     """The Panda imported from example-robot-data as it is (the fingers a mimic pair), its arm's /joint_states
-    in a bag: the gripper, absent from the messages, is held still as with a CSV log (tests/test_robot_gripper.py),
-    and the estimate is that of the CSV of the same samples."""
+    in a bag: the gripper, absent from the messages, is held still as with a CSV log
+    (tests/pipeline/test_robot_gripper.py), and the estimate is that of the CSV of the same samples."""
     from test_robot_gripper import ARM, DURATION, FS, SIGMA, config, trajectory
     from test_urdf import robot_file
 

@@ -9,8 +9,8 @@ added in chunks of 1, 2, 50, n and n + 42 rows give the factors of the same [W |
 Tolerances. The least-squares paths are backward stable QR factorisations (Householder, chunk by chunk or at once):
 their estimates differ by about cond(W) ε relative, 1e-14 here (cond ≈ 10); 1e-10 is the issue's figure, with
 four orders of margin for any CPU (FMA or not). wls-pc comes from an interior-point solve: its distance from the
-WLS optimum is bounded in the WLS's own metric (tests/test_wls_pc.py's module doc): Clarabel's relative gap 1e-8
-on ||P r||² ≈ n = 400 gives sqrt(4e-6) = 2e-3 σ per solve; 1e-2 σ allows two solves.
+WLS optimum is bounded in the WLS's own metric (tests/estimation/test_wls_pc.py's module doc): Clarabel's relative
+gap 1e-8 on ||P r||² ≈ n = 400 gives sqrt(4e-6) = 2e-3 σ per solve; 1e-2 σ allows two solves.
 """
 
 from __future__ import annotations

@@ -277,7 +277,7 @@ def test_the_tables_a_file_does_not_give_are_named_as_dynid_s_defaults(tmp_path)
     assert "rear_left.caster" not in some.defaulted_tables and len(some.defaulted_tables) == 14
     note = sensors_note(some)
     assert "front_left.caster, front_right.caster" in note and "rear_left" not in note
-    example = Path(__file__).resolve().parents[1] / "examples" / "mujoco_car" / "vehicle.toml"
+    example = Path(__file__).resolve().parents[2] / "examples" / "mujoco_car" / "vehicle.toml"
     mujoco = load_vehicle(example)
     assert mujoco.defaulted_tables == () and "Kinematic tables" not in sensors_note(mujoco)
 
