@@ -616,8 +616,9 @@ def _tire_poses(x: _Context, q: Array) -> Array:
         sub = np.append(sub, N - 1)
     q0 = q[sub]  # a copy (fancy index)
     q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
-    poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
+    # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
+    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES, rows=slice(2, 3))
+    poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
 
