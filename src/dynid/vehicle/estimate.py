@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
-from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
+from ..signals import border_samples, derivative, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry
@@ -266,6 +266,7 @@ def estimate_joints(
 _ATTITUDE = ("imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_roll", "imu_pitch")
 _ACCELERATION = ("imu_ax", "imu_ay", "imu_az")
 _VELOCITY = ("correvit_vx", "correvit_vy", "gnss_vx", "gnss_vy")
+_INCLINOMETERS = ("imu_roll", "imu_pitch")  # the low-passed matrix's last two columns
 
 
 @dataclass(frozen=True)
@@ -400,13 +401,13 @@ class JointsPass:
             i = 17 + 6 * CORNER_TAGS.index(channel.split("_")[1]) + WFT_COMPONENTS.index(channel.split("_")[2])
             filtered[:, i] += _lowpass(np.full(len(filtered), b), x)
             heights = not x.lasers and channel.endswith("_Fz")
-        if attitude:
-            R6, w6 = _attitude(ch, x, q, qd, qdd)
+        if attitude:  # a gyro's offset leaves the inclinometers' low-pass as the whole pass's
+            R6, w6 = _attitude(ch, x, q, qd, qdd, None if channel in _INCLINOMETERS else self.filtered[:, -2:])
             pz_zz = _tire_poses(x, q)
-        if heights:
-            z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
-        if attitude or channel in _ACCELERATION:
-            qdd[:, :3] = _acceleration(ch, x, R6, w6)
+        if heights or attitude or channel in _ACCELERATION:
+            z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
+                                      attitude or channel in _ACCELERATION)
+            z_laser = z if heights else z_laser
         if heights:  # the velocity (it reads the height's rate) and the deflections
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
         elif channel in _VELOCITY:
@@ -462,26 +463,27 @@ def joints_pass(
 
     # column-major: every joint is written as a column, and the equations read them as columns
     q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
-    R6, w6 = _attitude(ch, x, q, qd, qdd)
 
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
-    # with the loads (24 wheel-wrench components, the 4 spin torques when measured): one pass of the filter
+    # with the loads (24 wheel-wrench components, the 4 spin torques when measured) and the two inclinometers
+    # (the attitude's first low-pass, last): one call of the filter
     # without cameras the steering and camber columns are placeholders: the tables fill them below
     names = [f"{n}_{t}" for n in ("clearance", "steer", "camber", "wheel_speed") for t in CORNER_TAGS]
     names += ["steering_wheel"] + [f"wft_{t}_{k}" for t in CORNER_TAGS for k in WFT_COMPONENTS]
     has_spin = all(f"spin_torque_{t}" in ch for t in CORNER_TAGS)
     names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
+    names += list(_INCLINOMETERS)
     # stacked as rows, then one transposing copy (the filter's input is (N, C) C order): writing each channel
     # into a column of an (N, C) array touches one cache line per sample per channel (7 ms of a 60 s segment's 8)
     zero = np.zeros(N)
     filtered = _lowpass(np.stack([ch.get(n, zero) for n in names]).T, x)
+    R6, w6 = _attitude(ch, x, q, qd, qdd, filtered[:, -2:])
     h = _corners(filtered, fs, q, qd, qdd)
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
                                copy=False)
 
     pz_zz = _tire_poses(x, q)
-    z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
-    qdd[:, :3] = _acceleration(ch, x, R6, w6)
+    z_laser = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz)
     _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))  # and the deflections
     if 2 * b >= N:
         raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
@@ -555,19 +557,18 @@ def _lowpass(x: Array, c: _Context) -> Array:
     return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
 
 
-def _smooth(x: Array, c: _Context) -> tuple[Array, Array, Array]:
-    return filtered_derivatives(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, nderiv=2)
-
-
-def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array]:
+def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
+              ) -> tuple[Array, Array]:
     """Yaw, pitch, roll into q, qd, qdd (columns 3:6): Euler rates (ISO ZYX) from the gyros, angles fused with
-    the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3)."""
+    the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3). angles: the inclinometers
+    (roll, pitch) low-passed (N, 2), when known (filtered with other columns: a call on 2 columns waits on the
+    filter's latency)."""
     fs, c = x.fs, x.conditioning
     A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
     p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
-    phi, theta = _lowpass(incl, x).T
+    phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
         sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
         dphi = p + (qb * sp + r * cp) * np.tan(theta)
@@ -623,9 +624,25 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     return CubicSpline(sub, poses)(np.arange(N))
 
 
-def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
-             pz_zz: Array) -> Array:
-    """The height of O6 into q, qd, qdd (column 2); returns each corner's estimate of it (N, 4).
+def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
+                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True
+                          ) -> Array | None:
+    """`_heights` (when height; its z_laser returned, else None) and `_acceleration` into qdd (columns 0:3, when
+    acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
+    latency)."""
+    z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
+    cols = ([z_laser.mean(axis=1)[:, None]] if height else []) + ([_unit_acceleration(ch, x, R6, w6)] if
+                                                                   acceleration else [])
+    low = _lowpass(np.concatenate(cols, axis=1), x)
+    if height:  # the height, its rate (`signals.filtered_derivatives`')
+        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs)
+    if acceleration:
+        qdd[:, :3] = _acceleration(x, R6, low[:, int(height):])
+    return z_laser
+
+
+def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array) -> Array:
+    """Each corner's estimate of the height of O6 (N, 4), before the low-pass.
 
     From the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x (distance along -x6 to the ground), each laser's own
     estimate, used again for the tire deflections. Without lasers, each corner's contact point on the ground with
@@ -642,24 +659,26 @@ def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Arr
                              f"{kt.tolist()}")
         load = filtered[:, [17 + 6 * k + WFT_COMPONENTS.index("Fz") for k in range(4)]] / kt
         z_laser = -(pz_zz[:, :4] + load * pz_zz[:, 4:])
-    q[:, 2], qd[:, 2], _ = _smooth(z_laser.mean(axis=1), x)
     return z_laser
 
 
-def _acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
-    """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point).
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
+    """The unit's rates in frame 6 and its acceleration in frame 0 (N, 6), before the low-pass (`_acceleration`)."""
+    A = np.asarray(x.geometry.imu_axes, dtype=float)
+    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
+    return np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1)
+
+
+def _acceleration(x: _Context, R6: Array, low: Array) -> Array:
+    """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point);
+    low: `_unit_acceleration` low-passed.
 
     The unit's own acceleration low-passed once like every signal, then carried to O6 with the low-passed
     rotation rates, the ones the regressor carries O6's back to every point of the chassis with. Carried before
     the low-pass, the angular acceleration's lever arm term is filtered twice, the regressor's once: with the unit
     1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
     equations."""
-    A = np.asarray(x.geometry.imu_axes, dtype=float)
     r_imu = np.asarray(x.geometry.imu_position, dtype=float)
-    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    # the rates and the unit's acceleration through one low-pass of 6 columns
-    low = _lowpass(np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1),
-                   x)
     w6f, a_imu0 = low[:, :3], low[:, 3:]
     dw6 = derivative(w6f, x.fs, axis=0)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
@@ -695,7 +714,8 @@ def _deflection(pz_zz: Array, z_laser: Array) -> Array:
 
 
 def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
-    """The low-passed deflections and their central differences (`_smooth`'s) into the tire columns."""
+    """The low-passed deflections and their central differences (`signals.filtered_derivatives`') into the tire
+    columns."""
     cols = [f - 1 for f in TIRES]
     d = derivative(low, x.fs)
     q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
