@@ -70,22 +70,23 @@ def _filtfilt_columns(sos, zi, pad, ext):  # pragma: no cover - compiled
 
 
 def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
-    """x (n, C): every column filtered once backwards in time (last sample first), each from the steady state of
-    its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order transpose of a
-    column-major (n, C): one layout whatever C, one compile). The channels are the inner
-    loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct form II transposed)."""
+    """x (C, n), channels first: every channel filtered once backwards in time (last sample first), each from the
+    steady state of its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order
+    transposes of column-major (n, C) arrays: one layout whatever C, one compile; channels stacked as rows need no
+    copy). The channels are the inner loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct
+    form II transposed)."""
     S = sos.shape[0]
-    n, C = x.shape
+    C, n = x.shape
     z0 = np.empty((S, C))
     z1 = np.empty((S, C))
     v = np.empty(C)
     for s in range(S):
         for c in range(C):
-            z0[s, c] = zi[s, 0] * x[n - 1, c]
-            z1[s, c] = zi[s, 1] * x[n - 1, c]
+            z0[s, c] = zi[s, 0] * x[c, n - 1]
+            z1[s, c] = zi[s, 1] * x[c, n - 1]
     for i in range(n - 1, -1, -1):
         for c in range(C):
-            v[c] = x[i, c]
+            v[c] = x[c, i]
         _sections(sos, z0, z1, v)
         for c in range(C):
             out[c, i] = v[c]
@@ -157,7 +158,8 @@ def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
             out[:, c] = sosfilt(sos, x[::-1, c], zi=steady_state(sos) * x[-1, c])[0][::-1]
         return out
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
-    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out.T)
+    # channels first: a column-major x (channels stacked as rows, transposed) is read as it is, a C-order one copied
+    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x.T), out.T)
     return out
 
 
