@@ -639,7 +639,7 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     if height:  # the height, its rate (`signals.filtered_derivatives`')
         q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs)
     if acceleration:
-        qdd[:, :3] = _acceleration(x, R6, low[:, int(height):])
+        qdd[:, :3] = _acceleration(x, R6, low, int(height))
     return z_laser
 
 
@@ -671,9 +671,9 @@ def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Arra
     return np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1)
 
 
-def _acceleration(x: _Context, R6: Array, low: Array) -> Array:
+def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
     """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point);
-    low: `_unit_acceleration` low-passed.
+    low[:, first:first + 6]: `_unit_acceleration` low-passed.
 
     The unit's own acceleration low-passed once like every signal, then carried to O6 with the low-passed
     rotation rates, the ones the regressor carries O6's back to every point of the chassis with. Carried before
@@ -681,9 +681,40 @@ def _acceleration(x: _Context, R6: Array, low: Array) -> Array:
     1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
     equations."""
     r_imu = np.asarray(x.geometry.imu_position, dtype=float)
-    w6f, a_imu0 = low[:, :3], low[:, 3:]
+    if _carry_kernel is not None:  # the NumPy lines below in one compiled pass (a dozen (N, 3) temporaries)
+        out = np.empty((low.shape[0], 3))
+        _carry_kernel(np.ascontiguousarray(low), first, float(x.fs), np.ascontiguousarray(R6.transpose(1, 2, 0)),
+                      r_imu, out)
+        return out
+    w6f, a_imu0 = low[:, first:first + 3], low[:, first + 3:first + 6]
     dw6 = derivative(w6f, x.fs, axis=0)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
+
+
+def _carry_compiled(low, first, fs, R, r, out):  # pragma: no cover - compiled
+    """`_acceleration`'s formulas at each sample in their order (`signals.derivative`'s differences, np.cross's
+    products, einsum's sum left to right): w = low[:, first:first + 3], a = low[:, first + 3:first + 6] (C order),
+    R (3, 3, N) 0R6's entries first (`_rotation`'s layout), r (3,), out (N, 3). One function of explicit loops: its
+    compile is short."""
+    n = low.shape[0]
+    h2 = 2.0 * (1.0 / fs)  # as signals.derivative
+    d = np.empty(3)
+    for i in range(n):
+        for k in range(3):
+            c = first + k
+            if i == 0:
+                d[k] = (-3.0 * low[0, c] + 4.0 * low[1, c] - low[2, c]) / h2
+            elif i == n - 1:
+                d[k] = (3.0 * low[n - 1, c] - 4.0 * low[n - 2, c] + low[n - 3, c]) / h2
+            else:
+                d[k] = (low[i + 1, c] - low[i - 1, c]) / h2
+        w0, w1, w2 = low[i, first], low[i, first + 1], low[i, first + 2]
+        e0, e1, e2 = w1 * r[2] - w2 * r[1], w2 * r[0] - w0 * r[2], w0 * r[1] - w1 * r[0]  # w x r
+        s0 = (d[1] * r[2] - d[2] * r[1]) + (w1 * e2 - w2 * e1)  # dw x r + w x (w x r)
+        s1 = (d[2] * r[0] - d[0] * r[2]) + (w2 * e0 - w0 * e2)
+        s2 = (d[0] * r[1] - d[1] * r[0]) + (w0 * e1 - w1 * e0)
+        for k in range(3):
+            out[i, k] = low[i, first + 3 + k] - (R[k, 0, i] * s0 + R[k, 1, i] * s1 + R[k, 2, i] * s2)
 
 
 def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array,
@@ -742,5 +773,6 @@ try:
     from numba import njit
 
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
+    _carry_kernel = njit(cache=True, nogil=True)(_carry_compiled)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = None
+    _corner_kernel = _carry_kernel = None
