@@ -64,6 +64,21 @@ process, its scan's passes shared). A segment's read (10 min file, 55 channels) 
 the same rows: 45 -> 26 ms, pyarrow 21 ms (it decodes; the rest is the SI products and the finite-value checks).
 The data health's set-up (`car_scans`, the vertical axis: the vehicle's suite rebuilt per access) was 2-3.5 ms of
 a segment's 20: the scan of the channels' values (about ten NumPy passes each) is the rest.
+
+Measured 2026-11-29 (issue 28, h-joints; main b872084 then the branch in turn, --minutes 5 --cpu, load averages 4 to
+10 on the 2-core EPYC, CPU s per hour, medians): joints 4.99 -> 3.80 and compensation 1.16 -> 0.85 (3 rounds, load
+4-6); at load 6-10 (7 rounds) joints 4.63-5.05 -> 4.29-4.71, the rounds' spread as large as the change. One 60 s
+segment alone (38412 samples, min of 20 passes, processes alternated): joints_pass 86-93 -> 61-69 ms, its page faults
+10238 -> 3238 per pass (sys 26 -> 14 ms); a segment's reduce with the suite's 36 offsets 1.04, 1.16 -> 0.81, 0.92 s.
+Where it went: channels written column by column into (N, C) C-order matrices (a cache line per sample per channel:
+the corners' 41-column filter input, the compensation's groups) now stacked as rows; the tire poses' forward
+kinematics on frame 0's row 2 alone (9.5 -> 3.0 ms); 8 low-pass calls -> 6 (a call on 1-2 columns costs the
+recursion's latency, 0.6-0.8 ms); the IMU acceleration carried to O6 in one compiled pass (5 ms; its compile 0.4-0.6
+s, once per machine); border_samples cached. Every output bit-identical to main's. What is left per 60 s segment
+(~62 ms): the zero-phase filter 10 ms (its 41-column call near one core's arithmetic peak, 5 small calls bound by
+the recursion's latency, 2 of them the attitude's sequential crossover), the attitude 6.5 ms (14 sin, cos, tan of
+38k samples), the first writes of q, qd, qdd (3 x 13 MB: page faults, ~5 ms, inside the corners' pass), the tire
+poses 9 ms (forward kinematics 2.5, spline 5), the velocity 3 ms.
 """
 
 from __future__ import annotations

@@ -87,3 +87,24 @@ def test_point_velocity_is_the_derivative_of_the_position(expressed_in):
     assert np.allclose(w, np.einsum("nji,nj->ni", Re, w0), atol=1e-7)
     v1, w1 = point_velocity(tree, q[2], qd[2], frame, p, expressed_in)
     assert v1.shape == (3,) and np.allclose(v1, v[2], atol=1e-14) and np.allclose(w1, w[2], atol=1e-14)
+
+
+@pytest.mark.parametrize("rows", [slice(2, 3), slice(0, 1), slice(1, 3)])
+def test_forward_kinematics_rows_are_the_whole_poses_rows(rows):
+    """Oracle: the whole forward kinematics. The rows of frame 0 kept alone (a tire's height and z axis) are the
+    same numbers, bit for bit: each row of a rotation propagates apart down the chain."""
+    from dynid.kinematics.forward import forward_kinematics, joint_array
+
+    tree = random_tree(seed=24, n=14, floating=True)
+    q, _, _ = random_states(tree, 50, seed=3)
+    qs = joint_array(q, tree, "q")[0]
+    frames = [tree.n, 9]
+    whole = forward_kinematics(tree, qs, frames=frames)
+    part = forward_kinematics(tree, qs, frames=frames, rows=rows)
+    for j in range(tree.n + 1):
+        if whole.P[j] is None:
+            assert part.P[j] is None
+            continue
+        assert np.array_equal(part.P[j], whole.P[j][rows])
+        for c in range(3):
+            assert np.array_equal(np.broadcast_to(part.Rc[j][c], part.P[j].shape), whole.Rc[j][c][rows])

@@ -230,6 +230,30 @@ def test_the_chassis_rotation_written_in_place_is_the_gathered_one():
     assert got.strides == ref.strides
 
 
+@pytest.mark.parametrize("first", [0, 1])
+def test_the_compiled_carry_of_the_imu_acceleration_is_the_numpy_one(first):
+    """`_acceleration`'s compiled pass (the unit's low-passed acceleration carried to O6) against its NumPy path
+    (signals.derivative, np.cross, einsum), the oracle it replaced: the same products summed in the same order.
+    Equal here (no multiply-add fused); a machine that fuses one moves each result by a rounding or two of the
+    lever-arm terms (|R (dw x r + w x (w x r))|)."""
+    import dynid.vehicle.estimate as est
+
+    rng = np.random.default_rng(6)
+    n = 3000
+    t = np.arange(n) / FS
+    low = np.sin(2 * np.pi * rng.uniform(0.2, 2.0, 7) * t[:, None] + rng.uniform(0, 6, 7)) * rng.uniform(0.1, 9.8, 7)
+    R6 = est._rotation(*(0.3 * np.sin(2 * np.pi * f * t) for f in rng.uniform(0.1, 1.0, 3)))
+    x = est._Context(FS, None, CarGeometry(), CarConditioning(), None, True, 0)
+    got = est._acceleration(x, R6, low, first)
+    kernel, est._carry_kernel = est._carry_kernel, None
+    try:
+        ref = est._acceleration(x, R6, low, first)
+    finally:
+        est._carry_kernel = kernel
+    lever = np.abs(ref - low[:, first + 3:first + 6]).max()
+    np.testing.assert_allclose(got, ref, rtol=0, atol=4 * np.finfo(float).eps * (lever + np.abs(ref).max()))
+
+
 def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     """`_corners` (one compiled pass) against its NumPy path (signals.derivative twice, signals.integrate, the
     columns scattered into q, qd, qdd), the oracle it replaced. The interior differences have no product to fuse:

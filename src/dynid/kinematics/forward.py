@@ -148,19 +148,23 @@ def needed_frames(tree: Tree, frames: Sequence[int]) -> Array:
     return todo
 
 
-def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = None) -> KinematicState:
+def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = None,
+                       rows: slice = slice(None)) -> KinematicState:
     """Poses of the frames in frame 0; q samples-last (n, N) as from `joint_array`.
 
     frames: compute only these frames and their ancestors (others stay None).
+    rows: the frame-0 components kept of every origin and axis (default all): slice(2, 3), the heights and the
+    axes' z components alone, each (1, N), the same numbers as the whole pose's row 2 (row i of 0R_j is row i of
+    0R_a(j) times constants and the joint's cos, sin: the rows propagate apart) for a third of the work.
     Constant rotations that are signed permutations (alpha, gamma multiples of pi/2)
     cost nothing: the frame's columns are the parent's, reordered.
     """
     n, N = tree.n, q.shape[1]
     todo = needed_frames(tree, range(1, n + 1) if frames is None else frames)
     plan = frame_plan(tree)
-    eye = np.eye(3)
-    zero = np.zeros((3, N))
-    Rc: list = [[np.broadcast_to(eye[:, c, None], (3, N)) for c in range(3)]] + [None] * n
+    eye = np.eye(3)[rows]
+    zero = np.zeros((len(eye), N))
+    Rc: list = [[np.broadcast_to(eye[:, c, None], zero.shape) for c in range(3)]] + [None] * n
     P: list = [zero] + [None] * n
     dP: list = [zero] + [None] * n
     for f in tree.frames:

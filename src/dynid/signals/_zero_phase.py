@@ -38,21 +38,19 @@ def _sections(sos, z0, z1, v):  # pragma: no cover - compiled
             v[c] = y
 
 
-def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
-    """x (n, C): every column filtered forward then backward; ext (n + 2 pad, C) work and result.
+def _filtfilt_columns(sos, zi, pad, ext):  # pragma: no cover - compiled
+    """ext (n + 2 pad, C): rows pad .. pad + n - 1 hold the columns x on entry (the caller's copy: one copy whatever
+    x's layout), every column odd-extended, then filtered forward then backward in place.
     The channels are the inner loop: their recursions are independent, so they run side by side
     (SIMD) instead of waiting on one channel's chain of dependent multiply-adds."""
     S = sos.shape[0]
-    n, C = x.shape
-    L = n + 2 * pad
-    # odd extension: 2 x[0] - x[pad..1], x, 2 x[-1] - x[-2..-pad-1]
+    L, C = ext.shape
+    n = L - 2 * pad
+    # odd extension: 2 x[0] - x[pad..1], x, 2 x[-1] - x[-2..-pad-1] (x[k] = ext[pad + k]: read only there)
     for i in range(pad):
         for c in range(C):
-            ext[i, c] = 2.0 * x[0, c] - x[pad - i, c]
-            ext[n + pad + i, c] = 2.0 * x[n - 1, c] - x[n - 2 - i, c]
-    for i in range(n):
-        for c in range(C):
-            ext[pad + i, c] = x[i, c]
+            ext[i, c] = 2.0 * ext[pad, c] - ext[2 * pad - i, c]
+            ext[n + pad + i, c] = 2.0 * ext[n + pad - 1, c] - ext[n + pad - 2 - i, c]
     z0 = np.empty((S, C))
     z1 = np.empty((S, C))
     v = np.empty(C)
@@ -72,22 +70,23 @@ def _filtfilt_columns(sos, zi, x, pad, ext):  # pragma: no cover - compiled
 
 
 def _reverse_columns(sos, zi, x, out):  # pragma: no cover - compiled
-    """x (n, C): every column filtered once backwards in time (last sample first), each from the steady state of
-    its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order transpose of a
-    column-major (n, C): one layout whatever C, one compile). The channels are the inner
-    loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct form II transposed)."""
+    """x (C, n), channels first: every channel filtered once backwards in time (last sample first), each from the
+    steady state of its last sample (zi (S, 2) per unit input); out (C, n) the result, channels first (the C-order
+    transposes of column-major (n, C) arrays: one layout whatever C, one compile; channels stacked as rows need no
+    copy). The channels are the inner loop, as in `_filtfilt_columns`; the recursion is scipy sosfilt's (direct
+    form II transposed)."""
     S = sos.shape[0]
-    n, C = x.shape
+    C, n = x.shape
     z0 = np.empty((S, C))
     z1 = np.empty((S, C))
     v = np.empty(C)
     for s in range(S):
         for c in range(C):
-            z0[s, c] = zi[s, 0] * x[n - 1, c]
-            z1[s, c] = zi[s, 1] * x[n - 1, c]
+            z0[s, c] = zi[s, 0] * x[c, n - 1]
+            z1[s, c] = zi[s, 1] * x[c, n - 1]
     for i in range(n - 1, -1, -1):
         for c in range(C):
-            v[c] = x[i, c]
+            v[c] = x[c, i]
         _sections(sos, z0, z1, v)
         for c in range(C):
             out[c, i] = v[c]
@@ -137,11 +136,14 @@ def sos_filtfilt(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int, pa
 
         return sosfiltfilt(sos, a, axis=axis, padtype="odd", padlen=pad)
     moved = np.moveaxis(a, axis, 0)
-    cols = np.ascontiguousarray(moved.reshape(moved.shape[0], -1))
-    ext = np.empty((cols.shape[0] + 2 * pad, cols.shape[1]))
+    n = moved.shape[0]
+    ext = np.empty((n + 2 * pad, moved[0].size))
+    # a's samples copied once, into the work array's middle: in any layout (channels stacked as rows, transposed:
+    # NumPy's copy walks the destination's rows), without the C-order copy the kernel's indexing would need first
+    ext[pad : pad + n] = moved.reshape(n, -1)
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
-    _filtfilt_columns(sos, steady_state(sos), cols, pad, ext)
-    return np.moveaxis(ext[pad : pad + cols.shape[0]].reshape(moved.shape), 0, axis)
+    _filtfilt_columns(sos, steady_state(sos), pad, ext)
+    return np.moveaxis(ext[pad : pad + n].reshape(moved.shape), 0, axis)
 
 
 def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -156,7 +158,8 @@ def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
             out[:, c] = sosfilt(sos, x[::-1, c], zi=steady_state(sos) * x[-1, c])[0][::-1]
         return out
     sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
-    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x), out.T)
+    # channels first: a column-major x (channels stacked as rows, transposed) is read as it is, a C-order one copied
+    _reverse_columns(sos, steady_state(sos), np.ascontiguousarray(x.T), out.T)
     return out
 
 

@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
-from ..signals import border_samples, derivative, filtered_derivatives, integrate, lowpass
+from ..signals import border_samples, derivative, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry
@@ -231,7 +231,9 @@ def compensated_channels(
         else:
             out[k] = compensate(x, d, fs, lags.get(k, 0.0))
     for (band, order, _), names in banded.items():
-        undone = undo_lowpass_phase_columns(np.stack([out[k] for k in names], axis=1), fs, band, order)
+        # stacked as rows, given column-major (the kernel reads channels first): writing each channel into a column
+        # of a C-order (N, C) array touches a cache line per sample per channel (half of this function's time)
+        undone = undo_lowpass_phase_columns(np.stack([out[k] for k in names]).T, fs, band, order)
         for i, k in enumerate(names):
             shift = dynamics[k].lag(fs) + lags.get(k, 0.0)
             shift -= dynamics[k].band_delay()
@@ -266,6 +268,7 @@ def estimate_joints(
 _ATTITUDE = ("imu_roll_rate", "imu_pitch_rate", "imu_yaw_rate", "imu_roll", "imu_pitch")
 _ACCELERATION = ("imu_ax", "imu_ay", "imu_az")
 _VELOCITY = ("correvit_vx", "correvit_vy", "gnss_vx", "gnss_vy")
+_INCLINOMETERS = ("imu_roll", "imu_pitch")  # the low-passed matrix's last two columns
 
 
 @dataclass(frozen=True)
@@ -400,13 +403,13 @@ class JointsPass:
             i = 17 + 6 * CORNER_TAGS.index(channel.split("_")[1]) + WFT_COMPONENTS.index(channel.split("_")[2])
             filtered[:, i] += _lowpass(np.full(len(filtered), b), x)
             heights = not x.lasers and channel.endswith("_Fz")
-        if attitude:
-            R6, w6 = _attitude(ch, x, q, qd, qdd)
+        if attitude:  # a gyro's offset leaves the inclinometers' low-pass as the whole pass's
+            R6, w6 = _attitude(ch, x, q, qd, qdd, None if channel in _INCLINOMETERS else self.filtered[:, -2:])
             pz_zz = _tire_poses(x, q)
-        if heights:
-            z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
-        if attitude or channel in _ACCELERATION:
-            qdd[:, :3] = _acceleration(ch, x, R6, w6)
+        if heights or attitude or channel in _ACCELERATION:
+            z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
+                                      attitude or channel in _ACCELERATION)
+            z_laser = z if heights else z_laser
         if heights:  # the velocity (it reads the height's rate) and the deflections
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
         elif channel in _VELOCITY:
@@ -462,27 +465,27 @@ def joints_pass(
 
     # column-major: every joint is written as a column, and the equations read them as columns
     q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
-    R6, w6 = _attitude(ch, x, q, qd, qdd)
 
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
-    # with the loads (24 wheel-wrench components, the 4 spin torques when measured): one pass of the filter
+    # with the loads (24 wheel-wrench components, the 4 spin torques when measured) and the two inclinometers
+    # (the attitude's first low-pass, last): one call of the filter
     # without cameras the steering and camber columns are placeholders: the tables fill them below
     names = [f"{n}_{t}" for n in ("clearance", "steer", "camber", "wheel_speed") for t in CORNER_TAGS]
     names += ["steering_wheel"] + [f"wft_{t}_{k}" for t in CORNER_TAGS for k in WFT_COMPONENTS]
     has_spin = all(f"spin_torque_{t}" in ch for t in CORNER_TAGS)
     names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
-    raw = np.zeros((N, len(names)))
-    for i, n in enumerate(names):
-        if n in ch:
-            raw[:, i] = ch[n]
-    filtered = _lowpass(raw, x)
+    names += list(_INCLINOMETERS)
+    # stacked as rows, then one transposing copy (the filter's input is (N, C) C order): writing each channel
+    # into a column of an (N, C) array touches one cache line per sample per channel (7 ms of a 60 s segment's 8)
+    zero = np.zeros(N)
+    filtered = _lowpass(np.stack([ch.get(n, zero) for n in names]).T, x)
+    R6, w6 = _attitude(ch, x, q, qd, qdd, filtered[:, -2:])
     h = _corners(filtered, fs, q, qd, qdd)
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
                                copy=False)
 
     pz_zz = _tire_poses(x, q)
-    z_laser = _heights(ch, x, q, qd, qdd, filtered, R6, pz_zz)
-    qdd[:, :3] = _acceleration(ch, x, R6, w6)
+    z_laser = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz)
     _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))  # and the deflections
     if 2 * b >= N:
         raise ModelError(f"the test is too short for the filter: {N} samples, {2 * b} are spoiled at the borders "
@@ -522,10 +525,15 @@ def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compile
     n = x.shape[0]
     h2 = 2.0 * (1.0 / fs)  # as signals.derivative
     half = 0.5 / fs  # as signals.integrate
+    # the 17 columns gathered row by row (x's rows contiguous): a column read alone touches a cache line per sample
+    xs = np.empty((17, n))
+    for i in range(n):
+        for c in range(17):
+            xs[c, i] = x[i, c]
     b = np.empty((3, n))  # a column, its first and second central differences
     for c in range(17):
         for i in range(n):
-            b[0, i] = x[i, c]
+            b[0, i] = xs[c, i]
         for k in range(2):  # signals.derivative of b[k] into b[k + 1]: its formulas, in their order
             b[k + 1, 0] = (-3.0 * b[k, 0] + 4.0 * b[k, 1] - b[k, 2]) / h2
             for i in range(1, n - 1):
@@ -551,19 +559,18 @@ def _lowpass(x: Array, c: _Context) -> Array:
     return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
 
 
-def _smooth(x: Array, c: _Context) -> tuple[Array, Array, Array]:
-    return filtered_derivatives(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, nderiv=2)
-
-
-def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array]:
+def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
+              ) -> tuple[Array, Array]:
     """Yaw, pitch, roll into q, qd, qdd (columns 3:6): Euler rates (ISO ZYX) from the gyros, angles fused with
-    the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3)."""
+    the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3). angles: the inclinometers
+    (roll, pitch) low-passed (N, 2), when known (filtered with other columns: a call on 2 columns waits on the
+    filter's latency)."""
     fs, c = x.fs, x.conditioning
     A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
     p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
-    phi, theta = _lowpass(incl, x).T
+    phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
         sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
         dphi = p + (qb * sp + r * cp) * np.tan(theta)
@@ -612,15 +619,32 @@ def _tire_poses(x: _Context, q: Array) -> Array:
         sub = np.append(sub, N - 1)
     q0 = q[sub]  # a copy (fancy index)
     q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES)
-    poses = np.stack([st.P[f][2] for f in TIRES] + [st.Rc[f][2][2] for f in TIRES], axis=1)
+    # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
+    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES, rows=slice(2, 3))
+    poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
 
 
-def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, R6: Array,
-             pz_zz: Array) -> Array:
-    """The height of O6 into q, qd, qdd (column 2); returns each corner's estimate of it (N, 4).
+def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
+                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True
+                          ) -> Array | None:
+    """`_heights` (when height; its z_laser returned, else None) and `_acceleration` into qdd (columns 0:3, when
+    acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
+    latency)."""
+    z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
+    cols = ([z_laser.mean(axis=1)[:, None]] if height else []) + ([_unit_acceleration(ch, x, R6, w6)] if
+                                                                   acceleration else [])
+    low = _lowpass(np.concatenate(cols, axis=1), x)
+    if height:  # the height, its rate (`signals.filtered_derivatives`')
+        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs)
+    if acceleration:
+        qdd[:, :3] = _acceleration(x, R6, low, int(height))
+    return z_laser
+
+
+def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array) -> Array:
+    """Each corner's estimate of the height of O6 (N, 4), before the low-pass.
 
     From the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x (distance along -x6 to the ground), each laser's own
     estimate, used again for the tire deflections. Without lasers, each corner's contact point on the ground with
@@ -637,27 +661,60 @@ def _heights(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Arr
                              f"{kt.tolist()}")
         load = filtered[:, [17 + 6 * k + WFT_COMPONENTS.index("Fz") for k in range(4)]] / kt
         z_laser = -(pz_zz[:, :4] + load * pz_zz[:, 4:])
-    q[:, 2], qd[:, 2], _ = _smooth(z_laser.mean(axis=1), x)
     return z_laser
 
 
-def _acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
-    """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point).
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
+    """The unit's rates in frame 6 and its acceleration in frame 0 (N, 6), before the low-pass (`_acceleration`)."""
+    A = np.asarray(x.geometry.imu_axes, dtype=float)
+    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
+    return np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1)
+
+
+def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
+    """Translational acceleration of O6 in frame 0 (N, 3), from the IMU (specific force at its mounting point);
+    low[:, first:first + 6]: `_unit_acceleration` low-passed.
 
     The unit's own acceleration low-passed once like every signal, then carried to O6 with the low-passed
     rotation rates, the ones the regressor carries O6's back to every point of the chassis with. Carried before
     the low-pass, the angular acceleration's lever arm term is filtered twice, the regressor's once: with the unit
     1.6 m ahead of O6, that difference weighs the pitch acceleration's fast part (a brake release) on the chassis
     equations."""
-    A = np.asarray(x.geometry.imu_axes, dtype=float)
     r_imu = np.asarray(x.geometry.imu_position, dtype=float)
-    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    # the rates and the unit's acceleration through one low-pass of 6 columns
-    low = _lowpass(np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1),
-                   x)
-    w6f, a_imu0 = low[:, :3], low[:, 3:]
+    if _carry_kernel is not None:  # the NumPy lines below in one compiled pass (a dozen (N, 3) temporaries)
+        out = np.empty((low.shape[0], 3))
+        _carry_kernel(np.ascontiguousarray(low), first, float(x.fs), np.ascontiguousarray(R6.transpose(1, 2, 0)),
+                      r_imu, out)
+        return out
+    w6f, a_imu0 = low[:, first:first + 3], low[:, first + 3:first + 6]
     dw6 = derivative(w6f, x.fs, axis=0)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
+
+
+def _carry_compiled(low, first, fs, R, r, out):  # pragma: no cover - compiled
+    """`_acceleration`'s formulas at each sample in their order (`signals.derivative`'s differences, np.cross's
+    products, einsum's sum left to right): w = low[:, first:first + 3], a = low[:, first + 3:first + 6] (C order),
+    R (3, 3, N) 0R6's entries first (`_rotation`'s layout), r (3,), out (N, 3). One function of explicit loops: its
+    compile is short."""
+    n = low.shape[0]
+    h2 = 2.0 * (1.0 / fs)  # as signals.derivative
+    d = np.empty(3)
+    for i in range(n):
+        for k in range(3):
+            c = first + k
+            if i == 0:
+                d[k] = (-3.0 * low[0, c] + 4.0 * low[1, c] - low[2, c]) / h2
+            elif i == n - 1:
+                d[k] = (3.0 * low[n - 1, c] - 4.0 * low[n - 2, c] + low[n - 3, c]) / h2
+            else:
+                d[k] = (low[i + 1, c] - low[i - 1, c]) / h2
+        w0, w1, w2 = low[i, first], low[i, first + 1], low[i, first + 2]
+        e0, e1, e2 = w1 * r[2] - w2 * r[1], w2 * r[0] - w0 * r[2], w0 * r[1] - w1 * r[0]  # w x r
+        s0 = (d[1] * r[2] - d[2] * r[1]) + (w1 * e2 - w2 * e1)  # dw x r + w x (w x r)
+        s1 = (d[2] * r[0] - d[0] * r[2]) + (w2 * e0 - w0 * e2)
+        s2 = (d[0] * r[1] - d[1] * r[0]) + (w0 * e1 - w1 * e0)
+        for k in range(3):
+            out[i, k] = low[i, first + 3 + k] - (R[k, 0, i] * s0 + R[k, 1, i] * s1 + R[k, 2, i] * s2)
 
 
 def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Array, w6: Array,
@@ -690,7 +747,8 @@ def _deflection(pz_zz: Array, z_laser: Array) -> Array:
 
 
 def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
-    """The low-passed deflections and their central differences (`_smooth`'s) into the tire columns."""
+    """The low-passed deflections and their central differences (`signals.filtered_derivatives`') into the tire
+    columns."""
     cols = [f - 1 for f in TIRES]
     d = derivative(low, x.fs)
     q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
@@ -715,5 +773,6 @@ try:
     from numba import njit
 
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
+    _carry_kernel = njit(cache=True, nogil=True)(_carry_compiled)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = None
+    _corner_kernel = _carry_kernel = None
