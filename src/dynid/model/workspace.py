@@ -58,6 +58,8 @@ class PerObject(Generic[K, T]):
 
 # per object, the values of its `derived` properties by name
 _DERIVED: PerObject[Any, dict[str, Any]] = PerObject(lambda obj: {})
+_DERIVED_ITEMS = _DERIVED._items
+_MISSING = object()
 
 
 class derived(Generic[T]):  # noqa: N801 (a decorator, named as functools.cached_property)
@@ -83,11 +85,10 @@ class derived(Generic[T]):  # noqa: N801 (a decorator, named as functools.cached
     def __get__(self, obj, owner=None):
         if obj is None:
             return self
-        values = _DERIVED(obj)
-        try:
-            return values[self.name]
-        except KeyError:
-            return values.setdefault(self.name, self.func(obj))
+        hit = _DERIVED_ITEMS.get(id(obj))  # _DERIVED(obj) inlined: this is read in the NumPy engine's loops
+        values = hit[1] if hit is not None and hit[0]() is obj else _DERIVED(obj)
+        value = values.get(self.name, _MISSING)
+        return values.setdefault(self.name, self.func(obj)) if value is _MISSING else value
 
 
 def derived_values(obj: object) -> dict[str, Any]:
