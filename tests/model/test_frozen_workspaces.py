@@ -8,15 +8,18 @@ direct computation: bit for bit); and, for the packed tables, a fresh KinematicT
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import functools
 import gc
 import threading
 import weakref
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import dynid
 from dynid.dynamics import Model
 from dynid.model import example_path, load_tree
 from dynid.model.tree import Mimic, Tree
@@ -178,3 +181,24 @@ def test_car_equations_are_not_changed_by_stacking_w():
     assert _same(W, direct) and W.flags.c_contiguous
     for i in range(len(eq.rows)):  # group by group: row i's samples, in order
         assert _same(W[i * N:(i + 1) * N], eq.per_sample[:, i, :].copy())
+
+
+def _frozen_dataclass(node: ast.ClassDef) -> bool:
+    return any(isinstance(d, ast.Call) and getattr(d.func, "id", getattr(d.func, "attr", None)) == "dataclass"
+               and any(k.arg == "frozen" and getattr(k.value, "value", False) is True for k in d.keywords)
+               for d in node.decorator_list)
+
+
+def test_no_frozen_class_of_dynid_has_a_cached_property():
+    """A functools.cached_property writes into the instance: in a frozen class, use `derived` (model.workspace).
+    Oracle: the source files' own class definitions, parsed with `ast`."""
+    package = Path(dynid.__file__).parent
+    found = []
+    for path in sorted(package.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef) and _frozen_dataclass(node):
+                found += [f"{path.relative_to(package)}: {node.name}.{f.name}" for f in node.body
+                          if isinstance(f, ast.FunctionDef)
+                          and any(getattr(d, "attr", getattr(d, "id", None)) == "cached_property"
+                                  for d in f.decorator_list)]
+    assert not found, found
