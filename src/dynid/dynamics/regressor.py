@@ -264,8 +264,9 @@ def _plan(tree: Tree, R: list[int], Cols: list[int]) -> dict:
         elif kind not in LOAD_TERMS:  # a load term's column is the measured wrench's: 0 here (model.tree)
             terms.append((pos, int(name[len(kind):]), kind))
     pairs = {}
+    ancestors, sigma = tree.ancestors, tree.sigma  # read once: each read is a look-up beside the tree
     for k, (pos, off) in links.items():
-        rows = [j for j in tree.ancestors[k] if j in row_pos and tree.sigma[j] != FIXED]
+        rows = [j for j in ancestors[k] if j in row_pos and sigma[j] != FIXED]
         if rows:
             pairs[k] = (np.array([row_pos[j] for j in rows]), rows, np.array(pos), np.array(off))
     needed = sorted({j for k, (_, rows, _, _) in pairs.items() for j in rows} | set(pairs))

@@ -53,9 +53,10 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from difflib import get_close_matches
-from functools import cached_property
 
 import numpy as np
+
+from .workspace import derived
 
 INERTIAL = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
 # KQ: a spring's second-order term KQ q^2 (with K and OFF, a quadratic law about any reference: a tire whose load
@@ -131,6 +132,9 @@ class Tree:
     frozen: the moving joints of the description it was imported from (a URDF's) that the import
     held still, name -> value (rad or m), merged into the body they hang from: no frame.
     load_terms[j]: the load terms declared for frame j (subset of LOAD_TERMS; module doc).
+
+    What is derived from the fields (ant, ancestors, index, constant_rotation, parameters, ...) is computed on
+    first use and kept beside the tree (model.workspace.derived), never in it: a Tree is not changed by use.
     """
 
     name: str
@@ -157,17 +161,17 @@ class Tree:
         """Number of frames besides the base (= number of joint variables)."""
         return len(self.frames)
 
-    @cached_property
+    @derived
     def ant(self) -> np.ndarray:
         """a(j) for j = 0..n (a(0) = -1)."""
         return np.array([-1] + [f.ant for f in self.frames])
 
-    @cached_property
+    @derived
     def sigma(self) -> np.ndarray:
         """sigma_j for j = 0..n (the base counts as fixed)."""
         return np.array([FIXED] + [f.sigma for f in self.frames])
 
-    @cached_property
+    @derived
     def ancestors(self) -> list[list[int]]:
         """ancestors[k]: the frames j >= 1 on the path from the base to k, k included."""
         out: list[list[int]] = [[]]
@@ -175,29 +179,33 @@ class Tree:
             out.append([*out[f.ant], f.j])
         return out
 
-    @cached_property
+    @derived
     def children(self) -> list[list[int]]:
         kids: list[list[int]] = [[] for _ in range(self.n + 1)]
         for f in self.frames:
             kids[f.ant].append(f.j)
         return kids
 
-    @cached_property
+    @derived
     def depth(self) -> np.ndarray:
         return np.array([len(a) for a in self.ancestors])
 
-    @cached_property
+    @derived
     def equations(self) -> tuple[int, ...]:
         """The frames that have an equation of their own: moving joints that follow no other (mimic)."""
         return tuple(f.j for f in self.frames if f.sigma != FIXED and f.j not in self.mimic)
 
-    @cached_property
+    @property
     def unconstrained(self) -> Tree:
         """This tree with its mimic joints as independent joints (what the engine recurses over)."""
-        return _replace(self, mimic={}) if self.mimic else self
+        return self._without_mimic if self.mimic else self  # never kept beside itself: it would never be collected
+
+    @derived
+    def _without_mimic(self) -> Tree:
+        return _replace(self, mimic={})
 
     # ----- constant geometry -----------------------------------------------------
-    @cached_property
+    @derived
     def constant_rotation(self) -> np.ndarray:
         """C_j = Rot(z, gamma) Rot(x, alpha), shape (n+1, 3, 3); index 0 is I."""
         C = np.tile(np.eye(3), (self.n + 1, 1, 1))
@@ -205,7 +213,7 @@ class Tree:
             C[f.j] = _rotz(f.gamma) @ _rotx(f.alpha)
         return C
 
-    @cached_property
+    @derived
     def constant_offset(self) -> np.ndarray:
         """u_j = Rot(z, gamma) (d, 0, b): origin of frame j in a(j) when r = 0, (n+1, 3)."""
         u = np.zeros((self.n + 1, 3))
@@ -213,16 +221,16 @@ class Tree:
             u[f.j] = _rotz(f.gamma) @ np.array([f.d, 0.0, f.b])
         return u
 
-    @cached_property
+    @derived
     def theta0(self) -> np.ndarray:
         return np.array([0.0] + [f.theta for f in self.frames])
 
-    @cached_property
+    @derived
     def r0(self) -> np.ndarray:
         return np.array([0.0] + [f.r for f in self.frames])
 
     # ----- parameters --------------------------------------------------------------
-    @cached_property
+    @derived
     def parameter_names(self) -> tuple[str, ...]:
         names: list[str] = []
         for f in self.frames:
@@ -232,7 +240,7 @@ class Tree:
         names += [c.name for c in self.couplings]
         return tuple(names)
 
-    @cached_property
+    @derived
     def index(self) -> dict[str, int]:
         """Parameter name -> column index."""
         return {name: i for i, name in enumerate(self.parameter_names)}
@@ -241,12 +249,12 @@ class Tree:
     def p(self) -> int:
         return len(self.parameter_names)
 
-    @cached_property
+    @derived
     def parameters(self) -> np.ndarray:
         """The parameter vector X in the order of parameter_names."""
         return np.array([self.values.get(name, 0.0) for name in self.parameter_names])
 
-    @cached_property
+    @derived
     def known_mask(self) -> np.ndarray:
         return np.array([name in self.known for name in self.parameter_names], dtype=bool)
 

@@ -39,7 +39,6 @@ test car, 0.2 % of its pitch inertia). Their inertias about the other axes belon
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -48,6 +47,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model, Wrench
 from ..kinematics.per_tree import PerTree
 from ..model.tree import CURVE_TERMS, FIXED, ModelError, Tree
+from ..model.workspace import derived
 from .template import (
     CHASSIS_GROUPS,
     CONSTANT_JOINTS,
@@ -175,9 +175,10 @@ class CarEquations:
     base: BaseParameters
     rows: tuple[int, ...]
 
-    @functools.cached_property
+    @derived
     def W(self) -> Array:
-        """(rows N, p), group by group (made on first use: a pipeline that filters columns reads per_sample)."""
+        """(rows N, p), group by group (made on first use, kept beside the equations: a pipeline that filters
+        columns reads per_sample)."""
         return np.ascontiguousarray(self.per_sample.transpose(1, 0, 2)).reshape(-1, self.per_sample.shape[2])
 
     def __iter__(self):

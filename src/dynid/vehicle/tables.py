@@ -39,6 +39,7 @@ from scipy.interpolate import CubicSpline, RectBivariateSpline
 
 from ..model.files import read_toml
 from ..model.tree import ModelError
+from ..model.workspace import PerObject
 from ..textfiles import TextEncodingError, read_csv_rows
 from .geometry import CarGeometry, side
 from .table_poly import pack, table_joints
@@ -127,14 +128,16 @@ def _check_grid(a: Array, what: str, where: str) -> None:
         raise KinematicTableError(f"{where}: {what} values must be finite and strictly increasing")
 
 
+# per KinematicTables, its tables packed for `table_joints` by selection (`KinematicTables._packed`): kept beside
+# the frozen tables while they live, a few selections each
+_PACKED: PerObject[KinematicTables, dict[tuple, tuple]] = PerObject(lambda tables: {})
+
+
 @dataclass(frozen=True)
 class KinematicTables:
     """The four tables of each corner: tables[corner][name], corner 0 rear left .. 3 front right."""
 
     tables: tuple[Mapping[str, KinematicTable], ...]
-    # `_packed`'s workspace: the packed tables per selection, built on first use. Declared, so that it is no
-    # attribute written behind the frozen dataclass' back, and no part of the value (compare, repr, replace)
-    _packed_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.tables) != 4 or any(set(t) != set(TABLE_NAMES) for t in self.tables):
@@ -142,16 +145,17 @@ class KinematicTables:
 
     def _packed(self, todo: tuple[tuple[int, str], ...]) -> tuple:
         """The tables `todo` (corner, name) packed for `table_joints`, with which tables use the steering and
-        their damper and joint columns; built once per set (the tables are immutable)."""
-        cache = self._packed_cache
-        if todo not in cache:
+        their damper and joint columns; built once per set (the tables are immutable) and kept beside them."""
+        packed = _PACKED(self)
+        hit = packed.get(todo)
+        if hit is None:
             tabs = [self.tables[k][n] for k, n in todo]
             steering = np.array([t.steering is not None for t in tabs])
             # the damper's and the tabulated joint's columns (frame j in column j - 1)
             u_cols = np.array([damper(k) - 1 for k, _ in todo], dtype=np.int64)
             out_cols = np.array([tabulated(k)[TABLE_NAMES.index(n)] - 1 for k, n in todo], dtype=np.int64)
-            cache[todo] = (*pack(tabs), steering, u_cols, out_cols)
-        return cache[todo]
+            hit = packed.setdefault(todo, (*pack(tabs), steering, u_cols, out_cols))  # two threads: the first kept
+        return hit
 
     def table(self, corner: int, name: str) -> KinematicTable:
         return self.tables[corner][name]
