@@ -235,7 +235,7 @@ def kernel_module():
     module = nb.compile_source(None, [], key, prefix="dynid_simk")
     if module is None:
         module = nb.compile_source(_kernel_body(), list(K.JITTED), key, prefix="dynid_simk",
-                                   error_model=KERNEL_ERROR_MODEL)
+                                   error_model=KERNEL_ERROR_MODEL, internal=K.INTERNAL)
     build = _PREBUILD.pop(key, None)
     if build is not None:
         _run_meanwhile()
