@@ -27,6 +27,10 @@ dispatcher's `signatures` after the demo) but `blocks._data_address` (3, 0.16 s)
 Timeline of a cold demo (kernel in its forked process, machine loaded ~4x): the parent's compiles
 (`_table_joints`, `_idm_kernel`, then the identification's while it would wait) are the critical path; the
 kernel's build (8.4 s of CPU) had ended before the parent asked for it.
+Then (branch h-cold3): the kernel's helpers without entry points (numba_backend.compile_source's `internal`)
+and a trivial compile first in the kernel's build process (car._start_numba): --phases 14.4 s of compiles,
+entry points 0.46 -> 0.16 s, LLVM 6.1 -> 5.5 s; the build child's CPU 7.3 -> 6.5 s (median of 4, alternated);
+what --in-process cannot show (its kernel is not a process's first compile): see car._start_numba.
 """
 
 from __future__ import annotations
