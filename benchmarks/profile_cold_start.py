@@ -10,9 +10,27 @@ dropped. The simulator's kernel compiles in a forked process while the vehicle l
 (vehicle.sim.car.prebuild_kernel), where this listener does not hear it (its CPU is in the run's, as a
 child's): --in-process compiles it here instead, so that every compile is listed. `bench_cold_start.py`
 times cold against warm from outside; this says where the difference goes.
+--phases splits the compiles' CPU by Numba's steps (typing, lowering, entry points, LLVM).
 Measured 2026-11-27 (`simulate sine`, a 2-core EPYC loaded ~6x, so read the CPU column): the simulator
 (derivative, simulate, driver, the generated models) and the engine's inverse dynamics `_idm_kernel`
 (which the rest state needs) lead; the kinematic tables, the tires and the LU solve follow.
+Measured 2026-11-29 (`demo --in-process --phases`, 2-core Xeon loaded 1-5x, own CPU s of a compile): of
+24.8-27.6 s of CPU, Numba compiles 15.1-15.4 s: the simulator's kernel ~6.5 (derivative 2.7-3.1, driver
+1.1, simulate 1.0, lu_solve 0.5-0.6, eval_table 0.6, magic_formula 0.4, reduced_inertia 0.3, the
+manoeuvres' helpers 0.5), `_idm_kernel` 2.6-2.9 (with `_sincos`, `_mul`, `_mul_t`, `_cross` 0.4), the
+identification's 3.4 (`_table_joints` 0.7-0.8, zero-phase filters 1.3-1.5, `_corners_compiled` 0.4, the
+block kernel's `run` 0.8), NumPy's allocations (np.zeros, np.empty: compiled per caller's flags, 19
+times) 0.7. By step: typing 4.1, Numba's lowering 3.3, LLVM 6.1 (functions 2.4; linking, module
+optimisation, machine code 3.7: a callee's code is optimised and emitted in its own library, then again
+in each caller's that links it), entry points 0.5. Every function compiles for one signature (a
+dispatcher's `signatures` after the demo) but `blocks._data_address` (3, 0.16 s): no duplicate compiles.
+Timeline of a cold demo (kernel in its forked process, machine loaded ~4x): the parent's compiles
+(`_table_joints`, `_idm_kernel`, then the identification's while it would wait) are the critical path; the
+kernel's build (8.4 s of CPU) had ended before the parent asked for it.
+Then (branch h-cold3): the kernel's helpers without entry points (numba_backend.compile_source's `internal`)
+and a trivial compile first in the kernel's build process (car._start_numba): --phases 14.4 s of compiles,
+entry points 0.46 -> 0.16 s, LLVM 6.1 -> 5.5 s; the build child's CPU 7.3 -> 6.5 s (median of 4, alternated);
+what --in-process cannot show (its kernel is not a process's first compile): see car._start_numba.
 """
 
 from __future__ import annotations
@@ -35,6 +53,43 @@ def _cpu() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
+# Numba's compile steps, whose CPU --phases splits (the self time of each: a callee compiled inside a caller's typing
+# counts in its own steps): (class, method, label)
+PHASES = (("numba.core.typeinfer", "TypeInferer", "propagate", "typing"),
+          ("numba.core.lowering", "Lower", "lower", "lowering (Numba: LLVM IR built in Python)"),
+          ("numba.core.lowering", "Lower", "create_cpython_wrapper", "Python entry points (Numba)"),
+          ("numba.core.lowering", "Lower", "create_cfunc_wrapper", "C entry points (Numba)"),
+          ("numba.core.codegen", "CPUCodeLibrary", "add_ir_module", "LLVM: functions optimised"),
+          ("numba.core.codegen", "CPUCodeLibrary", "finalize", "LLVM: linked, module optimised, machine code"),
+          ("numba.core.codegen", "CPUCodeLibrary", "serialize_using_object_code", "disk cache written"))
+
+
+def split_phases() -> dict[str, float]:
+    """Time Numba's compile steps (PHASES) from now on, in this process: label -> CPU s, filled as they run."""
+    import importlib
+
+    spent: dict[str, float] = defaultdict(float)
+    stack: list[list[float]] = []  # per running step: [start, CPU of the steps it ran]
+
+    def timed(method, label):
+        def run(*args, **kwargs):
+            stack.append([time.process_time(), 0.0])
+            try:
+                return method(*args, **kwargs)
+            finally:
+                start, inner = stack.pop()
+                took = time.process_time() - start
+                spent[label] += took - inner
+                if stack:
+                    stack[-1][1] += took
+        return run
+
+    for module, cls, method, label in PHASES:
+        owner = getattr(importlib.import_module(module), cls)
+        setattr(owner, method, timed(getattr(owner, method), label))
+    return spent
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--command", default="demo --out {tmp}/demo",
@@ -42,6 +97,8 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=30)
     ap.add_argument("--in-process", action="store_true",
                     help="no kernel prebuild in another process: the simulator's kernel compiles here, and is listed")
+    ap.add_argument("--phases", action="store_true",
+                    help="also split the compiles' CPU by Numba's steps: typing, lowering, entry points, LLVM")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["DYNID_CACHE"] = f"{tmp}/dynid"  # before numba and dynid are imported: both read them once
@@ -71,6 +128,7 @@ def main() -> None:
                     stack[-1][1] += spent
 
         event.register("numba:compile", Listener())
+        phases = split_phases() if args.phases else {}
         from dynid.cli.main import main as dynid
 
         if args.in_process:  # both callers: the demo command (before its vehicle check) and simulated_car
@@ -91,6 +149,9 @@ def main() -> None:
           "simulator's kernel, dynid_blk_* the identification's blocks)")
     for name, s in sorted(own.items(), key=lambda kv: -kv[1][1])[:args.top]:
         print(f"{s[0]:7.2f} {s[1]:7.2f} {count[name]:5d}  {name}")
+    if phases:
+        print("CPU s by Numba's step (this process's compiles): " + "; ".join(
+            f"{label} {t:.2f}" for label, t in sorted(phases.items(), key=lambda kv: -kv[1])))
 
 
 if __name__ == "__main__":

@@ -136,3 +136,21 @@ def test_native_functions_are_the_python_source_to_the_bit_and_load_from_disk(tm
             stored["state"] = (("another", "cpu", ""), stored["state"][1])
             path.write_bytes(pickle.dumps(stored))
     assert len(built) == 2  # the foreign file was built again
+
+
+def test_internal_functions_compile_without_entry_points(tmp_path, monkeypatch):
+    """compile_source(internal=...): a helper only jitted code calls, of the body or imported, is compiled without
+    Python and C entry points (the simulator's kernel: issue 28), the caller's numbers unchanged; the imported
+    dispatcher itself keeps its entry point for Python."""
+    from dynid.vehicle.table_poly import _cell
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    body = ("from dynid.vehicle.table_poly import _cell\n\n\ndef twice(a, i):\n    return 2.0 * a[i]\n\n\n"
+            "def entry(b, x):\n    return twice(b, _cell(b, b.size - 1, x))\n")
+    mod = nb.compile_source(body, ["twice", "entry"], nb.source_key("test internal", body), prefix="dynid_test",
+                            internal=["twice", "_cell"])
+    b = np.array([0.0, 1.0, 2.0, 3.0])
+    assert mod.entry(b, 1.5) == 2.0 and mod.entry(b, 2.5) == 4.0
+    for f in (mod.twice, mod._cell):
+        assert f.targetoptions["no_cpython_wrapper"] and f.targetoptions["no_cfunc_wrapper"]
+    assert mod._cell is not _cell and _cell(b, 3, 2.5) == 2  # the original, unchanged, from Python

@@ -70,6 +70,15 @@ def jit(fn):
     return njit(cache=True)(fn)
 
 
+def internal_copy(dispatcher: Callable) -> Callable:
+    """A copy of a jitted function for jitted callers only: its options, without entry points (_NO_ENTRIES), not
+    cached (compile_source's `internal`)."""
+    from numba import njit  # start-up: numba 0.5 s
+
+    options = {k: v for k, v in dispatcher.targetoptions.items() if k != "nopython"}  # njit sets it (and warns)
+    return njit(**options, no_cpython_wrapper=True, no_cfunc_wrapper=True)(dispatcher.py_func)
+
+
 _WARNED = [False]
 
 
@@ -157,14 +166,29 @@ def _sign(x):
 '''
 
 
-def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], error_model: str = "python") -> str:
+# what a function only jitted code calls goes without: the Python entry (unboxing each argument: large for a
+# function of many arrays) and the C entry, each lowered by Numba and optimised and emitted by LLVM
+_NO_ENTRIES = "no_cpython_wrapper=True, no_cfunc_wrapper=True"
+
+
+def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], error_model: str = "python",
+            internal: Sequence[str] = ()) -> str:
     """jit every name; those in `straight` (name -> its arguments) through their LLVM IR (llvm_code):
-    a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher."""
+    a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher.
+    `internal` (compile_source): jitted without entry points, the imported ones from their Python function."""
     opts = "cache=True" if error_model == "python" else f"cache=True, error_model={error_model!r}"
     lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
              f"    _sign = njit({opts})(_sign)"]
-    lines += [f"    {n} = njit({opts})({n})" for n in names if n not in straight]
+    # an imported dispatcher's copy keeps its own options (error model...), not this module's; it is not cached:
+    # Numba's cache of it (by its file and name, not its flags) is the original's, which Python calls; the copy's
+    # code is cached in its callers'
+    copies = [n for n in internal if n not in names]
+    if copies:
+        lines.append("    from dynid.symbolic.numba_backend import internal_copy")
+    lines += [f"    {n} = internal_copy({n})" for n in copies]
+    lines += [f"    {n} = njit({opts}{', ' + _NO_ENTRIES if n in internal else ''})({n})" for n in names
+              if n not in straight]
     if straight:
         lines.append("    from dynid.symbolic.llvm_code import straight_line")
     for n, args in straight.items():
@@ -194,7 +218,8 @@ def _straight_arguments(body: str, names: list[str]) -> dict[str, list[str]]:
 
 
 def compile_source(body: str | None, names: list[str], key: str, prefix: str = "dynid_nb",
-                   straight: Sequence[str] = (), error_model: str = "python") -> ModuleType | None:
+                   straight: Sequence[str] = (), error_model: str = "python",
+                   internal: Sequence[str] = ()) -> ModuleType | None:
     """Import (cache.load_module: from the disk cache, or after writing it) a module HEADER + body whose
     functions `names` are jitted with numba.njit(cache=True); key: a hash of everything the body depends on
     (NOT of the text: the generator's factoring order may vary between processes), naming the module.
@@ -202,6 +227,9 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     from their LLVM IR (llvm_code: seconds less each than numba's typing of every statement, the
     same numbers). error_model: numba's ("numpy": a division by zero gives inf or NaN instead of raising, so
     Numba types and lowers no check per division; it changes the machine code, so the caller's key must hold it).
+    internal: functions only the module's jitted code calls (not Python): of `names`, or dispatchers the body
+    imports (recompiled here from their Python functions); compiled without entry points (_NO_ENTRIES), which a
+    first run would otherwise lower, optimise and emit for nothing (the key must hold the list).
 
     Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
@@ -211,7 +239,7 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     def source() -> str:
         assert body is not None
         straight_args = _straight_arguments(body, [n for n in straight if n in names])
-        return HEADER + body + _footer(names, mod_name, straight_args, error_model)
+        return HEADER + body + _footer(names, mod_name, straight_args, error_model, internal)
 
     mod_name = f"{prefix}_{key}"
     mod = load_module("numba", mod_name, key, None if body is None else source)

@@ -235,7 +235,7 @@ def kernel_module():
     module = nb.compile_source(None, [], key, prefix="dynid_simk")
     if module is None:
         module = nb.compile_source(_kernel_body(), list(K.JITTED), key, prefix="dynid_simk",
-                                   error_model=KERNEL_ERROR_MODEL)
+                                   error_model=KERNEL_ERROR_MODEL, internal=K.INTERNAL)
     build = _PREBUILD.pop(key, None)
     if build is not None:
         _run_meanwhile()
@@ -271,6 +271,16 @@ def compile_lock():
 # the longest a first run waits for the kernel's build in another process (measured: ~10 s of CPU on an idle
 # core, 20-30 s on a loaded one) before it is taken for stuck and compiled here
 WAIT_S = 300.0
+
+
+def _start_numba() -> None:
+    """Compile a trivial function first (0.2-0.3 s of CPU) in the kernel's build process: Numba installs its typing
+    registries lazily, during a process's first compile, and that compile then types each operation through many
+    more of its overload templates: the kernel's compile as a process's first resolves 19,013 overload
+    implementations, after a trivial one 995, and takes ~1 s more CPU than the two together."""
+    from numba import njit  # start-up: numba 0.5 s (imported already where a kernel is prebuilt)
+
+    njit(lambda x: x + 1.0)(1.0)
 
 
 class _Build:
@@ -374,6 +384,7 @@ def _compile_kernel(key: str) -> None:
     no step taken (nsteps 0)."""
     module = nb.compile_source(None, [], key, prefix="dynid_simk")
     if module is not None:
+        _start_numba()
         module.simulate(*_kernel_arguments(module, np.zeros(len(K.MODELS), dtype=np.int64)))
 
 
