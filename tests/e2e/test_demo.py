@@ -124,3 +124,15 @@ def test_the_config_names_the_vehicle_it_was_given(vehicle):
     assert header.startswith(f"# The simulated {load_vehicle(vehicle).name} of `dynid demo`")
     others = [load_vehicle(v).name for v in shipped_vehicles() if v != vehicle]
     assert others and not any(name in header for name in others)
+
+
+@pytest.mark.parametrize("vehicle", ["peugeot406", "compact_suv"])
+def test_the_simulated_car_carries_its_own_name(vehicle):
+    """The simulator's tree, whose name every recording's sidecar carries ("tree"), is the vehicle file's car: the
+    compact SUV's files once said "Peugeot 406 (simulated truth)"."""
+    from dynid.pipeline.demo import simulated_car
+    from dynid.vehicle.description import load_vehicle, shipped_vehicles
+
+    name = simulated_car(vehicle).tree.name
+    assert name == f"{load_vehicle(vehicle).name} (simulated truth)"
+    assert not any(load_vehicle(v).name in name for v in shipped_vehicles() if v != vehicle)

@@ -78,7 +78,7 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
         raise VehicleError(f"{v.source}: no [truth] set: a simulation needs the parameters to drive with (give "
                            "[truth], e.g. the a priori values: copy [a_priori] there)")
     return CarSimulator(v.truth, v.geometry, v.tables, v.aero, steering_ratio=v.steering_ratio,
-                        damper_knees=v.damper_knees)
+                        damper_knees=v.damper_knees, name=v.name)
 
 
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating

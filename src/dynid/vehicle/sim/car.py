@@ -107,10 +107,12 @@ class SimSettings:
 
 
 def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometry | None = None,
-             tire_damping: float = 100.0, damper_knees: Mapping[int, tuple[float, float]] | None = None) -> Tree:
+             tire_damping: float = 100.0, damper_knees: Mapping[int, tuple[float, float]] | None = None,
+             name: str = "car") -> Tree:
     """The car template with the parameter set and FV (tire damping) on the tire joints; a damper whose curve
     slopes the set gives (hbl9 ...) drives with that curve about its damper_knees (car_template), the generated
-    inverse dynamics applying it like any joint term."""
+    inverse dynamics applying it like any joint term. name: the car's (the vehicle file's), which the tree and the
+    recordings' sidecars carry."""
     if parameters is None:
         parameters = truth(geometry)
     values = dict(parameters if isinstance(parameters, dict) else parameters.values)
@@ -118,7 +120,7 @@ def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometr
     missing = sorted(curved - set(damper_knees or {}))
     if missing:
         raise ValueError(f"the parameter set gives a curve for dampers {missing}: damper_knees needs their knees")
-    tree = car_template(geometry, values, name="Peugeot 406 (simulated truth)", check_rest=False,
+    tree = car_template(geometry, values, name=f"{name} (simulated truth)", check_rest=False,
                         damper_knees={d: damper_knees[d] for d in curved} if damper_knees else None)
     terms = dict(tree.joint_terms)
     for t in TIRES:
@@ -412,6 +414,7 @@ class CarSimulator:
         settings: SimSettings | None = None,
         steering_ratio: float = STEERING_RATIO,
         damper_knees: Mapping[int, tuple[float, float]] | None = None,
+        name: str = "car",
     ) -> None:
         self.geometry = CarGeometry() if geometry is None else geometry
         self.steering_ratio = float(steering_ratio)  # the driver robot's: steering-wheel angle per wheel angle
@@ -421,7 +424,7 @@ class CarSimulator:
         self.tires = tuple(tires) if isinstance(tires, tuple) else (tires,) * 4
         self.settings = SimSettings() if settings is None else settings
         self.parameters = truth(self.geometry, self.tables) if parameters is None else parameters
-        self.tree = sim_tree(self.parameters, self.geometry, self.settings.tire_damping, damper_knees)
+        self.tree = sim_tree(self.parameters, self.geometry, self.settings.tire_damping, damper_knees, name)
         self.rest = rest_state(self.tree, self.tables)
         self.mass = sum(self.tree.values.get(f"M{j}", 0.0) for j in range(1, 43))
         self.radius = self.geometry.wheel_radius
