@@ -8,6 +8,28 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
+against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
+against 401-403), CPU 0.92 x (pairs 0.80-0.96; 25.0 s against 29.6 s), the estimate, its sigmas, covariance and the
+errors bit-equal to main's (one hash). What went: a chunk's W block is one buffer for all its blocks (19 for the
+Panda), filled by the regressor's `out` (it writes only the entries that can be non-zero, so the structural zeros
+stay): each block was a fresh zeroed 11.3 MB array (a calloc's memset, and the worker's heap grown by it). An RSS
+trace (VmRSS and glibc's mallinfo2 sampled every 5 ms in a thread) shows what the map holds: at its start 244-251
+MB, then a plateau of ~390 (main) for the whole map, not a rise and fall per chunk: glibc keeps what a chunk freed.
+Measured, one run each on main: a trim after every job (`schedulers.TRIM_EVERY = 1`) 398 (malloc_trim gives back
+the free blocks in the bins, not a thread heap's top, which glibc keeps up to its trim threshold, twice the mmap
+threshold); MALLOC_ARENA_MAX=1 395; glibc's mmap threshold set to 2 MiB (every array over it on its own pages,
+unmapped when freed) 372: the live arrays then, mmapped, are the two workers' 2 x 43 MB (tracemalloc's), the heap's
+in-use blocks ~60 MB (23 of them the Parquet block cache before the map; the plots' rows, 10 MB, the filters'
+work). One worker alone, trimmed after each job: a plateau of 330 over 244 at the start, 307 right after a trim.
+What one chunk holds at its peak (tracemalloc, 55,700 samples, 66,664 read): the window's q and tau 7.1 MB, the
+filtered q, qd, qdd 10.7 (with the filter's work 3.6), W1 9.5, the W block 11.3, the column blocks' work ~3.5:
+43.4 MB. Against the chunk's length: 43.4, 31.5, 25.6, 22.7 MB at 55,700, 27,800, 13,900 and 6,900 samples, and
+the thread CPU per chunk 0.36, 0.25, 0.13, 0.085 s: each chunk computes W and its decimation on 9,800 more samples
+(the decimation's transient, 4,900 a side) and filters 10,964 more, so half the length costs ~+20 % of the map's
+CPU. cProfile of 6 chunks (4.9 s): the first decimation stage 2.75 s (its filter kernel 1.4, NumPy's column
+gathers and copies around it ~1.0), the regressor's kernel 0.7, the Parquet reads 0.16.
+
 Measured 2026-11-28 (20:11-20:15 UTC, load average ~1.5 on the 2 cores: two other sessions): peak 408.5 MiB
 against main's 483.2 at 95b12f4 (farm-bench, 4 runs each alternated A B A B after a warm-up each, medians; 401-411
 against 482-485), CPU 0.89 x (pairs 0.84-0.96; 41.6 s against 46.6 s), the estimate, its sigmas, covariance and the

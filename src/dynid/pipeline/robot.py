@@ -17,7 +17,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
-from ..signals.decimation import decimate_parallel_blocked
+from ..signals.decimation import blocked_rows, decimate_parallel_blocked
 
 Array = np.ndarray
 
@@ -221,11 +221,18 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
     o = lo - first
     eq, cols = np.array(rows) - 1, list(base.columns)
+    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
+    block_samples = BLOCK_BYTES // row_bytes
+    # one W block for all the chunk's blocks: the regressor writes only its entries that can be non-zero, so the
+    # structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of BLOCK_BYTES
+    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
+    buffer = np.zeros((most, len(rows), len(cols)))
 
     def block(a: int, z: int) -> tuple[Array, Array]:
         """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
         w = slice(o + a, o + z)
-        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols)
+        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols,
+                            out=buffer[: z - a])
         Y = tau[w][:, eq]
         if payload is not None:
             j, Xp = payload
@@ -234,9 +241,8 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
             W = np.concatenate([W, gains[w][:, eq, :]], axis=2)
         return W, Y
 
-    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=BLOCK_BYTES // row_bytes)
+                                       block_samples=block_samples)
     w = slice(lo - first, hi - first)
     speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
