@@ -8,6 +8,19 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions): peak 373.8 MiB against
+main's 402.0 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 372.6-376.8
+against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against 35.1 s). What went: a chunk's length is set by
+what a worker holds for it (`robot.CHUNK_BYTES`, 20 MiB, over `chunk_sample_bytes`: the window's q and tau, the
+filtered q, qd, qdd, and W1 at every column, 528 bytes a sample for the Panda), no longer by a full-rate W it never
+holds whole (`SEGMENT_BYTES`, 128 MiB: 55,700 samples): 39,700 samples, 91 chunks instead of 65. The chunks'
+boundaries moved, so the bits did: against main's, the estimate to 2.0e-11 relative (1.6e-15 of the largest value),
+the sigmas to 4.0e-12, the covariance to 8e-12 of its largest entry (3.1e-10 relative, an entry near zero), the
+validation errors to 1.8e-11 relative: round-off, amplified by this noiseless log's residual (9e-6 of the torques:
+a change of 1e-16 in the rows is ~1e-11 of the residual); other lengths give the same (96 MiB-equivalent
+chunks: 4.4e-12, 8.8e-12, 1.0e-11). The TX40 example's estimate, sigmas, covariance and errors are bit-equal to
+main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at 39,700.
+
 Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
 against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
 against 401-403), CPU 0.92 x (pairs 0.80-0.96; 25.0 s against 29.6 s), the estimate, its sigmas, covariance and the

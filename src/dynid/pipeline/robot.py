@@ -186,13 +186,28 @@ def joint_system(
     return GroupedSystem.stack(parts)
 
 
+# a worker's arrays that grow with its chunk's length, per chunk: the chunk's length is what keeps them under this
+# (`chunk_sample_bytes`); beside them it holds one W block (`BLOCK_BYTES`) and the pads' samples (`chunk_pad`).
+# Shorter chunks cost CPU: each computes W and its decimation on the decimation's transient around it (9,800 samples
+# for the Panda arm at 1 kHz, decimate = [10, 10]) and filters a bit more: 20 MiB is 40,200 samples of the Panda's
+# (its full-rate W, 128 MiB, set 55,700 before W was built a block at a time)
+CHUNK_BYTES = 20 * 2**20
+
+
+def chunk_sample_bytes(model: Model, base: BaseParameters, c: Conditioning) -> int:
+    """Bytes a worker holds per sample of its chunk (`chunk_rows`): the window's q and tau and the filtered q, qd,
+    qdd (the model's frames each), and W1, the first decimation stage's output of W (every column: a bound)."""
+    return 8 * (5 * model.n + -(-len(model.tree.equations) * len(base.columns) // c.decimate[0]))
+
+
 def robot_chunks(n_samples: int, fs: float, model: Model, base: BaseParameters, c: Conditioning,
-                 segment_bytes: int | None = None) -> tuple[tuple[int, int], ...]:
+                 chunk_bytes: int | None = None) -> tuple[tuple[int, int], ...]:
     """The kept samples of a test of n_samples (its filter borders trimmed) cut into chunks, each a multiple of the
-    whole decimation factor long and its full-rate W under `segment_bytes`: one job each (`chunk_rows`)."""
+    whole decimation factor long, what a worker holds for its samples under `chunk_bytes` (`CHUNK_BYTES`,
+    `chunk_sample_bytes`): one job each (`chunk_rows`)."""
     b = _border(fs, c)
     D = int(np.prod(c.decimate))
-    length = max(D, (segment_bytes or SEGMENT_BYTES) // (8 * model.n * len(base.columns)) // D * D)
+    length = max(D, (chunk_bytes or CHUNK_BYTES) // chunk_sample_bytes(model, base, c) // D * D)
     return tuple((s, min(n_samples - b, s + length)) for s in range(b, n_samples - b, length))
 
 
