@@ -19,7 +19,16 @@ the sigmas to 4.0e-12, the covariance to 8e-12 of its largest entry (3.1e-10 rel
 validation errors to 1.8e-11 relative: round-off, amplified by this noiseless log's residual (9e-6 of the torques:
 a change of 1e-16 in the rows is ~1e-11 of the residual); other lengths give the same (96 MiB-equivalent
 chunks: 4.4e-12, 8.8e-12, 1.0e-11). The TX40 example's estimate, sigmas, covariance and errors are bit-equal to
-main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at 39,700.
+main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at 39,700. CHUNK_BYTES = 16 MiB (31,700
+samples, 114 chunks), farm-bench against main as above (04:35-04:46 UTC, load 6-9): peak 366.3 MiB against 402.6
+(365.8-369.0 against 399.0-406.0), CPU 1.054 x (pairs 0.97-1.14): -7.5 MB for ~+8 % of CPU against 20 MiB's, at
+the 5 % bound; not taken. Tried and left (two runs each, trace): the W block one buffer per worker thread, reused
+across its chunks (`threading.local`): 371.7 and 371.5 against 373.3 and 372.3 with one per chunk, noise; W1 and the
+W block on pages of their own (an allocation over glibc's 32 MiB mmap threshold, unmapped when freed): 412, worse
+(freeing it raises glibc's trim threshold to 64 MiB, and the thread heaps keep more); glibc's trim threshold 4 or
+16 MiB with the mmap threshold at 32 MiB (mallopt): 386.6 and 386.9 against 387 (not the heap's top, then: its
+in-use blocks, 100-150 MB through the map, and the fragments between them). A thread's `np.any(W2 != 0)` as
+`W2.any(0)`: the same 0.55 ms a block.
 
 Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
 against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
