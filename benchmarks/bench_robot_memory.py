@@ -8,6 +8,19 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Not met (2026-11-29): 300 MB is ~75 MB away. The floor now (RSS traces of this tree, load 5-11): 125 MB after the
+imports, 243-249 at the map's start, 263-271 inside the data-health check (before the map), then the map's plateau,
+~370: per worker 37.9 MB of NumPy's at a chunk's peak (tracemalloc; 39,700 samples, 50,664 read: the window's q and
+tau 5.4, the filtered q, qd, qdd 8.1, the W block 11.5, W1 ~7.5, the filters' work ~3.5; 43.4 at 55,700), the plots'
+rows ~10 MB, and glibc's heaps (their in-use blocks and the fragments between them: a trim after every job, a
+lower trim threshold or one arena give back <= 20 MB). The levers left, measured: the chunk's length (each 1k
+samples ~0.5 MB of a worker's NumPy, and ~1 % of the map's CPU per 1k fewer near 40k: the 9,800-sample pad), the W block
+(`BLOCK_BYTES`; its first-stage overlap, 1,434 of its 4,914 rows, computed and filtered twice: a smaller block costs
+CPU that way, and a W block's overlap rows copied from the block before would save the regressor's share, ~4 % of a
+chunk), the column gathers of the first stage (W2[:, cols] and its copy, 2.4 of 17.8 ms a block, ~13 % of a chunk:
+a filter kernel reading W's columns in place would pay for shorter chunks), the second stage streamed (W1 whole per
+chunk), the Parquet block cache (24 MB) and the plots' rows (PLOT_BYTES) in the floor.
+
 Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions): peak 373.8 MiB against
 main's 402.0 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 372.6-376.8
 against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against 35.1 s). What went: a chunk's length is set by
@@ -27,8 +40,8 @@ across its chunks (`threading.local`): 371.7 and 371.5 against 373.3 and 372.3 w
 W block on pages of their own (an allocation over glibc's 32 MiB mmap threshold, unmapped when freed): 412, worse
 (freeing it raises glibc's trim threshold to 64 MiB, and the thread heaps keep more); glibc's trim threshold 4 or
 16 MiB with the mmap threshold at 32 MiB (mallopt): 386.6 and 386.9 against 387 (not the heap's top, then: its
-in-use blocks, 100-150 MB through the map, and the fragments between them). A thread's `np.any(W2 != 0)` as
-`W2.any(0)`: the same 0.55 ms a block.
+in-use blocks, 100-150 MB through the map, and the fragments between them). The blocks' live-column search
+`np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a block.
 
 Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
 against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
@@ -120,32 +133,30 @@ workers' high water inside their chunks (~85 MB each over the 290 MB before the 
 filtering, one block of W with the filter's work, W1); a worker's arrays allocated once and reused would be the
 design lever, not tried.
 
-Not met: 300 MB is ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125 MB after
-the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224, 284 after
-the first compiled call (numba's registries, 40 of it measured alone), then the map: ~85-115 MB a worker over that at
-the peak (the window's samples, their filtering, one block of W and the filter's work, W1), 463-518 MB in all
-depending on how the two workers' chunks overlap. Before 2026-11-28: 300 MB was ~175 MB away. The floor before the
-clock went (at 07e3a6a), measured as resident-set steps with
-one worker (peak 439 MB): 149 MB of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and
-spatial: the vehicle modules that pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then
-the plan +94 (pyarrow 30 on the first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the
-file's own stamps when uniform, so not a formula; the rest the plan pass's heap), the data-health check +82 (Numba's
-code generator 47 on the first compiled call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24
-MB, constant in the log's length), so 318 MB before the first chunk. The map then adds ~60 MB per worker (its
-chunk's samples read and filtered, one 8 MiB block of W with its transient, the first decimation stage's output for
-the chunk, 16 MB: all set by SEGMENT_BYTES and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB
-chunks -31 MB, +30 % CPU, the 5.5 k-sample decimation transient read around each chunk) and the plots' rows
-(`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the scipy.stats it imports, 20) comes after the map (the physical
-check of the estimate, a function-level import in `estimation.physical`): not in the peak. glibc's thresholds
-(MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take 45-70 MB off at 1.8 x the CPU. Per worker, traced
-(tracemalloc, one chunk of 55,700 samples): 65 MB at its peak: the window's q and tau 7, the filtered q, qd, qdd
-10.7, the first stage's output W1 15.7 (only 190 of its 7 x 43 columns are not structurally zero: 5.8 MB of it
-zeros), one block of W 11.3 and the filter's work 13; the rest of the map's ~215 MB over the base is not traced:
-glibc's free blocks (the two threads' arenas: one arena took 22 MB off) and the plots' rows. The levers left:
-scipy.interpolate out of a robot's imports (signals.resampling and the vehicle package), W1 without its zero
-columns, streaming the second decimation stage (changes the bits at 1e-15: the overlaps), Numba's code generator on
-a robot's path.
-"""
+Before 2026-11-29: 300 MB was ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125
+MB after the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224,
+284 after the first compiled call (numba's registries, 40 of it measured alone), then the map: ~85-115 MB a worker
+over that at the peak (the window's samples, their filtering, one block of W and the filter's work, W1), 463-518 MB
+in all depending on how the two workers' chunks overlap. Before 2026-11-28: 300 MB was ~175 MB away. The floor
+before the clock went (at 07e3a6a), measured as resident-set steps with one worker (peak 439 MB): 149 MB of imports
+(NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and spatial: the vehicle modules that pipeline.run
+and report.build import at the top load it, Numba 53, dynid 16), then the plan +94 (pyarrow 30 on the first read,
+the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the file's own stamps when uniform, so not a
+formula; the rest the plan pass's heap), the data-health check +82 (Numba's code generator 47 on the first compiled
+call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24 MB, constant in the log's length), so
+318 MB before the first chunk. The map then adds ~60 MB per worker (its chunk's samples read and filtered, one 8 MiB
+block of W with its transient, the first decimation stage's output for the chunk, 16 MB: all set by SEGMENT_BYTES
+and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB chunks -31 MB, +30 % CPU, the 5.5 k-sample
+decimation transient read around each chunk) and the plots' rows (`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the
+scipy.stats it imports, 20) comes after the map (the physical check of the estimate, a function-level import in
+`estimation.physical`): not in the peak. glibc's thresholds (MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take
+45-70 MB off at 1.8 x the CPU. Per worker, traced (tracemalloc, one chunk of 55,700 samples): 65 MB at its peak: the
+window's q and tau 7, the filtered q, qd, qdd 10.7, the first stage's output W1 15.7 (only 190 of its 7 x 43 columns
+are not structurally zero: 5.8 MB of it zeros), one block of W 11.3 and the filter's work 13; the rest of the map's
+~215 MB over the base is not traced: glibc's free blocks (the two threads' arenas: one arena took 22 MB off) and the
+plots' rows. The levers left: scipy.interpolate out of a robot's imports (signals.resampling and the vehicle
+package), W1 without its zero columns, streaming the second decimation stage (changes the bits at 1e-15: the
+overlaps), Numba's code generator on a robot's path. """
 
 from __future__ import annotations
 
