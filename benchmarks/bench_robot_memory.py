@@ -41,7 +41,12 @@ W block on pages of their own (an allocation over glibc's 32 MiB mmap threshold,
 (freeing it raises glibc's trim threshold to 64 MiB, and the thread heaps keep more); glibc's trim threshold 4 or
 16 MiB with the mmap threshold at 32 MiB (mallopt): 386.6 and 386.9 against 387 (not the heap's top, then: its
 in-use blocks, 100-150 MB through the map, and the fragments between them). The blocks' live-column search
-`np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a block.
+`np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a block. The first stage's filter kernel reading the
+column block's columns from W where they are (a compiled `a[i, cols[c]]` into its work array, no `a[:, cols]`):
+bit-equal (the same hash), the first stage's filtering of a 4,914 x 301 block 7.9-15.8 ms against 11.5-13.9 (min
+of 40, three tries, load ~3.5: not settled), and with CHUNK_BYTES = 16 MiB, farm-bench against main (04:53-05:05
+UTC, load 3.4-10): peak 370.0 MiB against 406.5 (367.2-378.4 against 405.7-411.9), CPU 1.00 x (pairs 0.78-1.16):
+no clear gain over 20 MiB without it (373.8, 0.97 x), and one more compiled kernel to load; not kept.
 
 Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
 against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
