@@ -8,10 +8,23 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
-Not met (2026-11-29): 300 MB is ~75 MB away. The floor now (RSS traces of this tree, load 5-11): 125 MB after the
+Measured 2026-11-29 (05:21-05:25 UTC, load 0.7-2, quieter than the runs below): this tree, CHUNK_BYTES = 28 MiB
+(55,600 samples, 65 chunks, ~ as before), against b872084 (farm-bench, 4 runs each alternated A B A B after a
+warm-up each, medians): peak 388.9 MiB against 407.7 (388.1-390.9 against 402.3-412.1), CPU 0.971 x (pairs
+0.90-1.10); the estimate against b872084's to 1.5e-11 relative (1.9e-15 of the largest value), the sigmas 4.8e-12,
+the covariance 9.6e-12 of its largest entry, the validation errors 1.1e-11 (the chunks' ends moved by 100 samples:
+round-off, as below); the TX40 example bit-equal (its 45,000 samples one chunk). What went: the W block buffer
+(below). CHUNK_BYTES = 20 MiB (39,700 samples, 91 chunks), the same way (05:14-05:21 UTC, load 0.7-4): peak 373.7
+MiB against 405.5 (369.3-375.8 against 401.4-408.9), CPU 1.126 x (pairs 0.91-1.23), and against main at 05:09-05:13
+(load ~4): 374.6 against 405.2, 1.125 x (1.03-1.25): over the 5 % bound, so not the default; the 0.97 x measured
+for it below was the load's noise. The chunk's length is still set by what a worker holds for it (`CHUNK_BYTES` over
+`chunk_sample_bytes`), the budget to lower where memory matters more than CPU (between 55,600 and 39,700 samples:
+~-1 MB of the peak and ~+1 % of the CPU per 1k samples fewer).
+
+Not met (2026-11-29): 300 MB is ~90 MB away. The floor now (RSS traces of this tree, load 5-11): 125 MB after the
 imports, 243-249 at the map's start, 263-271 inside the data-health check (before the map), then the map's plateau,
-~370: per worker 37.9 MB of NumPy's at a chunk's peak (tracemalloc; 39,700 samples, 50,664 read: the window's q and
-tau 5.4, the filtered q, qd, qdd 8.1, the W block 11.5, W1 ~7.5, the filters' work ~3.5; 43.4 at 55,700), the plots'
+~385: per worker 43-45 MB of NumPy's at a chunk's peak (tracemalloc; at 39,700 samples, 50,664 read, 37.9: the
+window's q and tau 5.4, the filtered q, qd, qdd 8.1, the W block 11.5, W1 ~7.5, the filters' work ~3.5), the plots'
 rows ~10 MB, and glibc's heaps (their in-use blocks and the fragments between them: a trim after every job, a
 lower trim threshold or one arena give back <= 20 MB). The levers left, measured: the chunk's length (each 1k
 samples ~0.5 MB of a worker's NumPy, and ~1 % of the map's CPU per 1k fewer near 40k: the 9,800-sample pad), the W block
@@ -21,7 +34,8 @@ chunk), the column gathers of the first stage (W2[:, cols] and its copy, 2.4 of 
 a filter kernel reading W's columns in place would pay for shorter chunks), the second stage streamed (W1 whole per
 chunk), the Parquet block cache (24 MB) and the plots' rows (PLOT_BYTES) in the floor.
 
-Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions): peak 373.8 MiB against
+Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions; CHUNK_BYTES then 20 MiB,
+28 MiB since: see above): peak 373.8 MiB against
 main's 402.0 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 372.6-376.8
 against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against 35.1 s). What went: a chunk's length is set by
 what a worker holds for it (`robot.CHUNK_BYTES`, 20 MiB, over `chunk_sample_bytes`: the window's q and tau, the

@@ -189,9 +189,10 @@ def joint_system(
 # a worker's arrays that grow with its chunk's length, per chunk: the chunk's length is what keeps them under this
 # (`chunk_sample_bytes`); beside them it holds one W block (`BLOCK_BYTES`) and the pads' samples (`chunk_pad`).
 # Shorter chunks cost CPU: each computes W and its decimation on the decimation's transient around it (9,800 samples
-# for the Panda arm at 1 kHz, decimate = [10, 10]) and filters a bit more: 20 MiB is 39,700 samples of the Panda's
-# (its full-rate W, 128 MiB, set 55,700 before W was built a block at a time)
-CHUNK_BYTES = 20 * 2**20
+# for the Panda arm at 1 kHz, decimate = [10, 10]) and filters a bit more: 28 MiB is 55,600 samples of the Panda's,
+# as its full-rate W's 128 MiB set before W was built a block at a time; 20 MiB (39,700) took ~30 MB off the peak of
+# benchmarks/bench_robot_memory.py at +12 % of its CPU
+CHUNK_BYTES = 28 * 2**20
 
 
 def chunk_sample_bytes(model: Model, base: BaseParameters, c: Conditioning) -> int:
