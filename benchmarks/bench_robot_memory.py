@@ -8,6 +8,82 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (05:21-05:25 UTC, load 0.7-2, quieter than the runs below): this tree, CHUNK_BYTES = 28 MiB
+(55,600 samples, 65 chunks, ~ as before), against b872084 (farm-bench, 4 runs each alternated A B A B after a
+warm-up each, medians): peak 388.9 MiB against 407.7 (388.1-390.9 against 402.3-412.1), CPU 0.971 x (pairs
+0.90-1.10); the estimate against b872084's to 1.5e-11 relative (1.9e-15 of the largest value), the sigmas 4.8e-12,
+the covariance 9.6e-12 of its largest entry, the validation errors 1.1e-11 (the chunks' ends moved by 100 samples:
+round-off, as below); the TX40 example bit-equal (its 45,000 samples one chunk). What went: the W block buffer
+(below). CHUNK_BYTES = 20 MiB (39,700 samples, 91 chunks), the same way (05:14-05:21 UTC, load 0.7-4): peak 373.7
+MiB against 405.5 (369.3-375.8 against 401.4-408.9), CPU 1.126 x (pairs 0.91-1.23), and against main at 05:09-05:13
+(load ~4): 374.6 against 405.2, 1.125 x (1.03-1.25): over the 5 % bound, so not the default; the 0.97 x measured
+for it below was the load's noise. The chunk's length is still set by what a worker holds for it (`CHUNK_BYTES` over
+`chunk_sample_bytes`), the budget to lower where memory matters more than CPU (between 55,600 and 39,700 samples:
+~-1 MB of the peak and ~+1 % of the CPU per 1k samples fewer).
+
+Not met (2026-11-29): 300 MB is ~90 MB away. The floor now (RSS traces of this tree, load 5-11): 125 MB after the
+imports, 243-249 at the map's start, 263-271 inside the data-health check (before the map), then the map's plateau,
+~385: per worker 43-45 MB of NumPy's at a chunk's peak (tracemalloc; at 39,700 samples, 50,664 read, 37.9: the
+window's q and tau 5.4, the filtered q, qd, qdd 8.1, the W block 11.5, W1 ~7.5, the filters' work ~3.5), the plots'
+rows ~10 MB, and glibc's heaps (their in-use blocks and the fragments between them: a trim after every job, a
+lower trim threshold or one arena give back <= 20 MB). The levers left, measured: the chunk's length (each 1k
+samples ~0.5 MB of a worker's NumPy, and ~1 % of the map's CPU per 1k fewer near 40k: the 9,800-sample pad), the W block
+(`BLOCK_BYTES`; its first-stage overlap, 1,434 of its 4,914 rows, computed and filtered twice: a smaller block costs
+CPU that way, and a W block's overlap rows copied from the block before would save the regressor's share, ~4 % of a
+chunk), the column gathers of the first stage (W2[:, cols] and its copy, 2.4 of 17.8 ms a block, ~13 % of a chunk:
+a filter kernel reading W's columns in place would pay for shorter chunks), the second stage streamed (W1 whole per
+chunk), the Parquet block cache (24 MB) and the plots' rows (PLOT_BYTES) in the floor.
+
+Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions; CHUNK_BYTES then 20 MiB,
+28 MiB since: see above): peak 373.8 MiB against
+main's 402.0 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 372.6-376.8
+against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against 35.1 s). What went: a chunk's length is set by
+what a worker holds for it (`robot.CHUNK_BYTES`, 20 MiB, over `chunk_sample_bytes`: the window's q and tau, the
+filtered q, qd, qdd, and W1 at every column, 528 bytes a sample for the Panda), no longer by a full-rate W it never
+holds whole (`SEGMENT_BYTES`, 128 MiB: 55,700 samples): 39,700 samples, 91 chunks instead of 65. The chunks'
+boundaries moved, so the bits did: against main's, the estimate to 2.0e-11 relative (1.6e-15 of the largest value),
+the sigmas to 4.0e-12, the covariance to 8e-12 of its largest entry (3.1e-10 relative, an entry near zero), the
+validation errors to 1.8e-11 relative: round-off, amplified by this noiseless log's residual (9e-6 of the torques:
+a change of 1e-16 in the rows is ~1e-11 of the residual); other lengths give the same (96 MiB-equivalent
+chunks: 4.4e-12, 8.8e-12, 1.0e-11). The TX40 example's estimate, sigmas, covariance and errors are bit-equal to
+main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at 39,700. CHUNK_BYTES = 16 MiB (31,700
+samples, 114 chunks), farm-bench against main as above (04:35-04:46 UTC, load 6-9): peak 366.3 MiB against 402.6
+(365.8-369.0 against 399.0-406.0), CPU 1.054 x (pairs 0.97-1.14): -7.5 MB for ~+8 % of CPU against 20 MiB's, at
+the 5 % bound; not taken. Tried and left (two runs each, trace): the W block one buffer per worker thread, reused
+across its chunks (`threading.local`): 371.7 and 371.5 against 373.3 and 372.3 with one per chunk, noise; W1 and the
+W block on pages of their own (an allocation over glibc's 32 MiB mmap threshold, unmapped when freed): 412, worse
+(freeing it raises glibc's trim threshold to 64 MiB, and the thread heaps keep more); glibc's trim threshold 4 or
+16 MiB with the mmap threshold at 32 MiB (mallopt): 386.6 and 386.9 against 387 (not the heap's top, then: its
+in-use blocks, 100-150 MB through the map, and the fragments between them). The blocks' live-column search
+`np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a block. The first stage's filter kernel reading the
+column block's columns from W where they are (a compiled `a[i, cols[c]]` into its work array, no `a[:, cols]`):
+bit-equal (the same hash), the first stage's filtering of a 4,914 x 301 block 7.9-15.8 ms against 11.5-13.9 (min
+of 40, three tries, load ~3.5: not settled), and with CHUNK_BYTES = 16 MiB, farm-bench against main (04:53-05:05
+UTC, load 3.4-10): peak 370.0 MiB against 406.5 (367.2-378.4 against 405.7-411.9), CPU 1.00 x (pairs 0.78-1.16):
+no clear gain over 20 MiB without it (373.8, 0.97 x), and one more compiled kernel to load; not kept.
+
+Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
+against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
+against 401-403), CPU 0.92 x (pairs 0.80-0.96; 25.0 s against 29.6 s), the estimate, its sigmas, covariance and the
+errors bit-equal to main's (one hash). What went: a chunk's W block is one buffer for all its blocks (19 for the
+Panda), filled by the regressor's `out` (it writes only the entries that can be non-zero, so the structural zeros
+stay): each block was a fresh zeroed 11.3 MB array (a calloc's memset, and the worker's heap grown by it). An RSS
+trace (VmRSS and glibc's mallinfo2 sampled every 5 ms in a thread) shows what the map holds: at its start 244-251
+MB, then a plateau of ~390 (main) for the whole map, not a rise and fall per chunk: glibc keeps what a chunk freed.
+Measured, one run each on main: a trim after every job (`schedulers.TRIM_EVERY = 1`) 398 (malloc_trim gives back
+the free blocks in the bins, not a thread heap's top, which glibc keeps up to its trim threshold, twice the mmap
+threshold); MALLOC_ARENA_MAX=1 395; glibc's mmap threshold set to 2 MiB (every array over it on its own pages,
+unmapped when freed) 372: the live arrays then, mmapped, are the two workers' 2 x 43 MB (tracemalloc's), the heap's
+in-use blocks ~60 MB (23 of them the Parquet block cache before the map; the plots' rows, 10 MB, the filters'
+work). One worker alone, trimmed after each job: a plateau of 330 over 244 at the start, 307 right after a trim.
+What one chunk holds at its peak (tracemalloc, 55,700 samples, 66,664 read): the window's q and tau 7.1 MB, the
+filtered q, qd, qdd 10.7 (with the filter's work 3.6), W1 9.5, the W block 11.3, the column blocks' work ~3.5:
+43.4 MB. Against the chunk's length: 43.4, 31.5, 25.6, 22.7 MB at 55,700, 27,800, 13,900 and 6,900 samples, and
+the thread CPU per chunk 0.36, 0.25, 0.13, 0.085 s: each chunk computes W and its decimation on 9,800 more samples
+(the decimation's transient, 4,900 a side) and filters 10,964 more, so half the length costs ~+20 % of the map's
+CPU. cProfile of 6 chunks (4.9 s): the first decimation stage 2.75 s (its filter kernel 1.4, NumPy's column
+gathers and copies around it ~1.0), the regressor's kernel 0.7, the Parquet reads 0.16.
+
 Measured 2026-11-28 (20:11-20:15 UTC, load average ~1.5 on the 2 cores: two other sessions): peak 408.5 MiB
 against main's 483.2 at 95b12f4 (farm-bench, 4 runs each alternated A B A B after a warm-up each, medians; 401-411
 against 482-485), CPU 0.89 x (pairs 0.84-0.96; 41.6 s against 46.6 s), the estimate, its sigmas, covariance and the
@@ -76,32 +152,30 @@ workers' high water inside their chunks (~85 MB each over the 290 MB before the 
 filtering, one block of W with the filter's work, W1); a worker's arrays allocated once and reused would be the
 design lever, not tried.
 
-Not met: 300 MB is ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125 MB after
-the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224, 284 after
-the first compiled call (numba's registries, 40 of it measured alone), then the map: ~85-115 MB a worker over that at
-the peak (the window's samples, their filtering, one block of W and the filter's work, W1), 463-518 MB in all
-depending on how the two workers' chunks overlap. Before 2026-11-28: 300 MB was ~175 MB away. The floor before the
-clock went (at 07e3a6a), measured as resident-set steps with
-one worker (peak 439 MB): 149 MB of imports (NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and
-spatial: the vehicle modules that pipeline.run and report.build import at the top load it, Numba 53, dynid 16), then
-the plan +94 (pyarrow 30 on the first read, the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the
-file's own stamps when uniform, so not a formula; the rest the plan pass's heap), the data-health check +82 (Numba's
-code generator 47 on the first compiled call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24
-MB, constant in the log's length), so 318 MB before the first chunk. The map then adds ~60 MB per worker (its
-chunk's samples read and filtered, one 8 MiB block of W with its transient, the first decimation stage's output for
-the chunk, 16 MB: all set by SEGMENT_BYTES and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB
-chunks -31 MB, +30 % CPU, the 5.5 k-sample decimation transient read around each chunk) and the plots' rows
-(`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the scipy.stats it imports, 20) comes after the map (the physical
-check of the estimate, a function-level import in `estimation.physical`): not in the peak. glibc's thresholds
-(MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take 45-70 MB off at 1.8 x the CPU. Per worker, traced
-(tracemalloc, one chunk of 55,700 samples): 65 MB at its peak: the window's q and tau 7, the filtered q, qd, qdd
-10.7, the first stage's output W1 15.7 (only 190 of its 7 x 43 columns are not structurally zero: 5.8 MB of it
-zeros), one block of W 11.3 and the filter's work 13; the rest of the map's ~215 MB over the base is not traced:
-glibc's free blocks (the two threads' arenas: one arena took 22 MB off) and the plots' rows. The levers left:
-scipy.interpolate out of a robot's imports (signals.resampling and the vehicle package), W1 without its zero
-columns, streaming the second decimation stage (changes the bits at 1e-15: the overlaps), Numba's code generator on
-a robot's path.
-"""
+Before 2026-11-29: 300 MB was ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125
+MB after the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224,
+284 after the first compiled call (numba's registries, 40 of it measured alone), then the map: ~85-115 MB a worker
+over that at the peak (the window's samples, their filtering, one block of W and the filter's work, W1), 463-518 MB
+in all depending on how the two workers' chunks overlap. Before 2026-11-28: 300 MB was ~175 MB away. The floor
+before the clock went (at 07e3a6a), measured as resident-set steps with one worker (peak 439 MB): 149 MB of imports
+(NumPy 27, scipy.linalg 28, scipy.interpolate 23 with optimize and spatial: the vehicle modules that pipeline.run
+and report.build import at the top load it, Numba 53, dynid 16), then the plan +94 (pyarrow 30 on the first read,
+the clock 29: 3.6 M stamps held whole by `sources.RobotTestPlan`, the file's own stamps when uniform, so not a
+formula; the rest the plan pass's heap), the data-health check +82 (Numba's code generator 47 on the first compiled
+call, the Parquet block cache 3 row groups of 65,536 rows x 15 columns = 24 MB, constant in the log's length), so
+318 MB before the first chunk. The map then adds ~60 MB per worker (its chunk's samples read and filtered, one 8 MiB
+block of W with its transient, the first decimation stage's output for the chunk, 16 MB: all set by SEGMENT_BYTES
+and BLOCK_BYTES, not by the log's length; smaller chunks cost CPU: 32 MiB chunks -31 MB, +30 % CPU, the 5.5 k-sample
+decimation transient read around each chunk) and the plots' rows (`run.PLOT_BYTES`, ~10 MB). cvxpy (17 MB, and the
+scipy.stats it imports, 20) comes after the map (the physical check of the estimate, a function-level import in
+`estimation.physical`): not in the peak. glibc's thresholds (MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_) take
+45-70 MB off at 1.8 x the CPU. Per worker, traced (tracemalloc, one chunk of 55,700 samples): 65 MB at its peak: the
+window's q and tau 7, the filtered q, qd, qdd 10.7, the first stage's output W1 15.7 (only 190 of its 7 x 43 columns
+are not structurally zero: 5.8 MB of it zeros), one block of W 11.3 and the filter's work 13; the rest of the map's
+~215 MB over the base is not traced: glibc's free blocks (the two threads' arenas: one arena took 22 MB off) and the
+plots' rows. The levers left: scipy.interpolate out of a robot's imports (signals.resampling and the vehicle
+package), W1 without its zero columns, streaming the second decimation stage (changes the bits at 1e-15: the
+overlaps), Numba's code generator on a robot's path. """
 
 from __future__ import annotations
 

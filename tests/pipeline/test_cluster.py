@@ -197,7 +197,7 @@ def test_a_robot_on_the_cluster_gives_the_threads_result(cluster, tmp_path, monk
 
     from dynid.pipeline import robot
 
-    monkeypatch.setattr(robot, "SEGMENT_BYTES", 8 * 2**20)  # several chunks (the client cuts them)
+    monkeypatch.setattr(robot, "CHUNK_BYTES", 2**20)  # several chunks (the client cuts them)
     cfg = load_config(robot_log(tmp_path))
     threads = identify(cfg, scheduler=LocalScheduler(2))
     other = identify(cfg, scheduler=cluster)

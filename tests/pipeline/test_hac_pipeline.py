@@ -30,7 +30,7 @@ sm = pytest.importorskip("statsmodels.api")
 def runs(tx40_data):
     cfg = load_config(CONFIG)
     mp = pytest.MonkeyPatch()
-    mp.setattr(robot_module, "SEGMENT_BYTES", 2 * 2**20)  # ~17 chunks of the 5 kHz test instead of one
+    mp.setattr(robot_module, "CHUNK_BYTES", 2**19)  # ~50 chunks of the 5 kHz test instead of a few
     try:
         return identify(cfg), identify(dataclasses.replace(cfg, covariance=Covariance(CovType.HAC, 4)))
     finally:

@@ -109,7 +109,8 @@ def test_rows_read_a_chunk_at_a_time_from_the_file_equal_the_whole_records(tmp_p
     base = model.base_parameters()
     whole = joint_system(model, load_joint_test(cfg, cfg.tests[0], model.n), base, cfg.conditioning,
                          segment_bytes=2**40)
-    monkeypatch.setattr(robot, "SEGMENT_BYTES", 2**20)  # 300-sample chunks
+    chunk = 300 * robot.chunk_sample_bytes(model, base, cfg.conditioning)  # 300-sample chunks
+    monkeypatch.setattr(robot, "CHUNK_BYTES", chunk)
     said: list[str] = []
     parts = robot_systems(cfg, model, base, LocalScheduler(2), said.append, all_rows=True)["identify"].rows["sines"]
     chunks = robot.robot_chunks(30000, FS, model, base, cfg.conditioning)
@@ -134,7 +135,7 @@ def test_a_bad_sample_deep_in_a_chunked_file_is_named_by_the_tests_sample(tmp_pa
     bad[25000] = np.nan
     chans["q3"] = Channel("q3", "rad", bad, chans["q3"].time)
     write_recording(Recording.from_channels(list(chans.values())), tmp_path / "sines.parquet")
-    monkeypatch.setattr(robot, "SEGMENT_BYTES", 2**20)  # sample 25000 is in one of the last chunks
+    monkeypatch.setattr(robot, "CHUNK_BYTES", 300 * 528)  # 300-sample chunks of the TX40's: 25000 is in a late one
     with pytest.raises(DataError) as exc:
         identify(load_config(cfg))
     assert "channel 'q3', sample 25000 (t = 25 s): value is nan" in str(exc.value), str(exc.value)

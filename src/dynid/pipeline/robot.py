@@ -17,7 +17,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, filtered_derivatives
-from ..signals.decimation import decimate_parallel_blocked
+from ..signals.decimation import blocked_rows, decimate_parallel_blocked
 
 Array = np.ndarray
 
@@ -186,13 +186,29 @@ def joint_system(
     return GroupedSystem.stack(parts)
 
 
+# a worker's arrays that grow with its chunk's length, per chunk: the chunk's length is what keeps them under this
+# (`chunk_sample_bytes`); beside them it holds one W block (`BLOCK_BYTES`) and the pads' samples (`chunk_pad`).
+# Shorter chunks cost CPU: each computes W and its decimation on the decimation's transient around it (9,800 samples
+# for the Panda arm at 1 kHz, decimate = [10, 10]) and filters a bit more: 28 MiB is 55,600 samples of the Panda's,
+# as its full-rate W's 128 MiB set before W was built a block at a time; 20 MiB (39,700) took ~30 MB off the peak of
+# benchmarks/bench_robot_memory.py at +12 % of its CPU
+CHUNK_BYTES = 28 * 2**20
+
+
+def chunk_sample_bytes(model: Model, base: BaseParameters, c: Conditioning) -> int:
+    """Bytes a worker holds per sample of its chunk (`chunk_rows`): the window's q and tau and the filtered q, qd,
+    qdd (the model's frames each), and W1, the first decimation stage's output of W (every column: a bound)."""
+    return 8 * (5 * model.n + -(-len(model.tree.equations) * len(base.columns) // c.decimate[0]))
+
+
 def robot_chunks(n_samples: int, fs: float, model: Model, base: BaseParameters, c: Conditioning,
-                 segment_bytes: int | None = None) -> tuple[tuple[int, int], ...]:
+                 chunk_bytes: int | None = None) -> tuple[tuple[int, int], ...]:
     """The kept samples of a test of n_samples (its filter borders trimmed) cut into chunks, each a multiple of the
-    whole decimation factor long and its full-rate W under `segment_bytes`: one job each (`chunk_rows`)."""
+    whole decimation factor long, what a worker holds for its samples under `chunk_bytes` (`CHUNK_BYTES`,
+    `chunk_sample_bytes`): one job each (`chunk_rows`)."""
     b = _border(fs, c)
     D = int(np.prod(c.decimate))
-    length = max(D, (segment_bytes or SEGMENT_BYTES) // (8 * model.n * len(base.columns)) // D * D)
+    length = max(D, (chunk_bytes or CHUNK_BYTES) // chunk_sample_bytes(model, base, c) // D * D)
     return tuple((s, min(n_samples - b, s + length)) for s in range(b, n_samples - b, length))
 
 
@@ -221,11 +237,18 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
     o = lo - first
     eq, cols = np.array(rows) - 1, list(base.columns)
+    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
+    block_samples = BLOCK_BYTES // row_bytes
+    # one W block for all the chunk's blocks: the regressor writes only its entries that can be non-zero, so the
+    # structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of BLOCK_BYTES
+    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
+    buffer = np.zeros((most, len(rows), len(cols)))
 
     def block(a: int, z: int) -> tuple[Array, Array]:
         """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
         w = slice(o + a, o + z)
-        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols)
+        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols,
+                            out=buffer[: z - a])
         Y = tau[w][:, eq]
         if payload is not None:
             j, Xp = payload
@@ -234,9 +257,8 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
             W = np.concatenate([W, gains[w][:, eq, :]], axis=2)
         return W, Y
 
-    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=BLOCK_BYTES // row_bytes)
+                                       block_samples=block_samples)
     w = slice(lo - first, hi - first)
     speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D

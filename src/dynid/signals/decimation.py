@@ -208,6 +208,27 @@ ROUND_OFF = 1e-15
 WORK_BYTES = 2**20
 
 
+def _blocks(n: int, f: int, fs: float, cutoff: float, order: int, block_samples: int
+            ) -> tuple[list[int], list[int], int]:
+    """The blocks of `decimate_parallel_blocked`: their own samples' starts and ends, and the overlap read around
+    each (on the first stage's grid: a block's outputs are those of the input samples it owns)."""
+    ov = -(-border_samples(fs, cutoff, order, tol=ROUND_OFF) // f) * f
+    step = max(f, int(block_samples) // f * f, 4 * ov)
+    starts = list(range(0, n, step))
+    if len(starts) > 1 and n - starts[-1] < step // 2:  # no short last block: it merges with the one before
+        starts.pop()
+    return starts, [*starts[1:], n], ov
+
+
+def blocked_rows(n: int, factor: int | Sequence[int], fs: float, order: int = 8,
+                 cutoff: float | Sequence[float] | None = None, *, block_samples: int) -> int:
+    """The most input samples `decimate_parallel_blocked` asks `rows` for at once (a block and its overlaps): the
+    size of a buffer that `rows` can fill for every block."""
+    stages = _stages(n, _factors(factor), _checks.rate(fs), _checks.filter_order(order), cutoff)
+    starts, ends, ov = _blocks(n, stages[0].factor, fs, stages[0].cutoff, order, block_samples)
+    return max(min(n, e + ov) - max(0, a - ov) for a, e in zip(starts, ends, strict=True))
+
+
 def decimate_parallel_blocked(
     rows: Callable[[int, int], tuple[NDArray[np.float64], NDArray[np.float64]]],
     n: int,
@@ -230,13 +251,7 @@ def decimate_parallel_blocked(
     order = _checks.filter_order(order)
     stages = _stages(n, factors, fs, order, cutoff)
     first, f = stages[0], factors[0]
-    # the overlap, on the first stage's grid: a block's outputs are those of the input samples it owns
-    ov = -(-border_samples(fs, first.cutoff, order, tol=ROUND_OFF) // f) * f
-    step = max(f, int(block_samples) // f * f, 4 * ov)
-    starts = list(range(0, n, step))
-    if len(starts) > 1 and n - starts[-1] < step // 2:  # no short last block: it merges with the one before
-        starts.pop()
-    ends = [*starts[1:], n]
+    starts, ends, ov = _blocks(n, f, fs, first.cutoff, order, block_samples)
     # W1: the first stage's output of W's live columns alone (`held`, full-width indices, sorted), the structural
     # zeros (a joint's row holds only its subtree's parameters: 111 of a 7-joint arm's 301) never stored
     W1 = Y1 = None
