@@ -16,6 +16,7 @@ from .hac import HACSums
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .method import Covariance, CovType, Method
+from .noise import SIGMA_FLOOR, GroupFit
 from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
@@ -30,7 +31,7 @@ from .quality import (
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
-from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
+from .wls import group_noise, wls
 
 __all__ = [
     "EXCITED_FACTOR",

@@ -43,10 +43,11 @@ from ._checks import as_groups, group_rows, prepare
 from .errors import IdentificationError
 from .lsq import LSQSolution
 from .method import Method
+from .noise import SIGMA_FLOOR
 from .quality import POOR_FACTOR
 from .result import IdentificationResult
 from .streaming import StreamingLS
-from .wls import SIGMA_FLOOR, wls
+from .wls import wls
 
 MARGIN = 1e-6
 """J_j ⪰ MARGIN · I4 (SI units: kg, kg·m, kg·m²) rather than J_j ⪰ 0.
