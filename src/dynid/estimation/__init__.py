@@ -22,15 +22,13 @@ from .quality import (
     EXCITED_FACTOR,
     POOR_FACTOR,
     not_excited,
-    nrmse,
     poorly_identified,
-    relative_errors,
     relative_std_percent,
-    residual_rms,
 )
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
+from .validation import nrmse, relative_errors, residual_rms
 from .wls import group_noise, wls
 
 __all__ = [
