@@ -3,6 +3,10 @@
 Each function adds the rows to a `StreamingLS` as one block and asks it, so a batch of rows and a stream of them
 (the pipeline's direct and cross validation) are one computation: ``||Y_g - W_g X|| = ||R_g [X; -1]||`` with
 ``[W_g | Y_g] = Q_g R_g``, to round-off of the rows' residual.
+
+Cost: a QR of the rows, O(m p^2), where the residual alone is a product, O(m p) (200,000 x 60 rows: 0.57 s against
+0.03 s of CPU); these functions are the batch face of the pipeline's validation, so that there is one definition
+of each error, not a faster second one to keep in step.
 """
 
 from __future__ import annotations
