@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import statsmodels.api as sm
 
-from dynid.estimation import Method, StreamingLS, iv, nrmse, ols, relative_errors, wls
+from dynid.estimation import Method, StreamingLS, iv, nrmse, ols, relative_errors, residual_rms, wls
 
 RTOL = 1e-10
 AGREE_SIGMA = 1e-2  # wls-pc against a least-squares answer, in σ (module doc)
@@ -120,11 +120,30 @@ def test_batch_equals_streamed_for_every_method(system, size):
         sums.add(W[c], Y[c], Z[c], groups[c])
     v, s = iv(W, Y, Z, groups, NAMES), ls.solve_iv(sums)
     assert rel(s.values, v.values) < RTOL and rel(s.std, v.std) < RTOL
-    # the validation from the factors: relative error and NRMSE per group, as on the rows
-    for streamed, batch in ((ls.relative_errors(w.values), relative_errors(W, Y, w.values, groups)),
-                            (ls.nrmse(w.values), nrmse(W, Y, w.values, groups))):
-        assert streamed.keys() == batch.keys()
-        assert rel(list(streamed.values()), list(batch.values())) < RTOL
+    # the validation from the factors: relative error, NRMSE and residual RMS per group, as numpy on the rows; the
+    # batch functions (one block) the same
+    rows = _row_validation(W, Y, w.values, groups)
+    for what, streamed, batch in (("relative", ls.relative_errors(w.values), relative_errors(W, Y, w.values, groups)),
+                                  ("nrmse", ls.nrmse(w.values), nrmse(W, Y, w.values, groups)),
+                                  ("rms", ls.group_rms(w.values), residual_rms(W, Y, w.values, groups))):
+        assert streamed.keys() == batch.keys() == rows[what].keys()
+        assert rel(list(streamed.values()), list(rows[what].values())) < RTOL
+        assert rel(list(batch.values()), list(rows[what].values())) < RTOL
+
+
+def _row_validation(W, Y, x, groups) -> dict[str, dict[str, float]]:
+    """The validation errors computed on the rows by numpy (the oracle of the factors' validation)."""
+    r = Y - W @ x
+    out: dict[str, dict[str, float]] = {"relative": {}, "nrmse": {}, "rms": {}}
+    for g in dict.fromkeys(groups):
+        k = groups == g
+        out["relative"][g] = np.linalg.norm(r[k]) / np.linalg.norm(Y[k])
+        out["nrmse"][g] = np.linalg.norm(r[k]) / np.linalg.norm(Y[k] - Y[k].mean())
+        out["rms"][g] = np.sqrt(np.mean(r[k] ** 2))
+    out["relative"]["overall"] = np.linalg.norm(r) / np.linalg.norm(Y)
+    spread = sum(np.sum((Y[groups == g] - Y[groups == g].mean()) ** 2) for g in dict.fromkeys(groups))
+    out["nrmse"]["overall"] = np.linalg.norm(r) / np.sqrt(spread)
+    return out
 
 
 @pytest.mark.parametrize("size", CHUNKS)
@@ -165,4 +184,5 @@ def test_known_values_and_gains_applied_to_the_factors(system):
     rows = group_noise(W[:, :9], Y - g * W[:, 9], groups, NAMES[:9])
     assert rel([f.sigma for f in view.group_fits().values()], [f.sigma for f in rows.values()]) < RTOL
     x9 = o.values[:9]
-    assert rel(list(view.nrmse(x9).values()), list(nrmse(W[:, :9], Y - g * W[:, 9], x9, groups).values())) < RTOL
+    rows9 = _row_validation(W[:, :9], Y - g * W[:, 9], x9, groups)["nrmse"]
+    assert rel(list(view.nrmse(x9).values()), list(rows9.values())) < RTOL

@@ -16,21 +16,20 @@ from .hac import HACSums
 from .iv import InstrumentSums
 from .lsq import LSQSolution, check_rank, solve_lsq
 from .method import Covariance, CovType, Method
+from .noise import SIGMA_FLOOR, GroupFit
 from .ols import ols
 from .quality import (
     EXCITED_FACTOR,
     POOR_FACTOR,
     not_excited,
-    nrmse,
     poorly_identified,
-    relative_errors,
     relative_std_percent,
-    residual_rms,
 )
 from .result import IdentificationResult, ResidualStats
 from .streaming import StreamingLS, iv
 from .systematic import BiasAccumulator, SystematicUncertainty, propagate
-from .wls import SIGMA_FLOOR, GroupFit, group_noise, wls
+from .validation import nrmse, relative_errors, residual_rms
+from .wls import group_noise, wls
 
 __all__ = [
     "EXCITED_FACTOR",

@@ -161,10 +161,7 @@ def prepare(
     known: Mapping[str, float] | None = None,
 ) -> Problem:
     """Check every input and move the known parameters to the right-hand side."""
-    nm = as_names(names)
-    A = as_matrix(W, nm)
-    as_names(nm, A.shape[1])
-    y = as_vector(Y, A.shape[0])
+    nm, A, y = checked_rows(W, Y, names)
     return Problem(
         names=nm,
         W=A,
@@ -174,6 +171,14 @@ def prepare(
         truth=as_value_map(truth, nm, "truth"),
         split=split_known(A, y, nm, known),
     )
+
+
+def checked_rows(W: ArrayLike, Y: ArrayLike, names: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """Names, W (m, p) and Y (m,) checked against each other: finite, one name per column, one Y per row."""
+    nm = as_names(names)
+    A = as_matrix(W, nm)
+    as_names(nm, A.shape[1])
+    return nm, A, as_vector(Y, A.shape[0])
 
 
 def norm_ratio(num: float, den: float) -> float:

@@ -14,12 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._checks import as_groups, prepare
+from ._checks import as_label_map, as_value_map
 from .errors import IdentificationError
-from .ols import ols
 from .quality import POOR_FACTOR
 from .result import IdentificationResult
-from .wls import wls
+from .streaming import one_block
 
 RESIDUAL_TOL = 0.03
 """Default allowed relative growth of the relative residual over the base set's (3 %)."""
@@ -87,33 +86,34 @@ def essential_parameters(
     """
     if residual_tol < 0:
         raise IdentificationError(f"residual_tol must be >= 0, got {residual_tol}")
-    pb = prepare(W, Y, names, labels=labels, a_priori=a_priori, truth=truth, known=known)
-    g = None if groups is None else as_groups(groups, pb.W.shape[0])
+    # every column's factors once; each fit is a column selection of them (`StreamingLS.reparametrised`), not a QR
+    # of the rows again
+    full = one_block(W, Y, names, groups, rank_tol=rank_tol, poor_factor=poor_factor)
+    p = len(full.names)
+    lab = as_label_map(labels, full.names)
+    prior, true = as_value_map(a_priori, full.names, "a_priori"), as_value_map(truth, full.names, "truth")
+    kn = as_value_map(known, full.names, "known")
     sigmas = group_sigmas
 
     def fit(keep: Sequence[str]) -> IdentificationResult:
-        sub = [n for n in pb.names if n in keep or n in pb.split.known]
-        cols = [pb.names.index(n) for n in sub]
-        kw = {
-            "labels": {n: pb.labels[n] for n in sub},
-            "a_priori": {n: v for n, v in pb.a_priori.items() if n in sub},
-            "truth": {n: v for n, v in pb.truth.items() if n in sub},
-            "known": pb.split.known,
-            "rank_tol": rank_tol,
-            "poor_factor": poor_factor,
-        }
-        if g is None:
-            return ols(pb.W[:, cols], pb.Y, sub, **kw)
-        return wls(pb.W[:, cols], pb.Y, g, sub, group_sigmas=sigmas, **kw)
+        sub = [n for n in full.names if n in keep or n in kn]
+        T = np.zeros((p + 1, len(sub) + 1))  # [W_sub | Y] = [W | Y] T
+        T[[full.names.index(n) for n in sub], np.arange(len(sub))] = 1.0
+        T[p, -1] = 1.0
+        ls = full.reparametrised(sub, T, known=kn, labels={n: lab[n] for n in sub},
+                                 a_priori={n: v for n, v in prior.items() if n in sub},
+                                 truth={n: v for n, v in true.items() if n in sub})
+        return ls.solve() if groups is None else ls.solve_weighted(sigmas)
 
-    current = fit(pb.split.est_names)
-    if g is not None:
+    est_names = [n for n in full.names if n not in kn]
+    current = fit(est_names)
+    if groups is not None:
         sigmas = current.weights
     limit = current.residual.relative_residual * (1.0 + residual_tol)
     worst, worst_rel = _worst(current)
     path = [EssentialStep(None, None, current.residual.relative_residual, worst_rel, worst, True)]
     removed: list[str] = []
-    keep = list(pb.split.est_names)
+    keep = est_names
     while len(keep) > max(min_parameters, 1):
         candidate = [n for n in keep if n != worst]
         trial = fit(candidate)

@@ -4,14 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-import numpy as np
 from numpy.typing import ArrayLike
 
-from ._checks import norm_ratio, prepare
-from .lsq import solve_lsq
-from .method import Method
 from .quality import POOR_FACTOR
-from .result import IdentificationResult, build_result
+from .result import IdentificationResult
+from .streaming import one_block
 
 
 def ols(
@@ -40,19 +37,9 @@ def ols(
     ``C = sigma_rho^2 (W^T W)^-1`` computed from R, ``std_i = sqrt(C_ii)``, ``%std_i = 100 std_i / |x_i|``
     (q = number of estimated parameters). Raises ``IdentificationError`` naming the unidentifiable
     parameters if W (without the known columns) is rank-deficient.
+
+    The rows are one block of the estimator core (`StreamingLS`): this is its `solve` on them, so a batch and a
+    stream of the same rows share every step after the block's QR.
     """
-    pb = prepare(W, Y, names, labels=labels, a_priori=a_priori, truth=truth, known=known)
-    sol = solve_lsq(pb.split.W_est, pb.split.Y_est, pb.split.est_names, rank_tol=rank_tol)
-    return build_result(
-        sol,
-        names=pb.names,
-        estimated_names=pb.split.est_names,
-        known=pb.split.known,
-        labels=pb.labels,
-        a_priori=pb.a_priori,
-        truth=pb.truth,
-        method=Method.OLS,
-        weights={},
-        relative_residual=norm_ratio(np.sqrt(sol.rss), np.linalg.norm(pb.Y)),
-        poor_factor=poor_factor,
-    )
+    return one_block(W, Y, names, labels=labels, a_priori=a_priori, truth=truth, known=known, rank_tol=rank_tol,
+                     poor_factor=poor_factor).solve()

@@ -43,10 +43,10 @@ from ._checks import as_groups, group_rows, prepare
 from .errors import IdentificationError
 from .lsq import LSQSolution
 from .method import Method
+from .noise import SIGMA_FLOOR
 from .quality import POOR_FACTOR
 from .result import IdentificationResult
-from .streaming import StreamingLS
-from .wls import SIGMA_FLOOR, wls
+from .streaming import StreamingLS, one_block
 
 MARGIN = 1e-6
 """J_j ⪰ MARGIN · I4 (SI units: kg, kg·m, kg·m²) rather than J_j ⪰ 0.
@@ -258,14 +258,12 @@ def wls_pc(
     Y, groups, labels, a_priori, truth, known, group_sigmas, rank_tol, sigma_floor, poor_factor : as in
     ``wls``; the other arguments as in `wls_pc_streamed`.
     """
-    ls = StreamingLS(names, labels=labels, a_priori=a_priori, truth=truth, known=known, rank_tol=rank_tol,
-                     poor_factor=poor_factor)
-    ls.add(W, Y, groups)
+    ls = one_block(W, Y, names, groups, labels=labels, a_priori=a_priori, truth=truth, known=known, rank_tol=rank_tol,
+                   poor_factor=poor_factor)
+    w = ls.solve_weighted(group_sigmas, sigma_floor)  # `wls` on these rows: the same block, the same solve
     # the weighted rows' factor in one QR of the rows (the same factor as the groups' stacked, to round-off): the
     # second solve of `_closest_to_prior` is sensitive to the last digits of its input (module doc of that
     # function), and this keeps a whole system's answer the one it had before the streamed path
-    w = wls(W, Y, groups, names, labels=labels, a_priori=a_priori, truth=truth, known=known,
-            group_sigmas=group_sigmas, rank_tol=rank_tol, sigma_floor=sigma_floor, poor_factor=poor_factor)
     pb = prepare(W, Y, names, known=known)
     A, y = pb.split.W_est, pb.split.Y_est
     row_sigma = np.empty(A.shape[0])

@@ -1,13 +1,15 @@
-"""Quality indicators: relative standard deviations, the 20x rule of thumb, relative errors."""
+"""Quality indicators: relative standard deviations, the 20x rule of thumb, which groups a test excites.
+
+The validation errors on rows (relative error, NRMSE, residual RMS) are in `validation`: the factors' (`StreamingLS`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._checks import as_groups, as_matrix, as_vector, group_rows, norm_ratio
 from .errors import IdentificationError
 
 POOR_FACTOR = 20.0
@@ -48,76 +50,3 @@ def not_excited(signal_rms: Mapping[str, float], noise_rms: Mapping[str, float],
     times the identification's residual RMS there (`noise_rms`; a group without one is never called not
     excited). Their relative error ||Y - W X|| / ||Y|| is noise over noise: say "not excited", not a percentage."""
     return [g for g, rms in signal_rms.items() if rms < factor * noise_rms.get(g, 0.0)]
-
-
-def relative_errors(
-    W: ArrayLike,
-    Y: ArrayLike,
-    X: ArrayLike | Mapping[str, float],
-    groups: ArrayLike,
-    names: Sequence[str] | None = None,
-) -> dict[str, float]:
-    """Relative error ``||Y_g - W_g X|| / ||Y_g||`` per equation group, plus ``"overall"``.
-
-    W : (m, p); Y : (m,); X : (p,) values in W's column order, or ``{name: value}`` with ``names``
-    giving W's column order (every name must be present); groups : (m,) group label of each row.
-    A group with ``||Y_g|| = 0`` gets 0 if its residual is 0 too, else inf. Direct validation passes
-    the identification data, cross validation data from a test not used for estimation (paper §7.2).
-    """
-    res, y, rows = _residuals(W, Y, X, groups, names)
-    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(y[idx])) for name, idx in rows.items()}
-    out["overall"] = norm_ratio(np.linalg.norm(res), np.linalg.norm(y))
-    return out
-
-
-def nrmse(
-    W: ArrayLike,
-    Y: ArrayLike,
-    X: ArrayLike | Mapping[str, float],
-    groups: ArrayLike,
-    names: Sequence[str] | None = None,
-) -> dict[str, float]:
-    """Normalised RMS error ``RMS(Y_g - W_g X) / std(Y_g)`` per equation group, plus ``"overall"`` (the
-    residuals' and the spreads' sums of squares pooled over groups). Unlike the relative error it does not
-    count the part of Y that never changes (a robot's static gravity load): 1 is no better than predicting
-    each group's mean. Arguments as for `relative_errors`."""
-    res, y, rows = _residuals(W, Y, X, groups, names)
-    spread = {name: y[idx] - y[idx].mean() for name, idx in rows.items()}
-    out = {name: norm_ratio(np.linalg.norm(res[idx]), np.linalg.norm(spread[name])) for name, idx in rows.items()}
-    out["overall"] = norm_ratio(np.linalg.norm(res), np.sqrt(sum(float(s @ s) for s in spread.values())))
-    return out
-
-
-def residual_rms(
-    W: ArrayLike,
-    Y: ArrayLike,
-    X: ArrayLike | Mapping[str, float],
-    groups: ArrayLike,
-    names: Sequence[str] | None = None,
-) -> dict[str, float]:
-    """RMS of the residual ``Y_g - W_g X`` per equation group (no "overall"): on the identification rows, the
-    noise floor `not_excited` compares a test's signal with. Arguments as for `relative_errors`."""
-    res, _, rows = _residuals(W, Y, X, groups, names)
-    return {name: float(np.sqrt(np.mean(res[idx] ** 2))) for name, idx in rows.items()}
-
-def _residuals(W, Y, X, groups, names) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Y - W X, Y and the rows of each group, the arguments checked."""
-    A = as_matrix(W, names)
-    m, p = A.shape
-    y = as_vector(Y, m)
-    if isinstance(X, Mapping):
-        if names is None:
-            raise IdentificationError("X given as {name: value} needs names (the parameter of each column of W)")
-        missing = [n for n in names if n not in X]
-        if missing:
-            raise IdentificationError(f"X has no value for parameters {missing}", parameters=missing)
-        x = np.array([float(X[n]) for n in names])
-    else:
-        x = np.asarray(X, dtype=float).reshape(-1)
-    if x.shape != (p,):
-        raise IdentificationError(f"X must have {p} values (one per column of W), got {x.shape[0]}")
-    g = as_groups(groups, m)
-    rows = group_rows(g)
-    if "overall" in rows:
-        raise IdentificationError('"overall" is reserved for the whole system; rename that equation group')
-    return y - A @ x, y, rows

@@ -32,6 +32,7 @@ from ._checks import (
     as_names,
     as_value_map,
     as_vector,
+    checked_rows,
     group_rows,
     norm_ratio,
     split_known,
@@ -41,11 +42,11 @@ from .hac import SUMMED, HACSums
 from .iv import InstrumentSums, iv_covariance
 from .lsq import LSQSolution, solve_lsq
 from .method import Covariance, Method
+from .noise import SIGMA_FLOOR, GroupFit, checked_sigmas, fit_group, warn_floored
 from .offsets import OffsetEstimate, OffsetFactors, solve_with_offsets
 from .quality import POOR_FACTOR
 from .result import IdentificationResult, build_result
 from .systematic import BiasAccumulator, propagate
-from .wls import SIGMA_FLOOR, GroupFit, checked_sigmas, fit_group, warn_floored
 
 DEFAULT_GROUP = "all"
 """Group label of rows added without ``group_labels``."""
@@ -104,17 +105,25 @@ class StreamingLS:
         A = as_matrix(W_chunk, self.names, "W chunk")
         if A.shape[1] != len(self.names):
             raise IdentificationError(f"W chunk has {A.shape[1]} columns, expected {len(self.names)} (one per name)")
-        y = as_vector(Y_chunk, A.shape[0], "Y chunk")
+        self._add_checked(A, as_vector(Y_chunk, A.shape[0], "Y chunk"), group_labels)
+
+    def _add_checked(self, A: np.ndarray, y: np.ndarray, group_labels: ArrayLike | None) -> None:
+        """`add` of rows already checked (finite float arrays, one column per name): `one_block` checks a batch
+        with the batch messages, and a second pass over W would cost a tenth of an OLS."""
         if A.shape[0] == 0:
             return
-        g = np.full(A.shape[0], DEFAULT_GROUP) if group_labels is None else as_groups(group_labels, A.shape[0])
         split = split_known(A, y, self.names, self.known)
+        # no labels: one group, the whole block (a slice: no copy of the rows by fancy indexing)
+        parts: dict[str, slice | np.ndarray] = (
+            {DEFAULT_GROUP: slice(None)} if group_labels is None else group_rows(as_groups(group_labels, A.shape[0])))
         q = len(self.estimated_names)
-        for name, idx in group_rows(g).items():
-            R = self._R.get(name, np.zeros((q + 1, q + 1)))
+        for name, idx in parts.items():
             block = np.column_stack([split.W_est[idx], split.Y_est[idx]])
-            self._R[name] = np.linalg.qr(np.vstack([R, block]), mode="r")
-            self._rows[name] = self._rows.get(name, 0) + idx.size
+            # a group's first block of at least q+1 rows is factored alone (a batch's one QR, as a plain solve's)
+            stacked = block if name not in self._R and block.shape[0] > q else np.vstack(
+                [self._R.get(name, np.zeros((q + 1, q + 1))), block])
+            self._R[name] = np.linalg.qr(stacked, mode="r")
+            self._rows[name] = self._rows.get(name, 0) + block.shape[0]
             self._y2[name] = self._y2.get(name, 0.0) + float(y[idx] @ y[idx])
             total = np.append(A[idx].sum(axis=0), y[idx].sum())
             self._sum[name] = total if name not in self._sum else self._sum[name] + total
@@ -443,8 +452,20 @@ def iv(
 ) -> IdentificationResult:
     """Weighted instrumental variables (IDIM-IV, see `iv`) on a whole system: W (m, p), Y (m,), instruments
     Z (m, p), groups (m,); the other arguments as in ``wls`` and `StreamingLS.solve_iv`."""
-    s = StreamingLS(names, **kw)
-    s.add(W, Y, groups)
+    s = one_block(W, Y, names, groups, **kw)
     sums = s.instrument_sums()
     sums.add(W, Y, Z, groups)
     return s.solve_iv(sums, group_sigmas, iterations)
+
+
+def one_block(W: ArrayLike, Y: ArrayLike, names: Sequence[str], groups: ArrayLike | None = None,
+              **kw) -> StreamingLS:
+    """The accumulator of a whole system added as one block: the batch entries (`ols`, `wls`, `group_noise`, `iv`,
+    the `quality` functions) are this and one of its solves or validations. W (m, p), Y (m,) and names are checked
+    first with the batch messages (W's shape, rows, columns); groups (m,) or None (one group); kw: StreamingLS's."""
+    nm, A, y = checked_rows(W, Y, names)
+    if A.shape[0] == 0:
+        raise IdentificationError("W has no rows: there is nothing to estimate or validate; add samples")
+    s = StreamingLS(nm, **kw)
+    s._add_checked(A, y, groups)
+    return s
