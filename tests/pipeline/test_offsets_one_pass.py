@@ -198,9 +198,15 @@ def test_the_moved_stages_on_every_kth_sample_are_the_whole_rates(noisy):
     _, setup, fs, channels, _, joints, _ = segment(noisy, 0)
     k = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
     assert k > 1
+    fields = {n: (v, dict(v) if isinstance(v, dict) else None) for n, v in vars(joints).items()}
     for q in [q for q in channels if joints.movable(q)]:
         b = 1e-3 * max(1.0, np.abs(channels[q]).max())
         whole, coarse = joints.moved(q, b), joints.moved(q, b, every=k)
+        # the frozen pass is not written into: its coarse copies are kept beside it (model.workspace)
+        assert vars(joints).keys() == fields.keys()
+        for n, (v, content) in fields.items():
+            assert vars(joints)[n] is v and (content is None or (v.keys() == content.keys()
+                                                                 and all(v[c] is content[c] for c in content))), n
         expected = _every(whole, k)
         for name in ("t", "q", "qd", "qdd", "wheel_wrenches", "steering_wheel"):
             assert np.array_equal(getattr(coarse.traj, name), getattr(expected, name)), (q, name)

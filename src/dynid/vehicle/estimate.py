@@ -23,7 +23,7 @@ of Y = W X carry the same band.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -31,6 +31,7 @@ from scipy.interpolate import CubicSpline
 from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
+from ..model.workspace import PerObject
 from ..signals import border_samples, derivative, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
 from .dynamics import ChannelDynamics, table1_dynamics
@@ -373,8 +374,6 @@ class JointsPass:
     w6: Array
     pz_zz: Array
     z_laser: Array
-    # k -> the trajectory's q, qd, qdd on every k-th sample (C order): what `moved(..., every=k)` starts from
-    _coarse: dict = field(default_factory=dict, compare=False, repr=False)
 
     def movable(self, channel: str) -> bool:
         """Whether `moved` takes a zero offset of `channel` (the others: the whole pass)."""
@@ -418,13 +417,19 @@ class JointsPass:
             return _trajectory(x, q.whole(), qd.whole(), qdd.whole(), filtered, self.has_spin, self.steering[0])
         N, lo = q.shape[0], x.border
         hi = N - lo
-        if every not in self._coarse:
-            self._coarse[every] = tuple(np.ascontiguousarray(a[lo:hi:every]) for a in (self.q, self.qd, self.qdd))
-        qc, qdc, qddc = (m.every(c, lo, hi, every) for m, c in zip((q, qd, qdd), self._coarse[every], strict=True))
+        coarse = _COARSE(self)
+        if every not in coarse:
+            coarse[every] = tuple(np.ascontiguousarray(a[lo:hi:every]) for a in (self.q, self.qd, self.qdd))
+        qc, qdc, qddc = (m.every(c, lo, hi, every) for m, c in zip((q, qd, qdd), coarse[every], strict=True))
         whole = _trajectory_parts(x, filtered, self.has_spin, self.steering[0], N)
         coarse = CarTrajectory(whole[0][lo:hi:every], qc, qdc, qddc, whole[1][lo:hi:every],
                                None if whole[2] is None else whole[2][lo:hi:every], whole[3][lo:hi:every])
         return CoarseTrajectory(coarse, _Trimmed(qd, lo, hi))
+
+
+# per pass, k -> its trajectory's q, qd, qdd on every k-th sample (C order): what `moved(..., every=k)` starts from,
+# kept beside the frozen pass (model.workspace), not in it
+_COARSE: PerObject[JointsPass, dict[int, tuple[Array, Array, Array]]] = PerObject(lambda _pass: {})
 
 
 def joints_pass(
