@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
+# the tests' helpers (tests/) and the estimator test's trajectory (tests/vehicle/, the tests being grouped by layer)
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests"), str(HERE.parent / "tests" / "vehicle")]
 
 from results_file import write_results  # noqa: E402
 

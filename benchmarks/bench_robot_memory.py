@@ -208,7 +208,8 @@ WRITE = """
 import sys
 from pathlib import Path
 import numpy as np
-sys.path.insert(0, str(Path(sys.argv[4]) / "tests"))
+# test_urdf.robot_file: tests/model/ (by layer), or tests/ in an older tree
+sys.path[:0] = [str(Path(sys.argv[4]) / "tests" / "model"), str(Path(sys.argv[4]) / "tests")]
 from test_urdf import robot_file
 from dynid import Model
 from dynid.io import Channel, Recording, write_recording
