@@ -43,7 +43,7 @@ from dynid.vehicle.template import paper_parameter_names
 CAR_COLS = tuple(paper_parameter_names())
 
 HERE = Path(__file__).parent
-sys.path[:0] = [str(HERE)]
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]  # tests/: the Pinocchio oracle (oracles.PinModel)
 
 from results_file import write_results  # noqa: E402
 
@@ -85,7 +85,6 @@ def per_sample(fn, N: int, repeat: int = 5) -> float:
 
 def pinocchio_per_sample(tree: Tree, q, qd, qdd) -> float | None:
     try:
-        sys.path.insert(0, str(HERE.parent / "tests"))
         import pinocchio as pin
         from oracles import PinModel
     except Exception:  # pinocchio missing: report None
