@@ -27,29 +27,19 @@ channel the attitude does not reach.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 import dynid.pipeline.reduce as reduce
 from dynid.pipeline.config import load_config
 from dynid.pipeline.run import identify
-from dynid.pipeline.schedulers import _by_key, tree_fold
 
-
-class Inline:
-    """Every job in turn in this thread (the patched `offset_residuals` is then the one the jobs call)."""
-
-    def __repr__(self) -> str:
-        return "1 thread, inline"
-
-    def map_reduce(self, fn, jobs, key, combine, progress=None):
-        results = [fn(j) for j in jobs]
-        return {k: tree_fold([results[i] for i in idx], combine) for k, idx in _by_key(jobs, key).items()}
-
-    def close(self) -> None:
-        pass
-
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# every job in this thread: the patched `offset_residuals` is then the one the jobs call
+from profile_car import Inline
 
 TODAY = reduce.offset_residuals
 
