@@ -1,0 +1,113 @@
+"""What the declared sensor zero offsets add to a car identification's CPU time (issue 28 item 3: <= 30 %).
+
+Run:  python benchmarks/bench_offsets.py [--demo FOLDER] [--minutes 10 60] [--rounds 3]
+
+Each log is identified by `dynid identify --workers 1` (one thread) three ways, alternated round by round: with the
+vehicle suite's 36 offsets estimated from each test's data (the default), with them propagated alone
+(`[uncertainty] estimate = false`) and without them (`offsets = "none"`); the figure is each child's CPU time
+(user + sys, imports and report included: what a user waits for on a loaded machine), the least of the rounds.
+The logs: the demo's files (`--demo`: a `dynid demo --out` folder; else simulated, 1-2 min) and bench_pipeline.py's
+12 s manoeuvre repeated for each of `--minutes` (60 s segments).
+
+Measured 2026-11-29 (issue 28, h-offsets at fd92e1c; 2 cores shared, load averages 8 to 14; CPU s of the whole
+command, each mode against its own "none" run alternated with it; min of 3 rounds at the demo and 10 min, 1 round
+at 1 h):
+
+    log       offsets estimated (default)     offsets propagated alone (estimate = false)
+    demo       7.4 against 6.9   (+7 %)        7.7 against 7.9   (-2 %, 1 round)
+    10 min    13.1 against 7.9   (+66 %)      12.4 against 10.2  (+22 %, 1 round)
+    1 h       63.9 against 23.2  (+175 %)     29.1 against 25.1  (+16 %)
+
+The estimated offsets' cost grows with the log: each segment's rows need their 36 columns C (`offset_residuals`),
+12 of them a staged moved pass of the joints (0.36 s of CPU per 60 s segment: attitude, heights, velocity at the
+full rate) and its equations and decimation (0.2 s), the 24 wheel loads' one decimation (0.06 s), against 0.44 s for
+the segment's own work (cProfile on the 10 min log, `time.process_time`). The propagation alone runs on
+`offset_segments` segments per test: a fixed cost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests"), str(HERE.parent / "tests" / "vehicle")]
+
+from bench_pipeline import CONFIG, write_hour  # noqa: E402
+from results_file import write_results  # noqa: E402
+
+MODES = ("estimated", "propagated", "none")
+
+
+def _variants(text: str) -> dict[str, str]:
+    """The config's text for each mode: its [uncertainty] table replaced (the vehicle suite's offsets by default)."""
+    head = re.sub(r"\n\[uncertainty\][^\[]*", "\n", text)
+    return {"estimated": head, "propagated": head + "\n[uncertainty]\nestimate = false\n",
+            "none": head + '\n[uncertainty]\noffsets = "none"\n'}
+
+
+def _cpu(config: Path, out: Path) -> float:
+    """The CPU seconds (user + sys) of one `dynid identify` child, one thread."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    env = {**os.environ, "PYTHONPATH": str(HERE.parent / "src")}
+    proc = subprocess.run([sys.executable, "-m", "dynid.cli.main", "identify", str(config), "--out", str(out),
+                           "--workers", "1"], capture_output=True, text=True, env=env)
+    if proc.returncode:
+        sys.exit(f"{config}: the identification failed:\n{proc.stderr[-3000:]}")
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--demo", type=Path, help="a `dynid demo --out` folder (default: simulate the demo)")
+    ap.add_argument("--minutes", type=float, nargs="*", default=[10.0])
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--modes", nargs="*", default=list(MODES), choices=MODES)
+    args = ap.parse_args()
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        logs: dict[str, Path] = {}
+        demo = Path(tmp) / "demo"
+        demo.mkdir()
+        if args.demo is not None:
+            (demo / "data").symlink_to((args.demo / "data").resolve())
+            text = (args.demo / "identify.toml").read_text()
+        else:
+            from dynid.pipeline.demo import simulate_tests, write_demo
+
+            text = write_demo(demo, simulate_tests()).read_text()
+        logs["demo"] = demo
+        for m in args.minutes:
+            folder = Path(tmp) / f"{m:g}min"
+            folder.mkdir()
+            data = write_hour(folder, m, "parquet")
+            text_m = CONFIG.format(file=data.name)
+            logs[f"{m:g} min"] = folder
+            for mode, t in _variants(text_m).items():
+                (folder / f"{mode}.toml").write_text(t)
+        for mode, t in _variants(text).items():
+            (demo / f"{mode}.toml").write_text(t)
+        for name, folder in logs.items():
+            cpu: dict[str, list[float]] = {mode: [] for mode in args.modes}
+            for _ in range(args.rounds):
+                for mode in args.modes:
+                    cpu[mode].append(_cpu(folder / f"{mode}.toml", folder / f"out_{mode}_{len(cpu[mode])}"))
+            best = {mode: min(v) for mode, v in cpu.items()}
+            load = os.getloadavg()[0]
+            line = "  ".join(f"{mode} {best[mode]:6.2f} s" + (f" ({100 * (best[mode] / best['none'] - 1):+.0f} %)"
+                                                             if "none" in best and mode != "none" else "")
+                             for mode in args.modes)
+            print(f"{name:>8}: {line}   (CPU, min of {args.rounds}; load {load:.1f})", flush=True)
+            results[name] = {"cpu_s": cpu, "load": load}
+    write_results("offsets", results)
+
+
+if __name__ == "__main__":
+    main()
