@@ -19,8 +19,8 @@ def {name}(q, wrench, out, extra):
     a = q[0]
     b = q[1]
     w = wrench[1, 4]
-    s = math.sin(a)
-    c = math.cos(b)
+    s = _sin(a)
+    c = _cos(b)
     e = -(a * s - b * c) * c1 + 3 * w
     out[0] = e * e - a
     out[2] = _sign(a) + _sign(b) * 2.0 + _sign(w - w)
@@ -154,3 +154,43 @@ def test_internal_functions_compile_without_entry_points(tmp_path, monkeypatch):
     for f in (mod.twice, mod._cell):
         assert f.targetoptions["no_cpython_wrapper"] and f.targetoptions["no_cfunc_wrapper"]
     assert mod._cell is not _cell and _cell(b, 3, 2.5) == 2  # the original, unchanged, from Python
+
+
+def test_generated_sine_and_cosine_are_trigs_to_the_bit(tmp_path, monkeypatch):
+    """A generated model's sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1) are
+    dynamics.trig's, run by Python, to the bit: compiled from LLVM IR (native_functions: the simulator's models;
+    straight_line) and by Numba from the Python source, on the edges of the quadrants (multiples of pi/4 and their
+    neighbours), small, large and out-of-range angles (|x| >= trig.LIMIT, inf, NaN: libm's), no contraction into
+    FMA on any CPU. libm's (the scalar IR's sine before) differs from them by an ulp on some of these angles."""
+    from dynid.dynamics import trig
+    from dynid.model import Frame, Tree
+    from dynid.symbolic import build
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    k = np.arange(-400, 400) * (np.pi / 4)
+    rng = np.random.default_rng(7)
+    x = np.concatenate([k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), [1e-300, -0.0, 0.0, 5e-324],
+                        np.array([1.0, -1.0]) * np.nextafter(trig.LIMIT, 0.0), [trig.LIMIT, -trig.LIMIT, 3e5, 1e300],
+                        [np.inf, -np.inf, np.nan], rng.uniform(-trig.LIMIT, trig.LIMIT, 2000),
+                        rng.uniform(-4.0, 4.0, 2000)])
+    ref = trig.python_function()
+    # (N, 2): sin, cos; Python's math.sin raises at inf, where compiled code gives NaN
+    want = np.array([ref(float(v)) if np.isfinite(v) else (np.nan, np.nan) for v in x])
+    prog = build(Tree("one revolute joint", (Frame(1, 0, 0),)), "dgm")
+    src = nb.scalar_source(prog, "dgm")
+    assert "_sin(" in src and "math.sin" not in src
+    key = nb.source_key("test trig", src)
+    native = nb.native_functions(key, lambda: {"dgm": src}, prefix="dynid_test").python["dgm"]
+    straight = nb.compile_source(src, ["dgm"], key, prefix="dynid_test_ir", straight=["dgm"]).dgm
+    numba = nb.compile_source(src, ["dgm"], key, prefix="dynid_test_nb").dgm
+    for label, fn in (("native", native), ("straight_line", straight), ("numba", numba)):
+        got = np.empty_like(want)
+        out = np.empty(32)
+        for i, v in enumerate(x):
+            fn(np.array([v]), out)
+            got[i] = out[20], out[16]  # T1[1, 0] = sin q1, T1[0, 0] = cos q1
+        finite = np.isfinite(x)
+        assert np.array_equal(got[finite].view(np.int64), want[finite].view(np.int64)), (
+            label, x[np.any(got != want, axis=1) & finite][:5])
+        assert np.isnan(got[~finite]).all(), label
+    assert not np.array_equal(np.sin(x[finite]), want[finite, 0])  # libm's: this test tells them apart

@@ -6,12 +6,13 @@ simulator that needs one sample at a time inside an integration loop. This backe
 writes what `to_c` writes, in Python: one function per model taking one sample,
 
     def <name>(q, qd, qdd, X, wrench, out[, Q]):     # the arrays the model reads
-        S4 = math.sin(q[3])                          # Khalil's intermediate variables
+        S4 = _sin(q4)                                # Khalil's intermediate variables
         ...
         out[k] = ...                                 # flat row-major output, zeros included
 
-with q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench (sites, 6), out and
-any extra output flat float64 arrays. The module source is written atomically to
+with _sin and _cos dynamics.trig's steps (HEADER: every generated target's sine and cosine, the same bits in
+Python, in Numba and from LLVM IR), and q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench
+(sites, 6), out and any extra output flat float64 arrays. The module source is written atomically to
 `cache_dir()/numba/<name>_<hash>.py` (hash of the model and of this generator) and
 imported from there (cache.load_module), so that `numba.njit(cache=True)` can keep the machine code next
 to it: the first run compiles (seconds), the next ones load. Without numba the same
@@ -38,6 +39,7 @@ from pathlib import Path
 from types import ModuleType
 
 from .. import pysource
+from ..dynamics import trig
 from ..model.tree import Tree
 from .cache import generator_fingerprint, load_module, model_hash, module_path, write_atomic
 from .codegen import _ARGS, _eq_text, format_poly
@@ -135,8 +137,8 @@ def scalar_source(prog: Program, name: str | None = None) -> str:
             L.append(f"    {sym_name} = {src}[{idx}]")
     for eq in prog.equations:
         rhs = _eq_text(eq, "numpy")
-        if eq.kind in ("sin", "cos"):
-            rhs = "math." + rhs
+        if eq.kind in ("sin", "cos"):  # dynamics.trig's (HEADER), as every target's
+            rhs = "_" + rhs
         elif eq.kind == "sign":
             rhs = "_sign" + rhs[len("sign"):]
         L.append(f"    {eq.name} = {rhs}")
@@ -163,6 +165,17 @@ import numpy as np  # noqa: F401
 def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
+
+''' + trig.python_source("_sincos") + '''
+
+
+def _sin(x):
+    return _sincos(x)[0]
+
+
+def _cos(x):
+    return _sincos(x)[1]
+
 '''
 
 
@@ -179,7 +192,7 @@ def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], err
     opts = "cache=True" if error_model == "python" else f"cache=True, error_model={error_model!r}"
     lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
-             f"    _sign = njit({opts})(_sign)"]
+             *(f"    {f} = njit({opts})({f})" for f in ("_sign", "_sincos", "_sin", "_cos"))]
     # an imported dispatcher's copy keeps its own options (error model...), not this module's; it is not cached:
     # Numba's cache of it (by its file and name, not its flags) is the original's, which Python calls; the copy's
     # code is cached in its callers'
