@@ -26,7 +26,6 @@ across them and cache the whole).
 from __future__ import annotations
 
 import ast
-import contextlib
 import ctypes
 import hashlib
 import importlib
@@ -41,7 +40,7 @@ from types import ModuleType
 from .. import pysource
 from ..dynamics import trig
 from ..model.tree import Tree
-from .cache import generator_fingerprint, load_module, model_hash, module_path, write_atomic
+from .cache import generator_fingerprint, load_entry, load_module, model_hash, module_path
 from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
 from .llvm_code import UnsupportedSourceError, function_ir, library_state, load_library, native_library, parse_function
@@ -274,7 +273,6 @@ class NativeFunctions:
     library: object = None  # kept alive: the machine code lives as long as its library
 
 
-_NATIVE: dict[str, NativeFunctions] = {}
 _NATIVE_LOCK = threading.Lock()
 
 
@@ -297,41 +295,47 @@ def _ctypes_caller(address: int, nargs: int) -> Callable:
 def native_functions(key: str, sources: Callable[[], dict[str, str]], prefix: str = "dynid_native") -> NativeFunctions:
     """The straight-line functions of `sources()` (name -> scalar_source text: numba_backend's generated
     language) compiled from their LLVM IR (llvm_code.function_ir) by Numba's code generator into one library,
-    kept on disk as object code (`cache_dir()/numba/<prefix>_<key>.lib`, pickled with the codegen's CPU
-    signature: a library made for another CPU is built again); key: a hash of everything the sources depend on.
-    No Numba typing at all: a caller compiled once (llvm_code.address_call) takes the addresses at run time."""
+    kept on disk as object code (cache.load_entry: `cache_dir()/numba/<prefix>_<key>.lib`, pickled with the key
+    and the codegen's CPU signature: a library made for another CPU is built again); key: a hash of everything
+    the sources depend on. No Numba typing at all: a caller compiled once (llvm_code.address_call) takes the
+    addresses at run time. Without numba, the functions of a module (load_module) run as plain Python."""
     name = f"{prefix}_{key}"
-    with _NATIVE_LOCK:
-        if name in _NATIVE:
-            return _NATIVE[name]
+    with _NATIVE_LOCK:  # one build per process (Numba's code generator runs one at a time anyway)
         if not have_numba():
             _warn_missing()
-            ns: dict = {}
-            texts = sources()
-            exec(HEADER + "\n".join(texts.values()), ns)  # our own generated code
-            funcs = {n: ns[n] for n in texts}
-            out = NativeFunctions({n: id(f) for n, f in funcs.items()}, funcs, False)
-        else:
-            path = module_path("numba", name).with_suffix(".lib")
-            lib, symbols = None, None
-            if path.exists():
-                try:
-                    stored = pickle.loads(path.read_bytes())  # our own cache, its key checked below
-                    if stored["key"] == key:
-                        lib, symbols = load_library(stored["state"]), stored["symbols"]
-                except Exception:  # a damaged or foreign cache file is built again, never trusted
-                    lib = None
-            if lib is None:
+
+            def text() -> str:
                 texts = sources()
-                symbols = {n: (f"{name}.{n}", len(parse_function(src).args.args)) for n, src in texts.items()}
-                lib = native_library(name, [function_ir(src, symbols[n][0]) for n, src in texts.items()])
-                with contextlib.suppress(OSError):  # a read-only cache: built again next run
-                    write_atomic(path, pickle.dumps({"key": key, "symbols": symbols, "state": library_state(lib)}))
-            address = {n: lib.get_pointer_to_function(sym) for n, (sym, _) in symbols.items()}
-            python = {n: _ctypes_caller(address[n], nargs) for n, (_, nargs) in symbols.items()}
-            out = NativeFunctions(address, python, True, lib)
-        _NATIVE[name] = out
+                return HEADER + "\n".join(texts.values()) + f"\nNAMES = {tuple(texts)!r}\n"
+
+            mod = load_module("numba", name, key, text)
+            assert mod is not None
+            funcs = {n: getattr(mod, n) for n in mod.NAMES}
+            return NativeFunctions({n: id(f) for n, f in funcs.items()}, funcs, False)
+
+        def read(path: Path) -> NativeFunctions | None:
+            stored = pickle.loads(path.read_bytes())  # our own cache, its key checked
+            if stored["key"] != key:
+                return None
+            lib = load_library(stored["state"])
+            return None if lib is None else _native(lib, stored["symbols"])
+
+        def build() -> tuple[bytes, NativeFunctions]:
+            texts = sources()
+            symbols = {n: (f"{name}.{n}", len(parse_function(src).args.args)) for n, src in texts.items()}
+            lib = native_library(name, [function_ir(src, symbols[n][0]) for n, src in texts.items()])
+            return pickle.dumps({"key": key, "symbols": symbols, "state": library_state(lib)}), _native(lib, symbols)
+
+        out = load_entry(module_path("numba", name).with_suffix(".lib"), name, read, build)
+        assert out is not None
         return out
+
+
+def _native(lib, symbols: dict[str, tuple[str, int]]) -> NativeFunctions:
+    """The NativeFunctions of a code library: symbols, name -> (its symbol, its number of arrays)."""
+    address = {n: lib.get_pointer_to_function(sym) for n, (sym, _) in symbols.items()}
+    return NativeFunctions(address, {n: _ctypes_caller(address[n], nargs) for n, (_, nargs) in symbols.items()},
+                           True, lib)
 
 
 def source_key(*parts: str) -> str:
