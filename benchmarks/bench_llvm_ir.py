@@ -8,8 +8,8 @@ straight-line language, `vehicle.sim.car._models_source`) are turned into an LLV
 
 - text: `symbolic.llvm_code.function_ir`, what dynid runs (an f-string per instruction);
 - builder: the same walk written here with `llvmlite.ir` (an object per instruction, the module printed at the end),
-  the same operations in the same order (Numba's forms: unary minus as -0.0 - x, llvm.sin/cos, memset for out[:] =
-  0.0, selects for the sign).
+  the same operations in the same order (Numba's forms: unary minus as -0.0 - x, memset for out[:] = 0.0, selects
+  for the sign; sine and cosine as a call of one copy of dynamics.trig's steps, llvm_code.Emitter.sincos).
 
 Each is timed to build (best of --repeat) and to parse, verify, optimise and compile to machine code by Numba's code
 generator (`llvm_code.native_library`, the step that follows either way; best of 3). Both modules' functions are then
@@ -31,6 +31,7 @@ import time
 import numpy as np
 from llvmlite import ir
 
+from dynid.dynamics import trig
 from dynid.symbolic.llvm_code import function_ir, native_library, parse_function
 from dynid.vehicle.description import load_vehicle
 from dynid.vehicle.sim.car import CarSimulator, _models_source
@@ -52,7 +53,8 @@ def builder_ir(source: str, symbol: str) -> str:
     func.attributes.add("nounwind")
     b = ir.IRBuilder(func.append_basic_block("entry"))
     param = {a: func.args[3 * k: 3 * k + 3] for k, a in enumerate(args)}
-    trig = {k: ir.Function(module, ir.FunctionType(F64, [F64]), f"llvm.{k}.f64") for k in ("sin", "cos")}
+    libm = {k: ir.Function(module, ir.FunctionType(F64, [F64]), f"llvm.{k}.f64") for k in ("sin", "cos", "fabs")}
+    pairs: dict[int, tuple[ir.Value, ir.Value]] = {}
     i8 = ir.IntType(8)
     memset = ir.Function(module, ir.FunctionType(ir.VoidType(), [ir.PointerType(i8), i8, I64, ir.IntType(1)]),
                          "llvm.memset.p0i8.i64")
@@ -80,11 +82,60 @@ def builder_ir(source: str, symbol: str) -> str:
             return b.load(address(node))
         f = node.func
         x = expr(node.args[0])
-        if isinstance(f, ast.Attribute):
-            return b.call(trig[f.attr], [x])
+        if f.id in ("_sin", "_cos"):
+            if id(x) not in pairs:
+                pairs[id(x)] = sincos(x)
+            return pairs[id(x)][f.id == "_cos"]
         zero = ir.Constant(F64, 0.0)
         low = b.select(b.fcmp_ordered("<", x, zero), ir.Constant(F64, -1.0), zero)
         return b.select(b.fcmp_ordered(">", x, zero), ir.Constant(F64, 1.0), low)
+
+    pair_type = ir.LiteralStructType([F64, F64])
+    sincos_fn = None
+
+    def sincos(x: ir.Value) -> tuple[ir.Value, ir.Value]:
+        """llvm_code's: a call of the module's one internal, not inlined, copy of the steps (sincos_body)."""
+        nonlocal sincos_fn
+        if sincos_fn is None:
+            sincos_fn = ir.Function(module, ir.FunctionType(pair_type, [F64]), "dynid_sincos")
+            sincos_fn.linkage = "internal"
+            sincos_fn.attributes.add("noinline")
+            sincos_fn.attributes.add("nounwind")
+            sincos_body(ir.IRBuilder(sincos_fn.append_basic_block("entry")), sincos_fn)
+        pair = b.call(sincos_fn, [x])
+        return b.extract_value(pair, 0), b.extract_value(pair, 1)
+
+    def sincos_body(b: ir.IRBuilder, func: ir.Function) -> None:
+        """llvm_code.Emitter.sincos: dynamics.trig's steps, the quadrant by selects, libm out of range."""
+        x = func.args[0]
+        ok = b.fcmp_ordered("<", b.call(libm["fabs"], [x]), ir.Constant(F64, trig.LIMIT))
+        val = {"x": b.select(ok, x, ir.Constant(F64, 0.0))}
+        for name, op, u, v in trig.STEPS:
+            val[name] = getattr(b, f"f{op}")(*(val[w] if w in val else ir.Constant(F64, trig.CONSTANTS[w])
+                                               for w in (u, v)))
+        quad = b.and_(b.fptosi(val["k"], I64), ir.Constant(I64, 3))
+
+        def bit(w: ir.Value, m: int) -> ir.Value:
+            return b.icmp_signed("!=", b.and_(w, ir.Constant(I64, m)), ir.Constant(I64, 0))
+
+        odd = bit(quad, 1)
+        s1, c1 = b.select(odd, val["cs"], val["sn"]), b.select(odd, val["sn"], val["cs"])
+        s2 = b.select(bit(quad, 2), b.fneg(s1), s1)
+        c2 = b.select(bit(b.add(quad, ir.Constant(I64, 1)), 2), b.fneg(c1), c1)
+        here, slow, done = b.block, func.append_basic_block(), func.append_basic_block()
+        b.cbranch(ok, done, slow)
+        b.position_at_end(slow)
+        s3, c3 = b.call(libm["sin"], [x]), b.call(libm["cos"], [x])
+        b.branch(done)
+        b.position_at_end(done)
+        out = []
+        for fast, far in ((s2, s3), (c2, c3)):
+            phi = b.phi(F64)
+            phi.add_incoming(fast, here)
+            phi.add_incoming(far, slow)
+            out.append(phi)
+        pair = b.insert_value(b.insert_value(ir.Constant(pair_type, ir.Undefined), out[0], 0), out[1], 1)
+        b.ret(pair)
 
     for st in fn.body:
         if isinstance(st, ast.Return):

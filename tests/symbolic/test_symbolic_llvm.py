@@ -4,6 +4,8 @@ is compiled by Numba from Python, with a warning."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -19,8 +21,8 @@ def {name}(q, wrench, out, extra):
     a = q[0]
     b = q[1]
     w = wrench[1, 4]
-    s = math.sin(a)
-    c = math.cos(b)
+    s = _sin(a)
+    c = _cos(b)
     e = -(a * s - b * c) * c1 + 3 * w
     out[0] = e * e - a
     out[2] = _sign(a) + _sign(b) * 2.0 + _sign(w - w)
@@ -110,6 +112,8 @@ def test_native_functions_are_the_python_source_to_the_bit_and_load_from_disk(tm
     file made for another CPU is built again, never loaded."""
     import pickle
 
+    from dynid.symbolic import cache
+
     monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
     body = BODY.format(name="f")
     key = nb.source_key("test native", body)
@@ -124,7 +128,7 @@ def test_native_functions_are_the_python_source_to_the_bit_and_load_from_disk(tm
         return {"f": body}
 
     for round_ in range(3):
-        nb._NATIVE.clear()
+        cache._LOADED.clear()
         fns = nb.native_functions(key, sources, prefix="dynid_test")
         out, extra = np.full(4, 7.0), np.full(6, 7.0)
         fns.python["f"](q, wrench, out, extra)
@@ -154,3 +158,158 @@ def test_internal_functions_compile_without_entry_points(tmp_path, monkeypatch):
     for f in (mod.twice, mod._cell):
         assert f.targetoptions["no_cpython_wrapper"] and f.targetoptions["no_cfunc_wrapper"]
     assert mod._cell is not _cell and _cell(b, 3, 2.5) == 2  # the original, unchanged, from Python
+
+
+def test_generated_sine_and_cosine_are_trigs_to_the_bit(tmp_path, monkeypatch):
+    """A generated model's sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1) are
+    dynamics.trig's, run by Python, to the bit: compiled from LLVM IR (native_functions: the simulator's models;
+    straight_line) and by Numba from the Python source, on the edges of the quadrants (multiples of pi/4 and their
+    neighbours), small, large and out-of-range angles (|x| >= trig.LIMIT, inf, NaN: libm's), no contraction into
+    FMA on any CPU. libm's (the scalar IR's sine before) differs from them by an ulp on some of these angles."""
+    from dynid.dynamics import trig
+    from dynid.model import Frame, Tree
+    from dynid.symbolic import build
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    k = np.arange(-400, 400) * (np.pi / 4)
+    rng = np.random.default_rng(7)
+    x = np.concatenate([k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), [1e-300, -0.0, 0.0, 5e-324],
+                        np.array([1.0, -1.0]) * np.nextafter(trig.LIMIT, 0.0), [trig.LIMIT, -trig.LIMIT, 3e5, 1e300],
+                        [np.inf, -np.inf, np.nan], rng.uniform(-trig.LIMIT, trig.LIMIT, 2000),
+                        rng.uniform(-4.0, 4.0, 2000)])
+    ref = trig.python_function()
+    # (N, 2): sin, cos; Python's math.sin raises at inf, where compiled code gives NaN
+    want = np.array([ref(float(v)) if np.isfinite(v) else (np.nan, np.nan) for v in x])
+    prog = build(Tree("one revolute joint", (Frame(1, 0, 0),)), "dgm")
+    src = nb.scalar_source(prog, "dgm")
+    assert "_sin(" in src and "math.sin" not in src
+    key = nb.source_key("test trig", src)
+    native = nb.native_functions(key, lambda: {"dgm": src}, prefix="dynid_test").python["dgm"]
+    straight = nb.compile_source(src, ["dgm"], key, prefix="dynid_test_ir", straight=["dgm"]).dgm
+    numba = nb.compile_source(src, ["dgm"], key, prefix="dynid_test_nb").dgm
+    for label, fn in (("native", native), ("straight_line", straight), ("numba", numba)):
+        got = np.empty_like(want)
+        out = np.empty(32)
+        for i, v in enumerate(x):
+            fn(np.array([v]), out)
+            got[i] = out[20], out[16]  # T1[1, 0] = sin q1, T1[0, 0] = cos q1
+        finite = np.isfinite(x)
+        assert np.array_equal(got[finite].view(np.int64), want[finite].view(np.int64)), (
+            label, x[np.any(got != want, axis=1) & finite][:5])
+        assert np.isnan(got[~finite]).all(), label
+    assert not np.array_equal(np.sin(x[finite]), want[finite, 0])  # libm's: this test tells them apart
+
+
+def _native_entry(tmp_path, monkeypatch, body: str, label: str):
+    """(the library's cache file, a loader counting its builds, the numbers the source gives run by Python)."""
+    from dynid.symbolic import cache
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    key = nb.source_key(label, body)
+    rng = np.random.default_rng(12)
+    q, wrench = rng.normal(size=3), rng.normal(size=(2, 6))
+    want = np.full(4, 7.0), np.full(6, 7.0)
+    _python("f", body)(q, wrench, *want)
+    built = []
+
+    def load():
+        cache._LOADED.clear()  # a new process's loader
+        fns = nb.native_functions(key, lambda: built.append(1) or {"f": body}, prefix="dynid_test")
+        out, extra = np.full(4, 7.0), np.full(6, 7.0)
+        fns.python["f"](q, wrench, out, extra)
+        return np.concatenate([out, extra])
+
+    return cache.module_path("numba", f"dynid_test_{key}").with_suffix(".lib"), load, built, np.concatenate(want)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "empty"])
+def test_a_damaged_library_entry_is_built_again(tmp_path, monkeypatch, damage):
+    """cache.load_entry through native_functions: a truncated, overwritten or empty .lib is built again (never
+    trusted) and written whole; the numbers are the source's, to the bit."""
+    path, load, built, want = _native_entry(tmp_path, monkeypatch, BODY.format(name="f"), "test damaged")
+    assert np.array_equal(load(), want) and len(built) == 1 and path.exists()
+    whole = path.read_bytes()
+    path.write_bytes({"truncated": whole[:len(whole) // 2], "garbage": b"\x80\x05not a pickle" * 50,
+                      "empty": b""}[damage])
+    assert np.array_equal(load(), want) and len(built) == 2
+    assert path.read_bytes() != b"" and np.array_equal(load(), want) and len(built) == 2  # rewritten whole: loaded
+
+
+def test_a_changed_source_gives_a_new_entry(tmp_path, monkeypatch):
+    """A changed source (another constant) has another key (source_key), so another entry, built and giving the
+    new numbers; the first entry stays; and a change to any file of the generator (here one digit of
+    dynamics.trig's constants, in a copy) changes the generator's fingerprint that every key holds."""
+    import shutil
+
+    from dynid.dynamics import trig
+    from dynid.symbolic import cache
+
+    body = BODY.format(name="f")
+    path1, load1, built1, want1 = _native_entry(tmp_path, monkeypatch, body, "test changed")
+    changed = body.replace("c1 = 0.1", "c1 = 0.2")
+    path2, load2, built2, want2 = _native_entry(tmp_path, monkeypatch, changed, "test changed")
+    assert path1 != path2 and not np.array_equal(want1, want2)
+    assert np.array_equal(load1(), want1) and np.array_equal(load2(), want2) and (built1, built2) == ([1], [1])
+    assert path1.exists() and path2.exists()
+    files = [*sorted(Path(cache.__file__).parent.glob("*.py")), Path(trig.__file__)]
+    copies = []
+    for f in files:
+        shutil.copy(f, tmp_path / f.name)
+        copies.append(tmp_path / f.name)
+    assert cache.fingerprint(copies) == cache.fingerprint(files)
+    text = copies[-1].read_text()
+    copies[-1].write_text(text.replace("1.57079632673412561417e+00", "1.57079632673412561418e+00", 1))
+    assert copies[-1].read_text() != text and cache.fingerprint(copies) != cache.fingerprint(files)
+
+
+_WRITER = """
+import sys, time
+import numpy as np
+from dynid.symbolic import numba_backend as nb
+body, key, start = sys.argv[1], sys.argv[2], float(sys.argv[3])
+while time.time() < start:  # both processes build and write at the same moment
+    time.sleep(0.001)
+fns = nb.native_functions(key, lambda: {"f": body}, prefix="dynid_test")
+mod = nb.compile_source(body, ["f"], key, prefix="dynid_test_mod")
+print("ok")
+"""
+
+
+def test_two_processes_writing_one_entry_leave_a_valid_one(tmp_path, monkeypatch):
+    """Two processes building the same library and module at once into an empty cache: each writes its file
+    atomically (cache.write_atomic: whole or not at all), so the entries that stay load without a build and give
+    the source's numbers, and no partial file is left."""
+    import subprocess
+    import sys
+    import time
+
+    from dynid.symbolic import cache
+
+    body = BODY.format(name="f")
+    path, load, built, want = _native_entry(tmp_path, monkeypatch, body, "test concurrent")
+    key = path.stem.removeprefix("dynid_test_")
+    start = str(time.time() + 3.0)
+    procs = [subprocess.Popen([sys.executable, "-c", _WRITER, body, key, start], stdout=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    assert [p.communicate(timeout=600)[0].strip() for p in procs] == ["ok", "ok"]
+    assert np.array_equal(load(), want) and built == []  # from the disk, not built
+    cache._LOADED.clear()
+    mod = cache.load_module("numba", f"dynid_test_mod_{key}", key, None)
+    assert mod is not None and key == mod.KEY
+    out, extra = np.full(4, 7.0), np.full(6, 7.0)
+    rng = np.random.default_rng(12)
+    mod.f(rng.normal(size=3), rng.normal(size=(2, 6)), out, extra)
+    assert np.array_equal(np.concatenate([out, extra]), want)
+    assert sorted(p.name for p in path.parent.iterdir() if not p.is_dir()) == sorted(
+        [path.name, f"dynid_test_mod_{key}.py"])
+
+
+def test_native_functions_without_numba_are_a_cached_module(tmp_path, monkeypatch):
+    """Without numba, native_functions' functions are the source run by Python (the same numbers), kept as a
+    generated module by the same loader (cache.load_entry): built once, then loaded from the disk."""
+    path, load, built, want = _native_entry(tmp_path, monkeypatch, BODY.format(name="f"), "test no numba")
+    monkeypatch.setattr(nb, "have_numba", lambda: False)
+    monkeypatch.setattr(nb, "_WARNED", [False])
+    with pytest.warns(nb.NumbaMissingWarning):
+        assert np.array_equal(load(), want)
+    assert np.array_equal(load(), want) and built == [1] and path.with_suffix(".py").exists() and not path.exists()

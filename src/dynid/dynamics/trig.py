@@ -9,7 +9,9 @@ into FMA like its kernels where the CPU has it, within an ulp of them:
 - the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`;
 - the generated NumPy modules run `numpy_source()` (one ufunc per step over a row of samples);
 - the generated C's `_block` functions run `c_source()` (GCC and clang vectorise it across samples);
-- the LLVM block kernels (symbolic.blocks) emit one vector instruction per step of `STEPS`.
+- the LLVM block kernels (symbolic.blocks) emit one vector instruction per step of `STEPS`, and the scalar LLVM
+  models (symbolic.llvm_code: the simulator's) one scalar instruction, both through llvm_code.Emitter.sincos;
+- the generated per-sample Python (symbolic.numba_backend.HEADER's _sin and _cos) runs `python_source()`.
 
 The steps (three-address, `STEPS`): k = round(x 2/pi) by adding and subtracting 1.5 * 2^52; r = x - k pi/2
 with pi/2 in two parts (the first of 33 bits, so that k * PIO2_1 is exact for |k| < 2^20); then fdlibm's

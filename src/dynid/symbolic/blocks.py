@@ -1,7 +1,7 @@
 """Generated kernels that evaluate LANES samples side by side, from vector LLVM IR compiled through Numba.
 
 Why: the per-sample code (numba_backend, C) runs one sample's straight line with scalar
-instructions and libm's sin and cos; the NumPy code streams each operation over thousands of
+instructions; the NumPy code streams each operation over thousands of
 samples through memory. Here each of the model's intermediate variables is a vector of LANES
 samples held in registers, every operation one vector instruction, so the arithmetic runs at
 the vector units' width with no trip through memory (issue 16).
@@ -21,9 +21,9 @@ sample); otherwise, and for a last partial block (whose missing lanes repeat its
 sample), the block goes through a zeroed (size, LANES) scratch whose valid lanes are then
 copied. Arithmetic is the source's, operation by
 operation, with no fast-math flag (no contraction into FMA, no reassociation), so that the
-numbers do not depend on the CPU's instruction set: they are the per-sample code's except
-sine and cosine, dynamics.trig's steps in vector form (the generated NumPy's and C's to the bit,
-within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
+numbers do not depend on the CPU's instruction set: they are the per-sample code's, sine and
+cosine included (dynamics.trig's steps, llvm_code.Emitter.sincos, in vector form: the generated
+NumPy's and C's to the bit, within an ulp of libm); a lane whose angle is 1e5 or more, or NaN,
 takes libm's values.
 
 `block_model(tree, model, **options)` generates, caches on disk (the source beside Numba's
@@ -39,7 +39,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..dynamics import trig
 from ..model.tree import Tree
 from .cache import model_hash
 from .llvm_code import Emitter, UnsupportedSourceError, _double, call_ir, lazy_text, parse_function
@@ -62,8 +61,8 @@ class _VectorEmitter(Emitter):
         self.outputs, self.shared, self.L = outputs, shared, lanes
         self.V = self.T = f"<{lanes} x double>"
         self.M = f"<{lanes} x i1>"
-        self.block = "body"
-        self.pairs: dict[str, tuple[str, str]] = {}  # argument text -> (sin, cos)
+        self.I = f"<{lanes} x i64>"
+        self.S = f"v{lanes}f64"
 
     def const(self, x: float) -> str:
         if x == 0.0 and str(x)[0] != "-":
@@ -120,12 +119,6 @@ class _VectorEmitter(Emitter):
     def _op(self, op: str, a: str, b: str) -> str:
         return self._new(f"{op} {self.V} {a}, {b}")
 
-    def trig(self, kind: str, node: ast.Call) -> str:
-        key = ast.dump(node.args[0])  # sine and cosine of one argument computed together
-        if key not in self.pairs:
-            self.pairs[key] = self.sincos(self.expr(node.args[0]))
-        return self.pairs[key][0 if kind == "sin" else 1]
-
     def tanh(self, x: str) -> str:
         """Smooth friction laws: rare, libm lane by lane (the engine's numbers)."""
         v = f"{self.V} poison"
@@ -135,53 +128,26 @@ class _VectorEmitter(Emitter):
             v = f"{self.V} " + self._new(f"insertelement {v}, double {t}, i64 {lane}")
         return v.split(" ")[-1]
 
-    def sincos(self, x: str) -> tuple[str, str]:
-        """(sin x, cos x) of a vector: the steps of dynamics.trig, the quadrant by selects; lanes out of range
-        (|x| >= trig.LIMIT or NaN) from libm, in a branch taken only then."""
-        L, V, c = self.L, self.V, self.const
-        M, VI = f"<{L} x i1>", f"<{L} x i64>"
-        ax = self._new(f"call {V} @llvm.fabs.v{L}f64({V} {x})")
-        ok = self._new(f"fcmp olt {V} {ax}, {c(trig.LIMIT)}")
-        val = {"x": self._new(f"select {M} {ok}, {V} {x}, {V} zeroinitializer")}
-        for name, op, a, b in trig.STEPS:  # one vector instruction per step
-            val[name] = self._op(f"f{op}", val[a] if a in val else c(trig.CONSTANTS[a]),
-                                 val[b] if b in val else c(trig.CONSTANTS[b]))
-        k, sn, cs = val["k"], val["sn"], val["cs"]
-        quad = self._new(f"and {VI} {self._new(f'fptosi {V} {k} to {VI}')}, " + "<" + ", ".join(["i64 3"] * L) + ">")
+    def iconst(self, n: int) -> str:
+        return "zeroinitializer" if n == 0 else "<" + ", ".join([f"i64 {n}"] * self.L) + ">"
 
-        def bit(v: str, b: int) -> str:
-            m = self._new(f"and {VI} {v}, <" + ", ".join([f"i64 {b}"] * L) + ">")
-            return self._new(f"icmp ne {VI} {m}, zeroinitializer")
+    def all_true(self, mask: str) -> str:
+        return self._new(f"icmp eq i{self.L} {self._new(f'bitcast {self.M} {mask} to i{self.L}')}, -1")
 
-        odd = bit(quad, 1)
-        a = self._new(f"select {M} {odd}, {V} {cs}, {V} {sn}")
-        b = self._new(f"select {M} {odd}, {V} {sn}, {V} {cs}")
-        s = self._new(f"select {M} {bit(quad, 2)}, {V} {self._new(f'fneg {V} {a}')}, {V} {a}")
-        plus1 = self._new(f"add {VI} {quad}, <" + ", ".join(["i64 1"] * L) + ">")
-        co = self._new(f"select {M} {bit(plus1, 2)}, {V} {self._new(f'fneg {V} {b}')}, {V} {b}")
-        # libm for the lanes out of range, in a branch taken only when there is one
-        bits = self._new(f"bitcast {M} {ok} to i{L}")
-        allok = self._new(f"icmp eq i{L} {bits}, -1")
-        n = self.count
-        here = self.block
-        self.lines.append(f"  br i1 {allok}, label %trig_done{n}, label %trig_slow{n}")
-        self.lines.append(f"trig_slow{n}:")
-        vs, vc = s, co
-        for lane in range(L):
+    def libm(self, x: str, ok: str, s: str, c: str) -> tuple[str, str]:
+        """libm lane by lane where ok is false (a branch taken only when some lane is)."""
+        V = self.V
+        vs, vc = s, c
+        for lane in range(self.L):
             xl = self._new(f"extractelement {V} {x}, i64 {lane}")
-            okl = self._new(f"extractelement {M} {ok}, i64 {lane}")
+            okl = self._new(f"extractelement {self.M} {ok}, i64 {lane}")
             sl = self._new(f"call double @llvm.sin.f64(double {xl})")
             cl = self._new(f"call double @llvm.cos.f64(double {xl})")
             sl = self._new(f"select i1 {okl}, double {self._new(f'extractelement {V} {s}, i64 {lane}')}, double {sl}")
-            cl = self._new(f"select i1 {okl}, double {self._new(f'extractelement {V} {co}, i64 {lane}')}, double {cl}")
+            cl = self._new(f"select i1 {okl}, double {self._new(f'extractelement {V} {c}, i64 {lane}')}, double {cl}")
             vs = self._new(f"insertelement {V} {vs}, double {sl}, i64 {lane}")
             vc = self._new(f"insertelement {V} {vc}, double {cl}, i64 {lane}")
-        self.lines.append(f"  br label %trig_done{n}")
-        self.lines.append(f"trig_done{n}:")
-        self.block = f"trig_done{n}"
-        s2 = self._new(f"phi {V} [{s}, %{here}], [{vs}, %trig_slow{n}]")
-        c2 = self._new(f"phi {V} [{co}, %{here}], [{vc}, %trig_slow{n}]")
-        return s2, c2
+        return vs, vc
 
     # -- statements
     def ret(self) -> None:

@@ -6,17 +6,19 @@ of CPU per operation. The simulator's generated models (numba_backend.scalar_sou
 SUV: car_kin 2.5 s, car_idm 3.4 s, car_inertia 5.5 s of CPU; three times as much on the
 Peugeot 406, whose models are larger). Their source is a tiny language:
 
-    x = <expr>                 expr: names, numbers, + - * (binary), unary -, math.sin, math.cos,
-    out[k] = <expr>                  _sign, reads a[i] and a[i, j] of the array arguments
+    x = <expr>                 expr: names, numbers, + - * (binary), unary -, _sin, _cos, _sign,
+    out[k] = <expr>                  reads a[i] and a[i, j] of the array arguments
     out[:] = 0.0
     return 0
 
+with _sin and _cos dynamics.trig's sine and cosine (numba_backend.HEADER defines them from its python_source).
 `function_ir` translates it into LLVM IR, operation by operation in Python's evaluation order, with
-no fast-math flags and Numba's own forms (unary minus as -0.0 - x, llvm.sin.f64 / llvm.cos.f64):
-the same IEEE operations in the same order as Numba's compile of that source, hence the same
-numbers. LLVM builds that IR in well under a second. `straight_line(fn, symbol)` returns the Numba
-intrinsic that calls it, taking the function's array arguments as one tuple; anything outside the
-language raises `UnsupportedSourceError` (numba_backend then compiles the Python function as before).
+no fast-math flags and Numba's own forms (unary minus as -0.0 - x), sine and cosine of one angle together as
+the steps of trig.STEPS (`Emitter.sincos`, which the vector kernels share): the same IEEE operations in the same
+order as Numba's compile of that source, hence the same numbers, on any CPU (no contraction into FMA).
+LLVM builds that IR in well under a second. `straight_line(fn, symbol)` returns the Numba intrinsic that calls
+it, taking the function's array arguments as one tuple; anything outside the language raises
+`UnsupportedSourceError` (numba_backend then compiles the Python function as before).
 
 `Emitter` is the walk of that language which this scalar back-end and the vector one (blocks) share; `call_ir`
 and `lazy_text` their link into Numba. The IR is written as text, not with llvmlite's IR builder
@@ -40,12 +42,12 @@ import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
+from ..dynamics import trig
 from ..pysource import parse
 
 _BINARY = {ast.Add: "fadd", ast.Sub: "fsub", ast.Mult: "fmul"}
-_MATH = {"sin": "llvm.sin.f64", "cos": "llvm.cos.f64"}
 _DECLARATIONS = ("declare double @llvm.sin.f64(double)", "declare double @llvm.cos.f64(double)",
-                 "declare void @llvm.memset.p0.i64(ptr, i8, i64, i1)")
+                 "declare double @llvm.fabs.f64(double)", "declare void @llvm.memset.p0.i64(ptr, i8, i64, i1)")
 
 
 class UnsupportedSourceError(ValueError):
@@ -61,17 +63,22 @@ class Emitter(ABC):
     """The walk of the generated language that the scalar back-end (here) and the vector one (blocks) share:
     one SSA value %vN per Python name and temporary, operations in Python's evaluation order. A back-end sets
     the value type T and its comparison mask M, and says how a constant is written (`const`), an array element
-    read (`load`) and assigned (`assign_element`), how the function returns, and how negation, sine and
-    cosine, and tanh are computed."""
+    read (`load`) and assigned (`assign_element`), how the function returns, how negation and tanh are computed,
+    and for sine and cosine (`sincos`, dynamics.trig's steps) whether every lane is in range (`all_true`) and
+    libm's values of the lanes that are not (`libm`)."""
 
-    T = "double"
-    M = "i1"
+    T = "double"  # the value type
+    M = "i1"  # its comparison mask
+    I = "i64"  # its integer counterpart (the quadrant)
+    S = "f64"  # its intrinsics' suffix (llvm.fabs.f64)
 
     def __init__(self, args: list[str]) -> None:
         self.args = args
         self.env: dict[str, str] = {}
         self.lines: list[str] = []
         self.count = 0
+        self.block = "entry"  # the basic block being emitted (sincos branches)
+        self.pairs: dict[str, tuple[str, str]] = {}  # argument's value -> (sin, cos): computed together
 
     def _new(self, text: str) -> str:
         self.count += 1
@@ -99,14 +106,61 @@ class Emitter(ABC):
     def neg(self, x: str) -> str:
         return self._new(f"fneg {self.T} {x}")
 
-    @abstractmethod
-    def trig(self, kind: str, node: ast.Call) -> str:
-        """math.sin or math.cos (kind) of node.args[0]."""
+    def iconst(self, n: int) -> str:
+        """An integer constant of type I."""
+        return str(n)
+
+    def all_true(self, mask: str) -> str:
+        """An i1: every lane of the mask is true."""
+        return mask
+
+    def libm(self, x: str, ok: str, s: str, c: str) -> tuple[str, str]:
+        """(sin, cos): libm's of x where ok is false, s and c elsewhere (emitted only when a lane is out of range)."""
+        return (self._new(f"call double @llvm.sin.f64(double {x})"),
+                self._new(f"call double @llvm.cos.f64(double {x})"))
 
     def tanh(self, x: str) -> str:
         raise UnsupportedSourceError("math.tanh")
 
     # -- shared
+    def trig(self, kind: str, x: str) -> str:
+        """_sin or _cos (kind) of the value x; its sine and cosine computed together."""
+        if x not in self.pairs:
+            self.pairs[x] = self.sincos(x)
+        return self.pairs[x][0 if kind == "sin" else 1]
+
+    def sincos(self, x: str) -> tuple[str, str]:
+        """(sin x, cos x): one instruction per step of dynamics.trig.STEPS, the quadrant by selects (trig.QUADRANT's
+        picks and signs: exact); an x out of range (|x| >= trig.LIMIT or NaN) from libm, in a branch taken only
+        then (the steps run on 0 instead: k * PIO2_1 would not be exact, fptosi of a huge k poison)."""
+        T, M, I, c = self.T, self.M, self.I, self.const
+        ax = self._new(f"call {T} @llvm.fabs.{self.S}({T} {x})")
+        ok = self._new(f"fcmp olt {T} {ax}, {c(trig.LIMIT)}")
+        val = {"x": self._new(f"select {M} {ok}, {T} {x}, {T} {c(0.0)}")}
+        for name, op, a, b in trig.STEPS:
+            val[name] = self._new(f"f{op} {T} {val[a] if a in val else c(trig.CONSTANTS[a])}, "
+                                  f"{val[b] if b in val else c(trig.CONSTANTS[b])}")
+        k, sn, cs = val["k"], val["sn"], val["cs"]
+        quad = self._new(f"and {I} {self._new(f'fptosi {T} {k} to {I}')}, {self.iconst(3)}")
+
+        def bit(v: str, b: int) -> str:
+            return self._new(f"icmp ne {I} {self._new(f'and {I} {v}, {self.iconst(b)}')}, {self.iconst(0)}")
+
+        odd = bit(quad, 1)  # quadrants 1 and 3: sin from cs, cos from sn
+        a = self._new(f"select {M} {odd}, {T} {cs}, {T} {sn}")
+        b = self._new(f"select {M} {odd}, {T} {sn}, {T} {cs}")
+        s = self._new(f"select {M} {bit(quad, 2)}, {T} {self._new(f'fneg {T} {a}')}, {T} {a}")  # 2, 3: -sin
+        plus1 = self._new(f"add {I} {quad}, {self.iconst(1)}")
+        co = self._new(f"select {M} {bit(plus1, 2)}, {T} {self._new(f'fneg {T} {b}')}, {T} {b}")  # 1, 2: -cos
+        allok = self.all_true(ok)
+        n, here = self.count, self.block
+        self.lines += [f"  br i1 {allok}, label %trig_done{n}, label %trig_slow{n}", f"trig_slow{n}:"]
+        vs, vc = self.libm(x, ok, s, co)
+        self.lines += [f"  br label %trig_done{n}", f"trig_done{n}:"]
+        self.block = f"trig_done{n}"
+        return (self._new(f"phi {T} [{s}, %{here}], [{vs}, %trig_slow{n}]"),
+                self._new(f"phi {T} [{co}, %{here}], [{vc}, %trig_slow{n}]"))
+
     @staticmethod
     def index(node: ast.Subscript) -> list[int]:
         """The constant non-negative indices of a subscript."""
@@ -142,13 +196,13 @@ class Emitter(ABC):
             return self.load(node)
         if isinstance(node, ast.Call) and len(node.args) == 1 and not node.keywords:
             f = node.func
-            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
-                if f.attr in ("sin", "cos"):
-                    return self.trig(f.attr, node)
-                if f.attr == "tanh":
-                    return self.tanh(self.expr(node.args[0]))
+            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and (f.value.id, f.attr) == (
+                    "math", "tanh"):
+                return self.tanh(self.expr(node.args[0]))
             if isinstance(f, ast.Name) and f.id == "_sign":
                 return self.sign(self.expr(node.args[0]))
+            if isinstance(f, ast.Name) and f.id in ("_sin", "_cos"):
+                return self.trig(f.id[1:], self.expr(node.args[0]))
         raise UnsupportedSourceError(f"expression {ast.unparse(node)}")
 
     def statement(self, node: ast.stmt) -> bool:
@@ -175,7 +229,7 @@ class Emitter(ABC):
 
 
 class _ScalarEmitter(Emitter):
-    """One sample's function: doubles, array elements through pointers, libm's sin and cos (Numba's forms)."""
+    """One sample's function: doubles, array elements through pointers (Numba's forms)."""
 
     def const(self, x: float) -> str:
         return "0.0" if x == 0.0 and math.copysign(1.0, x) > 0 else _double(x)
@@ -183,8 +237,11 @@ class _ScalarEmitter(Emitter):
     def neg(self, x: str) -> str:
         return self._new(f"fsub double -0.0, {x}")  # Numba's negation
 
-    def trig(self, kind: str, node: ast.Call) -> str:
-        return self._new(f"call double @{_MATH[kind]}(double {self.expr(node.args[0])})")
+    def sincos(self, x: str) -> tuple[str, str]:
+        """A call of the module's one copy of Emitter.sincos (_SINCOS)."""
+        pair = self._new(f"call {{double, double}} @dynid_sincos(double {x})")
+        return (self._new(f"extractvalue {{double, double}} {pair}, 0"),
+                self._new(f"extractvalue {{double, double}} {pair}, 1"))
 
     def ret(self) -> None:
         self.lines.append("  ret void")
@@ -234,6 +291,20 @@ def parse_function(source: str) -> ast.FunctionDef:
     return fn
 
 
+@functools.cache
+def _sincos_function() -> tuple[str, ...]:
+    """`{double, double} @dynid_sincos(double %x)`: Emitter.sincos, internal to each module that calls it, not
+    inlined: its ~50 instructions and a branch at each of a car model's 19 to 23 angles made LLVM's first compile
+    of the simulator's models half as long again (0.96 to 1.47 s of CPU, the compact SUV), and the call costs
+    less than the two to libm it replaces."""
+    em = _ScalarEmitter([])
+    s, c = Emitter.sincos(em, "%x")
+    pair = em._new(f"insertvalue {{double, double}} poison, double {s}, 0")
+    pair = em._new(f"insertvalue {{double, double}} {pair}, double {c}, 1")
+    return ("define internal {double, double} @dynid_sincos(double %x) noinline nounwind {", "entry:", *em.lines,
+            f"  ret {{double, double}} {pair}", "}")
+
+
 def function_ir(source: str, symbol: str) -> str:
     """LLVM IR (a module) defining `void @symbol(ptr a, i64 n, i64 c, ...)`: per array argument of the
     function in `source`, its data, its number of elements and its last dimension (C order)."""
@@ -250,7 +321,7 @@ def function_ir(source: str, symbol: str) -> str:
     # generated module, see numba_backend); not linkonce_odr, which LLVM's linker drops when the caller's module
     # is linked after it; nounwind: no exception leaves it
     return "\n".join([f'define weak_odr void @"{symbol}"({params}) nounwind {{', "entry:", *em.lines, "}",
-                      *_DECLARATIONS]) + "\n"
+                      *(_sincos_function() if em.pairs else ()), *_DECLARATIONS]) + "\n"
 
 
 def lazy_text(build: Callable[[], str]) -> Callable[[], str]:

@@ -6,12 +6,13 @@ simulator that needs one sample at a time inside an integration loop. This backe
 writes what `to_c` writes, in Python: one function per model taking one sample,
 
     def <name>(q, qd, qdd, X, wrench, out[, Q]):     # the arrays the model reads
-        S4 = math.sin(q[3])                          # Khalil's intermediate variables
+        S4 = _sin(q4)                                # Khalil's intermediate variables
         ...
         out[k] = ...                                 # flat row-major output, zeros included
 
-with q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench (sites, 6), out and
-any extra output flat float64 arrays. The module source is written atomically to
+with _sin and _cos dynamics.trig's steps (HEADER: every generated target's sine and cosine, the same bits in
+Python, in Numba and from LLVM IR), and q, qd, qdd (n,), X (p,) (only with symbolic parameters), wrench
+(sites, 6), out and any extra output flat float64 arrays. The module source is written atomically to
 `cache_dir()/numba/<name>_<hash>.py` (hash of the model and of this generator) and
 imported from there (cache.load_module), so that `numba.njit(cache=True)` can keep the machine code next
 to it: the first run compiles (seconds), the next ones load. Without numba the same
@@ -25,7 +26,6 @@ across them and cache the whole).
 from __future__ import annotations
 
 import ast
-import contextlib
 import ctypes
 import hashlib
 import importlib
@@ -38,8 +38,9 @@ from pathlib import Path
 from types import ModuleType
 
 from .. import pysource
+from ..dynamics import trig
 from ..model.tree import Tree
-from .cache import generator_fingerprint, load_module, model_hash, module_path, write_atomic
+from .cache import generator_fingerprint, load_entry, load_module, model_hash, module_path
 from .codegen import _ARGS, _eq_text, format_poly
 from .expr import Program, SymbolicError
 from .llvm_code import UnsupportedSourceError, function_ir, library_state, load_library, native_library, parse_function
@@ -135,8 +136,8 @@ def scalar_source(prog: Program, name: str | None = None) -> str:
             L.append(f"    {sym_name} = {src}[{idx}]")
     for eq in prog.equations:
         rhs = _eq_text(eq, "numpy")
-        if eq.kind in ("sin", "cos"):
-            rhs = "math." + rhs
+        if eq.kind in ("sin", "cos"):  # dynamics.trig's (HEADER), as every target's
+            rhs = "_" + rhs
         elif eq.kind == "sign":
             rhs = "_sign" + rhs[len("sign"):]
         L.append(f"    {eq.name} = {rhs}")
@@ -163,6 +164,17 @@ import numpy as np  # noqa: F401
 def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
+
+''' + trig.python_source("_sincos") + '''
+
+
+def _sin(x):
+    return _sincos(x)[0]
+
+
+def _cos(x):
+    return _sincos(x)[1]
+
 '''
 
 
@@ -179,7 +191,7 @@ def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], err
     opts = "cache=True" if error_model == "python" else f"cache=True, error_model={error_model!r}"
     lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
-             f"    _sign = njit({opts})(_sign)"]
+             *(f"    {f} = njit({opts})({f})" for f in ("_sign", "_sincos", "_sin", "_cos"))]
     # an imported dispatcher's copy keeps its own options (error model...), not this module's; it is not cached:
     # Numba's cache of it (by its file and name, not its flags) is the original's, which Python calls; the copy's
     # code is cached in its callers'
@@ -261,7 +273,6 @@ class NativeFunctions:
     library: object = None  # kept alive: the machine code lives as long as its library
 
 
-_NATIVE: dict[str, NativeFunctions] = {}
 _NATIVE_LOCK = threading.Lock()
 
 
@@ -284,41 +295,47 @@ def _ctypes_caller(address: int, nargs: int) -> Callable:
 def native_functions(key: str, sources: Callable[[], dict[str, str]], prefix: str = "dynid_native") -> NativeFunctions:
     """The straight-line functions of `sources()` (name -> scalar_source text: numba_backend's generated
     language) compiled from their LLVM IR (llvm_code.function_ir) by Numba's code generator into one library,
-    kept on disk as object code (`cache_dir()/numba/<prefix>_<key>.lib`, pickled with the codegen's CPU
-    signature: a library made for another CPU is built again); key: a hash of everything the sources depend on.
-    No Numba typing at all: a caller compiled once (llvm_code.address_call) takes the addresses at run time."""
+    kept on disk as object code (cache.load_entry: `cache_dir()/numba/<prefix>_<key>.lib`, pickled with the key
+    and the codegen's CPU signature: a library made for another CPU is built again); key: a hash of everything
+    the sources depend on. No Numba typing at all: a caller compiled once (llvm_code.address_call) takes the
+    addresses at run time. Without numba, the functions of a module (load_module) run as plain Python."""
     name = f"{prefix}_{key}"
-    with _NATIVE_LOCK:
-        if name in _NATIVE:
-            return _NATIVE[name]
+    with _NATIVE_LOCK:  # one build per process (Numba's code generator runs one at a time anyway)
         if not have_numba():
             _warn_missing()
-            ns: dict = {}
-            texts = sources()
-            exec(HEADER + "\n".join(texts.values()), ns)  # our own generated code
-            funcs = {n: ns[n] for n in texts}
-            out = NativeFunctions({n: id(f) for n, f in funcs.items()}, funcs, False)
-        else:
-            path = module_path("numba", name).with_suffix(".lib")
-            lib, symbols = None, None
-            if path.exists():
-                try:
-                    stored = pickle.loads(path.read_bytes())  # our own cache, its key checked below
-                    if stored["key"] == key:
-                        lib, symbols = load_library(stored["state"]), stored["symbols"]
-                except Exception:  # a damaged or foreign cache file is built again, never trusted
-                    lib = None
-            if lib is None:
+
+            def text() -> str:
                 texts = sources()
-                symbols = {n: (f"{name}.{n}", len(parse_function(src).args.args)) for n, src in texts.items()}
-                lib = native_library(name, [function_ir(src, symbols[n][0]) for n, src in texts.items()])
-                with contextlib.suppress(OSError):  # a read-only cache: built again next run
-                    write_atomic(path, pickle.dumps({"key": key, "symbols": symbols, "state": library_state(lib)}))
-            address = {n: lib.get_pointer_to_function(sym) for n, (sym, _) in symbols.items()}
-            python = {n: _ctypes_caller(address[n], nargs) for n, (_, nargs) in symbols.items()}
-            out = NativeFunctions(address, python, True, lib)
-        _NATIVE[name] = out
+                return HEADER + "\n".join(texts.values()) + f"\nNAMES = {tuple(texts)!r}\n"
+
+            mod = load_module("numba", name, key, text)
+            assert mod is not None
+            funcs = {n: getattr(mod, n) for n in mod.NAMES}
+            return NativeFunctions({n: id(f) for n, f in funcs.items()}, funcs, False)
+
+        def read(path: Path) -> NativeFunctions | None:
+            stored = pickle.loads(path.read_bytes())  # our own cache, its key checked
+            if stored["key"] != key:
+                return None
+            lib = load_library(stored["state"])
+            return None if lib is None else _native(lib, stored["symbols"])
+
+        def build() -> tuple[bytes, NativeFunctions]:
+            texts = sources()
+            symbols = {n: (f"{name}.{n}", len(parse_function(src).args.args)) for n, src in texts.items()}
+            lib = native_library(name, [function_ir(src, symbols[n][0]) for n, src in texts.items()])
+            return pickle.dumps({"key": key, "symbols": symbols, "state": library_state(lib)}), _native(lib, symbols)
+
+        out = load_entry(module_path("numba", name).with_suffix(".lib"), name, read, build)
+        assert out is not None
         return out
+
+
+def _native(lib, symbols: dict[str, tuple[str, int]]) -> NativeFunctions:
+    """The NativeFunctions of a code library: symbols, name -> (its symbol, its number of arrays)."""
+    address = {n: lib.get_pointer_to_function(sym) for n, (sym, _) in symbols.items()}
+    return NativeFunctions(address, {n: _ctypes_caller(address[n], nargs) for n, (_, nargs) in symbols.items()},
+                           True, lib)
 
 
 def source_key(*parts: str) -> str:
