@@ -33,7 +33,7 @@ from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..model.workspace import PerObject
 from ..signals import border_samples, derivative, integrate, lowpass
-from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_columns
+from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_rows
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry
 from .sensors import (
@@ -221,24 +221,26 @@ def compensated_channels(
     lags = lags or {}
     none = ChannelDynamics()
     out = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
-    # `compensate` of each channel, the band limits' phase undone for all channels of one filter in one pass
+    # `compensate` of each channel, the band limits' phase undone for all channels in one pass (each with its own
+    # filter; one pass per number of sections)
     banded: dict[tuple, list[str]] = {}
     for k, x in out.items():
         if k not in dynamics and not lags.get(k):
             continue
         d = dynamics.get(k, none)
         if d.bandwidth is not None and d.bandwidth < 0.45 * fs and x.ndim == 1 and len(x):
-            banded.setdefault((d.bandwidth, d.order, len(x)), []).append(k)
+            banded.setdefault(((d.order + 1) // 2, len(x)), []).append(k)
         else:
             out[k] = compensate(x, d, fs, lags.get(k, 0.0))
-    for (band, order, _), names in banded.items():
-        # stacked as rows, given column-major (the kernel reads channels first): writing each channel into a column
-        # of a C-order (N, C) array touches a cache line per sample per channel (half of this function's time)
-        undone = undo_lowpass_phase_columns(np.stack([out[k] for k in names]).T, fs, band, order)
+    for names in banded.values():
+        # stacked as rows (channels first, as the kernel reads them): writing each channel into a column of a C-order
+        # (N, C) array touches a cache line per sample per channel
+        undone = undo_lowpass_phase_rows(np.stack([out[k] for k in names]), fs,
+                                         [(dynamics[k].bandwidth, dynamics[k].order) for k in names])
         for i, k in enumerate(names):
             shift = dynamics[k].lag(fs) + lags.get(k, 0.0)
             shift -= dynamics[k].band_delay()
-            out[k] = advance(undone[:, i], shift, fs) if shift else undone[:, i]
+            out[k] = advance(undone[i], shift, fs) if shift else undone[i]
     return out
 
 
