@@ -579,18 +579,21 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        sp, cp, ct = np.sin(phi), np.cos(phi), np.cos(theta)
-        dphi = p + (qb * sp + r * cp) * np.tan(theta)
+        sp, cp = np.sin(phi), np.cos(phi)
+        u = qb * sp + r * cp
+        dphi = p + u * np.tan(theta)
         dtheta = qb * cp - r * sp
-        dpsi = (qb * sp + r * cp) / ct
         integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        pitch = theta  # the yaw rate's: the last pass's alone is used
         phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
+    dpsi = u / np.cos(pitch)
     psi = integrate(dpsi, fs)
-    sign = np.array([1.0, -1.0, 1.0])  # yaw, pitch (the template's is nose up), roll
+    sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass(np.stack([dpsi, dtheta, dphi, psi, theta, phi], axis=1), x)
-    rf, rdf = low[:, :3], derivative(low[:, :3], fs)
-    q[:, 3:6], qd[:, 3:6], qdd[:, 3:6] = sign * low[:, 3:], sign * rf, sign * rdf
+    rdf = derivative(low[:, :3], fs)
+    for k in range(3):  # signed column by column into the column-major joints (a moved pass's too): no (N, 3) gathers
+        q[:, 3 + k], qd[:, 3 + k], qdd[:, 3 + k] = low[:, 3 + k] * sign[k], low[:, k] * sign[k], rdf[:, k] * sign[k]
     return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
 
 
