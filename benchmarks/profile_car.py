@@ -86,7 +86,9 @@ AVX-512, 2 cores, at load averages 6 to 15: every figure inflated, only alternat
 4.55, 4.56, 4.00, 4.03 -> 4.66, 3.69, 4.16, 4.42; total 9.84, 10.82, 9.51, 9.24 -> 11.03, 8.80, 10.16, 10.26: at that
 load 10 segments a run do not resolve the changes below. Alone (thread CPU, /tmp scripts, processes alternated):
 compensated_channels, 3 segments in turn with 32 MB touched between calls, medians of 30: 40.4, 28.4, 26.3 ->
-26.8, 21.5, 21.2 ms (load 8-10); min of 20 on one segment: 17.0, 17.5, 18.3 -> 11.8, 12.7, 15.3 ms (load 6-7.5);
+26.8, 21.5, 21.2 ms (load 8-10); min of 20 on one segment: 17.0, 17.5, 18.3 -> 11.8, 12.7, 15.3 ms (load 6-7.5,
+the kernel's block then 64 rows), with the committed 256 rows at load 11: 21.5-23.6 -> 19.0-20.5 ms (6 rounds,
+one 25.1);
 joints_pass alone (compensated channels given), min of 20: 71.5, 84.2, 71.6, 71.7, 67.9, 86.5 -> 62.4, 63.3, 63.6,
 68.7, 62.4, 71.7 ms (load 11-15). Every output bit-identical to main (4379 arrays: 3 hour segments, the demo's 44,
 moved passes). What changed: the band limits undone for all 55 channels in one kernel pass, each channel with its
