@@ -79,6 +79,32 @@ s, once per machine); border_samples cached. Every output bit-identical to main'
 the recursion's latency, 2 of them the attitude's sequential crossover), the attitude 6.5 ms (14 sin, cos, tan of
 38k samples), the first writes of q, qd, qdd (3 x 13 MB: page faults, ~5 ms, inside the corners' pass), the tire
 poses 9 ms (forward kinematics 2.5, spline 5), the velocity 3 ms.
+
+Measured 2026-11-29 (issue 28, h-joints2; main fd92e1c then the branch in turn; this machine an Intel Xeon with
+AVX-512, 2 cores, at load averages 6 to 15: every figure inflated, only alternated ones compare). This profile,
+--minutes 10 --cpu, 4 rounds, CPU s per hour: compensation 0.98, 1.22, 0.95, 0.86 -> 1.13, 0.90, 1.04, 0.99; joints
+4.55, 4.56, 4.00, 4.03 -> 4.66, 3.69, 4.16, 4.42; total 9.84, 10.82, 9.51, 9.24 -> 11.03, 8.80, 10.16, 10.26: at that
+load 10 segments a run do not resolve the changes below. Alone (thread CPU, /tmp scripts, processes alternated):
+compensated_channels, 3 segments in turn with 32 MB touched between calls, medians of 30: 40.4, 28.4, 26.3 ->
+26.8, 21.5, 21.2 ms (load 8-10); min of 20 on one segment: 17.0, 17.5, 18.3 -> 11.8, 12.7, 15.3 ms (load 6-7.5,
+the kernel's block then 64 rows), with the committed 256 rows at load 11: 21.5-23.6 -> 19.0-20.5 ms (6 rounds,
+one 25.1);
+joints_pass alone (compensated channels given), min of 20: 71.5, 84.2, 71.6, 71.7, 67.9, 86.5 -> 62.4, 63.3, 63.6,
+68.7, 62.4, 71.7 ms (load 11-15). Every output bit-identical to main (4379 arrays: 3 hour segments, the demo's 44,
+moved passes). What changed: the band limits undone for all 55 channels in one kernel pass, each channel with its
+own filter, the samples moved through a block of 256 rows (one sample of every channel's row per step took 8.5 ms
+for the 28-channel group alone, 23 ms for 55); the attitude's signed columns written one by one (2.6 -> 0.9 ms),
+its yaw rate on the last refinement alone; the 6- and 7-column low-pass calls given 8 columns (the kernel runs
+channels in vectors of 8: 2.1-2.7 -> 1.6 ms a call). What is left, one 60 s segment (load ~8-11): the corners' and
+loads' 41-column low-pass 8.2 ms (np.stack of the channels 1.6, the finite check 1.0, the copy into the filter's
+work array 2.0, the kernel 4.2; 41 columns cost what 48 do); the attitude ~10 ms (the crossover's two 2-column calls
+0.9 each, latency-bound; the rotation 1.9; the trig: NumPy 2.4 runs sin and cos as SIMD on AVX-512, 0.29, 0.155 and
+tan 0.055 ms per 38k samples, the 13 calls ~2.4 ms, so dynamics/trig.py's sine and cosine in a compiled pass would
+gain at most ~2 ms here for a new kernel's first-run compile (~0.5-1 s; more where NumPy calls libm, AVX2): not
+done); the compensation's np.stack 2.4, kernel 4-8 (its block transposition, memory-bound, most of it) and the
+channels' advance 3 ms (load 12). The page faults: with mallopt (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 512 MB) a
+pass's sys CPU went 15.5 -> 0 ms and its faults 2855 -> 1, but its user CPU grew by as much (calloc then clears
+reused heap): no net gain, not pursued.
 """
 
 from __future__ import annotations

@@ -500,6 +500,34 @@ def test_reversed_filter_of_columns_equals_scipy_sosfilt_of_each_reversed_column
                                    atol=1e-12 * np.abs(ref).max())
 
 
+@pytest.mark.parametrize("orders", [(1, 2), (2,), (3, 4), (8, 7)])
+@pytest.mark.parametrize("rows, n", [(1, 3000), (9, 700), (55, 2000)])
+def test_reversed_filter_of_rows_each_with_its_own_filter_equals_scipy_sosfilt(orders, rows, n):
+    """Oracle: scipy's sosfilt of each row run backwards from its last sample's steady state, each row with its own
+    cut-off and order (the orders of one call give the same number of sections); rows and lengths that do not fill
+    the kernel's sample blocks or its vectors. The same recursion in the same order: equal to round-off (an FMA
+    contraction changes the last bits of a sum of a few terms; the filter's gain is bounded)."""
+    from scipy.signal import butter, sosfilt, sosfilt_zi
+
+    from dynid.signals.filters import undo_lowpass_phase_rows
+
+    x = np.cumsum(np.random.default_rng(rows).standard_normal((rows, n)), axis=1) + 5.0
+    filters = [(float(np.random.default_rng(c).uniform(2.0, 250.0)), orders[c % len(orders)]) for c in range(rows)]
+    got = undo_lowpass_phase_rows(x, FS, filters)
+    assert got.shape == x.shape and got.flags.c_contiguous
+    for c, (cutoff, order) in enumerate(filters):
+        sos = butter(order, cutoff, fs=FS, output="sos")
+        ref = sosfilt(sos, x[c, ::-1], zi=sosfilt_zi(sos) * x[c, -1])[0][::-1]
+        np.testing.assert_allclose(got[c], ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def test_reversed_filter_of_rows_refuses_filters_of_different_section_counts():
+    from dynid.signals.filters import undo_lowpass_phase_rows
+
+    with pytest.raises(ValueError, match="sections"):
+        undo_lowpass_phase_rows(np.ones((2, 100)), FS, [(30.0, 2), (30.0, 4)])
+
+
 @pytest.mark.parametrize("order", [1, 2, 3, 4, 5, 8])
 @pytest.mark.parametrize("shape, axis", [((5000,), 0), ((3000, 7), 0), ((4, 2000, 3), 1), ((6, 1500), -1)])
 def test_compiled_zero_phase_filter_equals_scipy_sosfiltfilt(order, shape, axis):

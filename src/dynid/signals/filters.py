@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _checks
 from ._butterworth import butter_lowpass_sos
-from ._zero_phase import sos_filtfilt, sosfilt_reversed
+from ._zero_phase import sos_filtfilt, sosfilt_reversed, sosfilt_reversed_rows
 from .errors import SignalError
 
 
@@ -86,6 +86,15 @@ def undo_lowpass_phase_columns(x: NDArray[np.float64], fs: float, cutoff: float,
     """`undo_lowpass_phase` of every column of x (N, C) float64 in one compiled pass (the channels side by side),
     returned column-major (N, C). Package helper: arguments assumed checked, cutoff < fs / 2."""
     return sosfilt_reversed(design_lowpass(fs, cutoff, order), x)
+
+
+def undo_lowpass_phase_rows(x: NDArray[np.float64], fs: float, filters: list[tuple[float, int]]
+                            ) -> NDArray[np.float64]:
+    """`undo_lowpass_phase` of row c of x (C, N) float64 with its own (cutoff, order) = filters[c], all rows in one
+    compiled pass (the channels side by side, whatever their filter); (C, N), C order. Package helper: arguments
+    assumed checked, each cutoff < fs / 2; the orders give the same number of sections (ceil(order / 2))."""
+    soses = {f: design_lowpass(fs, *f) for f in dict.fromkeys(filters)}
+    return sosfilt_reversed_rows([soses[f] for f in filters], x)
 
 
 def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:
