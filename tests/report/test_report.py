@@ -105,7 +105,7 @@ def test_static_axle_loads_agree_with_the_rest_state():
 
     v = load_vehicle("compact_suv")
     values = {**v.truth.values, **v.known}
-    rest = rest_state(car_template(v.geometry, values, name=v.name, check_rest=False), v.tables)
+    rest = rest_state(car_template(v.geometry, values, name=v.name), v.tables)
     q = car_quantities(values, v.geometry)
     front = rest.loads[2:].sum()
     assert front / rest.loads.sum() == pytest.approx(q["front_share"] / 100, abs=0.005)  # pitch moves it a little

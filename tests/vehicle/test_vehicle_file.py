@@ -109,6 +109,49 @@ def test_labels_and_names_are_both_accepted_and_offsets_come_from_statics(tmp_pa
     assert v.truth.values["OFF9"] == pytest.approx(sets.truth().values["OFF9"], rel=1e-12)
 
 
+def test_describing_a_car_solves_no_statics(monkeypatch):
+    """Reading a vehicle file, its template and its default tables are a description: the rest state is solved
+    where it is needed (the truth's damper preloads, the simulator), once per vehicle, and not before."""
+    from dynid.vehicle import statics
+
+    def solve(*args, **kwargs):
+        raise AssertionError("the statics were solved while describing the car")
+
+    solved = statics._solve_rest
+    monkeypatch.setattr(statics, "_SOLVED", type(statics._SOLVED)())  # no rest state kept from an earlier test
+    monkeypatch.setattr(statics, "_solve_rest", solve)
+    for name in shipped_vehicles():
+        v = load_vehicle(name)
+        v.template()
+        car_template(v.geometry, v.a_priori.values)
+        assert all(f"OFF{d}" not in v.truth_given.values for d in DAMPERS)  # the file leaves the offsets out
+    calls = []
+    monkeypatch.setattr(statics, "_solve_rest", lambda *a, **k: calls.append(1) or solved(*a, **k))
+    first = v.truth
+    assert v.truth is first and calls == [1]  # solved at the first use, kept beside the vehicle
+    assert "truth" not in vars(v)  # not in the frozen description
+
+
+def test_a_truth_whose_wheel_floats_is_refused_where_it_is_solved(tmp_path):
+    """The truth's chassis moved 1.7 m forward (its inertia about its centre of mass kept: parallel axes), 0.5 m
+    ahead of the front axle: the description reads, its preloads' rest state refuses it."""
+    truth = load_vehicle("peugeot406").truth_given.values
+    m, c = truth["M6"], np.array([truth[f"M{a}6"] for a in "XYZ"]) / truth["M6"]
+    moved = c + np.array([0.0, 0.0, 1.7])
+    J = np.array([[truth[f"{a}{b}6"] if f"{a}{b}6" in truth else truth[f"{b}{a}6"] for b in "XYZ"] for a in "XYZ"])
+    J += m * ((moved @ moved) * np.eye(3) - np.outer(moved, moved) - (c @ c) * np.eye(3) + np.outer(c, c))
+    head, rest = SHIPPED.split("[truth]", 1)
+    body, tail = rest.split("[known]", 1)
+    lines = [line for line in body.splitlines() if not line.startswith(("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6",
+                                                                        "MZ6"))]
+    at = {f"{a}{b}6": float(J["XYZ".index(a), "XYZ".index(b)]) for a, b in ("XX", "XY", "XZ", "YY", "YZ", "ZZ")}
+    lines += [f"{n} = {x!r}" for n, x in at.items()]
+    lines.append(f"MZ6 = {float(m * moved[2])!r}")
+    v = load_vehicle(write(tmp_path, head + "[truth]" + "\n".join(lines) + "\n[known]" + tail))  # it reads
+    with pytest.raises(VehicleError, match=r"car\.toml: \[truth\]: .*wheel \(frame \d+\) would float"):
+        _ = v.truth
+
+
 def _a_priori_without(name: str) -> str:
     head, rest = SHIPPED.split("[a_priori]", 1)
     body, tail = rest.split("[truth]", 1)

@@ -1,7 +1,8 @@
 """The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the paper's
-a priori values by default, and its rest on flat ground checked (`statics.rest_state`).
+a priori values by default. Describing the car solves nothing: its rest on flat ground is solved where it is needed
+(`statics.rest_state`: the simulator, a vehicle's truth offsets), and raises there when a wheel would float.
 
-Above the template, the parameter sets and the statics, so that none of them needs another to describe the car.
+Above the template and the parameter sets, so that neither needs the other to describe the car.
 """
 
 from __future__ import annotations
@@ -11,9 +12,7 @@ from collections.abc import Mapping
 from ..model.tree import Tree
 from .geometry import CarGeometry
 from .parameters import a_priori
-from .statics import rest_state
-from .tables import default_tables
-from .template import TIRES, car_tree
+from .template import car_tree
 
 
 def car_template(
@@ -21,7 +20,6 @@ def car_template(
     values: dict[str, float] | None = None,
     name: str = "Peugeot 406 (paper's car)",
     known: set[str] | frozenset[str] = frozenset(),
-    check_rest: bool = True,
     tire_offsets: bool = False,
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
@@ -32,8 +30,6 @@ def car_template(
 
     values: parameter name or label -> value (e.g. `parameters.truth().values`); known:
     parameters taken as known rather than identified (moved to Y by `car_identification`).
-    check_rest: when the set has masses and tire stiffnesses, solve the rest state with the
-    dampers at their design position and raise GeometryError if a wheel would float.
     tire_offsets: each tire equation gets a constant, off15 ... off42: kt * q + off = Fz. A real tire's
     unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
     is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
@@ -56,6 +52,4 @@ def car_template(
     geometry = CarGeometry() if geometry is None else geometry
     tree = car_tree(geometry, a_priori().values if values is None else values, name, tire_offsets, tire_law,
                     damper_knees, damper_friction, tire_lateral_force)
-    if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
-        rest_state(tree, default_tables(geometry), fix_dampers=True)
     return tree.with_known(set(known)) if known else tree

@@ -79,6 +79,7 @@ import numpy as np
 from ..model.consistency import check_physical
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import FRICTION_SHAPES, ModelError, Tree
+from ..model.workspace import derived
 from ..shipped import DEMO_VEHICLE
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
@@ -121,14 +122,20 @@ class VehicleError(ModelError):
 @dataclass(frozen=True)
 class Vehicle:
     """A car for the template: name, geometry, kinematic tables, aerodynamics, sensor suite, a priori values,
-    the simulation's truth (None when the file gives none) and the parameters known from a bench."""
+    the simulation's truth (None when the file gives none) and the parameters known from a bench.
+
+    A description only: reading it solves nothing. The truth's damper offsets that the file leaves out are the
+    static preloads, solved at the first use of `truth` (the simulator's) and kept beside the vehicle
+    (model.workspace.derived), never in it."""
 
     name: str
     geometry: CarGeometry
     tables: KinematicTables
     aero: Aerodynamics
     a_priori: ParameterSet
-    truth: ParameterSet | None
+    # the file's [truth] with [known] and [a_priori] for the rest, less the damper offsets it leaves out (`truth`
+    # adds them); None when the file gives no [truth]
+    truth_given: ParameterSet | None
     known: dict[str, float] = field(default_factory=dict)
     source: str = ""
     steering_ratio: float = STEERING_RATIO
@@ -174,6 +181,27 @@ class Vehicle:
                             tire_lateral_force=self.tire_lateral_force,
                             damper_knees=self.damper_knees if self.damper_law == "curve" else None,
                             damper_friction=self.damper_friction)
+
+    @derived
+    def truth(self) -> ParameterSet | None:
+        """The simulation's set: `truth_given` with each damper offset it lacks the static preload that holds the
+        damper at its design position on flat ground (`statics.design_preloads`); None when the file gives none."""
+        given = self.truth_given
+        if given is None or all(f"OFF{d}" in given.values for d in DAMPERS):
+            return given
+        curved = {d: self.damper_knees[d] for d in DAMPERS if f"FVPL{d}" in given.values}
+        try:
+            tree = car_template(self.geometry, {**given.values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
+                                damper_knees=curved)
+            preloads = design_preloads(tree, self.tables)
+        except GeometryError as exc:
+            raise VehicleError(f"{self.source or self.name}: [truth]: {exc}") from None
+        values, sources = dict(given.values), dict(given.sources)
+        for d, f in zip(DAMPERS, preloads, strict=True):
+            if f"OFF{d}" not in values:
+                values[f"OFF{d}"] = float(f)
+                sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
+        return ParameterSet(given.name, values, sources)
 
     @property
     def suite(self) -> SensorSuite:
@@ -737,9 +765,9 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
 def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
            tables: KinematicTables, where: str, knees: dict[int, tuple[float, float]]) -> ParameterSet:
     """The simulation's set: the file's [truth], the known values and the a priori values for the rest; a damper
-    offset not given is the static preload that holds the damper at its design position. A damper whose curve
-    slopes [truth] gives drives with that curve (a slope not given: the truth's h); the others with h (the a
-    priori's when the a priori set has a curve). Its rest states are solved once per process (statics.rest_state)."""
+    offset not given is left out: `Vehicle.truth` solves it, the static preload that holds the damper at its design
+    position. A damper whose curve slopes [truth] gives drives with that curve (a slope not given: the truth's h);
+    the others with h (the a priori's when the a priori set has a curve)."""
     curved = {d for d in DAMPERS if any(n in given for n in _curve_names(d))}
     values = {**a_priori, **known, **given}
     for d in DAMPERS:
@@ -755,16 +783,7 @@ def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str,
     if problems:
         raise VehicleError(f"{where}: [truth] is not a physically realisable car: {problems[0]} (a simulation needs "
                            "one: mass > 0, inertia at the centre of mass positive definite, triangle inequalities)")
-    offsets = [d for d in DAMPERS if f"OFF{d}" not in given]
-    if offsets:
-        try:
-            tree = car_template(g, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
-                                damper_knees={d: knees[d] for d in curved})
-            preloads = design_preloads(tree, tables)
-        except GeometryError as exc:
-            raise VehicleError(f"{where}: [truth]: {exc}") from None
-        for d, f in zip(DAMPERS, preloads, strict=True):
-            if d in offsets:
-                values[f"OFF{d}"] = float(f)
-                sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
+    for d in DAMPERS:  # an offset the file leaves out is the static preload, solved at first use (Vehicle.truth)
+        if f"OFF{d}" not in given:
+            del values[f"OFF{d}"], sources[f"OFF{d}"]
     return ParameterSet("truth", values, sources)

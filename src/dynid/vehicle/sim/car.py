@@ -120,7 +120,7 @@ def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometr
     missing = sorted(curved - set(damper_knees or {}))
     if missing:
         raise ValueError(f"the parameter set gives a curve for dampers {missing}: damper_knees needs their knees")
-    tree = car_template(geometry, values, name=f"{name} (simulated truth)", check_rest=False,
+    tree = car_template(geometry, values, name=f"{name} (simulated truth)",
                         damper_knees={d: damper_knees[d] for d in curved} if damper_knees else None)
     terms = dict(tree.joint_terms)
     for t in TIRES:
