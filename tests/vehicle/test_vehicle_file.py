@@ -20,7 +20,7 @@ from dynid.model.tree import INERTIAL
 from dynid.vehicle import parameters as sets
 from dynid.vehicle.car_model import car_template
 from dynid.vehicle.description import VehicleError, load_vehicle, shipped_vehicles, vehicle_path
-from dynid.vehicle.geometry import CarGeometry
+from dynid.vehicle.geometry import AxleGeometry, CarGeometry
 from dynid.vehicle.template import DAMPERS, TIRES, WHEELS, tabulated
 
 SHIPPED = vehicle_path("peugeot406").read_text(encoding="utf-8")
@@ -42,15 +42,44 @@ def write(tmp_path: Path, text: str, name: str = "car.toml") -> Path:
     return p
 
 
+# the 406 as the code had it before its file was the one place of its numbers (geometry.py, parameters.py)
+OLD_GEOMETRY = CarGeometry(
+    front=AxleGeometry(half_track=0.755, position=2.70, damper_lateral_tilt=math.radians(11.0),
+                       damper_longitudinal_tilt=math.radians(3.0), kingpin_inclination=math.radians(12.0),
+                       caster=math.radians(3.5), kingpin_offset=0.06),
+    rear=AxleGeometry(half_track=0.750, position=0.0, damper_lateral_tilt=math.radians(8.0),
+                      damper_longitudinal_tilt=0.0, kingpin_inclination=math.radians(5.0), caster=0.0,
+                      kingpin_offset=0.03),
+    wheel_radius=0.317)
+OLD_WHEEL = {"XX": 0.65, "YY": 0.65, "ZZ": 1.05, "M": 35.0}
+OLD_A_PRIORI = {"XX6": 6810.44, "XZ6": -445.9, "YY6": 6567.0, "ZZ6": 668.56, "MX6": 537.24, "MY6": 5.81,
+                "MZ6": 2368.21, "M6": 1685.0, "karf": 19780.0, "karr": 19185.0,
+                **{f"{p}{d}": x for d, ks, h in ((9, 22000.0, 4200.0), (18, 22000.0, 4200.0), (27, 20000.0, 3200.0),
+                                                 (36, 20000.0, 3200.0)) for p, x in (("K", ks), ("FV", h))},
+                **{f"K{t}": 200000.0 for t in TIRES}}
+OLD_OFFSETS = {9: 3573.279614416879, 18: 3592.840192065781, 27: 4381.654313343572, 36: 4336.018513060617}
+
+
 def test_the_shipped_406_is_the_paper_car_as_it_was():
-    """The 406 file gives the template's geometry, the paper's a priori set and the simulation's truth exactly
-    (the values are written with all their digits; the offsets are recomputed from the same statics)."""
+    """The 406 file gives the template's geometry, the paper's a priori set and the simulation's truth exactly as
+    the code had them (the values are written with all their digits; the offsets are solved from the statics)."""
     assert "peugeot406" in shipped_vehicles()
     v = load_vehicle("peugeot406")
-    assert v.geometry == CarGeometry()
-    assert v.a_priori.values == sets.a_priori().values
-    assert v.truth.values == sets.truth().values
-    assert v.known == {f"{p}{w}": sets.WHEEL[p] for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
+    assert v.geometry == OLD_GEOMETRY
+    a = v.a_priori.values
+    assert {n: a[n] for n in OLD_A_PRIORI} == OLD_A_PRIORI
+    assert a["XY6"] == -a["MX6"] * a["MY6"] / a["M6"] and a["YZ6"] == -a["MY6"] * a["MZ6"] / a["M6"]
+    assert all(a[f"{p}{d}"] == 0.0 for d in DAMPERS for p in ("FS", "OFF"))  # the paper gives none
+    assert v.known == {f"{p}{w}": OLD_WHEEL[p] for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
+    assert {n: x for n, x in a.items() if n in v.known} == v.known
+    est, t = sets.paper_estimates().values, v.truth.values
+    yy_g = a["YY6"] - (a["MX6"] ** 2 + a["MZ6"] ** 2) / a["M6"]  # the a priori pitch inertia at the CoG, to O6
+    assert t["YY6"] == yy_g + (t["MX6"] ** 2 + t["MZ6"] ** 2) / t["M6"]
+    assert {n: t[n] for n in est if n != "YY6" and not n.startswith("OFF")} == {
+        n: x for n, x in est.items() if n != "YY6" and not n.startswith("OFF")}
+    for d, off in OLD_OFFSETS.items():  # Newton's root to 1e-13 of the loads: the same to round-off
+        assert t[f"OFF{d}"] == pytest.approx(off, rel=1e-9)
+    assert sets.a_priori().values == a and sets.truth().values == t  # the code's sets are the file's
 
 
 def test_geometry_of_another_car_by_hand(tmp_path):
@@ -271,7 +300,7 @@ def test_cli_vehicle_commands(tmp_path, capsys):
     out = tmp_path / "mine.toml"
     assert main(["vehicle", "new", "Estate 2.0", "--out", str(out)]) == 0
     v = load_vehicle(out)
-    assert v.name == "Estate 2.0" and v.geometry == CarGeometry()
+    assert v.name == "Estate 2.0" and v.geometry == load_vehicle().geometry
     assert main(["vehicle", "new", "again", "--out", str(out)]) == 2  # never replaces a file
     assert load_vehicle(out).name == "Estate 2.0"
     assert main(["vehicle", "show", str(out)]) == 0

@@ -1,6 +1,7 @@
-"""The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the paper's
-a priori values by default. Describing the car solves nothing: its rest on flat ground is solved where it is needed
-(`statics.rest_state`: the simulator, a vehicle's truth offsets), and raises there when a wheel would float.
+"""The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the demo
+vehicle's a priori values by default (`parameters.a_priori`). Describing the car solves nothing: its rest on flat
+ground is solved where it is needed (`statics.rest_state`: the simulator, a vehicle's truth offsets), and raises
+there when a wheel would float.
 
 Above the template and the parameter sets, so that neither needs the other to describe the car.
 """
@@ -10,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..model.tree import Tree
-from .geometry import CarGeometry
+from .geometry import CarGeometry, demo_geometry
 from .parameters import a_priori
 from .template import car_tree
 
@@ -18,7 +19,7 @@ from .template import car_tree
 def car_template(
     geometry: CarGeometry | None = None,
     values: dict[str, float] | None = None,
-    name: str = "Peugeot 406 (paper's car)",
+    name: str = "car",
     known: set[str] | frozenset[str] = frozenset(),
     tire_offsets: bool = False,
     tire_law: str = "paper",
@@ -26,7 +27,8 @@ def car_template(
     damper_friction: dict[int, tuple[str, float]] | None = None,
     tire_lateral_force: bool = False,
 ) -> Tree:
-    """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
+    """The 42-frame tree of the car, with a parameter set (default: the demo vehicle's a priori values) and a
+    geometry (default: the demo vehicle's); name: the tree's (a vehicle's template has the vehicle's).
 
     values: parameter name or label -> value (e.g. `parameters.truth().values`); known:
     parameters taken as known rather than identified (moved to Y by `car_identification`).
@@ -49,7 +51,7 @@ def car_template(
     free (docs/vehicle.md, 'The tire equation'). A load term of the tree (model.tree), whose column
     `car_identification` builds from the measured wrench.
     """
-    geometry = CarGeometry() if geometry is None else geometry
+    geometry = demo_geometry() if geometry is None else geometry
     tree = car_tree(geometry, a_priori().values if values is None else values, name, tire_offsets, tire_law,
                     damper_knees, damper_friction, tire_lateral_force)
     return tree.with_known(set(known)) if known else tree

@@ -67,6 +67,7 @@ valid one.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Mapping
@@ -244,6 +245,13 @@ def load_vehicle(name_or_path: str | os.PathLike[str] = DEMO_VEHICLE) -> Vehicle
     path = vehicle_path(name_or_path)
     data = read_toml(path, "vehicle file", VehicleError)
     return vehicle_from_dict(data, path)
+
+
+@functools.cache
+def demo_vehicle() -> Vehicle:
+    """The demo vehicle, `load_vehicle(DEMO_VEHICLE)` read once per process: what a function given no vehicle,
+    geometry or parameter set uses. Shared: read it, do not change its dicts."""
+    return load_vehicle(DEMO_VEHICLE)
 
 
 def vehicle_from_dict(data: dict, path: Path) -> Vehicle:

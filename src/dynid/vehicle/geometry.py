@@ -10,7 +10,7 @@ in the paper's Table 1). Positions below are coordinates in frame 6.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -48,23 +48,10 @@ class AxleGeometry:
     kingpin_offset: float = 0.0
 
 
-def _peugeot406_front() -> AxleGeometry:
-    # MacPherson strut: strut and kingpin inclined inboard, a few degrees of caster.
-    return AxleGeometry(half_track=0.755, position=2.70, damper_lateral_tilt=math.radians(11.0),
-                        damper_longitudinal_tilt=math.radians(3.0), kingpin_inclination=math.radians(12.0),
-                        caster=math.radians(3.5), kingpin_offset=0.06)
-
-
-def _peugeot406_rear() -> AxleGeometry:
-    # multi-link rear axle: damper nearly upright, no steering axis to speak of.
-    return AxleGeometry(half_track=0.750, position=0.0, damper_lateral_tilt=math.radians(8.0),
-                        damper_longitudinal_tilt=0.0, kingpin_inclination=math.radians(5.0),
-                        caster=0.0, kingpin_offset=0.03)
-
-
 @dataclass(frozen=True)
 class CarGeometry:
-    """What the template needs to place the 42 frames; defaults are a Peugeot 406 saloon.
+    """What the template needs to place the 42 frames: a vehicle file gives it (`vehicle.description`), and
+    `demo_geometry()` is the demo vehicle's, where a function is given none.
 
     wheel_radius: unloaded tire radius, m (195/65 R15: 0.317 m); the tire deflection q15 is
       counted from it (contact point at wheel_radius - q15 from the wheel centre).
@@ -79,9 +66,9 @@ class CarGeometry:
       `sensors.laser_point` choose). Used by sensor models, not by the dynamics.
     """
 
-    front: AxleGeometry = field(default_factory=_peugeot406_front)
-    rear: AxleGeometry = field(default_factory=_peugeot406_rear)
-    wheel_radius: float = 0.317
+    front: AxleGeometry
+    rear: AxleGeometry
+    wheel_radius: float
     wheel_centre_height: float = 0.0
     imu_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
@@ -103,6 +90,14 @@ class CarGeometry:
         """Wheel centre of a corner (0 rear left, 1 rear right, 2 front left, 3 front right) in frame 6."""
         ax = self.axle(corner)
         return np.array([self.wheel_centre_height, side(corner) * ax.half_track, ax.position])
+
+
+def demo_geometry() -> CarGeometry:
+    """The demo vehicle's geometry (the shipped file `dynid.shipped.DEMO_VEHICLE` names): the default of the
+    functions that take a geometry, so that no car's numbers live in code."""
+    from .description import demo_vehicle  # the vehicle file's reader sits above this module: read at first use
+
+    return demo_vehicle().geometry
 
 
 def side(corner: int) -> int:

@@ -302,7 +302,7 @@ TIRE_LAWS = ("paper", "progressive")
 def car_tree(
     geometry: CarGeometry,
     values: Mapping[str, float],
-    name: str = "Peugeot 406 (paper's car)",
+    name: str = "car",
     tire_offsets: bool = False,
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
