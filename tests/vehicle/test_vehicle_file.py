@@ -82,6 +82,21 @@ def test_the_shipped_406_is_the_paper_car_as_it_was():
     assert sets.a_priori().values == a and sets.truth().values == t  # the code's sets are the file's
 
 
+def test_the_default_geometry_is_the_demo_vehicle_files():
+    """A function given no geometry takes the demo vehicle's, read from its shipped file (geometry.demo_geometry,
+    which does not load the vehicle: the description builds on it); it is the vehicle's, and every shipped file's
+    geometry is the one its tables give."""
+    import tomllib
+
+    from dynid.shipped import DEMO_VEHICLE
+    from dynid.vehicle.geometry import demo_geometry, file_geometry
+
+    assert demo_geometry() == load_vehicle(DEMO_VEHICLE).geometry
+    for name in shipped_vehicles():
+        data = tomllib.loads(vehicle_path(name).read_text(encoding="utf-8"))
+        assert file_geometry(data) == load_vehicle(name).geometry
+
+
 def test_geometry_of_another_car_by_hand(tmp_path):
     """Wheel centres at design and at +-50 mm of clearance (tabulated joints held at 0) move along the damper
     axis the file's tilts give, u = (1, -side tan(lateral), -tan(longitudinal)) / norm in frame 6; the contact

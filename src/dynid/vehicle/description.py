@@ -84,11 +84,10 @@ from ..model.workspace import derived
 from ..shipped import DEMO_VEHICLE
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
-from .car_model import car_template
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
 from .engineering import chassis_data_sheet, chassis_from_data_sheet
-from .geometry import AxleGeometry, CarGeometry, GeometryError
-from .parameters import ParameterSet
+from .geometry import CarGeometry, GeometryError, file_geometry
+from .parameter_set import ParameterSet
 from .sensors import SensorSuite, correvit_point, fitted_suite, gnss_point, laser_point
 from .statics import design_preloads
 from .tables import (
@@ -101,7 +100,18 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CHASSIS, CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, TIRES, WHEELS, labels, paper_parameter_names
+from .template import (
+    CHASSIS,
+    CORNERS,
+    CURVE_LABELS,
+    DAMPERS,
+    TIRE_LAWS,
+    TIRES,
+    WHEELS,
+    car_tree,
+    labels,
+    paper_parameter_names,
+)
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
@@ -177,11 +187,11 @@ class Vehicle:
 
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
-        return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
-                            tire_offsets=self.tire_offsets, tire_law=self.tire_law,
-                            tire_lateral_force=self.tire_lateral_force,
-                            damper_knees=self.damper_knees if self.damper_law == "curve" else None,
-                            damper_friction=self.damper_friction)
+        return car_tree(self.geometry, self.a_priori.values if values is None else values, name=self.name,
+                        tire_offsets=self.tire_offsets, tire_law=self.tire_law,
+                        tire_lateral_force=self.tire_lateral_force,
+                        damper_knees=self.damper_knees if self.damper_law == "curve" else None,
+                        damper_friction=self.damper_friction)
 
     @derived
     def truth(self) -> ParameterSet | None:
@@ -192,8 +202,8 @@ class Vehicle:
             return given
         curved = {d: self.damper_knees[d] for d in DAMPERS if f"FVPL{d}" in given.values}
         try:
-            tree = car_template(self.geometry, {**given.values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
-                                damper_knees=curved)
+            tree = car_tree(self.geometry, {**given.values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
+                            damper_knees=curved)
             preloads = design_preloads(tree, self.tables)
         except GeometryError as exc:
             raise VehicleError(f"{self.source or self.name}: [truth]: {exc}") from None
@@ -505,40 +515,37 @@ def _number(table: dict, key: str, where: str, section: str, default: float | No
 
 
 def _geometry(data: dict, where: str) -> CarGeometry:
+    """[axles], [wheels], [imu] checked (keys, numbers, ranges: the message names the key), then the geometry they
+    give (`geometry.file_geometry`, without the sensors' points: [sensors] is checked after)."""
     axles = data["axles"]
     _keys(axles, {"wheelbase_m", "front", "rear"}, where, "[axles]")
     for a in ("front", "rear"):
         if not isinstance(axles.get(a), dict):
             raise VehicleError(f"{where}: missing the table [axles.{a}] (half_track_m, damper tilts, kingpin, ...)")
-    wheelbase = _number(axles, "wheelbase_m", where, "[axles]")
-
-    def axle(a: str, position: float) -> AxleGeometry:
-        t = axles[a]
-        sec = f"[axles.{a}]"
-        _keys(t, AXLE_KEYS, where, sec)
-        if not isinstance(t.get("anti_roll_bar", True), bool):
-            raise VehicleError(f"{where}: {sec}: anti_roll_bar = {t['anti_roll_bar']!r} must be true or false")
-        deg = {k: math.radians(_number(t, f"{k}_deg", where, sec, 0.0))
-               for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster")}
-        return AxleGeometry(half_track=_number(t, "half_track_m", where, sec), position=position,
-                            kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
-
+    _number(axles, "wheelbase_m", where, "[axles]")
     wheels = data["wheels"]
     _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known", "tire_law",
                     "tire_lateral_force"}, where, "[wheels]")
     imu = data.get("imu", {})
     _keys(imu, {"position_m", "axes"}, where, "[imu]")
-    position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
-    axes = _vector(imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]), (3, 3), where, "[imu] axes")
+    _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
+    _vector(imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]), (3, 3), where, "[imu] axes")
+    for a in ("front", "rear"):
+        t = axles[a]
+        sec = f"[axles.{a}]"
+        _keys(t, AXLE_KEYS, where, sec)
+        if not isinstance(t.get("anti_roll_bar", True), bool):
+            raise VehicleError(f"{where}: {sec}: anti_roll_bar = {t['anti_roll_bar']!r} must be true or false")
+        for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster"):
+            _number(t, f"{k}_deg", where, sec, 0.0)
+        _number(t, "half_track_m", where, sec)
+        _number(t, "kingpin_offset_m", where, sec, 0.0)
+    _number(wheels, "radius_m", where, "[wheels]")
+    _number(wheels, "centre_height_m", where, "[wheels]", 0.0)
     try:
-        g = CarGeometry(front=axle("front", wheelbase), rear=axle("rear", 0.0),
-                        wheel_radius=_number(wheels, "radius_m", where, "[wheels]"),
-                        wheel_centre_height=_number(wheels, "centre_height_m", where, "[wheels]", 0.0),
-                        imu_position=tuple(float(x) for x in position),
-                        imu_axes=tuple(tuple(float(x) for x in r) for r in axes))
+        return file_geometry({k: data[k] for k in ("axles", "wheels", "imu") if k in data})
     except GeometryError as exc:
         raise VehicleError(f"{where}: {exc}") from None
-    return g
 
 
 def _vector(v, shape: tuple[int, ...], where: str, what: str) -> np.ndarray:

@@ -9,12 +9,18 @@ in the paper's Table 1). Positions below are coordinates in frame 6.
 
 from __future__ import annotations
 
+import functools
 import math
+import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass
+from importlib import resources
+from typing import Any
 
 import numpy as np
 
 from ..model.tree import ModelError
+from ..shipped import DEMO_VEHICLE
 
 
 class GeometryError(ModelError):
@@ -92,12 +98,40 @@ class CarGeometry:
         return np.array([self.wheel_centre_height, side(corner) * ax.half_track, ax.position])
 
 
-def demo_geometry() -> CarGeometry:
-    """The demo vehicle's geometry (the shipped file `dynid.shipped.DEMO_VEHICLE` names): the default of the
-    functions that take a geometry, so that no car's numbers live in code."""
-    from .description import demo_vehicle  # the vehicle file's reader sits above this module: read at first use
+def file_geometry(data: Mapping[str, Any]) -> CarGeometry:
+    """The geometry a vehicle file's tables give (`vehicle.description`'s keys, docs/vehicle.md): [axles], [wheels],
+    [imu] and the sensors' points of [sensors]. The values as they are: `vehicle.description` checks a file (keys,
+    ranges, messages naming the key) before it builds its geometry here."""
+    axles, wheels, imu, sensors = data["axles"], data["wheels"], data.get("imu", {}), data.get("sensors", {})
 
-    return demo_vehicle().geometry
+    def axle(a: str, position: float) -> AxleGeometry:
+        t = axles[a]
+        deg = {k: math.radians(float(t.get(f"{k}_deg", 0.0)))
+               for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster")}
+        return AxleGeometry(half_track=float(t["half_track_m"]), position=position,
+                            kingpin_offset=float(t.get("kingpin_offset_m", 0.0)), **deg)
+
+    def point(v) -> tuple[float, ...] | None:
+        return None if v is None else tuple(float(x) for x in v)
+
+    lasers = sensors.get("laser_positions_m")
+    return CarGeometry(front=axle("front", float(axles["wheelbase_m"])), rear=axle("rear", 0.0),
+                       wheel_radius=float(wheels["radius_m"]), wheel_centre_height=float(wheels.get("centre_height_m",
+                                                                                                   0.0)),
+                       imu_position=point(imu.get("position_m", [0.0, 0.0, 0.0])),
+                       imu_axes=tuple(point(r) for r in imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0],
+                                                                          [1.0, 0.0, 0.0]])),
+                       gnss_position=point(sensors.get("gnss_position_m")),
+                       correvit_position=point(sensors.get("correvit_position_m")),
+                       laser_positions=None if lasers is None else tuple(point(r) for r in lasers))
+
+
+@functools.cache
+def demo_geometry() -> CarGeometry:
+    """The demo vehicle's geometry, read from its shipped file (the one `dynid.shipped.DEMO_VEHICLE` names): the
+    default of the functions that take a geometry, so that no car's numbers live in code."""
+    path = resources.files("dynid.vehicle") / "vehicles" / f"{DEMO_VEHICLE}.toml"
+    return file_geometry(tomllib.loads(path.read_text(encoding="utf-8")))
 
 
 def side(corner: int) -> int:

@@ -21,8 +21,10 @@ Not in the paper's text, chosen for its estimates and marked as such:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
+from .description import demo_vehicle
+from .parameter_set import ParameterSet
 from .template import TIRES, WHEELS, paper_parameter_names
 
 PAPER = "paper"
@@ -30,24 +32,6 @@ CHOSEN = "chosen (not in the paper)"
 NOT_GIVEN = "not given by the paper (0)"
 
 WHEEL = {"XX": 0.65, "YY": 0.65, "ZZ": 1.05, "M": 35.0}
-
-
-@dataclass(frozen=True)
-class ParameterSet:
-    """Named values (dynid names, e.g. K9) with the source of each value."""
-
-    name: str
-    values: dict[str, float]
-    sources: dict[str, str] = field(default_factory=dict)
-
-    def __getitem__(self, key: str) -> float:
-        return self.values[key]
-
-    def centre_of_mass(self, body: int = 6) -> tuple[float, float, float]:
-        """(MX, MY, MZ) / M of a body, m, in its frame."""
-        v = self.values
-        M = v[f"M{body}"]
-        return (v[f"MX{body}"] / M, v[f"MY{body}"] / M, v[f"MZ{body}"] / M)
 
 
 def _chassis(values: dict[str, float], sources: dict[str, str]) -> None:
@@ -85,8 +69,6 @@ def _set(name: str, chassis: dict[str, float], susp: dict[int, tuple], kar: tupl
 
 def a_priori() -> ParameterSet:
     """The demo vehicle's a priori set (its file's [a_priori]; a copy)."""
-    from .description import demo_vehicle  # the vehicle file's reader sits above this module: read at first use
-
     v = demo_vehicle().a_priori
     return ParameterSet(v.name, dict(v.values), dict(v.sources))
 
@@ -116,8 +98,6 @@ def truth(geometry=None, tables=None) -> ParameterSet:
     geometry, tables: those of the simulated car (defaults: the demo vehicle's); the offsets depend on them
     through the rest attitude.
     """
-    from .description import demo_vehicle  # the vehicle file's reader sits above this module: read at first use
-
     v = demo_vehicle()
     if geometry is not None or tables is not None:
         v = replace(v, geometry=v.geometry if geometry is None else geometry, tables=v.tables if tables is None
