@@ -93,7 +93,7 @@ def _print_run(run, validation_title: str) -> None:
         print("\nComparison with the published identification:")
         print(run.reference_table())
     print(f"\n{validation_title}")
-    print(validation_table(run.errors, run.not_excited))
+    print(validation_table(run.errors, run.not_excited, getattr(getattr(run, "config", None), "kind", None)))
     if run.delays is not None:
         print(f"\n{run.delays.text()}")
     if getattr(run, "tires", None) is not None:
