@@ -47,7 +47,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     car_block = {"rows": list(EQUATION_ROWS), "cols": list(paper_parameter_names())}
     for name, tree, block in (("puma560", load_tree(example_path("puma560")), {}),
-                              ("car42", car_template(check_rest=False), car_block)):
+                              ("car42", car_template(), car_block)):
         m = Model(tree)
         for model in ("idm", "regressor"):
             expr._FACTOR_CACHE.clear()

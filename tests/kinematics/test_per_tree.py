@@ -121,7 +121,7 @@ def test_car_derived_values_do_not_keep_the_car_alive():
     from dynid.vehicle.car_model import car_template
     from dynid.vehicle.equations import _radius, car_base_parameters
 
-    tree = car_template(check_rest=False)
+    tree = car_template()
     r = _radius(tree)
     assert 0.2 < r < 0.4
     car_base_parameters(tree)

@@ -67,7 +67,7 @@ def test_a_priori_and_truth_sets_are_realisable():
 
 
 def test_tree_input_checks_the_bodies_with_mass_only():
-    tree = car_template(None, params.paper_estimates().values, check_rest=False)
+    tree = car_template(None, params.paper_estimates().values)
     bad = check_physical(tree)
     assert [v.body for v in bad] == [6]
     assert check_physical(tree, frames=[14, 23, 32, 41]) == []

@@ -248,8 +248,7 @@ def test_instruments_simulate_the_curve(tmp_path):
     np.testing.assert_allclose(q, run.q[:, cols], atol=1e-6)
     np.testing.assert_allclose(qd, run.qd[:, cols], atol=2e-4)  # 0.2 mm/s against 180 mm/s
     linear = car_template(v.geometry, {n: x for n, x in values.items() if not n.startswith(("FVP", "FVN"))
-                                       and not n.startswith(tuple(f"FV{t}" for t in (15, 24, 33, 42)))},
-                          check_rest=False)
+                                       and not n.startswith(tuple(f"FV{t}" for t in (15, 24, 33, 42)))})
     h = {**{n: x for n, x in values.items() if n in linear.index}, **{f"FV{d}": 3000.0 for d in DAMPERS}}
     q_h, _, _ = suspension_response(linear, h, run.time, load, run.time, run.q[0, cols], run.qd[0, cols])
     assert np.abs(q_h - run.q[:, cols]).max() > 1e-4

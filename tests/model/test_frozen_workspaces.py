@@ -67,7 +67,7 @@ def _fresh(tree: Tree, **changes: object) -> Tree:
 def _trees(puma: Tree) -> list[Tree]:
     from dynid.vehicle.car_model import car_template
 
-    return [_fresh(puma), _fresh(puma, mimic={3: Mimic(2, 0.5, 0.1)}), car_template(check_rest=False)]
+    return [_fresh(puma), _fresh(puma, mimic={3: Mimic(2, 0.5, 0.1)}), car_template()]
 
 
 def test_a_tree_is_not_changed_by_its_derived_properties_nor_by_the_engines(puma):
@@ -162,7 +162,7 @@ def test_car_equations_are_not_changed_by_stacking_w():
     from dynid.vehicle.car_model import car_template
     from dynid.vehicle.equations import CarEquations, car_identification
 
-    tree = car_template(check_rest=False)
+    tree = car_template()
     rng = np.random.default_rng(5)
     N = 6
     q, qd, qdd = (np.zeros((N, 42)) for _ in range(3))

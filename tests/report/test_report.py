@@ -105,7 +105,7 @@ def test_static_axle_loads_agree_with_the_rest_state():
 
     v = load_vehicle("compact_suv")
     values = {**v.truth.values, **v.known}
-    rest = rest_state(car_template(v.geometry, values, name=v.name, check_rest=False), v.tables)
+    rest = rest_state(car_template(v.geometry, values, name=v.name), v.tables)
     q = car_quantities(values, v.geometry)
     front = rest.loads[2:].sum()
     assert front / rest.loads.sum() == pytest.approx(q["front_share"] / 100, abs=0.005)  # pitch moves it a little
@@ -354,6 +354,7 @@ def test_a_panel_the_test_barely_moves_says_not_excited():
     lateral force: noise over noise."""
     from dynid.estimation import EXCITED_FACTOR, not_excited
     from dynid.report.build import panel_corners
+    from dynid.vehicle.axes import CHASSIS_AXES
 
     assert EXCITED_FACTOR == 2.0
     assert not_excited({"a": 1.9, "b": 2.1, "c": 0.0}, {"a": 1.0, "b": 1.0}) == ["a"]  # no noise figure: judged
@@ -362,7 +363,7 @@ def test_a_panel_the_test_barely_moves_says_not_excited():
     quiet, loud = rng.normal(0, 1.0, t.size), 50 * np.sin(6 * t)
     signals = {"direct": {"braking": {"x": (t, quiet, 0 * t), "y": (t, loud, loud + 0.5)}},
                "cross": {"sine": {"x": (t, loud, 1.01 * loud)}}}
-    corners = panel_corners(signals, {"x": 1.0, "y": 1.0})
+    corners = panel_corners(signals, {"x": 1.0, "y": 1.0}, CHASSIS_AXES)  # a car's equations
     assert corners[("Y_E force", "braking")] == "not excited"  # RMS 1 against 2 × 1
     assert corners[("X_E force", "braking")] == f"{100 * 0.5 * np.sqrt(t.size) / np.linalg.norm(loud):.1f} %"
     assert corners[("Y_E force", "sine")] == "1.0 %"
@@ -512,15 +513,40 @@ def test_the_report_reads_on_a_laptop_and_a_phone(which, width, request):
 
 
 def test_terminal_validation_names_the_chassis_equations_as_the_report():
-    """One axis convention (issue 27): the terminal's validation table names the chassis equations by their ISO 8855
-    names, as the report does (report.axes), and says how results.json's paper names map to them."""
-    from dynid.report.axes import CHASSIS_AXES
+    """One axis convention (issue 27): the terminal's validation table names a car's chassis equations by their ISO
+    8855 names, as the report does (vehicle.axes), and says how results.json's paper names map to them."""
     from dynid.report.tables import validation_table
+    from dynid.vehicle.axes import CHASSIS_AXES
 
     errors = {"direct": {g: 0.01 * (k + 1) for k, g in enumerate([*CHASSIS_AXES, "susp9"])}}
-    lines = validation_table(errors).splitlines()
+    lines = validation_table(errors, kind="car").splitlines()
     for k, g in enumerate(CHASSIS_AXES):
         label, value = lines[1 + k].rsplit(None, 2)[0].strip(), lines[1 + k].split()[-2]
         assert label == CHASSIS_AXES[g].label and float(value) == pytest.approx(k + 1)
     assert lines[7].split()[0] == "susp9"
     assert "Y_E force = -x" in lines[-1] and "pitch moment = -pitch" in lines[-1]
+
+
+def test_a_robot_run_is_shown_without_the_car_axes():
+    """The ISO 8855 names are the car's (vehicle.axes), read by the run's kind: a robot whose equation groups are
+    named x, y, pitch (a floating base) keeps its names and signs, and its report and terminal table import no
+    car knowledge (a fresh interpreter: nothing of dynid.vehicle loaded)."""
+    import subprocess
+    import sys
+
+    code = """
+import sys
+import numpy as np
+from dynid.report.build import panel_corners, validation_csv
+from dynid.report.tables import validation_table
+text = validation_table({"direct": {"x": 0.01, "pitch": 0.02, "q1": 0.03}})
+t = np.linspace(0, 1, 50)
+signals = {"direct": {"run": {"x": (t, np.sin(9 * t), np.sin(9 * t))}}}
+print(sorted(panel_corners(signals, {"x": 1e-9})))
+print(text)
+print([m for m in sys.modules if m.startswith("dynid.vehicle")])
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    corners, *table, loaded = out.strip().splitlines()
+    assert corners == "[('x', 'run')]" and loaded == "[]"
+    assert [line.split()[0] for line in table[1:]] == ["x", "pitch", "q1"]  # no Y_E force, no note under them

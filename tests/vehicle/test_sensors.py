@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from dynid import Model
-from dynid.vehicle import CarGeometry, car_template, rest_state, truth
+from dynid.vehicle import car_template, rest_state, truth
+from dynid.vehicle.geometry import demo_geometry
 from dynid.vehicle.sensors import (
     CORNER_TAGS,
     SensorChannel,
@@ -81,7 +82,7 @@ def test_ideal_channels_at_rest_and_moving():
     assert np.degrees(-rest.q[4]) == pytest.approx(ch["imu_pitch"][0], abs=1e-9)  # ISO pitch: nose down > 0
     assert ch["laser_height_fl"][0] == pytest.approx(1e3 * (rest.q[2] - 0.0), abs=5.0)
     ch = ideal_channels(m, q, qd, qdd, ww, np.zeros(N), np.zeros((N, 4)))
-    J = m.jacobian(q, 6, point=correvit_point(CarGeometry()), expressed_in=6)
+    J = m.jacobian(q, 6, point=correvit_point(demo_geometry()), expressed_in=6)
     v = np.einsum("nij,nj->ni", J[:, :3], qd)  # frame 6: up, right, forward
     assert np.allclose(ch["correvit_vx"], 3.6 * v[:, 2]) and np.allclose(ch["correvit_vy"], -v[:, 1])
 

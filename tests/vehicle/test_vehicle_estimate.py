@@ -8,13 +8,15 @@ filter: content at <= 1 Hz through a 4th-order zero-phase Butterworth at 4 Hz ke
 (w h)^2 / 6 < 2e-4 relative for 1 Hz; the rest is the trapezoidal integration, O(h^2).
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import dynid
 from dynid.vehicle import car_template
 from dynid.vehicle.estimate import CarConditioning, estimate_joints
-from dynid.vehicle.geometry import CarGeometry
+from dynid.vehicle.geometry import CarGeometry, demo_geometry
 from dynid.vehicle.sensors import ideal_channels
 from dynid.vehicle.tables import default_tables
 
@@ -42,7 +44,7 @@ def smooth_drive(duration: float = 12.0, fast_pitch: float = 0.0, geometry: CarG
     """A known smooth trajectory of all 42 joints and its noise-free channels:
     (model, t, q, qd, qdd, wheel wrenches, channels). fast_pitch: amplitude (rad) of a 3 Hz pitch oscillation
     added to the slow one (a brake release's pitch-back has such content); geometry: where the sensors sit."""
-    g = CarGeometry() if geometry is None else geometry
+    g = demo_geometry() if geometry is None else geometry
     model = dynid.Model(car_template(g))
     tables = default_tables(g)
     t = np.arange(0, duration, 1 / FS)
@@ -128,8 +130,8 @@ def test_o6_acceleration_does_not_depend_on_where_the_unit_sits():
     filter passes with gains up to 0.1 apart from the 3 Hz one: at most 0.1 x 0.1 x 2.9 = 0.03 m/s^2 (0.016 seen);
     bound 0.05 m/s^2, a fifth of the old order's error."""
     cond = CarConditioning(cutoff=4.0, compensate_delays=False)
-    at_o6 = CarGeometry()
-    at_cog = CarGeometry(imu_position=(0.24, 0.0, 1.60))
+    at_o6 = demo_geometry()
+    at_cog = dataclasses.replace(at_o6, imu_position=(0.24, 0.0, 1.60))
     est = {}
     for g in (at_o6, at_cog):
         model, t, q, _, _, _, channels = smooth_drive(fast_pitch=0.005, geometry=g)
@@ -243,7 +245,7 @@ def test_the_compiled_carry_of_the_imu_acceleration_is_the_numpy_one(first):
     t = np.arange(n) / FS
     low = np.sin(2 * np.pi * rng.uniform(0.2, 2.0, 7) * t[:, None] + rng.uniform(0, 6, 7)) * rng.uniform(0.1, 9.8, 7)
     R6 = est._rotation(*(0.3 * np.sin(2 * np.pi * f * t) for f in rng.uniform(0.1, 1.0, 3)))
-    x = est._Context(FS, None, CarGeometry(), CarConditioning(), None, True, 0)
+    x = est._Context(FS, None, demo_geometry(), CarConditioning(), None, True, 0)
     got = est._acceleration(x, R6, low, first)
     kernel, est._carry_kernel = est._carry_kernel, None
     try:

@@ -20,7 +20,7 @@ from dynid.model.tree import INERTIAL
 from dynid.vehicle import parameters as sets
 from dynid.vehicle.car_model import car_template
 from dynid.vehicle.description import VehicleError, load_vehicle, shipped_vehicles, vehicle_path
-from dynid.vehicle.geometry import CarGeometry
+from dynid.vehicle.geometry import AxleGeometry, CarGeometry
 from dynid.vehicle.template import DAMPERS, TIRES, WHEELS, tabulated
 
 SHIPPED = vehicle_path("peugeot406").read_text(encoding="utf-8")
@@ -42,15 +42,59 @@ def write(tmp_path: Path, text: str, name: str = "car.toml") -> Path:
     return p
 
 
+# the 406 as the code had it before its file was the one place of its numbers (geometry.py, parameters.py)
+OLD_GEOMETRY = CarGeometry(
+    front=AxleGeometry(half_track=0.755, position=2.70, damper_lateral_tilt=math.radians(11.0),
+                       damper_longitudinal_tilt=math.radians(3.0), kingpin_inclination=math.radians(12.0),
+                       caster=math.radians(3.5), kingpin_offset=0.06),
+    rear=AxleGeometry(half_track=0.750, position=0.0, damper_lateral_tilt=math.radians(8.0),
+                      damper_longitudinal_tilt=0.0, kingpin_inclination=math.radians(5.0), caster=0.0,
+                      kingpin_offset=0.03),
+    wheel_radius=0.317)
+OLD_WHEEL = {"XX": 0.65, "YY": 0.65, "ZZ": 1.05, "M": 35.0}
+OLD_A_PRIORI = {"XX6": 6810.44, "XZ6": -445.9, "YY6": 6567.0, "ZZ6": 668.56, "MX6": 537.24, "MY6": 5.81,
+                "MZ6": 2368.21, "M6": 1685.0, "karf": 19780.0, "karr": 19185.0,
+                **{f"{p}{d}": x for d, ks, h in ((9, 22000.0, 4200.0), (18, 22000.0, 4200.0), (27, 20000.0, 3200.0),
+                                                 (36, 20000.0, 3200.0)) for p, x in (("K", ks), ("FV", h))},
+                **{f"K{t}": 200000.0 for t in TIRES}}
+OLD_OFFSETS = {9: 3573.279614416879, 18: 3592.840192065781, 27: 4381.654313343572, 36: 4336.018513060617}
+
+
 def test_the_shipped_406_is_the_paper_car_as_it_was():
-    """The 406 file gives the template's geometry, the paper's a priori set and the simulation's truth exactly
-    (the values are written with all their digits; the offsets are recomputed from the same statics)."""
+    """The 406 file gives the template's geometry, the paper's a priori set and the simulation's truth exactly as
+    the code had them (the values are written with all their digits; the offsets are solved from the statics)."""
     assert "peugeot406" in shipped_vehicles()
     v = load_vehicle("peugeot406")
-    assert v.geometry == CarGeometry()
-    assert v.a_priori.values == sets.a_priori().values
-    assert v.truth.values == sets.truth().values
-    assert v.known == {f"{p}{w}": sets.WHEEL[p] for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
+    assert v.geometry == OLD_GEOMETRY
+    a = v.a_priori.values
+    assert {n: a[n] for n in OLD_A_PRIORI} == OLD_A_PRIORI
+    assert a["XY6"] == -a["MX6"] * a["MY6"] / a["M6"] and a["YZ6"] == -a["MY6"] * a["MZ6"] / a["M6"]
+    assert all(a[f"{p}{d}"] == 0.0 for d in DAMPERS for p in ("FS", "OFF"))  # the paper gives none
+    assert v.known == {f"{p}{w}": OLD_WHEEL[p] for w in WHEELS for p in ("XX", "YY", "ZZ", "M")}
+    assert {n: x for n, x in a.items() if n in v.known} == v.known
+    est, t = sets.paper_estimates().values, v.truth.values
+    yy_g = a["YY6"] - (a["MX6"] ** 2 + a["MZ6"] ** 2) / a["M6"]  # the a priori pitch inertia at the CoG, to O6
+    assert t["YY6"] == yy_g + (t["MX6"] ** 2 + t["MZ6"] ** 2) / t["M6"]
+    assert {n: t[n] for n in est if n != "YY6" and not n.startswith("OFF")} == {
+        n: x for n, x in est.items() if n != "YY6" and not n.startswith("OFF")}
+    for d, off in OLD_OFFSETS.items():  # Newton's root to 1e-13 of the loads: the same to round-off
+        assert t[f"OFF{d}"] == pytest.approx(off, rel=1e-9)
+    assert sets.a_priori().values == a and sets.truth().values == t  # the code's sets are the file's
+
+
+def test_the_default_geometry_is_the_demo_vehicle_files():
+    """A function given no geometry takes the demo vehicle's, read from its shipped file (geometry.demo_geometry,
+    which does not load the vehicle: the description builds on it); it is the vehicle's, and every shipped file's
+    geometry is the one its tables give."""
+    import tomllib
+
+    from dynid.shipped import DEMO_VEHICLE
+    from dynid.vehicle.geometry import demo_geometry, file_geometry
+
+    assert demo_geometry() == load_vehicle(DEMO_VEHICLE).geometry
+    for name in shipped_vehicles():
+        data = tomllib.loads(vehicle_path(name).read_text(encoding="utf-8"))
+        assert file_geometry(data) == load_vehicle(name).geometry
 
 
 def test_geometry_of_another_car_by_hand(tmp_path):
@@ -107,6 +151,49 @@ def test_labels_and_names_are_both_accepted_and_offsets_come_from_statics(tmp_pa
     v = load_vehicle(write(tmp_path, text))
     assert v.truth.values["K9"] == 24425.0
     assert v.truth.values["OFF9"] == pytest.approx(sets.truth().values["OFF9"], rel=1e-12)
+
+
+def test_describing_a_car_solves_no_statics(monkeypatch):
+    """Reading a vehicle file, its template and its default tables are a description: the rest state is solved
+    where it is needed (the truth's damper preloads, the simulator), once per vehicle, and not before."""
+    from dynid.vehicle import statics
+
+    def solve(*args, **kwargs):
+        raise AssertionError("the statics were solved while describing the car")
+
+    solved = statics._solve_rest
+    monkeypatch.setattr(statics, "_SOLVED", type(statics._SOLVED)())  # no rest state kept from an earlier test
+    monkeypatch.setattr(statics, "_solve_rest", solve)
+    for name in shipped_vehicles():
+        v = load_vehicle(name)
+        v.template()
+        car_template(v.geometry, v.a_priori.values)
+        assert all(f"OFF{d}" not in v.truth_given.values for d in DAMPERS)  # the file leaves the offsets out
+    calls = []
+    monkeypatch.setattr(statics, "_solve_rest", lambda *a, **k: calls.append(1) or solved(*a, **k))
+    first = v.truth
+    assert v.truth is first and calls == [1]  # solved at the first use, kept beside the vehicle
+    assert "truth" not in vars(v)  # not in the frozen description
+
+
+def test_a_truth_whose_wheel_floats_is_refused_where_it_is_solved(tmp_path):
+    """The truth's chassis moved 1.7 m forward (its inertia about its centre of mass kept: parallel axes), 0.5 m
+    ahead of the front axle: the description reads, its preloads' rest state refuses it."""
+    truth = load_vehicle("peugeot406").truth_given.values
+    m, c = truth["M6"], np.array([truth[f"M{a}6"] for a in "XYZ"]) / truth["M6"]
+    moved = c + np.array([0.0, 0.0, 1.7])
+    J = np.array([[truth[f"{a}{b}6"] if f"{a}{b}6" in truth else truth[f"{b}{a}6"] for b in "XYZ"] for a in "XYZ"])
+    J += m * ((moved @ moved) * np.eye(3) - np.outer(moved, moved) - (c @ c) * np.eye(3) + np.outer(c, c))
+    head, rest = SHIPPED.split("[truth]", 1)
+    body, tail = rest.split("[known]", 1)
+    lines = [line for line in body.splitlines() if not line.startswith(("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6",
+                                                                        "MZ6"))]
+    at = {f"{a}{b}6": float(J["XYZ".index(a), "XYZ".index(b)]) for a, b in ("XX", "XY", "XZ", "YY", "YZ", "ZZ")}
+    lines += [f"{n} = {x!r}" for n, x in at.items()]
+    lines.append(f"MZ6 = {float(m * moved[2])!r}")
+    v = load_vehicle(write(tmp_path, head + "[truth]" + "\n".join(lines) + "\n[known]" + tail))  # it reads
+    with pytest.raises(VehicleError, match=r"car\.toml: \[truth\]: .*wheel \(frame \d+\) would float"):
+        _ = v.truth
 
 
 def _a_priori_without(name: str) -> str:
@@ -228,7 +315,7 @@ def test_cli_vehicle_commands(tmp_path, capsys):
     out = tmp_path / "mine.toml"
     assert main(["vehicle", "new", "Estate 2.0", "--out", str(out)]) == 0
     v = load_vehicle(out)
-    assert v.name == "Estate 2.0" and v.geometry == CarGeometry()
+    assert v.name == "Estate 2.0" and v.geometry == load_vehicle().geometry
     assert main(["vehicle", "new", "again", "--out", str(out)]) == 2  # never replaces a file
     assert load_vehicle(out).name == "Estate 2.0"
     assert main(["vehicle", "show", str(out)]) == 0

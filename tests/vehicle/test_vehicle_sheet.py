@@ -8,6 +8,7 @@ point masses summed directly in both frames, a two-degree-of-freedom bounce-pitc
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -23,7 +24,7 @@ from dynid.vehicle.engineering import (
     chassis_from_data_sheet,
     engineering_figures,
 )
-from dynid.vehicle.geometry import AxleGeometry, CarGeometry
+from dynid.vehicle.geometry import AxleGeometry, CarGeometry, demo_geometry
 from dynid.vehicle.template import (
     CORNERS,
     DAMPERS,
@@ -44,7 +45,7 @@ CHASSIS = ("XX6", "XY6", "XZ6", "YY6", "YZ6", "ZZ6", "MX6", "MY6", "MZ6", "M6")
 def test_every_corner_parameter_names_the_corner_its_frame_sits_at():
     """The corner a parameter names is where its frame is on the car (design pose in frame 6: y6 right, z6
     forward, the rear axle at z6 = 0), not a table of names."""
-    g = CarGeometry()
+    g = demo_geometry()
     poses = design_poses(g)
     for n in paper_parameter_names():
         m = meaning(n)
@@ -75,7 +76,7 @@ def _cloud(rng: np.random.Generator, n: int = 400) -> tuple[np.ndarray, np.ndarr
 def test_a_data_sheet_is_the_frame6_parameters_of_the_same_body():
     """A body of point masses: its CoG and inertia at the CoG summed in ISO 8855 axes, its XX6..M6 summed in frame
     6 about O6; the conversion takes one to the other and back to round-off."""
-    g = CarGeometry(wheel_radius=0.31, wheel_centre_height=0.04)
+    g = dataclasses.replace(demo_geometry(), wheel_radius=0.31, wheel_centre_height=0.04)
     m, p = _cloud(np.random.default_rng(5))
     M = m.sum()
     G = m @ p / M

@@ -85,7 +85,7 @@ def test_csv_and_toml_tables(tmp_path):
 
 
 def test_drag_at_speed_and_reversing_is_refused():
-    model = Model(car_template(check_rest=False))
+    model = Model(car_template())
     q, qd = np.zeros((1, 42)), np.zeros((1, 42))
     qd[0, 1] = 30.0  # forward along y0 at zero yaw
     w = aero_wrench(model, q, qd)

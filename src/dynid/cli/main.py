@@ -93,7 +93,7 @@ def _print_run(run, validation_title: str) -> None:
         print("\nComparison with the published identification:")
         print(run.reference_table())
     print(f"\n{validation_title}")
-    print(validation_table(run.errors, run.not_excited))
+    print(validation_table(run.errors, run.not_excited, getattr(getattr(run, "config", None), "kind", None)))
     if run.delays is not None:
         print(f"\n{run.delays.text()}")
     if getattr(run, "tires", None) is not None:
@@ -233,12 +233,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Print a model's geometric table (MDH), its parameters (the file's values; * marks the known "
                     "ones) and its base parameters: the combinations an identification can estimate. With "
                     "--template, a vehicle template's instead.",
-        examples=["dynid model show tx40", "dynid model show robot.toml", "dynid model show --template peugeot406"])
+        examples=["dynid model show tx40", "dynid model show robot.toml",
+                  f"dynid model show --template {CAR_TEMPLATE}"])
     show.add_argument("file", nargs="?", help="model file (TOML) or a shipped example: puma560, tx40, floating_tree")
     show.add_argument("--template", help=f"a vehicle template instead of a file: {CAR_TEMPLATE}")
     show.set_defaults(func=cmd_model_show)
     demo = command(
-        sub, "demo", help="the paper's experiment on the simulated Peugeot 406, end to end",
+        sub, "demo", help=f"the paper's experiment on a simulated car ({DEMO_VEHICLE} by default), end to end",
         description="Simulate the paper's tests with a vehicle's sensor suite (seeded noise), write the logger "
                     "files and the identification config, identify the parameters and write the report, "
                     "results.json, the figures and CSV files. The output folder is replaced as a whole when the "

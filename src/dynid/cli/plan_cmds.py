@@ -55,7 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "the shortest plan meeting the targets (default: bench parity: CoG 2.5 mm, moments of "
                     "inertia 2 %, products 2 % of the smallest moment, springs and bars 3 %, dampers 5 %, dry "
                     "friction 10 %, tires 5 %) with a table of what each test identifies.",
-        examples=["dynid plan --vehicle peugeot406", "dynid plan --vehicle car.toml --targets targets.toml --out plan"],
+        examples=[f"dynid plan --vehicle {DEMO_VEHICLE}",
+                  "dynid plan --vehicle car.toml --targets targets.toml --out plan"],
         notes="A targets file has [targets] (cog, moments, products, springs, dampers, dry_friction, tires), "
               "[targets.parameters], [targets.quantities] and [limits] (lateral_acceleration, "
               "longitudinal_acceleration, speed, length); `python -m pydoc dynid.cli.plan_cmds` shows an example.")

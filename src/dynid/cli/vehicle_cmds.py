@@ -29,16 +29,18 @@ def show_template(name: str) -> str:
     # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle import parameters as params
     from ..vehicle.car_model import car_template
+    from ..vehicle.description import demo_vehicle
     from ..vehicle.equations import car_base_parameters
-    from ..vehicle.geometry import CarGeometry
     from ..vehicle.statics import rest_state
 
     # start-up: the library, 1-5 s (--help 0.1 s)
     from ..vehicle.template import CHASSIS, CORNERS, WHEELS, corner_of, paper_parameter_names, role
 
-    geometry = CarGeometry()
-    sets = [params.a_priori(), params.paper_estimates(), params.truth(geometry)]
-    tree = car_template(geometry, sets[0].values)
+    demo = demo_vehicle()  # the template's values: the demo vehicle's a priori and truth sets, the paper's estimates
+    geometry = demo.geometry
+    sets = [params.a_priori(), params.paper_estimates(), params.truth()]
+    tree = car_template(geometry, sets[0].values, name=demo.name)
+    chosen = {n for n, src in sets[1].sources.items() if src.startswith(params.CHOSEN)}  # in every set alike
     out: list[str] = []
     add = out.append
     add(f"{tree.name}: {tree.n} frames, {tree.p} parameters ({len(paper_parameter_names())} identified), "
@@ -69,10 +71,11 @@ def show_template(name: str) -> str:
     for n in paper_parameter_names():
         cells = []
         for s in sets:
-            src = s.sources.get(n, "")
             v = s.values[n]
-            mark = "*" if src.startswith("chosen") else ""
-            cells.append("-" if src.startswith("not given") else f"{v:.6g}{mark}")
+            mark = "*" if n in chosen else ""
+            # the paper gives no a priori fs and off: the a priori set's zeros there are "not given"
+            not_given = (s is sets[0] and n.startswith(("FS", "OFF"))) or s.sources.get(n, "").startswith("not given")
+            cells.append("-" if not_given else f"{v:.6g}{mark}")
         sd = params.PAPER_RELATIVE_STD.get(n)
         add(f"  {tree.label(n):>7} {cells[0]:>12} {cells[1]:>12} {'' if sd is None else f'{sd:.2f}':>6} {cells[2]:>12}")
     add("  truth: estimates, except YY6 (a priori pitch inertia at the centre of mass) and off (static preloads "
@@ -102,7 +105,7 @@ def show_template(name: str) -> str:
     add("  separates YY of the wheels only weakly: identify with the car's base set or give the wheel inertias")
     add("  as known.")
     add("")
-    rs = rest_state(car_template(geometry, sets[2].values))
+    rs = rest_state(car_template(geometry, sets[2].values), demo.tables)
     add("Truth set at rest on flat ground: vertical loads (N) " + ", ".join(
         f"{CORNERS[i]} {rs.loads[i]:.1f}" for i in range(4)) + f"; total {rs.loads.sum():.1f} N")
     return "\n".join(out)
@@ -115,7 +118,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                 description="A car is a vehicle file (TOML: geometry, sensors, tables, a priori and known values; "
                             "docs/vehicle.md). These commands list the shipped ones, write a file to start from, "
                             "and show what a file describes.",
-                examples=["dynid vehicle show peugeot406", "dynid vehicle list",
+                examples=[f"dynid vehicle show {DEMO_VEHICLE}", "dynid vehicle list",
                           'dynid vehicle new "My car" --out mycar.toml'])
     sub = p.add_subparsers(dest="vehicle_command", required=True, metavar="SUBCOMMAND")
     lst = command(sub, "list", help="the shipped vehicles",
@@ -123,8 +126,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                               "given wherever a vehicle is asked for (demo --vehicle, a config's [model] vehicle).",
                   examples="dynid vehicle list")
     lst.set_defaults(func=cmd_list)
-    new = command(sub, "new", help="write a commented starting vehicle file (the 406's values, to edit)",
-                  description="Write a commented vehicle file to start from: the shipped Peugeot 406's geometry, "
+    new = command(sub, "new",
+                  help=f"write a commented starting vehicle file (the shipped {DEMO_VEHICLE}'s values, to edit)",
+                  description=f"Write a commented vehicle file to start from: the shipped {DEMO_VEHICLE}'s geometry, "
                               "sensors, tables and values, under your car's name, each to replace with your "
                               "car's. An existing file is not replaced.",
                   examples='dynid vehicle new "My car" --out mycar.toml')
@@ -136,7 +140,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    description="Show what a vehicle file describes: its frames, its parameters (a priori, known "
                                "and truth values), its base parameters, and whether its a priori set is physically "
                                "consistent.",
-                   examples=["dynid vehicle show peugeot406", "dynid vehicle show mycar.toml"])
+                   examples=[f"dynid vehicle show {DEMO_VEHICLE}", "dynid vehicle show mycar.toml"])
     show.add_argument("vehicle", help="a shipped vehicle's name or a vehicle file")
     show.set_defaults(func=cmd_show)
 
@@ -166,16 +170,19 @@ def cmd_new(args: argparse.Namespace) -> int:
     if out.suffix != ".toml":
         raise VehicleError(f"{out}: a vehicle file ends in .toml")
     refuse_overwrite([out], args.force)
-    head = ["# A vehicle file for dynid, started from the shipped Peugeot 406: replace every value with your car's",
-            "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
     source = vehicle_path(DEMO_VEHICLE)
-    lines = [line for line in source.read_text(encoding="utf-8").splitlines() if not line.startswith("# ")]
+    text = source.read_text(encoding="utf-8")
+    demo = tomllib.loads(text)["name"]  # the shipped car it starts from, by the name its file gives
+    head = [f"# A vehicle file for dynid, started from the shipped {demo}: replace every value with your car's",
+            "# (data sheets, the K&C bench, the wheels weighed on a bench). docs/vehicle.md documents each key."]
+    lines = [line for line in text.splitlines() if not line.startswith("# ")]
     for i, line in enumerate(lines):  # JSON's string escapes are TOML's
         if line.startswith("name = "):
             lines[i] = f"name = {json.dumps(args.name)}"
         elif line.startswith("description = "):
-            lines[i] = 'description = "Started from the Peugeot 406 shipped with dynid: every value is the 406\'s"'
-        elif line.startswith("unloaded_radius_known = "):  # the 406 is simulated; a real tire's radius is not known
+            said = f"Started from the {demo} shipped with dynid: every value is that car's"
+            lines[i] = f"description = {json.dumps(said)}"
+        elif line.startswith("unloaded_radius_known = "):  # the demo car is simulated; a real tire's radius is not
             lines[i] = "unloaded_radius_known = false  # true only if radius_m is the unloaded radius to 0.1 mm"
     write_atomic(out, "\n".join(head + lines).rstrip() + "\n" + _sheet_hint(source))
     print(f"wrote {out}: edit it, then `dynid vehicle show {out}`")

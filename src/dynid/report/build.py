@@ -11,7 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import platform
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -25,7 +25,6 @@ from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
 from ..shipped import DEMO_VEHICLE
-from .axes import CHASSIS_AXES, ISO_TEXT, axis_label, to_iso
 from .figures import (
     NOT_EXCITED,
     CogPoint,
@@ -38,6 +37,7 @@ from .figures import (
 )
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
 from .html import Cell, Section, Table, esc, render_html, table_html
+from .tables import axis_label, equation_axes, to_iso
 from .tables import consistency_section as robot_verdict
 
 Z95 = 1.959964  # two-sided 95 % of a normal distribution
@@ -102,6 +102,12 @@ def _car_equations(run) -> tuple[tuple[str, ...], Split | None]:
     from ..vehicle.template import CHASSIS_GROUPS
 
     return CHASSIS_GROUPS, equation_sections
+
+
+def _equation_axes(run) -> Mapping[str, Any]:
+    """How the run's equation groups are named and signed in the report, by its kind (`tables.equation_axes`: a
+    car's chassis equations in ISO 8855, from the vehicle package; none for a robot)."""
+    return equation_axes(getattr(run.config, "kind", None))[0]
 
 
 def _frame_text(run) -> str:
@@ -453,23 +459,29 @@ def validation_signals(run) -> dict[str, dict[str, dict[str, tuple[np.ndarray, n
     return out
 
 
-def validation_csv(signals, tree, chassis: Sequence[str] = ()) -> str:
+def validation_csv(signals, tree, chassis: Sequence[str] = (), axes: Mapping[str, Any] | None = None) -> str:
+    """validation.csv: per sample the measured and predicted side of each equation, in the report's names and
+    signs (axes: a car's chassis equations in ISO 8855, `tables.equation_axes`)."""
+    axes = axes or {}
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["validation", "test", "equation", "quantity", "unit", "t_s", "measured", "predicted"])
     for kind, tests in signals.items():
         for test, groups in tests.items():
             for g, (t, Y, WX) in groups.items():
-                unit, label = group_unit(g, tree, chassis), axis_label(g)
-                for row in zip(t, *to_iso(g, Y, WX), strict=True):  # the report's signs: ISO 8855 for the chassis
+                unit, label = group_unit(g, tree, chassis), axis_label(g, axes)
+                for row in zip(t, *to_iso(g, axes, Y, WX), strict=True):  # the report's signs: ISO 8855, a chassis
                     w.writerow([kind, test, g, label, unit, *(f"{v:.9g}" for v in row)])
     return buf.getvalue()
 
 
-def panel_corners(signals, noise: dict[str, float]) -> dict[tuple[str, str], str]:
+def panel_corners(signals, noise: dict[str, float], axes: Mapping[str, Any] | None = None,
+                  ) -> dict[tuple[str, str], str]:
     """What each validation panel (equation's label, test) says in its corner: the relative error ||Y - W X||/||Y||,
     or "not excited" where the test barely moves that equation by the rule that marks the cross-validation table
-    (`estimation.not_excited`: RMS of the test's Y against the identification's residual RMS, `noise`)."""
+    (`estimation.not_excited`: RMS of the test's Y against the identification's residual RMS, `noise`); axes: how
+    the equations are named (`tables.equation_axes`)."""
+    axes = axes or {}
     out = {}
     for tests in signals.values():
         for test, per in tests.items():
@@ -477,19 +489,20 @@ def panel_corners(signals, noise: dict[str, float]) -> dict[tuple[str, str], str
                                      for g, (_, Y, _) in per.items()}, noise))
             for g, (_, Y, WX) in per.items():
                 err = np.linalg.norm(Y - WX) / max(float(np.linalg.norm(Y)), 1e-300)
-                out[(axis_label(g), test)] = NOT_EXCITED if g in quiet else f"{100 * err:.1f} %"
+                out[(axis_label(g, axes), test)] = NOT_EXCITED if g in quiet else f"{100 * err:.1f} %"
     return out
 
 
 def validation_figures(signals, tree, noise: dict[str, float] | None = None, chassis: Sequence[str] = (),
-                       split: Split | None = None) -> list[tuple[str, bytes]]:
+                       split: Split | None = None, axes: Mapping[str, Any] | None = None) -> list[tuple[str, bytes]]:
     """One figure per equation section (the car: chassis, suspensions, tires; a robot: its joints), the direct
-    and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each. The chassis
-    equations in ISO 8855 axes (`axes`); noise: the identification's residual RMS per group (the run's
-    `residual_rms`), under which a panel says "not excited" instead of a relative error of noise over noise.
+    and the cross validation side by side: the paper's Figures 4 and 7, 5 and 8, 6 in one each. A car's chassis
+    equations in ISO 8855 axes (axes: `tables.equation_axes`); noise: the identification's residual RMS per group
+    (the run's `residual_rms`), under which a panel says "not excited" instead of a relative error of noise over noise.
     chassis, split: a car's chassis groups and its split of the groups into figures (`_car_equations`); without a
     split, one figure of every joint."""
-    corners = panel_corners(signals, noise or {})
+    axes = axes or {}
+    corners = panel_corners(signals, noise or {}, axes)
     tests = [(kind, test, per) for kind, by_test in signals.items() for test, per in by_test.items()]
     groups = list(dict.fromkeys(g for _, _, per in tests for g in per))
     # each test's time axis from all its equations, the same in every figure
@@ -497,13 +510,14 @@ def validation_figures(signals, tree, noise: dict[str, float] | None = None, cha
                     max(float(v[0][-1]) for v in per.values() if len(v[0])))
              for _, test, per in tests if any(len(v[0]) for v in per.values())}
     figs = []
-    data = {(axis_label(g), test): (per[g][0], *to_iso(g, *per[g][1:])) for _, test, per in tests for g in per}
+    data = {(axis_label(g, axes), test): (per[g][0], *to_iso(g, axes, *per[g][1:])) for _, test, per in tests
+            for g in per}
     for section, gs, paper in (split(groups) if split is not None else [("joints", groups, "")]):
         caption = (f"Validation, {section}: measured Y and model W X per equation and test, direct (identification "
                    "tests) then cross (tests not used for the estimate)"
                    + (f"; the paper's Figures {paper}" if paper else ""))
         figs.append((caption, validation_grid(f"{section}: measured and predicted forces",
-                                              [(axis_label(g), group_unit(g, tree, chassis)) for g in gs],
+                                              [(axis_label(g, axes), group_unit(g, tree, chassis)) for g in gs],
                                               [t for _, t, _ in tests], data, kinds=[k for k, _, _ in tests],
                                               spans=spans, corners=corners)))
     return figs
@@ -517,10 +531,11 @@ def validation_table(run) -> Table | None:
     marked = {k: set(run.not_excited.get(k, ())) for k in kinds}
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
     chassis = _car_equations(run)[0]
+    axes = _equation_axes(run)
     rows = []
     for g in groups:
-        axis = CHASSIS_AXES.get(g)
-        row = [Cell(axis_label(g), title=f"the paper's {axis.paper}" if axis else "", cls="t"),
+        axis = axes.get(g)
+        row = [Cell(axis_label(g, axes), title=f"the paper's {axis.paper}" if axis else "", cls="t"),
                Cell(group_unit(g, run.model.tree, chassis), cls="t")]
         for k in kinds:
             e = errors[k].get(g)
@@ -879,7 +894,7 @@ def build_report(run, title: str) -> Report:
     signals = validation_signals(run)
     vt = validation_table(run)
     chassis, split = _car_equations(run)
-    vfigs = validation_figures(signals, tree, run.residual_rms, chassis, split)
+    vfigs = validation_figures(signals, tree, run.residual_rms, chassis, split, _equation_axes(run))
     for k, (caption, png) in enumerate(vfigs, start=1):
         figs_written.append((f"figure_validation{k}.png", caption, png))
     vtext = ("Y is the measured side of each equation (forces from the sensors), W X the model's prediction with "
@@ -891,6 +906,8 @@ def build_report(run, title: str) -> Report:
     vtext += f"\nA plot's panel says \"{NOT_EXCITED}\" instead of its relative error where its test barely moves its "
     vtext += f"equation ({rule})."
     if is_car:
+        from ..vehicle.axes import ISO_TEXT  # start-up: a car's alone (the vehicle package)
+
         vtext += ("\nThe plots show the first segment of each test (validation.csv has the same rows, in the same "
                   "signs, with the paper's equation name beside the ISO one).\n\n" + ISO_TEXT)
     out_sections.append(Section("Validation", vtext, tables=[vt] if vt else [], figures=vfigs, anchor="validation"))
@@ -910,7 +927,7 @@ def build_report(run, title: str) -> Report:
     out_sections.append(provenance_section(run, prov))
     data["provenance"] = prov
     files["parameters.csv"] = parameters_csv(run, sections_list)
-    files["validation.csv"] = validation_csv(signals, tree, chassis)
+    files["validation.csv"] = validation_csv(signals, tree, chassis, _equation_axes(run))
     for name, _, png in figs_written:
         files[name] = png
     page = render_html(title, out_sections, subtitle=summary)

@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 
 from ..estimation import EXCITED_FACTOR, IdentificationResult
-from .axes import CHASSIS_AXES, axis_label
 from .format import round_to_uncertainty
 
 
@@ -71,22 +70,48 @@ def parameter_table(
     return "\n\n".join(out)
 
 
+def equation_axes(kind: str | None) -> tuple[Mapping[str, Any], str]:
+    """How a run's equation groups are shown, by the run's kind (its config's `kind`): a car's chassis equations
+    in ISO 8855 terms (`vehicle.axes`: group -> label, sign, the paper's name) and the note that maps them to the
+    paper's names; ({}, "") for anything else, whose groups are shown as they are named."""
+    if kind != "car":
+        return {}, ""
+    # start-up: a car's alone (the vehicle package is not on a robot's path)
+    from ..vehicle.axes import CHASSIS_AXES, TABLE_NOTE
+
+    return CHASSIS_AXES, TABLE_NOTE
+
+
+def axis_label(group: str, axes: Mapping[str, Any]) -> str:
+    """The name the report gives an equation group: its label in `axes` (equation_axes), else the group's."""
+    axis = axes.get(group)
+    return axis.label if axis else group
+
+
+def to_iso(group: str, axes: Mapping[str, Any], *signals: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The signals of an equation group in the report's sign (`axes`' sign for the group, else as they are)."""
+    axis = axes.get(group)
+    s = axis.sign if axis else 1.0
+    return tuple(np.asarray(x) if s == 1.0 else s * np.asarray(x) for x in signals)
+
+
 def validation_table(errors: Mapping[str, Mapping[str, float]],
-                     not_excited: Mapping[str, Sequence[str]] | None = None) -> str:
+                     not_excited: Mapping[str, Sequence[str]] | None = None, kind: str | None = None) -> str:
     """Relative errors ||Y - W X|| / ||Y|| per group, one column per validation kind (direct, cross);
-    not_excited: per kind, the groups whose Y the test barely moves (marked with *)."""
+    not_excited: per kind, the groups whose Y the test barely moves (marked with *); kind: the run's (its
+    config's), which says how its groups are named (`equation_axes`)."""
+    axes, note = equation_axes(kind)
     kinds = [k for k in errors if errors[k]]
     marked = {k: set((not_excited or {}).get(k, ())) for k in kinds}
     groups = list(dict.fromkeys(g for k in kinds for g in errors[k]))
-    width = max([12, *(len(axis_label(g)) + 1 for g in groups)])
+    width = max([12, *(len(axis_label(g, axes)) + 1 for g in groups)])
     lines = ["group".rjust(width) + "".join(k.rjust(13) for k in kinds)]
-    for g in groups:  # a chassis equation by its ISO 8855 name, as in the report (report.axes)
-        lines.append(axis_label(g).rjust(width) + "".join(
+    for g in groups:  # a car's chassis equation by its ISO 8855 name, as in the report (vehicle.axes)
+        lines.append(axis_label(g, axes).rjust(width) + "".join(
             ((f"{100 * errors[k][g]:.2f} %" + ("*" if g in marked[k] else " ")) if g in errors[k] else "").rjust(13)
             for k in kinds))
-    if any(g in CHASSIS_AXES for g in groups):
-        lines.append("  (chassis equations in ISO 8855 axes; results.json names them as the paper does: Y_E force = "
-                     "-x, X_E force = y, Z_E force = z, pitch moment = -pitch)")
+    if any(g in axes for g in groups):
+        lines.append(note)
     if any(marked.values()):
         lines.append(f"* the test barely moves this equation (RMS of Y below {EXCITED_FACTOR:g} times the "
                      "identification's residual RMS there): its relative error mostly compares noise with a small "

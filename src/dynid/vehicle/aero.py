@@ -24,7 +24,7 @@ from scipy.interpolate import CubicSpline
 from ..dynamics import Model, Wrench
 from ..kinematics.forward import point_velocity
 from ..model.tree import ModelError
-from .geometry import CarGeometry
+from .geometry import CarGeometry, demo_geometry
 from .template import CHASSIS
 
 COEFFICIENTS = ("cx", "cy", "cz", "cl", "cm", "cn")
@@ -97,7 +97,7 @@ class Aerodynamics:
 
 def reference_point(geometry: CarGeometry | None = None) -> np.ndarray:
     """Mid-wheelbase, centreline, ground level in the design position, in frame 6."""
-    g = CarGeometry() if geometry is None else geometry
+    g = demo_geometry() if geometry is None else geometry
     return np.array([g.wheel_centre_height - g.wheel_radius, 0.0, 0.5 * (g.front.position + g.rear.position)])
 
 

@@ -1,7 +1,9 @@
-"""The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the paper's
-a priori values by default, and its rest on flat ground checked (`statics.rest_state`).
+"""The car's tree as dynid uses it: the template's 42 frames (`template.car_tree`) with a parameter set, the demo
+vehicle's a priori values by default (`parameters.a_priori`). Describing the car solves nothing: its rest on flat
+ground is solved where it is needed (`statics.rest_state`: the simulator, a vehicle's truth offsets), and raises
+there when a wheel would float.
 
-Above the template, the parameter sets and the statics, so that none of them needs another to describe the car.
+Above the template and the parameter sets, so that neither needs the other to describe the car.
 """
 
 from __future__ import annotations
@@ -9,31 +11,27 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..model.tree import Tree
-from .geometry import CarGeometry
+from .geometry import CarGeometry, demo_geometry
 from .parameters import a_priori
-from .statics import rest_state
-from .tables import default_tables
-from .template import TIRES, car_tree
+from .template import car_tree
 
 
 def car_template(
     geometry: CarGeometry | None = None,
     values: dict[str, float] | None = None,
-    name: str = "Peugeot 406 (paper's car)",
+    name: str = "car",
     known: set[str] | frozenset[str] = frozenset(),
-    check_rest: bool = True,
     tire_offsets: bool = False,
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
     damper_friction: dict[int, tuple[str, float]] | None = None,
     tire_lateral_force: bool = False,
 ) -> Tree:
-    """The 42-frame tree of the car, with a parameter set (default: the paper's a priori values).
+    """The 42-frame tree of the car, with a parameter set (default: the demo vehicle's a priori values) and a
+    geometry (default: the demo vehicle's); name: the tree's (a vehicle's template has the vehicle's).
 
     values: parameter name or label -> value (e.g. `parameters.truth().values`); known:
     parameters taken as known rather than identified (moved to Y by `car_identification`).
-    check_rest: when the set has masses and tire stiffnesses, solve the rest state with the
-    dampers at their design position and raise GeometryError if a wheel would float.
     tire_offsets: each tire equation gets a constant, off15 ... off42: kt * q + off = Fz. A real tire's
     unloaded radius is not known to the 0.1 mm that kt * q needs (0.1 mm is 20 N), so off = kt * (R0 - R)
     is identified with kt (R0 the unloaded radius, R the vehicle file's radius); False is the paper's
@@ -53,9 +51,7 @@ def car_template(
     free (docs/vehicle.md, 'The tire equation'). A load term of the tree (model.tree), whose column
     `car_identification` builds from the measured wrench.
     """
-    geometry = CarGeometry() if geometry is None else geometry
+    geometry = demo_geometry() if geometry is None else geometry
     tree = car_tree(geometry, a_priori().values if values is None else values, name, tire_offsets, tire_law,
                     damper_knees, damper_friction, tire_lateral_force)
-    if check_rest and tree.values.get("M6", 0.0) > 0 and all(tree.values.get(f"K{t}", 0.0) > 0 for t in TIRES):
-        rest_state(tree, default_tables(geometry), fix_dampers=True)
     return tree.with_known(set(known)) if known else tree

@@ -67,6 +67,7 @@ valid one.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Mapping
@@ -79,14 +80,14 @@ import numpy as np
 from ..model.consistency import check_physical
 from ..model.files import did_you_mean, read_toml, unknown_keys
 from ..model.tree import FRICTION_SHAPES, ModelError, Tree
+from ..model.workspace import derived
 from ..shipped import DEMO_VEHICLE
 from ..textfiles import TextEncodingError, read_csv_rows
 from .aero import COEFFICIENTS, Aerodynamics, AeroError, reference_point
-from .car_model import car_template
 from .dynamics import DynamicsError, LoggerDynamics, parse_dynamics, table1_dynamics
 from .engineering import chassis_data_sheet, chassis_from_data_sheet
-from .geometry import AxleGeometry, CarGeometry, GeometryError
-from .parameters import ParameterSet
+from .geometry import CarGeometry, GeometryError, file_geometry
+from .parameter_set import ParameterSet
 from .sensors import SensorSuite, correvit_point, fitted_suite, gnss_point, laser_point
 from .statics import design_preloads
 from .tables import (
@@ -99,7 +100,18 @@ from .tables import (
     load_table_csv,
 )
 from .tables import load_tables as load_table_file
-from .template import CHASSIS, CORNERS, CURVE_LABELS, DAMPERS, TIRE_LAWS, TIRES, WHEELS, labels, paper_parameter_names
+from .template import (
+    CHASSIS,
+    CORNERS,
+    CURVE_LABELS,
+    DAMPERS,
+    TIRE_LAWS,
+    TIRES,
+    WHEELS,
+    car_tree,
+    labels,
+    paper_parameter_names,
+)
 
 AXLE_KEYS = {"half_track_m", "damper_lateral_tilt_deg", "damper_longitudinal_tilt_deg", "kingpin_inclination_deg",
              "caster_deg", "kingpin_offset_m", "anti_roll_bar", "damper_friction"}
@@ -121,14 +133,20 @@ class VehicleError(ModelError):
 @dataclass(frozen=True)
 class Vehicle:
     """A car for the template: name, geometry, kinematic tables, aerodynamics, sensor suite, a priori values,
-    the simulation's truth (None when the file gives none) and the parameters known from a bench."""
+    the simulation's truth (None when the file gives none) and the parameters known from a bench.
+
+    A description only: reading it solves nothing. The truth's damper offsets that the file leaves out are the
+    static preloads, solved at the first use of `truth` (the simulator's) and kept beside the vehicle
+    (model.workspace.derived), never in it."""
 
     name: str
     geometry: CarGeometry
     tables: KinematicTables
     aero: Aerodynamics
     a_priori: ParameterSet
-    truth: ParameterSet | None
+    # the file's [truth] with [known] and [a_priori] for the rest, less the damper offsets it leaves out (`truth`
+    # adds them); None when the file gives no [truth]
+    truth_given: ParameterSet | None
     known: dict[str, float] = field(default_factory=dict)
     source: str = ""
     steering_ratio: float = STEERING_RATIO
@@ -169,11 +187,32 @@ class Vehicle:
 
     def template(self, values: dict[str, float] | None = None) -> Tree:
         """The car's 42-frame tree with `values` (default: the a priori set)."""
-        return car_template(self.geometry, self.a_priori.values if values is None else values, name=self.name,
-                            tire_offsets=self.tire_offsets, tire_law=self.tire_law,
-                            tire_lateral_force=self.tire_lateral_force,
-                            damper_knees=self.damper_knees if self.damper_law == "curve" else None,
-                            damper_friction=self.damper_friction)
+        return car_tree(self.geometry, self.a_priori.values if values is None else values, name=self.name,
+                        tire_offsets=self.tire_offsets, tire_law=self.tire_law,
+                        tire_lateral_force=self.tire_lateral_force,
+                        damper_knees=self.damper_knees if self.damper_law == "curve" else None,
+                        damper_friction=self.damper_friction)
+
+    @derived
+    def truth(self) -> ParameterSet | None:
+        """The simulation's set: `truth_given` with each damper offset it lacks the static preload that holds the
+        damper at its design position on flat ground (`statics.design_preloads`); None when the file gives none."""
+        given = self.truth_given
+        if given is None or all(f"OFF{d}" in given.values for d in DAMPERS):
+            return given
+        curved = {d: self.damper_knees[d] for d in DAMPERS if f"FVPL{d}" in given.values}
+        try:
+            tree = car_tree(self.geometry, {**given.values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
+                            damper_knees=curved)
+            preloads = design_preloads(tree, self.tables)
+        except GeometryError as exc:
+            raise VehicleError(f"{self.source or self.name}: [truth]: {exc}") from None
+        values, sources = dict(given.values), dict(given.sources)
+        for d, f in zip(DAMPERS, preloads, strict=True):
+            if f"OFF{d}" not in values:
+                values[f"OFF{d}"] = float(f)
+                sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
+        return ParameterSet(given.name, values, sources)
 
     @property
     def suite(self) -> SensorSuite:
@@ -216,6 +255,13 @@ def load_vehicle(name_or_path: str | os.PathLike[str] = DEMO_VEHICLE) -> Vehicle
     path = vehicle_path(name_or_path)
     data = read_toml(path, "vehicle file", VehicleError)
     return vehicle_from_dict(data, path)
+
+
+@functools.cache
+def demo_vehicle() -> Vehicle:
+    """The demo vehicle, `load_vehicle(DEMO_VEHICLE)` read once per process: what a function given no vehicle,
+    geometry or parameter set uses. Shared: read it, do not change its dicts."""
+    return load_vehicle(DEMO_VEHICLE)
 
 
 def vehicle_from_dict(data: dict, path: Path) -> Vehicle:
@@ -469,40 +515,37 @@ def _number(table: dict, key: str, where: str, section: str, default: float | No
 
 
 def _geometry(data: dict, where: str) -> CarGeometry:
+    """[axles], [wheels], [imu] checked (keys, numbers, ranges: the message names the key), then the geometry they
+    give (`geometry.file_geometry`, without the sensors' points: [sensors] is checked after)."""
     axles = data["axles"]
     _keys(axles, {"wheelbase_m", "front", "rear"}, where, "[axles]")
     for a in ("front", "rear"):
         if not isinstance(axles.get(a), dict):
             raise VehicleError(f"{where}: missing the table [axles.{a}] (half_track_m, damper tilts, kingpin, ...)")
-    wheelbase = _number(axles, "wheelbase_m", where, "[axles]")
-
-    def axle(a: str, position: float) -> AxleGeometry:
-        t = axles[a]
-        sec = f"[axles.{a}]"
-        _keys(t, AXLE_KEYS, where, sec)
-        if not isinstance(t.get("anti_roll_bar", True), bool):
-            raise VehicleError(f"{where}: {sec}: anti_roll_bar = {t['anti_roll_bar']!r} must be true or false")
-        deg = {k: math.radians(_number(t, f"{k}_deg", where, sec, 0.0))
-               for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster")}
-        return AxleGeometry(half_track=_number(t, "half_track_m", where, sec), position=position,
-                            kingpin_offset=_number(t, "kingpin_offset_m", where, sec, 0.0), **deg)
-
+    _number(axles, "wheelbase_m", where, "[axles]")
     wheels = data["wheels"]
     _keys(wheels, {"radius_m", "centre_height_m", "unloaded_radius_known", "tire_law",
                     "tire_lateral_force"}, where, "[wheels]")
     imu = data.get("imu", {})
     _keys(imu, {"position_m", "axes"}, where, "[imu]")
-    position = _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
-    axes = _vector(imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]), (3, 3), where, "[imu] axes")
+    _vector(imu.get("position_m", [0.0, 0.0, 0.0]), (3,), where, "[imu] position_m")
+    _vector(imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]), (3, 3), where, "[imu] axes")
+    for a in ("front", "rear"):
+        t = axles[a]
+        sec = f"[axles.{a}]"
+        _keys(t, AXLE_KEYS, where, sec)
+        if not isinstance(t.get("anti_roll_bar", True), bool):
+            raise VehicleError(f"{where}: {sec}: anti_roll_bar = {t['anti_roll_bar']!r} must be true or false")
+        for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster"):
+            _number(t, f"{k}_deg", where, sec, 0.0)
+        _number(t, "half_track_m", where, sec)
+        _number(t, "kingpin_offset_m", where, sec, 0.0)
+    _number(wheels, "radius_m", where, "[wheels]")
+    _number(wheels, "centre_height_m", where, "[wheels]", 0.0)
     try:
-        g = CarGeometry(front=axle("front", wheelbase), rear=axle("rear", 0.0),
-                        wheel_radius=_number(wheels, "radius_m", where, "[wheels]"),
-                        wheel_centre_height=_number(wheels, "centre_height_m", where, "[wheels]", 0.0),
-                        imu_position=tuple(float(x) for x in position),
-                        imu_axes=tuple(tuple(float(x) for x in r) for r in axes))
+        return file_geometry({k: data[k] for k in ("axles", "wheels", "imu") if k in data})
     except GeometryError as exc:
         raise VehicleError(f"{where}: {exc}") from None
-    return g
 
 
 def _vector(v, shape: tuple[int, ...], where: str, what: str) -> np.ndarray:
@@ -737,9 +780,9 @@ def _parameters(t: dict, names: dict[str, str], where: str, section: str, comple
 def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str, float], g: CarGeometry,
            tables: KinematicTables, where: str, knees: dict[int, tuple[float, float]]) -> ParameterSet:
     """The simulation's set: the file's [truth], the known values and the a priori values for the rest; a damper
-    offset not given is the static preload that holds the damper at its design position. A damper whose curve
-    slopes [truth] gives drives with that curve (a slope not given: the truth's h); the others with h (the a
-    priori's when the a priori set has a curve). Its rest states are solved once per process (statics.rest_state)."""
+    offset not given is left out: `Vehicle.truth` solves it, the static preload that holds the damper at its design
+    position. A damper whose curve slopes [truth] gives drives with that curve (a slope not given: the truth's h);
+    the others with h (the a priori's when the a priori set has a curve)."""
     curved = {d for d in DAMPERS if any(n in given for n in _curve_names(d))}
     values = {**a_priori, **known, **given}
     for d in DAMPERS:
@@ -755,16 +798,7 @@ def _truth(given: dict[str, float], a_priori: dict[str, float], known: dict[str,
     if problems:
         raise VehicleError(f"{where}: [truth] is not a physically realisable car: {problems[0]} (a simulation needs "
                            "one: mass > 0, inertia at the centre of mass positive definite, triangle inequalities)")
-    offsets = [d for d in DAMPERS if f"OFF{d}" not in given]
-    if offsets:
-        try:
-            tree = car_template(g, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}},
-                                damper_knees={d: knees[d] for d in curved})
-            preloads = design_preloads(tree, tables)
-        except GeometryError as exc:
-            raise VehicleError(f"{where}: [truth]: {exc}") from None
-        for d, f in zip(DAMPERS, preloads, strict=True):
-            if d in offsets:
-                values[f"OFF{d}"] = float(f)
-                sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
+    for d in DAMPERS:  # an offset the file leaves out is the static preload, solved at first use (Vehicle.truth)
+        if f"OFF{d}" not in given:
+            del values[f"OFF{d}"], sources[f"OFF{d}"]
     return ParameterSet("truth", values, sources)

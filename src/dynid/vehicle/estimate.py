@@ -35,7 +35,7 @@ from ..model.workspace import PerObject
 from ..signals import border_samples, derivative, integrate, lowpass
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_rows
 from .dynamics import ChannelDynamics, table1_dynamics
-from .geometry import CarGeometry
+from .geometry import CarGeometry, demo_geometry
 from .sensors import (
     CORNER_TAGS,
     ISO_AXES,
@@ -447,7 +447,7 @@ def joints_pass(
     compensated: Mapping[str, Array] | None = None,
 ) -> JointsPass:
     """`estimate_joints` (its arguments), with what a pass with one channel moved reuses (`JointsPass`)."""
-    g = geometry or CarGeometry()
+    g = geometry or demo_geometry()
     tables = tables or default_tables(g)
     c = conditioning or CarConditioning()
     suite = suite or paper_suite(g)

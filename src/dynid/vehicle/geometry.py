@@ -9,12 +9,18 @@ in the paper's Table 1). Positions below are coordinates in frame 6.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any
 
 import numpy as np
 
 from ..model.tree import ModelError
+from ..shipped import DEMO_VEHICLE
 
 
 class GeometryError(ModelError):
@@ -48,23 +54,10 @@ class AxleGeometry:
     kingpin_offset: float = 0.0
 
 
-def _peugeot406_front() -> AxleGeometry:
-    # MacPherson strut: strut and kingpin inclined inboard, a few degrees of caster.
-    return AxleGeometry(half_track=0.755, position=2.70, damper_lateral_tilt=math.radians(11.0),
-                        damper_longitudinal_tilt=math.radians(3.0), kingpin_inclination=math.radians(12.0),
-                        caster=math.radians(3.5), kingpin_offset=0.06)
-
-
-def _peugeot406_rear() -> AxleGeometry:
-    # multi-link rear axle: damper nearly upright, no steering axis to speak of.
-    return AxleGeometry(half_track=0.750, position=0.0, damper_lateral_tilt=math.radians(8.0),
-                        damper_longitudinal_tilt=0.0, kingpin_inclination=math.radians(5.0),
-                        caster=0.0, kingpin_offset=0.03)
-
-
 @dataclass(frozen=True)
 class CarGeometry:
-    """What the template needs to place the 42 frames; defaults are a Peugeot 406 saloon.
+    """What the template needs to place the 42 frames: a vehicle file gives it (`vehicle.description`), and
+    `demo_geometry()` is the demo vehicle's, where a function is given none.
 
     wheel_radius: unloaded tire radius, m (195/65 R15: 0.317 m); the tire deflection q15 is
       counted from it (contact point at wheel_radius - q15 from the wheel centre).
@@ -79,9 +72,9 @@ class CarGeometry:
       `sensors.laser_point` choose). Used by sensor models, not by the dynamics.
     """
 
-    front: AxleGeometry = field(default_factory=_peugeot406_front)
-    rear: AxleGeometry = field(default_factory=_peugeot406_rear)
-    wheel_radius: float = 0.317
+    front: AxleGeometry
+    rear: AxleGeometry
+    wheel_radius: float
     wheel_centre_height: float = 0.0
     imu_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_axes: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
@@ -103,6 +96,42 @@ class CarGeometry:
         """Wheel centre of a corner (0 rear left, 1 rear right, 2 front left, 3 front right) in frame 6."""
         ax = self.axle(corner)
         return np.array([self.wheel_centre_height, side(corner) * ax.half_track, ax.position])
+
+
+def file_geometry(data: Mapping[str, Any]) -> CarGeometry:
+    """The geometry a vehicle file's tables give (`vehicle.description`'s keys, docs/vehicle.md): [axles], [wheels],
+    [imu] and the sensors' points of [sensors]. The values as they are: `vehicle.description` checks a file (keys,
+    ranges, messages naming the key) before it builds its geometry here."""
+    axles, wheels, imu, sensors = data["axles"], data["wheels"], data.get("imu", {}), data.get("sensors", {})
+
+    def axle(a: str, position: float) -> AxleGeometry:
+        t = axles[a]
+        deg = {k: math.radians(float(t.get(f"{k}_deg", 0.0)))
+               for k in ("damper_lateral_tilt", "damper_longitudinal_tilt", "kingpin_inclination", "caster")}
+        return AxleGeometry(half_track=float(t["half_track_m"]), position=position,
+                            kingpin_offset=float(t.get("kingpin_offset_m", 0.0)), **deg)
+
+    def point(v) -> tuple[float, ...] | None:
+        return None if v is None else tuple(float(x) for x in v)
+
+    lasers = sensors.get("laser_positions_m")
+    return CarGeometry(front=axle("front", float(axles["wheelbase_m"])), rear=axle("rear", 0.0),
+                       wheel_radius=float(wheels["radius_m"]), wheel_centre_height=float(wheels.get("centre_height_m",
+                                                                                                   0.0)),
+                       imu_position=point(imu.get("position_m", [0.0, 0.0, 0.0])),
+                       imu_axes=tuple(point(r) for r in imu.get("axes", [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0],
+                                                                          [1.0, 0.0, 0.0]])),
+                       gnss_position=point(sensors.get("gnss_position_m")),
+                       correvit_position=point(sensors.get("correvit_position_m")),
+                       laser_positions=None if lasers is None else tuple(point(r) for r in lasers))
+
+
+@functools.cache
+def demo_geometry() -> CarGeometry:
+    """The demo vehicle's geometry, read from its shipped file (the one `dynid.shipped.DEMO_VEHICLE` names): the
+    default of the functions that take a geometry, so that no car's numbers live in code."""
+    path = resources.files("dynid.vehicle") / "vehicles" / f"{DEMO_VEHICLE}.toml"
+    return file_geometry(tomllib.loads(path.read_text(encoding="utf-8")))
 
 
 def side(corner: int) -> int:

@@ -1,19 +1,15 @@
-"""Parameter sets of the Peugeot 406 (SI units, chassis values in frame 6 about O6).
+"""Parameter sets of the car template (SI units, chassis values in frame 6 about O6), each value with its source.
 
-Three sets over the paper's 48 parameters, each value with its source:
+- `a_priori()`, `truth(geometry, tables)`: the demo vehicle's (the shipped file `dynid.shipped.DEMO_VEHICLE` names):
+  its [a_priori] set, and its [truth] set with the damper offsets it leaves out solved (the static preloads that
+  put every damper at its design position, q = 0, at rest on flat ground: `Vehicle.truth`). The file is the one
+  place their numbers live.
+- `paper_estimates()`: the paper's weighted least-squares estimates (Tables 2, 3, 5), with `PAPER_RELATIVE_STD`
+  their %σ: a publication's figures, which no vehicle file holds. The chassis set is NOT physically realisable:
+  moved to the centre of mass, YY6 (pitch, about the lateral axis y6) is about 12980 kg·m², more than
+  XX + ZZ ≈ 3870 there.
 
-- `a_priori()`: the paper's a priori values (Tables 2, 3, 5). The paper gives no a priori
-  fs and off (0 here).
-- `paper_estimates()`: the paper's weighted least-squares estimates (Tables 2, 3, 5).
-  The chassis set is NOT physically realisable: moved to the centre of mass, YY6 (pitch,
-  about the lateral axis y6) is about 12980 kg·m², more than XX + ZZ ≈ 3870 there.
-- `truth(geometry, tables)`: a realisable set close to the estimates, for the simulator
-  and the tests: the estimates everywhere except YY6 (the a priori pitch inertia at the
-  centre of mass, moved to O6 with the estimated first moments) and the damper offsets
-  (the static preloads that put every damper at its design position, q = 0, at rest on
-  flat ground; the paper's offsets refer to its own, unknown, zero of the clearances).
-
-Not in the paper's text, chosen and marked as such:
+Not in the paper's text, chosen for its estimates and marked as such:
 - XY6, YZ6: the values of a chassis symmetric about a vertical plane through its centre
   of mass containing z6, i.e. XY_G = YZ_G = 0: XY6 = -MX6 MY6 / M6, YZ6 = -MY6 MZ6 / M6.
 - wheels (the paper's Table 4 is missing): the wheel link stands for the corner's
@@ -25,35 +21,17 @@ Not in the paper's text, chosen and marked as such:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import replace
 
-from .geometry import CarGeometry
-from .statics import design_preloads
-from .template import DAMPERS, TIRES, WHEELS, car_tree, paper_parameter_names
+from .description import demo_vehicle
+from .parameter_set import ParameterSet
+from .template import TIRES, WHEELS, paper_parameter_names
 
 PAPER = "paper"
 CHOSEN = "chosen (not in the paper)"
 NOT_GIVEN = "not given by the paper (0)"
 
 WHEEL = {"XX": 0.65, "YY": 0.65, "ZZ": 1.05, "M": 35.0}
-
-
-@dataclass(frozen=True)
-class ParameterSet:
-    """Named values (dynid names, e.g. K9) with the source of each value."""
-
-    name: str
-    values: dict[str, float]
-    sources: dict[str, str] = field(default_factory=dict)
-
-    def __getitem__(self, key: str) -> float:
-        return self.values[key]
-
-    def centre_of_mass(self, body: int = 6) -> tuple[float, float, float]:
-        """(MX, MY, MZ) / M of a body, m, in its frame."""
-        v = self.values
-        M = v[f"M{body}"]
-        return (v[f"MX{body}"] / M, v[f"MY{body}"] / M, v[f"MZ{body}"] / M)
 
 
 def _chassis(values: dict[str, float], sources: dict[str, str]) -> None:
@@ -67,7 +45,7 @@ def _wheels(values: dict[str, float], sources: dict[str, str]) -> None:
     for w in WHEELS:
         for p, x in WHEEL.items():
             values[f"{p}{w}"] = x
-            sources[f"{p}{w}"] = CHOSEN + ": plausible unsprung corner of a 406"
+            sources[f"{p}{w}"] = CHOSEN + ": plausible unsprung corner of the paper's car"
 
 
 def _set(name: str, chassis: dict[str, float], susp: dict[int, tuple], kar: tuple[float, float],
@@ -90,11 +68,9 @@ def _set(name: str, chassis: dict[str, float], susp: dict[int, tuple], kar: tupl
 
 
 def a_priori() -> ParameterSet:
-    chassis = {"XX6": 6810.44, "XZ6": -445.9, "YY6": 6567.0, "ZZ6": 668.56, "MX6": 537.24, "MY6": 5.81,
-               "MZ6": 2368.21, "M6": 1685.0}
-    susp = {9: (22000.0, 4200.0, None, None), 18: (22000.0, 4200.0, None, None),
-            27: (20000.0, 3200.0, None, None), 36: (20000.0, 3200.0, None, None)}
-    return _set("a priori", chassis, susp, (19780.0, 19185.0), (200000.0,) * 4, "a priori")
+    """The demo vehicle's a priori set (its file's [a_priori]; a copy)."""
+    v = demo_vehicle().a_priori
+    return ParameterSet(v.name, dict(v.values), dict(v.sources))
 
 
 def paper_estimates() -> ParameterSet:
@@ -116,23 +92,17 @@ PAPER_RELATIVE_STD = {
 
 
 def truth(geometry=None, tables=None) -> ParameterSet:
-    """The realisable set for simulation (see the module doc); offsets from the static preloads.
+    """The demo vehicle's truth set (its file's [truth], the damper offsets it leaves out the static preloads;
+    a copy), for the simulator and the tests.
 
-    geometry, tables: those of the simulated car (defaults: the 406's); the offsets depend
-    on them through the rest attitude.
+    geometry, tables: those of the simulated car (defaults: the demo vehicle's); the offsets depend on them
+    through the rest attitude.
     """
-
-    est = paper_estimates()
-    apr = a_priori()
-    values, sources = dict(est.values), dict(est.sources)
-    yy_g = apr["YY6"] - (apr["MX6"] ** 2 + apr["MZ6"] ** 2) / apr["M6"]
-    values["YY6"] = yy_g + (values["MX6"] ** 2 + values["MZ6"] ** 2) / values["M6"]
-    sources["YY6"] = (f"a priori YY at the centre of mass ({yy_g:.1f}) moved to O6 with the estimated first "
-                      "moments (the estimated YY6 is not realisable)")
-    _chassis(values, sources)
-    tree = car_tree(CarGeometry() if geometry is None else geometry, {**values, **{f"OFF{d}": 0.0 for d in DAMPERS}})
-    preloads = design_preloads(tree, tables)
-    for d, f in zip(DAMPERS, preloads, strict=True):
-        values[f"OFF{d}"] = float(f)
-        sources[f"OFF{d}"] = "static preload: damper at its design position (q = 0) at rest on flat ground"
-    return ParameterSet("truth", values, sources)
+    v = demo_vehicle()
+    if geometry is not None or tables is not None:
+        v = replace(v, geometry=v.geometry if geometry is None else geometry, tables=v.tables if tables is None
+                    else tables)
+    t = v.truth
+    if t is None:
+        raise ValueError(f"{v.source}: the demo vehicle has no [truth] set")
+    return ParameterSet(t.name, dict(t.values), dict(t.sources))

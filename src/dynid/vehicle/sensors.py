@@ -68,7 +68,7 @@ import numpy as np
 
 from ..car_frames import CORNER_TAGS as CORNER_TAGS  # wheels 14, 23, 32, 41; the car's modules name it from here
 from ..kinematics.forward import forward_kinematics, joint_array
-from .geometry import CarGeometry, side
+from .geometry import CarGeometry, demo_geometry, side
 from .template import damper, tabulated, tire, wheel
 
 ACQUISITION_RATE = 625.0  # Hz (the paper's sample time 1.6 ms)
@@ -415,8 +415,8 @@ def corrupt(x: np.ndarray, c: SensorChannel, rate: float, error: np.ndarray | No
 
 
 def paper_suite(geometry: CarGeometry | None = None) -> SensorSuite:
-    """The paper's instrumented Peugeot 406 (Table 1; mounting points from `geometry`)."""
-    g = CarGeometry() if geometry is None else geometry
+    """The paper's instrumented car (Table 1; mounting points from `geometry`, default the demo vehicle's)."""
+    g = demo_geometry() if geometry is None else geometry
     return SensorSuite(tuple(_imu(g) + _correvit(g) + _corners(g) + _driver()))
 
 
@@ -430,7 +430,7 @@ def fitted_suite(geometry: CarGeometry | None = None, cameras: bool = True, lase
     the chassis height and the tire deflections then come from the wheel loads through the tires' stiffness,
     which has to be known (a tire bench) and cannot be identified. correvit=False: no Correvit; the horizontal
     velocity over ground comes from a GNSS/INS (`gnss_vx`, `gnss_vy` at `gnss_point`)."""
-    g = CarGeometry() if geometry is None else geometry
+    g = demo_geometry() if geometry is None else geometry
     out = [] if correvit else _gnss(g)
     for c in paper_suite(g):
         if not correvit and c.name.startswith("correvit_"):
@@ -503,7 +503,7 @@ def ideal_channels(
     car_identification (wheel centre, non-spinning wheel frame, N and N.m); steering_wheel (N,)
     rad; spin_torques (N, 4) N.m. This is the definition the estimator inverts.
     """
-    g = CarGeometry() if geometry is None else geometry
+    g = demo_geometry() if geometry is None else geometry
     q, qd, qdd = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
     N = q.shape[0]
     deg = np.degrees

@@ -41,7 +41,7 @@ from ..model.files import read_toml
 from ..model.tree import ModelError
 from ..model.workspace import PerObject
 from ..textfiles import TextEncodingError, read_csv_rows
-from .geometry import CarGeometry, side
+from .geometry import CarGeometry, demo_geometry, side
 from .table_poly import pack, table_joints
 from .template import CORNERS, damper, tabulated
 
@@ -221,7 +221,8 @@ ACKERMANN = 0.25  # rad^-1: the inner front wheel steers by delta + 0.25 delta^2
 
 @functools.lru_cache(maxsize=8)  # immutable, and every segment of a test asks for them
 def default_tables(geometry: CarGeometry | None = None, ratio: float = STEERING_RATIO) -> KinematicTables:
-    """Tables of a 406-class saloon (MacPherson front, multi-link rear), smooth in both inputs.
+    """Tables of a mid-size saloon (MacPherson front, multi-link rear), smooth in both inputs: a vehicle file that
+    gives no tables of its own has these, from its geometry (default: the demo vehicle's).
 
     Front: steering ratio `ratio` (steering-wheel angle / mean front-wheel steer, 16) with Ackermann,
     0.1° toe-in, bump steer -0.3°/100 mm, camber -0.5°
@@ -229,7 +230,7 @@ def default_tables(geometry: CarGeometry | None = None, ratio: float = STEERING_
     caster of `geometry`; anti-dive caster +1°/100 mm. Rear: 0.15° toe-in, +0.2°/100 mm
     toe-in in bump, camber -1° and -1.6°/100 mm, wind-up -0.5°/100 mm. Kingpin: zero.
     """
-    g = CarGeometry() if geometry is None else geometry
+    g = demo_geometry() if geometry is None else geometry
     d = math.radians
     U, H = np.meshgrid(TRAVEL, STEERING_WHEEL, indexing="ij")
     per_corner = []

@@ -302,7 +302,7 @@ TIRE_LAWS = ("paper", "progressive")
 def car_tree(
     geometry: CarGeometry,
     values: Mapping[str, float],
-    name: str = "Peugeot 406 (paper's car)",
+    name: str = "car",
     tire_offsets: bool = False,
     tire_law: str = "paper",
     damper_knees: Mapping[int, tuple[float, float]] | None = None,
@@ -311,7 +311,7 @@ def car_tree(
 ) -> Tree:
     """The 42-frame tree of the car with these values (name or label -> value; the rest 0): its frames, joint terms
     and couplings, nothing solved. `car_model.car_template` is the one to call: the paper's a priori values by
-    default, and the rest state checked. The options are `car_template`'s."""
+    default. The options are `car_template`'s."""
     if tire_law not in TIRE_LAWS:
         raise ValueError(f"tire_law must be one of {TIRE_LAWS}; got {tire_law!r}")
     if tire_lateral_force and tire_law != "progressive":

@@ -59,7 +59,7 @@ from ...symbolic.models import Builder, WrenchSite, add3, finish, idm, inertia
 from ..aero import Aerodynamics, aero_wrench, reference_point
 from ..car_model import car_template
 from ..equations import car_identification
-from ..geometry import CarGeometry
+from ..geometry import CarGeometry, demo_geometry
 from ..parameters import ParameterSet, truth
 from ..sensors import ideal_channels, mounted
 from ..statics import rest_state
@@ -120,7 +120,7 @@ def sim_tree(parameters: ParameterSet | dict | None = None, geometry: CarGeometr
     missing = sorted(curved - set(damper_knees or {}))
     if missing:
         raise ValueError(f"the parameter set gives a curve for dampers {missing}: damper_knees needs their knees")
-    tree = car_template(geometry, values, name=f"{name} (simulated truth)", check_rest=False,
+    tree = car_template(geometry, values, name=f"{name} (simulated truth)",
                         damper_knees={d: damper_knees[d] for d in curved} if damper_knees else None)
     terms = dict(tree.joint_terms)
     for t in TIRES:
@@ -416,7 +416,7 @@ class CarSimulator:
         damper_knees: Mapping[int, tuple[float, float]] | None = None,
         name: str = "car",
     ) -> None:
-        self.geometry = CarGeometry() if geometry is None else geometry
+        self.geometry = demo_geometry() if geometry is None else geometry
         self.steering_ratio = float(steering_ratio)  # the driver robot's: steering-wheel angle per wheel angle
         self.tables = default_tables(self.geometry, self.steering_ratio) if tables is None else tables
         self.aero = Aerodynamics() if aero is None else aero

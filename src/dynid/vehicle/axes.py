@@ -1,4 +1,4 @@
-"""The car's chassis equations in ISO 8855 terms, for the report (one axis convention on every page).
+"""The car's chassis equations in ISO 8855 terms: what the report shows them as (one axis convention on every page).
 
 The car's free joints 1..6 (`vehicle.template`) are the paper's: translations along its ground frame (x0 to the
 right and y0 forward at the start, z0 up), then yaw about z0, pitch about the car's horizontal right axis and
@@ -6,14 +6,13 @@ roll about the chassis' forward axis z6. Their equation groups keep the paper's 
 results.json, the terminal); the report shows them in ISO 8855 axes instead: the earth-fixed X_E (ahead at the
 start), Y_E (left at the start) and Z_E (up), the intermediate Y (horizontal, left) for pitch and the vehicle x
 (forward) for roll. Two of them change sign: Y_E = -x0 and pitch about the left axis is minus the moment about
-the right one.
+the right one. The report reads these by the run's kind (report.tables.equation_axes), as it reads the car's
+presentation: a robot's run does not import them.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import numpy as np
 
 
 @dataclass(frozen=True)
@@ -42,22 +41,8 @@ ISO_TEXT = ("Chassis equations in ISO 8855 axes: forces along the earth-fixed X_
             "named x, y, z, yaw, pitch, roll in results.json: Y_E force = −x, X_E force = y, pitch moment = −pitch.")
 
 
-def axis_label(group: str) -> str:
-    """The name the report gives an equation group: the ISO 8855 one for a chassis equation, else the group's."""
-    axis = CHASSIS_AXES.get(group)
-    return axis.label if axis else group
+# the terminal validation table's note under a car's chassis equations (report.tables.validation_table)
+TABLE_NOTE = ("  (chassis equations in ISO 8855 axes; results.json names them as the paper does: Y_E force = -x, "
+              "X_E force = y, Z_E force = z, pitch moment = -pitch)")
 
-
-def iso_sign(group: str) -> float:
-    """The factor from an equation group's signal (the paper's sign) to the report's (ISO 8855): -1 or 1."""
-    axis = CHASSIS_AXES.get(group)
-    return axis.sign if axis else 1.0
-
-
-def to_iso(group: str, *signals: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The signals of an equation group in the report's (ISO 8855) sign."""
-    s = iso_sign(group)
-    return tuple(np.asarray(x) if s == 1.0 else s * np.asarray(x) for x in signals)
-
-
-__all__ = ["CHASSIS_AXES", "ISO_TEXT", "ChassisAxis", "axis_label", "iso_sign", "to_iso"]
+__all__ = ["CHASSIS_AXES", "ISO_TEXT", "TABLE_NOTE", "ChassisAxis"]
