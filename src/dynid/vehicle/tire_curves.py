@@ -41,7 +41,13 @@ tire where the data allow:
   Formula is fitted (its peak is not reached; an ABS stop would).
 
 Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
-[MF_C_BOUNDS] and E <= 1, from a few starts). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
+[MF_C_BOUNDS] and E <= 1, from a few starts; on SUBSAMPLE x 2 samples or more, as an hour's, the starts descend on
+every k-th sample and only the best end, or the few within BASIN of it, is polished on all: `_subsample_ends`; the
+longitudinal law starts at its closed-form optimum, `_longitudinal_start`). Measured 2026-11-29 (issue 28, h-thru2,
+an hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
+processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans' and the MuJoCo car's curves
+moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own starts ended up to 2.4e-4 σ
+apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
 s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of
 consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
 consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
