@@ -47,7 +47,6 @@ values, and plateaus and spikes are counted in holds so that a held signal is ju
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,25 +125,7 @@ def _held(x: NDArray[np.float64]) -> tuple[NDArray[np.intp] | None, NDArray[np.i
     if np.count_nonzero(new) == x.size:
         return None, None
     starts = np.flatnonzero(new)
-    # the lengths written into one array: np.diff(starts, append=x.size) made two (a concatenation, then the
-    # differences), and a second fresh array of a segment's size is page-faulted in anew (glibc maps it afresh):
-    # 0.47 ms of a 60 s channel's 0.6
-    lengths = np.empty_like(starts)
-    np.subtract(starts[1:], starts[:-1], out=lengths[:-1])
-    lengths[-1] = x.size - starts[-1]
-    return starts, lengths
-
-
-_SCRATCH = threading.local()
-
-
-def _scratch(kind: str, n: int) -> NDArray[np.float64]:
-    """This thread's scratch array of `kind`, n long (grown as needed; its values whatever they were)."""
-    buf = getattr(_SCRATCH, kind, None)
-    if buf is None or buf.size < n:
-        buf = np.empty(max(n, 1))
-        setattr(_SCRATCH, kind, buf)
-    return buf[:n]
+    return starts, np.diff(starts, append=x.size)
 
 
 def noise_deviation(x: NDArray[np.float64], resolution: float = 0.0) -> float:
@@ -323,12 +304,8 @@ class ChannelScan:
     def _spikes(self, t, x, y, starts) -> None:
         if y.size < 4:
             return
-        # the steps, their sizes (in place, after their signs) and the pairs in this thread's scratch arrays: a fresh
-        # array of a block's size is page-faulted in afresh at each call (glibc maps it anew), 0.4 ms each in a 60 s
-        # channel's scan of 0.6-1 ms; neither outlives this call
-        step = np.subtract(y[1:], y[:-1], out=_scratch("step", y.size - 1))
-        sign = np.signbit(step)
-        size = np.abs(step, out=step)
+        step = np.diff(y)
+        size = np.abs(step)
         # a spike is a pair of steps that turn back, the smaller larger than SPIKE times the steps' 99th percentile.
         # The percentile (a partial sort) only when a pair could be one: when 1 % of the steps or more reach a
         # SPIKE-th of a bound on the pairs, so does the percentile (what np.quantile interpolates between is then at
@@ -340,8 +317,8 @@ class ChannelScan:
 
         if below(float(size.max())):
             return
-        pair = np.minimum(size[:-1], size[1:], out=_scratch("pair", size.size - 1))  # the smaller step of each pair
-        pair[sign[:-1] == sign[1:]] = 0.0  # that turns back, else 0
+        sign = np.signbit(step)
+        pair = np.where(sign[:-1] != sign[1:], np.minimum(size[:-1], size[1:]), 0.0)
         if below(float(pair.max())):
             return
         big = SPIKE * float(np.quantile(size, 0.99))
