@@ -38,9 +38,10 @@ costliest segments first (the last carries the error draws and the delays: it ra
 1.07 GB (the first and last segments, the two heaviest, at once): reverted; this tree's peak 0.95 GB.
 
 Measured 2026-11-29 (issue 28, h-thru2, --hours 1 --workers --repeat 3 --vs <fddb8ab>/src, CPU s, medians of 3): main
-fd92e1c 16.78 (16.78, 17.04, 14.60) against fddb8ab 17.30 (18.17, 15.20, 17.30), load 11: 1.03 x its throughput in
-CPU terms; the branch (the tire curves' fit 2.5 x cheaper, the data health's scan without fresh block-sized arrays)
-16.59 (15.70, 16.59, 17.75) against fddb8ab 17.37 (16.66, 17.37, 19.26), load 8-15: 1.05 x. Peak 0.83 GB.
+fd92e1c 16.78 (16.78, 17.04, 14.60) against fddb8ab 17.30 (18.17, 15.20, 17.30), load 11: 1.03 x its throughput in CPU
+terms; the branch (the tire curves' fit 2.5 x cheaper; a change of the data health's scan it had then, reverted since:
+no difference in context) 16.59 (15.70, 16.59, 17.75) against fddb8ab 17.37 (16.66, 17.37, 19.26), load 8-15: 1.05 x.
+Peak 0.83 GB.
 """
 
 from __future__ import annotations
