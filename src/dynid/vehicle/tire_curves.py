@@ -768,8 +768,9 @@ def _longitudinal_start(k: Array, fz: Array, fx: Array, weight: Array, load_free
                         radius_load: bool) -> list[float]:
     """The longitudinal fit's start: without the load term (pKx2 = 0) the model κ = κ0 + κ0_fz dfz - (1 / kx0) Fx / Fz
     is linear in κ0, κ0_fz and 1 / kx0, so its weighted least squares in closed form is the optimum itself (with the
-    load term, pKx2 = 0 and the rest from it). The solver then only confirms it: 2-4 evaluations where the ratio of
-    sums start took 22-26 (each with a 2-point Jacobian: 3 passes), on an hour's 145k samples 0.17 s per fit."""
+    load term, pKx2 = 0 and the rest from it). The solver then only confirms it: on an hour's fits 1 evaluation (its
+    gradient test met at the start) where the ratio of sums start took 22-26, each with a 2-point Jacobian (3
+    passes): 0.17 s per fit of 145k samples."""
     cols = [-(fx / fz) * weight, weight] + ([load_free * weight] if radius_load else [])
     A = np.stack(cols, axis=1)
     sol = np.linalg.lstsq(A, k * weight, rcond=None)[0]
