@@ -99,10 +99,11 @@ steps and pairs in per-thread scratch arrays, one segment's 55 channels scanned 
 of 10, 3 alternated processes, load 10) read 0.83-0.93 s per hour before and 0.85-0.90 after: in a process that has
 freed large arrays, glibc serves such blocks from its heap without faults, and the gain was the benchmark's. What is
 left there is NumPy's passes (about ten per channel): one compiled pass for min, max, the holds and the steps' bounds is
-the lever (its compile once per machine: not tried). The hour end to end (bench_fleet.py --hours 1 --workers --repeat 3
---vs <fddb8ab>/src, CPU s medians of 3): main 16.78 against fddb8ab 17.30 (load 11), the branch (with the scan's change
-then) 16.59 against fddb8ab 17.37 (load 8-15): 1.03 -> 1.05 x fddb8ab's throughput in CPU terms; the 3 x target is far
-(the segments' stages are ~85 % of the hour's CPU: joints, compensation, read, decimation).
+the lever (its compile once per machine: not tried). The hour end to end (bench_fleet.py --hours 1 --workers --repeat 3,
+CPU s medians of 3; its docstring): main 1.03 x fddb8ab's throughput in CPU terms at the start (load 11), the branch
+1.12 x fddb8ab's and 1.09 x main's at the end (all three in one run, load 3 to 6); the 3 x target is far (the segments'
+stages: 8.6-12.3 CPU s per hour in this table's rounds, of the hour's 12.8-14.4 end to end: joints, compensation, read,
+decimation).
 """
 
 from __future__ import annotations
