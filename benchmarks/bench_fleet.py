@@ -36,6 +36,15 @@ fddb8ab 25.58 (24.01, 25.58, 27.49): its CPU 0.82 x this tree's, its throughput 
 the 3 x target is far. Walls (medians 96.8, 110.8, 93.4 s) say nothing at that load. A branch that started the
 costliest segments first (the last carries the error draws and the delays: it ran alone at the end) peaked at
 1.07 GB (the first and last segments, the two heaviest, at once): reverted; this tree's peak 0.95 GB.
+
+Measured 2026-11-29 (issue 28, h-thru2, --hours 1 --workers --repeat 3, CPU s, medians of 3; the ratio is the other
+tree's CPU over this one's: its throughput in CPU terms). At the start, --vs <fddb8ab>/src on main fd92e1c (load 11):
+main 16.78 (16.78, 17.04, 14.60) against fddb8ab 17.30 (18.17, 15.20, 17.30): 1.03 x. At the end, --vs <fd92e1c>/src
+<fddb8ab>/src on the branch (the tire curves' fit 2.5 x cheaper), load 3 to 6: the branch 12.82 (13.79, 12.82, 12.18),
+main 14.00 (14.84, 14.00, 13.99), fddb8ab 14.36 (14.37, 14.36, 13.11): the branch 1.09 x main's throughput and 1.12 x
+fddb8ab's (main 1.03 x fddb8ab's in the same run), walls 20.05, 20.13, 19.44 s (medians; walls at that load say little).
+Peak 0.87 GB. The 3 x target is far: the segments' stages are 8.6-12.3 CPU s per hour on one thread (profile_car, load
+10-15).
 """
 
 from __future__ import annotations

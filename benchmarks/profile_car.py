@@ -105,6 +105,30 @@ done); the compensation's np.stack 2.4, kernel 4-8 (its block transposition, mem
 channels' advance 3 ms (load 12). The page faults: with mallopt (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 512 MB) a
 pass's sys CPU went 15.5 -> 0 ms and its faults 2855 -> 1, but its user CPU grew by as much (calloc then clears
 reused heap): no net gain, not pursued.
+Measured 2026-11-29 (issue 28, h-thru2; main fd92e1c then the branch in turn, --minutes 10 --cpu, 2 rounds, load
+averages 10 to 15 on the 2-core EPYC: every stage moved by up to 30 % between rounds, code unchanged or not, so the
+stage figures below are the targeted measures, not this table's). The tire curves' fit (after the segments, an hour's
+290k wheel samples): its own CPU per hour in this table 2.89, 2.11 -> 1.23, 1.56 s; alone (one thread, min of 5 fits, 3
+alternated processes, load 11) 1.90-2.17 -> 0.75-0.88 s. Where it went (cProfile on CPU time, one thread): the
+longitudinal laws 0.64 s (6 fits of 73-145k samples, 22-26 evaluations each with 2-point Jacobians: now started at their
+closed-form optimum, 1 evaluation), the Magic Formula's 6 starts per axle 0.46 s (all ending at one point: now descended
+on every 5th sample, the best end polished on all in 3-4 evaluations), the per-tire fits' 2-point Jacobians, and 7
+conversions of the test names to strings (astype(str), 0.14 s). The demo plans' and the MuJoCo car's tire numbers moved
+by at most 1.1e-7 σ (2.9e-6 relative; mj.py: 438 tire numbers and the 4 slip stiffness figures of the engineering sheet
+differ, every identified parameter bit-identical; car.py: 0 of 240 differ). What is left of the fit (~0.8 s): the least
+squares 0.37 s (the closed-form Jacobian 0.18), the samples' selections and sorts ~0.3 s. The data health's channel
+scan, tried and reverted: a fresh array of a 60 s block (300 KB) is page-faulted in anew in a fresh process
+(abs(diff(y)) 465 us against diff(y) 33 us); with the holds' lengths in one array, the steps' sizes in place and the
+steps and pairs in per-thread scratch arrays, one segment's 55 channels scanned alone went 18.1-20.8 -> 10.7-14.5 ms
+(min of 30, 3 alternated processes), but `segment_health` on 5 captured segments of the hour (pickled, one thread, min
+of 10, 3 alternated processes, load 10) read 0.83-0.93 s per hour before and 0.85-0.90 after: in a process that has
+freed large arrays, glibc serves such blocks from its heap without faults, and the gain was the benchmark's. What is
+left there is NumPy's passes (about ten per channel): one compiled pass for min, max, the holds and the steps' bounds is
+the lever (its compile once per machine: not tried). The hour end to end (bench_fleet.py --hours 1 --workers --repeat 3,
+CPU s medians of 3; its docstring): main 1.03 x fddb8ab's throughput in CPU terms at the start (load 11), the branch
+1.12 x fddb8ab's and 1.09 x main's at the end (all three in one run, load 3 to 6); the 3 x target is far (the segments'
+stages: 8.6-12.3 CPU s per hour in this table's rounds, of the hour's 12.8-14.4 end to end: joints, compensation, read,
+decimation).
 """
 
 from __future__ import annotations

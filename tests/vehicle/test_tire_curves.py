@@ -478,3 +478,79 @@ def test_the_fits_on_threads_are_the_fits_in_turn():
             for key, curve in theirs.items():
                 np.testing.assert_array_equal(mine[key].fit.values, curve.fit.values)
                 np.testing.assert_array_equal(mine[key].fit.cov, curve.fit.cov)
+
+
+def _braking_wheel(seed: int, load: bool) -> tuple[TireSamples, TireSamples]:
+    """A braking wheel's noisy slips (Fx = -Kx (κ - κ0), Kx = 18 Fz (1 + 0.4 dfz) when `load`: its loads spread over
+    2500-5500 N) and free-rolling samples over a spiral's loads (κ0 moving with the load)."""
+    rng = np.random.default_rng(seed)
+    n = 600
+    fz_roll = np.linspace(1500.0, 4500.0, n)
+    k0_roll = -0.02 - 0.02 * (fz_roll / 3000.0 - 1)
+    rolling = _wheel("spiral", n, np.full(n, math.radians(3.0)), k0_roll + 2e-3 * rng.standard_normal(n),
+                     np.zeros(n), fz_roll)
+    fz = np.linspace(2500.0, 5500.0, n) if load else np.full(n, 4200.0)
+    kx = 18.0 * fz * (1 + (0.4 * (fz / 4000.0 - 1) if load else 0.0))
+    slip = np.linspace(0.0, 0.04, n)
+    kappa = -0.02 - 0.02 * (fz / 3000.0 - 1) + slip + 2e-3 * rng.standard_normal(n)
+    return _wheel("braking", n, np.zeros(n), kappa, -kx * slip, fz), rolling
+
+
+@pytest.mark.parametrize("load", [False, True])
+def test_longitudinal_fit_is_the_least_squares_optimum(load):
+    """fit_longitudinal (its start in closed form, its Jacobian in closed form) against the same residual minimised
+    here by scipy from the truth with finite differences and tolerances at 1e-15, then its covariance
+    s² (JᵀJ)⁻¹ τ with J by central differences (error ~1e-10 relative). The optimum: to sqrt(ftol n) σ = 2.4e-3 σ
+    (the fit stops when the cost's relative change is below ftol = 1e-8: z = δ/σ with |z|² C / (n - p) <= ftol C),
+    the σ to 1e-6 relative (the old 2-point Jacobian: its σ off by up to 1.8e-5 on an hour's samples)."""
+    from scipy.optimize import least_squares
+
+    from dynid.vehicle.tire_curves import _instants, _ordered, _runs, autocorrelation_factor
+
+    braking, rolling = _braking_wheel(5, load)
+    law = fit_longitudinal(braking, rolling)
+    names = law.fit.names
+    assert names == ["kx0", "kappa0"] + (["pKx2"] if load else []) + ["kappa0_fz"]
+    both = _ordered(braking.merge(rolling))
+    k, fz, fx, w = both.kappa, both.fz, both.fx, both.vx / 20.0
+
+    def fun(v):
+        p = dict(zip(names, v, strict=True))
+        kx = p["kx0"] * fz * (1 + p.get("pKx2", 0.0) * (fz / law.fz0 - 1))
+        return (p["kappa0"] + p["kappa0_fz"] * (fz / law.fz_free - 1) - fx / kx - k) * w
+
+    x0 = [18.0, -0.02] + ([0.4] if load else []) + [-0.02 * law.fz_free / 3000.0]  # the truth, near the optimum
+    ref = least_squares(fun, x0, x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=10000).x
+    n, p = len(k), len(names)
+    J = np.empty((n, p))
+    for i in range(p):
+        h = 1e-6 * max(abs(ref[i]), 1e-3)
+        up, dn = ref.copy(), ref.copy()
+        up[i] += h
+        dn[i] -= h
+        J[:, i] = (fun(up) - fun(dn)) / (2 * h)
+    r = fun(ref)
+    tau = autocorrelation_factor(r, _runs(both)) * simultaneity_factor(r, _instants(both))
+    sigma = np.sqrt(np.diag(np.linalg.inv(J.T @ J) * float(r @ r) / (n - p) * tau))
+    assert np.all(np.abs(law.fit.values - ref) <= 2 * math.sqrt(1e-8 * n) * sigma), (law.fit.values - ref) / sigma
+    np.testing.assert_allclose(law.fit.std, sigma, rtol=1e-6)
+
+
+def test_subsampled_starts_end_at_every_samples_optimum(monkeypatch):
+    """The Magic Formula's starts descended on a subsample (every k-th sample), the best polished on every sample:
+    the same optimum as every start on every sample, to the solver's tolerance (sqrt(ftol n) σ = 2.8e-3 σ, see
+    test_longitudinal_fit_is_the_least_squares_optimum), the axle's law and its tires' (which start from it)."""
+    import dynid.vehicle.tire_curves as tc
+
+    s = _synthetic_axle(1, 6.0)
+    monkeypatch.setattr(tc, "SUBSAMPLE", 10**9)
+    full = [tc.fit_lateral(s), *(None for _ in range(2))]
+    full[1:] = [tc.fit_tire(s.select(s.corner == k), full[0]) for k in (0, 1)]
+    monkeypatch.setattr(tc, "SUBSAMPLE", 100)  # 800 samples: every 8th in the axle's descents, every 4th in a tire's
+    sub = [tc.fit_lateral(s), *(None for _ in range(2))]
+    sub[1:] = [tc.fit_tire(s.select(s.corner == k), sub[0]) for k in (0, 1)]
+    for a, b in zip(full, sub, strict=True):
+        assert a.fit.names == b.fit.names and a.magic and b.magic
+        tol = 2 * math.sqrt(1e-8 * a.fit.n) * a.fit.std
+        assert np.all(np.abs(a.fit.values - b.fit.values) <= tol), (a.fit.values - b.fit.values) / a.fit.std
+        np.testing.assert_allclose(a.fit.std, b.fit.std, rtol=1e-3)

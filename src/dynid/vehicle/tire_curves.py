@@ -41,7 +41,13 @@ tire where the data allow:
   Formula is fitted (its peak is not reached; an ABS stop would).
 
 Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
-[MF_C_BOUNDS] and E <= 1, from a few starts). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
+[MF_C_BOUNDS] and E <= 1, from a few starts; on SUBSAMPLE x 2 samples or more, as an hour's, the starts descend on
+every k-th sample and only the best end, or the few within BASIN of it, is polished on all: `_subsample_ends`; the
+longitudinal law starts at its closed-form optimum, `_longitudinal_start`). Measured 2026-11-29 (issue 28, h-thru2,
+an hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
+processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans' and the MuJoCo car's curves
+moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own starts ended up to 2.4e-4 σ
+apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
 s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of
 consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
 consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
@@ -480,15 +486,26 @@ def _instants(s: TireSamples) -> Array:
         return np.zeros(0, dtype=int)
     # the test's index and the time in whole microseconds (the samples' times are multiples of the logger's
     # period, far from a half microsecond: the rounding is never a tie); integers, not a string per sample
-    test = np.unique(np.asarray(s.test).astype(str), return_inverse=True)[1].astype(np.int64)
+    test = _test_codes(s.test)
     micro = np.round(np.asarray(s.t, dtype=float) * 1e6).astype(np.int64)
     micro -= micro.min()
     return np.unique(test * (int(micro.max()) + 1) + micro, return_inverse=True)[1]
 
 
+def _test_codes(test: Array) -> Array:
+    """Per sample, its test name's index among the names sorted (int64): the order of the names as strings, without
+    converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls)."""
+    test = np.asarray(test)
+    names = sorted(set(test.tolist()), key=str)
+    codes = np.zeros(len(test), dtype=np.int64)
+    for i, name in enumerate(names[1:], 1):  # a few tests: one comparison pass each
+        codes[test == name] = i
+    return codes
+
+
 def _ordered(s: TireSamples) -> TireSamples:
     """The samples sorted by test, wheel and time (segments arrive in any order from the workers)."""
-    order = np.lexsort((s.t, s.corner, s.test.astype(str)))
+    order = np.lexsort((s.t, s.corner, _test_codes(s.test)))
     return s.select(order)
 
 
@@ -571,14 +588,27 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     names = ["k0", "Sh"] + (["pK2"] if load else [])
     fixed = shape | ({} if load else {"pK2": 0.0})
 
-    dfz = fz / axle.fz0 - 1  # the same every call: once
+    cols = [LATERAL_PARAMETERS.index(n) for n in names]
 
-    def fun(v: Array) -> Array:
-        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a, fz, dfz=dfz) - fy
+    def problem(rows: slice) -> tuple:
+        a_, fz_, fy_ = a[rows], fz[rows], fy[rows]
+        dfz = fz_ / axle.fz0 - 1  # the same every call: once
 
-    start = [axle.fit.value("k0"), axle.fit.value("Sh")] + ([axle.fit.value("pK2")] if load else [])
-    fit = _least_squares(fun, [start], np.array([1e-3, -0.1] + ([-0.9] if load else [])),
-                         np.array([200.0, 0.1] + ([5.0] if load else [])), names, _runs(s), fixed)
+        def fun(v: Array) -> Array:
+            return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a_, fz_, dfz=dfz) - fy_
+
+        def jac(v: Array) -> Array:  # closed form: a 2-point Jacobian cost p more passes per step
+            return lateral_force_jacobian({**fixed, **dict(zip(names, v, strict=True))}, axle.fz0, a_, fz_,
+                                          dfz)[:, cols]
+
+        return fun, jac
+
+    starts = [[axle.fit.value("k0"), axle.fit.value("Sh")] + ([axle.fit.value("pK2")] if load else [])]
+    lower, upper = np.array([1e-3, -0.1] + ([-0.9] if load else [])), np.array([200.0, 0.1] + ([5.0] if load else []))
+    if len(a) >= 2 * SUBSAMPLE:  # the descent from the axle's values on a subsample, polished on all (as the axle's)
+        starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
+    fun, jac = problem(slice(None))
+    fit = _least_squares(fun, starts, lower, upper, names, _runs(s), fixed, jac=jac)
     return LateralCurve(fit, axle.fz0, True, (float(a.min()), float(a.max())), (float(fz.min()), float(fz.max())),
                         axle.peak_reached, float(np.mean(fz)))
 
@@ -606,14 +636,18 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
     names = ["k0", "mu0", "C", "Sh"] + ([] if E is not None else ["E"]) + (["pK2", "pD2"] if load else [])
     fixed = ({} if E is None else {"E": E}) | ({} if load else {"pK2": 0.0, "pD2": 0.0})
 
-    dfz = fz / fz0 - 1  # the same every call: once
+    def problem(rows: slice) -> tuple:
+        a_, fz_, fy_ = a[rows], fz[rows], fy[rows]
+        dfz = fz_ / fz0 - 1  # the same every call: once
+        cols = [LATERAL_PARAMETERS.index(n) for n in names]
 
-    def fun(v: Array) -> Array:
-        return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz, dfz=dfz) - fy
+        def fun(v: Array) -> Array:
+            return lateral_force({**fixed, **dict(zip(names, v, strict=True))}, fz0, a_, fz_, dfz=dfz) - fy_
 
-    def jac(v: Array) -> Array:
-        return lateral_force_jacobian({**fixed, **dict(zip(names, v, strict=True))}, fz0, a, fz, dfz)[:, [
-            LATERAL_PARAMETERS.index(n) for n in names]]
+        def jac(v: Array) -> Array:
+            return lateral_force_jacobian({**fixed, **dict(zip(names, v, strict=True))}, fz0, a_, fz_, dfz)[:, cols]
+
+        return fun, jac
 
     lo = {"k0": 1e-3, "mu0": 0.05, "C": MF_C_BOUNDS[0], "Sh": -0.1, "E": -10.0, "pK2": -0.9, "pD2": -0.9}
     hi = {"k0": 200.0, "mu0": 5.0, "C": MF_C_BOUNDS[1], "Sh": 0.1, "E": 1.0, "pK2": 5.0, "pD2": 5.0}
@@ -626,8 +660,43 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
                 x.setdefault("pK2", 0.0)
                 x.setdefault("pD2", 0.0)
                 starts.append([x.get(n, 0.0) for n in names])
-    return _least_squares(fun, starts, np.array([lo[n] for n in names]), np.array([hi[n] for n in names]), names,
-                          runs, fixed, instants, jac)
+    lower, upper = np.array([lo[n] for n in names]), np.array([hi[n] for n in names])
+    if len(a) >= 2 * SUBSAMPLE:  # the starts' descents on a subsample, the one basin (or the few) polished on all
+        starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
+    fun, jac = problem(slice(None))
+    return _least_squares(fun, starts, lower, upper, names, runs, fixed, instants, jac)
+
+
+SUBSAMPLE = 8000  # samples of a multi-start's descents: every k-th of an hour's ~46k per axle
+BASIN = 0.01  # the subsample's ends within 1 % of its best cost are each polished on every sample
+
+
+def _subsample_ends(fun, jac, starts: Sequence[Array], lower: Array, upper: Array) -> list[Array]:
+    """The distinct ends of the starts' descents on a subsample (fun, jac: its residual and Jacobian) whose cost is
+    within BASIN of the best: the starts of the fit on every sample. The starts guard against a local minimum; on
+    an hour's samples each full descent cost 5-7 evaluations of 46k samples, and all 6 starts ended in one point
+    (costs equal to 7 digits). From a subsample's end (every k-th sample: the same curve, k times fewer samples),
+    the full problem's optimum is 2-4 evaluations away, and it is the same optimum (the solver's tolerance apart)
+    unless two basins' costs differ by less than BASIN on the subsample: both are polished then."""
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    ends = []
+    for x0 in starts:
+        x0 = np.clip(np.asarray(x0, dtype=float), lower + margin, upper - margin)
+        try:
+            r = least_squares(fun, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale="jac", max_nfev=200)
+        except ValueError:
+            continue
+        if np.all(np.isfinite(r.fun)):
+            ends.append(r)
+    if not ends:
+        return list(starts)  # every start failed on the subsample: the full problem says so (or finds one)
+    best = min(r.cost for r in ends)
+    kept: list[Array] = []
+    for r in sorted(ends, key=lambda r: r.cost):
+        if r.cost <= best * (1 + BASIN) and not any(np.allclose(r.x, x, rtol=1e-4, atol=1e-9) for x in kept):
+            kept.append(r.x)
+    return kept
 
 
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
@@ -675,16 +744,40 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
         kx = p["kx0"] * fz * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz
         return (k0 - fx / kx - k) * weight
 
-    kx = float(-np.sum(fx * k * fz) / max(np.sum((k * fz) ** 2), 1e-12))
-    fit = _least_squares(fun, [[kx, 0.0] + ([0.0] if load else []) + ([0.0] if radius_load else [])],
+    def jac(v: Array) -> Array:
+        p = {**fixed, **dict(zip(names, v, strict=True))}
+        g = 1 + p["pKx2"] * load_nominal if load else 1.0
+        fx_kx = fx / (p["kx0"] * fz * g)  # the residual's fx / Kx
+        cols = {"kx0": fx_kx * weight / p["kx0"], "kappa0": weight,
+                "pKx2": fx_kx * weight * load_nominal / g if load else None,
+                "kappa0_fz": load_free * weight}
+        return np.stack([cols[n] for n in names], axis=1)
+
+    fit = _least_squares(fun, [_longitudinal_start(k, fz, fx, weight, load_free, load, radius_load)],
                          np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
                          np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
-                         names, _runs(both), fixed, _instants(both))
+                         names, _runs(both), fixed, _instants(both), jac)
     law = LongitudinalLaw(fit, fz0, (float(s.kappa.min()), float(s.kappa.max())),
                           (float(s.fz.min()), float(s.fz.max())), fzf)
     if slipping.any():
         law.kappa_seen = float(np.mean(np.abs(s.kappa[slipping] - law.free_rolling_slip_at(s.fz[slipping]))))
     return law
+
+
+def _longitudinal_start(k: Array, fz: Array, fx: Array, weight: Array, load_free: Array, load: bool,
+                        radius_load: bool) -> list[float]:
+    """The longitudinal fit's start: without the load term (pKx2 = 0) the model κ = κ0 + κ0_fz dfz - (1 / kx0) Fx / Fz
+    is linear in κ0, κ0_fz and 1 / kx0, so its weighted least squares in closed form is the optimum itself (with the
+    load term, pKx2 = 0 and the rest from it). The solver then only confirms it: on an hour's fits 1 evaluation (its
+    gradient test met at the start) where the ratio of sums start took 22-26, each with a 2-point Jacobian (3
+    passes): 0.17 s per fit of 145k samples."""
+    cols = [-(fx / fz) * weight, weight] + ([load_free * weight] if radius_load else [])
+    A = np.stack(cols, axis=1)
+    sol = np.linalg.lstsq(A, k * weight, rcond=None)[0]
+    if not (np.all(np.isfinite(sol)) and sol[0] > 0):  # no stiffness in these samples: the ratio of sums
+        kx = float(-np.sum(fx * k * fz) / max(np.sum((k * fz) ** 2), 1e-12))
+        return [kx, 0.0] + ([0.0] if load else []) + ([0.0] if radius_load else [])
+    return [1.0 / float(sol[0]), float(sol[1])] + ([0.0] if load else []) + ([float(sol[2])] if radius_load else [])
 
 
 # ------------------------------------------------------------------------------------------------- the result
