@@ -62,7 +62,7 @@ def test_simulate_lists_the_simulators_manoeuvres():
     assert tuple(DEFAULTS) == MANOEUVRES
 
 
-class _Stop(Exception):
+class _StopError(Exception):
     pass
 
 
@@ -77,10 +77,10 @@ def test_a_first_demo_says_how_long_its_compiles_take(first, monkeypatch, capsys
     monkeypatch.setattr(car, "prebuild_kernel", lambda: first)
 
     def stop(*_a, **_k):
-        raise _Stop
+        raise _StopError
 
     monkeypatch.setattr(demo, "run_demo", stop)
-    with pytest.raises(_Stop):
+    with pytest.raises(_StopError):
         main(["--debug", "demo", "--out", str(tmp_path / "out")])
     said = capsys.readouterr()
     assert (f"about {demo.FIRST_RUN_S} s more than a later run" in said.out + said.err) is first
