@@ -7,6 +7,16 @@ sine steering 20 s at 90 km/h, spiral 30 s at 70 km/h, straight-line braking 10 
 engine, then the error model). Prints the real-time factor (target >= 20x: <= 3 s),
 the compile time (first run, in a fresh cache, in a subprocess) and the cached start-up,
 the peak memory (max RSS); writes benchmarks/results/simulator.json.
+
+First-run figures from before f4a2040 (27 Nov) do not compare with later ones: this benchmark then set only
+DYNID_CACHE, so the engine's Numba functions (`_idm_kernel`, `_table_joints`, `eval_table`, `magic_formula`: ~5.5 s
+of CPU, for the rest state) were loaded from the __pycache__ beside their source, warm after any earlier run. That,
+not the shared kernel (7590bbd), made fddb8ab's "first run" 7.5-8.6 s against main's 12.1-13.8. Measured 29 Nov
+(the start-up of a fresh interpreter: CarSimulator() and its first call, CPU with the kernel's build process, 3
+runs alternated, load 10-15): engine cache warm, fddb8ab 11.5 s, main 10.1 s; both caches empty, fddb8ab 16.4 s,
+main 15.5 s. Since then CarSimulator() itself starts the kernel's build in another process (car.prebuild_kernel),
+as the demo did, so that a first run's two halves (kernel; rest state and models) overlap on two cores: the first
+call then loads the kernel instead of compiling it (CPU 15.2 s, parent 7.8 + build 6.9-7.5).
 """
 
 from __future__ import annotations

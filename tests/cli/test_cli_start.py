@@ -60,3 +60,27 @@ def test_simulate_lists_the_simulators_manoeuvres():
     from dynid.vehicle.sim.manoeuvres import DEFAULTS
 
     assert tuple(DEFAULTS) == MANOEUVRES
+
+
+class _StopError(Exception):
+    pass
+
+
+@pytest.mark.parametrize("first", [True, False])
+def test_a_first_demo_says_how_long_its_compiles_take(first, monkeypatch, capsys, tmp_path):
+    """The demo's first run (a kernel build started) tells the user, before the silent loading, how much longer it
+    takes (pipeline.demo.FIRST_RUN, measured there); a later run (kernel cached) says nothing of it."""
+    import dynid.pipeline.demo as demo
+    import dynid.vehicle.sim.car as car
+    from dynid.cli.main import main
+
+    monkeypatch.setattr(car, "prebuild_kernel", lambda: first)
+
+    def stop(*_a, **_k):
+        raise _StopError
+
+    monkeypatch.setattr(demo, "run_demo", stop)
+    with pytest.raises(_StopError):
+        main(["--debug", "demo", "--out", str(tmp_path / "out")])
+    said = capsys.readouterr()
+    assert (f"about {demo.FIRST_RUN_S} s more than a later run" in said.out + said.err) is first

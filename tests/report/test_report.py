@@ -406,6 +406,18 @@ def test_the_car_sigma_against_a_monte_carlo_of_the_estimates_covariance(car):
         assert got[key] == pytest.approx(np.std([s[key] for s in sampled]), rel=0.10), key
 
 
+def test_the_validation_figures_drawn_apart_are_the_ones_drawn_here(robot):
+    """build_report draws the validation figures in a forked process (report.apart): the files written are the
+    bytes validation_figures gives in this process."""
+    from dynid.report.build import _car_equations, validation_figures, validation_signals
+
+    run, out = robot
+    chassis, split = _car_equations(run)
+    here = validation_figures(validation_signals(run), run.model.tree, run.residual_rms, chassis, split)
+    assert here and [(out / f"figure_validation{k}.png").read_bytes() for k in range(1, len(here) + 1)] == [
+        png for _, png in here]
+
+
 def test_the_robot_report_has_units_and_per_joint_plots(robot):
     _, out = robot
     page = parse(out / "report.html")

@@ -422,6 +422,32 @@ def test_a_prebuilt_kernel_is_loaded_not_compiled_again(tmp_path):
     assert res["misses"]["simulate"] == 0 and res["hits"]["simulate"] == 1
 
 
+_DIRECT = """
+import json
+from dynid.vehicle.sim import CarSimulator
+sim = CarSimulator()
+sim.run("sine", duration=0.2)
+s = sim.module.simulate.stats
+print(json.dumps({"misses": sum(s.cache_misses.values()), "hits": sum(s.cache_hits.values())}))
+"""
+
+
+@pytest.mark.slow
+def test_a_simulator_built_directly_compiles_its_kernel_in_another_process(tmp_path):
+    """Empty caches, CarSimulator() without simulated_car (a script, bench_simulator): the kernel compiles in
+    another process while the rest state and the models are made here, so its first run loads simulate from Numba's
+    cache (a hit, no miss) instead of compiling it after them. Oracle: Numba's own cache statistics."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("numba")
+    env = {**os.environ, "DYNID_CACHE": str(tmp_path / "d"), "NUMBA_CACHE_DIR": str(tmp_path / "n")}
+    out = subprocess.run([sys.executable, "-c", _DIRECT], env=env, capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {"misses": 0, "hits": 1}
+
+
 def test_a_stuck_kernel_build_is_killed_and_the_run_goes_on():
     """A first run waits for the kernel's build in another process at most `timeout`: a build that hangs (a
     forked child that inherited a held lock) is killed and the caller compiles itself, never waits forever."""

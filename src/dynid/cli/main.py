@@ -174,12 +174,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     _say(f"the demo: simulate the tests, write their files, identify, report into {out}")
     # start-up: the library, 1-5 s (--help 0.1 s)
-    from ..pipeline.demo import run_demo
+    from ..pipeline.demo import FIRST_RUN, run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
     from ..vehicle.sim.car import prebuild_kernel
 
-    prebuild_kernel()  # a first run: the simulator's kernel compiles on the other core while the vehicle loads
+    if prebuild_kernel():  # a first run: the simulator's kernel compiles on the other core while the vehicle loads
+        _say(FIRST_RUN)  # the vehicle's loading compiles too, silent otherwise
     if args.vehicle:  # a bad vehicle file is refused before the output folder is made
         from ..vehicle.description import load_vehicle  # start-up: the library, 1-5 s (--help 0.1 s)
 

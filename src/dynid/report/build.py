@@ -25,6 +25,7 @@ from ..estimation import EXCITED_FACTOR, not_excited
 from ..estimation.fit import FIT_RATIO
 from ..estimation.result import FLAG_KNOWN, FLAG_MISFIT, FLAG_UNCERTAIN
 from ..shipped import DEMO_VEHICLE
+from .apart import Apart
 from .figures import (
     NOT_EXCITED,
     CogPoint,
@@ -33,6 +34,7 @@ from .figures import (
     centre_of_gravity_figure,
     damper_curve_figure,
     parameter_figure,
+    preload,
     validation_grid,
 )
 from .format import decimals, fixed, force_unit, parameter_unit, round_to_uncertainty
@@ -843,6 +845,13 @@ def build_report(run, title: str) -> Report:
                f"{len(r.uncertain)} flagged uncertain; σ from the {r.cov_type} covariance.")
     out_sections: list[Section] = []
     figs_written: list[tuple[str, str, bytes]] = []  # (file, caption, png)
+    signals = validation_signals(run)
+    chassis, split = _car_equations(run)
+    axes = _equation_axes(run)
+    # the validation figures (about half the report's drawing) in a forked process while this one draws the others
+    # and builds the tables; pyplot imported first, so that the child has it
+    preload()
+    vfigs_apart = Apart(lambda: validation_figures(signals, tree, run.residual_rms, chassis, split, axes))
     if is_car:
         quantities, kind, vehicle, values = car_engineering(run)
         out_sections.append(engineering_section(run, quantities, kind, vehicle, values))
@@ -891,10 +900,8 @@ def build_report(run, title: str) -> Report:
         out_sections.append(Section("Comparison with the published identification", tables=[reference_table(run)],
                                     anchor="reference"))
     out_sections.append(consistency_section(run))
-    signals = validation_signals(run)
     vt = validation_table(run)
-    chassis, split = _car_equations(run)
-    vfigs = validation_figures(signals, tree, run.residual_rms, chassis, split, _equation_axes(run))
+    vfigs = vfigs_apart.result()
     for k, (caption, png) in enumerate(vfigs, start=1):
         figs_written.append((f"figure_validation{k}.png", caption, png))
     vtext = ("Y is the measured side of each equation (forces from the sensors), W X the model's prediction with "

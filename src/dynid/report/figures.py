@@ -21,6 +21,11 @@ def _pyplot():
     return plt
 
 
+def preload() -> None:
+    """Import pyplot now: a process forked after this has it (report.apart)."""
+    _pyplot()
+
+
 def validation_figure(Y: np.ndarray, WX: np.ndarray, groups: np.ndarray, title: str,
                       order: Sequence[str] | None = None) -> bytes:
     """PNG: for each group, measured Y and reconstructed W X against the stacked sample index."""

@@ -416,6 +416,10 @@ class CarSimulator:
         damper_knees: Mapping[int, tuple[float, float]] | None = None,
         name: str = "car",
     ) -> None:
+        # a first run (empty caches): the kernel compiles in another process while this one solves the rest state
+        # (the engine's compile) and generates the models, as simulated_car does (a no-op when it already started one
+        # or the kernel is cached); bench_simulator's first run measured the two one after the other
+        prebuild_kernel()
         self.geometry = demo_geometry() if geometry is None else geometry
         self.steering_ratio = float(steering_ratio)  # the driver robot's: steering-wheel angle per wheel angle
         self.tables = default_tables(self.geometry, self.steering_ratio) if tables is None else tables

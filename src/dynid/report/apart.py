@@ -1,0 +1,70 @@
+"""A part of the report computed in a forked process while this one builds the rest (the figures: most of a
+warm demo's report is matplotlib drawing and PNG encoding, one core's work).
+
+`Apart(fn)` forks at once where it can (Linux, this process of one thread: another thread's locks would stay held
+in the child's copy) and the child returns fn()'s value pickled through a pipe; `.result()` collects it. Where it
+cannot fork, or the child fails or dies, fn() runs here at `.result()`, so the outcome (an error included) is
+what calling fn() here gives, only earlier. An Apart dropped uncollected (the caller raised) kills its child.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import signal
+import sys
+import threading
+import weakref
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+T = TypeVar("T")
+
+
+class Apart(Generic[T]):
+    """fn() in a forked child, started now; result() its value (or fn() here: module doc)."""
+
+    def __init__(self, fn: Callable[[], T]) -> None:
+        self.fn = fn
+        self.pid: int | None = None
+        self.fd = -1
+        if not (sys.platform.startswith("linux") and threading.active_count() == 1):
+            return
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: its value down the pipe, then leave at once (no atexit, no buffer flushed twice)
+            code = 1
+            try:
+                os.close(r)
+                data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
+                with os.fdopen(w, "wb") as out:
+                    out.write(data)
+                code = 0
+            finally:
+                os._exit(code)
+        os.close(w)
+        self.pid, self.fd = pid, r
+        self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
+
+    def result(self) -> T:
+        if self.pid is not None:
+            pid, self.pid = self.pid, None
+            self._reap.detach()
+            with os.fdopen(self.fd, "rb") as f:
+                data = f.read()
+            _, status = os.waitpid(pid, 0)
+            if status == 0:
+                return pickle.loads(data)
+        return self.fn()  # no fork, or the child failed: here (its error, if any, raised here)
+
+
+def _kill(pid: int, fd: int) -> None:
+    with contextlib.suppress(OSError):
+        os.kill(pid, signal.SIGKILL)
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.waitpid(pid, 0)
+
+
+__all__ = ["Apart"]
