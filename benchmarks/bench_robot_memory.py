@@ -17,7 +17,8 @@ CPU 1.03 x (pairs 1.02-1.04); the estimate and its sigmas bit-equal (every run),
 the two workers' chunk peaks meeting more often over 65 chunks than over 11). The stages, RSS traced every 5 ms
 (fd92e1c's code, two runs, load 7-10): after the imports 125, the plan 271-272 at its peak (the pass over the
 stamps), 221-222 after it, the data-health check 254-255, the map's start 246-248, its peak 390 (two workers), after
-it 362, the solve and the checks 383 (the map's heap left under them: the whole run's peak is the map's). One worker ([compute] workers = 1): 346 at the peak, +100 over the
+it 362, the solve and the checks 383 (the map's heap left under them: the whole run's peak is the map's). One
+worker ([compute] workers = 1): 346 at the peak, +100 over the
 map's start for one chunk's 43 MB of NumPy: the rest is the heap glibc keeps (mallinfo2 read at the peak, a run
 perturbed by the reads: 179 MB of arenas, 79 in use, 101 free). Tried and left: glibc's mmap threshold fixed for a
 robot run (mallopt, M_MMAP_THRESHOLD; the thresholds `heap.tune_malloc` sets restored after), farm-bench against
