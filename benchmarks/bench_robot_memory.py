@@ -8,6 +8,33 @@ Parquet with a time column) is written once into --folder by a first process (ke
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
 process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (07:18-07:27 UTC, load average 4-12 on the 2 cores: other sessions): this tree (scipy.io
+imported where a .mat file is read or written, so a Parquet robot run loads neither it nor scipy.sparse) against
+fd92e1c (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians): after the imports 121.7 MB
+against 124.8, the peak 391.5 MiB against 387.0 (386-395 against 386-388: noise, the 3 MB under the map's spread),
+CPU 1.03 x (pairs 1.02-1.04); the estimate and its sigmas bit-equal (every run), the validation error equal. The
+10 min log (one run each): 373.2 against 372.9 MiB: the peak does not grow with the log (the 1 h's ~15 MB more is
+the two workers' chunk peaks meeting more often over 65 chunks than over 11). The stages, RSS traced every 5 ms
+(fd92e1c's code, two runs, load 7-10): after the imports 125, the plan 271-272 at its peak (the pass over the
+stamps), 221-222 after it, the data-health check 254-255, the map's start 246-248, its peak 390 (two workers), after
+it 362, the solve and the checks 383 (the map's heap left under them: the whole run's peak is the map's). One
+worker ([compute] workers = 1): 346 at the peak, +100 over the
+map's start for one chunk's 43 MB of NumPy: the rest is the heap glibc keeps (mallinfo2 read at the peak, a run
+perturbed by the reads: 179 MB of arenas, 79 in use, 101 free). Tried and left: glibc's mmap threshold fixed for a
+robot run (mallopt, M_MMAP_THRESHOLD; the thresholds `heap.tune_malloc` sets restored after), farm-bench against
+this tree as above with MALLOC_MMAP_THRESHOLD_ = 2 MiB (06:43-07:07 UTC, load 11-14): peak 361.5 against 384.4
+(360.7-364.7 against 381.5-385.0), CPU 1.23 x (pairs 1.09-1.29: system time 8.0 s against 0.7, page faults), and
+traced one run each: mmap at 8 MiB with the trim threshold at glibc's 128 KiB 363 MB (system 7.2 s), at 3 MiB 368
+(8.9 s), at 8 MiB with a 16 MiB trim threshold 383 (3.1 s), with 64 MiB 393 (1.6 s): the ~25 MB is the heap's free
+top handed back and faulted in again, not the large arrays' own pages; 20-25 MB for +20 % of CPU, as the threshold
+trials below. Not met: 300 MB is ~90 MB away, and the map's peak is two chunks' arrays (2 x 43 MB) and the heap
+glibc keeps between them over a floor of ~240 MB (imports 122: NumPy, scipy.linalg with the numpy.testing and f2py
+its array-API layer imports, 9 MB, Numba 52; pyarrow 31; Numba's registries ~37 on the first cached call; the
+Parquet block cache 24). The levers left are the design ones: one chunk in flight with its W blocks shared by the
+two threads (one chunk's window, filtered signals and W1 held instead of two: ~-30 MB of arrays, and the heap's
+share with them), each chunk's arrays in buffers a worker reuses (no heap to fragment), the positions filtered per W
+block (the filtered q, qd, qdd of the whole window, ~11 MB a worker, not held; round-off, not the same bits).
+
 Measured 2026-11-29 (05:21-05:25 UTC, load 0.7-2, quieter than the runs below): this tree, CHUNK_BYTES = 28 MiB
 (55,600 samples, 65 chunks, ~ as before), against b872084 (farm-bench, 4 runs each alternated A B A B after a
 warm-up each, medians): peak 388.9 MiB against 407.7 (388.1-390.9 against 402.3-412.1), CPU 0.971 x (pairs

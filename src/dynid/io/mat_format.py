@@ -26,7 +26,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.io as sio
 
 from ..atomic import atomic_path
 from ._optional import require
@@ -73,6 +72,8 @@ def is_v73(path: Path) -> bool:
 
 
 def _load(path: Path) -> dict[str, Any]:
+    import scipy.io as sio  # here, not at the top: a run that reads no .mat file does not load it (3.4 MB, issue 25)
+
     label = str(path)
     try:
         return sio.loadmat(path, simplify_cells=True)
@@ -266,6 +267,8 @@ def write_mat(recording: Recording, path: str | os.PathLike[str]) -> Path:
     meta = {k: str(v) for k, v in recording.metadata.items() if k != "format" and _VALID_NAME.match(k)}
     if meta:
         content["metadata"] = meta
+    import scipy.io as sio  # as in _load
+
     with atomic_path(path) as tmp:
         sio.savemat(tmp, content, appendmat=False, format="5", do_compression=True, oned_as="column")
     return path
