@@ -72,7 +72,7 @@ def is_v73(path: Path) -> bool:
 
 
 def _load(path: Path) -> dict[str, Any]:
-    import scipy.io as sio  # here, not at the top: a run that reads no .mat file does not load it (3.4 MB, issue 25)
+    import scipy.io as sio  # start-up: a run that reads no .mat file does not load it (3.4 MB with scipy.sparse)
 
     label = str(path)
     try:
@@ -267,7 +267,7 @@ def write_mat(recording: Recording, path: str | os.PathLike[str]) -> Path:
     meta = {k: str(v) for k, v in recording.metadata.items() if k != "format" and _VALID_NAME.match(k)}
     if meta:
         content["metadata"] = meta
-    import scipy.io as sio  # as in _load
+    import scipy.io as sio  # start-up: as in _load
 
     with atomic_path(path) as tmp:
         sio.savemat(tmp, content, appendmat=False, format="5", do_compression=True, oned_as="column")
