@@ -240,6 +240,35 @@ def test_c_block_regressor_matches_engine_and_pinocchio(N, rnd6_c):
         close(W[:, pm.cols][:, :, moving_columns(pm, tree)], pinocchio_regressor(pm, tree, q, qd, qdd))
 
 
+def test_c_sine_and_cosine_are_trigs_to_the_bit(tmp_path):
+    """The generated C's sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1), per sample (_batch)
+    and lanes side by side (_block), are dynamics.trig's run by Python, to the bit, as every other target's (issue
+    25: one sine and cosine): on the quadrants' edges (multiples of pi/4 and their neighbours), small, large and
+    out-of-range angles (|x| >= trig.LIMIT, inf, NaN: libm's). The per-sample function took libm's before, which
+    differs from them by an ulp on some of these angles (checked last)."""
+    from dynid.dynamics import trig
+    from dynid.model import Frame, Tree
+
+    k = np.arange(-400, 400) * (np.pi / 4)
+    rng = np.random.default_rng(8)
+    x = np.concatenate([k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), [1e-300, -0.0, 0.0, 5e-324],
+                        np.array([1.0, -1.0]) * np.nextafter(trig.LIMIT, 0.0), [trig.LIMIT, -trig.LIMIT, 3e5, 1e300],
+                        [np.inf, -np.inf, np.nan], rng.uniform(-trig.LIMIT, trig.LIMIT, 2000),
+                        rng.uniform(-4.0, 4.0, 2000)])
+    ref = trig.python_function()
+    finite = np.isfinite(x)
+    want = np.array([ref(float(v)) for v in x[finite]])  # (n, 2): sin, cos (Python's math.sin raises at inf)
+    prog = build(Tree("one revolute joint", (Frame(1, 0, 0),)), "dgm")
+    lib = _compile(tmp_path, prog, "one")
+    for fn in (lib.one_dgm_batch, lib.one_dgm_block):
+        (T,) = _call(fn, len(x), x[:, None], out_shapes=[prog.shape])
+        got = np.column_stack([T[:, 1, 1, 0], T[:, 1, 0, 0]])  # T1[1, 0] = sin q1, T1[0, 0] = cos q1
+        assert np.array_equal(got[finite].view(np.int64), want.view(np.int64)), (
+            fn, x[finite][np.any(got[finite] != want, axis=1)][:5])
+        assert np.isnan(got[~finite]).all()
+    assert not np.array_equal(np.sin(x[finite]), want[:, 0])  # libm's: this test tells them apart
+
+
 @pytest.mark.slow
 def test_c_block_of_the_puma_and_the_car(tmp_path):
     """The benchmark's two identification models, with joint terms (sign()) and far angles (libm lanes)."""
@@ -252,7 +281,9 @@ def test_c_block_of_the_puma_and_the_car(tmp_path):
         lib = _compile(tmp_path, prog, stem)
         (W,) = _call(getattr(lib, f"{stem}_regressor_block"), N, q, qd, qdd, out_shapes=[prog.shape])
         (Wb,) = _call(getattr(lib, f"{stem}_regressor_batch"), N, q, qd, qdd, out_shapes=[prog.shape])
-        close(W, Wb)  # the far angle's block by the per-sample code: the same libm call on the same argument
+        # the same numbers to the bit: every sine and cosine trig's steps, the far angle's libm's in both (its
+        # block by the per-sample code); neither contracts into FMA (-std=c99)
+        assert np.array_equal(W, Wb)
         # the engine: the same but for the far sample, whose angle's last bit (6e-11 at 3e5) is rounded
         # differently by the engine (MDH offsets added apart): cos(3e5 + 6e-11) moves by 6e-11
         near = np.arange(N) != 4

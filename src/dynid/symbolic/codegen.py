@@ -1,8 +1,9 @@
 """Code generation from a Program: readable equations and C (header + source); the shared text helpers.
 
-C: a per-sample function and a batched loop, with no dependency but libm; we never run a
-compiler at run time. The NumPy emitter is `numpy_code`, the disk cache of generated NumPy
-modules `cache`. Emission is deterministic: the same model gives the same text whatever
+C: a per-sample function and a batched loop, with no dependency but libm; we never run a compiler at run time. Every
+sine and cosine is dynamics.trig's (its C steps, libm's values past its range only), as in every other target, so
+the C functions give the engine's generated code's numbers. The NumPy emitter is `numpy_code`, the disk cache of
+generated NumPy modules `cache`. Emission is deterministic: the same model gives the same text whatever
 PYTHONHASHSEED.
 """
 
@@ -81,6 +82,42 @@ def _output_labels(prog: Program):
 
 
 # ----- C ---------------------------------------------------------------------------------------------
+# one angle's sine and cosine together, sample by sample: the steps (`trig.c_source`), libm's past their range
+_C_SINCOS = """static inline void dynid_sincos(double x, double *s, double *c)
+{
+    double bad = 0.0;
+    dynid_sincos_lane(x, s, c, &bad);
+    if (bad != 0.0) {
+        *s = sin(x);
+        *c = cos(x);
+    }
+}
+"""
+
+
+def _c_equations(prog: Program, indent: str, sign: str, sincos: str) -> list[str]:
+    """The straight-line body's lines: each equation a constant, but a sine and a cosine of one argument, which
+    are one call of `sincos` (a format of x, s, c), declared before it; sign() called as `sign`."""
+    by_arg: dict[tuple, dict[str, str]] = {}
+    for eq in prog.equations:
+        if eq.kind in ("sin", "cos"):
+            by_arg.setdefault(_key(eq.rhs), {})[eq.kind] = eq.name
+    lines, done = [], set()
+    for eq in prog.equations:
+        if eq.kind not in ("sin", "cos"):
+            lines.append(f"{indent}const double {eq.name} = {_eq_text(eq, 'c').replace('dynid_sign(', sign)};")
+            continue
+        key = _key(eq.rhs)
+        if key in done:
+            continue
+        done.add(key)
+        names = by_arg[key]
+        s_name, c_name = names.get("sin", f"{eq.name}_sin"), names.get("cos", f"{eq.name}_cos")
+        lines.append(f"{indent}double {s_name}, {c_name};")
+        lines.append(indent + sincos.format(x=format_poly(eq.rhs, "c"), s=s_name, c=c_name))
+    return lines
+
+
 def _c_name(prog: Program, prefix: str) -> str:
     return f"{prefix}_{prog.model}"
 
@@ -109,7 +146,7 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
            f"void {fname}_batch(long N, {', '.join(params + outs)});"]
     if block:
         hdr += [f"/* _batch, {C_LANES} samples side by side (vectorised by the compiler across samples), the same",
-                "   layouts and numbers to an ulp or two (sin and cos are fdlibm's polynomials) */",
+                "   layouts and numbers */",
                 f"void {fname}_block(long N, {', '.join(params + outs)});"]
     hdr += ["", f"#endif /* {guard} */", ""]
     used = set(prog.meta.get("used_inputs", prog.inputs))
@@ -117,6 +154,7 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
            "#include <math.h>", "#include <stdint.h>", f'#include "{fname}.h"',
            *(["#if defined(__SSE2__)", "#include <emmintrin.h>", "#endif"] if block else []), "",
            "static inline double dynid_sign(double x) { return (double)((x > 0.0) - (x < 0.0)); }", "",
+           trig.c_source(), _C_SINCOS,
            f"void {fname}({', '.join(params + outs)})", "{"]
     for k, v in prog.constants.items():
         src.append(f"    const double {k} = {v!r};")
@@ -125,8 +163,7 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
         if s == "wrench":
             idx = idx[0] * 6 + idx[1]
         src.append(f"    const double {name} = {s}[{idx}];")
-    for eq in prog.equations:
-        src.append(f"    const double {eq.name} = {_eq_text(eq, 'c')};")
+    src += _c_equations(prog, "    ", "dynid_sign(", "dynid_sincos({x}, &{s}, &{c});")
     src += _c_fill("out", prog.shape, prog.outputs)
     for name, (shape, entries) in prog.extra_outputs.items():
         src += _c_fill(name, shape, entries)
@@ -167,18 +204,16 @@ __all__ = ["C_LANES", "GENERATOR_VERSION", "LANGS", "format_poly", "to_c", "to_t
 
 
 # ----- C, samples side by side --------------------------------------------------------------------
-# Why: the per-sample function spends most of its time in libm's sin and cos (10 to 15 ns a call)
-# and in scalar arithmetic. `_block` copies C_LANES samples' inputs into lane-major arrays and runs
-# the whole straight-line body as one loop over those lanes, with scalar temporaries and only
-# unit-stride accesses, which GCC (-O2 from version 12) and clang vectorise across samples; the
-# results go to a lane-major tile and from it to the caller's sample-major `out`. Written so that
-# the loop has no branch the vectoriser must refuse (GCC does not if-convert floating-point
-# comparisons under its default -ftrapping-math): sine and cosine are dynamics.trig's steps
-# with the quadrant applied by exact arithmetic, sign() is a copysign; a lane whose
-# angle is 1e5 or more (or NaN) sends its block to the per-sample code (libm). A tail of fewer
-# than C_LANES samples runs through the same code on padded copies: a sample's value does not
-# depend on where it falls.
-_C_LANE_HELPERS = "\n" + trig.c_source() + """
+# Why: the per-sample function spends its time in scalar arithmetic, sines and cosines included. `_block` copies
+# C_LANES samples' inputs into lane-major arrays and runs the whole straight-line body as one loop over those lanes,
+# with scalar temporaries and only unit-stride accesses, which GCC (-O2 from version 12) and clang vectorise across
+# samples; the results go to a lane-major tile and from it to the caller's sample-major `out`. Written so that the
+# loop has no branch the vectoriser must refuse (GCC does not if-convert floating-point comparisons under its default
+# -ftrapping-math): sine and cosine are dynamics.trig's steps with the quadrant applied by exact arithmetic, sign() is
+# a copysign; a lane whose angle is 1e5 or more (or NaN) sends its block to the per-sample code (libm). A tail of
+# fewer than C_LANES samples runs through the same code on padded copies: a sample's value does not depend on where it
+# falls.
+_C_LANE_HELPERS = """
 static inline double dynid_sign_lane(double x) { return copysign(fabs(x) > 0.0 ? 1.0 : 0.0, x); }
 
 /* the first n lane columns of a lane-major tile (size rows of LANES) to n sample-major rows of o; with SSE2,
@@ -235,24 +270,7 @@ def _c_block(prog: Program, fname: str, params: list[str], outs: list[str], stri
             idx = idx[0] * 6 + idx[1]
         body.append(f"        const double {name} = X[{idx}];" if s == "X"
                     else f"        const double {name} = {s}[{idx * B} + k];")
-    by_arg: dict[tuple, dict[str, str]] = {}
-    for eq in prog.equations:
-        if eq.kind in ("sin", "cos"):
-            by_arg.setdefault(_key(eq.rhs), {})[eq.kind] = eq.name
-    done: set[tuple] = set()
-    for eq in prog.equations:
-        if eq.kind not in ("sin", "cos"):
-            text = _eq_text(eq, "c").replace("dynid_sign(", "dynid_sign_lane(")
-            body.append(f"        const double {eq.name} = {text};")
-            continue
-        key = _key(eq.rhs)
-        if key in done:
-            continue
-        done.add(key)
-        names = by_arg[key]
-        s_name, c_name = names.get("sin", f"{eq.name}_sin"), names.get("cos", f"{eq.name}_cos")
-        body.append(f"        double {s_name}, {c_name};")
-        body.append(f"        dynid_sincos_lane({format_poly(eq.rhs, 'c')}, &{s_name}, &{c_name}, &bad[k]);")
+    body += _c_equations(prog, "        ", "dynid_sign_lane(", "dynid_sincos_lane({x}, &{s}, &{c}, &bad[k]);")
     for o, shape, entries in out_lists:  # a lane-major tile: constant offsets, which the vectoriser needs
         body += [line.replace(f"    {o}[", f"        {o}[{B} * ", 1).replace("] = ", " + k] = ", 1)
                  for line in _c_fill(o, shape, entries)]
