@@ -549,3 +549,32 @@ def test_mimic_kinematics_match_pinocchio():
         pin.computeJointJacobians(pm, data, q[s, actuated])
         Jp = pin.getJointJacobian(pm, data, jid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         assert np.abs(J[s][:, actuated] - Jp).max() < 1e-12
+
+
+def test_inertia_shortcut_agrees_with_the_principal_moments():
+    """The URDF import's shortcut (`_inside_bounds`: Gershgorin's discs of the second moment tr(I)/2 E - I) passes
+    an inertia only where its principal moments (numpy's eigvalsh, the oracle) are >= 0 and meet the triangle
+    inequality; over diagonal, near-diagonal, random and boundary inertias, and it passes most real links'."""
+    from dynid.model.urdf import _inside_bounds
+
+    rng = np.random.default_rng(11)
+    cases = []
+    for scale in (1e-8, 1e-3, 1.0, 1e3):
+        for _ in range(2000):
+            lam = rng.uniform(0.0, 1.0, 3) * scale
+            if rng.random() < 0.5:  # on or beyond the triangle's edge, or a negative moment
+                lam[2] = lam[0] + lam[1] + rng.choice([-1.0, 0.0, 1.0]) * rng.uniform(0, 0.1) * scale
+                lam[0] *= rng.choice([1.0, -1.0])
+            Q = np.linalg.qr(rng.normal(size=(3, 3)))[0] if rng.random() < 0.7 else np.eye(3)
+            if rng.random() < 0.5:  # near-diagonal: a small rotation
+                Q = np.eye(3) + 1e-3 * rng.normal(size=(3, 3))
+            cases.append(Q @ np.diag(lam) @ Q.T)
+    passed = 0
+    for I in cases:
+        I = (I + I.T) / 2
+        if _inside_bounds(I):
+            passed += 1
+            lam = np.linalg.eigvalsh(I)
+            tol = 1e-12 * np.abs(lam).max()
+            assert lam[0] >= -tol and lam[2] <= lam[0] + lam[1] + tol, (I, lam)
+    assert passed > len(cases) // 4  # it takes the common case, not none

@@ -119,29 +119,34 @@ def _parse(path_or_text: str | os.PathLike[str], source: str | None = None) -> t
     return doc, src
 
 
-def _floats(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...], where: str) -> np.ndarray:
-    if el is None or el.get(attr) is None:
-        return np.array(default, dtype=float)
-    text = el.get(attr, "")
+def _values(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...], where: str) -> list[float]:
+    """The attribute's n finite numbers (default where the element or the attribute is absent), as floats."""
+    text = None if el is None else el.get(attr)
+    if text is None:
+        return [float(x) for x in default]
     try:
         vals = [float(x) for x in text.split()]
     except ValueError:
         raise UrdfError(f'{where}: <{el.tag} {attr}="{text}">: expected {n} numbers') from None
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+    if len(vals) != n or not all(map(math.isfinite, vals)):
         raise UrdfError(f'{where}: <{el.tag} {attr}="{text}">: expected {n} finite numbers')
-    return np.array(vals)
+    return vals
+
+
+def _floats(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...], where: str) -> np.ndarray:
+    return np.array(_values(el, attr, n, default, where))
 
 
 def _origin(el: ET.Element, where: str) -> np.ndarray:
     o = el.find("origin")
-    xyz = _floats(o, "xyz", 3, (0, 0, 0), where)
-    if np.abs(xyz).max() > MAX_LENGTH_M:  # a unit slip (mm for m) or a placeholder: no link is that long
+    xyz = _values(o, "xyz", 3, (0, 0, 0), where)
+    if max(map(abs, xyz)) > MAX_LENGTH_M:  # a unit slip (mm for m) or a placeholder: no link is that long
         raise UrdfError(f'{where}: <origin xyz="{o.get("xyz")}">: beyond {MAX_LENGTH_M:g} m; URDF lengths are in '
                         "metres (a unit slip? mm written for m)")
-    return transform(_rpy(_floats(o, "rpy", 3, (0, 0, 0), where)), xyz)
+    return transform(_rpy(_values(o, "rpy", 3, (0, 0, 0), where)), xyz)
 
 
-def _rpy(rpy: np.ndarray) -> np.ndarray:
+def _rpy(rpy: Sequence[float]) -> np.ndarray:
     """URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
     (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a), math.sin(a)) for a in rpy)
     Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
@@ -172,7 +177,7 @@ def _inertial(link: ET.Element, where: str) -> _Inertial | None:
     mass = el.find("mass")
     if mass is None:
         raise UrdfError(f"{where}: no <mass value=...>")
-    m = float(_floats(mass, "value", 1, (math.nan,), where)[0])
+    m = _values(mass, "value", 1, (math.nan,), where)[0]
     if math.isnan(m):
         raise UrdfError(f"{where}: <mass> has no value")
     if m < 0.0:
@@ -187,9 +192,19 @@ def _inertial(link: ET.Element, where: str) -> _Inertial | None:
     missing = [k for k in terms if inertia.get(k) is None]
     if missing:
         raise UrdfError(f"{where}: <inertia> has no {', '.join(missing)}; give all six terms (0 where zero)")
-    v = {k: float(_floats(inertia, k, 1, (0.0,), where)[0]) for k in terms}
+    v = {k: _values(inertia, k, 1, (0.0,), where)[0] for k in terms}
     I = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]], [v["ixz"], v["iyz"], v["izz"]]])
     return _Inertial(m, _origin(el, where), I, _inertia_problem(I, inertia, where))
+
+
+def _inside_bounds(I: np.ndarray) -> bool:
+    """Whether I's principal moments are >= 0 and meet the triangle inequality by Gershgorin's discs alone (a few
+    float operations: most links' inertias, near-diagonal): the triangle inequality is the second moment
+    S = tr(I)/2 E - I positive semidefinite (S's eigenvalues are (l1 + l2 - l3)/2 and their kin), which also makes
+    I's semidefinite (I = tr(S) E - S); each disc of S on the right of 0 proves it."""
+    (a, d, e), (_, b, f), (_, _, c) = I.tolist()
+    return (b + c - a >= 2.0 * (abs(d) + abs(e)) and a + c - b >= 2.0 * (abs(d) + abs(f))
+            and a + b - c >= 2.0 * (abs(e) + abs(f)))
 
 
 def _inertia_problem(I: np.ndarray, el: ET.Element, where: str) -> str:
@@ -198,15 +213,19 @@ def _inertia_problem(I: np.ndarray, el: ET.Element, where: str) -> str:
     other two (the triangle inequality), within round-off of the largest: a breach of these is returned as a
     note, not refused, for published URDFs have them on small links (Tiago's antennas: a negative principal
     moment of 4e-8 kg·m²), and an identification starts from these values only as a priori ones."""
+    if np.abs(I).max() > MAX_PARAMETER or np.diag(I).min() < 0.0:
+        given = " ".join(f'{k}="{el.get(k)}"' for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+        if np.abs(I).max() > MAX_PARAMETER:
+            raise UrdfError(f"{where}: <inertia {given}>: beyond {MAX_PARAMETER:g} kg·m²; URDF inertias are in "
+                            "kg·m²")
+        raise UrdfError(f"{where}: <inertia {given}>: a negative moment of inertia; ixx, iyy, izz are >= 0 (a sign "
+                        "slip?)")
+    if _inside_bounds(I):  # the eigenvalues below only where the discs cannot tell (a few links in a robot)
+        return ""
     lam = np.linalg.eigvalsh(I)
     tol = 1e-9 * max(float(np.abs(lam).max()), np.finfo(float).tiny)
     given = " ".join(f'{k}="{el.get(k)}"' for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
     moments = ", ".join(f"{x:.6g}" for x in lam)
-    if np.abs(I).max() > MAX_PARAMETER:
-        raise UrdfError(f"{where}: <inertia {given}>: beyond {MAX_PARAMETER:g} kg·m²; URDF inertias are in kg·m²")
-    if np.diag(I).min() < 0.0:
-        raise UrdfError(f"{where}: <inertia {given}>: a negative moment of inertia; ixx, iyy, izz are >= 0 (a sign "
-                        "slip?)")
     if lam[0] < -tol:
         return (f"{where}: <inertia {given}>: principal moments ({moments}) kg·m², one negative: no body has that "
                 "(check the products of inertia)")
@@ -462,8 +481,8 @@ def _mimics(robot: ET.Element, kinds: dict[str, str | None], src: str) -> dict[s
         if kinds[master] not in _MOVING:
             raise UrdfError(f'{where}: that joint is {kinds[master]}; a mimic must follow a moving joint (remove '
                             "the <mimic> or make this joint fixed)")
-        ratio = float(_floats(mim, "multiplier", 1, (1.0,), where)[0])
-        offset = float(_floats(mim, "offset", 1, (0.0,), where)[0])
+        ratio = _values(mim, "multiplier", 1, (1.0,), where)[0]
+        offset = _values(mim, "offset", 1, (0.0,), where)[0]
         if ratio == 0.0:
             raise UrdfError(f'{where}: multiplier="0" holds it still: make the joint fixed instead')
         direct[jname] = (master, ratio, offset)
