@@ -388,7 +388,9 @@ class JointsPass:
         (`estimate_joints` of the channels with b added) to round-off: each stage the channel reaches is run
         again on it, the others' results are reused. Its offset enters the stages as these channels plus b (the
         sensor dynamics' undoing is affine with unit gain at 0 Hz), a low-passed column as that column plus the
-        low-passed constant (the filter is linear). every > 1: its samples every `every` (`CoarseTrajectory`, the
+        low-passed constant (the filter is linear); an accelerometer's or a height laser's moves the joints
+        linearly: b times the pass's response to a unit offset (`_linear`, `_UNIT`: all seven made in one low-pass
+        call, when first asked). every > 1: its samples every `every` (`CoarseTrajectory`, the
         same values), without the whole-rate arrays (the rows' equations read no others)."""
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
