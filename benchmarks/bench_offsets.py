@@ -28,8 +28,9 @@ Then (h-off1p, 2026-11-29): the 7 offsets that move the joints linearly (3 accel
 times the pass's response to a unit offset (one low-pass call per segment) instead of a staged pass each; the load
 offsets' unit rows come from one forward pass of the four tires; the moved residuals' W x is an einsum. On one 60 s
 segment of the 10 min log (`offset_residuals` of the 36, process_time, min of 5): 0.46 -> 0.38 s at load ~5 (the 7
-passes 0.072 -> 0.008 s, the rows of the 12 0.124 -> 0.111 s, the loads 0.036 -> 0.032 s), and 0.52-0.69 against
-0.46-0.51 s in 4 alternations at load 11-13. This benchmark's figure, the two commits alternated round by round in
+passes 0.072 -> 0.008 s, the rows of the 12 0.124 -> 0.111 s, the loads 0.036 -> 0.032 s); in 4 alternations of the
+two commits' processes at load 7-12, 0.445-0.478 against 0.368-0.387 s (-17 %; the segment's main pass 0.10-0.11 s
+on both). This benchmark's figure, the two commits alternated round by round in
 one run (min of 3, load 8-16: the "none" runs, the same code, spread by 15 %):
 
     log       69ee46f: estimated against none    h-off1p: estimated against none
