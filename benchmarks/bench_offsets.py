@@ -23,6 +23,23 @@ The estimated offsets' cost grows with the log: each segment's rows need their 3
 full rate) and its equations and decimation (0.2 s), the 24 wheel loads' one decimation (0.06 s), against 0.44 s for
 the segment's own work (cProfile on the 10 min log, `time.process_time`). The propagation alone runs on
 `offset_segments` segments per test: a fixed cost.
+
+Then (h-off1p, 2026-11-29): the 7 offsets that move the joints linearly (3 accelerometers, 4 height lasers) take b
+times the pass's response to a unit offset (one low-pass call per segment) instead of a staged pass each; the load
+offsets' unit rows come from one forward pass of the four tires; the moved residuals' W x is an einsum. On one 60 s
+segment of the 10 min log (`offset_residuals` of the 36, process_time, min of 5): 0.46 -> 0.38 s at load ~5 (the 7
+passes 0.072 -> 0.008 s, the rows of the 12 0.124 -> 0.111 s, the loads 0.036 -> 0.032 s); in 4 alternations of the
+two commits' processes at load 7-12, 0.445-0.478 against 0.368-0.387 s (-17 %; the segment's main pass 0.10-0.11 s
+on both). This benchmark's figure, the two commits alternated round by round in
+one run (min of 3, load 8-16: the "none" runs, the same code, spread by 15 %):
+
+    log       69ee46f: estimated against none    h-off1p: estimated against none
+    demo        7.84 against 6.85 (+15 %)          7.90 against 7.08 (+12 %)
+    10 min     13.97 against 9.00 (+55 %)         12.00 against 7.70 (+56 %)
+
+Still far from the issue's 30 %: what is left per 60 s segment is the 5 attitude channels' staged passes (gyros
+and inclinometers, 0.034 s each: their offsets move the rotation, which every later stage reads; a third of it is
+the zero-phase filter, already 8 columns a call) and the rows of the 12 moved trajectories (9 ms each).
 """
 
 from __future__ import annotations

@@ -303,7 +303,10 @@ def _decimated_residual(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, re
     V = len(qd_full)
     W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
     N = W4.shape[1]
-    Wx = np.dot(eq.per_sample, x).reshape(V, N, rows)  # per_sample is a view of a wider array: not reshaped
+    # per_sample is a view of a wider array, samples first in memory: not reshaped, and summed over its columns by
+    # einsum (streams each column's samples; np.dot gathers each sample's 14 x p entries, a page apart: 3-5 times
+    # slower on a 60 s segment)
+    Wx = np.einsum("nrp,p->nr", eq.per_sample, x).reshape(V, N, rows)
     r = eq.Y.reshape(rows, V, N).transpose(2, 1, 0) - Wx.transpose(1, 0, 2)  # (N, V, rows)
     fs_cols = []
     if k > 1 or lowpass_fs:  # as `_decimated`: these columns' coarse samples are replaced by full-rate ones

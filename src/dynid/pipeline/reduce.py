@@ -427,7 +427,8 @@ def offset_changes(setup: CarSetup, channels: dict[str, np.ndarray], fs: float, 
     per unit load times it, for all of them in one decimation (`CarSetup.load_changes`), unless the tree has load
     terms (a column of W built from the loads: then as the others). The others' moved
     trajectories: a camera's moves what its range clips (the whole pass); the inertial unit's, the lasers' and the
-    velocity sensor's run again only the estimator's stages they reach (`JointsPass.moved`); any other's goes
+    velocity sensor's run again only the estimator's stages they reach (`JointsPass.moved`; an accelerometer's and a
+    laser's move the joints linearly: b times the pass's response to a unit offset, made once); any other's goes
     through the whole estimator but not through the sensor dynamics' undoing again (affine with unit gain at 0 Hz:
     the offset passes through it as is). Their rows come from one evaluation of the equations and one decimation
     for all of them (`CarSetup.moved_rows`). With instruments (the loads move the simulated suspensions too), or

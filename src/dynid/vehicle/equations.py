@@ -45,8 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import BaseParameters, Model, Wrench
+from ..kinematics.forward import cross, forward_kinematics, joint_array, to_local
 from ..kinematics.per_tree import PerTree
-from ..model.tree import CURVE_TERMS, FIXED, ModelError, Tree
+from ..model.tree import CURVE_TERMS, FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
 from ..model.workspace import derived
 from .template import (
     CHASSIS_GROUPS,
@@ -221,13 +222,39 @@ def load_rows(model: Model | Tree, q: Array, rows: Sequence[int] = EQUATION_ROWS
     q = np.atleast_2d(np.asarray(q, dtype=float))
     rho = _radius(model.tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
     cols = np.asarray(rows) - 1
-    out = np.empty((q.shape[0], len(cols), 4, 6))
-    for k, t in enumerate(TIRES):
-        J = model.jacobian(q, t, expressed_in=t)[:, :, cols]  # (N, 6, rows): linear, then angular
-        out[:, :, k, :] = J.transpose(0, 2, 1)
+    # samples last while it is built (each entry a contiguous row), returned samples first (a view)
+    out = np.empty((len(cols), 4, 6, q.shape[0]))
+    for k, J in enumerate(_tire_jacobians(model, q, rows)):  # (6, rows, N): linear, then angular
+        out[:, k] = J.transpose(1, 0, 2)
         # a force moves the moment about the contact point too: M_contact = M + (-rho Fy, rho Fx, 0)
-        out[:, :, k, 0] += rho[:, k, None] * J[:, 4, :]
-        out[:, :, k, 1] -= rho[:, k, None] * J[:, 3, :]
+        out[:, k, 0] += rho[:, k] * J[4]
+        out[:, k, 1] -= rho[:, k] * J[3]
+    return np.moveaxis(out, -1, 0)
+
+
+def _tire_jacobians(model: Model, q: Array, rows: Sequence[int]) -> list[Array]:
+    """Each tire frame's Jacobian at its origin, expressed in it, of the joints `rows` alone (`Model.jacobian`'s
+    columns `rows` - 1), samples last: (6, len(rows), N). One forward pass for the four tires, and only the columns
+    asked (each tire's whole (N, 6, 42), then gathered, cost twice as much on a 60 s segment's coarse samples)."""
+    tree = model.tree
+    if tree.mimic:  # a mimic joint's column goes to its master's (Model.jacobian)
+        return [np.moveaxis(model.jacobian(q, t, expressed_in=t)[:, :, np.asarray(rows) - 1], 0, -1) for t in TIRES]
+    qs, _ = joint_array(q, tree, "q")
+    st = forward_kinematics(tree, qs, frames=TIRES)
+    out = []
+    for t in TIRES:
+        J = np.zeros((6, len(rows), qs.shape[1]))
+        R, above = st.Rc[t], set(tree.ancestors[t])
+        for i, j in enumerate(rows):
+            if j not in above or tree.sigma[j] not in (REVOLUTE, PRISMATIC):
+                continue
+            z = st.Rc[j][2]
+            if tree.sigma[j] == REVOLUTE:
+                J[:3, i] = to_local(R, cross(z, st.P[t] - st.P[j]))
+                J[3:, i] = to_local(R, z)
+            else:
+                J[:3, i] = to_local(R, z)
+        out.append(J)
     return out
 
 

@@ -388,14 +388,28 @@ class JointsPass:
         (`estimate_joints` of the channels with b added) to round-off: each stage the channel reaches is run
         again on it, the others' results are reused. Its offset enters the stages as these channels plus b (the
         sensor dynamics' undoing is affine with unit gain at 0 Hz), a low-passed column as that column plus the
-        low-passed constant (the filter is linear). every > 1: its samples every `every` (`CoarseTrajectory`, the
+        low-passed constant (the filter is linear); an accelerometer's or a height laser's moves the joints
+        linearly: b times the pass's response to a unit offset (`_linear`, `_UNIT`: all seven made in one low-pass
+        call, when first asked). every > 1: its samples every `every` (`CoarseTrajectory`, the
         same values), without the whole-rate arrays (the rows' equations read no others)."""
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
-        ch = {**self.ch, channel: self.ch[channel] + b}
         # the columns the stages write, apart: the rest is the whole pass's
         q, qd, qdd = (_Moved(a) for a in (self.q, self.qd, self.qdd))
+        if self._linear(channel):  # its effect is b times the pass's response to a unit offset (`_UNIT`)
+            unit = _UNIT(self)
+            if channel in _ACCELERATION:
+                qdd[:, :3] = self.qdd[:, :3] + b * unit.acceleration[_ACCELERATION.index(channel)]
+            else:
+                i = CORNER_TAGS.index(channel.removeprefix("laser_height_"))
+                j = TIRES[i] - 1
+                q[:, 2], qd[:, 2] = self.q[:, 2] + b * unit.height[0], self.qd[:, 2] + b * unit.height[1]
+                q[:, :2], qd[:, :2] = self.q[:, :2] + b * unit.position, self.qd[:, :2] + b * unit.velocity
+                q[:, j], qd[:, j], qdd[:, j] = (a[:, j] + b * u[i] for a, u in zip(
+                    (self.q, self.qd, self.qdd), unit.deflection, strict=True))
+            return self._trajectory(q, qd, qdd, self.filtered, every)
+        ch = {**self.ch, channel: self.ch[channel] + b}
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
         attitude = channel in _ATTITUDE
         heights = attitude or channel.startswith("laser_height_")
@@ -415,6 +429,18 @@ class JointsPass:
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
         elif channel in _VELOCITY:
             _velocity(ch, x, q, qd, R6, w6)
+        return self._trajectory(q, qd, qdd, filtered, every)
+
+    def _linear(self, channel: str) -> bool:
+        """Whether a zero offset of `channel` moves the joints linearly, by b times the response to a unit offset
+        (`_UNIT`): an accelerometer's (the rotation that carries it is the whole pass's) or a height laser's (its
+        heights, the velocity's vertical part and the deflections are linear in them)."""
+        return channel in _ACCELERATION or (self.ctx.lasers and channel.startswith("laser_height_"))
+
+    def _trajectory(self, q: _Moved, qd: _Moved, qdd: _Moved, filtered: Array, every: int
+                    ) -> CarTrajectory | CoarseTrajectory:
+        """`moved`'s trajectory from its joints (the whole pass's with the moved stages' columns) and loads."""
+        x = self.ctx
         if every == 1:
             return _trajectory(x, q.whole(), qd.whole(), qdd.whole(), filtered, self.has_spin, self.steering[0])
         N, lo = q.shape[0], x.border
@@ -428,6 +454,49 @@ class JointsPass:
                                None if whole[2] is None else whole[2][lo:hi:every], whole[3][lo:hi:every])
         return CoarseTrajectory(coarse, _Trimmed(qd, lo, hi))
 
+
+@dataclass(frozen=True)
+class _UnitResponses:
+    """A pass's joints' change per unit zero offset (SI) of the channels that move them linearly
+    (`JointsPass._linear`), full rate, untrimmed: acceleration[k] (N, 3): qdd[:, :3] per unit of the k-th
+    accelerometer; for a laser: height (q, qd of column 2, (N,) each), position and velocity (q, qd[:, :2]) per unit
+    of any laser (each laser's height weighs a quarter), deflection (q, qd, qdd) (4, N) per unit of its own laser
+    (its tire's column)."""
+
+    acceleration: Array
+    height: tuple[Array, Array]
+    position: Array
+    velocity: Array
+    deflection: tuple[Array, Array, Array]
+
+
+def _unit_responses(p: JointsPass) -> _UnitResponses:
+    """The pass's `_UnitResponses`: the moved stages' formulas differentiated where they are linear in the offset
+    (the low-pass, differences and integrals are linear; the rotation and the tire poses are the pass's), all
+    columns through two calls of the low-pass."""
+    x, R6, pz_zz = p.ctx, p.R6, p.pz_zz
+    N = R6.shape[0]
+    A = np.asarray(x.geometry.imu_axes, dtype=float)
+    # `_unit_acceleration`: f6 = [ax, ay, az] @ A, the acceleration R6 f6 (+ g): a unit of the k-th moves it by R6 A[k]
+    cols = [np.einsum("nij,j->ni", R6, A[k]) for k in range(3)]
+    if x.lasers:  # `_heights`: each laser's height of O6 moves by R6[:, 2, 0] per unit, their mean by a quarter of it
+        cols += [R6[:, 2, 0] / 4.0, -R6[:, 2, 0, None] / pz_zz[:, 4:]]  # and `_deflection`'s own tire
+    low = _lowpass_columns(cols, x)
+    acceleration = low[:, :9].reshape(N, 3, 3).transpose(1, 0, 2)
+    if not x.lasers:
+        empty = np.zeros((0, N))
+        return _UnitResponses(acceleration, (empty, empty), empty, empty, (empty, empty, empty))
+    h = low[:, 9]
+    hd = derivative(h, x.fs)
+    # `_velocity`: s = (qd[:, 2] - v_known[:, 2]) / (R6 ez6)_z, v0 = v_known + s R6 ez6
+    ez = R6 @ ISO_AXES[2]
+    v = _lowpass((hd / ez[:, 2])[:, None] * ez[:, :2], x)
+    d = np.ascontiguousarray(low[:, 10:14].T)
+    dd = derivative(d, x.fs, axis=1)
+    return _UnitResponses(acceleration, (h, hd), integrate(v, x.fs), v, (d, dd, derivative(dd, x.fs, axis=1)))
+
+
+_UNIT: PerObject[JointsPass, _UnitResponses] = PerObject(_unit_responses)
 
 # per pass, k -> its trajectory's q, qd, qdd on every k-th sample (C order): what `moved(..., every=k)` starts from,
 # kept beside the frozen pass (model.workspace), not in it
