@@ -135,8 +135,13 @@ to 13.5 on the 2-core machine, CPU s per hour): read 0.70, 0.76, 0.91 -> 0.51, 0
 unchanged: total 8.23, 10.04, 11.13 -> 8.44, 9.92, 8.53, the load's noise). What changed: a row group's columns not in
 the window cache decoded in one read_row_group, not one each (55 calls a block, ~0.1 ms of Python each), and a float64
 column no longer cast to float64. This line is the calling thread's CPU: pyarrow decodes in its own threads, which it
-leaves out; read_segment's process CPU (the same 10 segments inline, /tmp harness, 3 alternated pairs, load 10) went
-1.23, 1.30, 1.61 -> 1.12, 1.13, 1.46 s per hour. Every channel, health report, compensated channel, decimated row and
+leaves out (0.4-0.6 s per hour more). read_segment's process CPU, those threads and the page faults included (the same
+10 segments inline, /tmp harness, 9 alternated pairs, load 7 to 10), per hour: 1.23, 1.30, 1.61, 1.09, 1.29, 1.35,
+1.31, 1.19, 1.08 -> 1.12, 1.13, 1.46, 1.23, 1.30, 1.04, 1.05, 1.04, 1.15, ratio median 0.91 (0.77 to 1.13): the
+calling thread's saving is real, part of it comes back in pyarrow's threads (55 columns' buffers allocated at once:
+more page faults, 1700 a segment against 40-300 in one run; decoding in the calling thread, use_threads=False, was
+no better: 1.16-1.31 against 1.06-1.27). The whole identification of this file (the CLI, 2 threads; 8 alternated
+pairs, load 8 to 10) cannot resolve it: process CPU ratio medians 1.05 and 0.98. Every channel, health report, compensated channel, decimated row and
 result of this file and the two demo plans bit-identical (sha256 of every array); the MuJoCo car's 3005 numbers too.
 Tried and not kept: the data health's scan of the usual block (finite, no plateau at its extremes, no step that could
 make a spike) in two compiled passes instead of NumPy's ten or so: 0.90, 0.78 -> 0.75, 0.65 here (2 pairs, load 14),
