@@ -141,8 +141,9 @@ leaves out (0.4-0.6 s per hour more). read_segment's process CPU, those threads 
 calling thread's saving is real, part of it comes back in pyarrow's threads (55 columns' buffers allocated at once:
 more page faults, 1700 a segment against 40-300 in one run; decoding in the calling thread, use_threads=False, was
 no better: 1.16-1.31 against 1.06-1.27). The whole identification of this file (the CLI, 2 threads; 8 alternated
-pairs, load 8 to 10) cannot resolve it: process CPU ratio medians 1.05 and 0.98. Every channel, health report, compensated channel, decimated row and
-result of this file and the two demo plans bit-identical (sha256 of every array); the MuJoCo car's 3005 numbers too.
+pairs, load 8 to 10) cannot resolve it: process CPU ratio medians 1.05 and 0.98. Every channel, health report,
+compensated channel, decimated row and result of this file and the two demo plans bit-identical (sha256 of every
+array); the MuJoCo car's 3005 numbers too.
 Tried and not kept: the data health's scan of the usual block (finite, no plateau at its extremes, no step that could
 make a spike) in two compiled passes instead of NumPy's ten or so: 0.90, 0.78 -> 0.75, 0.65 here (2 pairs, load 14),
 but the loop took 290 us a 37.5k-sample channel where a NumPy pass takes 6-9 us (numba's min and max loops do not
