@@ -25,7 +25,7 @@ the segment's own work (cProfile on the 10 min log, `time.process_time`). The pr
 `offset_segments` segments per test: a fixed cost.
 
 Then (h-off1p, 2026-11-29): the 7 offsets that move the joints linearly (3 accelerometers, 4 height lasers) take b
-times the pass's response to a unit offset (one low-pass call per segment) instead of a staged pass each; the load
+times the pass's response to a unit offset (two low-pass calls per segment) instead of a staged pass each; the load
 offsets' unit rows come from one forward pass of the four tires; the moved residuals' W x is an einsum. On one 60 s
 segment of the 10 min log (`offset_residuals` of the 36, process_time, min of 5): 0.46 -> 0.38 s at load ~5 (the 7
 passes 0.072 -> 0.008 s, the rows of the 12 0.124 -> 0.111 s, the loads 0.036 -> 0.032 s); in 4 alternations of the

@@ -16,9 +16,12 @@ propagated shifts to 1e-6 of each source's largest (the issue's figure; measured
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
+from dynid.model.tree import ModelError
 from dynid.pipeline.config import load_config
 from dynid.pipeline.demo import simulate_tests, write_demo
 
@@ -175,6 +178,9 @@ def test_the_moved_stages_equal_the_whole_pass(noisy):
     assert {"imu_yaw_rate", "imu_roll", "imu_ax", "correvit_vx", "wft_fl_Fz"} <= set(movable)
     assert ("laser_height_rl" in movable) == lasers
     assert not any(joints.movable(q) for q in ("clearance_rl", "steer_fl", "wheel_speed_fl", "steering_wheel"))
+    # a laser not at a corner: the estimator reads none, so no staged pass (it raised from the corner lookup)
+    extra = dataclasses.replace(joints, ch={**joints.ch, "laser_height_front": channels["imu_ax"]})
+    assert not extra.movable("laser_height_front")
     for q in movable:
         b = 1e-3 * max(1.0, np.abs(channels[q]).max())
         moved = joints.moved(q, b)
@@ -241,6 +247,9 @@ def test_the_loads_rows_are_the_engines(noisy):
             dy = Y(w) - y0
             assert np.abs(dy).max() > 0.5
             assert np.abs(unit[:, :, k, c] - dy).max() <= 1e-12 * np.abs(y0).max(), (k, c)
+    for rows in ([0, 1], [1, 43]):  # row 0 wrapped to the last joint, 43 raised from deep inside
+        with pytest.raises(ModelError, match="not joints of the 42-frame tree"):
+            load_rows(setup.model, q, rows)
 
 
 def moved_file(config, test: int, channel: str, b: float, folder):

@@ -3,7 +3,8 @@
 Why our own: libm's sin and cos are a call each (10 to 15 ns), scalar, and cannot be vectorised across
 samples; these steps are about four times faster in the numeric engine and run as vector instructions in
 the generated kernels. Every generated target evaluates the same IEEE operations in the same order with no
-contraction into FMA, so they agree to the bit on any CPU, within an ulp of libm; the engine's, contracted
+contraction into FMA (the generated C where its compiler is told so: symbolic.codegen), so they agree to the bit
+on any CPU, within an ulp of libm; the engine's, contracted
 into FMA like its kernels where the CPU has it, within an ulp of them:
 
 - the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`;

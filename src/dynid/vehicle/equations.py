@@ -219,6 +219,9 @@ def load_rows(model: Model | Tree, q: Array, rows: Sequence[int] = EQUATION_ROWS
     the wrenches (their generalized force J_tᵀ w, the wrench carried to the contact point, the origin of tire
     frame t): exact, whatever the wrenches."""
     model = model if isinstance(model, Model) else Model(model)
+    bad = [r for r in rows if not 1 <= r <= model.n]
+    if bad:
+        raise ModelError(f"load_rows: rows {bad} are not joints of the {model.n}-frame tree (1 to {model.n})")
     q = np.atleast_2d(np.asarray(q, dtype=float))
     rho = _radius(model.tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
     cols = np.asarray(rows) - 1

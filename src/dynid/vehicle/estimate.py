@@ -380,8 +380,8 @@ class JointsPass:
     def movable(self, channel: str) -> bool:
         """Whether `moved` takes a zero offset of `channel` (the others: the whole pass)."""
         load = channel.startswith("wft_") and channel.split("_")[-1] in WFT_COMPONENTS and channel in self.ch
-        return channel in self.ch and (channel in (*_ATTITUDE, *_ACCELERATION, *_VELOCITY) or load
-                                       or channel.startswith("laser_height_"))
+        laser = channel.startswith("laser_height_") and channel.removeprefix("laser_height_") in CORNER_TAGS
+        return channel in self.ch and (channel in (*_ATTITUDE, *_ACCELERATION, *_VELOCITY) or load or laser)
 
     def moved(self, channel: str, b: float, every: int = 1) -> CarTrajectory | CoarseTrajectory:
         """The trajectory of these channels with `channel`'s zero moved by b (SI), equal to the whole pass's
@@ -389,8 +389,8 @@ class JointsPass:
         again on it, the others' results are reused. Its offset enters the stages as these channels plus b (the
         sensor dynamics' undoing is affine with unit gain at 0 Hz), a low-passed column as that column plus the
         low-passed constant (the filter is linear); an accelerometer's or a height laser's moves the joints
-        linearly: b times the pass's response to a unit offset (`_linear`, `_UNIT`: all seven made in one low-pass
-        call, when first asked). every > 1: its samples every `every` (`CoarseTrajectory`, the
+        linearly: b times the pass's response to a unit offset (`_linear`, `_UNIT`: all seven made in two low-pass
+        calls, when first asked). every > 1: its samples every `every` (`CoarseTrajectory`, the
         same values), without the whole-rate arrays (the rows' equations read no others)."""
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
