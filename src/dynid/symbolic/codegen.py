@@ -3,9 +3,9 @@
 C: a per-sample function and a batched loop, with no dependency but libm; we never run a compiler at run time. Every
 sine and cosine is dynamics.trig's (its C steps, libm's values past its range only), as in every other target, so
 the C functions give the other targets' numbers where the compiler does not contract into FMA (-std=c99 or
--ffp-contract=off; GCC's -std=gnu* with -march of an FMA CPU does, an ulp apart). The NumPy emitter is `numpy_code`, the disk cache of
-generated NumPy modules `cache`. Emission is deterministic: the same model gives the same text whatever
-PYTHONHASHSEED.
+-ffp-contract=off; GCC's -std=gnu* with -march of an FMA CPU does, an ulp apart). The NumPy emitter is `numpy_code`,
+the disk cache of generated NumPy modules `cache`. Emission is deterministic: the same model gives the same text
+whatever PYTHONHASHSEED.
 """
 
 from __future__ import annotations
