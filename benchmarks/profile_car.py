@@ -129,28 +129,6 @@ CPU s medians of 3; its docstring): main 1.03 x fddb8ab's throughput in CPU term
 1.12 x fddb8ab's and 1.09 x main's at the end (all three in one run, load 3 to 6); the 3 x target is far (the segments'
 stages: 8.6-12.3 CPU s per hour in this table's rounds, of the hour's 12.8-14.4 end to end: joints, compensation, read,
 decimation).
-
-Measured 2026-11-29 (issue 28, h-read2; 69ee46f then the branch in turn, --minutes 10 --cpu, 3 rounds, load averages 12
-to 13.5 on the 2-core machine, CPU s per hour): read 0.70, 0.76, 0.91 -> 0.51, 0.61, 0.53 (the other stages' code
-unchanged: total 8.23, 10.04, 11.13 -> 8.44, 9.92, 8.53, the load's noise). What changed: a row group's columns not in
-the window cache decoded in one read_row_group, not one each (55 calls a block, ~0.1 ms of Python each), and a float64
-column no longer cast to float64. This line is the calling thread's CPU: pyarrow decodes in its own threads, which it
-leaves out (0.4-0.6 s per hour more). read_segment's process CPU, those threads and the page faults included (the same
-10 segments inline, /tmp harness, 9 alternated pairs, load 7 to 10), per hour: 1.23, 1.30, 1.61, 1.09, 1.29, 1.35,
-1.31, 1.19, 1.08 -> 1.12, 1.13, 1.46, 1.23, 1.30, 1.04, 1.05, 1.04, 1.15, ratio median 0.91 (0.77 to 1.13): the
-calling thread's saving is real, part of it comes back in pyarrow's threads (55 columns' buffers allocated at once:
-more page faults, 1700 a segment against 40-300 in one run; decoding in the calling thread, use_threads=False, was
-no better: 1.16-1.31 against 1.06-1.27). The whole identification of this file (the CLI, 2 threads; 8 alternated
-pairs, load 8 to 10) cannot resolve it: process CPU ratio medians 1.05 and 0.98. Every channel, health report,
-compensated channel, decimated row and result of this file and the two demo plans bit-identical (sha256 of every
-array); the MuJoCo car's 3005 numbers too.
-Tried and not kept: the data health's scan of the usual block (finite, no plateau at its extremes, no step that could
-make a spike) in two compiled passes instead of NumPy's ten or so: 0.90, 0.78 -> 0.75, 0.65 here (2 pairs, load 14),
-but the loop took 290 us a 37.5k-sample channel where a NumPy pass takes 6-9 us (numba's min and max loops do not
-vectorize: 43 us for those two alone, fastmath or not), for a first-run compile of ~0.2 s per kernel and array kind
-(read-only Arrow buffers are another). The decimation (0.64-0.96 here): the dry-friction columns at the full rate 0.38-
-0.45 (their low-pass 0.09, decimate_parallel 0.24), W's structural zeros found 0.10, W and Y filtered 0.17, gathered and
-scattered 0.07: the filters' arithmetic, unchanged.
 """
 
 from __future__ import annotations

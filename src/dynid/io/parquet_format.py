@@ -231,8 +231,7 @@ def convert_column(pa: Any, field: Any, col: Any, tick0: int | None, label: str 
             values = ticks.astype(np.float64)
         unit = "s"
     else:
-        # a float64 column as it is: its cast, a no-op, costs a call into Arrow's compute layer per column
-        values = to_numpy(pa, col if pa.types.is_float64(col.type) else col.cast(pa.float64()), np.float64, copy)
+        values = to_numpy(pa, col.cast(pa.float64()), np.float64, copy)
     present = ~to_numpy(pa, col.is_null(), bool) if col.null_count else None
     return Column(name, unit, values if present is None else values[present], present)
 

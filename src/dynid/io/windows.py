@@ -632,10 +632,15 @@ def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int], sto
     blocks at the end of the last window, so a file keeps at most `CACHE_BLOCKS` blocks
     (its least recently used go first), and all files at most `CACHE_BYTES`.
     """
-    hit = _cache_hit(key)
-    if hit is not None:
-        return hit[0]
     file, block = key[:4], key[4]
+    with _lock:
+        hit = _cache.get(key)
+        if hit is not None:
+            _cache.move_to_end(key)
+            blocks = _recent.get(file)
+            if blocks is not None and block in blocks:
+                blocks.move_to_end(block)
+            return hit[0]
     value = make()
     if not store:
         return value
@@ -653,19 +658,6 @@ def _cached(key: tuple, make: Callable[[], Any], size: Callable[[Any], int], sto
             while _used[0] > CACHE_BYTES and _cache:
                 _drop(next(iter(_cache)))
     return value
-
-
-def _cache_hit(key: tuple) -> tuple[Any, int] | None:
-    """The cache's (value, bytes) of `key`, made the most recent, or None."""
-    file, block = key[:4], key[4]
-    with _lock:
-        hit = _cache.get(key)
-        if hit is not None:
-            _cache.move_to_end(key)
-            blocks = _recent.get(file)
-            if blocks is not None and block in blocks:
-                blocks.move_to_end(block)
-    return hit
 
 
 def _drop(key: tuple) -> None:
@@ -717,7 +709,8 @@ def _block_recording(
             cols = columns[:1]  # the row count of a table without time column
     else:
         lines = None
-        cols = _parquet_block_columns(index, block, wanted, store)
+        opened: list[Any] = []  # the ParquetFile, opened on the first block not in the cache
+        cols = [_parquet_column(index, block, n, opened, store) for n in wanted]
     label = Path(index.path)
     row0 = block.row0
     if window is not None:
@@ -978,41 +971,20 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
 
 
 def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any], store: bool) -> Column:
-    return _cached(_key(index, block.group, name), lambda: _parquet_decoded(index, block, [name], opened)[0],
-                   _columns_nbytes, store)
+    def make() -> Column:
+        pa = require("pyarrow", "Reading Parquet files")
+        if not opened:  # the file and its Arrow schema (built anew by each `schema_arrow`: 0.1 ms a column)
+            pfile = _open_parquet(index.path)
+            opened.extend((pfile, pfile.schema_arrow))
+        pfile, schema = opened
+        column = index.info("columns", {}).get(name, name)  # the file's name of the channel
+        field = schema.field(column)
+        col = parquet_format.read_columns(pfile, index.path, [column], block.group).column(0)
+        # read-only views of the decoded buffers, not copies: what the cache keeps is shared by every window anyway
+        return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path,
+                                             copy=False)
 
-
-def _parquet_block_columns(index: FileIndex, block: Block, names: list[str], store: bool) -> list[Column]:
-    """The block's columns `names` (`_parquet_column` of each), those not in the cache decoded in one read of the
-    row group: a read per column cost a window's read ~0.1 ms a column in Python, and pyarrow's threads more."""
-    hits = [_cache_hit(_key(index, block.group, n)) for n in names]
-    missing = [n for n, hit in zip(names, hits, strict=True) if hit is None]
-    fresh = dict(zip(missing, _parquet_decoded(index, block, missing, []), strict=True)) if missing else {}
-    return [hit[0] if hit is not None else
-            _cached(_key(index, block.group, n), lambda n=n: fresh[n], _columns_nbytes, store)
-            for n, hit in zip(names, hits, strict=True)]
-
-
-def _parquet_decoded(index: FileIndex, block: Block, names: list[str], opened: list[Any]) -> list[Column]:
-    """The block's columns `names` decoded from the file in one read (opened: the ParquetFile and its schema once
-    opened, shared by a caller's reads)."""
-    pa = require("pyarrow", "Reading Parquet files")
-    if not opened:  # the file and its Arrow schema (built anew by each `schema_arrow`: 0.1 ms a column)
-        pfile = _open_parquet(index.path)
-        opened.extend((pfile, pfile.schema_arrow))
-    pfile, schema = opened
-    file_names = index.info("columns", {})
-    columns = [file_names.get(n, n) for n in names]  # the file's names of the channels
-    try:
-        table = parquet_format.read_columns(pfile, index.path, columns, block.group)
-    except FileFormatError:
-        for column in columns if len(columns) > 1 else ():  # the damaged column named alone
-            parquet_format.read_columns(pfile, index.path, [column], block.group)
-        raise
-    ticks = index.info("first_ticks", {})
-    # read-only views of the decoded buffers, not copies: what the cache keeps is shared by every window anyway
-    return [parquet_format.convert_column(pa, schema.field(c), table.column(i), ticks.get(c), index.path, copy=False)
-            for i, c in enumerate(columns)]
+    return _cached(_key(index, block.group, name), make, _columns_nbytes, store)
 
 
 # MDF -----------------------------------------------------------------------------------------------------------------
