@@ -656,3 +656,19 @@ def test_identification_does_not_import_scipy_signal():
             "if m.startswith('scipy.signal')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_unchecked_filters_differences_and_integrals_are_the_checked_ones():
+    """check_finite=False skips the NaN scan alone: on finite input the same bits as the checked call (the oracle),
+    and on a NaN no error (the caller's check stands for it)."""
+    from dynid.signals import derivative, integrate, lowpass
+
+    x = np.random.default_rng(11).standard_normal((3000, 3)).cumsum(axis=0)
+    for f in (lambda a, **k: lowpass(a, FS, 4.0, **k), lambda a, **k: derivative(a, FS, **k),
+              lambda a, **k: integrate(a, FS, **k)):
+        np.testing.assert_array_equal(f(x, check_finite=False), f(x))
+        bad = x.copy()
+        bad[100, 1] = np.nan
+        with pytest.raises(SignalError, match="non-finite"):
+            f(bad)
+        assert np.isnan(f(bad, check_finite=False)[100:102, 1]).any()

@@ -282,3 +282,19 @@ def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     for a, b, tl in zip([*got, *h], [*ref, *h_ref], tol * 2, strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=tl)
     assert all(np.count_nonzero(a) for a in got)  # every joint the pass writes is written
+
+
+@pytest.mark.parametrize("channel", ["imu_yaw_rate", "wft_fl_Fz", "laser_height_rr", "correvit_vy"])
+def test_a_non_finite_channel_is_named_with_its_sample(truth, channel):
+    """The pass checks the channels it reads once, up front, and its filters skip their own scans: a NaN or an
+    infinity in any of them is an error naming that channel and its first bad sample (before, a column of a matrix
+    computed from the channels, or none for the rates integrated before the first filter)."""
+    from dynid.model import ModelError
+
+    model, *_, channels = truth
+    ch = si(channels)
+    x = ch[channel].copy()
+    x[[1234, 2000]] = [np.nan, np.inf]
+    ch[channel] = x
+    with pytest.raises(ModelError, match=rf"channel '{channel}' has a non-finite value \(nan\) at sample 1234 \(2 in"):
+        estimate_joints(ch, FS, model)

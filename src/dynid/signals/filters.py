@@ -97,7 +97,8 @@ def undo_lowpass_phase_rows(x: NDArray[np.float64], fs: float, filters: list[tup
     return sosfilt_reversed_rows([soses[f] for f in filters], x)
 
 
-def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0) -> NDArray[np.float64]:
+def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 0, check_finite: bool = True
+            ) -> NDArray[np.float64]:
     """Zero-phase Butterworth low-pass of `x` along `axis`.
 
     Parameters
@@ -115,6 +116,9 @@ def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 
         default 4 gives the magnitude of an 8th-order filter with no phase.
     axis : int
         Time axis.
+    check_finite : bool
+        False: x is not scanned for NaN or infinities (a caller that checked its inputs and filters what it
+        computed from them: the scan reads every sample); a non-finite value then spreads over its column.
 
     Returns
     -------
@@ -132,6 +136,7 @@ def lowpass(x: ArrayLike, fs: float, cutoff: float, order: int = 4, axis: int = 
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
     cutoff = _checks.cutoff_frequency(cutoff, fs)
-    _checks.finite(a, "x", ax, "filtering would spread it over the whole record; fill or cut the gap first")
+    if check_finite:
+        _checks.finite(a, "x", ax, "filtering would spread it over the whole record; fill or cut the gap first")
     sos = design_lowpass(fs, cutoff, order)
     return apply_zero_phase(sos, a, ax, "x", f"the order-{order} zero-phase low-pass")

@@ -455,6 +455,7 @@ def joints_pass(
     if missing:
         raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
     ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    _check_finite(ch, required_channels(suite=suite) + [n for n in ch if n.startswith("spin_torque_")])
     cameras = all(f"steer_{t}" in suite.names and f"camber_{t}" in suite.names for t in CORNER_TAGS)
     lasers = all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS)
     clipped = _saturated_cameras(ch, suite)
@@ -501,6 +502,21 @@ def joints_pass(
     return JointsPass(traj, x, ch, q, qd, qdd, filtered, h, has_spin, R6, w6, pz_zz, z_laser)
 
 
+def _check_finite(ch: Mapping[str, Array], names: list[str]) -> None:
+    """Each named channel finite, or an error naming the channel and its first bad sample. The stages' filters,
+    differences and integrals then skip their own scans (they read every sample: ~2 ms of a 60 s segment's pass),
+    whose errors could name only a column of a matrix computed from the channels."""
+    for n in names:
+        x = ch[n]
+        with np.errstate(over="ignore", invalid="ignore"):  # inf - inf or an overflow: the scan decides
+            if np.isfinite(np.sum(x)):  # a NaN or an infinity makes the sum non-finite
+                continue
+        bad = np.flatnonzero(~np.isfinite(x))
+        if len(bad):
+            raise ModelError(f"channel {n!r} has a non-finite value ({x[bad[0]]}) at sample {bad[0]} ({len(bad)} in "
+                             "all): the joints' filters would spread it over the segment; fill or cut the gap first")
+
+
 # the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
 # wheels' (speeds: integrated), then the steering wheel
 _CORNER_COLUMNS = np.array([j - 1 for frames in (DAMPERS, [tabulated(k)[0] for k in range(4)],
@@ -515,11 +531,12 @@ def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tup
     the differences)."""
     if _corner_kernel is None:  # without numba: the same formulas through NumPy
         xs = filtered[:, :17]
-        xd = derivative(xs, fs)
-        xdd = derivative(xd, fs)
+        xd = derivative(xs, fs, check_finite=False)
+        xdd = derivative(xd, fs, check_finite=False)
         cols = _CORNER_COLUMNS
         q[:, cols[:12]], qd[:, cols[:12]], qdd[:, cols[:12]] = xs[:, :12], xd[:, :12], xdd[:, :12]
-        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
+        spin = integrate(xs[:, 12:16], fs, check_finite=False)
+        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = spin, xs[:, 12:16], xd[:, 12:16]
         return xs[:, 16], xd[:, 16], xdd[:, 16]
     h = np.empty((3, filtered.shape[0]))
     _corner_kernel(np.ascontiguousarray(filtered), float(fs), _CORNER_COLUMNS, q.T, qd.T, qdd.T, h)
@@ -563,7 +580,7 @@ def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compile
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
-    return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
+    return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0, check_finite=False)
 
 
 def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
@@ -595,15 +612,15 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
         u = qb * sp + r * cp
         dphi = p + u * np.tan(theta)
         dtheta = qb * cp - r * sp
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
-        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
+        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, check_finite=False)).T
     dpsi = u / np.cos(pitch)
-    psi = integrate(dpsi, fs)
+    psi = integrate(dpsi, fs, check_finite=False)
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass_columns([dpsi, dtheta, dphi, psi, theta, phi], x)
-    rdf = derivative(low[:, :3], fs)
+    rdf = derivative(low[:, :3], fs, check_finite=False)
     # signed, column by column into the column-major joints (a moved pass's too): the (N, 3) products of sign and the
     # columns' strided views, assigned to three columns each, cost 2.6 against 0.9 ms per 60 s segment
     for k in range(3):
@@ -660,7 +677,7 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     cols = ([z_laser.mean(axis=1)] if height else []) + ([_unit_acceleration(ch, x, R6, w6)] if acceleration else [])
     low = _lowpass_columns(cols, x)
     if height:  # the height, its rate (`signals.filtered_derivatives`')
-        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs)
+        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs, check_finite=False)
     if acceleration:
         qdd[:, :3] = _acceleration(x, R6, low, int(height))
     return z_laser
@@ -710,7 +727,7 @@ def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
                       r_imu, out)
         return out
     w6f, a_imu0 = low[:, first:first + 3], low[:, first + 3:first + 6]
-    dw6 = derivative(w6f, x.fs, axis=0)
+    dw6 = derivative(w6f, x.fs, check_finite=False)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
 
 
@@ -761,7 +778,7 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
         low = _lowpass_columns([v0[:, :2], _deflection(pz_zz, z_laser)], x)
         v = low[:, :2]
         _deflected(x, q, qd, qdd, low[:, 2:6])
-    q[:, :2], qd[:, :2] = integrate(v, x.fs), v
+    q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
 
 
 def _deflection(pz_zz: Array, z_laser: Array) -> Array:
@@ -773,8 +790,8 @@ def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None
     """The low-passed deflections and their central differences (`signals.filtered_derivatives`') into the tire
     columns."""
     cols = [f - 1 for f in TIRES]
-    d = derivative(low, x.fs)
-    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
+    d = derivative(low, x.fs, check_finite=False)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs, check_finite=False)
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
