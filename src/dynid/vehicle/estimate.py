@@ -32,7 +32,7 @@ from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..model.workspace import PerObject
-from ..signals import border_samples, derivative, integrate, lowpass
+from ..signals import border_samples, derivative, integrate, lowpass, lowpass_columns
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_rows
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry, demo_geometry
@@ -491,10 +491,9 @@ def joints_pass(
     has_spin = all(f"spin_torque_{t}" in ch for t in CORNER_TAGS)
     names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
     names += list(_INCLINOMETERS)
-    # stacked as rows, then one transposing copy (the filter's input is (N, C) C order): writing each channel
-    # into a column of an (N, C) array touches one cache line per sample per channel (7 ms of a 60 s segment's 8)
+    # written into the filter's work array a block of samples at a time (`signals.lowpass_columns`), not stacked
     zero = np.zeros(N)
-    filtered = _lowpass(np.stack([ch.get(n, zero) for n in names]).T, x)
+    filtered = _lowpass_columns([ch.get(n, zero) for n in names], x)
     R6, w6 = _attitude(ch, x, q, qd, qdd, filtered[:, -2:])
     h = _corners(filtered, fs, q, qd, qdd)
     q, qd, qdd = tables.joints(q, qd, qdd, steering_wheel=h, measured=("steering", "camber") if cameras else (),
@@ -596,11 +595,9 @@ def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
     (zero columns after them), else their number. The filter kernel runs its channels in vectors of 8: 6 or 7
     columns go one by one (2.1-2.7 ms per 60 s segment against 1.6 ms for 8); each column's result is its own
     (the same bits), and 1 or 2 columns wait on the recursion's latency either way."""
-    cols = [a[:, None] if a.ndim == 1 else a for a in columns]
-    n = sum(a.shape[1] for a in cols)
-    if 3 <= n < 8:
-        cols.append(np.zeros((len(cols[0]), 8 - n)))
-    return _lowpass(np.concatenate(cols, axis=1), c)
+    n = sum(1 if a.ndim == 1 else a.shape[1] for a in columns)
+    return lowpass_columns(columns, c.fs, c.conditioning.cutoff, c.conditioning.order, 8 if 3 <= n < 8 else n,
+                           check_finite=False)
 
 
 def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
