@@ -679,7 +679,7 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
     latency)."""
     z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
-    cols = ([z_laser.mean(axis=1)] if height else []) + ([_unit_acceleration(ch, x, R6, w6)] if acceleration else [])
+    cols = ([z_laser.mean(axis=1)] if height else []) + (_unit_acceleration(ch, x, R6, w6) if acceleration else [])
     low = _lowpass_columns(cols, x)
     if height:  # the height, its rate (`signals.filtered_derivatives`')
         q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs, check_finite=False)
@@ -709,11 +709,12 @@ def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, p
     return z_laser
 
 
-def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
-    """The unit's rates in frame 6 and its acceleration in frame 0 (N, 6), before the low-pass (`_acceleration`)."""
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> list[Array]:
+    """The unit's rates in frame 6 and its acceleration in frame 0, (N, 3) each, before the low-pass
+    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart)."""
     A = np.asarray(x.geometry.imu_axes, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    return np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1)
+    return [w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)]
 
 
 def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
