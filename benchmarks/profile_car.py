@@ -105,6 +105,28 @@ done); the compensation's np.stack 2.4, kernel 4-8 (its block transposition, mem
 channels' advance 3 ms (load 12). The page faults: with mallopt (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 512 MB) a
 pass's sys CPU went 15.5 -> 0 ms and its faults 2855 -> 1, but its user CPU grew by as much (calloc then clears
 reused heap): no net gain, not pursued.
+Measured 2026-11-29 (issue 28, h-joints3; 69ee46f then the branch in turn, --minutes 10 --cpu, CPU s per hour, the
+2-core Xeon). The final branch, 6 alternated rounds at load averages 2 to 6: joints 3.50, 3.60, 3.25, 3.53, 3.38, 3.22
+-> 3.33, 3.20, 3.06, 3.01, 3.50, 3.33 (medians 3.44 -> 3.27); tire samples 0.47, 0.49, 0.44, 0.48, 0.46, 0.47 -> 0.39,
+0.37, 0.35, 0.35, 0.35, 0.38 (medians 0.47 -> 0.36). One process holding 69ee46f's estimate.py and tire_curves.py
+beside the branch's, alternated on one 60 s segment (thread CPU, 60 passes each, 3 runs, load 2.4-4): joints_pass
+medians 53.8, 56.1, 55.5 -> 51.2, 54.1, 53.2 ms (minima 48.5, 51.5, 50.3 -> 48.2, 47.6, 48.4); tire_samples medians
+6.45, 6.29, 6.34 -> 5.85, 5.68, 5.81 ms. What changed, each bit-identical (hashes of 6400 arrays from 264 calls of
+joints_pass, moved, tire_samples and compensated_channels over this hour with the suite's offsets and the 406 demo
+plan; car.py and mj.py: 0 of 240 and 0 of 3005 numbers differ): one finite-value scan of the 57 channels the pass
+reads, up front, naming the channel and sample, instead of each filter's, difference's and integral's own (nested
+timers: 2.25 ms of scans -> 0.85 + 0.17); a camera channel scanned for saturation only when its least or largest sample
+reaches a limit (0.78 -> 0.38 ms); the small low-pass calls' columns written into the filter's work array
+(`signals.lowpass_columns`), not concatenated then copied; tire_samples' wheels concatenated once, its joint rates
+transposed once. Tried and left: the 43-column call through lowpass_columns (the channels written into the work array
+by blocks of ~768 KB) is faster alone (12.4 -> 7.9-10.3 ms, load ~10) but not in the pass, whose page faults went 3970
+-> 6200-6700 (the stacked 13 MB array freed each pass serves the later stages' arrays from the heap): pass medians
+53.5-55.3 with the stack, 55.5-58.6 without; a fused kernel reading the channels as rows (copy, odd extension and
+forward pass in one sweep, the same bits) was no faster than copy + kernel (43 columns 4.3-6.3 against 4.0-8.3 ms); the
+tire poses' spline evaluated by NumPy at the integer samples (bit-identical to SciPy's) took 2.9-3.6 ms against SciPy's
+1.6-2.7. What is left per 60 s segment: the filter kernel ~8.5 ms, the first writes of fresh arrays (~4000 page faults,
+~15 ms of system time per pass), the tire poses' spline (SciPy's construction 2.4, evaluation 1.6-2.7 ms) and forward
+kinematics 2.5-3.3 ms, the attitude ~5 ms.
 Measured 2026-11-29 (issue 28, h-thru2; main fd92e1c then the branch in turn, --minutes 10 --cpu, 2 rounds, load
 averages 10 to 15 on the 2-core EPYC: every stage moved by up to 30 % between rounds, code unchanged or not, so the
 stage figures below are the targeted measures, not this table's). The tire curves' fit (after the segments, an hour's

@@ -656,3 +656,65 @@ def test_identification_does_not_import_scipy_signal():
             "if m.startswith('scipy.signal')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_unchecked_filters_differences_and_integrals_are_the_checked_ones():
+    """check_finite=False skips the NaN scan alone: on finite input the same bits as the checked call (the oracle),
+    and on a NaN no error (the caller's check stands for it)."""
+    from dynid.signals import derivative, integrate, lowpass
+
+    x = np.random.default_rng(11).standard_normal((3000, 3)).cumsum(axis=0)
+    for f in (lambda a, **k: lowpass(a, FS, 4.0, **k), lambda a, **k: derivative(a, FS, **k),
+              lambda a, **k: integrate(a, FS, **k)):
+        np.testing.assert_array_equal(f(x, check_finite=False), f(x))
+        bad = x.copy()
+        bad[100, 1] = np.nan
+        with pytest.raises(SignalError, match="non-finite"):
+            f(bad)
+        assert np.isnan(f(bad, check_finite=False)[100:102, 1]).any()
+
+
+def test_lowpass_of_columns_is_the_lowpass_of_their_stack():
+    """`lowpass_columns` writes the columns straight into the filter's work array, a block of samples at a time;
+    oracle: `lowpass` of the same columns stacked (np.column_stack), the same bits, for 1-D and 2-D columns, zero
+    columns after them (width), and records longer and shorter than a fill block."""
+    from dynid.signals import lowpass_columns
+
+    rng = np.random.default_rng(13)
+    for n in (200, 30011):
+        cols = [rng.standard_normal(n).cumsum(), rng.standard_normal((n, 3)).cumsum(axis=0), rng.standard_normal(n)]
+        ref = lowpass(np.column_stack(cols), FS, 4.0, order=4)
+        got = lowpass_columns(cols, FS, 4.0, order=4)
+        assert got.shape == (n, 5) and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, ref)
+        wide = lowpass_columns(cols, FS, 4.0, order=4, width=8)
+        np.testing.assert_array_equal(wide[:, :5], ref)
+        np.testing.assert_array_equal(wide[:, 5:], 0.0)
+
+
+def test_lowpass_of_columns_names_the_bad_column_and_sample():
+    from dynid.signals import lowpass_columns
+
+    x = np.ones(500)
+    y = np.ones((500, 2))
+    y[321, 1] = np.inf
+    with pytest.raises(SignalError, match=r"columns\[1\] has a non-finite value \(inf\) at sample 321, column 1"):
+        lowpass_columns([x, y], FS, 4.0)
+    with pytest.raises(SignalError, match=r"columns\[1\] has shape \(400,\)"):
+        lowpass_columns([x, np.ones(400)], FS, 4.0)
+    with pytest.raises(SignalError, match="width 2 is less than the columns' 3"):
+        lowpass_columns([x, np.ones((500, 2))], FS, 4.0, width=2)
+    with pytest.raises(SignalError, match="needs at least"):
+        lowpass_columns([np.ones(10)], FS, 4.0)
+
+
+def test_lowpass_of_columns_without_numba_is_scipys(monkeypatch):
+    """Without numba the filled work array goes through scipy's sosfiltfilt: the compiled result to round-off (the
+    recursions' order is the same; 1e-12 of the largest output bounds a few thousand steps' roundings)."""
+    from dynid.signals import _zero_phase, lowpass_columns
+
+    cols = [np.random.default_rng(14).standard_normal((3000, 2)).cumsum(axis=0), np.linspace(0.0, 1.0, 3000)]
+    ref = lowpass_columns(cols, FS, 4.0, width=4)
+    monkeypatch.setattr(_zero_phase, "HAVE_NUMBA", False)
+    got = lowpass_columns(cols, FS, 4.0, width=4)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())

@@ -282,3 +282,53 @@ def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     for a, b, tl in zip([*got, *h], [*ref, *h_ref], tol * 2, strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=tl)
     assert all(np.count_nonzero(a) for a in got)  # every joint the pass writes is written
+
+
+@pytest.mark.parametrize("channel", ["imu_yaw_rate", "wft_fl_Fz", "laser_height_rr", "correvit_vy"])
+def test_a_non_finite_channel_is_named_with_its_sample(truth, channel):
+    """The pass checks the channels it reads once, up front, and its filters skip their own scans: a NaN or an
+    infinity in any of them is an error naming that channel and its first bad sample (before, a column of a matrix
+    computed from the channels, or none for the rates integrated before the first filter)."""
+    from dynid.model import ModelError
+
+    model, *_, channels = truth
+    ch = si(channels)
+    x = ch[channel].copy()
+    x[[1234, 2000]] = [np.nan, np.inf]
+    ch[channel] = x
+    with pytest.raises(ModelError, match=rf"channel '{channel}' has a non-finite value \(nan\) at sample 1234 \(2 in"):
+        estimate_joints(ch, FS, model)
+
+
+@pytest.mark.parametrize("where", ["none", "low", "high", "both"])
+def test_the_saturated_cameras_are_found_from_their_extremes(where):
+    """`_saturated_cameras` tests a channel's least and largest sample first and scans it only when one reaches a
+    limit; oracle: the limit test of every sample (the sensor's `saturated` on the values as logged, widened by a
+    hundredth of the resolution), on channels whose extremes sit exactly on a limit, just inside it, or both."""
+    from dynid.vehicle.estimate import _saturated_cameras
+    from dynid.vehicle.sensors import CORNER_TAGS, paper_suite
+
+    suite = paper_suite()
+    rng = np.random.default_rng(12)
+    ch = {}
+    for t in CORNER_TAGS:
+        for prefix in ("steer", "camber"):
+            name = f"{prefix}_{t}"
+            c = suite[name]
+            lo, hi = c.range
+            x = rng.uniform(0.5 * lo, 0.5 * hi, 2000)
+            # exactly on the limit (a clipped sample), or a resolution inside it
+            x[17] = lo if where in ("low", "both") else lo + c.resolution
+            x[1900] = hi if where in ("high", "both") else hi - c.resolution
+            ch[name] = np.radians(x) if c.unit == "deg" else x
+    got = _saturated_cameras(ch, suite)
+    for name, x in ch.items():
+        c = suite[name]
+        scale = np.pi / 180.0 if c.unit == "deg" else 1.0
+        tol = 0.01 * c.resolution
+        ref = c.saturated(x / scale + np.where(x > 0, tol, -tol))
+        if ref.any():
+            np.testing.assert_array_equal(got[name], ref)
+        else:
+            assert name not in got
+    assert (len(got) == 0) == (where == "none")

@@ -5,7 +5,8 @@ otherwise, every other index is an independent channel. Rates and cut-offs in Hz
 everything else in SI. Bad input raises `SignalError` (a `ValueError`) naming the
 sample, column or stage at fault.
 
-- `lowpass`: zero-phase (forward-backward) Butterworth low-pass.
+- `lowpass`: zero-phase (forward-backward) Butterworth low-pass; `lowpass_columns`: of
+  separate channels side by side, without stacking them first.
 - `derivative`, `filtered_derivatives`: central differences, and the paper's
   band-pass derivative (zero-phase low-pass, then central differences).
 - `integrate`: cumulative trapezoidal rule, no phase shift.
@@ -19,7 +20,7 @@ from .borders import border_samples, trim
 from .decimation import decimate_parallel
 from .derivatives import derivative, filtered_derivatives
 from .errors import SignalError
-from .filters import lowpass
+from .filters import lowpass, lowpass_columns
 from .integration import integrate
 from .resampling import common_clock, resample
 
@@ -32,6 +33,7 @@ __all__ = [
     "filtered_derivatives",
     "integrate",
     "lowpass",
+    "lowpass_columns",
     "resample",
     "trim",
 ]

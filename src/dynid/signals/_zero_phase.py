@@ -166,6 +166,41 @@ def sos_filtfilt(sos: NDArray[np.float64], a: NDArray[np.float64], axis: int, pa
     return np.moveaxis(ext[pad : pad + n].reshape(moved.shape), 0, axis)
 
 
+def sos_filtfilt_columns(sos: NDArray[np.float64], columns: list[NDArray[np.float64]], pad: int, width: int
+                         ) -> NDArray[np.float64]:
+    """`sos_filtfilt(sos, x, 0, pad)` of x (n, width) = the columns side by side ((n,) or (n, k) float64 each) then
+    zero columns, (n, width) C order, without x: the columns are written straight into the work array's middle
+    rows, a block of samples of every column at a time. A block of the C-order work array stays in cache while
+    its rows fill; a whole column written at once touches a cache line per sample, and stacking the columns first
+    sweeps memory twice (a 60 s segment's 43 channels: 5.6-6.3 -> 3.4-3.8 ms with the work array's allocation)."""
+    n = len(columns[0])
+    ext = np.empty((n + 2 * pad, width))
+    mid = ext[pad : pad + n]
+    step = max(1, FILL_BYTES // (8 * width))
+    for lo in range(0, n, step):
+        hi = min(n, lo + step)
+        j = 0
+        for a in columns:
+            if a.ndim == 1:
+                mid[lo:hi, j] = a[lo:hi]
+                j += 1
+            else:
+                mid[lo:hi, j : j + a.shape[1]] = a[lo:hi]
+                j += a.shape[1]
+    mid[:, j:] = 0.0
+    if not HAVE_NUMBA:
+        from scipy.signal import sosfiltfilt  # optional: scipy.signal, only without numba (48 MB, issue 25)
+
+        return sosfiltfilt(sos, mid, axis=0, padtype="odd", padlen=pad)
+    sos = np.ascontiguousarray(sos / sos[:, 3:4])  # a0 = 1, as scipy normalises
+    _filtfilt_columns(sos, steady_state(sos), pad, ext)
+    return mid
+
+
+FILL_BYTES = 768 * 1024  # of the work array per block of `sos_filtfilt_columns`' fill (43 columns: 2286 rows; 512 to
+# 8192 rows measured, 2048 and 4096 the fastest, 512 1.3 x and whole columns 1.9 x slower)
+
+
 def sosfilt_reversed(sos: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
     """Every column of x (n, C) float64 through `sos` once, backwards in time, from its last sample's steady state:
     `scipy.signal.sosfilt(sos, x[::-1], axis=0, zi=steady_state(sos)[..., None] * x[-1])[0][::-1]`, returned

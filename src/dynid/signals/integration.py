@@ -16,7 +16,8 @@ from . import _checks
 from .errors import SignalError
 
 
-def integrate(xd: ArrayLike, fs: float, x0: ArrayLike = 0.0, axis: int = 0) -> NDArray[np.float64]:
+def integrate(xd: ArrayLike, fs: float, x0: ArrayLike = 0.0, axis: int = 0, check_finite: bool = True
+              ) -> NDArray[np.float64]:
     """Running integral of uniformly sampled `xd`, same length as the input.
 
     x[0] = x0 and x[k] = x0 + h * (xd[0]/2 + xd[1] + ... + xd[k-1] + xd[k]/2), h = 1/fs.
@@ -29,6 +30,7 @@ def integrate(xd: ArrayLike, fs: float, x0: ArrayLike = 0.0, axis: int = 0) -> N
     x0 : value at the first sample, unit u: a scalar, or an array of the shape of one
         sample (the shape of `xd` without `axis`), or anything broadcasting to it.
     axis : time axis.
+    check_finite : False: xd is not scanned for NaN or infinities (`signals.lowpass`'s); x0 always is.
 
     Returns
     -------
@@ -39,7 +41,8 @@ def integrate(xd: ArrayLike, fs: float, x0: ArrayLike = 0.0, axis: int = 0) -> N
     fs = _checks.rate(fs)
     if a.shape[ax] < 1:
         raise SignalError("xd has no samples along the time axis")
-    _checks.finite(a, "xd", ax)
+    if check_finite:
+        _checks.finite(a, "xd", ax)
     start = _checks.as_float(x0, "x0", min_ndim=0)
     sample_shape = a.shape[:ax] + a.shape[ax + 1 :]
     try:

@@ -32,7 +32,7 @@ from ..dynamics import Model
 from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..model.workspace import PerObject
-from ..signals import border_samples, derivative, integrate, lowpass
+from ..signals import border_samples, derivative, integrate, lowpass, lowpass_columns
 from ..signals.filters import undo_lowpass_phase, undo_lowpass_phase_rows
 from .dynamics import ChannelDynamics, table1_dynamics
 from .geometry import CarGeometry, demo_geometry
@@ -175,7 +175,15 @@ def _saturated_cameras(ch: Mapping[str, Array], suite: SensorSuite) -> dict[str,
                 continue
             scale = np.pi / 180.0 if c.unit == "deg" else 1.0
             tol = 0.01 * c.resolution
-            mask = c.saturated(ch[name] / scale + np.where(ch[name] > 0, tol, -tol))
+            x = ch[name]
+            if not len(x):
+                continue
+            # the test's value rises with x (each rounding is monotone): x's least and largest reach a limit if any
+            # sample does (a camera saturates on spirals alone: the whole channel's test is then made)
+            ends = np.array([x.min(), x.max()])
+            if not c.saturated(ends / scale + np.where(ends > 0, tol, -tol)).any():
+                continue
+            mask = c.saturated(x / scale + np.where(x > 0, tol, -tol))
             if mask.any():
                 out[name] = mask
     return out
@@ -524,6 +532,7 @@ def joints_pass(
     if missing:
         raise ModelError(f"the car estimator needs the channels {missing}; got {sorted(channels)}")
     ch = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+    _check_finite(ch, required_channels(suite=suite) + [n for n in ch if n.startswith("spin_torque_")])
     cameras = all(f"steer_{t}" in suite.names and f"camber_{t}" in suite.names for t in CORNER_TAGS)
     lasers = all(f"laser_height_{t}" in suite.names for t in CORNER_TAGS)
     clipped = _saturated_cameras(ch, suite)
@@ -552,7 +561,10 @@ def joints_pass(
     names += [f"spin_torque_{t}" for t in CORNER_TAGS] if has_spin else []
     names += list(_INCLINOMETERS)
     # stacked as rows, then one transposing copy (the filter's input is (N, C) C order): writing each channel
-    # into a column of an (N, C) array touches one cache line per sample per channel (7 ms of a 60 s segment's 8)
+    # into a column of an (N, C) array touches one cache line per sample per channel (7 ms of a 60 s segment's 8).
+    # `signals.lowpass_columns` (the channels written into the filter's work array by blocks) is faster alone
+    # (12.4 -> 7.9-10.3 ms) but not in the pass: the stacked array freed here serves the later stages' arrays
+    # from the heap (without it 3970 -> 6200-6700 page faults per pass, its median 53.5-55.3 -> 55.5-58.6 ms)
     zero = np.zeros(N)
     filtered = _lowpass(np.stack([ch.get(n, zero) for n in names]).T, x)
     R6, w6 = _attitude(ch, x, q, qd, qdd, filtered[:, -2:])
@@ -570,6 +582,21 @@ def joints_pass(
     return JointsPass(traj, x, ch, q, qd, qdd, filtered, h, has_spin, R6, w6, pz_zz, z_laser)
 
 
+def _check_finite(ch: Mapping[str, Array], names: list[str]) -> None:
+    """Each named channel finite, or an error naming the channel and its first bad sample. The stages' filters,
+    differences and integrals then skip their own scans (they read every sample: ~2 ms of a 60 s segment's pass),
+    whose errors could name only a column of a matrix computed from the channels."""
+    for n in names:
+        x = ch[n]
+        with np.errstate(over="ignore", invalid="ignore"):  # inf - inf or an overflow: the scan decides
+            if np.isfinite(np.sum(x)):  # a NaN or an infinity makes the sum non-finite
+                continue
+        bad = np.flatnonzero(~np.isfinite(x))
+        if len(bad):
+            raise ModelError(f"channel {n!r} has a non-finite value ({x[bad[0]]}) at sample {bad[0]} ({len(bad)} in "
+                             "all): the joints' filters would spread it over the segment; fill or cut the gap first")
+
+
 # the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
 # wheels' (speeds: integrated), then the steering wheel
 _CORNER_COLUMNS = np.array([j - 1 for frames in (DAMPERS, [tabulated(k)[0] for k in range(4)],
@@ -584,11 +611,12 @@ def _corners(filtered: Array, fs: float, q: Array, qd: Array, qdd: Array) -> tup
     the differences)."""
     if _corner_kernel is None:  # without numba: the same formulas through NumPy
         xs = filtered[:, :17]
-        xd = derivative(xs, fs)
-        xdd = derivative(xd, fs)
+        xd = derivative(xs, fs, check_finite=False)
+        xdd = derivative(xd, fs, check_finite=False)
         cols = _CORNER_COLUMNS
         q[:, cols[:12]], qd[:, cols[:12]], qdd[:, cols[:12]] = xs[:, :12], xd[:, :12], xdd[:, :12]
-        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = integrate(xs[:, 12:16], fs), xs[:, 12:16], xd[:, 12:16]
+        spin = integrate(xs[:, 12:16], fs, check_finite=False)
+        q[:, cols[12:]], qd[:, cols[12:]], qdd[:, cols[12:]] = spin, xs[:, 12:16], xd[:, 12:16]
         return xs[:, 16], xd[:, 16], xdd[:, 16]
     h = np.empty((3, filtered.shape[0]))
     _corner_kernel(np.ascontiguousarray(filtered), float(fs), _CORNER_COLUMNS, q.T, qd.T, qdd.T, h)
@@ -632,7 +660,7 @@ def _corners_compiled(x, fs, cols, q, qd, qdd, h):  # pragma: no cover - compile
 
 
 def _lowpass(x: Array, c: _Context) -> Array:
-    return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0)
+    return lowpass(x, c.fs, c.conditioning.cutoff, order=c.conditioning.order, axis=0, check_finite=False)
 
 
 def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
@@ -640,11 +668,9 @@ def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
     (zero columns after them), else their number. The filter kernel runs its channels in vectors of 8: 6 or 7
     columns go one by one (2.1-2.7 ms per 60 s segment against 1.6 ms for 8); each column's result is its own
     (the same bits), and 1 or 2 columns wait on the recursion's latency either way."""
-    cols = [a[:, None] if a.ndim == 1 else a for a in columns]
-    n = sum(a.shape[1] for a in cols)
-    if 3 <= n < 8:
-        cols.append(np.zeros((len(cols[0]), 8 - n)))
-    return _lowpass(np.concatenate(cols, axis=1), c)
+    n = sum(1 if a.ndim == 1 else a.shape[1] for a in columns)
+    return lowpass_columns(columns, c.fs, c.conditioning.cutoff, c.conditioning.order, 8 if 3 <= n < 8 else n,
+                           check_finite=False)
 
 
 def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
@@ -664,15 +690,15 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
         u = qb * sp + r * cp
         dphi = p + u * np.tan(theta)
         dtheta = qb * cp - r * sp
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs)
+        integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
-        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, axis=0)).T
+        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, check_finite=False)).T
     dpsi = u / np.cos(pitch)
-    psi = integrate(dpsi, fs)
+    psi = integrate(dpsi, fs, check_finite=False)
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass_columns([dpsi, dtheta, dphi, psi, theta, phi], x)
-    rdf = derivative(low[:, :3], fs)
+    rdf = derivative(low[:, :3], fs, check_finite=False)
     # signed, column by column into the column-major joints (a moved pass's too): the (N, 3) products of sign and the
     # columns' strided views, assigned to three columns each, cost 2.6 against 0.9 ms per 60 s segment
     for k in range(3):
@@ -726,10 +752,10 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
     latency)."""
     z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
-    cols = ([z_laser.mean(axis=1)] if height else []) + ([_unit_acceleration(ch, x, R6, w6)] if acceleration else [])
+    cols = ([z_laser.mean(axis=1)] if height else []) + (_unit_acceleration(ch, x, R6, w6) if acceleration else [])
     low = _lowpass_columns(cols, x)
     if height:  # the height, its rate (`signals.filtered_derivatives`')
-        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs)
+        q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs, check_finite=False)
     if acceleration:
         qdd[:, :3] = _acceleration(x, R6, low, int(height))
     return z_laser
@@ -756,11 +782,12 @@ def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, p
     return z_laser
 
 
-def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> Array:
-    """The unit's rates in frame 6 and its acceleration in frame 0 (N, 6), before the low-pass (`_acceleration`)."""
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> list[Array]:
+    """The unit's rates in frame 6 and its acceleration in frame 0, (N, 3) each, before the low-pass
+    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart)."""
     A = np.asarray(x.geometry.imu_axes, dtype=float)
     f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    return np.concatenate([w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)], axis=1)
+    return [w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)]
 
 
 def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
@@ -779,7 +806,7 @@ def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
                       r_imu, out)
         return out
     w6f, a_imu0 = low[:, first:first + 3], low[:, first + 3:first + 6]
-    dw6 = derivative(w6f, x.fs, axis=0)
+    dw6 = derivative(w6f, x.fs, check_finite=False)
     return a_imu0 - np.einsum("nij,nj->ni", R6, np.cross(dw6, r_imu) + np.cross(w6f, np.cross(w6f, r_imu)))
 
 
@@ -830,7 +857,7 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
         low = _lowpass_columns([v0[:, :2], _deflection(pz_zz, z_laser)], x)
         v = low[:, :2]
         _deflected(x, q, qd, qdd, low[:, 2:6])
-    q[:, :2], qd[:, :2] = integrate(v, x.fs), v
+    q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
 
 
 def _deflection(pz_zz: Array, z_laser: Array) -> Array:
@@ -842,8 +869,8 @@ def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None
     """The low-passed deflections and their central differences (`signals.filtered_derivatives`') into the tire
     columns."""
     cols = [f - 1 for f in TIRES]
-    d = derivative(low, x.fs)
-    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs)
+    d = derivative(low, x.fs, check_finite=False)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs, check_finite=False)
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,

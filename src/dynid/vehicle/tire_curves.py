@@ -145,11 +145,12 @@ def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, s
     tires = [tire(k) for k in range(4)]
     # one pass for the tire frames and the wheel centres: each frame's pose is the same whichever others are asked
     st = forward_kinematics(model.tree, joint_array(q, model.tree, "q")[0], frames=[*tires, *WHEELS])
+    qd_rows = np.asfortranarray(qd)  # point_velocity's joints-first copy made once here, not once per wheel
     out = []
     for k, (w, f) in enumerate(zip(WHEELS, tires, strict=True)):
         R = np.stack([np.asarray(np.broadcast_to(c, (3, n))) for c in st.Rc[f]], axis=1)  # (3, 3, n) columns
         R = np.moveaxis(R, -1, 0)  # (n, 3, 3): 0R_tire
-        v, _ = point_velocity(model.tree, q, qd, w, state=st)  # wheel centre, frame 0 (the spin leaves it unmoved)
+        v, _ = point_velocity(model.tree, q, qd_rows, w, state=st)  # wheel centre, frame 0 (the spin leaves it unmoved)
         y_wheel = R[:, :, 1]
         x_w = np.cross(y_wheel, [0.0, 0.0, 1.0])  # the wheel plane's line on the road
         x_w /= np.linalg.norm(x_w, axis=1)[:, None]
@@ -158,14 +159,11 @@ def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, s
         vx, vy = np.einsum("ni,ni->n", v, x_w), np.einsum("ni,ni->n", v, y_w)
         den = np.maximum(np.abs(vx), 1.0)
         omega = qd[:, w - 1]
-        out.append(TireSamples(
-            np.full(n, test, dtype=object), np.full(n, k), t0 + np.asarray(traj.t)[::step],
-            np.arctan2(vy, den), (vx - wheel_radius * omega) / den, np.arcsin(np.clip(y_wheel[:, 2], -1, 1)), vx,
-            np.einsum("ni,ni->n", force, x_w), np.einsum("ni,ni->n", force, y_w), force[:, 2]))
-    s = out[0]
-    for o in out[1:]:
-        s = s.merge(o)
-    return s
+        out.append((np.full(n, k), t0 + np.asarray(traj.t)[::step],
+                    np.arctan2(vy, den), (vx - wheel_radius * omega) / den, np.arcsin(np.clip(y_wheel[:, 2], -1, 1)),
+                    vx, np.einsum("ni,ni->n", force, x_w), np.einsum("ni,ni->n", force, y_w), force[:, 2]))
+    # the four wheels' samples in turn (`TireSamples.merge`'s order), each field concatenated once
+    return TireSamples(np.full(4 * n, test, dtype=object), *(np.concatenate(f) for f in zip(*out, strict=True)))
 
 
 def empty_samples() -> TireSamples:
