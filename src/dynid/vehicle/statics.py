@@ -8,6 +8,10 @@ z, pitch, roll, damper and tire joints equals zero (x, y and yaw hold by symmetr
 vertical forces) and each contact point lies on the ground z0 = 0. The tabulated joints
 follow the kinematic tables. Solved by Newton's method (scipy `root`) with the engine's
 inverse dynamics, so it holds for any geometry and parameter set.
+
+Engine: NumPy's (REST_ENGINE), whatever the default. A solve is ~60 single-sample inverse dynamics: ~0.2 s
+more than the compiled engine's when that is cached, where compiling it cost a first `dynid demo` 3.4 s of CPU
+(the rest state was its only use there). Both engines agree to rounding; the solve's tolerance is far coarser.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from .tables import default_tables
 from .template import CORNERS, DAMPERS, TIRES, WHEELS
 
 KN = 1000.0
+REST_ENGINE = "numpy"  # module doc: no compile for a few single samples
 
 
 @dataclass(frozen=True)
@@ -120,7 +125,7 @@ def _solve_rest(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) ->
     def residual(x: np.ndarray) -> np.ndarray:
         q, F = state(x)
         ws = [Wrench(t, np.array([0.0, 0.0, f, 0.0, 0.0, 0.0]), frame=0) for t, f in zip(TIRES, F, strict=True)]
-        tau = model.inverse_dynamics(q, zero, zero, wrenches=ws)[np.array(rows) - 1] / KN
+        tau = model.inverse_dynamics(q, zero, zero, wrenches=ws, backend=REST_ENGINE)[np.array(rows) - 1] / KN
         z = model.transforms(q)[np.array(TIRES), 2, 3]
         return np.concatenate([tau, z * 1e3])
 
@@ -151,6 +156,6 @@ def design_preloads(tree: Tree, tables=None) -> np.ndarray:
     rest = rest_state(tree, tables, fix_dampers=True)
     zero = np.zeros(tree.n)
     ws = [Wrench(t, np.array([0.0, 0.0, f, 0.0, 0.0, 0.0]), frame=0) for t, f in zip(TIRES, rest.loads, strict=True)]
-    tau = Model(tree).inverse_dynamics(rest.q, zero, zero, wrenches=ws)[np.array(DAMPERS) - 1]
+    tau = Model(tree).inverse_dynamics(rest.q, zero, zero, wrenches=ws, backend=REST_ENGINE)[np.array(DAMPERS) - 1]
     off = np.array([tree.values.get(f"OFF{d}", 0.0) for d in DAMPERS])
     return off - tau
