@@ -112,31 +112,51 @@ def _solve_rest(tree: Tree, tables, fix_dampers: bool, steering_wheel: float) ->
     nd = len(damp)
     zero = np.zeros(tree.n)
 
-    def state(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        q = zero.copy()
-        q[[2, 4, 5]] = x[:3]
+    def states(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The postures (m, n) and loads (m, 4) N of m points X (m, k) of the unknowns."""
+        q = np.zeros((len(X), tree.n))
+        q[:, [2, 4, 5]] = X[:, :3]
         for i, d in enumerate(damp):
-            q[d - 1] = x[3 + i]
+            q[:, d - 1] = X[:, 3 + i]
         for i, t in enumerate(TIRES):
-            q[t - 1] = x[3 + nd + i]
-        q = tables.joints(q[None], zero[None], zero[None], steering_wheel)[0][0]
-        return q, x[3 + nd + 4:] * KN
+            q[:, t - 1] = X[:, 3 + nd + i]
+        zeros = np.zeros_like(q)
+        return tables.joints(q, zeros, zeros, steering_wheel)[0], X[:, 3 + nd + 4:] * KN
+
+    def residuals(X: np.ndarray) -> np.ndarray:
+        """The equations at m points X (m, k), in one batched call of the engine (m, k)."""
+        q, F = states(X)
+        up = np.zeros((len(X), 6))
+        ws = []
+        for i, t in enumerate(TIRES):
+            up[:, 2] = F[:, i]
+            ws.append(Wrench(t, up.copy(), frame=0))
+        zeros = np.zeros_like(q)
+        tau = model.inverse_dynamics(q, zeros, zeros, wrenches=ws, backend=REST_ENGINE)[:, np.array(rows) - 1] / KN
+        z = model.transforms(q)[:, np.array(TIRES), 2, 3]
+        return np.concatenate([tau, z * 1e3], axis=1)
 
     def residual(x: np.ndarray) -> np.ndarray:
-        q, F = state(x)
-        ws = [Wrench(t, np.array([0.0, 0.0, f, 0.0, 0.0, 0.0]), frame=0) for t, f in zip(TIRES, F, strict=True)]
-        tau = model.inverse_dynamics(q, zero, zero, wrenches=ws, backend=REST_ENGINE)[np.array(rows) - 1] / KN
-        z = model.transforms(q)[np.array(TIRES), 2, 3]
-        return np.concatenate([tau, z * 1e3])
+        return residuals(x[None])[0]
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        """Forward differences with MINPACK's steps (sqrt(eps) |x_j|), all columns in one batched call: the engine's
+        cost per call is mostly per call, not per sample."""
+        h = np.sqrt(np.finfo(float).eps) * np.abs(x)
+        h[h == 0.0] = np.sqrt(np.finfo(float).eps)
+        X = np.vstack([x, x + np.diag(h)])
+        h = np.diag(X[1:]) - x  # the steps taken, exactly
+        f = residuals(X)
+        return (f[1:] - f[0]).T / h
 
     q0 = zero.copy()
     radius = float(np.linalg.norm(model.transforms(q0)[TIRES[0], :3, 3] - model.transforms(q0)[WHEELS[0], :3, 3]))
     defl = weight / 4 / np.mean(kts)
     x0 = np.concatenate([[radius - defl, 0.0, 0.0], np.zeros(nd), np.full(4, defl), np.full(4, weight / 4 / KN)])
-    sol = root(residual, x0, method="hybr", options={"xtol": 1e-13})
+    sol = root(residual, x0, jac=jacobian, method="hybr", options={"xtol": 1e-13})
     if not sol.success or np.abs(residual(sol.x)).max() > 1e-7:
         raise GeometryError(f"rest state of {tree.name!r}: no static equilibrium found ({sol.message})")
-    q, F = state(sol.x)
+    q, F = (a[0] for a in states(sol.x[None]))
     floating = [i for i in range(4) if F[i] <= 0.0]
     if floating:
         i = floating[0]
