@@ -69,15 +69,10 @@ def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     assert not car._MEANWHILE and not log
 
 
-WARM_THEN_IDENTIFY = textwrap.dedent("""
-    import sys
+# a script's lines that list the process's compiles from then on in `compiled` (Numba's compile events)
+LISTEN = textwrap.dedent("""
     from numba.core import event
 
-    from dynid.pipeline.demo import TESTS, demo_config
-    from dynid.pipeline.first_run import warm_identification
-    from dynid.pipeline.run import identify
-
-    warm_identification("peugeot406", demo_config, [t[1] for t in TESTS])
     compiled = []
 
     class Listener(event.Listener):
@@ -89,6 +84,17 @@ WARM_THEN_IDENTIFY = textwrap.dedent("""
             pass
 
     event.register("numba:compile", Listener())
+""")
+
+WARM_THEN_IDENTIFY = textwrap.dedent("""
+    import sys
+
+    from dynid.pipeline.demo import TESTS, demo_config
+    from dynid.pipeline.first_run import warm_identification
+    from dynid.pipeline.run import identify
+
+    warm_identification("peugeot406", demo_config, [t[1] for t in TESTS])
+""") + LISTEN + textwrap.dedent("""
     identify(sys.argv[1])
     print("COMPILED", sorted({c for c in compiled if c.startswith("dynid")}))
 """)
@@ -129,24 +135,11 @@ def test_the_rest_state_on_the_reference_engine_matches_the_compiled_engines(mon
     assert np.abs(preloads - statics.design_preloads(tree)).max() < 1e-9 * np.abs(preloads).max()
 
 
-COMPILES_OF_A_SIMULATED_CAR = textwrap.dedent("""
-    from numba.core import event
-
-    compiled = []
-
-    class Listener(event.Listener):
-        def on_start(self, ev):
-            fn = getattr(ev.data.get("dispatcher"), "py_func", None)
-            compiled.append(f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', '?')}")
-
-        def on_end(self, ev):
-            pass
-
-    event.register("numba:compile", Listener())
+COMPILES_OF_A_SIMULATED_CAR = LISTEN + textwrap.dedent("""
     from dynid.vehicle.sim import car
 
     car.prebuild_kernel = lambda: False  # the kernel compiles here, listened to
-    sim = car.CarSimulator()
+    car.CarSimulator()
     print("COMPILED", sorted({c for c in compiled if c.startswith("dynid.")}))
 """)
 
