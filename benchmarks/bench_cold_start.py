@@ -19,6 +19,14 @@ processes it waited for: the kernel's build), which a loaded machine stretches l
 simulator's kernel compiles in a forked process (vehicle.sim.car.prebuild_kernel): what that buys
 depends on a second core being free, so read the ratio of a quiet machine. Writes
 benchmarks/results/cold_start.json.
+Measured 2026-11-29 (`--commands demo`, 69ee46f and branch h-cold2 alternated, 3 rounds, 2-core Xeon loaded 11-15x,
+so read the CPU): 69ee46f cold 36.2, 32.6, 28.1 s CPU, warm 11.7, 10.7, 10.1 (ratio 3.09, 3.05, 2.79); h-cold2 (the
+rest state on the NumPy engine: no engine compile) cold 27.2, 26.8, 25.2, warm 12.0, 10.5, 9.9 (2.27, 2.56, 2.55).
+Wall (load-bound): 69ee46f cold 253, 156, 87 s, warm 59, 32, 28; h-cold2 cold 86, 81, 64, warm 38, 33, 25. Warm alone,
+5 pairs alternated (load 8-11): CPU median 10.16 s (branch) against 10.31 s, ratio 1.05 (0.86-1.12): unchanged.
+What is left compiles what the demo runs (profile_cold_start.py): 1.3 x needs compiled code that a first run loads
+instead of compiling, which Numba's cache cannot ship (keyed by the CPU's name and features and the source
+files' stamps).
 """
 
 from __future__ import annotations
