@@ -25,8 +25,10 @@ rest state on the NumPy engine: no engine compile) cold 27.2, 26.8, 25.2, warm 1
 Wall (load-bound): 69ee46f cold 253, 156, 87 s, warm 59, 32, 28; h-cold2 cold 86, 81, 64, warm 38, 33, 25. Warm alone,
 5 pairs alternated (load 8-11): CPU median 10.16 s (branch) against 10.31 s, ratio 1.05 (0.86-1.12): unchanged.
 What is left compiles what the demo runs (profile_cold_start.py): 1.3 x needs compiled code that a first run loads
-instead of compiling, which Numba's cache cannot ship (keyed by the CPU's name and features and the source
-files' stamps).
+instead of compiling, which Numba's cache cannot ship: its entries are keyed by the CPU's name and feature flags
+(numba 0.68, measured on a one-function module: an entry written here misses under NUMBA_CPU_NAME=skylake and
+compiles again, cleanly; a new mtime alone still hits, the source stamp being a hash of the file), so a shipped cache
+serves only machines of the builder's CPU, and a generic-CPU one would make every run's code slower.
 """
 
 from __future__ import annotations
