@@ -19,6 +19,19 @@ processes it waited for: the kernel's build), which a loaded machine stretches l
 simulator's kernel compiles in a forked process (vehicle.sim.car.prebuild_kernel): what that buys
 depends on a second core being free, so read the ratio of a quiet machine. Writes
 benchmarks/results/cold_start.json.
+Measured 2026-11-29 (`--commands demo`, 69ee46f and branch h-cold2 alternated, 3 rounds, 2-core Xeon loaded 11-15x,
+so read the CPU): 69ee46f cold 36.2, 32.6, 28.1 s CPU, warm 11.7, 10.7, 10.1 (ratio 3.09, 3.05, 2.79); h-cold2 (the
+rest state on the NumPy engine: no engine compile) cold 27.2, 26.8, 25.2, warm 12.0, 10.5, 9.9 (2.27, 2.56, 2.55).
+Wall (load-bound): 69ee46f cold 253, 156, 87 s, warm 59, 32, 28; h-cold2 cold 86, 81, 64, warm 38, 33, 25. Warm alone,
+5 pairs alternated (load 8-11): CPU median 10.16 s (branch) against 10.31 s, ratio 1.05 (0.86-1.12). At load ~3,
+one round: 69ee46f cold 25.0 s wall, 22.8 s CPU, warm 8.8, 8.5 (2.85, 2.70); h-cold2 cold 20.3, 20.2, warm 9.2, 9.1
+(2.20, 2.23); warm alone, 5 pairs: CPU 8.96 against 8.70 s, ratio 1.02 (0.84-1.04), wall 1.006 (0.85-1.19): the
+NumPy rest state's ~0.1 s per solve (two in a demo) is at the edge of what this resolves.
+What is left compiles what the demo runs (profile_cold_start.py): 1.3 x needs compiled code that a first run loads
+instead of compiling, which Numba's cache cannot ship: its entries are keyed by the CPU's name and feature flags
+(numba 0.68, measured on a one-function module: an entry written here misses under NUMBA_CPU_NAME=skylake and
+compiles again, cleanly; a new mtime alone still hits, the source stamp being a hash of the file), so a shipped cache
+serves only machines of the builder's CPU, and a generic-CPU one would make every run's code slower.
 """
 
 from __future__ import annotations

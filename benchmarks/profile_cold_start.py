@@ -31,6 +31,12 @@ Then (branch h-cold3): the kernel's helpers without entry points (numba_backend.
 and a trivial compile first in the kernel's build process (car._start_numba): --phases 14.4 s of compiles,
 entry points 0.46 -> 0.16 s, LLVM 6.1 -> 5.5 s; the build child's CPU 7.3 -> 6.5 s (median of 4, alternated);
 what --in-process cannot show (its kernel is not a process's first compile): see car._start_numba.
+Then (branch h-cold2): the rest state and the simulator's yaw inertia on the NumPy engine (vehicle.statics.
+REST_ENGINE: ~60 single samples were the compiled engine's only use in a demo): `demo --in-process --phases`, 69ee46f
+then the branch in one run (load ~13, which inflates both): 35 -> 29 functions compiled (`_idm_kernel`, `_sincos`,
+`_mul`, `_mul_t`, `_cross`, `_sign` no longer; NumPy's allocations 19 -> 13 times), compiles 21.0 -> 14.9 s of CPU,
+the run 34.1 -> 27.4 s. What is left is what the demo runs: the kernel, the kinematic tables, the filters, the
+corners' estimator, the block kernel; `_data_address` (3 signatures, ~0.2 s) the one multiple compile.
 """
 
 from __future__ import annotations

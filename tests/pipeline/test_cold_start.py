@@ -2,9 +2,11 @@
 (pipeline.first_run through vehicle.sim.car.while_kernel_builds), the rest state solved once per process.
 
 Oracles: the identification's own compile events in a fresh process (after the warm-up, identifying the demo's
-files compiles nothing of dynid's); the rest state's own Newton solve (`_solve_rest`, uncached).
+files compiles nothing of dynid's); the rest state's own Newton solve (`_solve_rest`, uncached); the rest state
+solved with the compiled engine (the code before statics.REST_ENGINE); a warm run's results against a cold one's.
 """
 
+import json
 import os
 import subprocess
 import sys
@@ -67,15 +69,10 @@ def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     assert not car._MEANWHILE and not log
 
 
-WARM_THEN_IDENTIFY = textwrap.dedent("""
-    import sys
+# a script's lines that list the process's compiles from then on in `compiled` (Numba's compile events)
+LISTEN = textwrap.dedent("""
     from numba.core import event
 
-    from dynid.pipeline.demo import TESTS, demo_config
-    from dynid.pipeline.first_run import warm_identification
-    from dynid.pipeline.run import identify
-
-    warm_identification("peugeot406", demo_config, [t[1] for t in TESTS])
     compiled = []
 
     class Listener(event.Listener):
@@ -87,6 +84,17 @@ WARM_THEN_IDENTIFY = textwrap.dedent("""
             pass
 
     event.register("numba:compile", Listener())
+""")
+
+WARM_THEN_IDENTIFY = textwrap.dedent("""
+    import sys
+
+    from dynid.pipeline.demo import TESTS, demo_config
+    from dynid.pipeline.first_run import warm_identification
+    from dynid.pipeline.run import identify
+
+    warm_identification("peugeot406", demo_config, [t[1] for t in TESTS])
+""") + LISTEN + textwrap.dedent("""
     identify(sys.argv[1])
     print("COMPILED", sorted({c for c in compiled if c.startswith("dynid")}))
 """)
@@ -105,3 +113,71 @@ def test_after_the_warm_up_the_demos_identification_compiles_nothing(tmp_path):
                           check=True, capture_output=True, text=True)
     line = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED"))
     assert line == "COMPILED []"
+
+
+def test_the_rest_state_on_the_reference_engine_matches_the_compiled_engines(monkeypatch):
+    """statics.REST_ENGINE (NumPy) against the compiled engine the rest state used before: the same equilibrium to
+    the solve's tolerance. Both residuals are the same equations to rounding (a few ulp of torques ~1e4 N.m, in kN:
+    ~1e-15); root stops at a relative step of 1e-13 of x (|x| ~ 5: loads in kN, heights in m), so the two solutions
+    may differ by ~1e-12 in x; the bounds take 100 x that (loads in N: 1e-9 x 4 kN)."""
+    tree = car.sim_tree()
+    tables = statics.default_tables()
+    assert statics.REST_ENGINE == "numpy"
+    ours = statics._solve_rest(tree, tables, False, 0.0)
+    monkeypatch.setattr(statics, "REST_ENGINE", "numba")
+    before = statics._solve_rest(tree, tables, False, 0.0)
+    assert np.abs(ours.q - before.q).max() < 1e-10  # m and rad
+    assert np.abs(ours.loads - before.loads).max() < 1e-9 * before.loads.max()
+    monkeypatch.setattr(statics, "REST_ENGINE", "numpy")
+    preloads = statics.design_preloads(tree)
+    monkeypatch.setattr(statics, "REST_ENGINE", "numba")
+    monkeypatch.setattr(statics, "_SOLVED", type(statics._SOLVED)())
+    assert np.abs(preloads - statics.design_preloads(tree)).max() < 1e-9 * np.abs(preloads).max()
+
+
+COMPILES_OF_A_SIMULATED_CAR = LISTEN + textwrap.dedent("""
+    from dynid.vehicle.sim import car
+
+    car.prebuild_kernel = lambda: False  # the kernel compiles here, listened to
+    car.CarSimulator()
+    print("COMPILED", sorted({c for c in compiled if c.startswith("dynid.")}))
+""")
+
+
+@pytest.mark.slow
+def test_a_first_simulator_compiles_no_engine(tmp_path):
+    """A simulator built with empty caches (a first `dynid demo`'s car: rest state, design preloads, yaw inertia)
+    compiles nothing of the dynamics engine (dynamics.compiled, ~3.4 s of CPU for ~60 single samples): the
+    compile events of a fresh process. Before statics.REST_ENGINE it compiled _idm_kernel and its helpers."""
+    env = {**os.environ, "DYNID_CACHE": str(tmp_path / "dynid"), "NUMBA_CACHE_DIR": str(tmp_path / "nb")}
+    proc = subprocess.run([sys.executable, "-c", COMPILES_OF_A_SIMULATED_CAR], env=env, check=True,
+                          capture_output=True, text=True)
+    line = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED"))
+    assert "dynid.vehicle.table_poly._table_joints" in line  # the listener hears the process's compiles
+    assert "dynid.dynamics." not in line
+
+
+def _numbers(path):
+    """The numbers of a demo's results.json but its provenance, the tire fit's seconds and paths (times, the run's
+    own folders)."""
+    res = json.loads(path.read_text())
+    res.pop("provenance")
+    res["tires"].pop("fit_seconds")
+    res["tires"].pop("fit_cpu_seconds")
+    return json.dumps(res, sort_keys=True).replace(str(path.parent), "OUT")
+
+
+@pytest.mark.slow
+def test_a_cold_demo_gives_a_warm_ones_results(tmp_path):
+    """`dynid demo --quick` with empty caches, then again with the caches it filled: the same results, to the bit
+    (what a first run compiles, or does not, changes no number)."""
+    env = {**os.environ, "DYNID_CACHE": str(tmp_path / "dynid"), "NUMBA_CACHE_DIR": str(tmp_path / "nb")}
+    runs = []
+    for name in ("cold", "warm"):
+        out = tmp_path / name
+        subprocess.run([sys.executable, "-m", "dynid.cli.main", "demo", "--quick", "--out", str(out)], env=env,
+                       check=True, capture_output=True)
+        runs.append(out)
+    assert _numbers(runs[0] / "results.json") == _numbers(runs[1] / "results.json")
+    for f in sorted((runs[0] / "data").iterdir()):
+        assert f.read_bytes() == (runs[1] / "data" / f.name).read_bytes(), f.name

@@ -248,8 +248,9 @@ def build_parser() -> argparse.ArgumentParser:
         examples=["dynid demo --quick --out demo", "dynid demo --out demo --seed 7",
                   "dynid identify demo/identify.toml --out demo-rerun"],
         notes="The first run compiles the simulator's kernel (on the second core, while the car loads) and "
-              "generates and compiles the car's and the identification's models: about 15 s more than a later run "
-              "(measured on a loaded 2-core AMD EPYC: 31.8 s against 17.3 s, 18 s more CPU); later runs load them "
+              "generates and compiles the car's and the identification's models: about 8 s more than a later run "
+              "(measured on a loaded 2-core Xeon: 25.0 s of CPU against 11.6 s, the kernel's build on the other "
+              "core, pipeline.demo.FIRST_RUN_S); later runs load them "
               "from the cache (DYNID_CACHE, default ~/.cache/dynid).")
     demo.add_argument("--out", default="dynid-demo", help="output folder, replaced as a whole at the end "
                                                           "(default: dynid-demo)")

@@ -84,16 +84,17 @@ def simulated_car(vehicle: str = DEMO_VEHICLE):
 # a car's models loaded from the cache take about a second: a build still running after SLOW_BUILD_S is generating
 # them (a new vehicle, a new dynid, an empty cache), which is said then, and only then
 SLOW_BUILD_S = 3.0
-# what a user waits for on a first run, measured 29 Nov (a cold `dynid demo` with each message stamped, CPU seconds on a
-# 2-core machine loaded 11-14x, which inflates them: a free machine's wall time is about these or less): the kernel's
-# build 7.6 s in a forked process (vehicle.sim.car.prebuild_kernel), beside "building the car" in this one (7.5 s: the
-# vehicle's models generated, the identification compiled, pipeline.first_run); before it, the vehicle's rest state
-# (the engine's compile) 5.6 s more than a warm run's start. So a first demo takes ~12 s more than a later one (this
-# process 22.0 s CPU cold, 9.8 s warm; said as 15 s: a step may wait for the other core's build), the longest
-# silent step ~8 s (said as 10). A new vehicle once the kernel is cached:
+# what a user waits for on a first run, measured 29 Nov after the rest state moved to the NumPy engine (statics.
+# REST_ENGINE: no engine compile): a cold `dynid demo` with each message stamped, CPU seconds on a 2-core machine loaded
+# 7-13x, which inflates them (a free machine's wall time is about these or less). This process reaches the written
+# files at 10.7 s of CPU cold against 4.0 s warm (+6.7: "building the car" 7.0 s, the car's models generated and the
+# identification compiled, pipeline.first_run), while the kernel's build takes 7.1 s in a forked process (vehicle.sim.
+# car.prebuild_kernel): the two end together, so a first demo takes ~7 s more than a later one (said as 8; the whole
+# run 16.6 s CPU here cold, 10.3 s warm; 69ee46f, with the engine's compile: 21.4 s, +11.6 s to the files), the longest
+# silent step ~7 s (said as 8). A new vehicle once the kernel is cached:
 # `dynid simulate sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared
 # (farm-bench, 3 pairs)
-FIRST_RUN_S, GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 15, 10, 8, 2
+FIRST_RUN_S, GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 8, 8, 8, 2
 FIRST_RUN = (f"first run: dynid compiles its simulator and identification for this machine (about {FIRST_RUN_S} s "
              "more than a later run on a free 2-core machine; cached for later runs)")
 GENERATING = (f"building the car: the simulator's kernel compiles on the other core while the car's models are "

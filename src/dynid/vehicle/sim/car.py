@@ -62,7 +62,7 @@ from ..equations import car_identification
 from ..geometry import CarGeometry, demo_geometry
 from ..parameters import ParameterSet, truth
 from ..sensors import ideal_channels, mounted
-from ..statics import rest_state
+from ..statics import REST_ENGINE, rest_state
 from ..tables import STEERING_RATIO, KinematicTables, default_tables
 from ..template import CHASSIS, DAMPERS, TIRES, WHEELS, tabulated
 from . import kernel as K  # noqa: N812 - the kernel layout constants read as K.NY, K.FREE
@@ -435,7 +435,8 @@ class CarSimulator:
 
         g = -self.tree.gravity[2]
         b_rear = self.geometry.wheelbase * (self.rest.loads[2] + self.rest.loads[3]) / (self.mass * g)
-        iz = float(Model(self.tree).inertia_matrix(self.rest.q)[3, 3]) - self.mass * b_rear**2
+        # one posture: the reference engine, as the rest state (statics.REST_ENGINE: no engine compile on a first run)
+        iz = float(Model(self.tree).inertia_matrix(self.rest.q, backend=REST_ENGINE)[3, 3]) - self.mass * b_rear**2
         self.bicycle = bicycle(self.rest.loads, self.tires, self.geometry.wheelbase, g, iz)
         self.mu = min(min(t.peak_friction(float(f))) for t, f in zip(self.tires, self.rest.loads, strict=True))
         self.aero_point = reference_point(self.geometry) if self.aero.point is None else np.asarray(self.aero.point)
