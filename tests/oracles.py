@@ -144,6 +144,23 @@ def random_states(tree: Tree, N: int, seed: int) -> tuple[np.ndarray, np.ndarray
     return rng.uniform(-np.pi, np.pi, (N, tree.n)), rng.normal(size=(N, tree.n)), rng.normal(size=(N, tree.n))
 
 
+def trig_edge_angles(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(x, want): angles on the quadrants' edges (multiples of pi/4 and their neighbours), small, large and out of
+    dynamics.trig's range (|x| >= trig.LIMIT, inf, NaN), and random ones; want (N, 2) their sine and cosine by
+    trig.python_function run by Python (NaN where x is not finite: Python's math.sin raises at inf, compiled code
+    gives NaN). The oracle of every generated target's sine and cosine."""
+    from dynid.dynamics import trig
+
+    k = np.arange(-400, 400) * (np.pi / 4)
+    rng = np.random.default_rng(seed)
+    x = np.concatenate([k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), [1e-300, -0.0, 0.0, 5e-324],
+                        np.array([1.0, -1.0]) * np.nextafter(trig.LIMIT, 0.0), [trig.LIMIT, -trig.LIMIT, 3e5, 1e300],
+                        [np.inf, -np.inf, np.nan], rng.uniform(-trig.LIMIT, trig.LIMIT, 2000),
+                        rng.uniform(-4.0, 4.0, 2000)])
+    ref = trig.python_function()
+    return x, np.array([ref(float(v)) if np.isfinite(v) else (np.nan, np.nan) for v in x])
+
+
 def compile_generated_c(tmp_path, prog, stem: str, block: bool = False):
     """The generated C of `prog` (`to_c`, with the block functions when `block`) compiled with -O2 -Wall -Werror into
     a shared library and loaded with ctypes; the test is skipped on a machine without a C compiler."""

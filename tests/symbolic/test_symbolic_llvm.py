@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oracles import trig_edge_angles
 
 from dynid.symbolic import numba_backend as nb
 from dynid.symbolic.llvm_code import UnsupportedSourceError, function_ir
@@ -166,20 +167,11 @@ def test_generated_sine_and_cosine_are_trigs_to_the_bit(tmp_path, monkeypatch):
     straight_line) and by Numba from the Python source, on the edges of the quadrants (multiples of pi/4 and their
     neighbours), small, large and out-of-range angles (|x| >= trig.LIMIT, inf, NaN: libm's), no contraction into
     FMA on any CPU. libm's (the scalar IR's sine before) differs from them by an ulp on some of these angles."""
-    from dynid.dynamics import trig
     from dynid.model import Frame, Tree
     from dynid.symbolic import build
 
     monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
-    k = np.arange(-400, 400) * (np.pi / 4)
-    rng = np.random.default_rng(7)
-    x = np.concatenate([k, np.nextafter(k, np.inf), np.nextafter(k, -np.inf), [1e-300, -0.0, 0.0, 5e-324],
-                        np.array([1.0, -1.0]) * np.nextafter(trig.LIMIT, 0.0), [trig.LIMIT, -trig.LIMIT, 3e5, 1e300],
-                        [np.inf, -np.inf, np.nan], rng.uniform(-trig.LIMIT, trig.LIMIT, 2000),
-                        rng.uniform(-4.0, 4.0, 2000)])
-    ref = trig.python_function()
-    # (N, 2): sin, cos; Python's math.sin raises at inf, where compiled code gives NaN
-    want = np.array([ref(float(v)) if np.isfinite(v) else (np.nan, np.nan) for v in x])
+    x, want = trig_edge_angles(7)
     prog = build(Tree("one revolute joint", (Frame(1, 0, 0),)), "dgm")
     src = nb.scalar_source(prog, "dgm")
     assert "_sin(" in src and "math.sin" not in src
