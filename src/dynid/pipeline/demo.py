@@ -93,7 +93,7 @@ SLOW_BUILD_S = 3.0
 # run 16.6 s CPU here cold, 10.3 s warm; 69ee46f, with the engine's compile: 21.4 s, +11.6 s to the files), the longest
 # silent step ~7 s (said as 8). A new vehicle once the kernel is cached:
 # `dynid simulate sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared
-# (farm-bench, 3 pairs)
+# (whole-process timing, 3 pairs)
 FIRST_RUN_S, GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 8, 8, 8, 2
 FIRST_RUN = (f"first run: dynid compiles its simulator and identification for this machine (about {FIRST_RUN_S} s "
              "more than a later run on a free 2-core machine; cached for later runs)")
