@@ -241,11 +241,12 @@ def test_c_block_regressor_matches_engine_and_pinocchio(N, rnd6_c):
 
 
 def test_c_sine_and_cosine_are_trigs_to_the_bit(tmp_path):
-    """The generated C's sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1), per sample (_batch)
-    and lanes side by side (_block), are dynamics.trig's run by Python, to the bit, as every other target's (issue
-    25: one sine and cosine): on the quadrants' edges (multiples of pi/4 and their neighbours), small, large and
-    out-of-range angles (|x| >= trig.LIMIT, inf, NaN: libm's). The per-sample function took libm's before, which
-    differs from them by an ulp on some of these angles (checked last)."""
+    """The generated C's _block sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1, lanes side by
+    side) are dynamics.trig's run by Python, to the bit, as every other target's (issue 25: one sine and cosine):
+    on the quadrants' edges (multiples of pi/4 and their neighbours), small, large and out-of-range angles (|x| >=
+    trig.LIMIT, inf, NaN: libm's). The per-sample function (_batch) calls libm (faster in scalar code): within an
+    ulp of them, and told apart by these angles."""
+    from dynid.dynamics import trig
     from dynid.model import Frame, Tree
 
     x, want = trig_edge_angles(8)
@@ -253,13 +254,24 @@ def test_c_sine_and_cosine_are_trigs_to_the_bit(tmp_path):
     want = want[finite]
     prog = build(Tree("one revolute joint", (Frame(1, 0, 0),)), "dgm")
     lib = _compile(tmp_path, prog, "one")
-    for fn in (lib.one_dgm_batch, lib.one_dgm_block):
-        (T,) = _call(fn, len(x), x[:, None], out_shapes=[prog.shape])
-        got = np.column_stack([T[:, 1, 1, 0], T[:, 1, 0, 0]])  # T1[1, 0] = sin q1, T1[0, 0] = cos q1
-        assert np.array_equal(got[finite].view(np.int64), want.view(np.int64)), (
-            fn, x[finite][np.any(got[finite] != want, axis=1)][:5])
-        assert np.isnan(got[~finite]).all()
-    assert not np.array_equal(np.sin(x[finite]), want[:, 0])  # libm's: this test tells them apart
+    got = {}
+    for name in ("batch", "block"):
+        (T,) = _call(getattr(lib, f"one_dgm_{name}"), len(x), x[:, None], out_shapes=[prog.shape])
+        got[name] = np.column_stack([T[:, 1, 1, 0], T[:, 1, 0, 0]])  # T1[1, 0] = sin q1, T1[0, 0] = cos q1
+        assert np.isnan(got[name][~finite]).all()
+    libm = np.column_stack([np.sin(x[finite]), np.cos(x[finite])])
+    # a block of LANES samples with an angle out of range goes to the per-sample code whole (libm's values)
+    far = ~(np.abs(x) < trig.LIMIT)
+    far_block = np.repeat(np.add.reduceat(far, np.arange(0, len(x), LANES)) > 0, LANES)[:len(x)][finite]
+    block, batch = got["block"][finite], got["batch"][finite]
+    assert far_block.sum() < 40 and far_block.sum() >= 8  # the test's few far angles, two or three blocks
+    assert np.array_equal(block[~far_block].view(np.int64), want[~far_block].view(np.int64)), (
+        x[finite][~far_block][np.any(block[~far_block] != want[~far_block], axis=1)][:5])
+    assert np.array_equal(block[far_block].view(np.int64), libm[far_block].view(np.int64))
+    assert np.array_equal(batch, libm)
+    # within an ulp of max(|y|, 1/2) (trig's accuracy against libm), and apart on some of these angles
+    assert np.all(np.abs(batch - want) <= np.spacing(np.maximum(np.abs(want), 0.5)))
+    assert not np.array_equal(batch, want)
 
 
 @pytest.mark.slow
@@ -274,9 +286,7 @@ def test_c_block_of_the_puma_and_the_car(tmp_path):
         lib = _compile(tmp_path, prog, stem)
         (W,) = _call(getattr(lib, f"{stem}_regressor_block"), N, q, qd, qdd, out_shapes=[prog.shape])
         (Wb,) = _call(getattr(lib, f"{stem}_regressor_batch"), N, q, qd, qdd, out_shapes=[prog.shape])
-        # the same numbers to the bit: every sine and cosine trig's steps, the far angle's libm's in both (its
-        # block by the per-sample code); neither contracts into FMA (-std=c99)
-        assert np.array_equal(W, Wb)
+        close(W, Wb)  # the far angle's block by the per-sample code: the same libm call on the same argument
         # the engine: the same but for the far sample, whose angle's last bit (6e-11 at 3e5) is rounded
         # differently by the engine (MDH offsets added apart): cos(3e5 + 6e-11) moves by 6e-11
         near = np.arange(N) != 4

@@ -9,8 +9,8 @@ into FMA like its kernels where the CPU has it, within an ulp of them:
 
 - the Numba engine (dynamics.compiled._sincos) runs `python_function()`, the source `python_source()`;
 - the generated NumPy modules run `numpy_source()` (one ufunc per step over a row of samples);
-- the generated C runs `c_source()`: its `_block` functions lane by lane (GCC and clang vectorise it across
-  samples), its per-sample functions through a scalar wrapper (symbolic.codegen);
+- the generated C's `_block` functions run `c_source()` lane by lane (GCC and clang vectorise it across samples);
+  its per-sample functions call libm, which a scalar function runs faster than the steps (symbolic.codegen);
 - the LLVM block kernels (symbolic.blocks) emit one vector instruction per step of `STEPS`, and the scalar LLVM
   models (symbolic.llvm_code: the simulator's) one scalar instruction, both through llvm_code.Emitter.sincos;
 - the generated per-sample Python (symbolic.numba_backend.HEADER's _sin and _cos) runs `python_source()`.

@@ -1,11 +1,9 @@
 """Code generation from a Program: readable equations and C (header + source); the shared text helpers.
 
-C: a per-sample function and a batched loop, with no dependency but libm; we never run a compiler at run time. Every
-sine and cosine is dynamics.trig's (its C steps, libm's values past its range only), as in every other target, so
-the C functions give the other targets' numbers where the compiler does not contract into FMA (-std=c99 or
--ffp-contract=off; GCC's -std=gnu* with -march of an FMA CPU does, an ulp apart). The NumPy emitter is `numpy_code`,
-the disk cache of generated NumPy modules `cache`. Emission is deterministic: the same model gives the same text
-whatever PYTHONHASHSEED.
+C: a per-sample function and a batched loop, with no dependency but libm; we never run a compiler at run time. The
+per-sample functions take libm's sin and cos; the `_block` functions (samples side by side) dynamics.trig's steps,
+as every other target, within an ulp of libm's. The NumPy emitter is `numpy_code`, the disk cache of generated NumPy
+modules `cache`. Emission is deterministic: the same model gives the same text whatever PYTHONHASHSEED.
 """
 
 from __future__ import annotations
@@ -83,17 +81,6 @@ def _output_labels(prog: Program):
 
 
 # ----- C ---------------------------------------------------------------------------------------------
-# one angle's sine and cosine together, sample by sample: the steps (`trig.c_source`), libm's past their range
-_C_SINCOS = """static inline void dynid_sincos(double x, double *s, double *c)
-{
-    double bad = 0.0;
-    dynid_sincos_lane(x, s, c, &bad);
-    if (bad != 0.0) {
-        *s = sin(x);
-        *c = cos(x);
-    }
-}
-"""
 
 
 def _c_equations(prog: Program, indent: str, sign: str, sincos: str) -> list[str]:
@@ -147,7 +134,7 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
            f"void {fname}_batch(long N, {', '.join(params + outs)});"]
     if block:
         hdr += [f"/* _batch, {C_LANES} samples side by side (vectorised by the compiler across samples), the same",
-                "   layouts and numbers */",
+                "   layouts and numbers to an ulp or two (sin and cos are fdlibm's polynomials) */",
                 f"void {fname}_block(long N, {', '.join(params + outs)});"]
     hdr += ["", f"#endif /* {guard} */", ""]
     used = set(prog.meta.get("used_inputs", prog.inputs))
@@ -155,7 +142,6 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
            "#include <math.h>", "#include <stdint.h>", f'#include "{fname}.h"',
            *(["#if defined(__SSE2__)", "#include <emmintrin.h>", "#endif"] if block else []), "",
            "static inline double dynid_sign(double x) { return (double)((x > 0.0) - (x < 0.0)); }", "",
-           trig.c_source(), _C_SINCOS,
            f"void {fname}({', '.join(params + outs)})", "{"]
     for k, v in prog.constants.items():
         src.append(f"    const double {k} = {v!r};")
@@ -164,7 +150,9 @@ def to_c(prog: Program, prefix: str = "dynid", block: bool = False) -> tuple[str
         if s == "wrench":
             idx = idx[0] * 6 + idx[1]
         src.append(f"    const double {name} = {s}[{idx}];")
-    src += _c_equations(prog, "    ", "dynid_sign(", "dynid_sincos({x}, &{s}, &{c});")
+    # libm's sin and cos, sample by sample: faster here than trig's steps, whose quadrant's branch a scalar
+    # function mispredicts (PUMA's regressor 0.57-0.59 against 0.62-0.68 us a sample, one process, both built)
+    src += [f"    const double {eq.name} = {_eq_text(eq, 'c')};" for eq in prog.equations]
     src += _c_fill("out", prog.shape, prog.outputs)
     for name, (shape, entries) in prog.extra_outputs.items():
         src += _c_fill(name, shape, entries)
@@ -205,7 +193,7 @@ __all__ = ["C_LANES", "GENERATOR_VERSION", "LANGS", "format_poly", "to_c", "to_t
 
 
 # ----- C, samples side by side --------------------------------------------------------------------
-# Why: the per-sample function spends its time in scalar arithmetic, sines and cosines included. `_block` copies
+# Why: the per-sample function spends its time in scalar arithmetic and libm's sines and cosines. `_block` copies
 # C_LANES samples' inputs into lane-major arrays and runs the whole straight-line body as one loop over those lanes,
 # with scalar temporaries and only unit-stride accesses, which GCC (-O2 from version 12) and clang vectorise across
 # samples; the results go to a lane-major tile and from it to the caller's sample-major `out`. Written so that the
@@ -214,7 +202,7 @@ __all__ = ["C_LANES", "GENERATOR_VERSION", "LANGS", "format_poly", "to_c", "to_t
 # a copysign; a lane whose angle is 1e5 or more (or NaN) sends its block to the per-sample code (libm). A tail of
 # fewer than C_LANES samples runs through the same code on padded copies: a sample's value does not depend on where it
 # falls.
-_C_LANE_HELPERS = """
+_C_LANE_HELPERS = "\n" + trig.c_source() + """
 static inline double dynid_sign_lane(double x) { return copysign(fabs(x) > 0.0 ? 1.0 : 0.0, x); }
 
 /* the first n lane columns of a lane-major tile (size rows of LANES) to n sample-major rows of o; with SSE2,
