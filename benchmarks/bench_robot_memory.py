@@ -10,41 +10,41 @@ process's RSS after the imports, and the identification's wall time. Target: und
 
 Measured 2026-11-29 (07:18-07:27 UTC, load average 4-12 on the 2 cores: other sessions): this tree (scipy.io
 imported where a .mat file is read or written, so a Parquet robot run loads neither it nor scipy.sparse) against
-fd92e1c (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians): after the imports 121.7 MB
-against 124.8, the peak 391.5 MiB against 387.0 (386-395 against 386-388: noise, the 3 MB under the map's spread),
-CPU 1.03 x (pairs 1.02-1.04); the estimate and its sigmas bit-equal (every run), the validation error equal. The
-10 min log (one run each): 373.2 against 372.9 MiB: the peak does not grow with the log (the 1 h's ~15 MB more is
-the two workers' chunk peaks meeting more often over 65 chunks than over 11). The stages, RSS traced every 5 ms
-(fd92e1c's code, two runs, load 7-10): after the imports 125, the plan 271-272 at its peak (the pass over the
+fd92e1c (whole-process timing, 3 runs each alternated A B A B after a warm-up each, medians): after the imports
+121.7 MB against 124.8, the peak 391.5 MiB against 387.0 (386-395 against 386-388: noise, the 3 MB under the map's
+spread), CPU 1.03 x (pairs 1.02-1.04); the estimate and its sigmas bit-equal (every run), the validation error
+equal. The 10 min log (one run each): 373.2 against 372.9 MiB: the peak does not grow with the log (the 1 h's ~15 MB
+more is the two workers' chunk peaks meeting more often over 65 chunks than over 11). The stages, RSS traced every 5
+ms (fd92e1c's code, two runs, load 7-10): after the imports 125, the plan 271-272 at its peak (the pass over the
 stamps), 221-222 after it, the data-health check 254-255, the map's start 246-248, its peak 390 (two workers), after
-it 362, the solve and the checks 383 (the map's heap left under them: the whole run's peak is the map's). One
-worker ([compute] workers = 1): 346 at the peak, +100 over the
-map's start for one chunk's 43 MB of NumPy: the rest is the heap glibc keeps (mallinfo2 read at the peak, a run
-perturbed by the reads: 179 MB of arenas, 79 in use, 101 free). Tried and left: glibc's mmap threshold fixed for a
-robot run (mallopt, M_MMAP_THRESHOLD; the thresholds `heap.tune_malloc` sets restored after), farm-bench against
-this tree as above with MALLOC_MMAP_THRESHOLD_ = 2 MiB (06:43-07:07 UTC, load 11-14): peak 361.5 against 384.4
-(360.7-364.7 against 381.5-385.0), CPU 1.23 x (pairs 1.09-1.29: system time 8.0 s against 0.7, page faults), and
-traced one run each: mmap at 8 MiB with the trim threshold at glibc's 128 KiB 363 MB (system 7.2 s), at 3 MiB 368
-(8.9 s), at 8 MiB with a 16 MiB trim threshold 383 (3.1 s), with 64 MiB 393 (1.6 s): the ~25 MB is the heap's free
-top handed back and faulted in again, not the large arrays' own pages; 20-25 MB for +20 % of CPU, as the threshold
-trials below. Not met: 300 MB is ~90 MB away, and the map's peak is two chunks' arrays (2 x 43 MB) and the heap
-glibc keeps between them over a floor of ~240 MB (imports 122: NumPy, scipy.linalg with the numpy.testing and f2py
-its array-API layer imports, 9 MB, Numba 52; pyarrow 31; Numba's registries ~37 on the first cached call; the
-Parquet block cache 24). The levers left are the design ones: one chunk in flight with its W blocks shared by the
-two threads (one chunk's window, filtered signals and W1 held instead of two: ~-30 MB of arrays, and the heap's
-share with them), each chunk's arrays in buffers a worker reuses (no heap to fragment), the positions filtered per W
-block (the filtered q, qd, qdd of the whole window, ~11 MB a worker, not held; round-off, not the same bits).
+it 362, the solve and the checks 383 (the map's heap left under them: the whole run's peak is the map's). One worker
+([compute] workers = 1): 346 at the peak, +100 over the map's start for one chunk's 43 MB of NumPy: the rest is the
+heap glibc keeps (mallinfo2 read at the peak, a run perturbed by the reads: 179 MB of arenas, 79 in use, 101 free).
+Tried and left: glibc's mmap threshold fixed for a robot run (mallopt, M_MMAP_THRESHOLD; the thresholds
+`heap.tune_malloc` sets restored after), timed as whole processes against this tree as above with
+MALLOC_MMAP_THRESHOLD_ = 2 MiB (06:43-07:07 UTC, load 11-14): peak 361.5 against 384.4 (360.7-364.7 against
+381.5-385.0), CPU 1.23 x (pairs 1.09-1.29: system time 8.0 s against 0.7, page faults), and traced one run each:
+mmap at 8 MiB with the trim threshold at glibc's 128 KiB 363 MB (system 7.2 s), at 3 MiB 368 (8.9 s), at 8 MiB with
+a 16 MiB trim threshold 383 (3.1 s), with 64 MiB 393 (1.6 s): the ~25 MB is the heap's free top handed back and
+faulted in again, not the large arrays' own pages; 20-25 MB for +20 % of CPU, as the threshold trials below. Not
+met: 300 MB is ~90 MB away, and the map's peak is two chunks' arrays (2 x 43 MB) and the heap glibc keeps between
+them over a floor of ~240 MB (imports 122: NumPy, scipy.linalg with the numpy.testing and f2py its array-API layer
+imports, 9 MB, Numba 52; pyarrow 31; Numba's registries ~37 on the first cached call; the Parquet block cache 24).
+The levers left are the design ones: one chunk in flight with its W blocks shared by the two threads (one chunk's
+window, filtered signals and W1 held instead of two: ~-30 MB of arrays, and the heap's share with them), each
+chunk's arrays in buffers a worker reuses (no heap to fragment), the positions filtered per W block (the filtered q,
+qd, qdd of the whole window, ~11 MB a worker, not held; round-off, not the same bits).
 
 Measured 2026-11-29 (05:21-05:25 UTC, load 0.7-2, quieter than the runs below): this tree, CHUNK_BYTES = 28 MiB
-(55,600 samples, 65 chunks, ~ as before), against b872084 (farm-bench, 4 runs each alternated A B A B after a
-warm-up each, medians): peak 388.9 MiB against 407.7 (388.1-390.9 against 402.3-412.1), CPU 0.971 x (pairs
+(55,600 samples, 65 chunks, ~ as before), against b872084 (whole-process timing, 4 runs each alternated A B A B
+after a warm-up each, medians): peak 388.9 MiB against 407.7 (388.1-390.9 against 402.3-412.1), CPU 0.971 x (pairs
 0.90-1.10); the estimate against b872084's to 1.5e-11 relative (1.9e-15 of the largest value), the sigmas 4.8e-12,
 the covariance 9.6e-12 of its largest entry, the validation errors 1.1e-11 (the chunks' ends moved by 100 samples:
 round-off, as below); the TX40 example bit-equal (its 45,000 samples one chunk). What went: the W block buffer
 (below). CHUNK_BYTES = 20 MiB (39,700 samples, 91 chunks), the same way (05:14-05:21 UTC, load 0.7-4): peak 373.7
 MiB against 405.5 (369.3-375.8 against 401.4-408.9), CPU 1.126 x (pairs 0.91-1.23), and against main at 05:09-05:13
-(load ~4): 374.6 against 405.2, 1.125 x (1.03-1.25): over the 5 % bound, so not the default; the 0.97 x measured
-for it below was the load's noise. The chunk's length is still set by what a worker holds for it (`CHUNK_BYTES` over
+(load ~4): 374.6 against 405.2, 1.125 x (1.03-1.25): over the 5 % bound, so not the default; the 0.97 x measured for
+it below was the load's noise. The chunk's length is still set by what a worker holds for it (`CHUNK_BYTES` over
 `chunk_sample_bytes`), the budget to lower where memory matters more than CPU (between 55,600 and 39,700 samples:
 ~-1 MB of the peak and ~+1 % of the CPU per 1k samples fewer).
 
@@ -52,67 +52,67 @@ Not met (2026-11-29): 300 MB is ~90 MB away. The floor now (RSS traces of this t
 imports, 243-249 at the map's start, 263-271 inside the data-health check (before the map), then the map's plateau,
 ~385: per worker 43-45 MB of NumPy's at a chunk's peak (tracemalloc; at 39,700 samples, 50,664 read, 37.9: the
 window's q and tau 5.4, the filtered q, qd, qdd 8.1, the W block 11.5, W1 ~7.5, the filters' work ~3.5), the plots'
-rows ~10 MB, and glibc's heaps (their in-use blocks and the fragments between them: a trim after every job, a
-lower trim threshold or one arena give back <= 20 MB). The levers left, measured: the chunk's length (each 1k
-samples ~0.5 MB of a worker's NumPy, and ~1 % of the map's CPU per 1k fewer near 40k: the 9,800-sample pad), the W block
+rows ~10 MB, and glibc's heaps (their in-use blocks and the fragments between them: a trim after every job, a lower
+trim threshold or one arena give back <= 20 MB). The levers left, measured: the chunk's length (each 1k samples ~0.5
+MB of a worker's NumPy, and ~1 % of the map's CPU per 1k fewer near 40k: the 9,800-sample pad), the W block
 (`BLOCK_BYTES`; its first-stage overlap, 1,434 of its 4,914 rows, computed and filtered twice: a smaller block costs
 CPU that way, and a W block's overlap rows copied from the block before would save the regressor's share, ~4 % of a
-chunk), the column gathers of the first stage (W2[:, cols] and its copy, 2.4 of 17.8 ms a block, ~13 % of a chunk:
-a filter kernel reading W's columns in place would pay for shorter chunks), the second stage streamed (W1 whole per
+chunk), the column gathers of the first stage (W2[:, cols] and its copy, 2.4 of 17.8 ms a block, ~13 % of a chunk: a
+filter kernel reading W's columns in place would pay for shorter chunks), the second stage streamed (W1 whole per
 chunk), the Parquet block cache (24 MB) and the plots' rows (PLOT_BYTES) in the floor.
 
-Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions; CHUNK_BYTES then 20 MiB,
-28 MiB since: see above): peak 373.8 MiB against
-main's 402.0 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 372.6-376.8
-against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against 35.1 s). What went: a chunk's length is set by
-what a worker holds for it (`robot.CHUNK_BYTES`, 20 MiB, over `chunk_sample_bytes`: the window's q and tau, the
-filtered q, qd, qdd, and W1 at every column, 528 bytes a sample for the Panda), no longer by a full-rate W it never
-holds whole (`SEGMENT_BYTES`, 128 MiB: 55,700 samples): 39,700 samples, 91 chunks instead of 65. The chunks'
-boundaries moved, so the bits did: against main's, the estimate to 2.0e-11 relative (1.6e-15 of the largest value),
-the sigmas to 4.0e-12, the covariance to 8e-12 of its largest entry (3.1e-10 relative, an entry near zero), the
-validation errors to 1.8e-11 relative: round-off, amplified by this noiseless log's residual (9e-6 of the torques:
-a change of 1e-16 in the rows is ~1e-11 of the residual); other lengths give the same (96 MiB-equivalent
-chunks: 4.4e-12, 8.8e-12, 1.0e-11). The TX40 example's estimate, sigmas, covariance and errors are bit-equal to
-main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at 39,700. CHUNK_BYTES = 16 MiB (31,700
-samples, 114 chunks), farm-bench against main as above (04:35-04:46 UTC, load 6-9): peak 366.3 MiB against 402.6
-(365.8-369.0 against 399.0-406.0), CPU 1.054 x (pairs 0.97-1.14): -7.5 MB for ~+8 % of CPU against 20 MiB's, at
-the 5 % bound; not taken. Tried and left (two runs each, trace): the W block one buffer per worker thread, reused
-across its chunks (`threading.local`): 371.7 and 371.5 against 373.3 and 372.3 with one per chunk, noise; W1 and the
-W block on pages of their own (an allocation over glibc's 32 MiB mmap threshold, unmapped when freed): 412, worse
-(freeing it raises glibc's trim threshold to 64 MiB, and the thread heaps keep more); glibc's trim threshold 4 or
-16 MiB with the mmap threshold at 32 MiB (mallopt): 386.6 and 386.9 against 387 (not the heap's top, then: its
-in-use blocks, 100-150 MB through the map, and the fragments between them). The blocks' live-column search
-`np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a block. The first stage's filter kernel reading the
-column block's columns from W where they are (a compiled `a[i, cols[c]]` into its work array, no `a[:, cols]`):
-bit-equal (the same hash), the first stage's filtering of a 4,914 x 301 block 7.9-15.8 ms against 11.5-13.9 (min
-of 40, three tries, load ~3.5: not settled), and with CHUNK_BYTES = 16 MiB, farm-bench against main (04:53-05:05
-UTC, load 3.4-10): peak 370.0 MiB against 406.5 (367.2-378.4 against 405.7-411.9), CPU 1.00 x (pairs 0.78-1.16):
-no clear gain over 20 MiB without it (373.8, 0.97 x), and one more compiled kernel to load; not kept.
+Measured 2026-11-29 (04:19-04:28 UTC, load average 5-7.6 on the 2 cores: other sessions; CHUNK_BYTES then 20 MiB, 28
+MiB since: see above): peak 373.8 MiB against main's 402.0 at b872084 (whole-process timing, 3 runs each alternated
+A B A B after a warm-up each, medians; 372.6-376.8 against 399.7-408.1), CPU 0.97 x (pairs 0.96-1.12; 34.5 s against
+35.1 s). What went: a chunk's length is set by what a worker holds for it (`robot.CHUNK_BYTES`, 20 MiB, over
+`chunk_sample_bytes`: the window's q and tau, the filtered q, qd, qdd, and W1 at every column, 528 bytes a sample
+for the Panda), no longer by a full-rate W it never holds whole (`SEGMENT_BYTES`, 128 MiB: 55,700 samples): 39,700
+samples, 91 chunks instead of 65. The chunks' boundaries moved, so the bits did: against main's, the estimate to
+2.0e-11 relative (1.6e-15 of the largest value), the sigmas to 4.0e-12, the covariance to 8e-12 of its largest entry
+(3.1e-10 relative, an entry near zero), the validation errors to 1.8e-11 relative: round-off, amplified by this
+noiseless log's residual (9e-6 of the torques: a change of 1e-16 in the rows is ~1e-11 of the residual); other
+lengths give the same (96 MiB-equivalent chunks: 4.4e-12, 8.8e-12, 1.0e-11). The TX40 example's estimate, sigmas,
+covariance and errors are bit-equal to main's. One run each (trace): 371 MB at 41,800 samples, 363 at 31,300, 375 at
+39,700. CHUNK_BYTES = 16 MiB (31,700 samples, 114 chunks), timed as whole processes against main as above
+(04:35-04:46 UTC, load 6-9): peak 366.3 MiB against 402.6 (365.8-369.0 against 399.0-406.0), CPU 1.054 x (pairs
+0.97-1.14): -7.5 MB for ~+8 % of CPU against 20 MiB's, at the 5 % bound; not taken. Tried and left (two runs each,
+trace): the W block one buffer per worker thread, reused across its chunks (`threading.local`): 371.7 and 371.5
+against 373.3 and 372.3 with one per chunk, noise; W1 and the W block on pages of their own (an allocation over
+glibc's 32 MiB mmap threshold, unmapped when freed): 412, worse (freeing it raises glibc's trim threshold to 64 MiB,
+and the thread heaps keep more); glibc's trim threshold 4 or 16 MiB with the mmap threshold at 32 MiB (mallopt):
+386.6 and 386.9 against 387 (not the heap's top, then: its in-use blocks, 100-150 MB through the map, and the
+fragments between them). The blocks' live-column search `np.any(W2 != 0, axis=0)` as `W2.any(0)`: the same 0.55 ms a
+block. The first stage's filter kernel reading the column block's columns from W where they are (a compiled `a[i,
+cols[c]]` into its work array, no `a[:, cols]`): bit-equal (the same hash), the first stage's filtering of a 4,914 x
+301 block 7.9-15.8 ms against 11.5-13.9 (min of 40, three tries, load ~3.5: not settled), and with CHUNK_BYTES = 16
+MiB, timed as whole processes against main (04:53-05:05 UTC, load 3.4-10): peak 370.0 MiB against 406.5 (367.2-378.4
+against 405.7-411.9), CPU 1.00 x (pairs 0.78-1.16): no clear gain over 20 MiB without it (373.8, 0.97 x), and one
+more compiled kernel to load; not kept.
 
-Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB
-against main's 401.5 at b872084 (farm-bench, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
+Measured 2026-11-29 (03:56-04:05 UTC, load average 2.5-5.5 on the 2 cores: other sessions): peak 387.9 MiB against
+main's 401.5 at b872084 (whole-process timing, 3 runs each alternated A B A B after a warm-up each, medians; 387-391
 against 401-403), CPU 0.92 x (pairs 0.80-0.96; 25.0 s against 29.6 s), the estimate, its sigmas, covariance and the
 errors bit-equal to main's (one hash). What went: a chunk's W block is one buffer for all its blocks (19 for the
 Panda), filled by the regressor's `out` (it writes only the entries that can be non-zero, so the structural zeros
 stay): each block was a fresh zeroed 11.3 MB array (a calloc's memset, and the worker's heap grown by it). An RSS
 trace (VmRSS and glibc's mallinfo2 sampled every 5 ms in a thread) shows what the map holds: at its start 244-251
 MB, then a plateau of ~390 (main) for the whole map, not a rise and fall per chunk: glibc keeps what a chunk freed.
-Measured, one run each on main: a trim after every job (`schedulers.TRIM_EVERY = 1`) 398 (malloc_trim gives back
-the free blocks in the bins, not a thread heap's top, which glibc keeps up to its trim threshold, twice the mmap
+Measured, one run each on main: a trim after every job (`schedulers.TRIM_EVERY = 1`) 398 (malloc_trim gives back the
+free blocks in the bins, not a thread heap's top, which glibc keeps up to its trim threshold, twice the mmap
 threshold); MALLOC_ARENA_MAX=1 395; glibc's mmap threshold set to 2 MiB (every array over it on its own pages,
 unmapped when freed) 372: the live arrays then, mmapped, are the two workers' 2 x 43 MB (tracemalloc's), the heap's
-in-use blocks ~60 MB (23 of them the Parquet block cache before the map; the plots' rows, 10 MB, the filters'
-work). One worker alone, trimmed after each job: a plateau of 330 over 244 at the start, 307 right after a trim.
-What one chunk holds at its peak (tracemalloc, 55,700 samples, 66,664 read): the window's q and tau 7.1 MB, the
-filtered q, qd, qdd 10.7 (with the filter's work 3.6), W1 9.5, the W block 11.3, the column blocks' work ~3.5:
-43.4 MB. Against the chunk's length: 43.4, 31.5, 25.6, 22.7 MB at 55,700, 27,800, 13,900 and 6,900 samples, and
-the thread CPU per chunk 0.36, 0.25, 0.13, 0.085 s: each chunk computes W and its decimation on 9,800 more samples
-(the decimation's transient, 4,900 a side) and filters 10,964 more, so half the length costs ~+20 % of the map's
-CPU. cProfile of 6 chunks (4.9 s): the first decimation stage 2.75 s (its filter kernel 1.4, NumPy's column
-gathers and copies around it ~1.0), the regressor's kernel 0.7, the Parquet reads 0.16.
+in-use blocks ~60 MB (23 of them the Parquet block cache before the map; the plots' rows, 10 MB, the filters' work).
+One worker alone, trimmed after each job: a plateau of 330 over 244 at the start, 307 right after a trim. What one
+chunk holds at its peak (tracemalloc, 55,700 samples, 66,664 read): the window's q and tau 7.1 MB, the filtered q,
+qd, qdd 10.7 (with the filter's work 3.6), W1 9.5, the W block 11.3, the column blocks' work ~3.5: 43.4 MB. Against
+the chunk's length: 43.4, 31.5, 25.6, 22.7 MB at 55,700, 27,800, 13,900 and 6,900 samples, and the thread CPU per
+chunk 0.36, 0.25, 0.13, 0.085 s: each chunk computes W and its decimation on 9,800 more samples (the decimation's
+transient, 4,900 a side) and filters 10,964 more, so half the length costs ~+20 % of the map's CPU. cProfile of 6
+chunks (4.9 s): the first decimation stage 2.75 s (its filter kernel 1.4, NumPy's column gathers and copies around
+it ~1.0), the regressor's kernel 0.7, the Parquet reads 0.16.
 
-Measured 2026-11-28 (20:11-20:15 UTC, load average ~1.5 on the 2 cores: two other sessions): peak 408.5 MiB
-against main's 483.2 at 95b12f4 (farm-bench, 4 runs each alternated A B A B after a warm-up each, medians; 401-411
+Measured 2026-11-28 (20:11-20:15 UTC, load average ~1.5 on the 2 cores: two other sessions): peak 408.5 MiB against
+main's 483.2 at 95b12f4 (whole-process timing, 4 runs each alternated A B A B after a warm-up each, medians; 401-411
 against 482-485), CPU 0.89 x (pairs 0.84-0.96; 41.6 s against 46.6 s), the estimate, its sigmas, covariance and the
 errors bit-equal to main's (one hash over the 10 runs). What went: (1) the car's imports of pipeline/reduce.py into
 the car's functions: a robot run loads no vehicle module nor scipy.interpolate, optimize or spatial (after the
@@ -125,59 +125,60 @@ traces, the map's own high water ~400-410). The peak is now the map's: one worke
 over the resident set before it (43 MB of it NumPy's, tracemalloc), two workers ~130-150 MB over the ~250 MB left
 after the plan and the data-health check.
 
-Measured 2026-11-27 (19:25-19:35 UTC) on the 2-core machine, busy (~5 other sessions and a test run): 1 h,
-251,986 rows of 43 parameters, peak 508 MiB against main's 524 at d8e0370 (farm-bench medians of 3, A B A B in one
-run; CPU 1.05 x, range 0.92-1.09, wall 1.05 x: noise, the change removes work), 529 at 77e8e1a, 937 MB at 54648a4,
-1,056 MB at 212feaf (the rows stacked whole). The estimate is bit-equal to main's. What went, last: scipy.signal
-(dynid's Butterworth design, its steady states, the single passes and the kernel's autocorrelation are in
+Measured 2026-11-27 (19:25-19:35 UTC) on the 2-core machine, busy (~5 other sessions and a test run): 1 h, 251,986
+rows of 43 parameters, peak 508 MiB against main's 524 at d8e0370 (whole-process medians of 3, A B A B in one run;
+CPU 1.05 x, range 0.92-1.09, wall 1.05 x: noise, the change removes work), 529 at 77e8e1a, 937 MB at 54648a4, 1,056
+MB at 212feaf (the rows stacked whole). The estimate is bit-equal to main's. What went, last: scipy.signal (dynid's
+Butterworth design, its steady states, the single passes and the kernel's autocorrelation are in
 `signals._butterworth` and `signals._zero_phase`; scipy.signal only without numba): the resident set after the
 imports 149 MB against 172, and no car or robot identification loads scipy.signal or, before the map, scipy.stats.
 Before: pandas (pyarrow's to_numpy imported it), the heap the plan's pass over the stamps left (trimmed), half of
 each worker's block of the full-rate W.
 
 Measured 2026-11-27 (22:47-23:26 UTC, load average 7-13 on the 2 cores: other sessions, and this branch's test run
-during the first call): peak 472 and 477 MiB against main's 508 and 505 at 07e3a6a (two farm-bench calls, 3 runs
-each alternated A B A B, medians; -28..-36 MB); CPU 1.05 x (pairs 1.02-1.05, the call beside the test run) and 0.94
-x (0.93-0.95): noise of +-5 %; the work added, timed alone: 0.28 s to compare the stamps when planned and 0.28 s to
-read the 65 chunks' stamps, ~1 % of the 58 s. What went: the clock (`sources.FileClock`: the rows of the file's time
-column, read back by a chunk from the row groups it reads anyway, `io.windows.stamp_rows`, every stamp compared once
-when planned): the resident set before the map 274 -> 245 MB (an RSS trace around the stages). The estimate, its
-sigmas and the errors are bit-equal to main's. Tried and left, one run each on the loaded machine (peaks there move
-by +-20 MB): the block cache off (windows.CACHE_BLOCKS = 0): -24 MB before the map, ~-20 at the peak, each chunk
-decoding its two row groups again (40 ms of CPU a group here, ~+2.5 %); MALLOC_ARENA_MAX=1 (the two workers' threads
-in one glibc arena): -22 MB, CPU equal in that pair, a lever like the thresholds. A correction to the floor below:
-scipy.interpolate is first imported by `signals.resampling` (make_interp_spline, for `io.align`'s cubic resampling
-of q off the clock), which every robot run imports, and again by the vehicle package (`vehicle.table_poly`'s
-BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside NumPy, scipy.linalg and Numba).
+during the first call): peak 472 and 477 MiB against main's 508 and 505 at 07e3a6a (two whole-process timings, 3
+runs each alternated A B A B, medians; -28..-36 MB); CPU 1.05 x (pairs 1.02-1.05, the call beside the test run) and
+0.94 x (0.93-0.95): noise of +-5 %; the work added, timed alone: 0.28 s to compare the stamps when planned and 0.28
+s to read the 65 chunks' stamps, ~1 % of the 58 s. What went: the clock (`sources.FileClock`: the rows of the file's
+time column, read back by a chunk from the row groups it reads anyway, `io.windows.stamp_rows`, every stamp compared
+once when planned): the resident set before the map 274 -> 245 MB (an RSS trace around the stages). The estimate,
+its sigmas and the errors are bit-equal to main's. Tried and left, one run each on the loaded machine (peaks there
+move by +-20 MB): the block cache off (windows.CACHE_BLOCKS = 0): -24 MB before the map, ~-20 at the peak, each
+chunk decoding its two row groups again (40 ms of CPU a group here, ~+2.5 %); MALLOC_ARENA_MAX=1 (the two workers'
+threads in one glibc arena): -22 MB, CPU equal in that pair, a lever like the thresholds. A correction to the floor
+below: scipy.interpolate is first imported by `signals.resampling` (make_interp_spline, for `io.align`'s cubic
+resampling of q off the clock), which every robot run imports, and again by the vehicle package
+(`vehicle.table_poly`'s BSpline, through vehicle/__init__): both must go for its 18 MB (measured beside NumPy,
+scipy.linalg and Numba).
 
 Measured 2026-11-28 (01:25-02:40 UTC, load average 5-8 on the 2 cores: other sessions' tests and demos): peak 463.8
-MiB against main's 467.4 at ae30552 (farm-bench, 3 runs each alternated A B A B, medians; pairs' range 463-478
-against 465-473: noise), CPU 1.04 x (0.99-1.07; wall 53-177 s a run: the load), the estimate, its sigmas and the
-errors bit-equal to main's (and with one worker). What went: (1) W1, the first decimation stage's output, holds W's
-live columns alone (`decimate_parallel_blocked`; 190 of 301 for the Panda): 15.7 -> 9.9 MB a worker, not seen at the
-peak through the noise. (2) The car's imports off a robot's path (`signals.resampling` imports scipy.interpolate
+MiB against main's 467.4 at ae30552 (whole-process timing, 3 runs each alternated A B A B, medians; pairs' range
+463-478 against 465-473: noise), CPU 1.04 x (0.99-1.07; wall 53-177 s a run: the load), the estimate, its sigmas and
+the errors bit-equal to main's (and with one worker). What went: (1) W1, the first decimation stage's output, holds
+W's live columns alone (`decimate_parallel_blocked`; 190 of 301 for the Panda): 15.7 -> 9.9 MB a worker, not seen at
+the peak through the noise. (2) The car's imports off a robot's path (`signals.resampling` imports scipy.interpolate
 where a clock is resampled; pipeline.config, pipeline.run and report.build import the vehicle package, pipeline.car,
 pipeline.delays and report.tires in the car's functions): with pipeline/reduce.py's car imports moved too (a patch
 for that file's owner, not in this tree) a robot run loads no vehicle module and no scipy.interpolate, optimize or
 spatial: the resident set after the imports 149 -> 125 MB; the peak 450.6 MiB against main's 481.5 (3 runs each
 alternated, medians; 446-454 against 462-484) and 449.4 against 469.5 in a second call (437-456 against 461-474),
-estimate bit-equal; CPU not settled: 1.11 x and 1.16 x in those calls (pairs 0.95-1.24; the patched runs' system time
-5.3-8.9 s against 2.0-5.3, page faults), 0.99 x in a pair run side by side under /usr/bin/time (system 2.55 s, 364 k
-minor faults against 4.13 s, 849 k: the faults vary 2 x from run to run). Without that patch a robot still loads them
-through pipeline.reduce (149 MB). Corrections to the floor below: "Numba's code generator, 47 MB" is numba's target
-context refreshed before the first function it loads from its cache (`numba.core.caching.Cache.load_overload`): 86
-modules of its lowering registries (numba.np, numba.cpython, the typed containers, cffi and pycparser) +37 MB, its
-typing +3 MB, 3 s of CPU here; the code generator itself is 4.6 MB, made at import (a dispatcher built by
-`_zero_phase`). The first such call is `robot.chunk_pad`'s `border_samples` (its impulse response through
-`sosfilt_forward`), before the map, not the data-health check. Skipping that refresh on a cache hit (a patched
-`load_overload`, only the runtime initialised) ran bit-equal at a peak of 447 against 472.5 MiB, CPU 53.9 against
-55.5 s (one run each): not kept, it patches a private numba method; any compiled call on a robot's path brings the
-refresh. Tried and left, one run each: the block cache at 2 row groups a file (`windows.CACHE_BLOCKS`, 3 now): 1,806
-decodes against 1,775, peak 469 against 468; at 1: 3,017 decodes (+70 %), peak 460.5 (-8, within the noise), CPU 55.0
-against 56.8 s. glibc's arenas: each worker already trims after its chunk (`heap.trim_heap`), so the peak is the two
-workers' high water inside their chunks (~85 MB each over the 290 MB before the map: the window's samples, their
-filtering, one block of W with the filter's work, W1); a worker's arrays allocated once and reused would be the
-design lever, not tried.
+estimate bit-equal; CPU not settled: 1.11 x and 1.16 x in those calls (pairs 0.95-1.24; the patched runs' system
+time 5.3-8.9 s against 2.0-5.3, page faults), 0.99 x in a pair run side by side under /usr/bin/time (system 2.55 s,
+364 k minor faults against 4.13 s, 849 k: the faults vary 2 x from run to run). Without that patch a robot still
+loads them through pipeline.reduce (149 MB). Corrections to the floor below: "Numba's code generator, 47 MB" is
+numba's target context refreshed before the first function it loads from its cache
+(`numba.core.caching.Cache.load_overload`): 86 modules of its lowering registries (numba.np, numba.cpython, the
+typed containers, cffi and pycparser) +37 MB, its typing +3 MB, 3 s of CPU here; the code generator itself is 4.6
+MB, made at import (a dispatcher built by `_zero_phase`). The first such call is `robot.chunk_pad`'s
+`border_samples` (its impulse response through `sosfilt_forward`), before the map, not the data-health check.
+Skipping that refresh on a cache hit (a patched `load_overload`, only the runtime initialised) ran bit-equal at a
+peak of 447 against 472.5 MiB, CPU 53.9 against 55.5 s (one run each): not kept, it patches a private numba method;
+any compiled call on a robot's path brings the refresh. Tried and left, one run each: the block cache at 2 row
+groups a file (`windows.CACHE_BLOCKS`, 3 now): 1,806 decodes against 1,775, peak 469 against 468; at 1: 3,017
+decodes (+70 %), peak 460.5 (-8, within the noise), CPU 55.0 against 56.8 s. glibc's arenas: each worker already
+trims after its chunk (`heap.trim_heap`), so the peak is the two workers' high water inside their chunks (~85 MB
+each over the 290 MB before the map: the window's samples, their filtering, one block of W with the filter's work,
+W1); a worker's arrays allocated once and reused would be the design lever, not tried.
 
 Before 2026-11-29: 300 MB was ~165 MB away. The floor with the patch (an RSS trace, 2026-11-28, beside the A/B): 125
 MB after the imports, 226 after the plan (pyarrow and the clock), 278 after the data-health check, trimmed to 224,
