@@ -32,20 +32,28 @@ class Apart(Generic[T]):
         if not (sys.platform.startswith("linux") and threading.active_count() == 1):
             return
         r, w = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # the child: its value down the pipe, then leave at once (no atexit, no buffer flushed twice)
-            code = 1
-            try:
-                os.close(r)
-                data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(w, "wb") as out:
-                    out.write(data)
-                code = 0
-            finally:
-                os._exit(code)
-        os.close(w)
-        self.pid, self.fd = pid, r
-        self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
+        # Ctrl-C and TERM held across the fork: their handlers raise, and a raise inside the fork's own hooks
+        # (logging's lock release) is printed as an ignored exception with its traceback (a run killed while
+        # writing its report, tests/cli/test_output_folder.py); they are delivered once the child is accounted for
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            pid = os.fork()
+            if pid == 0:  # the child: its value down the pipe, then leave at once (no atexit, no buffer flushed twice)
+                code = 1
+                try:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, held)
+                    os.close(r)
+                    data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
+                    with os.fdopen(w, "wb") as out:
+                        out.write(data)
+                    code = 0
+                finally:
+                    os._exit(code)
+            os.close(w)
+            self.pid, self.fd = pid, r
+            self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
     def result(self) -> T:
         if self.pid is not None:
