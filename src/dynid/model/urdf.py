@@ -133,10 +133,6 @@ def _values(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...]
     return vals
 
 
-def _floats(el: ET.Element | None, attr: str, n: int, default: tuple[float, ...], where: str) -> np.ndarray:
-    return np.array(_values(el, attr, n, default, where))
-
-
 def _origin(el: ET.Element, where: str) -> np.ndarray:
     o = el.find("origin")
     xyz = _values(o, "xyz", 3, (0, 0, 0), where)
@@ -429,7 +425,7 @@ def _import(doc: ET.ElementTree, src: str, name: str | None, freeze: Mapping[str
                 merged.setdefault(place.frame, []).append(child)
                 todo.append((child, Placement(place.frame, origin)))
                 continue
-            axis = _floats(el.find("axis"), "xyz", 3, (1.0, 0.0, 0.0), jwhere)
+            axis = np.array(_values(el.find("axis"), "xyz", 3, (1.0, 0.0, 0.0), jwhere))
             norm = float(np.linalg.norm(axis))
             if norm < 1e-12:
                 raise UrdfError(f'{jwhere}: <axis xyz="{el.find("axis").get("xyz")}"> is zero')
@@ -647,7 +643,7 @@ def _write_inertial(link: ET.Element, p: np.ndarray, T_frame_link: np.ndarray, s
     if el is None:
         el = ET.SubElement(link, "inertial")
     old = el.find("origin")
-    rpy = _floats(old, "rpy", 3, (0, 0, 0), src)
+    rpy = _values(old, "rpy", 3, (0, 0, 0), src)
     R = A[:3, :3].T @ _rpy(rpy)  # inertial axes in the dynid frame
     I = R.T @ JG @ R
     origin = old if old is not None else ET.SubElement(el, "origin")

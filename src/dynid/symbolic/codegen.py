@@ -83,9 +83,9 @@ def _output_labels(prog: Program):
 # ----- C ---------------------------------------------------------------------------------------------
 
 
-def _c_equations(prog: Program, indent: str, sign: str, sincos: str) -> list[str]:
-    """The straight-line body's lines: each equation a constant, but a sine and a cosine of one argument, which
-    are one call of `sincos` (a format of x, s, c), declared before it; sign() called as `sign`."""
+def _c_lane_equations(prog: Program) -> list[str]:
+    """The lanes' straight-line body: each equation a constant, but a sine and a cosine of one argument, which are
+    one `dynid_sincos_lane` call, declared before it."""
     by_arg: dict[tuple, dict[str, str]] = {}
     for eq in prog.equations:
         if eq.kind in ("sin", "cos"):
@@ -93,7 +93,8 @@ def _c_equations(prog: Program, indent: str, sign: str, sincos: str) -> list[str
     lines, done = [], set()
     for eq in prog.equations:
         if eq.kind not in ("sin", "cos"):
-            lines.append(f"{indent}const double {eq.name} = {_eq_text(eq, 'c').replace('dynid_sign(', sign)};")
+            text = _eq_text(eq, "c").replace("dynid_sign(", "dynid_sign_lane(")
+            lines.append(f"        const double {eq.name} = {text};")
             continue
         key = _key(eq.rhs)
         if key in done:
@@ -101,8 +102,8 @@ def _c_equations(prog: Program, indent: str, sign: str, sincos: str) -> list[str
         done.add(key)
         names = by_arg[key]
         s_name, c_name = names.get("sin", f"{eq.name}_sin"), names.get("cos", f"{eq.name}_cos")
-        lines.append(f"{indent}double {s_name}, {c_name};")
-        lines.append(indent + sincos.format(x=format_poly(eq.rhs, "c"), s=s_name, c=c_name))
+        lines.append(f"        double {s_name}, {c_name};")
+        lines.append(f"        dynid_sincos_lane({format_poly(eq.rhs, 'c')}, &{s_name}, &{c_name}, &bad[k]);")
     return lines
 
 
@@ -259,7 +260,7 @@ def _c_block(prog: Program, fname: str, params: list[str], outs: list[str], stri
             idx = idx[0] * 6 + idx[1]
         body.append(f"        const double {name} = X[{idx}];" if s == "X"
                     else f"        const double {name} = {s}[{idx * B} + k];")
-    body += _c_equations(prog, "        ", "dynid_sign_lane(", "dynid_sincos_lane({x}, &{s}, &{c}, &bad[k]);")
+    body += _c_lane_equations(prog)
     for o, shape, entries in out_lists:  # a lane-major tile: constant offsets, which the vectoriser needs
         body += [line.replace(f"    {o}[", f"        {o}[{B} * ", 1).replace("] = ", " + k] = ", 1)
                  for line in _c_fill(o, shape, entries)]
