@@ -8,6 +8,7 @@ rounding of the filters (recursions of ~1e4 steps at 1e-16 each)."""
 
 from __future__ import annotations
 
+import os
 import tracemalloc
 
 import numpy as np
@@ -172,3 +173,70 @@ def test_windows_anywhere_in_a_file_with_holes_equal_the_whole_read(tmp_path, ji
             part = read_robot_window(plan, lo, lo + 500)[quantity]
             ref = whole[quantity][lo:lo + 500]
             assert np.max(np.abs(part - ref)) <= 1e-9 * np.max(np.abs(ref)), (lo, quantity)
+
+
+def test_a_blocks_derivatives_are_the_whole_windows_bits():
+    """Oracle: `filtered_derivatives` over the whole window (what a chunk held before). A W block's qd, qdd come
+    from the filtered positions two samples beyond it, so they are the same element-wise differences: the same
+    bits, at the window's ends (its one-sided formulas) and inside."""
+    from dynid.pipeline.robot import _block_derivatives
+    from dynid.signals import filtered_derivatives
+
+    q = _test(5000).q
+    whole = filtered_derivatives(q, FS, 20.0, order=4, nderiv=2)
+    for a, z in ((0, 700), (1, 2), (2, 3000), (1234, 4321), (4000, 4999), (4000, 5000), (0, 5000)):
+        block = _block_derivatives(whole[0], a, z, FS)
+        for got, ref in zip(block, whole, strict=True):
+            assert np.array_equal(got, ref[a:z]), (a, z)
+
+
+@pytest.mark.slow
+def test_the_robot_map_holds_one_chunk_at_a_time_on_this_machines_threads(tmp_path, monkeypatch):
+    """Oracle: the same map on one thread (the chunks' jobs one by one, their blocks on one thread). On a
+    LocalScheduler of 2 workers the chunks run one after another, each on 2 threads (`run.chunk_scheduler`), never
+    two at once (their first-stage outputs held once, the next chunk's window read ahead: issue 25), and the
+    factors and rows are the same bits."""
+    import itertools
+    import threading
+    import time
+
+    from dynid.pipeline import robot, run
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.schedulers import LocalScheduler, Staged
+
+    cfg = load_config(robot_log(tmp_path, 12000))
+    model = load_model("tx40")
+    base = model.base_parameters()
+    monkeypatch.setattr(robot, "CHUNK_BYTES", 2000 * robot.chunk_sample_bytes(model, base, cfg.conditioning))
+    monkeypatch.setattr(robot, "BLOCK_BYTES", 2**18)  # a few blocks a chunk: the threads share them
+    spans, lock, real = [], threading.Lock(), run.reduce_robot_chunk
+
+    def timed(job, read, ready):
+        t0 = time.perf_counter()
+        out = real.finish(job, read, ready)
+        with lock:
+            spans.append((t0, time.perf_counter(), getattr(job, "threads", 1)))
+        return out
+
+    # the chunks' finishes timed (their W blocks), the next chunk's read ahead as it runs (`schedulers.Staged`)
+    monkeypatch.setattr(run, "reduce_robot_chunk", Staged(real.first, timed))
+    two = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    spans.sort()
+    assert len(spans) > 3
+    assert all(b0 >= a1 for (_, a1, _), (b0, _, _) in itertools.pairwise(spans)), "two chunks at once"
+    assert all(k == min(2, os.cpu_count() or 1) for _, _, k in spans)
+    one = run.robot_systems(cfg, model, base, LocalScheduler(1), lambda _m: None, all_rows=True)["identify"]
+    assert np.array_equal(two.rows["sines"].W, one.rows["sines"].W)
+    assert np.array_equal(two.rows["sines"].Y, one.rows["sines"].Y)
+    assert np.array_equal(two.ls.solve().values, one.ls.solve().values)
+
+
+def test_a_huge_worker_count_runs_a_chunk_on_the_machines_threads():
+    """`[compute] workers = 1000000000` is valid (as many as there are): a chunk's W blocks then run on the
+    machine's threads, each holding one block; sized by the count asked for, the run asked for 22 GB."""
+    from dynid.pipeline.run import chunk_scheduler
+    from dynid.pipeline.schedulers import LocalScheduler
+
+    mapper, threads = chunk_scheduler(LocalScheduler(10**9))
+    assert threads == (os.cpu_count() or 1) and mapper.workers == 1
+    assert chunk_scheduler(LocalScheduler(1))[1] == 1

@@ -74,6 +74,46 @@ def _config(folder, n_validation: int):
 
 @pytest.mark.slow
 @pytest.mark.e2e
+def test_one_worker_reads_a_staged_functions_next_job_ahead():
+    """Oracle: `tree_fold` of the function's plain results in the jobs' order (a combine that writes its shape). On
+    one worker a `Staged` function's first stage of job i + 1 starts on another thread when job i's finish, on the
+    calling thread, says it is ready, not before (each finish but the last waits for it: on a scheduler that ran
+    the stages one after the other it would time out), the finishes in the jobs' order."""
+    import threading
+
+    from dynid.pipeline.schedulers import Staged
+
+    n, caller = 9, threading.get_ident()
+    started = [threading.Event() for _ in range(n)]
+    where: dict[str, set[int]] = {"first": set(), "finish": set()}
+    order = []
+
+    def first(j):
+        started[j].set()
+        where["first"].add(threading.get_ident())
+        return str(j)
+
+    def finish(j, got, ready):
+        assert got == str(j)
+        if j + 1 < n:
+            assert not started[j + 1].is_set(), f"job {j + 1}'s first stage started before job {j} was ready"
+            ready()
+            assert started[j + 1].wait(30), f"job {j + 1}'s first stage not started while job {j} finishes"
+            ready()  # a second call starts nothing more
+        where["finish"].add(threading.get_ident())
+        order.append(j)
+        return got
+
+    def combine(a, b):
+        return f"({a} {b})"
+
+    got = LocalScheduler(1).map_reduce(Staged(first, finish), list(range(n)), lambda j: j % 2, combine)
+    assert got == {k: tree_fold([str(j) for j in range(n) if j % 2 == k], combine) for k in (0, 1)}
+    assert order == list(range(n))
+    assert where["finish"] == {caller} and caller not in where["first"]
+    assert Staged(first, finish)(n - 1) == str(n - 1)  # called plainly (any other scheduler): finish(job, first(job))
+
+
 def test_peak_memory_does_not_grow_with_the_validation_tests(tmp_path):
     from dynid.pipeline.run import SHOWN_VALIDATION
 

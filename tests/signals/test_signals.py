@@ -578,6 +578,41 @@ def test_blocked_decimation_is_the_whole_inputs_without_holding_it(factor):
     assert np.array_equal(one[0], Wd) and np.array_equal(one[1], Yd)
 
 
+@pytest.mark.parametrize("threads", [2, 3])
+def test_blocked_decimation_on_threads_is_one_threads_to_the_bit(threads):
+    """Oracle: the same call on one thread. Each block is computed alone (the same samples, the same filter per
+    column) and written to its own rows, so any thread count gives the same bits, a column first live in a later
+    block (W1 widened while other blocks run) included; rows() is asked for every block once."""
+    import threading
+
+    from dynid.signals.decimation import decimate_parallel_blocked
+
+    rng = np.random.default_rng(6)
+    n = 30007
+    W = np.cumsum(rng.normal(size=(n, 3, 5)), axis=0)
+    W[:, 1, 2] = 0.0
+    W[: n // 2, 2, 4] = 0.0  # live from the middle on only
+    Y = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    asked = []
+
+    def rows(lo, hi):
+        asked.append((lo, hi))
+        return W[lo:hi].copy(), Y[lo:hi]
+
+    one = decimate_parallel_blocked(rows, n, (10, 10), FS, block_samples=3000)
+    once = sorted(asked)
+    asked.clear()
+    done = []  # blocks_done: once, on the calling thread, after every block is asked for
+    many = decimate_parallel_blocked(rows, n, (10, 10), FS, block_samples=3000, threads=threads,
+                                     blocks_done=lambda: done.append((len(asked), threading.get_ident())))
+    assert sorted(asked) == once and len(once) > 3
+    assert done == [(len(once), threading.get_ident())]
+    assert np.array_equal(one[0], many[0]) and np.array_equal(one[1], many[1])
+    assert np.all(many[0][:, 1, 2] == 0.0) and np.any(many[0][:, 2, 4] != 0.0)
+    with pytest.raises(SignalError, match="threads"):
+        decimate_parallel_blocked(rows, n, 10, FS, block_samples=3000, threads=0)
+
+
 # (fs, cut-off) pairs: the paper's 3 Hz at 625 Hz, a fast arm's 20 Hz at 1 kHz, a very low and a near-Nyquist
 # cut-off (poles at 1e-5 of the unit circle, poles on the negative axis), the quarter rate (a pole at the origin)
 DESIGNS = [(625.0, 3.0), (1000.0, 20.0), (1000.0, 0.01), (100.0, 49.9), (100.0, 25.0), (2.0, 0.7), (62.5, 4.0)]

@@ -51,7 +51,8 @@ from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
-from .robot import GroupedSystem, chunk_rows, to_frames
+from .robot import GroupedSystem, chunk_filtered, chunk_rows, to_frames
+from .schedulers import Staged
 from .sources import (
     RobotTestPlan,
     SegmentWindow,
@@ -545,6 +546,7 @@ class RobotJob:
     keep_rows: bool = False  # return the rows themselves (each test's first chunk: the report's plots)
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
+    threads: int = 1  # the chunk's W blocks done on this many threads at once (`robot.chunk_rows`)
 
     @property
     def test(self) -> str:
@@ -582,16 +584,29 @@ def robot_setup(cfg: IdentifyConfig) -> RobotSetup:
                    {k: c.channels for k, c in cfg.channels.items()}), lambda: RobotSetup(cfg))
 
 
-def reduce_robot_chunk(job: RobotJob) -> Partial:
-    """The chunk's samples read, through the channel map, drive gains and transmission, to its decimated rows (with
-    the drive gains' columns when they are identified, and the test's payload torque taken off), reduced to their
-    per-joint factors (every column: `StreamingLS.reparametrised` applies the known values when solving)."""
+@dataclass
+class RobotChunkRead:
+    """A chunk's samples read and filtered (`read_robot_chunk`), what its rows need before the model's W."""
+
+    window: RobotTestPlan  # the job's, its clock read
+    q: np.ndarray  # (samples, frames): the window's positions
+    tau: np.ndarray  # (samples, frames): its torques
+    gains: np.ndarray | None  # (samples, frames, k): the drive gains' columns when identified
+    health: dict  # test -> the joints' data health of the positions (pipeline.health.gather_joints)
+    filtered: tuple[np.ndarray, np.ndarray]  # `robot.chunk_filtered`'s (qf, speed)
+
+
+def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
+    """The chunk's samples read, through the channel map, drive gains and transmission, their positions' data health
+    gathered, filtered (`robot.chunk_filtered`): the first stage of `reduce_robot_chunk`, no model's W (the next
+    chunk's, run on a second thread while this one's W blocks run: `schedulers.Staged`)."""
     setup = robot_setup(job.cfg)
     w = clock_read(job.window)  # its stamps read once (a file's clock is not held by the plan)
     arrays = read_robot_window(w, 0, w.samples)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
-    # the joints' data health: the positions here, the torques from the rows below (pipeline.health)
+    del arrays
+    # the joints' data health: the positions here, the torques from the rows (pipeline.health)
     health = {w.test: gather_joints(job.cfg, setup.model, columns, w.clock, w.fs, w.first, job.chunk, job.n_samples,
                                     q, tau, gains, torques=False)} if job.health else {}
     q, tau = to_frames(q, columns, n), to_frames(tau, columns, n)
@@ -599,15 +614,33 @@ def reduce_robot_chunk(job: RobotJob) -> Partial:
         full = np.zeros((gains.shape[0], n, gains.shape[2]))
         full[:, np.asarray(columns) - 1, :] = gains
         gains = full
-    sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, q, tau, w.fs, w.first, job.chunk,
-                     job.n_samples, gains=gains, payload=setup.payloads.get(w.test))
+    filtered = chunk_filtered(job.cfg.conditioning, q, w.fs, w.first, job.chunk, job.n_samples)
+    return RobotChunkRead(w, q, tau, gains, health, filtered)
+
+
+def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[], None] | None = None) -> Partial:
+    """The chunk's read samples (`read_robot_chunk`) to its decimated rows (with the drive gains' columns when they
+    are identified, and the test's payload torque taken off), reduced to their per-joint factors (every column:
+    `StreamingLS.reparametrised` applies the known values when solving): the second stage of `reduce_robot_chunk`.
+    ready: called once the chunk's W blocks are done and freed (`schedulers.Staged`: the next chunk read then)."""
+    setup = robot_setup(job.cfg)
+    w, health, gains = read.window, read.health, read.gains
+    sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, read.q, read.tau, w.fs, w.first, job.chunk,
+                     job.n_samples, gains=gains, payload=setup.payloads.get(w.test), threads=job.threads,
+                     filtered=read.filtered, blocks_done=ready)
     if job.hac is not None:
         return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if health and gains is None:
-        health[w.test].add_rows(sys, columns, setup.a_priori)
+        health[w.test].add_rows(sys, setup.joints.columns, setup.a_priori)
     ls = StreamingLS(setup.names)
     ls.add(sys.W, sys.Y, sys.groups)
     return Partial(ls, rows={w.test: sys} if job.keep_rows else {}, health=health)
+
+
+# The chunk's samples read, through the channel map, drive gains and transmission, to its decimated rows (with the
+# drive gains' columns when they are identified, and the test's payload torque taken off), reduced to their
+# per-joint factors: a function of a job, whose two stages this machine's scheduler overlaps across chunks.
+reduce_robot_chunk: Staged[RobotJob, RobotChunkRead, Partial] = Staged(read_robot_chunk, robot_chunk_partial)
 
 
 def _scores(empty: HACSums, sys: GroupedSystem, test: str, C: np.ndarray | None = None) -> HACSums:

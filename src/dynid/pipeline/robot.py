@@ -9,14 +9,15 @@ test are stacked per joint, and each joint is one equation group for weighted LS
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..dynamics import BaseParameters, Model
 from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
-from ..signals import border_samples, decimate_parallel, filtered_derivatives
+from ..signals import border_samples, decimate_parallel, derivative, filtered_derivatives
 from ..signals.decimation import blocked_rows, decimate_parallel_blocked
 
 Array = np.ndarray
@@ -197,7 +198,9 @@ CHUNK_BYTES = 28 * 2**20
 
 def chunk_sample_bytes(model: Model, base: BaseParameters, c: Conditioning) -> int:
     """Bytes a worker holds per sample of its chunk (`chunk_rows`): the window's q and tau and the filtered q, qd,
-    qdd (the model's frames each), and W1, the first decimation stage's output of W (every column: a bound)."""
+    qdd (the model's frames each), and W1, the first decimation stage's output of W (every column: a bound). qd and
+    qdd are made a W block at a time since, so this over-counts them: kept as it was, the chunks' boundaries (and
+    the estimate's bits) stay where they were."""
     return 8 * (5 * model.n + -(-len(model.tree.equations) * len(base.columns) // c.decimate[0]))
 
 
@@ -220,7 +223,9 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
 
 def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
-               payload: tuple[int, Array] | None = None) -> GroupedSystem:
+               payload: tuple[int, Array] | None = None, threads: int = 1,
+               filtered: tuple[Array, Array] | None = None,
+               blocks_done: Callable[[], None] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
@@ -228,10 +233,16 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
 
     gains: (len(q), n, k) columns appended to W on the same samples (drive gains identified: `sources.driven`),
     filtered and decimated as W's. payload: (frame, its 10 standard parameters about the frame's origin): a known
-    body fixed to that link, whose torque (the link's regressor columns times them) is taken off the torques."""
+    body fixed to that link, whose torque (the link's regressor columns times them) is taken off the torques.
+    threads: the chunk's W blocks done on that many threads at once (`decimate_parallel_blocked`; the same bits):
+    one chunk's samples, filtered positions and first-stage output held, not one per thread's chunk.
+    filtered: `chunk_filtered`'s (qf, speed) of these arguments, made beforehand (the next chunk's, on another
+    thread while this one's decimation finishes: `reduce.read_robot_chunk`); made here when None. blocks_done:
+    called once the W blocks are done and their buffers freed (the decimation's later stages and the rows' own
+    selection left)."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
-    qf, qdf, qddf = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=2)
+    qf, speed = chunk_filtered(c, q, fs, first, chunk, n_samples) if filtered is None else filtered
     b, D = _border(fs, c), int(np.prod(c.decimate))
     pad = _decimation_transient(fs, c.decimate)
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
@@ -239,28 +250,37 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     eq, cols = np.array(rows) - 1, list(base.columns)
     row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
     block_samples = BLOCK_BYTES // row_bytes
-    # one W block for all the chunk's blocks: the regressor writes only its entries that can be non-zero, so the
-    # structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of BLOCK_BYTES
+    # one W block a thread for all the chunk's blocks: the regressor writes only its entries that can be non-zero,
+    # so the structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of
+    # BLOCK_BYTES
     most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
-    buffer = np.zeros((most, len(rows), len(cols)))
+    spare = [np.zeros((most, len(rows), len(cols))) for _ in range(threads)]  # made here: this thread's heap
+    buffers: dict[int, Array] = {}
 
     def block(a: int, z: int) -> tuple[Array, Array]:
         """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
         w = slice(o + a, o + z)
-        W = model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=cols,
-                            out=buffer[: z - a])
+        qb, qdb, qddb = _block_derivatives(qf, o + a, o + z, fs)
+        buffer = buffers.get(threading.get_ident())
+        if buffer is None:  # this thread's first block (list.pop and a dict's item set are atomic under the GIL)
+            buffer = buffers[threading.get_ident()] = spare.pop()
+        W = model.regressor(qb, qdb, qddb, rows=rows, cols=cols, out=buffer[: z - a])
         Y = tau[w][:, eq]
         if payload is not None:
             j, Xp = payload
-            Y = Y - model.regressor(qf[w], qdf[w], qddf[w], rows=rows, cols=[f"{k}{j}" for k in INERTIAL]) @ Xp
+            Y = Y - model.regressor(qb, qdb, qddb, rows=rows, cols=[f"{k}{j}" for k in INERTIAL]) @ Xp
         if gains is not None:
             W = np.concatenate([W, gains[w][:, eq, :]], axis=2)
         return W, Y
 
+    def freed() -> None:
+        buffers.clear()
+        spare.clear()
+        if blocks_done is not None:
+            blocks_done()
+
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=block_samples)
-    w = slice(lo - first, hi - first)
-    speed, _ = decimate_parallel(qdf[w], None, c.decimate, fs, order=DECIMATION_ORDER)
+                                       block_samples=block_samples, threads=threads, blocks_done=freed)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
     Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
     parts = []
@@ -268,6 +288,32 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
         ok = np.abs(speed[:, j - 1]) >= c.min_speed.get(j, 0.0)
         parts.append(GroupedSystem(Wd[ok, i], Yd[ok, i], np.full(int(ok.sum()), f"joint{j}"), td[ok]))
     return GroupedSystem.stack(parts)
+
+
+def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tuple[int, int],
+                   n_samples: int) -> tuple[Array, Array]:
+    """`chunk_rows`' filtered positions of its window q (samples first..first + len(q)) and its joints' speeds
+    decimated as W's columns over the chunk and its decimation transient (the rows' speed test sees the decimated
+    samples): what a chunk needs before its W blocks, without the model."""
+    # the filtered positions held for the chunk, their derivatives (`filtered_derivatives`' central differences)
+    # made a block at a time from them: the same bits, 2 of the 3 filtered arrays not held (7.5 MB for the Panda's)
+    (qf,) = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=0)
+    s, e = chunk
+    b, pad = _border(fs, c), _decimation_transient(fs, c.decimate)
+    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)
+    speed, _ = decimate_parallel(derivative(qf, fs)[lo - first : hi - first], None, c.decimate, fs,
+                                 order=DECIMATION_ORDER)
+    return qf, speed
+
+
+def _block_derivatives(qf: Array, a: int, z: int, fs: float) -> tuple[Array, Array, Array]:
+    """qf[a:z] and its first two derivatives there, the bits `filtered_derivatives` gives over the whole of qf:
+    central differences read two samples beyond each end (interior samples are element-wise), and at qf's own
+    ends its one-sided formulas."""
+    e0, e1 = max(0, a - 2), min(qf.shape[0], z + 2)
+    qd = derivative(qf[e0:e1], fs)
+    qdd = derivative(qd, fs)
+    return qf[a:z], qd[a - e0 : z - e0], qdd[a - e0 : z - e0]
 
 
 def in_joint_order(parts: Sequence[GroupedSystem]) -> GroupedSystem:

@@ -186,6 +186,16 @@ test when shorter). The estimate and the validation errors come from the factors
 while the fold stacks them: 32 MiB was ~90 MB of a 1 h log's peak."""
 
 
+def chunk_scheduler(scheduler: Scheduler) -> tuple[Scheduler, int]:
+    """Where a robot's chunks run, and on how many threads each: this machine's k threads do one chunk at a time,
+    its W blocks k at once (one chunk's samples, filtered signals and first-stage output held instead of k: 2 x 43
+    MB for the Panda arm's 55,600-sample chunks); a cluster's workers a chunk each, on one thread. More threads
+    than the machine has buy nothing here and each holds a W block: the count is capped to the machine's."""
+    if isinstance(scheduler, LocalScheduler) and scheduler.workers > 1:
+        return LocalScheduler(1), min(scheduler.workers, os.cpu_count() or 1)
+    return scheduler, 1
+
+
 def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, scheduler: Scheduler, say: Progress,
                   health: list[dict] | None = None, all_rows: bool = False,
                   jobs_out: list[RobotJob] | None = None) -> dict[str, Partial]:
@@ -198,6 +208,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     all_rows), joint by joint. jobs_out: a list the chunks' jobs are appended to (a second pass maps them again)."""
     jobs = [] if jobs_out is None else jobs_out
     plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
+    mapper, threads = chunk_scheduler(scheduler)
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
@@ -224,9 +235,9 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = clock_window(plan, lo, hi)
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
-            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True))
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True, threads=threads))
             kept += (e - s) * row_bytes
-    parts = scheduler.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
+    parts = mapper.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
     trim_heap()  # the workers' freed chunks (glibc keeps ~25 MB of them otherwise, under the solve and the check)
     setup = robot_setup(cfg)
     for spec in cfg.tests:  # the joints against the model, as the chunks gathered them: an error stops here
@@ -777,7 +788,7 @@ def _identify(cfg: IdentifyConfig, progress: Progress | None, scheduler: Schedul
         raise ConfigError(f"{cfg.path}: {exc}{_rank_hints(cfg, ident, health)}") from None
     if cfg.covariance.hac:
         result = hac_pass(cfg, ident, result, reduce_robot_chunk, [j for j in jobs if j.window.role == "identify"],
-                          lambda j: j.window.role, scheduler, say)
+                          lambda j: j.window.role, chunk_scheduler(scheduler)[0], say)
     # the flag judges each σ against the link's size, not against a value that may be near zero (robot_scales)
     result = dataclasses.replace(result, flag_percent=cfg.flag_percent, scales=robot_scales(
         model.tree, base, dict(zip(result.names, (float(v) for v in result.values), strict=True))))

@@ -7,6 +7,8 @@ same answer to the last bit on the same CPU (and to round-off across CPUs).
 - `LocalScheduler(workers)`: threads on this machine (NumPy, SciPy and the compiled kernels release
   the GIL; BLAS kept to one thread inside each); at most 2 x workers jobs in flight, their results
   folded as they arrive (`_Fold`), so memory follows the segments being worked on, not the file.
+  One worker is the calling thread itself, the jobs in their order; a `Staged` function's first stage
+  of the next job runs on a second thread meanwhile.
 - `DaskScheduler(address)`: a dask.distributed cluster ("local" starts a LocalCluster on this
   machine); the jobs are small (a segment's time window of a file the workers can reach), the
   workers read their data themselves, and the fold runs on the workers too. A worker lost
@@ -18,7 +20,9 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Hashable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
-from typing import Any, Protocol, TypeVar
+from dataclasses import dataclass
+from functools import partial
+from typing import Any, Generic, Protocol, TypeVar
 
 from threadpoolctl import threadpool_limits
 
@@ -28,12 +32,32 @@ from .heap import trim_heap
 
 J = TypeVar("J")
 R = TypeVar("R")
+M = TypeVar("M")
 Progress = Callable[[str], None]
 
 
 class Scheduler(Protocol):
     def map_reduce(self, fn: Callable[[J], R], jobs: Sequence[J], key: Callable[[J], Hashable],
                    combine: Callable[[R, R], R], progress: Progress | None = None) -> dict[Hashable, R]: ...
+
+
+@dataclass(frozen=True)
+class Staged(Generic[J, M, R]):
+    """A job's function in two stages, finish(job, first(job), ready): called, it is that function (any scheduler;
+    ready does nothing); a one-worker `LocalScheduler` runs the next job's first stage on a second thread from the
+    moment this job's finish calls ready() (its largest arrays freed; or once it returns, if it never calls it),
+    the finishes on the calling thread in the jobs' order (the same bits): a first stage that reads and the tail
+    of a finish that computes on its own threads overlap, one job's first-stage output held ahead."""
+
+    first: Callable[[J], M]
+    finish: Callable[[J, M, Callable[[], None]], R]
+
+    def __call__(self, job: J) -> R:
+        return self.finish(job, self.first(job), _nothing)
+
+
+def _nothing() -> None:
+    pass
 
 
 def tree_fold(items: list, combine: Callable[[Any, Any], Any]) -> Any:
@@ -82,6 +106,29 @@ class LocalScheduler:
         folds = {k: _Fold(idx, combine) for k, idx in _by_key(jobs, key).items()}
         of = {i: folds[k] for k, idx in _by_key(jobs, key).items() for i in idx}
         done = 0
+        if self.workers == 1:  # on the calling thread: its heap (glibc's arena) is the one the plan left free space in
+            with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(1) as ahead:
+                staged = isinstance(fn, Staged) and len(jobs) > 1
+                nxt = [ahead.submit(fn.first, jobs[0])] if staged else []
+                for i, job in enumerate(jobs):
+                    run = _trimmed if i % TRIM_EVERY == TRIM_EVERY - 1 else _plain
+                    if not staged:
+                        out = run(fn, job)
+                    else:  # this job's first stage, done ahead; the next one's started once the finish is ready
+                        got = nxt.pop().result()
+
+                        def ready(i: int = i) -> None:
+                            if not nxt and i + 1 < len(jobs):
+                                nxt.append(ahead.submit(fn.first, jobs[i + 1]))
+
+                        out = run(partial(fn.finish, job, got), ready)
+                        del got  # not held while the next job's first stage is awaited
+                        ready()
+                    of[i].put(i, out)
+                    del out
+                    done += 1
+                    say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
+            return {k: fold.result() for k, fold in folds.items()}
         with ThreadPoolExecutor(self.workers) as pool, threadpool_limits(limits=1, user_api="blas"):
             running: dict = {}
             todo = iter(range(len(jobs)))

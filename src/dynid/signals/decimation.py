@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
+import threading
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -238,6 +240,8 @@ def decimate_parallel_blocked(
     cutoff: float | Sequence[float] | None = None,
     *,
     block_samples: int,
+    threads: int = 1,
+    blocks_done: Callable[[], None] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """`decimate_parallel(W, Y, ...)` of the W (n, m, p) and Y (n, m) that `rows(0, n)` would give, without ever
     holding them at the input rate: the first stage filters and decimates blocks of about `block_samples` input
@@ -245,18 +249,28 @@ def decimate_parallel_blocked(
     with the stage's transient to `ROUND_OFF` of its weight beyond the block's own samples; the later stages run
     on the first's output, `factor[0]` times smaller. The outputs equal `decimate_parallel`'s to round-off (the
     same bits when one block covers the input); what is held is one block at the input rate and the first
-    stage's output, and a few copies of `WORK_BYTES` (the columns filtered side by side)."""
+    stage's output, and a few copies of `WORK_BYTES` (the columns filtered side by side).
+
+    threads: blocks done at once on that many threads (one block each at a time: `rows` is then called from
+    them together and must be safe so, each call's W its own until it returns the next block's). The outputs
+    are the same bits for any count: each block is computed alone, its outputs written to their own rows.
+    blocks_done: called on the calling thread once every block is in (`rows` is not called again), before the
+    later stages."""
     factors = _factors(factor)
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
+    if isinstance(threads, bool) or not isinstance(threads, numbers.Integral) or threads < 1:
+        raise SignalError(f"threads must be an integer >= 1, not {threads!r}")
     stages = _stages(n, factors, fs, order, cutoff)
     first, f = stages[0], factors[0]
     starts, ends, ov = _blocks(n, f, fs, first.cutoff, order, block_samples)
     # W1: the first stage's output of W's live columns alone (`held`, full-width indices, sorted), the structural
     # zeros (a joint's row holds only its subtree's parameters: 111 of a 7-joint arm's 301) never stored
-    W1 = Y1 = None
-    held = np.zeros(0, dtype=np.intp)
-    for a, e in zip(starts, ends, strict=True):
+    out: dict = {"W1": None, "Y1": None, "held": np.zeros(0, dtype=np.intp), "shape": None}
+    lock = threading.Lock()
+    caller, made = threading.get_ident(), threading.Event()
+
+    def one(a: int, e: int) -> None:
         lo, hi = max(0, a - ov), min(n, e + ov)
         W, Y = rows(lo, hi)
         Wa, Ya = _checks.as_float(W, "W", min_ndim=3), _checks.as_float(Y, "Y")
@@ -265,25 +279,62 @@ def decimate_parallel_blocked(
                               f"({hi - lo}, m, p) and Y ({hi - lo}, m)")
         _checks.finite(Wa, "W", 0, "remove or repair those samples before decimating")
         _checks.finite(Ya, "Y", 0, "remove or repair those samples before decimating")
-        if Y1 is None:
-            shape, width = Wa.shape[1:], int(np.prod(Wa.shape[1:]))
-            Y1 = np.zeros((first.n_out, *Ya.shape[1:]))
         stage = [dataclasses.replace(first, n_in=hi - lo)]
         keep = slice((a - lo) // f, (a - lo) // f + -(-(e - a) // f))  # output k of the block is input lo + k f
         W2 = Wa.reshape(hi - lo, -1)
         live = np.flatnonzero(np.any(W2 != 0, axis=0))  # structural zeros stay zero (decimate_parallel)
-        if W1 is None or not np.isin(live, held).all():  # a column live for the first time: W1 widened (rare)
-            wider = np.union1d(held, live)
-            grown = np.zeros((first.n_out, len(wider)))
-            if W1 is not None:
-                grown[:, np.searchsorted(wider, held)] = W1
-            W1, held = grown, wider
         block = max(1, WORK_BYTES // (8 * (hi - lo)))
-        W1[a // f : -(-e // f), np.searchsorted(held, live)] = _decimate_columns(W2, stage, block, live,
-                                                                                 compact=True)[keep]
-        Y1[a // f : -(-e // f)] = _decimate_columns(Ya.reshape(hi - lo, -1), stage, block)[keep].reshape(
-            -1, *Ya.shape[1:])
+        Wb = _decimate_columns(W2, stage, block, live, compact=True)[keep]
+        Yb = _decimate_columns(Ya.reshape(hi - lo, -1), stage, block)[keep].reshape(-1, *Ya.shape[1:])
+        shape = Wa.shape[1:]
         del W, Wa, W2
+        if threading.get_ident() != caller:
+            made.wait()  # W1 and Y1 made by the calling thread's first block, in its heap (glibc's arena)
+        with lock:  # W1 widened and written by one block at a time
+            if out["Y1"] is None:
+                out["shape"] = shape
+                out["Y1"] = np.zeros((first.n_out, *Yb.shape[1:]))
+            W1, held = out["W1"], out["held"]
+            if W1 is None or not np.isin(live, held).all():  # a column live for the first time: W1 widened (rare)
+                wider = np.union1d(held, live)
+                grown = np.zeros((first.n_out, len(wider)))
+                if W1 is not None:
+                    grown[:, np.searchsorted(wider, held)] = W1
+                out["W1"], out["held"] = W1, held = grown, wider
+            W1[a // f : -(-e // f), np.searchsorted(held, live)] = Wb
+            out["Y1"][a // f : -(-e // f)] = Yb
+
+    todo = iter(zip(starts, ends, strict=True))
+
+    def drain() -> None:
+        """Blocks, the next one free, until none is left (this thread's rows() buffer reused for each)."""
+        while True:
+            with lock:
+                item = next(todo, None)
+            if item is None:
+                return
+            one(*item)
+
+    helpers = min(threads, len(starts)) - 1  # the calling thread is one of the `threads`
+    if helpers == 0:
+        drain()
+    else:
+        # the first block the calling thread's: W1 and Y1 made by it, in its heap (glibc's arena), not a helper's;
+        # the helpers' blocks meanwhile, written once it is (`made`)
+        mine = next(todo)
+        with ThreadPoolExecutor(helpers) as pool:
+            running = [pool.submit(drain) for _ in range(helpers)]
+            try:
+                one(*mine)
+            finally:
+                made.set()
+            drain()
+            for done in running:
+                done.result()
+    if blocks_done is not None:
+        blocks_done()
+    W1, Y1, held, shape = out["W1"], out["Y1"], out["held"], out["shape"]
+    width = int(np.prod(shape))
     n1 = first.n_out
     if len(stages) == 1:
         full = np.zeros((n1, width))
