@@ -25,33 +25,33 @@ and the read's transient beside this chunk's W1 and second stage). Not tried: th
 calling thread's heap, or the overlap dropped where memory matters more than wall time.
 
 Measured 2026-11-29 (10:04-10:30 UTC, load average 7-15 on the 2 cores: other sessions and this branch's tests):
-this tree against 69ee46f (whole-process timing, 3 runs each alternated A B A B after a warm-up each, medians): peak 338.1 MiB
-against 385.2 (334.3-346.9 against 384.1-386.1), CPU 0.91 x (pairs 0.87-1.08; 30.6 s against 33.8), the estimate,
-its covariance and the validation error bit-equal (one hash over the 8 runs); the TX40 example's estimate and
-covariance bit-equal (one hash). What went: (1) one chunk in flight: a LocalScheduler of k threads maps a robot's
-chunks one at a time, each chunk's W blocks done k at once (`run.chunk_scheduler`, `decimate_parallel_blocked`'s
-threads: each block alone, written to its own rows, the same bits), so one chunk's window, filtered positions and
-W1 are held, not two; RSS trace 388.6 -> 365.7 MB (one run each, load 5.5); (2) the chunk's arrays in the heap the
-plan left free space in: glibc gives each thread its own arena, and a helper's W buffer or W1 grew the helper's
-heap while the calling thread's sat free; the W buffers and W1 are now made by the calling thread, and one local
-worker is the calling thread itself: 346.5 (load 9); (3) qd and qdd made a W block at a time from the filtered
-positions (central differences read two samples beyond the block: the same bits), not held for the window: 341.9,
-338.6 (load 11-13). A chunk's NumPy at its peak (55,600 samples, 2 threads, mallinfo2 in use): +52 MB over the
-map's start (the window's q and tau 7.5, qf 3.7, W1 9.9, two W blocks 23.6, the blocks' work ~5), against 2 x
-43-45 before. The map's wall: 89 % of a chunk's CPU is in its blocks (10 chunks on one thread, BLAS on one: 4.20
-of 4.73 s), and the rest (the window's read, its health, the filter, the second stage, the QRs) now runs on one
-thread: on an idle machine expect the map's wall ~10-15 % longer than two chunks side by side (not measured idle;
-0.89 x under this load, noise).
-Not met: 300 MB is ~38 MB away. The floor at the map's start is 240-253 MB (RSS traces, load 5-15), and 131 MB of
-it file-backed pages (smaps at the map's start, one run: libllvmlite.so 69, numba's LLVM touched when the first
-cached kernel loads; libarrow 15, libparquet 5, libarrow_compute 5, NumPy's 5, libpython 5), 116 anonymous (the
-heap 28); the map adds ~90 (the chunk's ~52, the plots' rows ~10, heap pages ~25). Measured, not taken: the Parquet
-block cache at 1, 2, 3 row groups a file (`windows.CACHE_BLOCKS`, one trace each, load 10-13; the chunks now read in
-order): 328.8, 333.7, 338.1 MB (a cache for every reader of the process: the car's two workers read out of order;
-a per-reader bound would take it); MALLOC_ARENA_MAX=1 (after (1), one run): 345.3 against 364.5; a trim after every
-chunk (`schedulers.TRIM_EVERY = 1`, after (1)): 356.6. Levers left: the cache above (-9 MB), the window's raw q
-freed once filtered (-3.7), the W block at 4 MiB (-12, ~+7 % CPU: its overlap), the next chunk's read and filter
-overlapped with this one's blocks (the wall back, +11 MB held).
+this tree against 69ee46f (whole-process timing, 3 runs each alternated A B A B after a warm-up each, medians): peak
+338.1 MiB against 385.2 (334.3-346.9 against 384.1-386.1), CPU 0.91 x (pairs 0.87-1.08; 30.6 s against 33.8), the
+estimate, its covariance and the validation error bit-equal (one hash over the 8 runs); the TX40 example's estimate
+and covariance bit-equal (one hash). What went: (1) one chunk in flight: a LocalScheduler of k threads maps a
+robot's chunks one at a time, each chunk's W blocks done k at once (`run.chunk_scheduler`,
+`decimate_parallel_blocked`'s threads: each block alone, written to its own rows, the same bits), so one chunk's
+window, filtered positions and W1 are held, not two; RSS trace 388.6 -> 365.7 MB (one run each, load 5.5); (2) the
+chunk's arrays in the heap the plan left free space in: glibc gives each thread its own arena, and a helper's W
+buffer or W1 grew the helper's heap while the calling thread's sat free; the W buffers and W1 are now made by the
+calling thread, and one local worker is the calling thread itself: 346.5 (load 9); (3) qd and qdd made a W block at
+a time from the filtered positions (central differences read two samples beyond the block: the same bits), not held
+for the window: 341.9, 338.6 (load 11-13). A chunk's NumPy at its peak (55,600 samples, 2 threads, mallinfo2 in
+use): +52 MB over the map's start (the window's q and tau 7.5, qf 3.7, W1 9.9, two W blocks 23.6, the blocks' work
+~5), against 2 x 43-45 before. The map's wall: 89 % of a chunk's CPU is in its blocks (10 chunks on one thread, BLAS
+on one: 4.20 of 4.73 s), and the rest (the window's read, its health, the filter, the second stage, the QRs) now
+runs on one thread: on an idle machine expect the map's wall ~10-15 % longer than two chunks side by side (not
+measured idle; 0.89 x under this load, noise). Not met: 300 MB is ~38 MB away. The floor at the map's start is
+240-253 MB (RSS traces, load 5-15), and 131 MB of it file-backed pages (smaps at the map's start, one run:
+libllvmlite.so 69, numba's LLVM touched when the first cached kernel loads; libarrow 15, libparquet 5,
+libarrow_compute 5, NumPy's 5, libpython 5), 116 anonymous (the heap 28); the map adds ~90 (the chunk's ~52, the
+plots' rows ~10, heap pages ~25). Measured, not taken: the Parquet block cache at 1, 2, 3 row groups a file
+(`windows.CACHE_BLOCKS`, one trace each, load 10-13; the chunks now read in order): 328.8, 333.7, 338.1 MB (a cache
+for every reader of the process: the car's two workers read out of order; a per-reader bound would take it);
+MALLOC_ARENA_MAX=1 (after (1), one run): 345.3 against 364.5; a trim after every chunk (`schedulers.TRIM_EVERY = 1`,
+after (1)): 356.6. Levers left: the cache above (-9 MB), the window's raw q freed once filtered (-3.7), the W block
+at 4 MiB (-12, ~+7 % CPU: its overlap), the next chunk's read and filter overlapped with this one's blocks (the wall
+back, +11 MB held).
 
 Measured 2026-11-29 (07:18-07:27 UTC, load average 4-12 on the 2 cores: other sessions): this tree (scipy.io
 imported where a .mat file is read or written, so a Parquet robot run loads neither it nor scipy.sparse) against
