@@ -261,6 +261,57 @@ def _tire_jacobians(model: Model, q: Array, rows: Sequence[int]) -> list[Array]:
     return out
 
 
+@dataclass(frozen=True)
+class _Columns:
+    """`car_identification`'s rows and W's columns: the base set's, then the known parameters' (their contribution
+    goes to Y); load: the load terms' (built from the measured wrench), engine: the others (the regressor's)."""
+
+    rows: tuple[int, ...]
+    base: BaseParameters
+    known: list[int]
+    cols: list[int]
+    load: set[int]
+    engine: list[int]
+
+
+def _equation_columns(tree: Tree, base: str | BaseParameters, spin: Sequence[int]) -> _Columns:
+    """The rows and columns of the car's equations with the spin rows `spin` (`car_identification`'s checks)."""
+    _check_car(tree)
+    rows = (*EQUATION_ROWS, *spin)
+    bp = car_base_parameters(tree, base, spin) if isinstance(base, str) else base
+    ident = set(identified(tree))
+    X = tree.parameters
+    known_cols = [i for i, n in enumerate(tree.parameter_names) if n not in ident and X[i] != 0.0]
+    used = [tree.parameter_names[c] for c in (*bp.columns, *bp.regrouped_columns)]
+    if any(n not in ident for n in used):
+        raise ModelError(
+            f"the base set uses {[n for n in used if n not in ident]}, known in {tree.name!r}; "
+            f"pass base='generic' or 'car' to compute one without them"
+        )
+    cols = list(bp.columns) + known_cols
+    load = {tree.index[n] for n in _load_names(tree)}
+    return _Columns(rows, bp, known_cols, cols, load, [c for c in cols if c not in load])
+
+
+def _contact_wrenches(tree: Tree, q: Array, ww: Array, aero_wrench: Wrench | None
+                      ) -> tuple[list[Wrench], Array, Array]:
+    """The measured wheel wrenches (N, 4, 6) as Wrenches at the contact points (the tire frames' origins), then the
+    aerodynamic one if any; and the measured forces and moments F, M (N, 4, 3) each."""
+    # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
+    rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
+    F, M = ww[:, :, :3], ww[:, :, 3:]
+    M_contact = M + np.stack([-rho * F[:, :, 1], rho * F[:, :, 0], np.zeros_like(rho)], axis=2)
+    wrenches = [Wrench(t, np.concatenate([F[:, k], M_contact[:, k]], axis=1), frame=t) for k, t in enumerate(TIRES)]
+    if aero_wrench is not None:
+        wrenches.append(aero_wrench)
+    return wrenches, F, M
+
+
+def _load_column(q: Array, F: Array, t: int) -> Array:
+    """KFY (model.tree's only load term) of tire t's row: - Fy² q of its wheel's transducer."""
+    return -F[:, TIRES.index(t), 1] ** 2 * q[:, t - 1]
+
+
 def car_identification(
     model: Model | Tree,
     q: Array,
@@ -298,39 +349,19 @@ def car_identification(
     if bad:
         raise ModelError(f"spin_torques: keys must be wheel frames {WHEELS}; got {sorted(bad)}")
     spin = sorted(spin_torques)
-    rows = (*EQUATION_ROWS, *spin)
-    bp = car_base_parameters(tree, base, spin) if isinstance(base, str) else base
-    ident = set(identified(tree))
+    c = _equation_columns(tree, base, spin)
+    rows, bp, known_cols, cols, load, engine = c.rows, c.base, c.known, c.cols, c.load, c.engine
     X = tree.parameters
-    known_cols = [i for i, n in enumerate(tree.parameter_names) if n not in ident and X[i] != 0.0]
-    used = [tree.parameter_names[c] for c in (*bp.columns, *bp.regrouped_columns)]
-    if any(n not in ident for n in used):
-        raise ModelError(
-            f"the base set uses {[n for n in used if n not in ident]}, known in {tree.name!r}; "
-            f"pass base='generic' or 'car' to compute one without them"
-        )
-
-    # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
-    rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
-    F, M = ww[:, :, :3], ww[:, :, 3:]
-    M_contact = M + np.stack([-rho * F[:, :, 1], rho * F[:, :, 0], np.zeros_like(rho)], axis=2)
-    wrenches = [Wrench(t, np.concatenate([F[:, k], M_contact[:, k]], axis=1), frame=t) for k, t in enumerate(TIRES)]
-    if aero_wrench is not None:
-        wrenches.append(aero_wrench)
-
-    cols = list(bp.columns) + known_cols
-    load = {tree.index[n] for n in _load_names(tree)}
-    engine = [c for c in cols if c not in load]
+    wrenches, F, M = _contact_wrenches(tree, q, ww, aero_wrench)
     W, Q = (regressor or model.regressor)(q, qd, qdd, wrenches, rows=list(rows), cols=engine)
     W = np.asarray(W)
     if len(engine) < len(cols):  # the load terms' columns, from the measured wrench (model.tree)
         full = np.zeros((N, len(rows), len(cols)))
         full[:, :, [i for i, c in enumerate(cols) if c not in load]] = W
         for i, c in enumerate(cols):
-            name = tree.parameter_names[c]
-            if c in load:  # KFY (model.tree's only load term), on a tire: - Fy² q of its wheel's transducer
-                t = int(name.removeprefix("KFY"))
-                full[:, rows.index(t), i] = -F[:, TIRES.index(t), 1] ** 2 * q[:, t - 1]
+            if c in load:
+                t = int(tree.parameter_names[c].removeprefix("KFY"))
+                full[:, rows.index(t), i] = _load_column(q, F, t)
         W = full
     nb = len(bp.columns)
     Y = Q.copy()
@@ -350,3 +381,38 @@ def car_identification(
         base=bp,
         rows=rows,
     )
+
+
+class CarResidual:
+    """Y − W x of `car_identification`'s equations (no spin rows) for one value per column of its W, trajectory
+    after trajectory: the columns worked out once, and W x summed from the regressor's W as it comes (its samples
+    contiguous per entry), Y and W never formed apart (the known parameters' columns enter with their values, as
+    their part of Y does). What the residuals of many moved copies of one trajectory need (`pipeline.car`)."""
+
+    def __init__(self, model: Model | Tree, x: Array, base: str | BaseParameters = "generic", regressor=None) -> None:
+        self.model = model if isinstance(model, Model) else Model(model)
+        tree = self.model.tree
+        self.columns = c = _equation_columns(tree, base, ())
+        x = np.asarray(x, dtype=float)
+        if x.shape != (len(c.base.columns),):
+            raise ModelError(f"CarResidual: x must hold one value per base parameter ({len(c.base.columns)}); "
+                             f"got shape {x.shape}")
+        values = np.concatenate([x, tree.parameters[c.known]])  # per column of c.cols
+        self.engine_values = np.array([v for v, j in zip(values, c.cols, strict=True) if j not in c.load])
+        self.load_values = [(v, int(tree.parameter_names[j].removeprefix("KFY")))
+                            for v, j in zip(values, c.cols, strict=True) if j in c.load]
+        self.regressor = regressor or self.model.regressor
+
+    def __call__(self, q: Array, qd: Array, qdd: Array, wheel_wrenches: Array, aero_wrench: Wrench | None = None
+                 ) -> Array:
+        """(N, rows): Y − W x at these samples (`car_identification`'s arguments, wheel_wrenches (N, 4, 6))."""
+        tree, c = self.model.tree, self.columns
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        ww = wheel_wrench_array(wheel_wrenches, q.shape[0])
+        wrenches, F, _ = _contact_wrenches(tree, q, ww, aero_wrench)
+        W, Q = self.regressor(q, qd, qdd, wrenches, rows=list(c.rows), cols=c.engine)
+        # einsum streams each entry's samples (the generated regressor's W: (entries, N) underneath)
+        r = Q - np.einsum("nrp,p->nr", W, self.engine_values)
+        for v, t in self.load_values:
+            r[:, c.rows.index(t)] -= v * _load_column(q, F, t)
+        return r
