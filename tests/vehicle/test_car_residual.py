@@ -21,7 +21,7 @@ from dynid.model.tree import ModelError
 from dynid.symbolic.generated import GeneratedRegressor
 from dynid.vehicle import CarResidual, aero_wrench, car_identification, truth
 from dynid.vehicle.car_model import car_template
-from dynid.vehicle.template import WHEELS
+from dynid.vehicle.template import DAMPERS, WHEELS
 
 
 def _regressor(tree, engine):
@@ -57,6 +57,20 @@ def test_equals_car_identifications_with_load_terms(engine):
     assert tree.load_terms
     q, qd, qdd, ww = _states(tree)
     _compare(Model(tree), q, qd, qdd, ww, None, engine)
+
+
+@pytest.mark.parametrize("engine", ["numpy", "generated"])
+def test_equals_car_identifications_with_damper_curves_on_every_piece(engine):
+    """The live entries CarResidual sums over come from random states: a damper curve's slope columns are zero
+    wherever the rate is off their piece, so a data set whose rates visit every piece (the knees well inside the
+    driving rates) must find them all."""
+    rng = np.random.default_rng(5)
+    q, qd, qdd = driving(Model(car_template(None, truth().values)), rng, N=60)  # the knees leave the rest state
+    # knees at a third of each damper's largest rates: every piece of every curve visited (one without its knee)
+    knees = {d: (-np.inf if d == 36 else qd[:, d - 1].min() / 3, qd[:, d - 1].max() / 3) for d in DAMPERS}
+    model = Model(car_template(None, truth().values, damper_knees=knees))
+    ww = rng.normal(size=(60, 4, 6)) * np.array([2e3, 3e3, 4e3, 50.0, 50.0, 50.0])
+    _compare(model, q, qd, qdd, ww, aero_wrench(model, q, qd), engine)
 
 
 @pytest.mark.parametrize("engine", ["numpy", "generated"])
