@@ -1,5 +1,5 @@
 """`CarResidual`: the car equations' residual Y − W x, summed without forming Y and W apart (what the sensor offsets'
-columns need for each moved trajectory, pipeline.car.car_moved_residuals).
+columns need for each moved trajectory, pipeline.car.car_moved_rows with x).
 
 Oracles: the equations built by `car_identification` (W and Y apart, the known parameters' part of Y by its own
 product), their Y − W x with x drawn at random; and the physics: with the true parameters and the wheel wrenches that

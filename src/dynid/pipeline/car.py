@@ -149,16 +149,24 @@ def car_moved_rows(
     regressor=None,
     cutoff: float | None = None,
     friction_lowpass: int | None = None,
-) -> list[tuple[np.ndarray, np.ndarray]]:
+    x: np.ndarray | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
     """(W, Y) of each moved trajectory (traj with some input changed: a sensor offset's), the rows `keep` selects
     (`car_system(model, m, ..., keep=keep)`'s, the other arguments `car_system`'s), all in one evaluation of the
     equations and one parallel decimation. The equations are computed on traj's coarse samples (its wheel spin
     chooses the step: an offset's effect on it is far below the margin of that choice); a moved trajectory may come
-    on those samples already (`CoarseTrajectory`, on every `coarse_step(traj, ...)[0]`-th)."""
+    on those samples already (`CoarseTrajectory`, on every `coarse_step(traj, ...)[0]`-th).
+
+    x: parameter values (one per column of W): then each trajectory's change of the residual Y − W x of those rows
+    from traj's alone (`_moved_residuals`: what the offsets' estimate needs, their columns C = Δ(Y − W x0),
+    `estimation.offsets`)."""
     decimate = tuple(decimate or ())
     k, rest = coarse_step(traj, fs, decimate, cutoff)
     lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
     keep = np.asarray(keep, dtype=bool)
+    if x is not None:
+        return _moved_residuals(model, traj, moved, fs, keep, np.asarray(x, dtype=float), k, rest, decimate, base,
+                                aero, regressor, lp)
     # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
     # equations' arrays, the regressor's pooled buffers and the trajectories alive stay the size of one long
     # segment's, whatever the number of offsets
@@ -182,24 +190,13 @@ def car_moved_rows(
     return out
 
 
-def car_moved_residuals(
-    model: Model,
-    traj: CarTrajectory,
-    moved: Iterable[CarTrajectory | CoarseTrajectory],
-    fs: float,
-    keep: np.ndarray,
-    x: np.ndarray,
-    decimate: tuple[int, ...] = (5, 10),
-    base: str | BaseParameters = "generic",
-    aero: Aerodynamics | None = None,
-    regressor=None,
-    cutoff: float | None = None,
-    friction_lowpass: int | None = None,
-) -> list[np.ndarray]:
-    """Each moved trajectory's change of the residual Y − W x (x: a value per column of W) on the rows `keep`
-    selects, from traj's: what the offsets' estimate needs (their columns C = Δ(Y − W x0), `estimation.offsets`),
-    equal to the difference of `car_system(model, m, ..., keep=keep)`'s and traj's Y − W x to round-off (the
-    other arguments are `car_system`'s; a moved trajectory as in `car_moved_rows`).
+def _moved_residuals(model: Model, traj: CarTrajectory, moved: Iterable[CarTrajectory | CoarseTrajectory], fs: float,
+                     keep: np.ndarray, x: np.ndarray, k: int, rest: tuple[int, ...], decimate: tuple[int, ...],
+                     base: str | BaseParameters, aero: Aerodynamics | None, regressor,
+                     lp: tuple[float, int] | None) -> list[np.ndarray]:
+    """`car_moved_rows` with x: each moved trajectory's change of the residual Y − W x on the rows `keep` selects,
+    from traj's, equal to the difference of `car_system(model, m, ..., keep=keep)`'s and traj's Y − W x to round-off
+    (k, rest: `coarse_step`'s; lp: (cut-off, order) of the dry-friction columns' low-pass, or None).
 
     W x is formed before the decimation (it is linear), on the equations' coarse samples, without W and Y apart
     (`vehicle.CarResidual`), and traj's residual is subtracted there: the changes of all the trajectories then go
@@ -209,10 +206,6 @@ def car_moved_residuals(
     damper rates are traj's (the offsets that do not reach the dampers: all of the suites'), else it is added from
     both trajectories' full-rate rates. The aerodynamic wrench is traj's where the chassis' joints are (an
     accelerometer's offset moves their accelerations alone)."""
-    decimate = tuple(decimate or ())
-    k, rest = coarse_step(traj, fs, decimate, cutoff)
-    lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
-    keep = np.asarray(keep, dtype=bool)
     bp = car_base_parameters(model.tree, base) if isinstance(base, str) else base
     friction = _friction_entries(bp.names, EQUATION_ROWS) if k > 1 or lp else []
     coarse_x = np.array(x, dtype=float)
@@ -232,7 +225,7 @@ def car_moved_residuals(
     for m in moved:  # one at a time (each is the size of the segment's), their changes kept
         c = m.traj if isinstance(m, CoarseTrajectory) else _every(m, k)
         if len(c.t) != len(c0.t):
-            raise ValueError(f"car_moved_residuals: a moved trajectory on other samples than every {k}-th of traj's "
+            raise ValueError(f"car_moved_rows: a moved trajectory on other samples than every {k}-th of traj's "
                              "(JointsPass.moved(..., every=coarse_step(...)[0]))")
         same = np.array_equal(c.q[:, chassis], c0.q[:, chassis]) and np.array_equal(c.qd[:, chassis],
                                                                                    c0.qd[:, chassis])

@@ -237,27 +237,17 @@ class CarSetup:
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
 
-    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass
-        (`car_moved_rows`)."""
+    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory | CoarseTrajectory], fs: float,
+                   keep: np.ndarray, x: np.ndarray | None = None
+                   ) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
+        """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass; with x
+        (a value per column of W) the change of their residual Y − W x from traj's alone (`car_moved_rows`)."""
         from .car import car_moved_rows  # start-up: a car's alone (CarSetup.__init__)
 
         s = self.settings
         return car_moved_rows(self.model, traj, moved, fs, keep, s.decimate, base=self.base, aero=self.aero,
                               regressor=self.regressor, cutoff=self.conditioning.cutoff,
-                              friction_lowpass=s.order if s.friction_lowpass else None)
-
-    def moved_residuals(self, traj: CarTrajectory, moved: Iterable[CarTrajectory | CoarseTrajectory], fs: float,
-                        keep: np.ndarray, x: np.ndarray) -> list[np.ndarray]:
-        """Each moved trajectory's change of the kept rows' residual Y − W x from traj's (x: a value per column of
-        W), all in one decimation (`car_moved_residuals`)."""
-        from .car import car_moved_residuals  # start-up: a car's alone (CarSetup.__init__)
-
-        s = self.settings
-        return car_moved_residuals(self.model, traj, moved, fs, keep, x, s.decimate, base=self.base, aero=self.aero,
-                                   regressor=self.regressor, cutoff=self.conditioning.cutoff,
-                                   friction_lowpass=s.order if s.friction_lowpass else None)
+                              friction_lowpass=s.order if s.friction_lowpass else None, x=x)
 
     def load_changes(self, traj: CarTrajectory, moved: Sequence[tuple[str, float]], fs: float, keep: np.ndarray
                      ) -> list[np.ndarray]:
@@ -473,7 +463,7 @@ def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float
     `OffsetFactors.point`) for each (channel, one-σ zero offset SI): the offsets' columns of their estimate
     (C_k = ΔY_k − ΔW_k x0, `estimation.offsets`) from `offset_changes`' moved trajectories without ΔW: a wheel load's
     ΔY by its change per unit load; the others' from their residuals' changes, W x formed before the decimation
-    (`car_moved_residuals`: one column per equation decimated, not W's, for all of them in one call). Equal to
+    (`car_moved_rows` with x: one column per equation decimated, not W's, for all of them in one call). Equal to
     `offset_columns` of `offset_changes` to round-off."""
     from .car import coarse_step  # start-up: a car's alone (CarSetup.__init__)
 
@@ -488,7 +478,7 @@ def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float
         # the staged passes' trajectories on the equations' samples alone (their whole-rate arrays never made)
         every = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
         trajs = _moved_trajectories(setup, channels, fs, lags, compensated, joints, others, True, every)
-        for (q, _), r in zip(others, setup.moved_residuals(joints.traj, trajs, fs, sys.kept, x), strict=True):
+        for (q, _), r in zip(others, setup.moved_rows(joints.traj, trajs, fs, sys.kept, x), strict=True):
             C[:, index[q]] = r
     return C
 
