@@ -301,8 +301,10 @@ def _contact_wrenches(tree: Tree, q: Array, ww: Array, aero_wrench: Wrench | Non
     # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
     rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
     F, M = ww[:, :, :3], ww[:, :, 3:]
-    M_contact = M + np.stack([-rho * F[:, :, 1], rho * F[:, :, 0], np.zeros_like(rho)], axis=2)
-    wrenches = [Wrench(t, np.concatenate([F[:, k], M_contact[:, k]], axis=1), frame=t) for k, t in enumerate(TIRES)]
+    contact = ww.copy()  # M_contact = M + (-rho Fy, rho Fx, 0), written in place
+    contact[:, :, 3] -= rho * F[:, :, 1]
+    contact[:, :, 4] += rho * F[:, :, 0]
+    wrenches = [Wrench(t, contact[:, k], frame=t) for k, t in enumerate(TIRES)]
     if aero_wrench is not None:
         wrenches.append(aero_wrench)
     return wrenches, F, M
