@@ -40,6 +40,31 @@ one run (min of 3, load 8-16: the "none" runs, the same code, spread by 15 %):
 Still far from the issue's 30 %: what is left per 60 s segment is the 5 attitude channels' staged passes (gyros
 and inclinometers, 0.034 s each: their offsets move the rotation, which every later stage reads; a third of it is
 the zero-phase filter, already 8 columns a call) and the rows of the 12 moved trajectories (9 ms each).
+
+Then (h-mrows, 2026-11-29): the moved trajectories' residual changes without W and Y apart (`vehicle.CarResidual`:
+W x summed over W's 126 live entries straight from the regressor's buffer, the known parameters with the base
+ones), each less the segment's own residual on the coarse samples, all 12 through ONE decimation (14 columns each;
+the dry-friction columns' full-rate part cancels where the dampers' rates are the segment's, so their set is no
+longer made per segment); the aerodynamic wrench reused for the accelerometers; the 24 wheel loads' unit rows
+stacked in their entry-major layout and only their 132 nonzero columns of 336 decimated. The columns C to round-off
+of the old ones (against the whole-pass oracle: 0.536 of the test's tolerance, old 0.533; the car-truth tables
+within 6.3e-11). One 60 s segment of the 10 min log (process_time, min of 12, ffe91d6 and the branch alternated,
+load 8-9): the 12 moved trajectories' rows (their JointsPass.moved stages apart) 123-126 -> 75-89 ms, the loads'
+28-31 -> 17-23 ms, offset_residuals 352-356 -> 277-329 ms (the moved stages 181-213 ms on both: now 2/3 of it).
+This benchmark's figure, the two commits alternated in one run (dynid identify --workers 1, CPU s, load 6.5-10;
+the "none" runs are the same code on both sides and spread by 40 %, so the offsets' own cost is best read as
+estimated minus the least "none" of the run, 6.87 s at 10 min):
+
+    log       ffe91d6: estimated against none       h-mrows: estimated against none
+    10 min    11.98 against 6.87 (+74 %)             11.12 against 7.41 (+50 %)   (min of 4 rounds; pairwise
+              the estimated runs 0.15, 0.85, 0.83, 0.97 s apart: the offsets' added 5.1 -> 4.3 s)
+    1 h       42.29 against 17.09 (+147 %)           37.26 against 16.98 (+119 %) (1 round, load 7-9)
+
+Still above 30 %: per 60 s segment the 5 attitude channels' staged passes (JointsPass.moved, ~0.19 s of the ~0.3 s
+that the offsets add) are the rest; the rows' part left is the 13 regressor evaluations (kernel ~1.2 ms each,
+bound by writing W's live entries) and 9 aerodynamic wrenches (1.5 ms each). A generated inverse dynamics with the
+parameters given (W x without W) would take the rows' part down further, at the price of one more kernel to compile
+on a first run (issue 28 item 4): not tried.
 """
 
 from __future__ import annotations

@@ -8,16 +8,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics import BaseParameters, Model
+from ..dynamics import BaseParameters, Model, Wrench
 from ..dynamics.newton_euler import coulomb
 from ..io.units import unit_factor
 from ..signals import decimate_parallel, lowpass
-from ..vehicle import DAMPERS, EQUATION_ROWS, WHEELS, Aerodynamics, aero_wrench, car_identification
+from ..vehicle import (
+    DAMPERS,
+    EQUATION_ROWS,
+    WHEELS,
+    Aerodynamics,
+    CarResidual,
+    aero_wrench,
+    car_base_parameters,
+    car_identification,
+)
 from ..vehicle.dampers import KneeSearch
 from ..vehicle.equations import group_name, load_rows
 from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, required_channels
 from ..vehicle.instruments import suspension_loads, suspension_response
 from ..vehicle.sensors import CORNER_TAGS
+from ..vehicle.template import CHASSIS
 from .robot import GroupedSystem
 
 
@@ -147,19 +157,21 @@ def car_moved_rows(
     chooses the step: an offset's effect on it is far below the margin of that choice); a moved trajectory may come
     on those samples already (`CoarseTrajectory`, on every `coarse_step(traj, ...)[0]`-th).
 
-    x: parameter values (one per column of W): then each trajectory's residual Y − W x of those rows alone, W x
-    formed before the decimation (it is linear), so one column per equation goes through it instead of W's ~10
-    (what the offsets' estimate needs: their columns C = Δ(Y − W x0), `estimation.offsets`)."""
+    x: parameter values (one per column of W): then each trajectory's change of the residual Y − W x of those rows
+    from traj's alone (`_moved_residuals`: what the offsets' estimate needs, their columns C = Δ(Y − W x0),
+    `estimation.offsets`)."""
     decimate = tuple(decimate or ())
     k, rest = coarse_step(traj, fs, decimate, cutoff)
     lp = None if friction_lowpass is None or cutoff is None else (cutoff, friction_lowpass)
     keep = np.asarray(keep, dtype=bool)
+    if x is not None:
+        return _moved_residuals(model, traj, moved, fs, keep, np.asarray(x, dtype=float), k, rest, decimate, base,
+                                aero, regressor, lp)
     # a few trajectories per evaluation, taken from `moved` as they come (it may make them one by one): the
     # equations' arrays, the regressor's pooled buffers and the trajectories alive stay the size of one long
     # segment's, whatever the number of offsets
     per = max(1, MOVED_SAMPLES // max(1, len(traj.t[::k])))
     out = []
-    seen: list = []  # the dry-friction columns' sets made so far (most offsets leave the dampers' rates alone)
     pending = iter(moved)
     while chunk := list(itertools.islice(pending, per)):
         coarse = [m.traj if isinstance(m, CoarseTrajectory) else _every(m, k) for m in chunk]
@@ -170,17 +182,72 @@ def car_moved_rows(
                           for a in ("q", "qd", "qdd", "wheel_wrenches"))
         aw = aero_wrench(model, q, qd, aero) if aero is not None else None
         eq = car_identification(model, q, qd, qdd, ww, aw, base=base, regressor=regressor)
-        if x is not None:
-            r = _decimated_residual(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp, x, seen)
-            out += [r[:, v].T.reshape(-1)[keep] for v in range(len(coarse))]
-            del chunk, coarse, q, qd, qdd, ww, aw, eq, r
-            continue
         W, Y = _decimated(eq, [m.qd for m in chunk], fs, k, rest, decimate, model.tree, lp)
         rows, m = len(eq.rows), W.shape[0]
         out += [(W[:, v].transpose(1, 0, 2).reshape(rows * m, -1)[keep], Y[:, v].T.reshape(-1)[keep])
                 for v in range(len(coarse))]
         del chunk, coarse, q, qd, qdd, ww, aw, eq, W, Y
     return out
+
+
+def _moved_residuals(model: Model, traj: CarTrajectory, moved: Iterable[CarTrajectory | CoarseTrajectory], fs: float,
+                     keep: np.ndarray, x: np.ndarray, k: int, rest: tuple[int, ...], decimate: tuple[int, ...],
+                     base: str | BaseParameters, aero: Aerodynamics | None, regressor,
+                     lp: tuple[float, int] | None) -> list[np.ndarray]:
+    """`car_moved_rows` with x: each moved trajectory's change of the residual Y − W x on the rows `keep` selects,
+    from traj's, equal to the difference of `car_system(model, m, ..., keep=keep)`'s and traj's Y − W x to round-off
+    (k, rest: `coarse_step`'s; lp: (cut-off, order) of the dry-friction columns' low-pass, or None).
+
+    W x is formed before the decimation (it is linear), on the equations' coarse samples, without W and Y apart
+    (`vehicle.CarResidual`), and traj's residual is subtracted there: the changes of all the trajectories then go
+    through one parallel decimation, one column per equation each (the difference first: its round-off is that of
+    the change, not of the residual). The dry-friction columns, which `car_system` builds at the full rate, are left
+    out of W x on the coarse samples; their full-rate part cancels in the difference where the moved trajectory's
+    damper rates are traj's (the offsets that do not reach the dampers: all of the suites'), else it is added from
+    both trajectories' full-rate rates. The aerodynamic wrench is traj's where the chassis' joints are (an
+    accelerometer's offset moves their accelerations alone)."""
+    bp = car_base_parameters(model.tree, base) if isinstance(base, str) else base
+    friction = _friction_entries(bp.names, EQUATION_ROWS) if k > 1 or lp else []
+    coarse_x = np.array(x, dtype=float)
+    coarse_x[[c for c, _, _ in friction]] = 0.0  # their full-rate part stands for them (`_decimated`)
+    residual = CarResidual(model, coarse_x, bp, regressor)
+    chassis = sorted({*model.tree.ancestors[CHASSIS], CHASSIS})
+    chassis = np.array(chassis) - 1
+
+    def aero_of(c: CarTrajectory) -> Wrench | None:
+        return None if aero is None else aero_wrench(model, c.q, c.qd, aero)
+
+    c0 = _every(traj, k)
+    aw0 = aero_of(c0)
+    r0 = residual(c0.q, c0.qd, c0.qdd, c0.wheel_wrenches, aw0)
+    joints = [j - 1 for _, _, j in friction]
+    changes, rates = [], []  # rates: (index, full-rate rates) of the trajectories whose damper rates moved
+    for m in moved:  # one at a time (each is the size of the segment's), their changes kept
+        c = m.traj if isinstance(m, CoarseTrajectory) else _every(m, k)
+        if len(c.t) != len(c0.t):
+            raise ValueError(f"car_moved_rows: a moved trajectory on other samples than every {k}-th of traj's "
+                             "(JointsPass.moved(..., every=coarse_step(...)[0]))")
+        same = np.array_equal(c.q[:, chassis], c0.q[:, chassis]) and np.array_equal(c.qd[:, chassis],
+                                                                                   c0.qd[:, chassis])
+        changes.append(residual(c.q, c.qd, c.qdd, c.wheel_wrenches, aw0 if same else aero_of(c)) - r0)
+        if any(not np.array_equal(m.qd[:, j], traj.qd[:, j]) for j in joints):
+            rates.append((len(changes) - 1, m.qd))
+    if not changes:
+        return []
+    V, rows = len(changes), len(EQUATION_ROWS)
+    D = np.stack(changes, axis=1).reshape(len(c0.t), V * rows)
+    del changes
+    if rest:
+        D, _ = decimate_parallel(D, None, rest, fs / k)
+    D = D.reshape(-1, V, rows)
+    if rates:  # their dry friction's full-rate columns moved: − Δs(qd) x
+        sets = _friction_columns([traj.qd, *(qd for _, qd in rates)], joints, fs, decimate, model.tree, lp)
+        for (v, _), dec in zip(rates, sets[1:], strict=True):
+            n = min(len(dec), D.shape[0])
+            for i, (c, row, _) in enumerate(friction):
+                D[:n, v, row] -= (dec[:n, i] - sets[0][:n, i]) * x[c]
+    # the rows group by group (car_system's stacking), the kept ones
+    return list(D.transpose(1, 2, 0).reshape(V, -1)[:, keep])
 
 
 MOVED_SAMPLES = 4096  # coarse samples per evaluation of `car_moved_rows` (a 60 s segment has 3750 at 62.5 Hz)
@@ -203,14 +270,20 @@ def car_load_changes(
         return []
     decimate = tuple(decimate or ())
     k, rest = coarse_step(traj, fs, decimate, cutoff)
-    unit = load_rows(model, _every(traj, k).q, EQUATION_ROWS)  # (n, rows, 4, 6)
+    unit = load_rows(model, traj.q[::k], EQUATION_ROWS)  # (n, rows, 4, 6), samples contiguous per entry
     n, rows = unit.shape[:2]
-    dY = np.stack([b * unit[:, :, wheel, comp] for wheel, comp, b in moved], axis=1).reshape(n, -1)
+    entries = np.moveaxis(unit, 0, -1)  # (rows, 4, 6, n): a view, each entry's samples read in a stream
+    dY = np.stack([b * entries[:, wheel, comp] for wheel, comp, b in moved]).reshape(-1, n)  # (moved x rows, n)
     if rest:
-        dY, _ = decimate_parallel(dY, None, rest, fs / k)
-    dY = dY.reshape(dY.shape[0], len(moved), rows)
+        # a wheel's wrench reaches the chassis', its damper's and its tire's rows alone: the others' columns are zero
+        # throughout, and so decimated (61 % of them on the paper's car)
+        live = np.flatnonzero(np.any(dY != 0, axis=1))
+        dec, _ = decimate_parallel((dY[live] if live.size else dY[:1]).T, None, rest, fs / k)
+        dY = np.zeros((dY.shape[0], len(dec)))
+        dY[live] = dec.T[:live.size]
+    dY = dY.reshape(len(moved), rows, -1)
     keep = np.asarray(keep, dtype=bool)
-    return [dY[:, v].T.reshape(-1)[keep] for v in range(len(moved))]
+    return list(dY.reshape(len(moved), -1)[:, keep])
 
 
 def coarse_step(traj: CarTrajectory, fs: float, decimate: tuple[int, ...], cutoff: float | None
@@ -253,8 +326,7 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
     W[:, :, live_r, live_c] = both[:, :, :nl]
     Y = both[:, :, nl:]
     if k > 1 or lowpass_fs:  # s(qd) is not band-limited: dry-friction columns at the full rate, decimated in parallel
-        fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
-                   if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
+        fs_cols = _friction_entries(eq.names, eq.rows)
         if fs_cols:
             sets = _friction_columns(qd_full, [j - 1 for _, _, j in fs_cols], fs, decimate, tree, lowpass_fs)
             for v, dec in enumerate(sets):
@@ -264,70 +336,32 @@ def _decimated(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple
     return W, Y
 
 
+def _friction_entries(names: Sequence[str], rows: Sequence[int]) -> list[tuple[int, int, int]]:
+    """(column, row index, joint) of W's dry-friction columns FSj whose joint j has an equation among rows."""
+    return [(c, rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(names)
+            if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in rows]
+
+
 def _friction_columns(qd_full: Sequence[np.ndarray], joints: Sequence[int], fs: float, decimate: tuple[int, ...],
-                      tree, lowpass_fs: tuple[float, int] | None, seen: list | None = None) -> list[np.ndarray]:
+                      tree, lowpass_fs: tuple[float, int] | None) -> list[np.ndarray]:
     """Each trajectory's dry-friction columns s(qd) of `joints` (0-based), decimated from the full rate (low-passed
     first at lowpass_fs): one set per distinct full-rate velocity of those joints (an offset that does not reach them
-    shares the unmoved trajectory's), all new ones through one filter; seen: [(velocities, set)] already made (a
-    caller's earlier chunks), extended."""
-    seen = [] if seen is None else seen
-    which = []
+    shares the unmoved trajectory's), all through one filter."""
+    which: list[int] = []
     fresh: list[np.ndarray] = []
     for a in qd_full:
         cols = a[:, joints]
-        i = next((i for i, (d, _) in enumerate(seen) if np.array_equal(d, cols)), None)
-        if i is None:
-            i = next((len(seen) + j for j, d in enumerate(fresh) if np.array_equal(d, cols)), None)
+        i = next((j for j, d in enumerate(fresh) if np.array_equal(d, cols)), None)
         if i is None:
             fresh.append(cols)
-            i = len(seen) + len(fresh) - 1
+            i = len(fresh) - 1
         which.append(i)
-    if fresh:
-        signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
-                                         axis=1) for d in fresh], axis=1)
-        if lowpass_fs:
-            signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
-        dec = decimate_parallel(signs, None, decimate, fs)[0]
-        seen += [(d, dec[:, f * len(joints):(f + 1) * len(joints)]) for f, d in enumerate(fresh)]
-    return [seen[i][1] for i in which]
-
-
-def _decimated_residual(eq, qd_full: Sequence[np.ndarray], fs: float, k: int, rest: tuple[int, ...],
-                        decimate: tuple[int, ...], tree, lowpass_fs: tuple[float, int] | None, x: np.ndarray,
-                        seen: list | None = None) -> np.ndarray:
-    """Y − W x (n, V, rows) of `_decimated`'s W and Y (its arguments), W x formed before the decimation: the coarse
-    columns times x through one parallel filter, then the dry-friction columns `_decimated` replaces by their
-    full-rate ones exchanged (their coarse part out, the full-rate part in: each decimated as there); seen:
-    `_friction_columns`' sets made for earlier chunks."""
-    rows, p = len(eq.rows), eq.per_sample.shape[2]
-    V = len(qd_full)
-    W4 = eq.per_sample.reshape(V, -1, rows, p)  # (V, N, rows, p)
-    N = W4.shape[1]
-    # per_sample is a view of a wider array, samples first in memory: not reshaped, and summed over its columns by
-    # einsum (streams each column's samples; np.dot gathers each sample's 14 x p entries, a page apart: 3-5 times
-    # slower on a 60 s segment)
-    Wx = np.einsum("nrp,p->nr", eq.per_sample, x).reshape(V, N, rows)
-    r = eq.Y.reshape(rows, V, N).transpose(2, 1, 0) - Wx.transpose(1, 0, 2)  # (N, V, rows)
-    fs_cols = []
-    if k > 1 or lowpass_fs:  # as `_decimated`: these columns' coarse samples are replaced by full-rate ones
-        fs_cols = [(c, eq.rows.index(int(n[2:])), int(n[2:])) for c, n in enumerate(eq.names)
-                   if n.startswith("FS") and n[2:].isdigit() and int(n[2:]) in eq.rows]
-    both = np.empty((N, V, rows + len(fs_cols)))
-    both[:, :, :rows] = r
-    for i, (c, row, _) in enumerate(fs_cols):
-        both[:, :, rows + i] = W4[:, :, row, c].T
-    both = both.reshape(N, -1)
-    if rest:
-        both, _ = decimate_parallel(both, None, rest, fs / k)
-    both = both.reshape(both.shape[0], V, rows + len(fs_cols))
-    r = both[:, :, :rows].copy()
-    if fs_cols:
-        sets = _friction_columns(qd_full, [j - 1 for _, _, j in fs_cols], fs, decimate, tree, lowpass_fs, seen)
-        for v, dec in enumerate(sets):
-            n = min(len(dec), r.shape[0])
-            for i, (c, row, _) in enumerate(fs_cols):
-                r[:n, v, row] += (both[:n, v, rows + i] - dec[:n, i]) * x[c]
-    return r
+    signs = np.concatenate([np.stack([coulomb(d[:, i], tree.friction_law(j + 1)) for i, j in enumerate(joints)],
+                                     axis=1) for d in fresh], axis=1)
+    if lowpass_fs:
+        signs = lowpass(signs, fs, lowpass_fs[0], order=lowpass_fs[1], axis=0)
+    dec = decimate_parallel(signs, None, decimate, fs)[0]
+    return [dec[:, i * len(joints):(i + 1) * len(joints)] for i in which]
 
 
 def _simulated_suspensions(tree, traj: CarTrajectory, coarse: CarTrajectory, eq, values: Mapping[str, float]):

@@ -238,10 +238,11 @@ class CarSetup:
                           cutoff=self.conditioning.cutoff, min_speed=s.min_speed, instruments=instruments, keep=keep,
                           equations=self.equations, friction_lowpass=s.order if s.friction_lowpass else None)[0]
 
-    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory], fs: float, keep: np.ndarray,
-                   x: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
+    def moved_rows(self, traj: CarTrajectory, moved: Iterable[CarTrajectory | CoarseTrajectory], fs: float,
+                   keep: np.ndarray, x: np.ndarray | None = None
+                   ) -> list[tuple[np.ndarray, np.ndarray]] | list[np.ndarray]:
         """(W, Y) of the kept rows of each moved trajectory (traj's with an input changed), in one pass; with x
-        (a value per column of W) their residuals Y − W x alone (`car_moved_rows`)."""
+        (a value per column of W) the change of their residual Y − W x from traj's alone (`car_moved_rows`)."""
         from .car import car_moved_rows  # start-up: a car's alone (CarSetup.__init__)
 
         s = self.settings
@@ -462,8 +463,9 @@ def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float
     """C (rows, m): the change of the kept rows' residual Y − W x (x: a value per column of W,
     `OffsetFactors.point`) for each (channel, one-σ zero offset SI): the offsets' columns of their estimate
     (C_k = ΔY_k − ΔW_k x0, `estimation.offsets`) from `offset_changes`' moved trajectories without ΔW: a wheel load's
-    ΔY by its change per unit load; the others' residuals W x formed before the decimation (`car_moved_rows` with
-    x: one column per equation decimated, not W's). Equal to `offset_columns` of `offset_changes` to round-off."""
+    ΔY by its change per unit load; the others' from their residuals' changes, W x formed before the decimation
+    (`car_moved_rows` with x: one column per equation decimated, not W's, for all of them in one call). Equal to
+    `offset_columns` of `offset_changes` to round-off."""
     from .car import coarse_step  # start-up: a car's alone (CarSetup.__init__)
 
     linear = not setup.tree.load_terms
@@ -474,12 +476,11 @@ def offset_residuals(setup: CarSetup, channels: dict[str, np.ndarray], fs: float
     for (q, _), dY in zip(loads, setup.load_changes(joints.traj, loads, fs, sys.kept), strict=True):
         C[:, index[q]] = dY  # W does not depend on the loads
     if others:
-        base = sys.Y - sys.W @ x
         # the staged passes' trajectories on the equations' samples alone (their whole-rate arrays never made)
         every = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
         trajs = _moved_trajectories(setup, channels, fs, lags, compensated, joints, others, True, every)
         for (q, _), r in zip(others, setup.moved_rows(joints.traj, trajs, fs, sys.kept, x), strict=True):
-            C[:, index[q]] = r - base
+            C[:, index[q]] = r
     return C
 
 

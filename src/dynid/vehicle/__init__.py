@@ -5,7 +5,7 @@ in words (notes.py)."""
 
 from .aero import Aerodynamics, AeroError, aero_wrench
 from .car_model import car_template
-from .equations import CarEquations, car_base_parameters, car_identification
+from .equations import CarEquations, CarResidual, car_base_parameters, car_identification
 from .geometry import AxleGeometry, CarGeometry, GeometryError
 from .parameters import ParameterSet, a_priori, paper_estimates, truth
 from .statics import RestState, design_preloads, rest_state
@@ -14,8 +14,8 @@ from .template import CORNERS, DAMPERS, EQUATION_ROWS, TIRES, WHEELS, paper_para
 
 __all__ = [
     "CORNERS", "DAMPERS", "EQUATION_ROWS", "TIRES", "WHEELS", "AeroError", "Aerodynamics", "AxleGeometry",
-    "CarEquations", "CarGeometry", "GeometryError", "KinematicTable", "KinematicTableError", "KinematicTables",
-    "ParameterSet", "RestState", "a_priori", "aero_wrench", "car_base_parameters", "car_identification",
-    "car_template", "default_tables", "design_preloads", "load_table_csv", "load_tables", "paper_estimates",
-    "paper_parameter_names", "rest_state", "truth",
+    "CarEquations", "CarGeometry", "CarResidual", "GeometryError", "KinematicTable", "KinematicTableError",
+    "KinematicTables", "ParameterSet", "RestState", "a_priori", "aero_wrench", "car_base_parameters",
+    "car_identification", "car_template", "default_tables", "design_preloads", "load_table_csv", "load_tables",
+    "paper_estimates", "paper_parameter_names", "rest_state", "truth",
 ]

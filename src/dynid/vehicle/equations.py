@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import BaseParameters, Model, Wrench
+from ..dynamics.base import random_states
 from ..kinematics.forward import cross, forward_kinematics, joint_array, to_local
 from ..kinematics.per_tree import PerTree
 from ..model.tree import CURVE_TERMS, FIXED, PRISMATIC, REVOLUTE, ModelError, Tree
@@ -261,6 +262,59 @@ def _tire_jacobians(model: Model, q: Array, rows: Sequence[int]) -> list[Array]:
     return out
 
 
+@dataclass(frozen=True)
+class _Columns:
+    """`car_identification`'s rows and W's columns: the base set's, then the known parameters' (their contribution
+    goes to Y); load: the load terms' (built from the measured wrench), engine: the others (the regressor's)."""
+
+    rows: tuple[int, ...]
+    base: BaseParameters
+    known: list[int]
+    cols: list[int]
+    load: set[int]
+    engine: list[int]
+
+
+def _equation_columns(tree: Tree, base: str | BaseParameters, spin: Sequence[int]) -> _Columns:
+    """The rows and columns of the car's equations with the spin rows `spin` (`car_identification`'s checks)."""
+    _check_car(tree)
+    rows = (*EQUATION_ROWS, *spin)
+    bp = car_base_parameters(tree, base, spin) if isinstance(base, str) else base
+    ident = set(identified(tree))
+    X = tree.parameters
+    known_cols = [i for i, n in enumerate(tree.parameter_names) if n not in ident and X[i] != 0.0]
+    used = [tree.parameter_names[c] for c in (*bp.columns, *bp.regrouped_columns)]
+    if any(n not in ident for n in used):
+        raise ModelError(
+            f"the base set uses {[n for n in used if n not in ident]}, known in {tree.name!r}; "
+            f"pass base='generic' or 'car' to compute one without them"
+        )
+    cols = list(bp.columns) + known_cols
+    load = {tree.index[n] for n in _load_names(tree)}
+    return _Columns(rows, bp, known_cols, cols, load, [c for c in cols if c not in load])
+
+
+def _contact_wrenches(tree: Tree, q: Array, ww: Array, aero_wrench: Wrench | None
+                      ) -> tuple[list[Wrench], Array, Array]:
+    """The measured wheel wrenches (N, 4, 6) as Wrenches at the contact points (the tire frames' origins), then the
+    aerodynamic one if any; and the measured forces and moments F, M (N, 4, 3) each."""
+    # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
+    rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
+    F, M = ww[:, :, :3], ww[:, :, 3:]
+    contact = ww.copy()  # M_contact = M + (-rho Fy, rho Fx, 0), written in place
+    contact[:, :, 3] -= rho * F[:, :, 1]
+    contact[:, :, 4] += rho * F[:, :, 0]
+    wrenches = [Wrench(t, contact[:, k], frame=t) for k, t in enumerate(TIRES)]
+    if aero_wrench is not None:
+        wrenches.append(aero_wrench)
+    return wrenches, F, M
+
+
+def _load_column(q: Array, F: Array, t: int) -> Array:
+    """KFY (model.tree's only load term) of tire t's row: - Fy² q of its wheel's transducer."""
+    return -F[:, TIRES.index(t), 1] ** 2 * q[:, t - 1]
+
+
 def car_identification(
     model: Model | Tree,
     q: Array,
@@ -298,39 +352,19 @@ def car_identification(
     if bad:
         raise ModelError(f"spin_torques: keys must be wheel frames {WHEELS}; got {sorted(bad)}")
     spin = sorted(spin_torques)
-    rows = (*EQUATION_ROWS, *spin)
-    bp = car_base_parameters(tree, base, spin) if isinstance(base, str) else base
-    ident = set(identified(tree))
+    c = _equation_columns(tree, base, spin)
+    rows, bp, known_cols, cols, load, engine = c.rows, c.base, c.known, c.cols, c.load, c.engine
     X = tree.parameters
-    known_cols = [i for i, n in enumerate(tree.parameter_names) if n not in ident and X[i] != 0.0]
-    used = [tree.parameter_names[c] for c in (*bp.columns, *bp.regrouped_columns)]
-    if any(n not in ident for n in used):
-        raise ModelError(
-            f"the base set uses {[n for n in used if n not in ident]}, known in {tree.name!r}; "
-            f"pass base='generic' or 'car' to compute one without them"
-        )
-
-    # measured moments about the wheel centres, carried to the contact points (origins of the tire frames)
-    rho = _radius(tree) - q[:, np.array(TIRES) - 1]  # (N, 4) centre above the contact point, along z
-    F, M = ww[:, :, :3], ww[:, :, 3:]
-    M_contact = M + np.stack([-rho * F[:, :, 1], rho * F[:, :, 0], np.zeros_like(rho)], axis=2)
-    wrenches = [Wrench(t, np.concatenate([F[:, k], M_contact[:, k]], axis=1), frame=t) for k, t in enumerate(TIRES)]
-    if aero_wrench is not None:
-        wrenches.append(aero_wrench)
-
-    cols = list(bp.columns) + known_cols
-    load = {tree.index[n] for n in _load_names(tree)}
-    engine = [c for c in cols if c not in load]
+    wrenches, F, M = _contact_wrenches(tree, q, ww, aero_wrench)
     W, Q = (regressor or model.regressor)(q, qd, qdd, wrenches, rows=list(rows), cols=engine)
     W = np.asarray(W)
     if len(engine) < len(cols):  # the load terms' columns, from the measured wrench (model.tree)
         full = np.zeros((N, len(rows), len(cols)))
         full[:, :, [i for i, c in enumerate(cols) if c not in load]] = W
         for i, c in enumerate(cols):
-            name = tree.parameter_names[c]
-            if c in load:  # KFY (model.tree's only load term), on a tire: - Fy² q of its wheel's transducer
-                t = int(name.removeprefix("KFY"))
-                full[:, rows.index(t), i] = -F[:, TIRES.index(t), 1] ** 2 * q[:, t - 1]
+            if c in load:
+                t = int(tree.parameter_names[c].removeprefix("KFY"))
+                full[:, rows.index(t), i] = _load_column(q, F, t)
         W = full
     nb = len(bp.columns)
     Y = Q.copy()
@@ -350,3 +384,59 @@ def car_identification(
         base=bp,
         rows=rows,
     )
+
+
+class CarResidual:
+    """Y − W x of `car_identification`'s equations (no spin rows) for one value per column of its W, trajectory
+    after trajectory: the columns worked out once, and W x summed from the regressor's W as it comes, over the
+    entries that are not structural zeros alone (126 of the paper's 14 x 48), Y and W never formed apart (the known
+    parameters' columns enter with their values, as their part of Y does). What the residuals of many moved copies
+    of one trajectory need (`pipeline.car`)."""
+
+    def __init__(self, model: Model | Tree, x: Array, base: str | BaseParameters = "generic", regressor=None) -> None:
+        self.model = model if isinstance(model, Model) else Model(model)
+        tree = self.model.tree
+        self.columns = c = _equation_columns(tree, base, ())
+        x = np.asarray(x, dtype=float)
+        if x.shape != (len(c.base.columns),):
+            raise ModelError(f"CarResidual: x must hold one value per base parameter ({len(c.base.columns)}); "
+                             f"got shape {x.shape}")
+        values = np.concatenate([x, tree.parameters[c.known]])  # per column of c.cols
+        self.engine_values = np.array([v for v, j in zip(values, c.cols, strict=True) if j not in c.load])
+        self.load_values = [(v, int(tree.parameter_names[j].removeprefix("KFY")))
+                            for v, j in zip(values, c.cols, strict=True) if j in c.load]
+        self.regressor = regressor or self.model.regressor
+        self._live: list[tuple[int, Array]] | None = None
+
+    def __call__(self, q: Array, qd: Array, qdd: Array, wheel_wrenches: Array, aero_wrench: Wrench | None = None
+                 ) -> Array:
+        """(N, rows): Y − W x at these samples (`car_identification`'s arguments, wheel_wrenches (N, 4, 6))."""
+        tree, c = self.model.tree, self.columns
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        ww = wheel_wrench_array(wheel_wrenches, q.shape[0])
+        wrenches, F, _ = _contact_wrenches(tree, q, ww, aero_wrench)
+        if self._live is None:
+            self._live = self._structure(wrenches)
+        W, Q = self.regressor(q, qd, qdd, wrenches, rows=list(c.rows), cols=c.engine)
+        # (rows, cols, N): the generated regressor's W has each entry's samples contiguous; the sum is bound by
+        # memory, and the live entries are a fifth of W (an einsum over all of it took twice as long)
+        Wt = np.moveaxis(np.asarray(W), 0, -1)
+        r = np.array(np.asarray(Q).T)
+        for i, cols in self._live:
+            r[i] -= self.engine_values[cols] @ Wt[i, cols]
+        for v, t in self.load_values:
+            r[c.rows.index(t)] -= v * _load_column(q, F, t)
+        return r.T
+
+    def _structure(self, wrenches: Sequence[Wrench]) -> list[tuple[int, Array]]:
+        """Per row, its columns that are not structural zeros and whose value is not 0: W's nonzero entries at
+        random states (angles over the full turn, every damper curve's pieces visited: `random_states`), where no
+        expression of the model vanishes unless it is identically zero; the wrenches' sites as given (their values
+        do not enter W; their sites choose the generated kernel)."""
+        c, samples = self.columns, 256
+        q, qd, qdd = random_states(self.model.tree, samples, seed=0)
+        rng = np.random.default_rng(0)
+        anywhere = [dataclasses.replace(w, values=rng.normal(size=(samples, 6))) for w in wrenches]
+        W, _ = self.regressor(q, qd, qdd, anywhere, rows=list(c.rows), cols=c.engine)
+        live = np.any(np.asarray(W) != 0, axis=0) & (self.engine_values != 0)
+        return [(i, np.flatnonzero(live[i])) for i in range(len(c.rows)) if live[i].any()]
