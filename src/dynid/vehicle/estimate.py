@@ -47,7 +47,7 @@ from .sensors import (
     paper_suite,
 )
 from .tables import KinematicTables, default_tables
-from .template import DAMPERS, FRAMES, TIRES, WHEELS, tabulated
+from .template import CONSTANT_JOINTS, DAMPERS, FRAMES, TIRES, WHEELS, tabulated
 
 Array = np.ndarray
 # frame 0 coordinates of the ISO earth axes (X forward = y0, Y left = -x0, Z up = z0), as columns
@@ -548,8 +548,12 @@ def joints_pass(
     b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
     x = _Context(fs, model, g, c, suite, lasers, b)
 
-    # column-major: every joint is written as a column, and the equations read them as columns
-    q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
+    # column-major: every joint is written as a column, and the equations read them as columns. Every column but the
+    # constant joints' is written by the stages below: np.zeros would clear the 3 x 12.6 MB first (calloc of reused
+    # heap, 0.8 ms each per 60 s segment)
+    q, qd, qdd = (np.empty((N, FRAMES), order="F") for _ in range(3))
+    for a in (q, qd, qdd):
+        a[:, _CONSTANT_COLUMNS] = 0.0
 
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
     # with the loads (24 wheel-wrench components, the 4 spin torques when measured) and the two inclinometers
@@ -596,6 +600,8 @@ def _check_finite(ch: Mapping[str, Array], names: list[str]) -> None:
             raise ModelError(f"channel {n!r} has a non-finite value ({x[bad[0]]}) at sample {bad[0]} ({len(bad)} in "
                              "all): the joints' filters would spread it over the segment; fill or cut the gap first")
 
+
+_CONSTANT_COLUMNS = [j - 1 for j in CONSTANT_JOINTS]  # half tracks and wheelbases: 0 (their value is in r)
 
 # the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
 # wheels' (speeds: integrated), then the steering wheel
