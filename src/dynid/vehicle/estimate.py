@@ -158,10 +158,11 @@ _COLS = np.abs(ISO_AXES).argmax(axis=0)[None, :]  # ISO_AXES[:, j] picks column 
 _SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None, :]]
 
 
-# ISO_AXES (a signed permutation): column j of X @ ISO_AXES is sign_j X[:, k_j], (k_j, sign_j) = _ISO_GATHER[j]; the
-# vehicle z axis in frame 6, ISO_AXES[2], is sign e_k, (k, sign) = _EZ6
+# ISO_AXES (a signed permutation): column j of X @ ISO_AXES is sign X[:, k], (k, sign) = _ISO_GATHER[j]; row i of
+# ISO_AXES (the vehicle axis i in frame 6) is sign e_k, (k, sign) = _ISO_ROWS[i], so column i of X @ ISO_AXES.T is
+# sign X[:, k]
 _ISO_GATHER = tuple((int(np.flatnonzero(ISO_AXES[:, j])[0]), float(ISO_AXES[:, j].sum())) for j in range(3))
-_EZ6 = (int(np.flatnonzero(ISO_AXES[2])[0]), float(ISO_AXES[2].sum()))
+_ISO_ROWS = tuple((int(np.flatnonzero(ISO_AXES[i])[0]), float(ISO_AXES[i].sum())) for i in range(3))
 assert sorted(np.abs(ISO_AXES).sum(axis=0)) == [1.0] * 3 and sorted(np.abs(ISO_AXES).sum(axis=1)) == [1.0] * 3
 
 
@@ -695,7 +696,8 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     fs, c = x.fs, x.conditioning
     A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
-    p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
+    # about the vehicle x, y, z axes: w6 @ ISO_AXES.T as a signed gather (the product's numbers without its pass)
+    p, qb, r = (w6[:, k] if sign > 0 else -w6[:, k] for k, sign in _ISO_ROWS)
     incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
@@ -872,7 +874,8 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
         else:
             np.subtract(iso[k] if sign > 0 else -iso[k], wxp, out=rel[:, j])
     v_known = np.einsum("nij,nj->ni", R6, rel)
-    ez = R6[:, :, _EZ6[0]] if _EZ6[1] > 0 else -R6[:, :, _EZ6[0]]
+    k, sign = _ISO_ROWS[2]  # the vehicle z axis in frame 6: R6 ez6 = sign R6[:, :, k]
+    ez = R6[:, :, k] if sign > 0 else -R6[:, :, k]
     s = (qd[:, 2] - v_known[:, 2]) / ez[:, 2]
     v0 = v_known[:, :2] + s[:, None] * ez[:, :2]
     if deflections is None:
