@@ -434,12 +434,15 @@ class JointsPass:
             i = 17 + 6 * CORNER_TAGS.index(channel.split("_")[1]) + WFT_COMPONENTS.index(channel.split("_")[2])
             filtered[:, i] += _lowpass(np.full(len(filtered), b), x)
             heights = not x.lasers and channel.endswith("_Fz")
-        if attitude:  # a gyro's offset leaves the inclinometers' low-pass as the whole pass's
-            R6, w6 = _attitude(ch, x, q, qd, qdd, None if channel in _INCLINOMETERS else self.filtered[:, -2:])
+        kept = _UNMOVED(self) if attitude else None  # the channels an attitude offset leaves, as the stages read them
+        if attitude:  # a gyro's offset leaves the inclinometers and their low-pass as the whole pass's
+            gyro = channel not in _INCLINOMETERS
+            R6, w6 = _attitude(ch, x, q, qd, qdd, self.filtered[:, -2:] if gyro else None,
+                               *((kept.incl, kept.start) if gyro else ()))
             pz_zz = _moved_tire_poses(self, q)
         if heights or attitude or channel in _ACCELERATION:
             z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
-                                      attitude or channel in _ACCELERATION)
+                                      attitude or channel in _ACCELERATION, kept)
             z_laser = z if heights else z_laser
         if heights:  # the velocity (it reads the height's rate) and the deflections
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
@@ -687,23 +690,24 @@ def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
                            check_finite=False)
 
 
-def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
-              ) -> tuple[Array, Array]:
+def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None,
+              incl: Array | None = None, start: tuple[Array, Array, Array] | None = None) -> tuple[Array, Array]:
     """Yaw, pitch, roll into q, qd, qdd (columns 3:6): Euler rates (ISO ZYX) from the gyros, angles fused with
     the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3). angles: the inclinometers
     (roll, pitch) low-passed (N, 2), when known (filtered with other columns: a call on 2 columns waits on the
-    filter's latency)."""
+    filter's latency); incl: the inclinometers stacked (N, 2), start: sin and cos of the angles' roll and tan of their
+    pitch, when known (`_Unmoved`: a gyro's offset leaves them)."""
     fs, c = x.fs, x.conditioning
     A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
     # about the vehicle x, y, z axes: w6 @ ISO_AXES.T as a signed gather (the product's numbers without its pass)
     p, qb, r = (w6[:, k] if sign > 0 else -w6[:, k] for k, sign in _ISO_ROWS)
-    incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+    incl = _inclinometers(ch) if incl is None else incl
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
-    for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        sp, cp = np.sin(phi), np.cos(phi)
+    for i in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
+        sp, cp, tt = (np.sin(phi), np.cos(phi), np.tan(theta)) if i or start is None else start
         u = qb * sp + r * cp
-        dphi = p + u * np.tan(theta)
+        dphi = p + u * tt
         dtheta = qb * cp - r * sp
         integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
@@ -719,6 +723,43 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     for k in range(3):
         q[:, 3 + k], qd[:, 3 + k], qdd[:, 3 + k] = low[:, 3 + k] * sign[k], low[:, k] * sign[k], rdf[:, k] * sign[k]
     return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _inclinometers(ch: Mapping[str, Array]) -> Array:
+    """The inclinometers' roll and pitch (N, 2)."""
+    return np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+
+
+def _specific_force(ch: Mapping[str, Array], x: _Context) -> Array:
+    """The accelerometers' specific force in frame 6 (N, 3)."""
+    return np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ np.asarray(x.geometry.imu_axes, dtype=float)
+
+
+def _laser_heights(ch: Mapping[str, Array]) -> Array:
+    """The four height lasers (N, 4), in CORNER_TAGS' order."""
+    return np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1)
+
+
+@dataclass(frozen=True)
+class _Unmoved:
+    """A pass's inputs that an attitude offset (a gyro's or an inclinometer's) leaves as they are, as the stages read
+    them, made once per pass when a moved attitude pass first asks: the inclinometers (`_inclinometers`) and the first
+    refinement's sin, cos of the low-passed roll and tan of the low-passed pitch (a gyro's offset leaves them:
+    `_attitude`'s start, 0.9 ms), the specific force in frame 6, the lasers' heights (None without lasers)."""
+
+    incl: Array
+    start: tuple[Array, Array, Array]
+    f6: Array
+    lasers: Array | None
+
+
+def _unmoved(p: JointsPass) -> _Unmoved:
+    phi, theta = p.filtered[:, -2:].T  # as `_attitude` reads its angles
+    return _Unmoved(_inclinometers(p.ch), (np.sin(phi), np.cos(phi), np.tan(theta)), _specific_force(p.ch, p.ctx),
+                    _laser_heights(p.ch) if p.ctx.lasers else None)
+
+
+_UNMOVED: PerObject[JointsPass, _Unmoved] = PerObject(_unmoved)
 
 
 def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
@@ -814,13 +855,14 @@ def _moved_tire_poses(p: JointsPass, q: _Moved) -> Array:
 
 
 def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
-                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True
-                          ) -> Array | None:
+                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True,
+                          kept: _Unmoved | None = None) -> Array | None:
     """`_heights` (when height; its z_laser returned, else None) and `_acceleration` into qdd (columns 0:3, when
     acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
-    latency)."""
-    z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
-    cols = ([z_laser.mean(axis=1)] if height else []) + (_unit_acceleration(ch, x, R6, w6) if acceleration else [])
+    latency); kept: the lasers' heights and the specific force, when an attitude offset leaves them."""
+    z_laser = _heights(ch, x, filtered, R6, pz_zz, None if kept is None else kept.lasers) if height else None
+    cols = ([z_laser.mean(axis=1)] if height else []) + (
+        _unit_acceleration(ch, x, R6, w6, None if kept is None else kept.f6) if acceleration else [])
     low = _lowpass_columns(cols, x)
     if height:  # the height, its rate (`signals.filtered_derivatives`')
         q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs, check_finite=False)
@@ -829,15 +871,16 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     return z_laser
 
 
-def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array) -> Array:
+def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array,
+             lasers: Array | None = None) -> Array:
     """Each corner's estimate of the height of O6 (N, 4), before the low-pass.
 
     From the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x (distance along -x6 to the ground), each laser's own
     estimate, used again for the tire deflections. Without lasers, each corner's contact point on the ground with
-    the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz)."""
+    the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz). lasers: `_laser_heights`, when known."""
     g, model = x.geometry, x.model
     if x.lasers:
-        z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
+        z_laser = (_laser_heights(ch) if lasers is None else lasers) * R6[:, 2, 0, None] \
             - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
     else:
         kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in TIRES])
@@ -850,11 +893,12 @@ def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, p
     return z_laser
 
 
-def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> list[Array]:
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array, f6: Array | None = None
+                       ) -> list[Array]:
     """The unit's rates in frame 6 and its acceleration in frame 0, (N, 3) each, before the low-pass
-    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart)."""
-    A = np.asarray(x.geometry.imu_axes, dtype=float)
-    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
+    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart). f6:
+    `_specific_force`, when known."""
+    f6 = _specific_force(ch, x) if f6 is None else f6
     return [w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)]
 
 
