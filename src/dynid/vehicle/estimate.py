@@ -305,11 +305,14 @@ class _Moved:
     """A moved pass's q, qd or qdd: the whole pass's (N, 42) array with the columns the moved stages write kept
     apart. The stages index it as that array (whole columns: `a[:, j]`, `a[:, 3:6]`, `a[:, [..]]`; rows: `a[rows]`),
     so a pass copies the few columns it changes, not the 42; `whole` and `every` make the arrays the trajectory
-    holds, each entry the value the stages wrote or the whole pass's."""
+    holds, each entry the value the stages wrote or the whole pass's. rows (slice(lo, hi, k)): the columns are kept on
+    those rows alone (`every`'s; a stage may write them there, `_derivative_at`), never read back (the accelerations:
+    the rows' equations read them on those samples alone)."""
 
-    def __init__(self, base: Array) -> None:
+    def __init__(self, base: Array, rows: slice | None = None) -> None:
         self.base = base
         self.shape = base.shape
+        self.rows = rows
         self.columns: dict[int, Array] = {}
 
     def _which(self, key) -> list[int]:
@@ -322,11 +325,16 @@ class _Moved:
 
     def __setitem__(self, key, value) -> None:
         which = self._which(key)
-        value = np.asarray(value, dtype=float).reshape(self.shape[0], -1)
+        value = np.asarray(value, dtype=float)
+        if self.rows is not None and len(value) == self.shape[0]:  # a whole column: its rows alone are kept
+            value = value[self.rows]
+        value = value.reshape(len(value), -1)
         for i, j in enumerate(which):
             self.columns[j] = value[:, i].copy()
 
     def __getitem__(self, key):
+        if self.rows is not None:
+            raise TypeError("a moved pass's joints kept on the rows' samples alone are not read back")
         if not isinstance(key, tuple):  # rows, every column
             out = self.base[key]
             for j, c in self.columns.items():
@@ -338,6 +346,8 @@ class _Moved:
 
     def whole(self) -> Array:
         """The (N, 42) array, column-major as the whole pass's."""
+        if self.rows is not None:
+            raise TypeError("a moved pass's joints kept on the rows' samples alone have no whole array")
         out = self.base.copy(order="F")
         for j, c in self.columns.items():
             out[:, j] = c
@@ -345,10 +355,29 @@ class _Moved:
 
     def every(self, base: Array, lo: int, hi: int, k: int) -> Array:
         """Rows lo, lo + k, ... < hi, C order (`base`: the whole pass's rows there)."""
+        if self.rows not in (None, slice(lo, hi, k)):
+            raise ValueError(f"a moved pass's joints kept on rows {self.rows}, asked on {slice(lo, hi, k)}")
         out = base.copy()
         for j, c in self.columns.items():
-            out[:, j] = c[lo:hi:k]
+            out[:, j] = c[lo:hi:k] if self.rows is None else c
         return out
+
+
+def _derivative_at(x: Array, fs: float, rows: slice | None) -> Array:
+    """`signals.derivative` of x (N, ...) along axis 0 on `rows` alone (slice(lo, hi, k), `_Moved.rows`: the central
+    differences there, the same operations on the same numbers), or on every sample (None)."""
+    if rows is None or rows.start < 1 or rows.stop > len(x) - 1:  # the ends' one-sided formulas: the whole derivative
+        d = derivative(x, fs, check_finite=False)
+        return d if rows is None else d[rows]
+    lo, hi, k = rows.start, rows.stop, rows.step
+    out = np.subtract(x[lo + 1:hi + 1:k], x[lo - 1:hi - 1:k])
+    out /= 2.0 * (1.0 / fs)  # as signals.derivative
+    return out
+
+
+def _rows(a: Array | _Moved) -> slice | None:
+    """The rows a moved pass's joints are kept on (`_Moved.rows`; None: every sample)."""
+    return a.rows if isinstance(a, _Moved) else None
 
 
 class _Trimmed:
@@ -411,19 +440,22 @@ class JointsPass:
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
-        # the columns the stages write, apart: the rest is the whole pass's
-        q, qd, qdd = (_Moved(a) for a in (self.q, self.qd, self.qdd))
+        # the columns the stages write, apart: the rest is the whole pass's; when every > 1, the accelerations on the
+        # rows' samples alone (the equations read no others; the rates whole: the dry friction's columns read them)
+        rows = slice(None) if every == 1 else slice(x.border, self.q.shape[0] - x.border, every)
+        q, qd, qdd = _Moved(self.q), _Moved(self.qd), _Moved(self.qdd, None if every == 1 else rows)
         if self._linear(channel):  # its effect is b times the pass's response to a unit offset (`_UNIT`)
             unit = _UNIT(self)
             if channel in _ACCELERATION:
-                qdd[:, :3] = self.qdd[:, :3] + b * unit.acceleration[_ACCELERATION.index(channel)]
+                qdd[:, :3] = self.qdd[rows, :3] + b * unit.acceleration[_ACCELERATION.index(channel)][rows]
             else:
                 i = CORNER_TAGS.index(channel.removeprefix("laser_height_"))
                 j = TIRES[i] - 1
                 q[:, 2], qd[:, 2] = self.q[:, 2] + b * unit.height[0], self.qd[:, 2] + b * unit.height[1]
                 q[:, :2], qd[:, :2] = self.q[:, :2] + b * unit.position, self.qd[:, :2] + b * unit.velocity
-                q[:, j], qd[:, j], qdd[:, j] = (a[:, j] + b * u[i] for a, u in zip(
-                    (self.q, self.qd, self.qdd), unit.deflection, strict=True))
+                q[:, j], qd[:, j] = (a[:, j] + b * u[i] for a, u in zip((self.q, self.qd), unit.deflection[:2],
+                                                                         strict=True))
+                qdd[:, j] = self.qdd[rows, j] + b * unit.deflection[2][i][rows]
             return self._trajectory(q, qd, qdd, self.filtered, every)
         ch = {**self.ch, channel: self.ch[channel] + b}
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
@@ -717,7 +749,7 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass_columns([dpsi, dtheta, dphi, psi, theta, phi], x)
-    rdf = derivative(low[:, :3], fs, check_finite=False)
+    rdf = _derivative_at(low[:, :3], fs, _rows(qdd))
     # signed, column by column into the column-major joints (a moved pass's too): the (N, 3) products of sign and the
     # columns' strided views, assigned to three columns each, cost 2.6 against 0.9 ms per 60 s segment
     for k in range(3):
@@ -995,7 +1027,7 @@ def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None
     columns."""
     cols = [f - 1 for f in TIRES]
     d = derivative(low, x.fs, check_finite=False)
-    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs, check_finite=False)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, _derivative_at(d, x.fs, _rows(qdd))
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
