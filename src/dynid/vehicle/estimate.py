@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
-from ..kinematics.forward import forward_kinematics, joint_array, to_local
+from ..kinematics.forward import forward_kinematics, joint_array
 from ..model import ModelError
 from ..model.workspace import PerObject
 from ..signals import border_samples, derivative, integrate, lowpass, lowpass_columns
@@ -471,7 +471,7 @@ class JointsPass:
             gyro = channel not in _INCLINOMETERS
             R6, w6 = _attitude(ch, x, q, qd, qdd, self.filtered[:, -2:] if gyro else None,
                                *((kept.incl, kept.start) if gyro else ()))
-            pz_zz = _moved_tire_poses(self, q)
+            pz_zz = _tire_poses(x, q)
         if heights or attitude or channel in _ACCELERATION:
             z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
                                       attitude or channel in _ACCELERATION, kept)
@@ -818,72 +818,19 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     chassis height its own laser implies: attitude errors then act over the 0.35 m between laser and wheel, not
     over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0 serves the four corners.
     The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
-    (`_pose_samples`: k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the
-    work."""
+    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work."""
     N = q.shape[0]
-    sub = _pose_samples(x, N)
+    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
+    sub = np.arange(0, N, k_sub)
+    if sub[-1] != N - 1:
+        sub = np.append(sub, N - 1)
     q0 = q[sub]  # a copy (fancy index)
     q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
     # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
     st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES, rows=slice(2, 3))
     poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
-    return _spline(sub, poses, N)
-
-
-def _pose_samples(x: _Context, N: int) -> Array:
-    """The samples the tire poses are computed on (`_tire_poses`): every k-th and the last."""
-    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
-    sub = np.arange(0, N, k_sub)
-    return sub if sub[-1] == N - 1 else np.append(sub, N - 1)
-
-
-def _spline(sub: Array, poses: Array, N: int) -> Array:
-    """The poses (len(sub), 8) back on every sample (N, 8), by one spline of 8 columns."""
+    # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
-
-
-@dataclass(frozen=True)
-class _TireFrames:
-    """A pass's tire frames in frame 6 on `_pose_samples`' samples (sub): position p[t] and z axis z[t], (3, len(sub))
-    each (components along frame 6's axes), t = 0..3 in TIRES' order. They depend on the corners' joints alone, the
-    same in a pass with the attitude moved."""
-
-    sub: Array
-    p: tuple[Array, ...]
-    z: tuple[Array, ...]
-
-
-def _tire_frames(p: JointsPass) -> _TireFrames:
-    """`_TireFrames` of the pass: its tire poses at zero attitude (whole rows: 0T_tire = 0T6 6T_tire), taken to frame 6
-    by 0T6's inverse there."""
-    x, tree = p.ctx, p.ctx.model.tree
-    sub = _pose_samples(x, p.q.shape[0])
-    q0 = p.q[sub]
-    q0[:, [0, 1, 2, 3, 4, 5, *(f - 1 for f in TIRES)]] = 0.0
-    st = forward_kinematics(tree, joint_array(q0, tree, "q")[0], frames=TIRES)
-    R6, P6 = st.Rc[6], st.P[6]
-    return _TireFrames(sub, tuple(to_local(R6, st.P[f] - P6) for f in TIRES), tuple(to_local(R6, st.Rc[f][2])
-                                                                                      for f in TIRES))
-
-
-_TIRE_FRAMES: PerObject[JointsPass, _TireFrames] = PerObject(_tire_frames)
-
-
-def _moved_tire_poses(p: JointsPass, q: _Moved) -> Array:
-    """`_tire_poses` of a pass with the attitude moved (q: its joints; the corners' are p's): 0T_tire = 0T6 6T_tire
-    with 6T_tire the pass's (`_TireFrames`), 0T6's row 2 from the moved attitude alone, not the corners' chains again
-    (3.3 ms a pass per 60 s segment). The same numbers as `_tire_poses` to round-off (the products grouped
-    otherwise: ε of the heights, 1e-16 m)."""
-    tree, frames = p.ctx.model.tree, _TIRE_FRAMES(p)
-    sub = frames.sub
-    q0 = np.zeros((tree.n, len(sub)))  # samples last, as `joint_array` gives them; the attitude alone (frames 4-6)
-    for j in range(3, 6):
-        q0[j] = q[:, j][sub]
-    st = forward_kinematics(tree, q0, frames=[6], rows=slice(2, 3))
-    r6, p6 = [c[0] for c in st.Rc[6]], st.P[6][0]  # row 2 of 0R6 (its columns' z components), the height of O6
-    heights = [p6 + (r6[0] * v[0] + r6[1] * v[1] + r6[2] * v[2]) for v in frames.p]
-    slopes = [r6[0] * v[0] + r6[1] * v[1] + r6[2] * v[2] for v in frames.z]
-    return _spline(sub, np.stack(heights + slopes, axis=1), q.shape[0])
 
 
 def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
