@@ -471,7 +471,7 @@ class JointsPass:
             gyro = channel not in _INCLINOMETERS
             R6, w6 = _attitude(ch, x, q, qd, qdd, self.filtered[:, -2:] if gyro else None,
                                *((kept.incl, kept.start) if gyro else ()))
-            pz_zz = _tire_poses(x, q)
+            pz_zz = _tire_poses(x, q, kept.poses)
         if heights or attitude or channel in _ACCELERATION:
             z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
                                       attitude or channel in _ACCELERATION, kept)
@@ -777,18 +777,20 @@ class _Unmoved:
     """A pass's inputs that an attitude offset (a gyro's or an inclinometer's) leaves as they are, as the stages read
     them, made once per pass when a moved attitude pass first asks: the inclinometers (`_inclinometers`) and the first
     refinement's sin, cos of the low-passed roll and tan of the low-passed pitch (a gyro's offset leaves them:
-    `_attitude`'s start, 0.9 ms), the specific force in frame 6, the lasers' heights (None without lasers)."""
+    `_attitude`'s start, 0.9 ms), the specific force in frame 6, the lasers' heights (None without lasers), the tire
+    poses' joints (`_pose_joints`: the attitude's columns are the moved pass's own; 1.3 ms)."""
 
     incl: Array
     start: tuple[Array, Array, Array]
     f6: Array
     lasers: Array | None
+    poses: Array
 
 
 def _unmoved(p: JointsPass) -> _Unmoved:
     phi, theta = p.filtered[:, -2:].T  # as `_attitude` reads its angles
     return _Unmoved(_inclinometers(p.ch), (np.sin(phi), np.cos(phi), np.tan(theta)), _specific_force(p.ch, p.ctx),
-                    _laser_heights(p.ch) if p.ctx.lasers else None)
+                    _laser_heights(p.ch) if p.ctx.lasers else None, _pose_joints(p.ctx, p.q)[1])
 
 
 _UNMOVED: PerObject[JointsPass, _Unmoved] = PerObject(_unmoved)
@@ -810,7 +812,7 @@ def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
     return R.transpose(2, 0, 1)
 
 
-def _tire_poses(x: _Context, q: Array) -> Array:
+def _tire_poses(x: _Context, q: Array, start: Array | None = None) -> Array:
     """Heights and z-axis slopes in frame 0 of the four tire frames (N, 8), from the attitude and the corners'
     joints (q's other columns, written by later stages, are taken as 0).
 
@@ -818,19 +820,36 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     chassis height its own laser implies: attitude errors then act over the 0.35 m between laser and wheel, not
     over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0 serves the four corners.
     The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
-    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work."""
+    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work.
+    start: `_pose_joints` of a pass whose attitude alone q moves (`_Unmoved`): its other joints are taken from it."""
     N = q.shape[0]
-    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
-    sub = np.arange(0, N, k_sub)
-    if sub[-1] != N - 1:
-        sub = np.append(sub, N - 1)
-    q0 = q[sub]  # a copy (fancy index)
-    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    if start is None:
+        sub, qs = _pose_joints(x, q)
+    else:  # the pass's joints on those samples, the attitude's (columns 3:6) q's
+        sub, qs = _pose_samples(x, N), start.copy()
+        for j in range(3, 6):
+            qs[j] = q[:, j][sub]
     # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES, rows=slice(2, 3))
+    st = forward_kinematics(x.model.tree, qs, frames=TIRES, rows=slice(2, 3))
     poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
+
+
+def _pose_samples(x: _Context, N: int) -> Array:
+    """The samples `_tire_poses` computes the poses on: every k-th and the last."""
+    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
+    sub = np.arange(0, N, k_sub)
+    return sub if sub[-1] == N - 1 else np.append(sub, N - 1)
+
+
+def _pose_joints(x: _Context, q: Array) -> tuple[Array, Array]:
+    """`_tire_poses`' samples and its joints there, samples last (42, len(sub)) as `joint_array` gives them: q's, the
+    translations' and the tire deflections' 0."""
+    sub = _pose_samples(x, q.shape[0])
+    q0 = q[sub]  # a copy (fancy index)
+    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    return sub, joint_array(q0, x.model.tree, "q")[0]
 
 
 def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
