@@ -897,7 +897,9 @@ def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Arra
     (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart). f6:
     `_specific_force`, when known."""
     f6 = _specific_force(ch, x) if f6 is None else f6
-    return [w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)]
+    a0 = np.einsum("nij,nj->ni", R6, f6)
+    a0 += np.asarray(x.model.tree.gravity)
+    return [w6, a0]
 
 
 def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
@@ -984,8 +986,10 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
 
 
 def _deflection(pz_zz: Array, z_laser: Array) -> Array:
-    """The four tires' deflections (N, 4), before the low-pass."""
-    return -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+    """The four tires' deflections (N, 4), before the low-pass: -(pz + z_laser) / zz, in one array."""
+    d = np.add(pz_zz[:, :4], z_laser)
+    np.negative(d, out=d)
+    return np.divide(d, pz_zz[:, 4:], out=d)
 
 
 def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
