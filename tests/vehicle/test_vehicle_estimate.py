@@ -284,6 +284,44 @@ def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     assert all(np.count_nonzero(a) for a in got)  # every joint the pass writes is written
 
 
+@pytest.mark.parametrize("rows", [slice(7, 1990, 10), slice(1, 1999, 3), slice(0, 2000, 10), slice(5, 2000, 7)])
+@pytest.mark.parametrize("shape", [(2000,), (2000, 3)])
+def test_a_derivative_on_every_kth_sample_is_signals_derivative_there(rows, shape):
+    """`_derivative_at` (a coarse moved pass's accelerations, on the rows' samples alone) against signals.derivative
+    on every sample, then those rows: the same two operations on the same numbers, so equal to the bit, the ends'
+    one-sided formulas included (rows reaching sample 0 or N - 1)."""
+    from dynid.signals import derivative
+    from dynid.vehicle.estimate import _derivative_at
+
+    x = np.random.default_rng(8).standard_normal(shape).cumsum(axis=0)
+    np.testing.assert_array_equal(_derivative_at(x, FS, rows), derivative(x, FS)[rows])
+    np.testing.assert_array_equal(_derivative_at(x, FS, None), derivative(x, FS))
+
+
+def test_the_iso_axes_gathers_are_the_matrix_products():
+    """`_ISO_GATHER` and `_ISO_ROWS` (X @ ISO_AXES and X @ ISO_AXES.T as signed gathers, `_velocity` and `_attitude`)
+    against the products: a signed permutation's products are the gathered numbers, exactly."""
+    from dynid.vehicle.estimate import _ISO_GATHER, _ISO_ROWS
+    from dynid.vehicle.sensors import ISO_AXES
+
+    X = np.random.default_rng(9).standard_normal((500, 3))
+    for gather, M in ((_ISO_GATHER, ISO_AXES), (_ISO_ROWS, ISO_AXES.T)):
+        got = np.stack([X[:, k] if sign > 0 else -X[:, k] for k, sign in gather], axis=1)
+        np.testing.assert_array_equal(got, X @ M)
+
+
+def test_the_constant_joints_are_zero_and_every_joint_is_written(truth):
+    """The joints' arrays are not cleared first (np.empty): the constant joints' columns (half track, half
+    wheelbase: their value is in the MDH r column) are zeroed, every other column written by a stage."""
+    from dynid.vehicle.template import CONSTANT_JOINTS
+
+    model, *_, channels = truth
+    est = estimate_joints(si(channels), FS, model)
+    for a in (est.q, est.qd, est.qdd):
+        assert np.isfinite(a).all()
+        assert not a[:, [j - 1 for j in CONSTANT_JOINTS]].any()
+
+
 @pytest.mark.parametrize("channel", ["imu_yaw_rate", "wft_fl_Fz", "laser_height_rr", "correvit_vy"])
 def test_a_non_finite_channel_is_named_with_its_sample(truth, channel):
     """The pass checks the channels it reads once, up front, and its filters skip their own scans: a NaN or an

@@ -47,7 +47,7 @@ from .sensors import (
     paper_suite,
 )
 from .tables import KinematicTables, default_tables
-from .template import DAMPERS, FRAMES, TIRES, WHEELS, tabulated
+from .template import CONSTANT_JOINTS, DAMPERS, FRAMES, TIRES, WHEELS, tabulated
 
 Array = np.ndarray
 # frame 0 coordinates of the ISO earth axes (X forward = y0, Y left = -x0, Z up = z0), as columns
@@ -156,6 +156,14 @@ def chassis_rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
 _ROWS = np.abs(EARTH).argmax(axis=1)[:, None]  # EARTH[i] picks row _ROWS[i] of R
 _COLS = np.abs(ISO_AXES).argmax(axis=0)[None, :]  # ISO_AXES[:, j] picks column _COLS[j]
 _SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None, :]]
+
+
+# ISO_AXES (a signed permutation): column j of X @ ISO_AXES is sign X[:, k], (k, sign) = _ISO_GATHER[j]; row i of
+# ISO_AXES (the vehicle axis i in frame 6) is sign e_k, (k, sign) = _ISO_ROWS[i], so column i of X @ ISO_AXES.T is
+# sign X[:, k]
+_ISO_GATHER = tuple((int(np.flatnonzero(ISO_AXES[:, j])[0]), float(ISO_AXES[:, j].sum())) for j in range(3))
+_ISO_ROWS = tuple((int(np.flatnonzero(ISO_AXES[i])[0]), float(ISO_AXES[i].sum())) for i in range(3))
+assert sorted(np.abs(ISO_AXES).sum(axis=0)) == [1.0] * 3 and sorted(np.abs(ISO_AXES).sum(axis=1)) == [1.0] * 3
 
 
 _CAMERA_TABLES = (("steer", "steering"), ("camber", "camber"))
@@ -297,11 +305,14 @@ class _Moved:
     """A moved pass's q, qd or qdd: the whole pass's (N, 42) array with the columns the moved stages write kept
     apart. The stages index it as that array (whole columns: `a[:, j]`, `a[:, 3:6]`, `a[:, [..]]`; rows: `a[rows]`),
     so a pass copies the few columns it changes, not the 42; `whole` and `every` make the arrays the trajectory
-    holds, each entry the value the stages wrote or the whole pass's."""
+    holds, each entry the value the stages wrote or the whole pass's. rows (slice(lo, hi, k)): the columns are kept on
+    those rows alone (`every`'s; a stage may write them there, `_derivative_at`), never read back (the accelerations:
+    the rows' equations read them on those samples alone)."""
 
-    def __init__(self, base: Array) -> None:
+    def __init__(self, base: Array, rows: slice | None = None) -> None:
         self.base = base
         self.shape = base.shape
+        self.rows = rows
         self.columns: dict[int, Array] = {}
 
     def _which(self, key) -> list[int]:
@@ -314,11 +325,16 @@ class _Moved:
 
     def __setitem__(self, key, value) -> None:
         which = self._which(key)
-        value = np.asarray(value, dtype=float).reshape(self.shape[0], -1)
+        value = np.asarray(value, dtype=float)
+        if self.rows is not None and len(value) == self.shape[0]:  # a whole column: its rows alone are kept
+            value = value[self.rows]
+        value = value.reshape(len(value), -1)
         for i, j in enumerate(which):
             self.columns[j] = value[:, i].copy()
 
     def __getitem__(self, key):
+        if self.rows is not None:
+            raise TypeError("a moved pass's joints kept on the rows' samples alone are not read back")
         if not isinstance(key, tuple):  # rows, every column
             out = self.base[key]
             for j, c in self.columns.items():
@@ -330,6 +346,8 @@ class _Moved:
 
     def whole(self) -> Array:
         """The (N, 42) array, column-major as the whole pass's."""
+        if self.rows is not None:
+            raise TypeError("a moved pass's joints kept on the rows' samples alone have no whole array")
         out = self.base.copy(order="F")
         for j, c in self.columns.items():
             out[:, j] = c
@@ -337,10 +355,29 @@ class _Moved:
 
     def every(self, base: Array, lo: int, hi: int, k: int) -> Array:
         """Rows lo, lo + k, ... < hi, C order (`base`: the whole pass's rows there)."""
+        if self.rows not in (None, slice(lo, hi, k)):
+            raise ValueError(f"a moved pass's joints kept on rows {self.rows}, asked on {slice(lo, hi, k)}")
         out = base.copy()
         for j, c in self.columns.items():
-            out[:, j] = c[lo:hi:k]
+            out[:, j] = c[lo:hi:k] if self.rows is None else c
         return out
+
+
+def _derivative_at(x: Array, fs: float, rows: slice | None) -> Array:
+    """`signals.derivative` of x (N, ...) along axis 0 on `rows` alone (slice(lo, hi, k), `_Moved.rows`: the central
+    differences there, the same operations on the same numbers), or on every sample (None)."""
+    if rows is None or rows.start < 1 or rows.stop > len(x) - 1:  # the ends' one-sided formulas: the whole derivative
+        d = derivative(x, fs, check_finite=False)
+        return d if rows is None else d[rows]
+    lo, hi, k = rows.start, rows.stop, rows.step
+    out = np.subtract(x[lo + 1:hi + 1:k], x[lo - 1:hi - 1:k])
+    out /= 2.0 * (1.0 / fs)  # as signals.derivative
+    return out
+
+
+def _rows(a: Array | _Moved) -> slice | None:
+    """The rows a moved pass's joints are kept on (`_Moved.rows`; None: every sample)."""
+    return a.rows if isinstance(a, _Moved) else None
 
 
 class _Trimmed:
@@ -403,19 +440,22 @@ class JointsPass:
         if not self.movable(channel):
             raise ValueError(f"JointsPass.moved: a zero offset of {channel!r} needs the whole pass (estimate_joints)")
         x = self.ctx
-        # the columns the stages write, apart: the rest is the whole pass's
-        q, qd, qdd = (_Moved(a) for a in (self.q, self.qd, self.qdd))
+        # the columns the stages write, apart: the rest is the whole pass's; when every > 1, the accelerations on the
+        # rows' samples alone (the equations read no others; the rates whole: the dry friction's columns read them)
+        rows = slice(None) if every == 1 else slice(x.border, self.q.shape[0] - x.border, every)
+        q, qd, qdd = _Moved(self.q), _Moved(self.qd), _Moved(self.qdd, None if every == 1 else rows)
         if self._linear(channel):  # its effect is b times the pass's response to a unit offset (`_UNIT`)
             unit = _UNIT(self)
             if channel in _ACCELERATION:
-                qdd[:, :3] = self.qdd[:, :3] + b * unit.acceleration[_ACCELERATION.index(channel)]
+                qdd[:, :3] = self.qdd[rows, :3] + b * unit.acceleration[_ACCELERATION.index(channel)][rows]
             else:
                 i = CORNER_TAGS.index(channel.removeprefix("laser_height_"))
                 j = TIRES[i] - 1
                 q[:, 2], qd[:, 2] = self.q[:, 2] + b * unit.height[0], self.qd[:, 2] + b * unit.height[1]
                 q[:, :2], qd[:, :2] = self.q[:, :2] + b * unit.position, self.qd[:, :2] + b * unit.velocity
-                q[:, j], qd[:, j], qdd[:, j] = (a[:, j] + b * u[i] for a, u in zip(
-                    (self.q, self.qd, self.qdd), unit.deflection, strict=True))
+                q[:, j], qd[:, j] = (a[:, j] + b * u[i] for a, u in zip((self.q, self.qd), unit.deflection[:2],
+                                                                         strict=True))
+                qdd[:, j] = self.qdd[rows, j] + b * unit.deflection[2][i][rows]
             return self._trajectory(q, qd, qdd, self.filtered, every)
         ch = {**self.ch, channel: self.ch[channel] + b}
         filtered, R6, w6, pz_zz, z_laser = self.filtered, self.R6, self.w6, self.pz_zz, self.z_laser
@@ -426,12 +466,15 @@ class JointsPass:
             i = 17 + 6 * CORNER_TAGS.index(channel.split("_")[1]) + WFT_COMPONENTS.index(channel.split("_")[2])
             filtered[:, i] += _lowpass(np.full(len(filtered), b), x)
             heights = not x.lasers and channel.endswith("_Fz")
-        if attitude:  # a gyro's offset leaves the inclinometers' low-pass as the whole pass's
-            R6, w6 = _attitude(ch, x, q, qd, qdd, None if channel in _INCLINOMETERS else self.filtered[:, -2:])
-            pz_zz = _tire_poses(x, q)
+        kept = _UNMOVED(self) if attitude else None  # the channels an attitude offset leaves, as the stages read them
+        if attitude:  # a gyro's offset leaves the inclinometers and their low-pass as the whole pass's
+            gyro = channel not in _INCLINOMETERS
+            R6, w6 = _attitude(ch, x, q, qd, qdd, self.filtered[:, -2:] if gyro else None,
+                               *((kept.incl, kept.start) if gyro else ()))
+            pz_zz = _tire_poses(x, q, kept.poses)
         if heights or attitude or channel in _ACCELERATION:
             z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
-                                      attitude or channel in _ACCELERATION)
+                                      attitude or channel in _ACCELERATION, kept)
             z_laser = z if heights else z_laser
         if heights:  # the velocity (it reads the height's rate) and the deflections
             _velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser))
@@ -548,8 +591,12 @@ def joints_pass(
     b = border_samples(fs, c.cutoff, c.order) if c.border is None else round(c.border * fs)
     x = _Context(fs, model, g, c, suite, lasers, b)
 
-    # column-major: every joint is written as a column, and the equations read them as columns
-    q, qd, qdd = (np.zeros((N, FRAMES), order="F") for _ in range(3))
+    # column-major: every joint is written as a column, and the equations read them as columns. Every column but the
+    # constant joints' is written by the stages below: np.zeros would clear the 3 x 12.6 MB first (calloc of reused
+    # heap, 0.8 ms each per 60 s segment)
+    q, qd, qdd = (np.empty((N, FRAMES), order="F") for _ in range(3))
+    for a in (q, qd, qdd):
+        a[:, _CONSTANT_COLUMNS] = 0.0
 
     # --- corners: camera channels, wheel speeds and the steering wheel (17 columns), filtered in one matrix
     # with the loads (24 wheel-wrench components, the 4 spin torques when measured) and the two inclinometers
@@ -596,6 +643,8 @@ def _check_finite(ch: Mapping[str, Array], names: list[str]) -> None:
             raise ModelError(f"channel {n!r} has a non-finite value ({x[bad[0]]}) at sample {bad[0]} ({len(bad)} in "
                              "all): the joints' filters would spread it over the segment; fill or cut the gap first")
 
+
+_CONSTANT_COLUMNS = [j - 1 for j in CONSTANT_JOINTS]  # half tracks and wheelbases: 0 (their value is in r)
 
 # the corners' columns of the low-passed matrix (dampers, steering, camber: frame j in column j - 1), then the
 # wheels' (speeds: integrated), then the steering wheel
@@ -673,22 +722,24 @@ def _lowpass_columns(columns: list[Array], c: _Context) -> Array:
                            check_finite=False)
 
 
-def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None
-              ) -> tuple[Array, Array]:
+def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, angles: Array | None = None,
+              incl: Array | None = None, start: tuple[Array, Array, Array] | None = None) -> tuple[Array, Array]:
     """Yaw, pitch, roll into q, qd, qdd (columns 3:6): Euler rates (ISO ZYX) from the gyros, angles fused with
     the inclinometers; returns 0R6 (N, 3, 3) and the unit's rates in frame 6 (N, 3). angles: the inclinometers
     (roll, pitch) low-passed (N, 2), when known (filtered with other columns: a call on 2 columns waits on the
-    filter's latency)."""
+    filter's latency); incl: the inclinometers stacked (N, 2), start: sin and cos of the angles' roll and tan of their
+    pitch, when known (`_Unmoved`: a gyro's offset leaves them)."""
     fs, c = x.fs, x.conditioning
     A = np.asarray(x.geometry.imu_axes, dtype=float)  # rows: the unit's axes in frame 6
     w6 = np.stack([ch["imu_roll_rate"], ch["imu_pitch_rate"], ch["imu_yaw_rate"]], axis=1) @ A  # frame 6
-    p, qb, r = (w6 @ ISO_AXES.T).T  # about the vehicle x, y, z axes
-    incl = np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+    # about the vehicle x, y, z axes: w6 @ ISO_AXES.T as a signed gather (the product's numbers without its pass)
+    p, qb, r = (w6[:, k] if sign > 0 else -w6[:, k] for k, sign in _ISO_ROWS)
+    incl = _inclinometers(ch) if incl is None else incl
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
-    for _ in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
-        sp, cp = np.sin(phi), np.cos(phi)
+    for i in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
+        sp, cp, tt = (np.sin(phi), np.cos(phi), np.tan(theta)) if i or start is None else start
         u = qb * sp + r * cp
-        dphi = p + u * np.tan(theta)
+        dphi = p + u * tt
         dtheta = qb * cp - r * sp
         integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
@@ -698,12 +749,51 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass_columns([dpsi, dtheta, dphi, psi, theta, phi], x)
-    rdf = derivative(low[:, :3], fs, check_finite=False)
+    rdf = _derivative_at(low[:, :3], fs, _rows(qdd))
     # signed, column by column into the column-major joints (a moved pass's too): the (N, 3) products of sign and the
     # columns' strided views, assigned to three columns each, cost 2.6 against 0.9 ms per 60 s segment
     for k in range(3):
         q[:, 3 + k], qd[:, 3 + k], qdd[:, 3 + k] = low[:, 3 + k] * sign[k], low[:, k] * sign[k], rdf[:, k] * sign[k]
     return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _inclinometers(ch: Mapping[str, Array]) -> Array:
+    """The inclinometers' roll and pitch (N, 2)."""
+    return np.stack([ch["imu_roll"], ch["imu_pitch"]], axis=1)
+
+
+def _specific_force(ch: Mapping[str, Array], x: _Context) -> Array:
+    """The accelerometers' specific force in frame 6 (N, 3)."""
+    return np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ np.asarray(x.geometry.imu_axes, dtype=float)
+
+
+def _laser_heights(ch: Mapping[str, Array]) -> Array:
+    """The four height lasers (N, 4), in CORNER_TAGS' order."""
+    return np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1)
+
+
+@dataclass(frozen=True)
+class _Unmoved:
+    """A pass's inputs that an attitude offset (a gyro's or an inclinometer's) leaves as they are, as the stages read
+    them, made once per pass when a moved attitude pass first asks: the inclinometers (`_inclinometers`) and the first
+    refinement's sin, cos of the low-passed roll and tan of the low-passed pitch (a gyro's offset leaves them:
+    `_attitude`'s start, 0.9 ms), the specific force in frame 6, the lasers' heights (None without lasers), the tire
+    poses' joints (`_pose_joints`: the attitude's columns are the moved pass's own; 1.3 ms)."""
+
+    incl: Array
+    start: tuple[Array, Array, Array]
+    f6: Array
+    lasers: Array | None
+    poses: Array
+
+
+def _unmoved(p: JointsPass) -> _Unmoved:
+    phi, theta = p.filtered[:, -2:].T  # as `_attitude` reads its angles
+    return _Unmoved(_inclinometers(p.ch), (np.sin(phi), np.cos(phi), np.tan(theta)), _specific_force(p.ch, p.ctx),
+                    _laser_heights(p.ch) if p.ctx.lasers else None, _pose_joints(p.ctx, p.q)[1])
+
+
+_UNMOVED: PerObject[JointsPass, _Unmoved] = PerObject(_unmoved)
 
 
 def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
@@ -722,7 +812,7 @@ def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
     return R.transpose(2, 0, 1)
 
 
-def _tire_poses(x: _Context, q: Array) -> Array:
+def _tire_poses(x: _Context, q: Array, start: Array | None = None) -> Array:
     """Heights and z-axis slopes in frame 0 of the four tire frames (N, 8), from the attitude and the corners'
     joints (q's other columns, written by later stages, are taken as 0).
 
@@ -730,29 +820,47 @@ def _tire_poses(x: _Context, q: Array) -> Array:
     chassis height its own laser implies: attitude errors then act over the 0.35 m between laser and wheel, not
     over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0 serves the four corners.
     The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
-    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work."""
+    (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work.
+    start: `_pose_joints` of a pass whose attitude alone q moves (`_Unmoved`): its other joints are taken from it."""
     N = q.shape[0]
-    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
-    sub = np.arange(0, N, k_sub)
-    if sub[-1] != N - 1:
-        sub = np.append(sub, N - 1)
-    q0 = q[sub]  # a copy (fancy index)
-    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    if start is None:
+        sub, qs = _pose_joints(x, q)
+    else:  # the pass's joints on those samples, the attitude's (columns 3:6) q's
+        sub, qs = _pose_samples(x, N), start.copy()
+        for j in range(3, 6):
+            qs[j] = q[:, j][sub]
     # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
-    st = forward_kinematics(x.model.tree, joint_array(q0, x.model.tree, "q")[0], frames=TIRES, rows=slice(2, 3))
+    st = forward_kinematics(x.model.tree, qs, frames=TIRES, rows=slice(2, 3))
     poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
 
 
+def _pose_samples(x: _Context, N: int) -> Array:
+    """The samples `_tire_poses` computes the poses on: every k-th and the last."""
+    k_sub = max(1, int(x.fs / (20 * x.conditioning.cutoff)))
+    sub = np.arange(0, N, k_sub)
+    return sub if sub[-1] == N - 1 else np.append(sub, N - 1)
+
+
+def _pose_joints(x: _Context, q: Array) -> tuple[Array, Array]:
+    """`_tire_poses`' samples and its joints there, samples last (42, len(sub)) as `joint_array` gives them: q's, the
+    translations' and the tire deflections' 0."""
+    sub = _pose_samples(x, q.shape[0])
+    q0 = q[sub]  # a copy (fancy index)
+    q0[:, [0, 1, 2, *(f - 1 for f in TIRES)]] = 0.0
+    return sub, joint_array(q0, x.model.tree, "q")[0]
+
+
 def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array,
-                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True
-                          ) -> Array | None:
+                          R6: Array, w6: Array, pz_zz: Array, height: bool = True, acceleration: bool = True,
+                          kept: _Unmoved | None = None) -> Array | None:
     """`_heights` (when height; its z_laser returned, else None) and `_acceleration` into qdd (columns 0:3, when
     acceleration), their 1 and 6 columns through one low-pass call (a call on few columns waits on the filter's
-    latency)."""
-    z_laser = _heights(ch, x, filtered, R6, pz_zz) if height else None
-    cols = ([z_laser.mean(axis=1)] if height else []) + (_unit_acceleration(ch, x, R6, w6) if acceleration else [])
+    latency); kept: the lasers' heights and the specific force, when an attitude offset leaves them."""
+    z_laser = _heights(ch, x, filtered, R6, pz_zz, None if kept is None else kept.lasers) if height else None
+    cols = ([z_laser.mean(axis=1)] if height else []) + (
+        _unit_acceleration(ch, x, R6, w6, None if kept is None else kept.f6) if acceleration else [])
     low = _lowpass_columns(cols, x)
     if height:  # the height, its rate (`signals.filtered_derivatives`')
         q[:, 2], qd[:, 2] = low[:, 0], derivative(low[:, 0], x.fs, check_finite=False)
@@ -761,15 +869,16 @@ def _heights_acceleration(ch: Mapping[str, Array], x: _Context, q: Array, qd: Ar
     return z_laser
 
 
-def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array) -> Array:
+def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, pz_zz: Array,
+             lasers: Array | None = None) -> Array:
     """Each corner's estimate of the height of O6 (N, 4), before the low-pass.
 
     From the lasers: h = (z_O6 + (R p)_z) / (R6)_z,x (distance along -x6 to the ground), each laser's own
     estimate, used again for the tire deflections. Without lasers, each corner's contact point on the ground with
-    the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz)."""
+    the tire deflected by its load: d = Fz / kt (kt known), z = -(pz + d zz). lasers: `_laser_heights`, when known."""
     g, model = x.geometry, x.model
     if x.lasers:
-        z_laser = np.stack([ch[f"laser_height_{t}"] for t in CORNER_TAGS], axis=1) * R6[:, 2, 0, None] \
+        z_laser = (_laser_heights(ch) if lasers is None else lasers) * R6[:, 2, 0, None] \
             - R6[:, 2, :] @ np.array([laser_point(g, k) for k in range(4)], dtype=float).T
     else:
         kt = np.array([model.tree.values.get(f"K{f}", 0.0) for f in TIRES])
@@ -782,12 +891,15 @@ def _heights(ch: Mapping[str, Array], x: _Context, filtered: Array, R6: Array, p
     return z_laser
 
 
-def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array) -> list[Array]:
+def _unit_acceleration(ch: Mapping[str, Array], x: _Context, R6: Array, w6: Array, f6: Array | None = None
+                       ) -> list[Array]:
     """The unit's rates in frame 6 and its acceleration in frame 0, (N, 3) each, before the low-pass
-    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart)."""
-    A = np.asarray(x.geometry.imu_axes, dtype=float)
-    f6 = np.stack([ch["imu_ax"], ch["imu_ay"], ch["imu_az"]], axis=1) @ A
-    return [w6, np.einsum("nij,nj->ni", R6, f6) + np.asarray(x.model.tree.gravity)]
+    (`_acceleration`): the low-pass's columns, not concatenated (`signals.lowpass_columns` takes them apart). f6:
+    `_specific_force`, when known."""
+    f6 = _specific_force(ch, x) if f6 is None else f6
+    a0 = np.einsum("nij,nj->ni", R6, f6)
+    a0 += np.asarray(x.model.tree.gravity)
+    return [w6, a0]
 
 
 def _acceleration(x: _Context, R6: Array, low: Array, first: int = 0) -> Array:
@@ -844,25 +956,40 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     g = x.geometry
     N = q.shape[0]
     tag, pc = ("correvit", correvit_point(g)) if "correvit_vx" in x.suite.names else ("gnss", gnss_point(g))
-    v_c = np.stack([ch[f"{tag}_vx"], ch[f"{tag}_vy"], np.zeros(N)], axis=1) @ ISO_AXES  # frame 6, vz unknown
-    pc = np.asarray(pc)
-    ez6 = ISO_AXES[2]  # the vehicle z axis in frame 6
-    v_known = np.einsum("nij,nj->ni", R6, v_c - np.cross(w6, pc))
-    s = (qd[:, 2] - v_known[:, 2]) / (R6[:, 2, :] @ ez6)
-    v0 = v_known + s[:, None] * (R6 @ ez6)
+    pc = np.asarray(pc, dtype=float)
+    # ISO_AXES is a signed permutation: the sensor's velocity in frame 6 ([vx, vy, 0] @ ISO_AXES, vz unknown) and R6
+    # times the vehicle z axis are signed gathers, and w6 x pc is written out in np.cross's operations: the same
+    # numbers without their (N, 3) matrix products (0.8 ms each per 60 s segment) and np.cross's copies
+    iso = (ch[f"{tag}_vx"], ch[f"{tag}_vy"], None)
+    rel = np.empty((N, 3))  # v_c - w6 x pc
+    for j, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):
+        k, sign = _ISO_GATHER[j]
+        wxp = w6[:, a] * pc[b]
+        wxp -= w6[:, b] * pc[a]
+        if iso[k] is None:  # 0 - w6 x pc: as the product's +0
+            np.subtract(0.0, wxp, out=rel[:, j])
+        else:
+            np.subtract(iso[k] if sign > 0 else -iso[k], wxp, out=rel[:, j])
+    v_known = np.einsum("nij,nj->ni", R6, rel)
+    k, sign = _ISO_ROWS[2]  # the vehicle z axis in frame 6: R6 ez6 = sign R6[:, :, k]
+    ez = R6[:, :, k] if sign > 0 else -R6[:, :, k]
+    s = (qd[:, 2] - v_known[:, 2]) / ez[:, 2]
+    v0 = v_known[:, :2] + s[:, None] * ez[:, :2]
     if deflections is None:
-        v = _lowpass(v0[:, :2], x)
+        v = _lowpass(v0, x)
     else:  # the velocity's 2 columns and the 4 deflections through one low-pass
         qdd, pz_zz, z_laser = deflections
-        low = _lowpass_columns([v0[:, :2], _deflection(pz_zz, z_laser)], x)
+        low = _lowpass_columns([v0, _deflection(pz_zz, z_laser)], x)
         v = low[:, :2]
         _deflected(x, q, qd, qdd, low[:, 2:6])
     q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
 
 
 def _deflection(pz_zz: Array, z_laser: Array) -> Array:
-    """The four tires' deflections (N, 4), before the low-pass."""
-    return -(pz_zz[:, :4] + z_laser) / pz_zz[:, 4:]
+    """The four tires' deflections (N, 4), before the low-pass: -(pz + z_laser) / zz, in one array."""
+    d = np.add(pz_zz[:, :4], z_laser)
+    np.negative(d, out=d)
+    return np.divide(d, pz_zz[:, 4:], out=d)
 
 
 def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None:
@@ -870,7 +997,7 @@ def _deflected(x: _Context, q: Array, qd: Array, qdd: Array, low: Array) -> None
     columns."""
     cols = [f - 1 for f in TIRES]
     d = derivative(low, x.fs, check_finite=False)
-    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, derivative(d, x.fs, check_finite=False)
+    q[:, cols], qd[:, cols], qdd[:, cols] = low, d, _derivative_at(d, x.fs, _rows(qdd))
 
 
 def _trajectory(x: _Context, q: Array, qd: Array, qdd: Array, filtered: Array, has_spin: bool,
