@@ -221,7 +221,7 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
     return _decimation_transient(fs, c.decimate) + border_samples(fs, c.cutoff, c.order, tol=1e-12) + 4
 
 
-def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
+def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | None, tau: Array, fs: float, first: int,
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
                payload: tuple[int, Array] | None = None, threads: int = 1,
                filtered: tuple[Array, Array] | None = None,
@@ -237,12 +237,16 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     threads: the chunk's W blocks done on that many threads at once (`decimate_parallel_blocked`; the same bits):
     one chunk's samples, filtered positions and first-stage output held, not one per thread's chunk.
     filtered: `chunk_filtered`'s (qf, speed) of these arguments, made beforehand (the next chunk's, on another
-    thread while this one's decimation finishes: `reduce.read_robot_chunk`); made here when None. blocks_done:
-    called once the W blocks are done and their buffers freed (the decimation's later stages and the rows' own
-    selection left)."""
+    thread while this one's decimation finishes: `reduce.read_robot_chunk`; q is then not read: None will do);
+    made here when None. blocks_done: called once the W blocks are done and their buffers freed (the decimation's
+    later stages and the rows' own selection left)."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
-    qf, speed = chunk_filtered(c, q, fs, first, chunk, n_samples) if filtered is None else filtered
+    if filtered is None:
+        if q is None:
+            raise ValueError("chunk_rows needs the window's positions q or their `chunk_filtered` (qf, speed)")
+        filtered = chunk_filtered(c, q, fs, first, chunk, n_samples)
+    qf, speed = filtered
     b, D = _border(fs, c), int(np.prod(c.decimate))
     pad = _decimation_transient(fs, c.decimate)
     lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
