@@ -52,6 +52,7 @@ from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
+from .heap import trim_heap
 from .robot import GroupedSystem, chunk_filtered, chunk_pad, chunk_rows, to_frames
 from .schedulers import Staged
 from .sources import (
@@ -620,7 +621,9 @@ def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
         full[:, np.asarray(columns) - 1, :] = gains
         gains = full
     filtered = chunk_filtered(job.cfg.conditioning, q, w.fs, w.first, job.chunk, job.n_samples)
-    # the raw positions not held once filtered (3.7 MB of the Panda's 55,600-sample chunks, ahead of the next chunk)
+    del q  # the raw positions not held once filtered (3.7 MB of the Panda's 55,600-sample chunks)
+    if job.in_order:  # read ahead on a thread of its own: its heap's transients (~30 MB) not kept under the W blocks
+        trim_heap()
     return RobotChunkRead(w, tau, gains, health, filtered)
 
 

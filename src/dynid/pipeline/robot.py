@@ -9,6 +9,7 @@ test are stacked per joint, and each joint is one equation group for weighted LS
 
 from __future__ import annotations
 
+import mmap
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -258,7 +259,7 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
     # so the structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of
     # BLOCK_BYTES
     most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
-    spare = [np.zeros((most, len(rows), len(cols))) for _ in range(threads)]  # made here: this thread's heap
+    spare = [own_pages((most, len(rows), len(cols))) for _ in range(threads)]
     buffers: dict[int, Array] = {}
 
     def block(a: int, z: int) -> tuple[Array, Array]:
@@ -284,7 +285,8 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
             blocks_done()
 
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=block_samples, threads=threads, blocks_done=freed)
+                                       block_samples=block_samples, threads=threads, blocks_done=freed,
+                                       zeros=own_pages)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
     Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
     parts = []
@@ -292,6 +294,19 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
         ok = np.abs(speed[:, j - 1]) >= c.min_speed.get(j, 0.0)
         parts.append(GroupedSystem(Wd[ok, i], Yd[ok, i], np.full(int(ok.sum()), f"joint{j}"), td[ok]))
     return GroupedSystem.stack(parts)
+
+
+def own_pages(shape: tuple[int, ...]) -> Array:
+    """Zeros (float64) on pages of their own, handed back to the system when the array goes (an anonymous private
+    mapping, faulted in at once): a chunk's W blocks and first-stage output (~34 MB for the Panda's) not left as
+    free space in glibc's heap under the next chunk's read, which runs on another thread, in another heap, while
+    this chunk's last stage runs. np.zeros where there is no such mapping (Windows)."""
+    n = int(np.prod(shape))
+    flags = getattr(mmap, "MAP_PRIVATE", None), getattr(mmap, "MAP_ANONYMOUS", None)
+    if n == 0 or None in flags:
+        return np.zeros(shape)
+    pages = mmap.mmap(-1, 8 * n, flags=flags[0] | flags[1] | getattr(mmap, "MAP_POPULATE", 0))
+    return np.frombuffer(pages, dtype=np.float64, count=n).reshape(shape)
 
 
 def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tuple[int, int],
