@@ -52,8 +52,7 @@ from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
-from .heap import trim_heap
-from .robot import GroupedSystem, chunk_filtered, chunk_pad, chunk_rows, to_frames
+from .robot import GroupedSystem, chunk_buffers, chunk_filtered, chunk_pad, chunk_rows, to_frames
 from .schedulers import Staged
 from .sources import (
     RobotTestPlan,
@@ -596,6 +595,7 @@ class RobotChunkRead:
     gains: np.ndarray | None  # (samples, frames, k): the drive gains' columns when identified
     health: dict  # test -> the joints' data health of the positions (pipeline.health.gather_joints)
     filtered: tuple[np.ndarray, np.ndarray]  # `robot.chunk_filtered`'s (qf, speed)
+    buffers: list[np.ndarray]  # `robot.chunk_buffers`: the chunk's W block buffers, made by the thread that read it
 
 
 def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
@@ -622,9 +622,11 @@ def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
         gains = full
     filtered = chunk_filtered(job.cfg.conditioning, q, w.fs, w.first, job.chunk, job.n_samples)
     del q  # the raw positions not held once filtered (3.7 MB of the Panda's 55,600-sample chunks)
-    if job.in_order:  # read ahead on a thread of its own: its heap's transients (~30 MB) not kept under the W blocks
-        trim_heap()
-    return RobotChunkRead(w, tau, gains, health, filtered)
+    # the W block buffers made last, here: in the heap this read's transients left free (this thread's glibc arena),
+    # not beside them in the calling thread's (~24 MB of the Panda's, two threads)
+    buffers = chunk_buffers(setup.base, job.cfg.conditioning, w.fs, job.chunk, job.n_samples,
+                            setup.model.tree.equations, 0 if gains is None else gains.shape[2], job.threads)
+    return RobotChunkRead(w, tau, gains, health, filtered, buffers)
 
 
 def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[], None] | None = None) -> Partial:
@@ -636,7 +638,7 @@ def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[],
     w, health, gains = read.window, read.health, read.gains
     sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, None, read.tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test), threads=job.threads,
-                     filtered=read.filtered, blocks_done=ready)
+                     filtered=read.filtered, blocks_done=ready, buffers=read.buffers)
     if job.hac is not None:
         return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if health and gains is None:

@@ -9,7 +9,6 @@ test are stacked per joint, and each joint is one equation group for weighted LS
 
 from __future__ import annotations
 
-import mmap
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -226,7 +225,7 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
                payload: tuple[int, Array] | None = None, threads: int = 1,
                filtered: tuple[Array, Array] | None = None,
-               blocks_done: Callable[[], None] | None = None) -> GroupedSystem:
+               blocks_done: Callable[[], None] | None = None, buffers: list[Array] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
@@ -240,7 +239,9 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
     filtered: `chunk_filtered`'s (qf, speed) of these arguments, made beforehand (the next chunk's, on another
     thread while this one's decimation finishes: `reduce.read_robot_chunk`; q is then not read: None will do);
     made here when None. blocks_done: called once the W blocks are done and their buffers freed (the decimation's
-    later stages and the rows' own selection left)."""
+    later stages and the rows' own selection left). buffers: `chunk_buffers` of these arguments, made beforehand
+    (by the thread that read the chunk, in the heap its reading left free: `reduce.read_robot_chunk`); made here
+    when None."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     if filtered is None:
@@ -248,27 +249,22 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
             raise ValueError("chunk_rows needs the window's positions q or their `chunk_filtered` (qf, speed)")
         filtered = chunk_filtered(c, q, fs, first, chunk, n_samples)
     qf, speed = filtered
-    b, D = _border(fs, c), int(np.prod(c.decimate))
-    pad = _decimation_transient(fs, c.decimate)
-    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
+    D = int(np.prod(c.decimate))
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
     o = lo - first
     eq, cols = np.array(rows) - 1, list(base.columns)
-    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
-    block_samples = BLOCK_BYTES // row_bytes
-    # one W block a thread for all the chunk's blocks: the regressor writes only its entries that can be non-zero,
-    # so the structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of
-    # BLOCK_BYTES
-    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
-    spare = [own_pages((most, len(rows), len(cols))) for _ in range(threads)]
-    buffers: dict[int, Array] = {}
+    extra = 0 if gains is None else gains.shape[2]
+    spare = list(chunk_buffers(base, c, fs, chunk, n_samples, rows, extra, threads) if buffers is None else buffers)
+    block_samples = _block_samples(len(rows), len(cols), extra)
+    taken: dict[int, Array] = {}
 
     def block(a: int, z: int) -> tuple[Array, Array]:
         """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
         w = slice(o + a, o + z)
         qb, qdb, qddb = _block_derivatives(qf, o + a, o + z, fs)
-        buffer = buffers.get(threading.get_ident())
+        buffer = taken.get(threading.get_ident())
         if buffer is None:  # this thread's first block (list.pop and a dict's item set are atomic under the GIL)
-            buffer = buffers[threading.get_ident()] = spare.pop()
+            buffer = taken[threading.get_ident()] = spare.pop()
         W = model.regressor(qb, qdb, qddb, rows=rows, cols=cols, out=buffer[: z - a])
         Y = tau[w][:, eq]
         if payload is not None:
@@ -279,14 +275,15 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
         return W, Y
 
     def freed() -> None:
-        buffers.clear()
+        taken.clear()
         spare.clear()
+        if buffers is not None:
+            buffers.clear()
         if blocks_done is not None:
             blocks_done()
 
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=block_samples, threads=threads, blocks_done=freed,
-                                       zeros=own_pages)
+                                       block_samples=block_samples, threads=threads, blocks_done=freed)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
     Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
     parts = []
@@ -296,17 +293,26 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
     return GroupedSystem.stack(parts)
 
 
-def own_pages(shape: tuple[int, ...]) -> Array:
-    """Zeros (float64) on pages of their own, handed back to the system when the array goes (an anonymous private
-    mapping, faulted in at once): a chunk's W blocks and first-stage output (~34 MB for the Panda's) not left as
-    free space in glibc's heap under the next chunk's read, which runs on another thread, in another heap, while
-    this chunk's last stage runs. np.zeros where there is no such mapping (Windows)."""
-    n = int(np.prod(shape))
-    flags = getattr(mmap, "MAP_PRIVATE", None), getattr(mmap, "MAP_ANONYMOUS", None)
-    if n == 0 or None in flags:
-        return np.zeros(shape)
-    pages = mmap.mmap(-1, 8 * n, flags=flags[0] | flags[1] | getattr(mmap, "MAP_POPULATE", 0))
-    return np.frombuffer(pages, dtype=np.float64, count=n).reshape(shape)
+def chunk_buffers(base: BaseParameters, c: Conditioning, fs: float, chunk: tuple[int, int], n_samples: int,
+                  rows: Sequence[int], extra: int = 0, threads: int = 1) -> list[Array]:
+    """The W block buffers `chunk_rows` fills for the chunk's blocks, one a thread, zeroed: the regressor writes
+    only its entries that can be non-zero, so the structural zeros stay (`Model.regressor`'s out; a fresh zeroed
+    block each time cost a calloc of BLOCK_BYTES). extra: W's columns beyond the base parameters' (drive gains)."""
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
+    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
+                        block_samples=_block_samples(len(rows), len(base.columns), extra))
+    return [np.zeros((most, len(rows), len(base.columns))) for _ in range(threads)]
+
+
+def _chunk_span(c: Conditioning, fs: float, chunk: tuple[int, int], n_samples: int) -> tuple[int, int]:
+    """The samples a chunk's W is made on: its own and its decimation transient, inside the filter borders (on the
+    decimation grid: s - border and the transient are multiples of the whole factor)."""
+    b, pad = _border(fs, c), _decimation_transient(fs, c.decimate)
+    return max(b, chunk[0] - pad), min(n_samples - b, chunk[1] + pad)
+
+
+def _block_samples(rows: int, cols: int, extra: int) -> int:
+    return BLOCK_BYTES // (8 * rows * (cols + extra))
 
 
 def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tuple[int, int],
@@ -317,9 +323,7 @@ def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tupl
     # the filtered positions held for the chunk, their derivatives (`filtered_derivatives`' central differences)
     # made a block at a time from them: the same bits, 2 of the 3 filtered arrays not held (7.5 MB for the Panda's)
     (qf,) = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=0)
-    s, e = chunk
-    b, pad = _border(fs, c), _decimation_transient(fs, c.decimate)
-    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
     speed, _ = decimate_parallel(derivative(qf, fs)[lo - first : hi - first], None, c.decimate, fs,
                                  order=DECIMATION_ORDER)
     return qf, speed

@@ -242,7 +242,6 @@ def decimate_parallel_blocked(
     block_samples: int,
     threads: int = 1,
     blocks_done: Callable[[], None] | None = None,
-    zeros: Callable[[tuple[int, ...]], NDArray[np.float64]] = np.zeros,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """`decimate_parallel(W, Y, ...)` of the W (n, m, p) and Y (n, m) that `rows(0, n)` would give, without ever
     holding them at the input rate: the first stage filters and decimates blocks of about `block_samples` input
@@ -256,7 +255,7 @@ def decimate_parallel_blocked(
     them together and must be safe so, each call's W its own until it returns the next block's). The outputs
     are the same bits for any count: each block is computed alone, its outputs written to their own rows.
     blocks_done: called on the calling thread once every block is in (`rows` is not called again), before the
-    later stages. zeros: makes the first stage's output of W, zeroed (a caller's own allocator: its pages)."""
+    later stages."""
     factors = _factors(factor)
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
@@ -298,7 +297,7 @@ def decimate_parallel_blocked(
             W1, held = out["W1"], out["held"]
             if W1 is None or not np.isin(live, held).all():  # a column live for the first time: W1 widened (rare)
                 wider = np.union1d(held, live)
-                grown = zeros((first.n_out, len(wider)))
+                grown = np.zeros((first.n_out, len(wider)))
                 if W1 is not None:
                     grown[:, np.searchsorted(wider, held)] = W1
                 out["W1"], out["held"] = W1, held = grown, wider
