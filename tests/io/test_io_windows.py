@@ -389,6 +389,45 @@ def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatc
     assert sorted(read) == [7, 7, 8, 8]
 
 
+@needs_pyarrow
+def test_a_reader_in_time_order_keeps_only_the_blocks_it_reads_again(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oracle: the row groups' time spans (16 s each: group 6 is 96-112 s, 7 is 112-128 s). After a window, the blocks
+    wholly before the next window's start are dropped (`forget_blocks_before`): read again, they are decoded again;
+    the others stay (the next window, in time order, decodes only what it did not share with this one)."""
+    import pyarrow.parquet as pq
+
+    n, fs = 200_000, 625.0
+    t = np.arange(n) / fs
+    rec = Recording.from_channels([Channel(f"c{k}", "m", np.sin(t * (k + 1)), t) for k in range(2)])
+    path = tmp_path / "big.parquet"
+    write_recording(rec, path)
+    pq.write_table(pq.read_table(path), path, row_group_size=10_000)  # 20 row groups of 16 s
+    index = index_file(path)
+    read: list[int] = []
+    original = pq.ParquetFile.read_row_group
+
+    def counting(self, i, *args, **kwargs):
+        read.append(i)
+        return original(self, i, *args, **kwargs)
+
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
+    windows.clear_cache()
+    read_window(index, ["c0"], 100.0, 130.0)  # row groups 6, 7, 8
+    windows.forget_blocks_before(index, 125.0)  # a next window starting at 125 s: group 6 goes
+    read.clear()
+    read_window(index, ["c0"], 100.0, 110.0)
+    assert sorted(set(read)) == [6]  # dropped, though the cache (CACHE_BLOCKS = 3) had kept it
+    read.clear()
+    got = read_window(index, ["c0"], 125.0, 150.0)  # groups 7 and 8 kept, 9 decoded
+    assert sorted(set(read)) == [9]
+    np.testing.assert_array_equal(got.channels["c0"].values, rec.channels["c0"].values[78125:93751])
+    windows.forget_blocks_before(index, float("inf"))  # every block of the file
+    read.clear()
+    read_window(index, ["c0"], 125.0, 130.0)
+    assert sorted(set(read)) == [7, 8]
+
+
 def csv_parses(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """The first rows of the CSV blocks parsed from now on (the block cache emptied), in the order parsed."""
     parsed: list[int] = []
