@@ -11,27 +11,30 @@ the identification's wall time. Target: under 300 MB.
 
 Measured 2026-11-29 (13:14-13:22 UTC, load average 7-11 on the 2 cores: other sessions): peak 348.8 MiB against
 366.2 at 47066a3 (whole-process figures, 3 runs each alternated A B A B after a warm-up each, medians; 348.4-356.9
-against 363.0-366.4), CPU 0.99 x (pairs 0.94-1.12; 28.6 s against 29.2), wall 1.03 x (0.68-1.17: the load); the
-estimate, its covariance, the validation errors and the plots' rows bit-equal (one hash each, both trees). What
-went: a chunk's W block buffers (2 x 11.8 MB) made by the thread that read it, at the end of its read, in the heap
-its transients left free (`robot.chunk_buffers`, `reduce.read_robot_chunk`; glibc's arena of that thread), not by
-the calling thread beside the next chunk's read; the window's raw positions not held once filtered; the row groups
-before the next chunk's window dropped from the block cache after each read (`io.windows.forget_blocks_before`: one
-kept between chunks, not three; 1,804 column decodes against 1,819). Where it goes (RSS traced every 5 ms, one run
-each, load 8-12): the map's start 240-248 MB, of it 131 file-backed (RssFile: libllvmlite 69, the Arrow and NumPy
-libraries) and 109-117 anonymous; at the peak RssFile 132 and RssAnon 211-233; glibc's heaps at a chunk's end of
-blocks (malloc_info): the calling thread's 43-60 MB (67-86 at 47066a3), the reader's 39-48 (6-18 free), two more of
-18-22 each (8-15 free). So 300 MB leaves the anonymous memory 168, 55 over the map's start: one chunk's arrays are
-~52. Measured, not taken: the W buffers and the first stage's output on pages of their own (an anonymous mapping,
-unmapped when freed) and the heap trimmed after each read: 330.3 MiB against 362.6 (328.1-337.4 against
-360.1-365.8), CPU 1.057 x (pairs 1.049-1.115; system 1.9 s against 1.0: the pages faulted in again each chunk), wall
-1.061 x: over the 5 %; over this tree (one trace each): the first stage's output alone on its own pages 348.5, no
-gain seen; the heap trimmed after each read 342.3, system time 2.1 s against 0.8; the reader's cache bound at one
-block (a per-thread bound): 3,104 decodes against 1,819 (a window's stamps, q and tau are three passes over the same
-two or three row groups); the W block at 4 MiB: the Panda's block is then 4 x its overlap, 2,868 samples (not 1,741:
--1.4 MB a buffer), and the blocks' bounds move the bits (the TX40 test log's rows by 6.5e-15 relative), so not with
-bit-equal results; the positions filtered a joint at a time: no transient saved (the filter already runs a few
-columns at once). The plots' rows (`run.PLOT_BYTES`, ~10 MB) left: fewer would change the report.
+against 363.0-366.4), CPU 0.99 x (pairs 0.94-1.12; 28.6 s against 29.2), wall 1.03 x (0.68-1.17: the load); three
+more calls of this tree (13:46-14:03 UTC, load 1.4-5, 3, 5 and 5 pairs): peak 345.6, 346.6, 348.5 against 360.3,
+364.9, 362.8, CPU 0.97 x, 1.04 x, 1.01 x (pairs 0.89-1.20), wall 1.15 x, 0.97 x, 0.94 x (pairs 0.58-1.98: the
+machine's other sessions); the estimate, its covariance, the validation errors and the plots' rows bit-equal (one
+hash each, both trees). What went: a chunk's W block buffers (2 x 11.8 MB) made by the thread that read it, at the
+end of its read, in the heap its transients left free (`robot.chunk_buffers`, `reduce.read_robot_chunk`; glibc's
+arena of that thread), not by the calling thread beside the next chunk's read; the window's raw positions not held
+once filtered; the row groups before the next chunk's window dropped from the block cache after each read
+(`io.windows.forget_blocks_before`: one kept between chunks, not three; 1,804 column decodes against 1,819). Where
+it goes (RSS traced every 5 ms, one run each, load 8-12): the map's start 240-248 MB, of it 131 file-backed
+(RssFile: libllvmlite 69, the Arrow and NumPy libraries) and 109-117 anonymous; at the peak RssFile 132 and RssAnon
+211-233; glibc's heaps at a chunk's end of blocks (malloc_info): the calling thread's 43-60 MB (67-86 at 47066a3),
+the reader's 39-48 (6-18 free), two more of 18-22 each (8-15 free). So 300 MB leaves the anonymous memory 168, 55
+over the map's start: one chunk's arrays are ~52. Measured, not taken: the W buffers and the first stage's output on
+pages of their own (an anonymous mapping, unmapped when freed) and the heap trimmed after each read: 330.3 MiB
+against 362.6 (328.1-337.4 against 360.1-365.8), CPU 1.057 x (pairs 1.049-1.115; system 1.9 s against 1.0: the pages
+faulted in again each chunk), wall 1.061 x: over the 5 %; over this tree (one trace each): the first stage's output
+alone on its own pages 348.5, no gain seen; the heap trimmed after each read 342.3, system time 2.1 s against 0.8;
+the reader's cache bound at one block (a per-thread bound): 3,104 decodes against 1,819 (a window's stamps, q and
+tau are three passes over the same two or three row groups); the W block at 4 MiB: the Panda's block is then 4 x its
+overlap, 2,868 samples (not 1,741: -1.4 MB a buffer), and the blocks' bounds move the bits (the TX40 test log's rows
+by 6.5e-15 relative), so not with bit-equal results; the positions filtered a joint at a time: no transient saved
+(the filter already runs a few columns at once). The plots' rows (`run.PLOT_BYTES`, ~10 MB) left: fewer would change
+the report.
 
 Measured 2026-11-29 (11:02-11:16 UTC, load average 2-6 on the 2 cores: other sessions, and this branch's tests
 during the second run): the wall time back (whole-process figures, 3 runs each alternated A B A B after a warm-up each,
