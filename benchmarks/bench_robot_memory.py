@@ -6,7 +6,35 @@
 The log (the Panda arm of example-robot-data's URDF, five harmonics per joint, torques by its inverse dynamics,
 Parquet with a time column) is written once into --folder by a first process (kept for the next run); a second
 process runs the identification alone and prints its own peak resident set (ru_maxrss), beside the same
-process's RSS after the imports, and the identification's wall time. Target: under 300 MB.
+process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
+the identification's wall time. Target: under 300 MB.
+
+Measured 2026-11-29 (13:14-13:22 UTC, load average 7-11 on the 2 cores: other sessions): peak 348.8 MiB against
+366.2 at 47066a3 (whole-process figures, 3 runs each alternated A B A B after a warm-up each, medians; 348.4-356.9
+against 363.0-366.4), CPU 0.99 x (pairs 0.94-1.12; 28.6 s against 29.2), wall 1.03 x (0.68-1.17: the load); three
+more calls of this tree (13:46-14:03 UTC, load 1.4-5, 3, 5 and 5 pairs): peak 345.6, 346.6, 348.5 against 360.3,
+364.9, 362.8, CPU 0.97 x, 1.04 x, 1.01 x (pairs 0.89-1.20), wall 1.15 x, 0.97 x, 0.94 x (pairs 0.58-1.98: the
+machine's other sessions); the estimate, its covariance, the validation errors and the plots' rows bit-equal (one
+hash each, both trees). What went: a chunk's W block buffers (2 x 11.8 MB) made by the thread that read it, at the
+end of its read, in the heap its transients left free (`robot.chunk_buffers`, `reduce.read_robot_chunk`; glibc's
+arena of that thread), not by the calling thread beside the next chunk's read; the window's raw positions not held
+once filtered; the row groups before the next chunk's window dropped from the block cache after each read
+(`io.windows.forget_blocks_before`: one kept between chunks, not three; 1,804 column decodes against 1,819). Where
+it goes (RSS traced every 5 ms, one run each, load 8-12): the map's start 240-248 MB, of it 131 file-backed
+(RssFile: libllvmlite 69, the Arrow and NumPy libraries) and 109-117 anonymous; at the peak RssFile 132 and RssAnon
+211-233; glibc's heaps at a chunk's end of blocks (malloc_info): the calling thread's 43-60 MB (67-86 at 47066a3),
+the reader's 39-48 (6-18 free), two more of 18-22 each (8-15 free). So 300 MB leaves the anonymous memory 168, 55
+over the map's start: one chunk's arrays are ~52. Measured, not taken: the W buffers and the first stage's output on
+pages of their own (an anonymous mapping, unmapped when freed) and the heap trimmed after each read: 330.3 MiB
+against 362.6 (328.1-337.4 against 360.1-365.8), CPU 1.057 x (pairs 1.049-1.115; system 1.9 s against 1.0: the pages
+faulted in again each chunk), wall 1.061 x: over the 5 %; over this tree (one trace each): the first stage's output
+alone on its own pages 348.5, no gain seen; the heap trimmed after each read 342.3, system time 2.1 s against 0.8;
+the reader's cache bound at one block (a per-thread bound): 3,104 decodes against 1,819 (a window's stamps, q and
+tau are three passes over the same two or three row groups); the W block at 4 MiB: the Panda's block is then 4 x its
+overlap, 2,868 samples (not 1,741: -1.4 MB a buffer), and the blocks' bounds move the bits (the TX40 test log's rows
+by 6.5e-15 relative), so not with bit-equal results; the positions filtered a joint at a time: no transient saved
+(the filter already runs a few columns at once). The plots' rows (`run.PLOT_BYTES`, ~10 MB) left: fewer would change
+the report.
 
 Measured 2026-11-29 (11:02-11:16 UTC, load average 2-6 on the 2 cores: other sessions, and this branch's tests
 during the second run): the wall time back (whole-process figures, 3 runs each alternated A B A B after a warm-up each,
@@ -27,31 +55,31 @@ calling thread's heap, or the overlap dropped where memory matters more than wal
 Measured 2026-11-29 (10:04-10:30 UTC, load average 7-15 on the 2 cores: other sessions and this branch's tests):
 this tree against 69ee46f (whole-process timing, 3 runs each alternated A B A B after a warm-up each, medians): peak
 338.1 MiB against 385.2 (334.3-346.9 against 384.1-386.1), CPU 0.91 x (pairs 0.87-1.08; 30.6 s against 33.8), the
-estimate, its covariance and the validation error bit-equal (one hash over the 8 runs); the TX40 example's estimate
-and covariance bit-equal (one hash). What went: (1) one chunk in flight: a LocalScheduler of k threads maps a
-robot's chunks one at a time, each chunk's W blocks done k at once (`run.chunk_scheduler`,
-`decimate_parallel_blocked`'s threads: each block alone, written to its own rows, the same bits), so one chunk's
-window, filtered positions and W1 are held, not two; RSS trace 388.6 -> 365.7 MB (one run each, load 5.5); (2) the
-chunk's arrays in the heap the plan left free space in: glibc gives each thread its own arena, and a helper's W
-buffer or W1 grew the helper's heap while the calling thread's sat free; the W buffers and W1 are now made by the
-calling thread, and one local worker is the calling thread itself: 346.5 (load 9); (3) qd and qdd made a W block at
-a time from the filtered positions (central differences read two samples beyond the block: the same bits), not held
-for the window: 341.9, 338.6 (load 11-13). A chunk's NumPy at its peak (55,600 samples, 2 threads, mallinfo2 in
-use): +52 MB over the map's start (the window's q and tau 7.5, qf 3.7, W1 9.9, two W blocks 23.6, the blocks' work
-~5), against 2 x 43-45 before. The map's wall: 89 % of a chunk's CPU is in its blocks (10 chunks on one thread, BLAS
-on one: 4.20 of 4.73 s), and the rest (the window's read, its health, the filter, the second stage, the QRs) now
-runs on one thread: on an idle machine expect the map's wall ~10-15 % longer than two chunks side by side (not
-measured idle; 0.89 x under this load, noise). Not met: 300 MB is ~38 MB away. The floor at the map's start is
-240-253 MB (RSS traces, load 5-15), and 131 MB of it file-backed pages (smaps at the map's start, one run:
-libllvmlite.so 69, numba's LLVM touched when the first cached kernel loads; libarrow 15, libparquet 5,
-libarrow_compute 5, NumPy's 5, libpython 5), 116 anonymous (the heap 28); the map adds ~90 (the chunk's ~52, the
-plots' rows ~10, heap pages ~25). Measured, not taken: the Parquet block cache at 1, 2, 3 row groups a file
-(`windows.CACHE_BLOCKS`, one trace each, load 10-13; the chunks now read in order): 328.8, 333.7, 338.1 MB (a cache
-for every reader of the process: the car's two workers read out of order; a per-reader bound would take it);
-MALLOC_ARENA_MAX=1 (after (1), one run): 345.3 against 364.5; a trim after every chunk (`schedulers.TRIM_EVERY = 1`,
-after (1)): 356.6. Levers left: the cache above (-9 MB), the window's raw q freed once filtered (-3.7), the W block
-at 4 MiB (-12, ~+7 % CPU: its overlap), the next chunk's read and filter overlapped with this one's blocks (the wall
-back, +11 MB held).
+estimate, its covariance and the validation error bit-equal (one hash over the 8 runs); the TX40 example's estimate and
+covariance bit-equal (one hash). What went: (1) one chunk in flight: a LocalScheduler of k threads maps a robot's
+chunks one at a time, each chunk's W blocks done k at once (`run.chunk_scheduler`, `decimate_parallel_blocked`'s
+threads: each block alone, written to its own rows, the same bits), so one chunk's window, filtered positions and
+W1 are held, not two; RSS trace 388.6 -> 365.7 MB (one run each, load 5.5); (2) the chunk's arrays in the heap the
+plan left free space in: glibc gives each thread its own arena, and a helper's W buffer or W1 grew the helper's
+heap while the calling thread's sat free; the W buffers and W1 are now made by the calling thread, and one local
+worker is the calling thread itself: 346.5 (load 9); (3) qd and qdd made a W block at a time from the filtered
+positions (central differences read two samples beyond the block: the same bits), not held for the window: 341.9,
+338.6 (load 11-13). A chunk's NumPy at its peak (55,600 samples, 2 threads, mallinfo2 in use): +52 MB over the
+map's start (the window's q and tau 7.5, qf 3.7, W1 9.9, two W blocks 23.6, the blocks' work ~5), against 2 x
+43-45 before. The map's wall: 89 % of a chunk's CPU is in its blocks (10 chunks on one thread, BLAS on one: 4.20
+of 4.73 s), and the rest (the window's read, its health, the filter, the second stage, the QRs) now runs on one
+thread: on an idle machine expect the map's wall ~10-15 % longer than two chunks side by side (not measured idle;
+0.89 x under this load, noise).
+Not met: 300 MB is ~38 MB away. The floor at the map's start is 240-253 MB (RSS traces, load 5-15), and 131 MB of
+it file-backed pages (smaps at the map's start, one run: libllvmlite.so 69, numba's LLVM touched when the first
+cached kernel loads; libarrow 15, libparquet 5, libarrow_compute 5, NumPy's 5, libpython 5), 116 anonymous (the
+heap 28); the map adds ~90 (the chunk's ~52, the plots' rows ~10, heap pages ~25). Measured, not taken: the Parquet
+block cache at 1, 2, 3 row groups a file (`windows.CACHE_BLOCKS`, one trace each, load 10-13; the chunks now read in
+order): 328.8, 333.7, 338.1 MB (a cache for every reader of the process: the car's two workers read out of order;
+a per-reader bound would take it); MALLOC_ARENA_MAX=1 (after (1), one run): 345.3 against 364.5; a trim after every
+chunk (`schedulers.TRIM_EVERY = 1`, after (1)): 356.6. Levers left: the cache above (-9 MB), the window's raw q
+freed once filtered (-3.7), the W block at 4 MiB (-12, ~+7 % CPU: its overlap), the next chunk's read and filter
+overlapped with this one's blocks (the wall back, +11 MB held).
 
 Measured 2026-11-29 (07:18-07:27 UTC, load average 4-12 on the 2 cores: other sessions): this tree (scipy.io
 imported where a .mat file is read or written, so a Parquet robot run loads neither it nor scipy.sparse) against
@@ -320,7 +348,12 @@ after_imports = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 t0 = time.perf_counter()
 run = identify(load_config(sys.argv[1]))
 wall = time.perf_counter() - t0
-print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+try:  # the file-backed pages (shared libraries) of the resident set, Linux
+    with open("/proc/self/status") as f:
+        file_mb = next(int(x.split()[1]) / 1024 for x in f if x.startswith("RssFile:"))
+except (OSError, StopIteration):
+    file_mb = None
+print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "file_mb": file_mb,
                   "imports_mb": after_imports, "wall_s": wall, "rows": run.result.residual.n_rows,
                   "parameters": len(run.result.estimated_names),
                   "direct_overall": run.errors["direct"]["overall"]}))
@@ -349,7 +382,9 @@ def main() -> None:
     verdict = "met" if r["peak_mb"] < 300 else "MISSED"
     print(f"robot identification, {args.seconds:g} s at {args.rate:g} Hz, 7 joints: {r['rows']} rows, "
           f"{r['parameters']} parameters, {r['wall_s']:.1f} s")
-    print(f"  peak RSS {r['peak_mb']:.0f} MB (after the imports {r['imports_mb']:.0f} MB); target < 300 MB: {verdict}")
+    shared = "" if r["file_mb"] is None else f"; file-backed at the end {r['file_mb']:.0f} MB"
+    print(f"  peak RSS {r['peak_mb']:.0f} MB (after the imports {r['imports_mb']:.0f} MB{shared}); target < 300 MB: "
+          f"{verdict}")
 
 
 if __name__ == "__main__":

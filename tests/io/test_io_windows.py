@@ -355,8 +355,9 @@ def test_parquet_without_time_column_and_timestamp_channel(tmp_path: Path) -> No
     check_windows_and_blocks(path, ["a", "gps_time"], [(0.0, 0.01), (0.05, 0.0721), (0.1, 9.0)], fs=625.0)
 
 
-@needs_pyarrow
-def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def row_groups_log(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[Recording, FileIndex, list[int]]:
+    """A Parquet log of 3 channels in 20 row groups of 16 s (625 Hz), its index, and the row groups decoded from now
+    on (the block cache emptied), in the order decoded."""
     import pyarrow.parquet as pq
 
     n, fs = 200_000, 625.0
@@ -365,9 +366,8 @@ def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatc
     path = tmp_path / "big.parquet"
     write_recording(rec, path)
     table = pq.read_table(path)
-    pq.write_table(table, path, row_group_size=10_000)  # 20 row groups of 16 s
+    pq.write_table(table, path, row_group_size=10_000)
     index = index_file(path)
-    assert len(index.blocks) == 20 and index.monotonic
     read: list[int] = []
     original = pq.ParquetFile.read_row_group
 
@@ -377,6 +377,13 @@ def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatc
 
     monkeypatch.setattr(pq.ParquetFile, "read_row_group", counting)
     windows.clear_cache()
+    return rec, index, read
+
+
+@needs_pyarrow
+def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    rec, index, read = row_groups_log(tmp_path, monkeypatch)
+    assert len(index.blocks) == 20 and index.monotonic
     got = read_window(index, ["c0", "c2"], 100.0, 130.0)  # rows 62500..81250: row groups 6, 7, 8
     assert sorted(set(read)) == [6, 7, 8]
     assert len(read) == 3 * 3  # time, c0, c2 of each
@@ -387,6 +394,28 @@ def test_window_reads_only_the_row_groups_it_overlaps(tmp_path: Path, monkeypatc
     windows.clear_cache()
     read_window(index, ["c0"], 125.0, 140.0)
     assert sorted(read) == [7, 7, 8, 8]
+
+
+@needs_pyarrow
+def test_a_reader_in_time_order_keeps_only_the_blocks_it_reads_again(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oracle: the row groups' time spans (16 s each: group 6 is 96-112 s, 7 is 112-128 s). After a window, the blocks
+    wholly before the next window's start are dropped (`forget_blocks_before`): read again, they are decoded again;
+    the others stay (the next window, in time order, decodes only what it did not share with this one)."""
+    rec, index, read = row_groups_log(tmp_path, monkeypatch)
+    read_window(index, ["c0"], 100.0, 130.0)  # row groups 6, 7, 8
+    windows.forget_blocks_before(index, 125.0)  # a next window starting at 125 s: group 6 goes
+    read.clear()
+    read_window(index, ["c0"], 100.0, 110.0)
+    assert sorted(set(read)) == [6]  # dropped, though the cache (CACHE_BLOCKS = 3) had kept it
+    read.clear()
+    got = read_window(index, ["c0"], 125.0, 150.0)  # groups 7 and 8 kept, 9 decoded
+    assert sorted(set(read)) == [9]
+    np.testing.assert_array_equal(got.channels["c0"].values, rec.channels["c0"].values[78125:93751])
+    windows.forget_blocks_before(index, float("inf"))  # every block of the file
+    read.clear()
+    read_window(index, ["c0"], 125.0, 130.0)
+    assert sorted(set(read)) == [7, 8]
 
 
 def csv_parses(monkeypatch: pytest.MonkeyPatch) -> list[int]:

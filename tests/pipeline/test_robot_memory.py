@@ -240,3 +240,36 @@ def test_a_huge_worker_count_runs_a_chunk_on_the_machines_threads():
     mapper, threads = chunk_scheduler(LocalScheduler(10**9))
     assert threads == (os.cpu_count() or 1) and mapper.workers == 1
     assert chunk_scheduler(LocalScheduler(1))[1] == 1
+
+
+@pytest.mark.slow
+def test_a_chunks_w_buffers_are_made_by_the_thread_that_read_it(tmp_path, monkeypatch):
+    """A chunk's W block buffers (`robot.chunk_buffers`) are made at the end of its read, on the thread that read it
+    ahead (in the heap its transients left free: issue 25), not by the calling thread beside the next read. Oracle
+    for the rows: the buffers made by `chunk_rows` itself on the calling thread (as before): the same bits."""
+    import threading
+
+    from dynid.pipeline import reduce, robot, run
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.schedulers import LocalScheduler
+
+    cfg = load_config(robot_log(tmp_path, 12000))
+    model = load_model("tx40")
+    base = model.base_parameters()
+    monkeypatch.setattr(robot, "CHUNK_BYTES", 2000 * robot.chunk_sample_bytes(model, base, cfg.conditioning))
+    monkeypatch.setattr(robot, "BLOCK_BYTES", 2**18)
+    made, real = [], reduce.chunk_buffers
+
+    def recorded(*args):
+        made.append(threading.get_ident())
+        return real(*args)
+
+    monkeypatch.setattr(reduce, "chunk_buffers", recorded)
+    ahead = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    chunks = robot.robot_chunks(12000, FS, model, base, cfg.conditioning)
+    assert len(made) == len(chunks) > 3 and threading.get_ident() not in made
+    monkeypatch.setattr(reduce, "chunk_buffers", lambda *_a: None)  # chunk_rows makes them, on this thread
+    here = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    assert np.array_equal(ahead.rows["sines"].W, here.rows["sines"].W)
+    assert np.array_equal(ahead.rows["sines"].Y, here.rows["sines"].Y)
+    assert np.array_equal(ahead.ls.solve().values, here.ls.solve().values)

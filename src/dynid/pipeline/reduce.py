@@ -47,11 +47,12 @@ from ..estimation.shifts import ShiftSums
 from ..estimation.systematic import BiasAccumulator
 from ..io import Channel
 from ..io.units import unit_factor
+from ..io.windows import forget_blocks_before
 from ..shipped import DEMO_VEHICLE
 from ..symbolic.generated import GeneratedRegressor
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
-from .robot import GroupedSystem, chunk_filtered, chunk_rows, to_frames
+from .robot import GroupedSystem, chunk_buffers, chunk_filtered, chunk_pad, chunk_rows, to_frames
 from .schedulers import Staged
 from .sources import (
     RobotTestPlan,
@@ -548,6 +549,7 @@ class RobotJob:
     health: bool = False  # gather the joints' data health of the chunk's own samples (pipeline.health.gather_joints)
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
     threads: int = 1  # the chunk's W blocks done on this many threads at once (`robot.chunk_rows`)
+    in_order: bool = False  # its test's chunks read one after another, by one reader (the block cache keeps less)
 
     @property
     def test(self) -> str:
@@ -590,11 +592,11 @@ class RobotChunkRead:
     """A chunk's samples read and filtered (`read_robot_chunk`), what its rows need before the model's W."""
 
     window: RobotTestPlan  # the job's, its clock read
-    q: np.ndarray  # (samples, frames): the window's positions
     tau: np.ndarray  # (samples, frames): its torques
     gains: np.ndarray | None  # (samples, frames, k): the drive gains' columns when identified
     health: dict  # test -> the joints' data health of the positions (pipeline.health.gather_joints)
     filtered: tuple[np.ndarray, np.ndarray]  # `robot.chunk_filtered`'s (qf, speed)
+    buffers: list[np.ndarray]  # `robot.chunk_buffers`: the chunk's W block buffers, made by the thread that read it
 
 
 def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
@@ -604,6 +606,10 @@ def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
     setup = robot_setup(job.cfg)
     w = clock_read(job.window)  # its stamps read once (a file's clock is not held by the plan)
     arrays = read_robot_window(w, 0, w.samples)
+    if job.in_order:  # the next chunk's window begins chunk_pad before this chunk's end: the blocks before it go
+        k = min(max(0, job.chunk[1] - chunk_pad(w.fs, job.cfg.conditioning) - w.first), w.samples - 1)
+        for index in {id(x): x for x in w.indexes.values()}.values():
+            forget_blocks_before(index, float(w.clock[k]) - w.margin)
     columns, n = setup.joints.columns, setup.model.n
     q, tau, gains = driven(job.cfg, arrays["q"], arrays[w.effort], len(columns))
     del arrays
@@ -616,7 +622,12 @@ def read_robot_chunk(job: RobotJob) -> RobotChunkRead:
         full[:, np.asarray(columns) - 1, :] = gains
         gains = full
     filtered = chunk_filtered(job.cfg.conditioning, q, w.fs, w.first, job.chunk, job.n_samples)
-    return RobotChunkRead(w, q, tau, gains, health, filtered)
+    del q  # the raw positions not held once filtered (3.7 MB of the Panda's 55,600-sample chunks)
+    # the W block buffers made last, here: in the heap this read's transients left free (this thread's glibc arena),
+    # not beside them in the calling thread's (~24 MB of the Panda's, two threads)
+    buffers = chunk_buffers(setup.base, job.cfg.conditioning, w.fs, job.chunk, job.n_samples,
+                            setup.model.tree.equations, 0 if gains is None else gains.shape[2], job.threads)
+    return RobotChunkRead(w, tau, gains, health, filtered, buffers)
 
 
 def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[], None] | None = None) -> Partial:
@@ -626,9 +637,9 @@ def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[],
     ready: called once the chunk's W blocks are done and freed (`schedulers.Staged`: the next chunk read then)."""
     setup = robot_setup(job.cfg)
     w, health, gains = read.window, read.health, read.gains
-    sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, read.q, read.tau, w.fs, w.first, job.chunk,
+    sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, None, read.tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test), threads=job.threads,
-                     filtered=read.filtered, blocks_done=ready)
+                     filtered=read.filtered, blocks_done=ready, buffers=read.buffers)
     if job.hac is not None:
         return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if health and gains is None:

@@ -221,11 +221,11 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
     return _decimation_transient(fs, c.decimate) + border_samples(fs, c.cutoff, c.order, tol=1e-12) + 4
 
 
-def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, tau: Array, fs: float, first: int,
+def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | None, tau: Array, fs: float, first: int,
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
                payload: tuple[int, Array] | None = None, threads: int = 1,
                filtered: tuple[Array, Array] | None = None,
-               blocks_done: Callable[[], None] | None = None) -> GroupedSystem:
+               blocks_done: Callable[[], None] | None = None, buffers: list[Array] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
@@ -237,33 +237,34 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     threads: the chunk's W blocks done on that many threads at once (`decimate_parallel_blocked`; the same bits):
     one chunk's samples, filtered positions and first-stage output held, not one per thread's chunk.
     filtered: `chunk_filtered`'s (qf, speed) of these arguments, made beforehand (the next chunk's, on another
-    thread while this one's decimation finishes: `reduce.read_robot_chunk`); made here when None. blocks_done:
-    called once the W blocks are done and their buffers freed (the decimation's later stages and the rows' own
-    selection left)."""
+    thread while this one's decimation finishes: `reduce.read_robot_chunk`; q is then not read: None will do);
+    made here when None. blocks_done: called once the W blocks are done and their buffers freed (the decimation's
+    later stages and the rows' own selection left). buffers: `chunk_buffers` of these arguments, made beforehand
+    (by the thread that read the chunk, in the heap its reading left free: `reduce.read_robot_chunk`); made here
+    when None."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
-    qf, speed = chunk_filtered(c, q, fs, first, chunk, n_samples) if filtered is None else filtered
-    b, D = _border(fs, c), int(np.prod(c.decimate))
-    pad = _decimation_transient(fs, c.decimate)
-    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)  # on the grid: s - b and pad are multiples of D
+    if filtered is None:
+        if q is None:
+            raise ValueError("chunk_rows needs the window's positions q or their `chunk_filtered` (qf, speed)")
+        filtered = chunk_filtered(c, q, fs, first, chunk, n_samples)
+    qf, speed = filtered
+    D = int(np.prod(c.decimate))
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
     o = lo - first
     eq, cols = np.array(rows) - 1, list(base.columns)
-    row_bytes = 8 * len(rows) * (len(cols) + (0 if gains is None else gains.shape[2]))
-    block_samples = BLOCK_BYTES // row_bytes
-    # one W block a thread for all the chunk's blocks: the regressor writes only its entries that can be non-zero,
-    # so the structural zeros stay (`Model.regressor`'s out); a fresh zeroed block each time cost a calloc of
-    # BLOCK_BYTES
-    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER, block_samples=block_samples)
-    spare = [np.zeros((most, len(rows), len(cols))) for _ in range(threads)]  # made here: this thread's heap
-    buffers: dict[int, Array] = {}
+    extra = 0 if gains is None else gains.shape[2]
+    spare = list(chunk_buffers(base, c, fs, chunk, n_samples, rows, extra, threads) if buffers is None else buffers)
+    block_samples = _block_samples(len(rows), len(cols), extra)
+    taken: dict[int, Array] = {}
 
     def block(a: int, z: int) -> tuple[Array, Array]:
         """W and Y of the chunk's samples a..z (its full-rate W never whole: `decimate_parallel_blocked`)."""
         w = slice(o + a, o + z)
         qb, qdb, qddb = _block_derivatives(qf, o + a, o + z, fs)
-        buffer = buffers.get(threading.get_ident())
+        buffer = taken.get(threading.get_ident())
         if buffer is None:  # this thread's first block (list.pop and a dict's item set are atomic under the GIL)
-            buffer = buffers[threading.get_ident()] = spare.pop()
+            buffer = taken[threading.get_ident()] = spare.pop()
         W = model.regressor(qb, qdb, qddb, rows=rows, cols=cols, out=buffer[: z - a])
         Y = tau[w][:, eq]
         if payload is not None:
@@ -274,8 +275,10 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
         return W, Y
 
     def freed() -> None:
-        buffers.clear()
+        taken.clear()
         spare.clear()
+        if buffers is not None:
+            buffers.clear()
         if blocks_done is not None:
             blocks_done()
 
@@ -290,6 +293,28 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array, ta
     return GroupedSystem.stack(parts)
 
 
+def chunk_buffers(base: BaseParameters, c: Conditioning, fs: float, chunk: tuple[int, int], n_samples: int,
+                  rows: Sequence[int], extra: int = 0, threads: int = 1) -> list[Array]:
+    """The W block buffers `chunk_rows` fills for the chunk's blocks, one a thread, zeroed: the regressor writes
+    only its entries that can be non-zero, so the structural zeros stay (`Model.regressor`'s out; a fresh zeroed
+    block each time cost a calloc of BLOCK_BYTES). extra: W's columns beyond the base parameters' (drive gains)."""
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
+    most = blocked_rows(hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
+                        block_samples=_block_samples(len(rows), len(base.columns), extra))
+    return [np.zeros((most, len(rows), len(base.columns))) for _ in range(threads)]
+
+
+def _chunk_span(c: Conditioning, fs: float, chunk: tuple[int, int], n_samples: int) -> tuple[int, int]:
+    """The samples a chunk's W is made on: its own and its decimation transient, inside the filter borders (on the
+    decimation grid: s - border and the transient are multiples of the whole factor)."""
+    b, pad = _border(fs, c), _decimation_transient(fs, c.decimate)
+    return max(b, chunk[0] - pad), min(n_samples - b, chunk[1] + pad)
+
+
+def _block_samples(rows: int, cols: int, extra: int) -> int:
+    return BLOCK_BYTES // (8 * rows * (cols + extra))
+
+
 def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tuple[int, int],
                    n_samples: int) -> tuple[Array, Array]:
     """`chunk_rows`' filtered positions of its window q (samples first..first + len(q)) and its joints' speeds
@@ -298,9 +323,7 @@ def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tupl
     # the filtered positions held for the chunk, their derivatives (`filtered_derivatives`' central differences)
     # made a block at a time from them: the same bits, 2 of the 3 filtered arrays not held (7.5 MB for the Panda's)
     (qf,) = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=0)
-    s, e = chunk
-    b, pad = _border(fs, c), _decimation_transient(fs, c.decimate)
-    lo, hi = max(b, s - pad), min(n_samples - b, e + pad)
+    lo, hi = _chunk_span(c, fs, chunk, n_samples)
     speed, _ = decimate_parallel(derivative(qf, fs)[lo - first : hi - first], None, c.decimate, fs,
                                  order=DECIMATION_ORDER)
     return qf, speed

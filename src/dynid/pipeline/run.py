@@ -209,6 +209,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     jobs = [] if jobs_out is None else jobs_out
     plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
     mapper, threads = chunk_scheduler(scheduler)
+    in_order = isinstance(mapper, LocalScheduler) and mapper.workers == 1  # its chunks one by one, in their order
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
@@ -235,7 +236,8 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             lo, hi = max(0, s - pad), min(N, e + pad)
             window = clock_window(plan, lo, hi)
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
-            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True, threads=threads))
+            jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True, threads=threads,
+                                 in_order=in_order))
             kept += (e - s) * row_bytes
     parts = mapper.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
     trim_heap()  # the workers' freed chunks (glibc keeps ~25 MB of them otherwise, under the solve and the check)
