@@ -2,18 +2,21 @@
 
 A segment allocates and frees hundreds of MB of arrays. glibc keeps freed blocks below its
 mmap threshold in the heap, fragmented, so a long run's resident memory creeps up though nothing
-is in use: `trim_heap` hands them back after each segment and after a test's plan (a few ms).
+is in use: `trim_heap` hands them back after each map of segments and after a test's plan (a few ms).
 On a Dask worker, whose nanny sets MALLOC_TRIM_THRESHOLD_ (which turns glibc's adaptive mmap
 threshold off: every array over 128 kB a fresh mmap, page-faulted and zeroed, 1.8 x the time of a
 segment: 249 ms against 137 ms), `tune_malloc` restores what the adaptive threshold converges to.
-`tune_threads` sets the heap up for `LocalScheduler`'s threads, once, before they and the plan's reads start:
-each thread's own arena grows in heaps of at most 64 MB that glibc unmaps once their top is free, and the heap's
-top beyond the trim threshold is handed back at each free, so a segment's arrays were mapped, faulted and zeroed
-afresh segment after segment (an hour of car data on 2 threads: 250k page faults, 17 % of the CPU samples in the
-kernel zeroing pages, 1-3 s of system time); on one arena whose top is kept until the map's end (`trim_heap`
-then), the next segment reuses them.
+`tune_threads` sets the heap up for `LocalScheduler`'s threads, once, before they and the plan's reads start.
+Each thread had its own arena, grown in heaps of at most 64 MB that glibc unmaps once their top is free, the
+heap's top beyond the adaptive trim threshold was handed back at each free, and a trim every 8th segment handed
+back the rest: a segment's arrays were mapped, faulted and zeroed afresh, segment after segment (an hour of car
+data on 2 threads: 250-310k page faults, 17 % of the CPU samples in the kernel zeroing pages). On one arena whose
+top is kept until the map ends (`trim_heap` then), the next segment reuses them: 85-135k, of which the
+segments' stages 9-22k (benchmarks/profile_car.py --threads 2), the rest the plan's, the solve's and the tire
+fit's, each after a trim.
 Each does nothing where there is no glibc. `arrow_system_pool` has pyarrow allocate from that same heap (its
-own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB).
+own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB;
+and gives back freed ones that the next segment's read faults in again).
 """
 
 from __future__ import annotations
