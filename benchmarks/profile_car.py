@@ -1,6 +1,6 @@
 """Where an identification's time goes, stage by stage, per hour of 625 Hz car data, against this machine's limits.
 
-Run:  python benchmarks/profile_car.py [--minutes 10] [--cpu]
+Run:  python benchmarks/profile_car.py [--minutes 10] [--cpu] [--threads 1]
 
 Writes `--minutes` of the sensor suite's channels (Parquet, as bench_pipeline.py: a 12 s manoeuvre repeated),
 then runs the car identification in this process on ONE thread (every segment in turn, so each stage's time is
@@ -25,6 +25,10 @@ from, e.g. the compensation inside or outside `estimate_joints`).
   per test);
 - solve and report: the rest of `identify` (solve, validation, the delays' further steps, notes), and
   `write_outputs` (tables, figures, report.html): fixed costs, in seconds.
+
+--threads N runs the stages' segments on `LocalScheduler(N)` as an identification does (its heap set-up and trims
+with it), each stage's CPU then summed over the threads; every stage also prints its own minor page faults and
+system CPU (getrusage of the thread running it).
 
 Each stage prints its seconds per hour of data and, where this run measures one, its limit on this machine:
 the bytes the stage must touch over the memory bandwidth (a large copy, measured here) for read and
@@ -151,7 +155,17 @@ CPU s medians of 3; its docstring): main 1.03 x fddb8ab's throughput in CPU term
 1.12 x fddb8ab's and 1.09 x main's at the end (all three in one run, load 3 to 6); the 3 x target is far (the segments'
 stages: 8.6-12.3 CPU s per hour in this table's rounds, of the hour's 12.8-14.4 end to end: joints, compensation, read,
 decimation).
-"""
+
+Measured 2026-11-29 (issue 28, h-fault; ffe91d6 then the branch in turn, --minutes 10 --cpu --threads 2, 3 rounds,
+13:45-13:48 UTC, load averages 1.2 to 2.7; CPU s per hour, medians): the stages 11.14 (11.14, 12.22, 10.00) -> 8.38
+(11.18, 8.38, 7.88), joints 5.24 -> 3.57, compensation 1.83 -> 1.06; their minor page faults 217-237k -> 12-23k per
+hour, their system CPU 2.44-4.39 -> 0.25-0.56 s. On one thread (--threads 1, the main thread's heap) they had none
+to lose: 0 faults, 0.10 s system. What changed (pipeline.heap.tune_threads, made by LocalScheduler): the threads on
+one glibc arena (each thread's own grew in heaps of at most 64 MB, unmapped when free), the heap's free top kept
+until the map's end instead of handed back beyond glibc's adaptive threshold and every 8th segment, pyarrow's
+reads on that heap rather than its mimalloc pool (car runs never switched it). perf of the hour on 2 threads (one
+run each, load ~11; the settings made by mallopt and the environment): the kernel's clear_page 17 % of the samples
+-> 4.5 %."""
 
 from __future__ import annotations
 
