@@ -60,6 +60,7 @@ def test_the_threads_share_one_arena(probe):
 
 def test_a_maps_page_faults_do_not_grow_with_its_jobs(probe):
     # after the previous map's trim, the first jobs fault their arrays in (~140 MB for the two running); the later
-    # ones reuse the freed heap: 12 x the jobs, not 12 x the faults (THP or 4 kB pages alike: a ratio)
+    # ones reuse the freed heap: 12 x the jobs, not 12 x the faults (THP or 4 kB pages alike: a ratio; the 2000, 8 MB
+    # of 4 kB pages, for the interpreter's own small allocations where huge pages leave few faults to compare)
     counts, _ = probe
-    assert counts["100"] < 2 * counts["8"], counts
+    assert counts["100"] < 2 * counts["8"] + 2000, counts
