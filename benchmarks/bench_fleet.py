@@ -45,6 +45,19 @@ main 14.00 (14.84, 14.00, 13.99), fddb8ab 14.36 (14.37, 14.36, 13.11): the branc
 fddb8ab's (main 1.03 x fddb8ab's in the same run), walls 20.05, 20.13, 19.44 s (medians; walls at that load say little).
 Peak 0.87 GB. The 3 x target is far: the segments' stages are 8.6-12.3 CPU s per hour on one thread (profile_car, load
 10-15).
+
+Measured 2026-11-29 (issue 28, h-fault: the threads' jobs on one glibc arena kept until the map's end, pyarrow on
+it; `--hours 1 3 --workers --repeat 3 --vs <ffe91d6>/src <fddb8ab>/src`, 13:23-13:43 UTC, load averages 5 to 9: CPU s,
+medians of 3; walls at that load say nothing). 1 h: the branch 11.82 (11.82, 11.81, 12.62), ffe91d6 14.00 (12.77,
+14.04, 14.00), fddb8ab 14.39 (14.36, 14.39, 15.78): 1.18 x ffe91d6's throughput in CPU terms, 1.22 x fddb8ab's; peak
+0.77 GB against 0.86 and 0.89. 3 h: 32.82 (32.82, 35.39, 31.19) against 36.58 (37.23, 34.53, 36.58) and 41.58 (46.71,
+41.58, 41.10): 1.11 x and 1.27 x; peak 1.07 GB against 1.21 (fddb8ab 0.91: it has no tire curves). Both trees' 3 h
+peak is the tire curves' fit after the segments (3 h's 871k wheel samples, ~0.4 GB over the heap after the map); the
+segments' own, 0.99 GB on ffe91d6, is 0.85 here. The hour's page faults 250-310k -> 85-135k, its system CPU 1.7-3.4
+-> 0.9-1.4 s (a /tmp script timing `identify` alone, the same workload, load 8-12). Again at 1 h, 13:50-13:53 UTC,
+load averages 2.3 to 4.5: the branch 16.03 s wall (16.03, 16.55, 10.56), CPU 11.09 (11.09, 11.45, 10.54); ffe91d6
+19.29 (18.80, 20.87, 19.29), CPU 14.07 (12.31, 14.20, 14.07); fddb8ab 19.75 (19.82, 19.75, 13.45), CPU 14.08 (14.66,
+14.08, 12.44): throughput 1.20 x ffe91d6's and 1.23 x fddb8ab's (walls), 1.27 x both in CPU; peak 0.79, 0.84, 0.89 GB.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Where an identification's time goes, stage by stage, per hour of 625 Hz car data, against this machine's limits.
 
-Run:  python benchmarks/profile_car.py [--minutes 10] [--cpu]
+Run:  python benchmarks/profile_car.py [--minutes 10] [--cpu] [--threads 1]
 
 Writes `--minutes` of the sensor suite's channels (Parquet, as bench_pipeline.py: a 12 s manoeuvre repeated),
 then runs the car identification in this process on ONE thread (every segment in turn, so each stage's time is
@@ -25,6 +25,10 @@ from, e.g. the compensation inside or outside `estimate_joints`).
   per test);
 - solve and report: the rest of `identify` (solve, validation, the delays' further steps, notes), and
   `write_outputs` (tables, figures, report.html): fixed costs, in seconds.
+
+--threads N runs the stages' segments on `LocalScheduler(N)` as an identification does (its heap set-up and trims
+with it), each stage's CPU then summed over the threads; every stage also prints its own minor page faults and
+system CPU (getrusage of the thread running it).
 
 Each stage prints its seconds per hour of data and, where this run measures one, its limit on this machine:
 the bytes the stage must touch over the memory bandwidth (a large copy, measured here) for read and
@@ -151,7 +155,17 @@ CPU s medians of 3; its docstring): main 1.03 x fddb8ab's throughput in CPU term
 1.12 x fddb8ab's and 1.09 x main's at the end (all three in one run, load 3 to 6); the 3 x target is far (the segments'
 stages: 8.6-12.3 CPU s per hour in this table's rounds, of the hour's 12.8-14.4 end to end: joints, compensation, read,
 decimation).
-"""
+
+Measured 2026-11-29 (issue 28, h-fault; ffe91d6 then the branch in turn, --minutes 10 --cpu --threads 2, 3 rounds,
+13:45-13:48 UTC, load averages 1.2 to 2.7; CPU s per hour, medians): the stages 11.14 (11.14, 12.22, 10.00) -> 8.38
+(11.18, 8.38, 7.88), joints 5.24 -> 3.57, compensation 1.83 -> 1.06; their minor page faults 217-237k -> 12-23k per
+hour, their system CPU 2.44-4.39 -> 0.25-0.56 s. On one thread (--threads 1, the main thread's heap) they had none
+to lose: 0 faults, 0.10 s system. What changed (pipeline.heap.tune_threads, made by LocalScheduler): the threads on
+one glibc arena (each thread's own grew in heaps of at most 64 MB, unmapped when free), the heap's free top kept
+until the map's end instead of handed back beyond glibc's adaptive threshold and every 8th segment, pyarrow's
+reads on that heap rather than its mimalloc pool (car runs never switched it). perf of the hour on 2 threads (one
+run each, load ~11; the settings made by mallopt and the environment): the kernel's clear_page 17 % of the samples
+-> 4.5 %."""
 
 from __future__ import annotations
 
@@ -159,8 +173,10 @@ import argparse
 import contextlib
 import functools
 import os
+import resource
 import sys
 import tempfile
+import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -195,8 +211,17 @@ NO_OFFSETS = '[uncertainty]\noffsets = "none"\n'
 
 CLOCK = time.perf_counter  # --cpu: time.thread_time (this thread's CPU time: a loaded machine's waits left out)
 SPENT: dict[str, float] = defaultdict(float)
+FAULTS: dict[str, int] = defaultdict(int)  # each stage's own minor page faults (this thread's: RUSAGE_THREAD)
+SYSTEM: dict[str, float] = defaultdict(float)  # each stage's own system CPU time (the faults' cost, mostly)
 COUNT: dict[str, int] = defaultdict(int)
-_NESTED: list[float] = []  # the time of the timed calls inside each running timed call
+_LOCAL = threading.local()  # .nested: time, faults, system time of the timed calls inside each running timed call
+_LOCK = threading.Lock()  # the totals added to from the --threads workers
+
+
+def _thread_usage() -> tuple[int, float]:
+    """This thread's minor page faults and system CPU seconds so far."""
+    r = resource.getrusage(resource.RUSAGE_THREAD)
+    return r.ru_minflt, r.ru_stime
 
 
 def timed(owner, name: str, stage: str) -> None:
@@ -206,17 +231,24 @@ def timed(owner, name: str, stage: str) -> None:
 
     @functools.wraps(fn)
     def wrapper(*a, **k):
-        t = CLOCK()
-        _NESTED.append(0.0)
+        nested = _LOCAL.__dict__.setdefault("nested", [])
+        t, (f, st) = CLOCK(), _thread_usage()
+        nested.append([0.0, 0, 0.0])
         try:
             return fn(*a, **k)
         finally:
-            spent = CLOCK() - t
-            inner = _NESTED.pop()
-            SPENT[stage] += spent - inner
-            COUNT[stage] += 1
-            if _NESTED:
-                _NESTED[-1] += spent
+            spent, (f1, st1) = CLOCK() - t, _thread_usage()
+            inner = nested.pop()
+            with _LOCK:
+                SPENT[stage] += spent - inner[0]
+                FAULTS[stage] += f1 - f - inner[1]
+                SYSTEM[stage] += st1 - st - inner[2]
+                COUNT[stage] += 1
+            if nested:
+                outer = nested[-1]
+                outer[0] += spent
+                outer[1] += f1 - f
+                outer[2] += st1 - st
 
     setattr(owner, name, wrapper)
     # a module that imported the function by name (`from ..vehicle.estimate import joints_pass`) calls its own
@@ -261,6 +293,8 @@ def main() -> None:
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--cpu", action="store_true", help="the stages' CPU time (one thread), not their wall time: "
                     "comparable on a loaded machine; the fixed costs and limits stay wall times")
+    ap.add_argument("--threads", type=int, default=1, help="the stages' segments on this many threads "
+                    "(`LocalScheduler`, as an identification runs them; with --cpu each stage's CPU summed over them)")
     args = ap.parse_args()
     global CLOCK
     if args.cpu:
@@ -275,8 +309,10 @@ def main() -> None:
     import dynid.vehicle.tire_curves as tire_curves
     from dynid.estimation.streaming import StreamingLS
     from dynid.pipeline.config import load_config
+    from dynid.pipeline.schedulers import LocalScheduler
     from dynid.symbolic.generated import GeneratedRegressor
 
+    threads = LocalScheduler(args.threads)  # made first, as `identify` makes it: it sets the process's heap up
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         data = write_hour(folder, args.minutes, "parquet")
@@ -322,11 +358,17 @@ def main() -> None:
         plan = run.plan_car_test(cfg, cfg.tests[0], estimate.required_channels(spin=False, suite=setup.vehicle.suite),
                                  setup.vehicle.suite.units, cfg.car.segment, lambda fs: 0, lambda _m: None)
         windows = [sources.segment_window(plan, lo, hi) for lo, hi in plan.segments]
+        jobs = []
         for i, (w, (lo, _)) in enumerate(zip(windows, plan.segments, strict=True)):
             last = i + 1 == len(windows)  # the part of the test it answers for, as the identification's jobs say
             own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
-            run.reduce_car_segment(reduce.CarJob(cfg, w, "identify", i + 1, health=own))
-        staged = dict(SPENT)
+            jobs.append(reduce.CarJob(cfg, w, "identify", i + 1, health=own))
+        if args.threads > 1:  # the identification's own scheduler (its heap trims included), its results dropped
+            threads.map_reduce(run.reduce_car_segment, jobs, lambda _j: 0, lambda a, _b: a)
+        else:
+            for job in jobs:
+                run.reduce_car_segment(job)
+        staged, staged_faults, staged_sys = dict(SPENT), dict(FAULTS), dict(SYSTEM)
         staged_kernels, staged_rows = list(kernel_calls), list(rows_seen)
         # the whole identification (inline) and its report, timed apart
         t0 = time.perf_counter()
@@ -382,30 +424,34 @@ def main() -> None:
     qr_flops = sum(2.0 * n * p * p for n, p in staged_rows) / hours
     qr_limit = qr_flops / peak
 
-    table = [
-        ("plan (time stamps)", per_hour.get("plan", 0.0), None),
-        ("read (decode a segment's channels)", per_hour.get("read", 0.0), read_limit),
-        ("compensation (sensor dynamics undone)", per_hour.get("compensation", 0.0), None),
-        ("joints (attitude, tables, filters, derivatives)", per_hour.get("joints", 0.0), None),
-        ("regressor (generated 14-equation model)", per_hour.get("regressor", 0.0), regressor_limit),
-        ("equations (wrenches, gravity rows)", per_hour.get("equations", 0.0), None),
-        ("decimation (parallel, W and Y)", per_hour.get("decimation", 0.0), None),
-        ("rows, other (aero, selection, stacking)", per_hour.get("rows other", 0.0), None),
-        ("QR (streamed factor updates)", per_hour.get("QR", 0.0), qr_limit),
-        ("tire samples (the tire curves' slips, forces)", per_hour.get("tire samples", 0.0), None),
-        ("data health (the segment's channels scanned)", per_hour.get("health", 0.0), None),
-        ("segments, not in the stages above", per_hour.get("segments other", 0.0), None),
+    table = [  # (label, key in SPENT, limit s per hour)
+        ("plan (time stamps)", "plan", None),
+        ("read (decode a segment's channels)", "read", read_limit),
+        ("compensation (sensor dynamics undone)", "compensation", None),
+        ("joints (attitude, tables, filters, derivatives)", "joints", None),
+        ("regressor (generated 14-equation model)", "regressor", regressor_limit),
+        ("equations (wrenches, gravity rows)", "equations", None),
+        ("decimation (parallel, W and Y)", "decimation", None),
+        ("rows, other (aero, selection, stacking)", "rows other", None),
+        ("QR (streamed factor updates)", "QR", qr_limit),
+        ("tire samples (the tire curves' slips, forces)", "tire samples", None),
+        ("data health (the segment's channels scanned)", "health", None),
+        ("segments, not in the stages above", "segments other", None),
     ]
     clock = "CPU" if args.cpu else "wall"
-    print(f"{args.minutes:g} min of 625 Hz car data, one thread; {clock} seconds per hour of data "
-          f"(memory bandwidth {bw / 1e9:.1f} GB/s, one core's peak {peak / 1e9:.1f} Gop/s, measured now)")
-    print(f"  {'stage':<50} {'s / hour':>9} {'limit s':>9} {'x limit':>8}")
-    for name, s, limit in table:
+    print(f"{args.minutes:g} min of 625 Hz car data, {args.threads} thread(s); {clock} seconds per hour of data "
+          f"(memory bandwidth {bw / 1e9:.1f} GB/s, one core's peak {peak / 1e9:.1f} Gop/s, measured now); "
+          f"each stage's minor page faults (thousands) and system CPU seconds per hour")
+    print(f"  {'stage':<50} {'s / hour':>9} {'limit s':>9} {'x limit':>8} {'k faults':>9} {'sys s':>7}")
+    for name, key, limit in table:
+        s = per_hour.get(key, 0.0)
         lim = f"{limit:9.3f}" if limit else f"{'-':>9}"
         ratio = f"{s / limit:8.1f}" if limit else f"{'-':>8}"
-        print(f"  {name:<50} {s:9.2f} {lim} {ratio}")
-    total = sum(s for _, s, _ in table)
-    print(f"  {'total':<50} {total:9.2f}")
+        print(f"  {name:<50} {s:9.2f} {lim} {ratio} {staged_faults.get(key, 0) / hours / 1e3:9.0f} "
+              f"{staged_sys.get(key, 0.0) / hours:7.2f}")
+    total = sum(per_hour.get(key, 0.0) for _, key, _ in table)
+    print(f"  {'total':<50} {total:9.2f} {'':>9} {'':>8} {sum(staged_faults.values()) / hours / 1e3:9.0f} "
+          f"{sum(staged_sys.values()) / hours:7.2f}")
     print("  fixed per identification test (2 segments each, whatever its length), s:")
     for label, s in extras.items():
         print(f"  {'  ' + label:<50} {2 * s:9.2f}")
@@ -417,7 +463,9 @@ def main() -> None:
               f"{tires.seconds / hours:.2f} s, CPU {tires.cpu_seconds / hours:.2f} s")
     print(f"  the whole identification of these {args.minutes:g} min took {identify_s:.1f} s on one thread")
     write_results("profile_car", {"minutes": args.minutes, "clock": clock.lower(),
-                                  "per_hour_s": {n: s for n, s, _ in table},
+                                  "per_hour_s": {n: per_hour.get(k, 0.0) for n, k, _ in table},
+                                  "faults_per_hour": {n: staged_faults.get(k, 0) / hours for n, k, _ in table},
+                                  "system_per_hour_s": {n: staged_sys.get(k, 0.0) / hours for n, k, _ in table},
                                   "limit_per_hour_s": {n: lim for n, _, lim in table if lim},
                                   "per_test_fixed_s": {k: 2 * v for k, v in extras.items()},
                                   "rest_s": rest, "report_s": report_s, "identify_s": identify_s,

@@ -2,12 +2,21 @@
 
 A segment allocates and frees hundreds of MB of arrays. glibc keeps freed blocks below its
 mmap threshold in the heap, fragmented, so a long run's resident memory creeps up though nothing
-is in use: `trim_heap` hands them back after each segment and after a test's plan (a few ms).
+is in use: `trim_heap` hands them back after each map of segments and after a test's plan (a few ms).
 On a Dask worker, whose nanny sets MALLOC_TRIM_THRESHOLD_ (which turns glibc's adaptive mmap
 threshold off: every array over 128 kB a fresh mmap, page-faulted and zeroed, 1.8 x the time of a
 segment: 249 ms against 137 ms), `tune_malloc` restores what the adaptive threshold converges to.
-Both do nothing where there is no glibc. `arrow_system_pool` has pyarrow allocate from that same heap (its
-own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB).
+`tune_threads` sets the heap up for `LocalScheduler`'s threads, once, before they and the plan's reads start.
+Each thread had its own arena, grown in heaps of at most 64 MB that glibc unmaps once their top is free, the
+heap's top beyond the adaptive trim threshold was handed back at each free, and a trim every 8th segment handed
+back the rest: a segment's arrays were mapped, faulted and zeroed afresh, segment after segment (an hour of car
+data on 2 threads: 250-310k page faults, 17 % of the CPU samples in the kernel zeroing pages). On one arena whose
+top is kept until the map ends (`trim_heap` then), the next segment reuses them: 85-135k, of which the
+segments' stages 9-22k (benchmarks/profile_car.py --threads 2), the rest the plan's, the solve's and the tire
+fit's, each after a trim.
+Each does nothing where there is no glibc. `arrow_system_pool` has pyarrow allocate from that same heap (its
+own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB;
+and gives back freed ones that the next segment's read faults in again).
 """
 
 from __future__ import annotations
@@ -18,9 +27,10 @@ import os
 import sys
 from functools import cache
 
-M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # as the adaptive rule sets it
+THREADS_TRIM_THRESHOLD = 2**30  # a map's free heap top kept: at most what its jobs held at once (the peak stays)
 ARROW_POOL = "ARROW_DEFAULT_MEMORY_POOL"  # pyarrow's own switch, read once: when its default pool is first made
 
 
@@ -49,6 +59,15 @@ def tune_malloc() -> bool:
     libc = _glibc()
     return libc is not None and bool(libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) \
         and bool(libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+
+
+def tune_threads() -> bool:
+    """glibc's mmap threshold fixed at MMAP_THRESHOLD, the heap's top kept up to THREADS_TRIM_THRESHOLD and one
+    arena for the threads started from now on (module doc; False where there is no glibc). A thread started before
+    keeps its own arena, and so does a thread that takes over an exited thread's."""
+    libc = _glibc()
+    return libc is not None and bool(libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) \
+        and bool(libc.mallopt(M_TRIM_THRESHOLD, THREADS_TRIM_THRESHOLD)) and bool(libc.mallopt(M_ARENA_MAX, 1))
 
 
 def arrow_system_pool() -> bool:
