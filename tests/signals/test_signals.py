@@ -613,6 +613,34 @@ def test_blocked_decimation_on_threads_is_one_threads_to_the_bit(threads):
         decimate_parallel_blocked(rows, n, 10, FS, block_samples=3000, threads=0)
 
 
+@pytest.mark.parametrize("where", ["calling thread", "helper"])
+def test_blocked_decimation_on_threads_stops_at_a_blocks_error(where):
+    """A block's error (a bad sample, Ctrl-C) ends the call once the blocks in flight are done: no thread takes a
+    new block after it (a chunk's other blocks, seconds of W for a long arm's chunk, were all computed before the
+    error came out). Oracle: the count of blocks asked for, against the call's 11 (a thread count of 2: the failing
+    block and the other thread's one in flight; its rows() wait for the error to be raised first)."""
+    import threading
+
+    from dynid.signals.decimation import decimate_parallel_blocked
+
+    n = 30000
+    W = np.ones((n, 2, 3))
+    Y = np.ones((n, 2))
+    caller, raised, asked = threading.get_ident(), threading.Event(), []
+
+    def rows(lo, hi):
+        asked.append(lo)
+        if (threading.get_ident() == caller) == (where == "calling thread"):
+            raised.set()
+            raise RuntimeError("a bad block")
+        raised.wait(30)  # the other thread's block ends after the error
+        return W[lo:hi], Y[lo:hi]
+
+    with pytest.raises(RuntimeError, match="a bad block"):
+        decimate_parallel_blocked(rows, n, (10, 10), FS, block_samples=3000, threads=2)
+    assert len(asked) <= 3, asked
+
+
 # (fs, cut-off) pairs: the paper's 3 Hz at 625 Hz, a fast arm's 20 Hz at 1 kHz, a very low and a near-Nyquist
 # cut-off (poles at 1e-5 of the unit circle, poles on the negative axis), the quarter rate (a pole at the origin)
 DESIGNS = [(625.0, 3.0), (1000.0, 20.0), (1000.0, 0.01), (100.0, 49.9), (100.0, 25.0), (2.0, 0.7), (62.5, 4.0)]

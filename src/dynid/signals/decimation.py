@@ -305,15 +305,23 @@ def decimate_parallel_blocked(
             out["Y1"][a // f : -(-e // f)] = Yb
 
     todo = iter(zip(starts, ends, strict=True))
+    failed = threading.Event()  # a block's error (or Ctrl-C): the other threads take no new block
+
+    def guarded(a: int, e: int) -> None:
+        try:
+            one(a, e)
+        except BaseException:
+            failed.set()
+            raise
 
     def drain() -> None:
         """Blocks, the next one free, until none is left (this thread's rows() buffer reused for each)."""
-        while True:
+        while not failed.is_set():
             with lock:
                 item = next(todo, None)
             if item is None:
                 return
-            one(*item)
+            guarded(*item)
 
     helpers = min(threads, len(starts)) - 1  # the calling thread is one of the `threads`
     if helpers == 0:
@@ -325,7 +333,7 @@ def decimate_parallel_blocked(
         with ThreadPoolExecutor(helpers) as pool:
             running = [pool.submit(drain) for _ in range(helpers)]
             try:
-                one(*mine)
+                guarded(*mine)
             finally:
                 made.set()
             drain()
