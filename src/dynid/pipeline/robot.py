@@ -145,7 +145,7 @@ SEGMENT_BYTES = 128 * 2**20
 DECIMATION_ORDER = 8  # decimate_parallel's default, whose transient sets the segments' overlap
 # a chunk's full-rate W is built and put through the first decimation stage a block of this size at a time (with
 # the stage's transient around it): a worker holds one block, not the chunk's W (128 MiB for the Panda arm)
-BLOCK_BYTES = 8 * 2**20  # 4 MiB: -13 MB more per worker, +6.6 % CPU (the stage's transient per block)
+BLOCK_BYTES = 8 * 2**20  # a W block; 4 MiB measured: -13 MB per worker for +6.6 % CPU (each block's overlap)
 
 
 def joint_system(

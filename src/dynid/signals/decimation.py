@@ -331,8 +331,9 @@ def decimate_parallel_blocked(
         # the helpers' blocks meanwhile, written once it is (`made`)
         mine = next(todo)
         with ThreadPoolExecutor(helpers) as pool:
-            running = [pool.submit(drain) for _ in range(helpers)]
-            try:
+            running: list = []
+            try:  # the helpers released whatever happens once they are submitted (a Ctrl-C between included)
+                running += [pool.submit(drain) for _ in range(helpers)]
                 guarded(*mine)
             finally:
                 made.set()
