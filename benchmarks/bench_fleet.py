@@ -58,6 +58,11 @@ segments' own, 0.99 GB on ffe91d6, is 0.85 here. The hour's page faults 250-310k
 load averages 2.3 to 4.5: the branch 16.03 s wall (16.03, 16.55, 10.56), CPU 11.09 (11.09, 11.45, 10.54); ffe91d6
 19.29 (18.80, 20.87, 19.29), CPU 14.07 (12.31, 14.20, 14.07); fddb8ab 19.75 (19.82, 19.75, 13.45), CPU 14.08 (14.66,
 14.08, 12.44): throughput 1.20 x ffe91d6's and 1.23 x fddb8ab's (walls), 1.27 x both in CPU; peak 0.79, 0.84, 0.89 GB.
+Measured 2026-11-29 (14:10-14:12 UTC, a quiet machine: load average 1.8; main with h-fault, h-mrows, h-joints4, `--hours
+1 --workers --repeat 3 --vs <ffe91d6>/src <fddb8ab>/src`): this tree 8.24 s wall (8.73, 7.58, 8.24), CPU 12.76 (13.57,
+11.80, 12.76), peak 0.75 GB; ffe91d6 9.17 (13.46, 9.17, 8.63), CPU 14.55, 0.94 GB; fddb8ab 9.41 (9.41, 7.98, 9.72),
+CPU 16.58, 0.91 GB: throughput 1.11 x ffe91d6's and 1.14 x fddb8ab's (walls), 1.14 x and 1.30 x in CPU. At the
+session's start (12:35, load 1.7-2.0) ffe91d6 against fddb8ab: 9.34 against 8.85 s (0.95 x), CPU 14.62 against 15.32.
 """
 
 from __future__ import annotations

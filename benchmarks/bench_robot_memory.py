@@ -9,6 +9,16 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
 the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (14:15-14:16 UTC, a quiet machine: load average 1.2-1.6), this tree (the map one chunk at a
+time, h-rmem6's buffers, one glibc arena for the threads) against ffe91d6 (two chunks side by side), whole
+processes, 3 pairs alternated after a warm-up each, medians: peak 344 MiB (342-349) against 389 (388-392); the
+identification's wall 14.5 s (14.2-14.9) against 13.0 (12.9-13.7): +11.5 %, over the 5 % bound that the loaded
+figures below could not resolve; process CPU 25.7 s against 24.2 (+6 %). Why: after a chunk's W blocks its second
+decimation stage, QR and rows run on one thread while the next chunk is read on the other, and the two do not take
+the same time; the fix left is to start the next chunk's W blocks on the core that comes free. The next chunk's
+read started with this chunk instead (not kept; 3 pairs, load 1.3-1.7): peak 377-386 MiB, wall 15.2-16.5 s
+against 14.5-17.1: no faster, 40 MB more.
+
 Measured 2026-11-29 (13:14-13:22 UTC, load average 7-11 on the 2 cores: other sessions): peak 348.8 MiB against
 366.2 at 47066a3 (whole-process figures, 3 runs each alternated A B A B after a warm-up each, medians; 348.4-356.9
 against 363.0-366.4), CPU 0.99 x (pairs 0.94-1.12; 28.6 s against 29.2), wall 1.03 x (0.68-1.17: the load); three
