@@ -65,6 +65,11 @@ that the offsets add) are the rest; the rows' part left is the 13 regressor eval
 bound by writing W's live entries) and 9 aerodynamic wrenches (1.5 ms each). A generated inverse dynamics with the
 parameters given (W x without W) would take the rows' part down further, at the price of one more kernel to compile
 on a first run (issue 28 item 4): not tried.
+
+Measured 2026-11-29 (14:12-14:15 UTC, a quiet machine: load 1.1-1.8; main with h-mrows, h-joints4 and h-fault, each
+tree's own script, `--minutes 10 --rounds 1 --modes estimated none`, 2 alternations): ffe91d6 estimated 12.26, 12.54
+against none 6.83, 8.15 (+79 %, +54 %); this tree 9.70, 10.77 against 7.24, 6.96 (+34 %, +55 %): the estimated runs
+10.2 against 12.4 s (-18 %); the offsets add ~+45 % at 10 min (the 'none' runs, the same code, spread by 19 %).
 """
 
 from __future__ import annotations
