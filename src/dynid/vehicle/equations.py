@@ -39,7 +39,7 @@ test car, 0.2 % of its pitch inertia). Their inertias about the other axes belon
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -324,7 +324,7 @@ def car_identification(
     aero_wrench: Wrench | None = None,
     spin_torques: Mapping[int, Array] | None = None,
     base: str | BaseParameters = "generic",
-    regressor=None,
+    regressor: Callable[..., tuple[Array, Array]] | None = None,
 ) -> CarEquations:
     """W, Y and the equation groups of the car's identification model over N samples.
 
@@ -393,7 +393,8 @@ class CarResidual:
     parameters' columns enter with their values, as their part of Y does). What the residuals of many moved copies
     of one trajectory need (`pipeline.car`)."""
 
-    def __init__(self, model: Model | Tree, x: Array, base: str | BaseParameters = "generic", regressor=None) -> None:
+    def __init__(self, model: Model | Tree, x: Array, base: str | BaseParameters = "generic",
+                 regressor: Callable[..., tuple[Array, Array]] | None = None) -> None:
         self.model = model if isinstance(model, Model) else Model(model)
         tree = self.model.tree
         self.columns = c = _equation_columns(tree, base, ())
