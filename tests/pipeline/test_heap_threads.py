@@ -49,6 +49,9 @@ ctypes.CDLL(None).malloc_stats()  # glibc's "Arena k:" per arena, on stderr
 def probe() -> tuple[dict, str]:
     environ = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
     environ.pop("GLIBC_TUNABLES", None)
+    # BLAS starts its threads at NumPy's import, before the scheduler: one, so that a machine of many cores counts
+    # the scheduler's arenas alone, not what BLAS threads may have made before it
+    environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     proc = subprocess.run([sys.executable, "-c", PROBE], env=environ, check=True, capture_output=True, text=True)
     return json.loads(proc.stdout.strip().splitlines()[-1]), proc.stderr
 
