@@ -502,9 +502,20 @@ def _test_codes(test: Array) -> Array:
 
 
 def _ordered(s: TireSamples) -> TireSamples:
-    """The samples sorted by test, wheel and time (segments arrive in any order from the workers)."""
-    order = np.lexsort((s.t, s.corner, _test_codes(s.test)))
-    return s.select(order)
+    """The samples sorted by test, wheel and time (segments arrive in any order from the workers); s itself when
+    it is so already (a stable sort leaves it as it is: no copy of an hour's samples)."""
+    codes = _test_codes(s.test)
+    if _sorted(codes, s.corner, s.t):
+        return s
+    return s.select(np.lexsort((s.t, s.corner, codes)))
+
+
+def _sorted(codes: Array, corner: Array, t: Array) -> bool:
+    """Whether the keys (test code, wheel, time) never decrease from one sample to the next."""
+    if len(t) < 2:
+        return True
+    dc, dk, dt = np.diff(codes), np.diff(corner), np.diff(t)
+    return bool(np.all((dc > 0) | ((dc == 0) & ((dk > 0) | ((dk == 0) & (dt >= 0))))))
 
 
 def free_rolling_slip(s: TireSamples) -> Array:
@@ -700,17 +711,31 @@ def _subsample_ends(fun, jac, starts: Sequence[Array], lower: Array, upper: Arra
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
     """Fx = -Kx (κ - κ0(Fz)) on these (pure longitudinal) samples and the free-rolling samples `free` (|Fx| <=
     FREE_ROLLING Fz at any slip angle: they fix the free-rolling slip's load line κ0(Fz); module doc)."""
-    if len(s) < MIN_POINTS:
-        raise TireCurveError(f"{len(s)} pure-slip samples: the longitudinal law needs at least {MIN_POINTS}")
-    if np.ptp(s.kappa) < 0.005:
-        raise TireCurveError(f"the slip ratio spans {np.ptp(s.kappa):.4f}: no braking or traction in these tests")
+    if free is None or len(free) == 0:
+        both, pure = _ordered(s), np.ones(len(s), dtype=bool)
+    else:
+        both = s.merge(free)
+        pure = np.r_[np.ones(len(s), dtype=bool), np.zeros(len(free), dtype=bool)]
+        order = np.lexsort((both.t, both.corner, _test_codes(both.test)))  # stable: at one key, s's sample first
+        both, pure = both.select(order), pure[order]
+    return _fit_longitudinal(both, pure)
+
+
+def _fit_longitudinal(both: TireSamples, pure: Array) -> LongitudinalLaw:
+    """`fit_longitudinal` on its samples and the free-rolling ones together, ordered by test, wheel and time (both),
+    pure: which are the pure longitudinal ones. One selection of the wheels' samples, not two then their merge."""
+    k_pure, fx_pure, fz_pure = both.kappa[pure], both.fx[pure], both.fz[pure]
+    if len(k_pure) < MIN_POINTS:
+        raise TireCurveError(f"{len(k_pure)} pure-slip samples: the longitudinal law needs at least {MIN_POINTS}")
+    if np.ptp(k_pure) < 0.005:
+        raise TireCurveError(f"the slip ratio spans {np.ptp(k_pure):.4f}: no braking or traction in these tests")
     # the stiffness is seen only where the wheel brakes or drives: the free-rolling samples fix κ0 alone. Its
     # nominal load and whether a load term is fitted come from those samples' loads, not from all: over all, the
     # spiral's load transfer (free rolling) spread the loads, a load term was fitted from one braking's nearly
     # constant load, and the stiffness at the mean of all loads was an extrapolation through it (+8 % front,
     # +14 % rear on the MuJoCo car's noise/, pKx2 on its bound)
-    slipping = np.abs(s.fx) >= SLIPPING * s.fz
-    seen = s.fz[slipping] if slipping.sum() >= MIN_POINTS else s.fz
+    slipping = np.abs(fx_pure) >= SLIPPING * fz_pure
+    seen = fz_pure[slipping] if slipping.sum() >= MIN_POINTS else fz_pure
     fz0 = float(np.mean(seen))
     lo, hi = np.quantile(seen, [0.1, 0.9])  # the ramps' few samples between two loads do not make a spread
     load = float((hi - lo) / fz0) >= LOAD_SPREAD
@@ -718,7 +743,6 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
     # free-rolling slip moves with the load (dynid's 406: -0.005 per kN), and a braking's load transfer then moved
     # the front slips one way and the rear's the other (+8 % and -14 % in Kx on the demo). The free-rolling
     # samples of every test (the spiral's and the sine's lateral load transfer) give that line
-    both = _ordered(s if free is None or len(free) == 0 else s.merge(free))
     k, fz, fx = both.kappa, both.fz, both.fx
     rolling = np.abs(fx) <= FREE_ROLLING * fz
     fzf = float(np.mean(fz[rolling])) if rolling.sum() >= MIN_POINTS else fz0
@@ -755,10 +779,10 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
                          np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
                          np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
                          names, _runs(both), fixed, _instants(both), jac)
-    law = LongitudinalLaw(fit, fz0, (float(s.kappa.min()), float(s.kappa.max())),
-                          (float(s.fz.min()), float(s.fz.max())), fzf)
+    law = LongitudinalLaw(fit, fz0, (float(k_pure.min()), float(k_pure.max())),
+                          (float(fz_pure.min()), float(fz_pure.max())), fzf)
     if slipping.any():
-        law.kappa_seen = float(np.mean(np.abs(s.kappa[slipping] - law.free_rolling_slip_at(s.fz[slipping]))))
+        law.kappa_seen = float(np.mean(np.abs(k_pure[slipping] - law.free_rolling_slip_at(fz_pure[slipping]))))
     return law
 
 
@@ -960,17 +984,18 @@ def _lateral_dict(c: LateralCurve) -> dict:
 def slip_reach(s: TireSamples) -> list[dict]:
     """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads."""
     out = []
-    fast = s.select(s.vx >= MIN_SPEED)
-    for test in dict.fromkeys(fast.test.tolist()):
+    fast = s.vx >= MIN_SPEED  # a mask, not a copy of the samples
+    for test in dict.fromkeys(s.test[fast].tolist()):
+        of_test = fast & (s.test == test)
         for k, tag in enumerate(CORNER_TAGS):
-            m = (fast.test == test) & (fast.corner == k)
+            m = of_test & (s.corner == k)
             if not m.any():
                 continue
             out.append({"test": test, "wheel": tag,
-                        "alpha_deg": [float(np.degrees(fast.alpha[m].min())), float(np.degrees(fast.alpha[m].max()))],
-                        "kappa": [float(fast.kappa[m].min()), float(fast.kappa[m].max())],
-                        "fz_N": [float(fast.fz[m].min()), float(fast.fz[m].max())],
-                        "inclination_deg": float(np.degrees(np.max(np.abs(fast.gamma[m]))))})
+                        "alpha_deg": [float(np.degrees(s.alpha[m].min())), float(np.degrees(s.alpha[m].max()))],
+                        "kappa": [float(s.kappa[m].min()), float(s.kappa[m].max())],
+                        "fz_N": [float(s.fz[m].min()), float(s.fz[m].max())],
+                        "inclination_deg": float(np.degrees(np.max(np.abs(s.gamma[m]))))})
     return out
 
 
@@ -1007,13 +1032,15 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int | No
         return _fit_tire_curves(samples, wheel_radius, workers or min(2, os.cpu_count() or 1))
 
 
-def _lateral_chain(lat: TireSamples, axle: str, corners: tuple[int, ...]) -> list[tuple[str, str, object]]:
-    """The axle's lateral law, then each of its tires' (which take the axle's shape): (kind, key, curve or the
-    reason it is missing), in the order the results list them."""
+def _lateral_chain(s: TireSamples, mask: Array, axle: str, corners: tuple[int, ...]) -> list[tuple[str, str, object]]:
+    """The axle's lateral law on s's samples of mask (its pure lateral slip), then each of its tires' (which take
+    the axle's shape): (kind, key, curve or the reason it is missing), in the order the results list them. The
+    samples selected here, when the task runs: not every task's held from the start."""
     out: list[tuple[str, str, object]] = []
     curve = None
+    lat = s.select(mask)
     try:
-        curve = fit_lateral(lat.select(np.isin(lat.corner, corners)))
+        curve = fit_lateral(lat)
         out.append(("lateral", axle, curve))
     except TireCurveError as exc:
         out.append(("missing", f"{axle} lateral", str(exc)))
@@ -1025,10 +1052,19 @@ def _lateral_chain(lat: TireSamples, axle: str, corners: tuple[int, ...]) -> lis
     return out
 
 
-def _longitudinal_one(lon: TireSamples, rolling: TireSamples, kind: str, key: str, missing: str
+def _longitudinal_one(s: TireSamples, pure: Array, rolling: Array, kind: str, key: str, missing: str
                       ) -> tuple[str, str, object]:
+    """`fit_longitudinal` on s's samples of the masks pure (pure longitudinal slip) and rolling (free rolling, the
+    others): one selection of both, in s's order (that of test, wheel and time), made when the task runs."""
+    both = pure | rolling
+    sel = s.select(both)
+    if len(sel) > 1 and np.any(sel.t[1:] == sel.t[:-1]):  # two samples at one key: the pure one first, as merged
+        order = np.lexsort((~pure[both], sel.t, sel.corner, _test_codes(sel.test)))
+        sel, both = sel.select(order), pure[both][order]
+    else:
+        both = pure[both]
     try:
-        return kind, key, fit_longitudinal(lon, rolling)
+        return kind, key, _fit_longitudinal(sel, both)
     except TireCurveError as exc:
         return "missing", missing, str(exc)
 
@@ -1041,16 +1077,18 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     # the pure lateral slip's samples (`pure_lateral`), the wheels' free-rolling slips found once for them and for
     # the samples kept
     pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
-    lat, lon = s.select(pure_y & (s.vx >= MIN_SPEED) & (s.fz > 0)), pure_longitudinal(s)
+    fast = (s.vx >= MIN_SPEED) & (s.fz > 0)
+    # masks of s, each task selecting its samples when it runs (`pure_lateral`, `pure_longitudinal`): selected all
+    # at once, the tasks' copies were 3 times the samples (an hour's 290k: 70 MB)
+    lat, lon = pure_y & fast, (np.abs(s.alpha) <= ALPHA_PURE) & fast
     # the free-rolling samples at any slip angle (those of lon left out: each sample once): κ0's load line
-    rolling = s.select((np.abs(s.fx) <= FREE_ROLLING * s.fz) & (s.vx >= MIN_SPEED) & (s.fz > 0)
-                       & (np.abs(s.alpha) > ALPHA_PURE))
+    rolling = (np.abs(s.fx) <= FREE_ROLLING * s.fz) & fast & (np.abs(s.alpha) > ALPHA_PURE)
     # the fits, each axle's lateral chain first (the longest), then the longitudinal laws
-    tasks = [(_lateral_chain, lat, axle, corners) for axle, corners in AXLES.items()]
+    tasks = [(_lateral_chain, s, lat & np.isin(s.corner, corners), axle, corners) for axle, corners in AXLES.items()]
     for axle, corners in AXLES.items():
-        tasks.append((_longitudinal_one, lon.select(np.isin(lon.corner, corners)),
-                      rolling.select(np.isin(rolling.corner, corners)), "longitudinal", axle, f"{axle} longitudinal"))
-        tasks += [(_longitudinal_one, lon.select(lon.corner == k), rolling.select(rolling.corner == k),
+        on = np.isin(s.corner, corners)
+        tasks.append((_longitudinal_one, s, lon & on, rolling & on, "longitudinal", axle, f"{axle} longitudinal"))
+        tasks += [(_longitudinal_one, s, lon & (s.corner == k), rolling & (s.corner == k),
                    "longitudinal_per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} longitudinal") for k in corners]
     if workers > 1:
         with ThreadPoolExecutor(min(workers, len(tasks))) as pool:
