@@ -452,6 +452,29 @@ def test_the_runs_and_instants_group_as_their_string_keys():
     np.testing.assert_array_equal(_runs(s), runs)
 
 
+def test_the_parts_ordered_at_once_are_the_merged_parts_sorted():
+    """`TireSamples.ordered` (the run's parts gathered once, in the fit's order) against the old way, each part
+    merged in turn then sorted by `_ordered` (a stable sort), to the bit, with samples of equal keys across parts
+    (their order the merge's); and `_ordered` of ordered samples is the samples themselves (no copy)."""
+    from dynid.vehicle.tire_curves import _FIELDS, _ordered
+
+    rng = np.random.default_rng(4)
+    parts = []
+    for name in ("spiral", "brake", "spiral"):  # two parts of one test: equal keys across parts
+        n = int(rng.integers(30, 60))
+        parts.append(TireSamples(np.full(n, name, dtype=object), rng.integers(0, 4, n),
+                                 np.round(rng.integers(0, 20, n) * 0.05, 6), *rng.standard_normal((7, n))))
+    merged = parts[0]
+    for s in parts[1:]:
+        merged = merged.merge(s)
+    want, got = _ordered(merged), TireSamples.ordered(parts)
+    assert want is not merged  # the parts were not in order: the oracle sorted them
+    for f in _FIELDS:
+        np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
+    assert _ordered(got) is got
+    assert len(TireSamples.ordered([])) == 0
+
+
 def test_the_fits_on_threads_are_the_fits_in_turn():
     """`fit_tire_curves` runs its fits on threads: each curve, and what is missing and in which order, must be the
     fits in turn to the bit. Oracle: the public fits called here one after the other (per axle its lateral law, its
