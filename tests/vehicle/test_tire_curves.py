@@ -475,6 +475,31 @@ def test_the_parts_ordered_at_once_are_the_merged_parts_sorted():
     assert len(TireSamples.ordered([])) == 0
 
 
+def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():
+    """`TireSamples.select(mask, fields)`: the keys and the fields asked equal the full selection's, the others NaN
+    views of no memory, which stay so when selected again; and the fits on such selections are those on every field
+    to the bit (oracle: the same fits on the full selection)."""
+    from dynid.vehicle.tire_curves import LATERAL_FIELDS, LONGITUDINAL_FIELDS
+
+    s = _synthetic_axle(3, 6.0)
+    mask = np.abs(s.alpha) < math.radians(5.0)
+    full, some = s.select(mask), s.select(mask, LATERAL_FIELDS)
+    for f in ("test", "corner", "t", *LATERAL_FIELDS):
+        np.testing.assert_array_equal(getattr(some, f), getattr(full, f))
+    for f in ("kappa", "gamma", "vx", "fx"):
+        a = getattr(some, f)
+        assert len(a) == len(full) and np.isnan(a).all() and a.strides == (0,)
+    again = some.select(some.corner == 1)
+    assert again.kappa.strides == (0,) and len(again.kappa) == len(again) == int(np.sum(full.corner == 1))
+    np.testing.assert_array_equal(fit_lateral(some).fit.cov, fit_lateral(full).fit.cov)
+    braking, rolling = _braking_wheel(5, True)
+    both = braking.merge(rolling)
+    law = fit_longitudinal(braking.select(slice(None), LONGITUDINAL_FIELDS),
+                           rolling.select(slice(None), LONGITUDINAL_FIELDS))
+    assert np.isnan(both.select(slice(None), LONGITUDINAL_FIELDS).alpha).all()
+    np.testing.assert_array_equal(law.fit.cov, fit_longitudinal(braking, rolling).fit.cov)
+
+
 def test_the_fits_on_threads_are_the_fits_in_turn():
     """`fit_tire_curves` runs its fits on threads: each curve, and what is missing and in which order, must be the
     fits in turn to the bit. Oracle: the public fits called here one after the other (per axle its lateral law, its

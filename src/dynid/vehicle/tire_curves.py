@@ -123,8 +123,15 @@ class TireSamples:
         """self's samples then other's."""
         return TireSamples(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in _FIELDS))
 
-    def select(self, mask: Array) -> TireSamples:
-        return TireSamples(*(getattr(self, f)[mask] for f in _FIELDS))
+    def select(self, mask: Array, fields: Sequence[str] | None = None) -> TireSamples:
+        """The samples of mask (a boolean mask, indices or a slice). fields: the measured fields to copy (default:
+        all); the others, and those absent here, are `_absent` (a NaN view of no memory): a fit's selection
+        carries what it reads."""
+        keys = [getattr(self, f)[mask] for f in _KEYS]
+        n = len(keys[0])
+        measured = [getattr(self, f) for f in _FIELDS[len(_KEYS):]]
+        return TireSamples(*keys, *(_absent(n) if _is_absent(a) or (fields is not None and f not in fields)
+                                    else a[mask] for f, a in zip(_FIELDS[len(_KEYS):], measured, strict=True)))
 
     @staticmethod
     def ordered(parts: Sequence[TireSamples]) -> TireSamples:
@@ -140,6 +147,18 @@ class TireSamples:
 
 
 _FIELDS = ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")
+_KEYS = ("test", "corner", "t")  # a sample's test, wheel and time: every selection carries them
+LATERAL_FIELDS = ("alpha", "fy", "fz")  # what the lateral fits read (`fit_lateral`, `fit_tire`)
+LONGITUDINAL_FIELDS = ("kappa", "vx", "fx", "fz")  # and the longitudinal ones (`fit_longitudinal`)
+
+
+def _absent(n: int) -> Array:
+    """A field a selection does not carry: n NaNs, read-only, in no memory (a broadcast view of one)."""
+    return np.broadcast_to(np.float64(np.nan), (n,))
+
+
+def _is_absent(a: Array) -> bool:
+    return a.ndim == 1 and len(a) > 1 and a.strides == (0,)
 
 
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
@@ -510,8 +529,11 @@ def _test_names(parts: Sequence[TireSamples]) -> list:
 def _test_codes(test: Array, names: list | None = None) -> Array:
     """Per sample, its test name's index among the names sorted (int64): the order of the names as strings, without
     converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls).
-    names: the sorted names to index in (default: test's own)."""
+    names: the sorted names to index in (default: test's own). Integers are such indices already (the fit's
+    selections carry them: `_fit_tire_curves`)."""
     test = np.asarray(test)
+    if test.dtype.kind in "iu":
+        return test.astype(np.int64)
     names = sorted(set(test.tolist()), key=str) if names is None else names
     codes = np.zeros(len(test), dtype=np.int64)
     for i, name in enumerate(names[1:], 1):  # a few tests: one comparison pass each
@@ -1056,7 +1078,7 @@ def _lateral_chain(s: TireSamples, mask: Array, axle: str, corners: tuple[int, .
     samples selected here, when the task runs: not every task's held from the start."""
     out: list[tuple[str, str, object]] = []
     curve = None
-    lat = s.select(mask)
+    lat = s.select(mask, LATERAL_FIELDS)
     try:
         curve = fit_lateral(lat)
         out.append(("lateral", axle, curve))
@@ -1075,7 +1097,7 @@ def _longitudinal_one(s: TireSamples, pure: Array, rolling: Array, kind: str, ke
     """`fit_longitudinal` on s's samples of the masks pure (pure longitudinal slip) and rolling (free rolling, the
     others): one selection of both, in s's order (that of test, wheel and time), made when the task runs."""
     both = pure | rolling
-    sel = s.select(both)
+    sel = s.select(both, LONGITUDINAL_FIELDS)
     if len(sel) > 1 and np.any(sel.t[1:] == sel.t[:-1]):  # two samples at one key: the pure one first, as merged
         order = np.lexsort((~pure[both], sel.t, sel.corner, _test_codes(sel.test)))
         sel, both = sel.select(order), pure[both][order]
@@ -1101,12 +1123,19 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     lat, lon = pure_y & fast, (np.abs(s.alpha) <= ALPHA_PURE) & fast
     # the free-rolling samples at any slip angle (those of lon left out: each sample once): κ0's load line
     rolling = (np.abs(s.fx) <= FREE_ROLLING * s.fz) & fast & (np.abs(s.alpha) > ALPHA_PURE)
+    # the tasks' selections from the samples with each test as its index among the names sorted and the wheel as a
+    # byte (`_test_codes`): an hour's object names cost 8 bytes a sample in every copy, and their comparisons 20 ms
+    # per 100k; the measured fields shared, not copied
+    names = _test_names([s])
+    coded = TireSamples(_test_codes(s.test, names).astype(np.min_scalar_type(len(names))), s.corner.astype(np.int8),
+                        *(getattr(s, f) for f in _FIELDS[2:]))
     # the fits, each axle's lateral chain first (the longest), then the longitudinal laws
-    tasks = [(_lateral_chain, s, lat & np.isin(s.corner, corners), axle, corners) for axle, corners in AXLES.items()]
+    tasks = [(_lateral_chain, coded, lat & np.isin(s.corner, corners), axle, corners)
+             for axle, corners in AXLES.items()]
     for axle, corners in AXLES.items():
         on = np.isin(s.corner, corners)
-        tasks.append((_longitudinal_one, s, lon & on, rolling & on, "longitudinal", axle, f"{axle} longitudinal"))
-        tasks += [(_longitudinal_one, s, lon & (s.corner == k), rolling & (s.corner == k),
+        tasks.append((_longitudinal_one, coded, lon & on, rolling & on, "longitudinal", axle, f"{axle} longitudinal"))
+        tasks += [(_longitudinal_one, coded, lon & (s.corner == k), rolling & (s.corner == k),
                    "longitudinal_per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} longitudinal") for k in corners]
     if workers > 1:
         with ThreadPoolExecutor(min(workers, len(tasks))) as pool:
