@@ -325,28 +325,132 @@ def _least_squares(fun, starts: Sequence[Array], lower: Array, upper: Array, nam
             best = r
     if best is None:
         raise TireCurveError("the tire curve fit found no finite solution from any start")
-    n, p = len(best.fun), len(best.x)
+    J = best.jac
+
+    def gram(free: Array) -> Array:
+        Jf = J[:, free]
+        return Jf.T @ Jf
+
+    return _fit_at(best.x, best.fun, gram, lower, upper, names, runs, fixed, instants)
+
+
+def _fit_at(x: Array, r: Array, gram, lower: Array, upper: Array, names: list[str], runs: Array | None,
+            fixed: dict[str, float], instants: Array | None) -> Fit:
+    """The fit at its solution x: residual r (n,), gram(free) JᵀJ of the free parameters' columns (those not at a
+    bound), σ as the module doc says."""
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    n, p = len(r), len(x)
     if n <= p:
         raise TireCurveError(f"the tire curve fit has {n} samples for {p} parameters")
-    s2 = float(best.fun @ best.fun) / (n - p)
-    tau = autocorrelation_factor(best.fun, runs) * simultaneity_factor(best.fun, instants)
-    J = best.jac
+    s2 = float(r @ r) / (n - p)
+    tau = autocorrelation_factor(r, runs) * simultaneity_factor(r, instants)
     tol = 1e3 * margin
-    near = np.isfinite(span) & ((best.x - lower <= tol) | (upper - best.x <= tol))
+    near = np.isfinite(span) & ((x - lower <= tol) | (upper - x <= tol))
     cov = np.full((p, p), np.nan)
     free = ~near
     if free.any():
-        Jf = J[:, free]
         try:
-            cf = np.linalg.pinv(Jf.T @ Jf) * s2 * tau
+            cf = np.linalg.pinv(gram(free)) * s2 * tau
         except np.linalg.LinAlgError:
             cf = np.full((free.sum(), free.sum()), np.nan)
         idx = np.flatnonzero(free)
         cov[np.ix_(idx, idx)] = cf
     cov[near, :] = 0.0
     cov[:, near] = 0.0
-    return Fit(names, best.x, cov, math.sqrt(float(best.fun @ best.fun) / n), tau, n, fixed,
+    return Fit(names, x, cov, math.sqrt(float(r @ r) / n), tau, n, fixed,
                [nm for nm, b in zip(names, near, strict=True) if b])
+
+
+BLOCK = 2**15  # rows of a block of the polish on every sample: its Jacobian 0.25 MB per parameter
+BLOCKS_ABOVE = 2 * BLOCK  # fits on more samples than this are polished in blocks (an hour's: 46k-145k)
+STEP_SIGMA = 1e-7  # the polish stops when its next step moves the parameters by less than this many σ
+MAX_STEPS = 50
+
+
+def _least_squares_rows(problem, n: int, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
+                        runs: Array | None, fixed: dict[str, float], instants: Array | None = None) -> Fit:
+    """`_least_squares` of problem(rows) -> (fun, jac), the residual and Jacobian of those rows (a slice) of the
+    n samples: on more than BLOCKS_ABOVE, polished in blocks (`_polish_in_blocks`), else (or when that declines)
+    scipy's solver on all rows."""
+    if n > BLOCKS_ABOVE:
+        fit = _polish_in_blocks(problem, n, starts, lower, upper, names, runs, fixed, instants)
+        if fit is not None:
+            return fit
+    fun, jac = problem(slice(None))
+    return _least_squares(fun, starts, lower, upper, names, runs, fixed, instants, jac)
+
+
+def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
+                      runs: Array | None, fixed: dict[str, float], instants: Array | None) -> Fit | None:
+    """The best of the starts' Levenberg-Marquardt descents with JᵀJ, Jᵀr and rᵀr summed block by block (BLOCK rows
+    at a time): beyond the residual (n,) the memory is a block's, where scipy's solver holds J (n × p) and its
+    copies (an hour's longitudinal fit: 4 of 4.6 MB). Each descent steps until its Gauss-Newton step would move the
+    parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z² s², z in σ without τ): the
+    optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to sqrt(1e-8 n) σ short of it. The
+    starts are the ends of descents on a subsample (or a closed-form optimum): 1-4 steps. None (the caller then runs
+    scipy's solver on all rows) when a step would leave the bounds' interior (a parameter at a bound: scipy's
+    bounded solver says which) or a descent fails to converge in MAX_STEPS."""
+    blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    inner_lo, inner_hi = lower + 1e3 * margin, upper - 1e3 * margin  # `_fit_at`'s "at a bound" left out
+
+    def sums(x: Array) -> tuple[Array, Array, float]:
+        A, g, c = np.zeros((len(x), len(x))), np.zeros(len(x)), 0.0
+        for b in blocks:
+            fun, jac = problem(b)
+            r, J = fun(x), jac(x)
+            A += J.T @ J
+            g += J.T @ r
+            c += float(r @ r)
+        return A, g, 0.5 * c
+
+    best = None
+    for x0 in starts:
+        x = np.clip(np.asarray(x0, dtype=float), lower + margin, upper - margin)
+        if np.any(x <= inner_lo) or np.any(x >= inner_hi):
+            return None
+        A, g, c = sums(x)
+        lam, done = 0.0, False
+        for _ in range(MAX_STEPS):
+            if not (np.isfinite(c) and np.all(np.isfinite(A)) and np.all(np.isfinite(g))):
+                return None
+            d = np.sqrt(np.diag(A))
+            d[d == 0] = 1.0
+            As, gs = A / np.outer(d, d), g / d
+            try:
+                h = np.linalg.solve(As + lam * np.eye(len(x)), -gs)
+            except np.linalg.LinAlgError:
+                return None
+            s2 = 2 * c / max(n - len(x), 1)
+            if lam == 0.0 and -(gs @ h) <= STEP_SIGMA**2 * s2:  # the Gauss-Newton step's ½ z² s² (z in σ)
+                done = True
+                break
+            xn = x + h / d
+            if np.any(xn <= inner_lo) or np.any(xn >= inner_hi):
+                return None
+            An, gn, cn = sums(xn)
+            # a Gauss-Newton step whose predicted change of the cost is below the cost's own rounding (rᵀr summed:
+            # 1e-13 of it and more) is taken on the gradient's word: the cost cannot tell it from no change
+            blind = lam == 0.0 and -(gs @ h) <= 1e-10 * c
+            if np.isfinite(cn) and (cn <= c or blind):
+                x, A, g, c, lam = xn, An, gn, cn, (0.0 if lam <= 1e-6 else lam / 10)
+            else:
+                lam = 1e-3 if lam == 0.0 else 10 * lam
+                if lam > 1e8:
+                    return None
+        if not done:
+            return None
+        if best is None or c < best[2]:
+            best = (x, A, c)
+    if best is None:
+        return None
+    x, A, _ = best
+    r = np.empty(n)
+    for b in blocks:
+        r[b] = problem(b)[0](x)
+    return _fit_at(x, r, lambda free: A[np.ix_(free, free)], lower, upper, names, runs, fixed, instants)
 
 
 def fit_magic_formula(x: Array, F: Array, runs: Array | None = None, E: float | None = None) -> Fit:
@@ -656,8 +760,7 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     lower, upper = np.array([1e-3, -0.1] + ([-0.9] if load else [])), np.array([200.0, 0.1] + ([5.0] if load else []))
     if len(a) >= 2 * SUBSAMPLE:  # the descent from the axle's values on a subsample, polished on all (as the axle's)
         starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
-    fun, jac = problem(slice(None))
-    fit = _least_squares(fun, starts, lower, upper, names, _runs(s), fixed, jac=jac)
+    fit = _least_squares_rows(problem, len(a), starts, lower, upper, names, _runs(s), fixed)
     return LateralCurve(fit, axle.fz0, True, (float(a.min()), float(a.max())), (float(fz.min()), float(fz.max())),
                         axle.peak_reached, float(np.mean(fz)))
 
@@ -712,8 +815,7 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
     lower, upper = np.array([lo[n] for n in names]), np.array([hi[n] for n in names])
     if len(a) >= 2 * SUBSAMPLE:  # the starts' descents on a subsample, the one basin (or the few) polished on all
         starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
-    fun, jac = problem(slice(None))
-    return _least_squares(fun, starts, lower, upper, names, runs, fixed, instants, jac)
+    return _least_squares_rows(problem, len(a), starts, lower, upper, names, runs, fixed, instants)
 
 
 SUBSAMPLE = 8000  # samples of a multi-start's descents: every k-th of an hour's ~46k per axle
@@ -797,28 +899,36 @@ def _fit_longitudinal(both: TireSamples, pure: Array) -> LongitudinalLaw:
     # residual weighted by the speed over 20 m/s: the slip's noise goes as 1/v
     weight = both.vx / 20.0
 
-    load_free, load_nominal = fz / fzf - 1, fz / fz0 - 1  # the same every call: once
+    def problem(rows: slice) -> tuple:
+        k_, fz_, fx_, weight_ = k[rows], fz[rows], fx[rows], weight[rows]
+        load_free, load_nominal = fz_ / fzf - 1, fz_ / fz0 - 1  # the same every call: once
 
-    def fun(v: Array) -> Array:
-        p = {**fixed, **dict(zip(names, v, strict=True))}
-        # a term held at 0 adds nothing: left out (its product is ±0, its sum the other term: the same bits)
-        k0 = p["kappa0"] + p["kappa0_fz"] * load_free if radius_load else p["kappa0"]
-        kx = p["kx0"] * fz * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz
-        return (k0 - fx / kx - k) * weight
+        def fun(v: Array) -> Array:
+            p = {**fixed, **dict(zip(names, v, strict=True))}
+            # a term held at 0 adds nothing: left out (its product is ±0, its sum the other term: the same bits)
+            k0 = p["kappa0"] + p["kappa0_fz"] * load_free if radius_load else p["kappa0"]
+            kx = p["kx0"] * fz_ * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz_
+            return (k0 - fx_ / kx - k_) * weight_
 
-    def jac(v: Array) -> Array:
-        p = {**fixed, **dict(zip(names, v, strict=True))}
-        g = 1 + p["pKx2"] * load_nominal if load else 1.0
-        fx_kx = fx / (p["kx0"] * fz * g)  # the residual's fx / Kx
-        cols = {"kx0": fx_kx * weight / p["kx0"], "kappa0": weight,
-                "pKx2": fx_kx * weight * load_nominal / g if load else None,
-                "kappa0_fz": load_free * weight}
-        return np.stack([cols[n] for n in names], axis=1)
+        def jac(v: Array) -> Array:
+            p = {**fixed, **dict(zip(names, v, strict=True))}
+            g = 1 + p["pKx2"] * load_nominal if load else 1.0
+            fx_kx = fx_ / (p["kx0"] * fz_ * g)  # the residual's fx / Kx
+            cols = {"kx0": fx_kx * weight_ / p["kx0"], "kappa0": weight_,
+                    "pKx2": fx_kx * weight_ * load_nominal / g if load else None,
+                    "kappa0_fz": load_free * weight_}
+            return np.stack([cols[n] for n in names], axis=1)
 
-    fit = _least_squares(fun, [_longitudinal_start(k, fz, fx, weight, load_free, load, radius_load)],
-                         np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
-                         np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
-                         names, _runs(both), fixed, _instants(both), jac)
+        return fun, jac
+
+    # the start: the closed-form optimum (without the load term) on every k-th sample when they are many (its
+    # matrix n x 3 and the solver's copies of it), polished on all in blocks (`_least_squares_rows`)
+    sub = slice(None, None, max(1, len(k) // SUBSAMPLE)) if len(k) > BLOCKS_ABOVE else slice(None)
+    start = _longitudinal_start(k[sub], fz[sub], fx[sub], weight[sub], fz[sub] / fzf - 1, load, radius_load)
+    fit = _least_squares_rows(problem, len(k), [start],
+                              np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
+                              np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
+                              names, _runs(both), fixed, _instants(both))
     law = LongitudinalLaw(fit, fz0, (float(k_pure.min()), float(k_pure.max())),
                           (float(fz_pure.min()), float(fz_pure.max())), fzf)
     if slipping.any():
