@@ -491,6 +491,10 @@ def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():
     again = some.select(some.corner == 1)
     assert again.kappa.strides == (0,) and len(again.kappa) == len(again) == int(np.sum(full.corner == 1))
     np.testing.assert_array_equal(fit_lateral(some).fit.cov, fit_lateral(full).fit.cov)
+    # a caller's own broadcast field (a constant speed) is data, not absent
+    own = TireSamples(*(np.broadcast_to(20.0, len(s)) if f == "vx" else getattr(s, f) for f in
+                        ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")))
+    assert np.all(own.select(mask).vx == 20.0) and np.all(own.select(mask, LONGITUDINAL_FIELDS).vx == 20.0)
     braking, rolling = _braking_wheel(5, True)
     both = braking.merge(rolling)
     law = fit_longitudinal(braking.select(slice(None), LONGITUDINAL_FIELDS),

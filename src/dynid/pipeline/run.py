@@ -560,7 +560,8 @@ def without_each_test(names: list[str], kw: dict, per_test: dict,
 
 
 def _tire_curves(parts: dict, vehicle, say: Progress):
-    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered."""
+    """The tire characteristics (vehicle.tire_curves) of every test's wheel samples the map gathered (taken from the
+    parts: their `tires` are None after)."""
     # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
     from ..vehicle.tire_curves import TireSamples, fit_tire_curves
 
@@ -573,9 +574,8 @@ def _tire_curves(parts: dict, vehicle, say: Progress):
         p.tires = None
     merged = TireSamples.ordered(samples)
     del samples
-    n = len(merged)
     curves = fit_tire_curves(merged, vehicle.geometry.wheel_radius)
-    say(f"tire curves from {n} wheel samples in {curves.seconds:.2f} s"
+    say(f"tire curves from {len(merged)} wheel samples in {curves.seconds:.2f} s"
         + (f" ({'; '.join(f'{k}: {v}' for k, v in curves.missing.items())})" if curves.missing else ""))
     return curves
 

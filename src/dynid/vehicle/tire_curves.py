@@ -157,13 +157,18 @@ LATERAL_FIELDS = ("alpha", "fy", "fz")  # what the lateral fits read (`fit_later
 LONGITUDINAL_FIELDS = ("kappa", "vx", "fx", "fz")  # and the longitudinal ones (`fit_longitudinal`)
 
 
+_NAN = np.array(np.nan)  # the one value every absent field views
+_NAN.flags.writeable = False
+
+
 def _absent(n: int) -> Array:
-    """A field a selection does not carry: n NaNs, read-only, in no memory (a broadcast view of one)."""
-    return np.broadcast_to(np.float64(np.nan), (n,))
+    """A field a selection does not carry: n NaNs, read-only, in no memory (a broadcast view of _NAN)."""
+    return np.broadcast_to(_NAN, (n,))
 
 
 def _is_absent(a: Array) -> bool:
-    return a.ndim == 1 and len(a) > 1 and a.strides == (0,)
+    """Whether a is an `_absent` field (a view of _NAN: not any broadcast array a caller may give)."""
+    return isinstance(a, np.ndarray) and a.strides == (0,) and np.may_share_memory(a, _NAN)
 
 
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
@@ -388,14 +393,14 @@ def _least_squares_rows(problem, n: int, starts: Sequence[Array], lower: Array, 
 
 def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
                       runs: Array | None, fixed: dict[str, float], instants: Array | None) -> Fit | None:
-    """The best of the starts' Levenberg-Marquardt descents with JᵀJ, Jᵀr and rᵀr summed block by block (BLOCK rows
-    at a time): beyond the residual (n,) the memory is a block's, where scipy's solver holds J (n × p) and its
-    copies (an hour's longitudinal fit: 4 of 4.6 MB). Each descent steps until its Gauss-Newton step would move the
-    parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z² s², z in σ without τ): the
-    optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to sqrt(1e-8 n) σ short of it. The
-    starts are the ends of descents on a subsample (or a closed-form optimum): 1-4 steps. None (the caller then runs
-    scipy's solver on all rows) when a step would leave the bounds' interior (a parameter at a bound: scipy's
-    bounded solver says which) or a descent fails to converge in MAX_STEPS."""
+    """The best of the starts' Levenberg-Marquardt descents with JᵀJ, Jᵀr and rᵀr summed block by block (BLOCK rows at a
+    time): beyond the residual (n,) the memory is a block's, where scipy's solver holds J (n × p), its scaled copy,
+    the SVD's U and the residuals (an hour's longitudinal fit of 145k samples: ~20 MB). Each descent steps until its
+    Gauss-Newton step would move the parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z²
+    s², z in σ without τ): the optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to
+    sqrt(1e-8 n) σ short of it. The starts are the ends of descents on a subsample (or a closed-form optimum): 1-4
+    steps. None (the caller then runs scipy's solver on all rows) when a step would leave the bounds' interior (a
+    parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in MAX_STEPS."""
     blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
     span = upper - lower
     margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
