@@ -63,6 +63,12 @@ Measured 2026-11-29 (14:10-14:12 UTC, a quiet machine: load average 1.8; main wi
 11.80, 12.76), peak 0.75 GB; ffe91d6 9.17 (13.46, 9.17, 8.63), CPU 14.55, 0.94 GB; fddb8ab 9.41 (9.41, 7.98, 9.72),
 CPU 16.58, 0.91 GB: throughput 1.11 x ffe91d6's and 1.14 x fddb8ab's (walls), 1.14 x and 1.30 x in CPU. At the
 session's start (12:35, load 1.7-2.0) ffe91d6 against fddb8ab: 9.34 against 8.85 s (0.95 x), CPU 14.62 against 15.32.
+
+Measured 2026-11-29 (issue 28, h-tires: the tire curves' fit holds its samples once, each fit's selection only
+while it runs and with only the fields it reads, and polishes fits of over 65536 samples in blocks, no n x p
+Jacobian; `--hours 3 --workers --vs <17cb88d>/src --repeat 2`, 15:34-15:40 UTC, load averages 6 to 9): peak 1.07 GB
+on 17cb88d, where the fit after the segments set it, 0.85 GB on the branch, the segments' own: the 3 h target met.
+CPU 33.74, 33.03 s against 30.30, 33.47 (the fit's ~0.6 s of it lost in that noise).
 """
 
 from __future__ import annotations

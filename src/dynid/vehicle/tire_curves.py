@@ -40,22 +40,27 @@ tire where the data allow:
   slip for seconds (about 0.03 at 6 m/s²): Kx is the secant to that slip, not the slope at zero, and no Magic
   Formula is fitted (its peak is not reached; an ABS stop would).
 
-Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in
-[MF_C_BOUNDS] and E <= 1, from a few starts; on SUBSAMPLE x 2 samples or more, as an hour's, the starts descend on
-every k-th sample and only the best end, or the few within BASIN of it, is polished on all: `_subsample_ends`; the
-longitudinal law starts at its closed-form optimum, `_longitudinal_start`). Measured 2026-11-29 (issue 28, h-thru2,
-an hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
+Nonlinear least squares: `scipy.optimize.least_squares` (trust region reflective, bounds keeping C in [MF_C_BOUNDS]
+and E <= 1, from a few starts; on SUBSAMPLE x 2 samples or more, as an hour's, the starts descend on every k-th
+sample and only the best end, or the few within BASIN of it, is polished on all: `_subsample_ends`; the longitudinal
+law starts at its closed-form optimum, `_longitudinal_start`); on more than BLOCKS_ABOVE samples the polish is
+Levenberg-Marquardt's with JᵀJ and Jᵀr summed block by block (`_polish_in_blocks`), not scipy's on all rows. Memory:
+the samples once (the run's parts gathered in the fit's order, `TireSamples.ordered`), each fit's selection made
+when it runs and carrying only the fields it reads, and beyond that O(n) vectors (the residual, the runs' and
+instants' labels), no n × p matrix: on 3 h of benchmarks/bench_fleet.py's workload (871k samples, 70 MB) the fit's
+traced peak over its sorted samples was 0.40 GB, now 0.10 GB (2 threads). Measured 2026-11-29 (issue 28, h-thru2, an
+hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
 processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans' and the MuJoCo car's curves
 moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own starts ended up to 2.4e-4 σ
-apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution,
-s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of
-consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
-consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
-wheels share the chassis velocity's estimate and its error in their slips. It assumes the model right (no bias:
-combined slip, camber thrust, relaxation length and the filters' lag are not modelled), the slips and loads exact
-but for noise (errors in α and κ bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor
-files), the residual stationary with one variance, J alike for the wheels of one instant, and the solution inside
-its bounds (a parameter at a bound gets no σ).
+apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution, s² = ‖r‖² / (n - p),
+and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of consecutive samples, summed
+while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so consecutive residuals are not
+independent; times the simultaneity factor (`simultaneity_factor`): an axle's two wheels share the chassis
+velocity's estimate and its error in their slips. It assumes the model right (no bias: combined slip, camber thrust,
+relaxation length and the filters' lag are not modelled), the slips and loads exact but for noise (errors in α and κ
+bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor files), the residual stationary with
+one variance, J alike for the wheels of one instant, and the solution inside its bounds (a parameter at a bound gets
+no σ).
 """
 
 from __future__ import annotations
@@ -123,11 +128,47 @@ class TireSamples:
         """self's samples then other's."""
         return TireSamples(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in _FIELDS))
 
-    def select(self, mask: Array) -> TireSamples:
-        return TireSamples(*(getattr(self, f)[mask] for f in _FIELDS))
+    def select(self, mask: Array, fields: Sequence[str] | None = None) -> TireSamples:
+        """The samples of mask (a boolean mask, indices or a slice). fields: the measured fields to copy (default:
+        all); the others, and those absent here, are `_absent` (a NaN view of no memory): a fit's selection
+        carries what it reads."""
+        keys = [getattr(self, f)[mask] for f in _KEYS]
+        n = len(keys[0])
+        measured = [getattr(self, f) for f in _FIELDS[len(_KEYS):]]
+        return TireSamples(*keys, *(_absent(n) if _is_absent(a) or (fields is not None and f not in fields)
+                                    else a[mask] for f, a in zip(_FIELDS[len(_KEYS):], measured, strict=True)))
+
+    @staticmethod
+    def ordered(parts: Sequence[TireSamples]) -> TireSamples:
+        """The parts' samples, merged in turn (`merge`) and sorted by test, wheel and time as the fit takes them
+        (a stable sort: the same as merging them then sorting), each field gathered once: no intermediate merge,
+        and the fit then makes no sorted copy."""
+        if not parts:
+            return empty_samples()
+        keys = [np.concatenate([getattr(s, f) for s in parts]) for f in ("t", "corner")]
+        order = np.lexsort((*keys, np.concatenate([_test_codes(s.test, _test_names(parts)) for s in parts])))
+        del keys  # the keys' arrays let go before the fields' are gathered
+        return TireSamples(*(np.concatenate([getattr(s, f) for s in parts])[order] for f in _FIELDS))
 
 
 _FIELDS = ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")
+_KEYS = ("test", "corner", "t")  # a sample's test, wheel and time: every selection carries them
+LATERAL_FIELDS = ("alpha", "fy", "fz")  # what the lateral fits read (`fit_lateral`, `fit_tire`)
+LONGITUDINAL_FIELDS = ("kappa", "vx", "fx", "fz")  # and the longitudinal ones (`fit_longitudinal`)
+
+
+_NAN = np.array(np.nan)  # the one value every absent field views
+_NAN.flags.writeable = False
+
+
+def _absent(n: int) -> Array:
+    """A field a selection does not carry: n NaNs, read-only, in no memory (a broadcast view of _NAN)."""
+    return np.broadcast_to(_NAN, (n,))
+
+
+def _is_absent(a: Array) -> bool:
+    """Whether a is an `_absent` field (a view of _NAN: not any broadcast array a caller may give)."""
+    return isinstance(a, np.ndarray) and a.strides == (0,) and np.may_share_memory(a, _NAN)
 
 
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
@@ -294,28 +335,132 @@ def _least_squares(fun, starts: Sequence[Array], lower: Array, upper: Array, nam
             best = r
     if best is None:
         raise TireCurveError("the tire curve fit found no finite solution from any start")
-    n, p = len(best.fun), len(best.x)
+    J = best.jac
+
+    def gram(free: Array) -> Array:
+        Jf = J[:, free]
+        return Jf.T @ Jf
+
+    return _fit_at(best.x, best.fun, gram, lower, upper, names, runs, fixed, instants)
+
+
+def _fit_at(x: Array, r: Array, gram, lower: Array, upper: Array, names: list[str], runs: Array | None,
+            fixed: dict[str, float], instants: Array | None) -> Fit:
+    """The fit at its solution x: residual r (n,), gram(free) JᵀJ of the free parameters' columns (those not at a
+    bound), σ as the module doc says."""
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    n, p = len(r), len(x)
     if n <= p:
         raise TireCurveError(f"the tire curve fit has {n} samples for {p} parameters")
-    s2 = float(best.fun @ best.fun) / (n - p)
-    tau = autocorrelation_factor(best.fun, runs) * simultaneity_factor(best.fun, instants)
-    J = best.jac
+    s2 = float(r @ r) / (n - p)
+    tau = autocorrelation_factor(r, runs) * simultaneity_factor(r, instants)
     tol = 1e3 * margin
-    near = np.isfinite(span) & ((best.x - lower <= tol) | (upper - best.x <= tol))
+    near = np.isfinite(span) & ((x - lower <= tol) | (upper - x <= tol))
     cov = np.full((p, p), np.nan)
     free = ~near
     if free.any():
-        Jf = J[:, free]
         try:
-            cf = np.linalg.pinv(Jf.T @ Jf) * s2 * tau
+            cf = np.linalg.pinv(gram(free)) * s2 * tau
         except np.linalg.LinAlgError:
             cf = np.full((free.sum(), free.sum()), np.nan)
         idx = np.flatnonzero(free)
         cov[np.ix_(idx, idx)] = cf
     cov[near, :] = 0.0
     cov[:, near] = 0.0
-    return Fit(names, best.x, cov, math.sqrt(float(best.fun @ best.fun) / n), tau, n, fixed,
+    return Fit(names, x, cov, math.sqrt(float(r @ r) / n), tau, n, fixed,
                [nm for nm, b in zip(names, near, strict=True) if b])
+
+
+BLOCK = 2**15  # rows of a block of the polish on every sample: its Jacobian 0.25 MB per parameter
+BLOCKS_ABOVE = 2 * BLOCK  # fits on more samples than this are polished in blocks (an hour's: 46k-145k)
+STEP_SIGMA = 1e-7  # the polish stops when its next step moves the parameters by less than this many σ
+MAX_STEPS = 50
+
+
+def _least_squares_rows(problem, n: int, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
+                        runs: Array | None, fixed: dict[str, float], instants: Array | None = None) -> Fit:
+    """`_least_squares` of problem(rows) -> (fun, jac), the residual and Jacobian of those rows (a slice) of the
+    n samples: on more than BLOCKS_ABOVE, polished in blocks (`_polish_in_blocks`), else (or when that declines)
+    scipy's solver on all rows."""
+    if n > BLOCKS_ABOVE:
+        fit = _polish_in_blocks(problem, n, starts, lower, upper, names, runs, fixed, instants)
+        if fit is not None:
+            return fit
+    fun, jac = problem(slice(None))
+    return _least_squares(fun, starts, lower, upper, names, runs, fixed, instants, jac)
+
+
+def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, upper: Array, names: list[str],
+                      runs: Array | None, fixed: dict[str, float], instants: Array | None) -> Fit | None:
+    """The best of the starts' Levenberg-Marquardt descents with JᵀJ, Jᵀr and rᵀr summed block by block (BLOCK rows at a
+    time): beyond the residual (n,) the memory is a block's, where scipy's solver holds J (n × p), its scaled copy,
+    the SVD's U and the residuals (an hour's longitudinal fit of 145k samples: ~20 MB). Each descent steps until its
+    Gauss-Newton step would move the parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z²
+    s², z in σ without τ): the optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to
+    sqrt(1e-8 n) σ short of it. The starts are the ends of descents on a subsample (or a closed-form optimum): 1-4
+    steps. None (the caller then runs scipy's solver on all rows) when a step would leave the bounds' interior (a
+    parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in MAX_STEPS."""
+    blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
+    span = upper - lower
+    margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+    inner_lo, inner_hi = lower + 1e3 * margin, upper - 1e3 * margin  # `_fit_at`'s "at a bound" left out
+
+    def sums(x: Array) -> tuple[Array, Array, float]:
+        A, g, c = np.zeros((len(x), len(x))), np.zeros(len(x)), 0.0
+        for b in blocks:
+            fun, jac = problem(b)
+            r, J = fun(x), jac(x)
+            A += J.T @ J
+            g += J.T @ r
+            c += float(r @ r)
+        return A, g, 0.5 * c
+
+    best = None
+    for x0 in starts:
+        x = np.clip(np.asarray(x0, dtype=float), lower + margin, upper - margin)
+        if np.any(x <= inner_lo) or np.any(x >= inner_hi):
+            return None
+        A, g, c = sums(x)
+        lam, done = 0.0, False
+        for _ in range(MAX_STEPS):
+            if not (np.isfinite(c) and np.all(np.isfinite(A)) and np.all(np.isfinite(g))):
+                return None
+            d = np.sqrt(np.diag(A))
+            d[d == 0] = 1.0
+            As, gs = A / np.outer(d, d), g / d
+            try:
+                h = np.linalg.solve(As + lam * np.eye(len(x)), -gs)
+            except np.linalg.LinAlgError:
+                return None
+            s2 = 2 * c / max(n - len(x), 1)
+            if lam == 0.0 and -(gs @ h) <= STEP_SIGMA**2 * s2:  # the Gauss-Newton step's ½ z² s² (z in σ)
+                done = True
+                break
+            xn = x + h / d
+            if np.any(xn <= inner_lo) or np.any(xn >= inner_hi):
+                return None
+            An, gn, cn = sums(xn)
+            # a Gauss-Newton step whose predicted change of the cost is below the cost's own rounding (rᵀr summed:
+            # 1e-13 of it and more) is taken on the gradient's word: the cost cannot tell it from no change
+            blind = lam == 0.0 and -(gs @ h) <= 1e-10 * c
+            if np.isfinite(cn) and (cn <= c or blind):
+                x, A, g, c, lam = xn, An, gn, cn, (0.0 if lam <= 1e-6 else lam / 10)
+            else:
+                lam = 1e-3 if lam == 0.0 else 10 * lam
+                if lam > 1e8:
+                    return None
+        if not done:
+            return None
+        if best is None or c < best[2]:
+            best = (x, A, c)
+    if best is None:
+        return None
+    x, A, _ = best
+    r = np.empty(n)
+    for b in blocks:
+        r[b] = problem(b)[0](x)
+    return _fit_at(x, r, lambda free: A[np.ix_(free, free)], lower, upper, names, runs, fixed, instants)
 
 
 def fit_magic_formula(x: Array, F: Array, runs: Array | None = None, E: float | None = None) -> Fit:
@@ -490,11 +635,20 @@ def _instants(s: TireSamples) -> Array:
     return np.unique(test * (int(micro.max()) + 1) + micro, return_inverse=True)[1]
 
 
-def _test_codes(test: Array) -> Array:
+def _test_names(parts: Sequence[TireSamples]) -> list:
+    """The tests' names of every part, sorted as strings (`_test_codes`' order)."""
+    return sorted(set().union(*(set(s.test.tolist()) for s in parts)), key=str)
+
+
+def _test_codes(test: Array, names: list | None = None) -> Array:
     """Per sample, its test name's index among the names sorted (int64): the order of the names as strings, without
-    converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls)."""
+    converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls).
+    names: the sorted names to index in (default: test's own). Integers are such indices already (the fit's
+    selections carry them: `_fit_tire_curves`)."""
     test = np.asarray(test)
-    names = sorted(set(test.tolist()), key=str)
+    if test.dtype.kind in "iu":
+        return test.astype(np.int64)
+    names = sorted(set(test.tolist()), key=str) if names is None else names
     codes = np.zeros(len(test), dtype=np.int64)
     for i, name in enumerate(names[1:], 1):  # a few tests: one comparison pass each
         codes[test == name] = i
@@ -502,9 +656,20 @@ def _test_codes(test: Array) -> Array:
 
 
 def _ordered(s: TireSamples) -> TireSamples:
-    """The samples sorted by test, wheel and time (segments arrive in any order from the workers)."""
-    order = np.lexsort((s.t, s.corner, _test_codes(s.test)))
-    return s.select(order)
+    """The samples sorted by test, wheel and time (segments arrive in any order from the workers); s itself when
+    it is so already (a stable sort leaves it as it is: no copy of an hour's samples)."""
+    codes = _test_codes(s.test)
+    if _sorted(codes, s.corner, s.t):
+        return s
+    return s.select(np.lexsort((s.t, s.corner, codes)))
+
+
+def _sorted(codes: Array, corner: Array, t: Array) -> bool:
+    """Whether the keys (test code, wheel, time) never decrease from one sample to the next."""
+    if len(t) < 2:
+        return True
+    dc, dk, dt = np.diff(codes), np.diff(corner), np.diff(t)
+    return bool(np.all((dc > 0) | ((dc == 0) & ((dk > 0) | ((dk == 0) & (dt >= 0))))))
 
 
 def free_rolling_slip(s: TireSamples) -> Array:
@@ -605,8 +770,7 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     lower, upper = np.array([1e-3, -0.1] + ([-0.9] if load else [])), np.array([200.0, 0.1] + ([5.0] if load else []))
     if len(a) >= 2 * SUBSAMPLE:  # the descent from the axle's values on a subsample, polished on all (as the axle's)
         starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
-    fun, jac = problem(slice(None))
-    fit = _least_squares(fun, starts, lower, upper, names, _runs(s), fixed, jac=jac)
+    fit = _least_squares_rows(problem, len(a), starts, lower, upper, names, _runs(s), fixed)
     return LateralCurve(fit, axle.fz0, True, (float(a.min()), float(a.max())), (float(fz.min()), float(fz.max())),
                         axle.peak_reached, float(np.mean(fz)))
 
@@ -661,8 +825,7 @@ def _fit_magic_lateral(a: Array, fz: Array, fy: Array, fz0: float, load: bool, r
     lower, upper = np.array([lo[n] for n in names]), np.array([hi[n] for n in names])
     if len(a) >= 2 * SUBSAMPLE:  # the starts' descents on a subsample, the one basin (or the few) polished on all
         starts = _subsample_ends(*problem(slice(None, None, len(a) // SUBSAMPLE)), starts, lower, upper)
-    fun, jac = problem(slice(None))
-    return _least_squares(fun, starts, lower, upper, names, runs, fixed, instants, jac)
+    return _least_squares_rows(problem, len(a), starts, lower, upper, names, runs, fixed, instants)
 
 
 SUBSAMPLE = 8000  # samples of a multi-start's descents: every k-th of an hour's ~46k per axle
@@ -700,17 +863,31 @@ def _subsample_ends(fun, jac, starts: Sequence[Array], lower: Array, upper: Arra
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
     """Fx = -Kx (κ - κ0(Fz)) on these (pure longitudinal) samples and the free-rolling samples `free` (|Fx| <=
     FREE_ROLLING Fz at any slip angle: they fix the free-rolling slip's load line κ0(Fz); module doc)."""
-    if len(s) < MIN_POINTS:
-        raise TireCurveError(f"{len(s)} pure-slip samples: the longitudinal law needs at least {MIN_POINTS}")
-    if np.ptp(s.kappa) < 0.005:
-        raise TireCurveError(f"the slip ratio spans {np.ptp(s.kappa):.4f}: no braking or traction in these tests")
+    if free is None or len(free) == 0:
+        both, pure = _ordered(s), np.ones(len(s), dtype=bool)
+    else:
+        both = s.merge(free)
+        pure = np.r_[np.ones(len(s), dtype=bool), np.zeros(len(free), dtype=bool)]
+        order = np.lexsort((both.t, both.corner, _test_codes(both.test)))  # stable: at one key, s's sample first
+        both, pure = both.select(order), pure[order]
+    return _fit_longitudinal(both, pure)
+
+
+def _fit_longitudinal(both: TireSamples, pure: Array) -> LongitudinalLaw:
+    """`fit_longitudinal` on its samples and the free-rolling ones together, ordered by test, wheel and time (both),
+    pure: which are the pure longitudinal ones. One selection of the wheels' samples, not two then their merge."""
+    k_pure, fx_pure, fz_pure = both.kappa[pure], both.fx[pure], both.fz[pure]
+    if len(k_pure) < MIN_POINTS:
+        raise TireCurveError(f"{len(k_pure)} pure-slip samples: the longitudinal law needs at least {MIN_POINTS}")
+    if np.ptp(k_pure) < 0.005:
+        raise TireCurveError(f"the slip ratio spans {np.ptp(k_pure):.4f}: no braking or traction in these tests")
     # the stiffness is seen only where the wheel brakes or drives: the free-rolling samples fix κ0 alone. Its
     # nominal load and whether a load term is fitted come from those samples' loads, not from all: over all, the
     # spiral's load transfer (free rolling) spread the loads, a load term was fitted from one braking's nearly
     # constant load, and the stiffness at the mean of all loads was an extrapolation through it (+8 % front,
     # +14 % rear on the MuJoCo car's noise/, pKx2 on its bound)
-    slipping = np.abs(s.fx) >= SLIPPING * s.fz
-    seen = s.fz[slipping] if slipping.sum() >= MIN_POINTS else s.fz
+    slipping = np.abs(fx_pure) >= SLIPPING * fz_pure
+    seen = fz_pure[slipping] if slipping.sum() >= MIN_POINTS else fz_pure
     fz0 = float(np.mean(seen))
     lo, hi = np.quantile(seen, [0.1, 0.9])  # the ramps' few samples between two loads do not make a spread
     load = float((hi - lo) / fz0) >= LOAD_SPREAD
@@ -718,7 +895,6 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
     # free-rolling slip moves with the load (dynid's 406: -0.005 per kN), and a braking's load transfer then moved
     # the front slips one way and the rear's the other (+8 % and -14 % in Kx on the demo). The free-rolling
     # samples of every test (the spiral's and the sine's lateral load transfer) give that line
-    both = _ordered(s if free is None or len(free) == 0 else s.merge(free))
     k, fz, fx = both.kappa, both.fz, both.fx
     rolling = np.abs(fx) <= FREE_ROLLING * fz
     fzf = float(np.mean(fz[rolling])) if rolling.sum() >= MIN_POINTS else fz0
@@ -733,32 +909,40 @@ def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> Longitu
     # residual weighted by the speed over 20 m/s: the slip's noise goes as 1/v
     weight = both.vx / 20.0
 
-    load_free, load_nominal = fz / fzf - 1, fz / fz0 - 1  # the same every call: once
+    def problem(rows: slice) -> tuple:
+        k_, fz_, fx_, weight_ = k[rows], fz[rows], fx[rows], weight[rows]
+        load_free, load_nominal = fz_ / fzf - 1, fz_ / fz0 - 1  # the same every call: once
 
-    def fun(v: Array) -> Array:
-        p = {**fixed, **dict(zip(names, v, strict=True))}
-        # a term held at 0 adds nothing: left out (its product is ±0, its sum the other term: the same bits)
-        k0 = p["kappa0"] + p["kappa0_fz"] * load_free if radius_load else p["kappa0"]
-        kx = p["kx0"] * fz * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz
-        return (k0 - fx / kx - k) * weight
+        def fun(v: Array) -> Array:
+            p = {**fixed, **dict(zip(names, v, strict=True))}
+            # a term held at 0 adds nothing: left out (its product is ±0, its sum the other term: the same bits)
+            k0 = p["kappa0"] + p["kappa0_fz"] * load_free if radius_load else p["kappa0"]
+            kx = p["kx0"] * fz_ * (1 + p["pKx2"] * load_nominal) if load else p["kx0"] * fz_
+            return (k0 - fx_ / kx - k_) * weight_
 
-    def jac(v: Array) -> Array:
-        p = {**fixed, **dict(zip(names, v, strict=True))}
-        g = 1 + p["pKx2"] * load_nominal if load else 1.0
-        fx_kx = fx / (p["kx0"] * fz * g)  # the residual's fx / Kx
-        cols = {"kx0": fx_kx * weight / p["kx0"], "kappa0": weight,
-                "pKx2": fx_kx * weight * load_nominal / g if load else None,
-                "kappa0_fz": load_free * weight}
-        return np.stack([cols[n] for n in names], axis=1)
+        def jac(v: Array) -> Array:
+            p = {**fixed, **dict(zip(names, v, strict=True))}
+            g = 1 + p["pKx2"] * load_nominal if load else 1.0
+            fx_kx = fx_ / (p["kx0"] * fz_ * g)  # the residual's fx / Kx
+            cols = {"kx0": fx_kx * weight_ / p["kx0"], "kappa0": weight_,
+                    "pKx2": fx_kx * weight_ * load_nominal / g if load else None,
+                    "kappa0_fz": load_free * weight_}
+            return np.stack([cols[n] for n in names], axis=1)
 
-    fit = _least_squares(fun, [_longitudinal_start(k, fz, fx, weight, load_free, load, radius_load)],
-                         np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
-                         np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
-                         names, _runs(both), fixed, _instants(both), jac)
-    law = LongitudinalLaw(fit, fz0, (float(s.kappa.min()), float(s.kappa.max())),
-                          (float(s.fz.min()), float(s.fz.max())), fzf)
+        return fun, jac
+
+    # the start: the closed-form optimum (without the load term) on every k-th sample when they are many (its
+    # matrix n x 3 and the solver's copies of it), polished on all in blocks (`_least_squares_rows`)
+    sub = slice(None, None, max(1, len(k) // SUBSAMPLE)) if len(k) > BLOCKS_ABOVE else slice(None)
+    start = _longitudinal_start(k[sub], fz[sub], fx[sub], weight[sub], fz[sub] / fzf - 1, load, radius_load)
+    fit = _least_squares_rows(problem, len(k), [start],
+                              np.array([1e-3, -0.1] + ([-0.9] if load else []) + ([-0.5] if radius_load else [])),
+                              np.array([1e3, 0.1] + ([5.0] if load else []) + ([0.5] if radius_load else [])),
+                              names, _runs(both), fixed, _instants(both))
+    law = LongitudinalLaw(fit, fz0, (float(k_pure.min()), float(k_pure.max())),
+                          (float(fz_pure.min()), float(fz_pure.max())), fzf)
     if slipping.any():
-        law.kappa_seen = float(np.mean(np.abs(s.kappa[slipping] - law.free_rolling_slip_at(s.fz[slipping]))))
+        law.kappa_seen = float(np.mean(np.abs(k_pure[slipping] - law.free_rolling_slip_at(fz_pure[slipping]))))
     return law
 
 
@@ -957,20 +1141,26 @@ def _lateral_dict(c: LateralCurve) -> dict:
     return out
 
 
-def slip_reach(s: TireSamples) -> list[dict]:
-    """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads."""
+def slip_reach(s: TireSamples, codes: Array | None = None) -> list[dict]:
+    """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads. codes: the
+    samples' `_test_codes` when the caller has them (compared, not the names: 20 ms per 100k names)."""
     out = []
-    fast = s.select(s.vx >= MIN_SPEED)
-    for test in dict.fromkeys(fast.test.tolist()):
+    fast = s.vx >= MIN_SPEED  # a mask, not a copy of the samples
+    names = _test_names([s])
+    codes = _test_codes(s.test, names) if codes is None else codes
+    _, first = np.unique(codes[fast], return_index=True)
+    for c in codes[fast][np.sort(first)]:  # the tests in the order they first come
+        test = names[c]
+        of_test = fast & (codes == c)
         for k, tag in enumerate(CORNER_TAGS):
-            m = (fast.test == test) & (fast.corner == k)
+            m = of_test & (s.corner == k)
             if not m.any():
                 continue
             out.append({"test": test, "wheel": tag,
-                        "alpha_deg": [float(np.degrees(fast.alpha[m].min())), float(np.degrees(fast.alpha[m].max()))],
-                        "kappa": [float(fast.kappa[m].min()), float(fast.kappa[m].max())],
-                        "fz_N": [float(fast.fz[m].min()), float(fast.fz[m].max())],
-                        "inclination_deg": float(np.degrees(np.max(np.abs(fast.gamma[m]))))})
+                        "alpha_deg": [float(np.degrees(s.alpha[m].min())), float(np.degrees(s.alpha[m].max()))],
+                        "kappa": [float(s.kappa[m].min()), float(s.kappa[m].max())],
+                        "fz_N": [float(s.fz[m].min()), float(s.fz[m].max())],
+                        "inclination_deg": float(np.degrees(np.max(np.abs(s.gamma[m]))))})
     return out
 
 
@@ -1007,13 +1197,15 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int | No
         return _fit_tire_curves(samples, wheel_radius, workers or min(2, os.cpu_count() or 1))
 
 
-def _lateral_chain(lat: TireSamples, axle: str, corners: tuple[int, ...]) -> list[tuple[str, str, object]]:
-    """The axle's lateral law, then each of its tires' (which take the axle's shape): (kind, key, curve or the
-    reason it is missing), in the order the results list them."""
+def _lateral_chain(s: TireSamples, mask: Array, axle: str, corners: tuple[int, ...]) -> list[tuple[str, str, object]]:
+    """The axle's lateral law on s's samples of mask (its pure lateral slip), then each of its tires' (which take
+    the axle's shape): (kind, key, curve or the reason it is missing), in the order the results list them. The
+    samples selected here, when the task runs: not every task's held from the start."""
     out: list[tuple[str, str, object]] = []
     curve = None
+    lat = s.select(mask, LATERAL_FIELDS)
     try:
-        curve = fit_lateral(lat.select(np.isin(lat.corner, corners)))
+        curve = fit_lateral(lat)
         out.append(("lateral", axle, curve))
     except TireCurveError as exc:
         out.append(("missing", f"{axle} lateral", str(exc)))
@@ -1025,10 +1217,19 @@ def _lateral_chain(lat: TireSamples, axle: str, corners: tuple[int, ...]) -> lis
     return out
 
 
-def _longitudinal_one(lon: TireSamples, rolling: TireSamples, kind: str, key: str, missing: str
+def _longitudinal_one(s: TireSamples, pure: Array, rolling: Array, kind: str, key: str, missing: str
                       ) -> tuple[str, str, object]:
+    """`fit_longitudinal` on s's samples of the masks pure (pure longitudinal slip) and rolling (free rolling, the
+    others): one selection of both, in s's order (that of test, wheel and time), made when the task runs."""
+    both = pure | rolling
+    sel = s.select(both, LONGITUDINAL_FIELDS)
+    if len(sel) > 1 and np.any(sel.t[1:] == sel.t[:-1]):  # two samples at one key: the pure one first, as merged
+        order = np.lexsort((~pure[both], sel.t, sel.corner, _test_codes(sel.test)))
+        sel, both = sel.select(order), pure[both][order]
+    else:
+        both = pure[both]
     try:
-        return kind, key, fit_longitudinal(lon, rolling)
+        return kind, key, _fit_longitudinal(sel, both)
     except TireCurveError as exc:
         return "missing", missing, str(exc)
 
@@ -1036,21 +1237,35 @@ def _longitudinal_one(lon: TireSamples, rolling: TireSamples, kind: str, key: st
 def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1) -> TireCurves:
 
     t0, c0 = time.perf_counter(), time.process_time()
-    s = _ordered(samples)
-    out = TireCurves(wheel_radius, reach=slip_reach(s))
+    # each test as its index among the names sorted (`_test_codes`), once: for the order, the reach and the tasks
+    names = _test_names([samples])
+    codes = _test_codes(samples.test, names)
+    s = samples
+    if not _sorted(codes, s.corner, s.t):  # `_ordered`
+        order = np.lexsort((s.t, s.corner, codes))
+        s, codes = s.select(order), codes[order]
+    out = TireCurves(wheel_radius, reach=slip_reach(s, codes))
     # the pure lateral slip's samples (`pure_lateral`), the wheels' free-rolling slips found once for them and for
     # the samples kept
     pure_y = np.abs(s.kappa - free_rolling_slip(s)) <= KAPPA_PURE
-    lat, lon = s.select(pure_y & (s.vx >= MIN_SPEED) & (s.fz > 0)), pure_longitudinal(s)
+    fast = (s.vx >= MIN_SPEED) & (s.fz > 0)
+    # masks of s, each task selecting its samples when it runs (`pure_lateral`, `pure_longitudinal`): selected all
+    # at once, the tasks' copies were 3 times the samples (an hour's 290k: 70 MB)
+    lat, lon = pure_y & fast, (np.abs(s.alpha) <= ALPHA_PURE) & fast
     # the free-rolling samples at any slip angle (those of lon left out: each sample once): κ0's load line
-    rolling = s.select((np.abs(s.fx) <= FREE_ROLLING * s.fz) & (s.vx >= MIN_SPEED) & (s.fz > 0)
-                       & (np.abs(s.alpha) > ALPHA_PURE))
+    rolling = (np.abs(s.fx) <= FREE_ROLLING * s.fz) & fast & (np.abs(s.alpha) > ALPHA_PURE)
+    # the tasks' selections from the samples with each test as its index among the names sorted and the wheel as a
+    # byte (`_test_codes`): an hour's object names cost 8 bytes a sample in every copy, and their comparisons 20 ms
+    # per 100k; the measured fields shared, not copied
+    coded = TireSamples(codes.astype(np.min_scalar_type(len(names))), s.corner.astype(np.int8),
+                        *(getattr(s, f) for f in _FIELDS[2:]))
     # the fits, each axle's lateral chain first (the longest), then the longitudinal laws
-    tasks = [(_lateral_chain, lat, axle, corners) for axle, corners in AXLES.items()]
+    tasks = [(_lateral_chain, coded, lat & np.isin(s.corner, corners), axle, corners)
+             for axle, corners in AXLES.items()]
     for axle, corners in AXLES.items():
-        tasks.append((_longitudinal_one, lon.select(np.isin(lon.corner, corners)),
-                      rolling.select(np.isin(rolling.corner, corners)), "longitudinal", axle, f"{axle} longitudinal"))
-        tasks += [(_longitudinal_one, lon.select(lon.corner == k), rolling.select(rolling.corner == k),
+        on = np.isin(s.corner, corners)
+        tasks.append((_longitudinal_one, coded, lon & on, rolling & on, "longitudinal", axle, f"{axle} longitudinal"))
+        tasks += [(_longitudinal_one, coded, lon & (s.corner == k), rolling & (s.corner == k),
                    "longitudinal_per_tire", CORNER_TAGS[k], f"tire {CORNER_TAGS[k]} longitudinal") for k in corners]
     if workers > 1:
         with ThreadPoolExecutor(min(workers, len(tasks))) as pool:
