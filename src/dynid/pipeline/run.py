@@ -421,6 +421,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     per_test = {t: p for (role, t), p in parts.items() if role == "identify"}
     parts = {role: tree_fold([p for (r, _), p in parts.items() if r == role], combine)
              for role in dict.fromkeys(r for r, _ in parts)}
+    # the tests' own wheel samples let go once folded (the tire fit takes the fold's; "without each test" needs
+    # none): not held twice, nor merged again for each test left out
+    per_test = {t: dataclasses.replace(p, tires=None) for t, p in per_test.items()}
     ident, rows = StreamingLS(names, **kw).merge(parts["identify"].ls), parts["identify"].rows
     errors = parts["identify"].errors
     cross = StreamingLS(names, **kw).merge(parts["validate"].ls) if "validate" in parts else None
