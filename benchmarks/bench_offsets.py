@@ -70,6 +70,31 @@ Measured 2026-11-29 (14:12-14:15 UTC, a quiet machine: load 1.1-1.8; main with h
 tree's own script, `--minutes 10 --rounds 1 --modes estimated none`, 2 alternations): ffe91d6 estimated 12.26, 12.54
 against none 6.83, 8.15 (+79 %, +54 %); this tree 9.70, 10.77 against 7.24, 6.96 (+34 %, +55 %): the estimated runs
 10.2 against 12.4 s (-18 %); the offsets add ~+45 % at 10 min (the 'none' runs, the same code, spread by 19 %).
+
+Then (h-offs, 2026-11-29, load 3-9 throughout): one 60 s segment of the 10 min log (process_time, min of 7):
+offset_residuals 0.25-0.29 s against 0.075-0.087 s for the segment's joints and rows; of it the 24 loads 17 ms, the 5
+attitude passes 133-150 ms (each ~29 ms, line profile: the attitude 11, the tire poses' kinematics and spline 3.4 and
+4.5, the heights 4, the velocity and deflections 7: a dozen NumPy passes over the 38k samples each), the 7 other
+staged passes 17-20 ms, the 12 moved trajectories' rows 68-76 ms (per trajectory `CarResidual` 3.1 ms: the regressor
+1.2, its live sums and copies 1.6; the aerodynamic wrench 1.7 for 9 of them). A moved pass's joints now keep the
+columns the stages write as views (42.5 MB of copies per segment: `_Moved` 7.0-7.2 -> 0.9-1.0 ms; offset_residuals'
+peak 78.7 -> 83.0 MB by tracemalloc, the views holding their stages' arrays; the columns C equal to the bit, the
+car-truth tables and the MuJoCo car's results unchanged). Tried and dropped: the 5 attitude passes side by side (the
+stages as generators of their low-pass requests, each request of all five in one call: C equal to the bit; their
+low-passes 36 -> 30 ms in 27 -> 8 calls, the calls not as latency-bound as alone in a bench, while the five passes'
+arrays alive together (+42 MB at offset_residuals' peak, 79 -> 121 MB by tracemalloc) made the passes slower in each
+of 4 alternations, 147-169 -> 162-181 ms); an attitude pass's tire poses as row 2 of its 0R6 times the tire frames in
+frame 6 (kept from the pass): the forward kinematics' 2.6 ms per pass, but the frames in frame 6 need its whole rows
+once per segment (5.8 ms: ~4 ms saved in all) and C's columns moved by up to 8e-10 of their scale (the pitch rate's:
+their round-off redrawn, no longer the same operations as the segment's own pass); the spline evaluated in NumPy
+(equal to the bit): 4.2-4.7 against SciPy's 1.6 ms. This benchmark (each tree's own script, `--minutes 10 --rounds 1
+--modes estimated none`, 4 alternations, load 5-9; CPU s, min): 17cb88d estimated 10.39 against none 6.57 (+58 %),
+h-offs 9.59 against 6.64 (+44 %); the 'none' runs, the same code, spread over 6.57-8.54 s: the change, ~2 % of the
+offsets' work, is below this machine's noise. Where an hour stands (17cb88d, `--minutes 60 --rounds 1 --modes
+estimated none`, load 7.1): estimated 37.95 s against none 19.04 s (+99 %). 30 % there is 0.095 s of offsets per 60 s
+segment, against 0.26-0.29 s above (0.31 s in the hour's run): only compiled stages would reach it (the attitude pass
+in one kernel: its sin, cos and tan then differ from NumPy's at round-off, so the main pass must run it too, and C's
+round-off is redrawn as above; W x without W for the rows).
 """
 
 from __future__ import annotations

@@ -221,6 +221,26 @@ def test_the_moved_stages_on_every_kth_sample_are_the_whole_rates(noisy):
         assert np.array_equal(coarse.qd[:, cols], whole.qd[:, cols]), q
 
 
+def test_the_moved_passes_share_no_array_they_write(noisy):
+    """A moved pass keeps the columns its stages write as they come (views of the stages' own arrays, `_Moved`):
+    the segment's pass is left as it was, to the bit, by all of them, and each moved trajectory, made first, is
+    made again to the bit after all the others (no pass wrote into an array another one holds)."""
+    from dynid.pipeline.car import coarse_step
+
+    _, setup, fs, channels, _, joints, _ = segment(noisy, 0)
+    k = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
+    arrays = {n: v.copy() for n, v in vars(joints).items() if isinstance(v, np.ndarray)}
+    moves = [(q, 1e-3 * max(1.0, np.abs(channels[q]).max())) for q in channels if joints.movable(q)]
+    first = {(q, e): joints.moved(q, b, every=e) for q, b in moves for e in (1, k)}
+    for (q, e), made in first.items():
+        again = joints.moved(q, dict(moves)[q], every=e)
+        made, again = (m.traj if e > 1 else m for m in (made, again))
+        for name in ("q", "qd", "qdd", "wheel_wrenches"):
+            assert np.array_equal(getattr(made, name), getattr(again, name)), (q, e, name)
+    for n, v in arrays.items():
+        assert np.array_equal(vars(joints)[n], v), n
+
+
 def test_the_loads_rows_are_the_engines(noisy):
     """`load_rows` (the wheel wrench's generalized force, J_tᵀ w at the contact point) equals the engine's change
     of Y for a unit step of each of the 24 wheel-wrench components (Y is linear in them: to round-off of Y's
