@@ -418,15 +418,6 @@ def test_the_validation_figures_drawn_apart_are_the_ones_drawn_here(robot):
         png for _, png in here]
 
 
-def test_the_tire_figure_drawn_apart_is_the_one_drawn_here(car):
-    """build_report draws a car's tire figure in a second forked process: figure_tires.png is the bytes tire_figure
-    gives in this process."""
-    from dynid.report.tires import tire_figure
-
-    run, out = car
-    assert (out / "figure_tires.png").read_bytes() == tire_figure(run.tires)
-
-
 def test_the_robot_report_has_units_and_per_joint_plots(robot):
     _, out = robot
     page = parse(out / "report.html")

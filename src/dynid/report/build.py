@@ -852,14 +852,6 @@ def build_report(run, title: str) -> Report:
     # and builds the tables; pyplot imported first, so that the child has it
     preload()
     vfigs_apart = Apart(lambda: validation_figures(signals, tree, run.residual_rms, chassis, split, axes))
-    tires = getattr(run, "tires", None)
-    if tires is not None:
-        # the tire figure in a second child: its scatter grows with the data (CPU 0.3 s for the quick demo, 0.7 s
-        # for 10 min, 2 s for an hour), the longest part of what this process drew beside the first child
-        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
-        from .tires import tire_figure, tire_section
-
-        tires_apart = Apart(lambda: tire_figure(tires))
     if is_car:
         quantities, kind, vehicle, values = car_engineering(run)
         out_sections.append(engineering_section(run, quantities, kind, vehicle, values))
@@ -886,11 +878,14 @@ def build_report(run, title: str) -> Report:
                                  "estimate, its 95 % band, the truth where known, the knees", dampers[1]))
             out_sections.append(Section(dampers[0].heading, dampers[0].text, figures=[figs_written[-1][1:]],
                                         tables=dampers[0].tables, anchor=dampers[0].anchor))
-    pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])  # drawn while the tires' child draws
-    if tires is not None:  # the tire characteristics (vehicle.tire_curves)
-        section, tire_files = tire_section(tires, tires_apart.result())
+    if getattr(run, "tires", None) is not None:  # the tire characteristics (vehicle.tire_curves)
+        # start-up: a car's alone (the vehicle package, scipy.interpolate and optimize: 18 MB not on a robot's path)
+        from .tires import tire_section
+
+        section, tire_files = tire_section(run.tires)
         out_sections.append(section)
         files.update(tire_files)
+    pfig = parameter_figure([(t, rows) for t, rows in _parameter_rows(run)])
     figs_written.append(("figure_parameters.png", "Each estimate's 95 % interval with the a priori and the "
                          "truth, as a difference from the estimate in % of the parameter's scale", pfig))
     out_sections.append(Section("Estimated parameters", _frame_text(run), tables=parameter_tables(run),

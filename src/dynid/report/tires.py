@@ -96,9 +96,8 @@ def reach_table(tires) -> Table:
                  caption="Which test reaches which part of the curves (speed above 10 m/s)")
 
 
-def tire_section(tires, png: bytes | None = None) -> tuple[Section, dict[str, str | bytes]]:
-    """The report's section and its files (tires.csv, figure_tires.png); png: the figure drawn already
-    (`tire_figure`), else drawn here."""
+def tire_section(tires) -> tuple[Section, dict[str, str | bytes]]:
+    """The report's section and its files (tires.csv, figure_tires.png)."""
     text = ("Tire characteristics from the wheel force transducers and the wheels' slips, in ISO wheel axes (x the "
             "wheel plane's line on the road, z the road's normal): a tire machine's axes, not the wheel's own, which "
             "the body roll tilts. Pure slip only: lateral samples within 0.01 of the wheel's free-rolling slip "
@@ -108,7 +107,7 @@ def tire_section(tires, png: bytes | None = None) -> tuple[Section, dict[str, st
             "slips measured (dashed) the curve is an extrapolation.")
     if tires.missing:
         text += "\nNot fitted: " + "; ".join(f"{k} ({v})" for k, v in tires.missing.items())
-    png = tire_figure(tires) if png is None else png
+    png = tire_figure(tires)
     caption = "Tire curves: fitted laws over the measured pure-slip points (coloured by load)"
     return (Section("Tire characteristics", text, figures=[(caption, png)], tables=[tire_table(tires),
                                                                                      reach_table(tires)],
