@@ -10,17 +10,23 @@ the validation figures (report.apart), whose sum is the report's cost. Target: <
 Writes benchmarks/results/report.json.
 
 Measured 2026-11-29 (issue 28, h-report; main 17cb88d then the branch, a 2-core Xeon shared with other sessions at
-load averages 6 to 9, so only CPU compares): the report's fixed cost is matplotlib's per-artist drawing (axes,
+load averages 4 to 9, so only CPU compares): the report's fixed cost is matplotlib's per-artist drawing (axes,
 ticks, text: the validation figures 0.35-0.75 s CPU, centre of gravity 0.2, parameters 0.17, the tire figure's
 axes 0.3), matplotlib's import (0.45 s in a cold process) and, growing with the data, the tire figure's scatter
 (Agg draws each marker of its own colour with its own path and stroke, ~8 us: 0.35 s for 10 min of car data,
-1.9 s for an hour). The branch gives the axes titles a fixed height (matplotlib measured every y tick label
-again to place them): min of 16 in-process alternations, CPU tire 0.322 -> 0.314 s, centre of gravity 0.219 ->
-0.207, parameters 0.179 -> 0.166; every output byte-equal. Tried and rejected, with their figures:
-- the tire figure in a second forked child (report.apart): the parent's CPU 1.07 -> 0.69 s (its wall path, with
-  a free core), but the total 1.99 -> 2.22 s (medians of 6 in-process alternations after the quick demo): a
-  child redraws its fonts (matplotlib empties its font cache at fork: +0.08 s on its first figure) and copies
-  the pages it writes; the throughput is the CPU;
+1.9 s for an hour), and the forked child's copy of the pages its garbage collections wrote into (each scans,
+and so writes into, every object it inherited). The branch freezes this process's objects across the fork
+(gc.freeze: the child's collections leave them alone) and gives the axes titles a fixed height (matplotlib
+measured every y tick label again to place them). This script, main and the branch alternated twice at load 4-5,
+the warm runs (2-4): CPU here + child 1.85, 1.56, 2.06, 1.80, 1.51, 1.80 s (main) -> 1.53, 1.51, 1.49, 1.45,
+1.46, 1.47 s (the child 0.70-0.95 -> 0.66-0.70 s); the first (matplotlib's import) 2.03, 2.16 -> 1.90, 1.78 s.
+The titles alone, min of 16 in-process alternations: CPU tire 0.322 -> 0.314 s, centre of gravity 0.219 ->
+0.207, parameters 0.179 -> 0.166. Every output byte-equal (PNG bytes included). Tried and rejected:
+- the tire figure in a second forked child (report.apart): the parent's CPU 0.79 -> 0.53 s (its wall path, with
+  a free core), but the total 1.45 -> 1.58 s (medians of 8 in-process alternations after the quick demo, with
+  gc.freeze; 1.99 -> 2.22 s without): a child redraws its fonts (matplotlib empties its font cache at fork:
+  +0.08 s on its first figure); the throughput is the CPU;
+- the run's objects frozen for the whole report (its own collections: 0.1-0.25 s of 1.5 s, gen-2 rare): -1 %;
 - thinning the scatter to the markers its later ones do not hide (the last 7 of one colour per 1/4 pixel cell,
   0.4^7 of a level under them): an hour of the benchmark's repeated manoeuvre 2.22 -> 1.62 s CPU, but 0.4 % of
   the figure's pixels, on the clouds' rims, moved by up to 128 levels, and noisy data (no two samples in one cell

@@ -39,7 +39,7 @@ class Apart(Generic[T]):
         held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         # this process's objects out of the child's garbage collections (the gc module's advice for a fork): a
         # collection writes into every object it scans, which copies each page of the inherited heap in the child;
-        # a warm demo's report 2.10 -> 1.66 s CPU, this process and the child together (benchmarks/bench_report.py)
+        # a warm quick demo's report ~1.8 -> ~1.5 s CPU, this process and its child (benchmarks/bench_report.py)
         gc.freeze()
         try:
             pid = os.fork()
