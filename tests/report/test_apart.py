@@ -39,7 +39,8 @@ def test_the_value_is_computed_in_another_process_and_equals_this_ones():
 def test_the_childs_collections_leave_the_inherited_heap_alone():
     """gc.freeze before the fork: a collection in the child does not scan the objects it inherited, so it does not
     write into (copy) their pages: the kernel's count of the child's page faults during gc.collect() stays far
-    under the heap's pages (old code: about one per page, ~9000 here); this process collects its objects again."""
+    under the heap's pages (old code: about one per page, ~9000 here); this process collects its objects again
+    (unless it had frozen them itself)."""
     in_a_fresh_process("""
         import gc, resource
         from dynid.report.apart import Apart
@@ -53,6 +54,9 @@ def test_the_childs_collections_leave_the_inherited_heap_alone():
         faults, frozen = Apart(faults_of_a_collection).result()
         assert frozen >= len(heap) and faults < 1000, (faults, frozen)
         assert gc.get_freeze_count() == 0  # here: unfrozen after the fork
+        gc.freeze()  # a freeze of this process's own stays as it was
+        frozen = gc.get_freeze_count()
+        assert Apart(lambda: 1).result() == 1 and gc.get_freeze_count() >= frozen > 0
     """)
 
 

@@ -40,6 +40,7 @@ class Apart(Generic[T]):
         # this process's objects out of the child's garbage collections (the gc module's advice for a fork): a
         # collection writes into every object it scans, which copies each page of the inherited heap in the child;
         # a warm quick demo's report ~1.8 -> ~1.5 s CPU, this process and its child (benchmarks/bench_report.py)
+        ours = gc.get_freeze_count() == 0  # another's freeze left as it is
         gc.freeze()
         try:
             pid = os.fork()
@@ -58,7 +59,8 @@ class Apart(Generic[T]):
             self.pid, self.fd = pid, r
             self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
         finally:  # this process's (the child left above)
-            gc.unfreeze()
+            if ours:
+                gc.unfreeze()
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
     def result(self) -> T:
