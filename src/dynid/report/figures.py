@@ -76,6 +76,13 @@ and more (9.3 px and more)."""
 REPORT_DPI = CSS_DPI  # one pixel per CSS pixel: 1.25 was 0.1 s slower and 30 % larger for a little sharpness
 
 
+TITLE_Y = 1.0
+"""An axes title's height (axes fraction), given rather than left to matplotlib: to place it, matplotlib measures
+every y tick label of the axes for an offset text (x 1e3) above them, once more than it draws them (5-7 % of the
+centre of gravity and parameter figures' CPU); the report's titled axes (ratios, %, metres, mm) show none: the
+same pixels (tests/report/test_figure_cost.py)."""
+
+
 def _png(fig, plt, dpi: float = 90) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)  # the resolution is kept in the PNG (pHYs)
@@ -130,7 +137,7 @@ def parameter_figure(groups: Sequence[tuple[str, Sequence[ParameterRow]]], limit
         ax.set_yticks(y, [r.label for r in rows], fontsize=7.5)
         ax.set_xlim(-limit * 1.04, limit * 1.04)
         ax.set_ylim(-0.7, len(rows) - 0.3)
-        ax.set_title(title, fontsize=9, loc="left")
+        ax.set_title(title, fontsize=9, loc="left", y=TITLE_Y)
         ax.tick_params(axis="x", labelsize=7.5)
         ax.grid(axis="x", color="0.9", lw=0.5)
     axes[-1, 0].set_xlabel("difference from the estimate, % of the parameter's engineering scale "
@@ -309,13 +316,13 @@ def centre_of_gravity_figure(front: float, rear: float, half_track_front: float,
         ax.set_xlabel("ahead − estimate [mm]", fontsize=7.5)
         ax.set_ylabel(ylabel, fontsize=7.5)
         ax.tick_params(labelsize=7)
-    axes[0, 1].set_title(f"zoom ±{zoom_mm:g} mm: 95 % ellipses", fontsize=8.5)
+    axes[0, 1].set_title(f"zoom ±{zoom_mm:g} mm: 95 % ellipses", fontsize=8.5, y=TITLE_Y)
     for ax, ylabel, title in ((side, "height above the ground [m]", "side view (front to the right)"),
                               (top, "lateral, left + [m]", "top view")):
         ax.set_aspect("equal")
         ax.set_xlim(-R - 0.4, L + R + 0.4)
         ax.set_ylabel(ylabel, fontsize=7.5)
-        ax.set_title(title, fontsize=8.5, loc="left")
+        ax.set_title(title, fontsize=8.5, loc="left", y=TITLE_Y)
         ax.tick_params(labelsize=7)
     side.set_ylim(-0.1, max(2 * R, max(p.height for p in points)) + 0.35)
     t = max(half_track_front, half_track_rear) + width

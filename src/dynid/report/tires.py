@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ..vehicle.tire_curves import ALPHA_PURE, AXLES, KAPPA_PURE, free_rolling_slip
-from .figures import _png, _pyplot
+from .figures import TITLE_Y, _png, _pyplot
 from .html import Section, Table
 
 DEG = math.pi / 180.0
@@ -40,7 +40,7 @@ def tire_figure(tires) -> bytes:
                 fy = c.force(grid, np.full_like(grid, f)) / f
                 ax.plot(np.degrees(grid[inside]), fy[inside], color=style, lw=1.6, label=f"fit at {f:.0f} N")
                 ax.plot(np.degrees(grid), np.where(inside, np.nan, fy), color=style, lw=1.0, ls="--")
-        ax.set_title(f"{axle} axle: lateral" + (" (Magic Formula)" if c is not None and c.magic else ""))
+        ax.set_title(f"{axle} axle: lateral" + (" (Magic Formula)" if c is not None and c.magic else ""), y=TITLE_Y)
         ax.set_xlabel("slip angle α (deg)")
         ax.set_ylabel("Fy / Fz")
         ax.grid(alpha=0.3)
@@ -55,7 +55,7 @@ def tire_figure(tires) -> bytes:
             k0 = law.free_rolling_slip(law.fz0)[0]
             kx = law.stiffness(law.fz0)[0] / law.fz0 / (1 - k0)  # per unit of the slip counted with R, as plotted
             ax.plot(k, -kx * (k - k0), color="C3", lw=1.6, label=f"fit at {law.fz0:.0f} N")
-        ax.set_title(f"{axle} axle: longitudinal")
+        ax.set_title(f"{axle} axle: longitudinal", y=TITLE_Y)
         ax.set_xlabel("slip ratio κ (> 0 braking)")
         ax.set_ylabel("Fx / Fz")
         ax.grid(alpha=0.3)
