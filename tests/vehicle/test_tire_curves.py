@@ -503,6 +503,31 @@ def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():
     np.testing.assert_array_equal(law.fit.cov, fit_longitudinal(braking, rolling).fit.cov)
 
 
+def test_a_fit_refuses_samples_without_a_field_it_reads():
+    """A selection of some fields (`TireSamples.select(mask, fields)`) carries NaNs for the others: a fit given one
+    without a field it reads says which, where before the NaNs were read as data (the lateral law: "0 samples for 3
+    parameters"; the longitudinal law: LAPACK's "SVD did not converge"; the whole fit: every curve "missing" for 0
+    pure-slip samples, no error)."""
+    from dynid.vehicle.tire_curves import LATERAL_FIELDS, LONGITUDINAL_FIELDS, fit_tire, fit_tire_curves, slip_reach
+
+    s = _synthetic_axle(3, 6.0)
+    every = slice(None)
+    with pytest.raises(TireCurveError, match="the lateral law reads alpha, fy"):
+        fit_lateral(s.select(every, LONGITUDINAL_FIELDS))
+    axle = fit_lateral(s.select(every, LATERAL_FIELDS))
+    with pytest.raises(TireCurveError, match="a tire's lateral law reads alpha, fy"):
+        fit_tire(s.select(s.corner == 0, ("fz",)), axle)
+    braking, rolling = _braking_wheel(5, True)
+    with pytest.raises(TireCurveError, match="the longitudinal law reads kappa, vx, fx"):
+        fit_longitudinal(braking.select(every, LATERAL_FIELDS), rolling)
+    with pytest.raises(TireCurveError, match="free-rolling samples"):
+        fit_longitudinal(braking, rolling.select(every, ("kappa", "fx", "fz")))
+    with pytest.raises(TireCurveError, match="the slip reach reads gamma"):
+        slip_reach(s.select(every, ("alpha", "kappa", "vx", "fz")))
+    with pytest.raises(TireCurveError, match="the tire curves' fit reads kappa, gamma, vx, fx"):
+        fit_tire_curves(s.select(every, LATERAL_FIELDS), 0.3)
+
+
 def test_the_polish_in_blocks_ends_at_the_optimum(monkeypatch):
     """On more than BLOCKS_ABOVE samples the fit is polished in blocks (JᵀJ, Jᵀr summed block by block), not by
     scipy's solver on all rows. Oracles, on an axle's 80k samples of a Magic Formula with load terms: the

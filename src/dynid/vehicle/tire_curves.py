@@ -171,6 +171,14 @@ def _is_absent(a: Array) -> bool:
     return isinstance(a, np.ndarray) and a.strides == (0,) and np.may_share_memory(a, _NAN)
 
 
+def _carries(s: TireSamples, fields: Sequence[str], what: str) -> None:
+    """Raise when s does not carry a field that `what` reads (an `_absent` one): its NaNs would be read as data."""
+    absent = [f for f in fields if _is_absent(getattr(s, f))]
+    if absent:
+        raise TireCurveError(f"{what} reads {', '.join(absent)}, which these samples do not carry (a selection of "
+                             "other fields, `TireSamples.select(mask, fields)`): select them with these fields too")
+
+
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
     """The slips and W-axis forces of the four wheels on every `step`-th sample of `traj` (a `CarTrajectory` of the
     42-frame template; its wheel_wrenches the ground's wrench on each wheel in the tire frame: x forward in the
@@ -709,6 +717,7 @@ def pure_longitudinal(s: TireSamples) -> TireSamples:
 def fit_lateral(s: TireSamples, magic: bool | None = None) -> LateralCurve:
     """The lateral law of these (pure lateral) samples: the Magic Formula with load dependence when the samples
     reach the nonlinear range (magic None: decided from the data, module doc), else linear."""
+    _carries(s, LATERAL_FIELDS, "the lateral law")
     if len(s) < MIN_POINTS:
         raise TireCurveError(f"{len(s)} pure-slip samples: the lateral law needs at least {MIN_POINTS}")
     a, fz, fy = s.alpha, s.fz, s.fy
@@ -747,6 +756,7 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     """One tire's lateral law: the axle's curve shape (C, mu0, E, pD2 of its Magic Formula) with the tire's own
     cornering stiffness (k0, Sh, and pK2 when its loads spread); linear on |alpha| <= LINEAR_ALPHA when the axle
     has no Magic Formula."""
+    _carries(s, LATERAL_FIELDS, "a tire's lateral law")
     if axle is None or not axle.magic:
         return fit_lateral(s.select(np.abs(s.alpha) <= LINEAR_ALPHA), magic=False)
     if len(s) < MIN_POINTS:
@@ -869,6 +879,9 @@ def _subsample_ends(fun, jac, starts: Sequence[Array], lower: Array, upper: Arra
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
     """Fx = -Kx (κ - κ0(Fz)) on these (pure longitudinal) samples and the free-rolling samples `free` (|Fx| <=
     FREE_ROLLING Fz at any slip angle: they fix the free-rolling slip's load line κ0(Fz); module doc)."""
+    _carries(s, LONGITUDINAL_FIELDS, "the longitudinal law")
+    if free is not None:
+        _carries(free, LONGITUDINAL_FIELDS, "the longitudinal law's free-rolling samples")
     if free is None or len(free) == 0:
         both, pure = _ordered(s), np.ones(len(s), dtype=bool)
     else:
@@ -1150,6 +1163,7 @@ def _lateral_dict(c: LateralCurve) -> dict:
 def slip_reach(s: TireSamples, codes: Array | None = None) -> list[dict]:
     """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads. codes: the
     samples' `_test_codes` when the caller has them (compared, not the names: 20 ms per 100k names)."""
+    _carries(s, ("alpha", "kappa", "gamma", "vx", "fz"), "the slip reach")
     out = []
     fast = s.vx >= MIN_SPEED  # a mask, not a copy of the samples
     names = _test_names([s])
@@ -1198,6 +1212,7 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int | No
     each axle's and tire's longitudinal law) run on `workers` threads (default: up to 2, as the segments' map):
     their arithmetic is NumPy's on arrays of tens of thousands of samples, which releases the GIL, and each fit
     is the same sequence of operations as in turn, so the curves are the same bits."""
+    _carries(samples, _FIELDS[len(_KEYS):], "the tire curves' fit")
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit_tire_curves(samples, wheel_radius, workers or min(2, os.cpu_count() or 1))
