@@ -241,6 +241,23 @@ def test_the_moved_passes_share_no_array_they_write(noisy):
         assert np.array_equal(vars(joints)[n], v), n
 
 
+def test_a_moved_pass_read_by_rows_leaves_the_whole_pass_as_it_was():
+    """`_Moved[rows]` (a stage's `a[rows]`) is the whole pass's rows with the moved columns: for rows as a slice too,
+    whose rows of the whole pass are a view, never written into (before: the moved column was written into the
+    segment's own array). Oracle: the arrays' own rows and the moved column, and the whole pass's copy."""
+    from dynid.vehicle.estimate import _Moved
+
+    base = np.arange(40.0).reshape(10, 4)
+    kept = base.copy()
+    moved = _Moved(base)
+    moved[:, 1] = np.full(10, -1.0)
+    for rows in (slice(2, 7), slice(None, None, 3), np.array([1, 4, 8]), np.arange(10) % 2 == 0):
+        want = kept[rows].copy()
+        want[:, 1] = -1.0
+        assert np.array_equal(moved[rows], want), rows
+        assert np.array_equal(base, kept), rows
+
+
 def test_the_loads_rows_are_the_engines(noisy):
     """`load_rows` (the wheel wrench's generalized force, J_tᵀ w at the contact point) equals the engine's change
     of Y for a unit step of each of the 24 wheel-wrench components (Y is linear in them: to round-off of Y's
