@@ -503,6 +503,27 @@ def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():
     np.testing.assert_array_equal(law.fit.cov, fit_longitudinal(braking, rolling).fit.cov)
 
 
+def test_integer_test_names_fit_as_their_strings():
+    """A caller's tests named by integers: the curves are those of the same samples with the names as strings
+    (ordered alike: 300 before 7, as "300" before "7"), to the bit, and the reach names the tests. Before, the fit
+    took integer names for its own codes, indexed the names with them (IndexError) and held them in a byte."""
+    from dynid.vehicle.tire_curves import _FIELDS, fit_tire_curves
+
+    braking, rolling = _braking_wheel(5, True)
+    named = _synthetic_axle(3, 6.0).merge(braking).merge(rolling)
+    ids = {"spiral": 7, "braking": 300}
+    numbered = TireSamples(np.array([ids[t] for t in named.test]), *(getattr(named, f) for f in _FIELDS[1:]))
+    want, got = fit_tire_curves(named, 0.3), fit_tire_curves(numbered, 0.3)
+    assert got.missing == want.missing
+    for kind in ("lateral", "per_tire", "longitudinal", "longitudinal_per_tire"):
+        assert getattr(got, kind).keys() == getattr(want, kind).keys() and getattr(want, kind), kind
+        for key, c in getattr(want, kind).items():
+            assert np.array_equal(getattr(got, kind)[key].fit.values, c.fit.values), (kind, key)
+            assert np.array_equal(getattr(got, kind)[key].fit.cov, c.fit.cov, equal_nan=True), (kind, key)
+    assert [ids[r.pop("test")] for r in want.reach] == [r.pop("test") for r in got.reach]
+    assert got.reach == want.reach
+
+
 def test_a_fit_refuses_samples_without_a_field_it_reads():
     """A selection of some fields (`TireSamples.select(mask, fields)`) carries NaNs for the others: a fit given one
     without a field it reads says which, where before the NaNs were read as data (the lateral law: "0 samples for 3

@@ -657,12 +657,14 @@ def _test_names(parts: Sequence[TireSamples]) -> list:
 def _test_codes(test: Array, names: list | None = None) -> Array:
     """Per sample, its test name's index among the names sorted (int64): the order of the names as strings, without
     converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls).
-    names: the sorted names to index in (default: test's own). Integers are such indices already (the fit's
-    selections carry them: `_fit_tire_curves`)."""
+    names: the sorted names to index in (default: test's own). Without names, integers are taken as such indices
+    already (the fit's selections carry them: `_fit_tire_curves`); with names, a caller's integer names are indexed
+    in them as any (their values are no indices in names: `slip_reach`'s names[code])."""
     test = np.asarray(test)
-    if test.dtype.kind in "iu":
-        return test.astype(np.int64)
-    names = sorted(set(test.tolist()), key=str) if names is None else names
+    if names is None:
+        if test.dtype.kind in "iu":
+            return test.astype(np.int64)
+        names = sorted(set(test.tolist()), key=str)
     codes = np.zeros(len(test), dtype=np.int64)
     for i, name in enumerate(names[1:], 1):  # a few tests: one comparison pass each
         codes[test == name] = i
