@@ -146,7 +146,8 @@ class TireSamples:
         if not parts:
             return empty_samples()
         keys = [np.concatenate([getattr(s, f) for s in parts]) for f in ("t", "corner")]
-        order = np.lexsort((*keys, np.concatenate([_test_codes(s.test, _test_names(parts)) for s in parts])))
+        names = _test_names(parts)  # once: each part's every name made a Python object
+        order = np.lexsort((*keys, np.concatenate([_test_codes(s.test, names) for s in parts])))
         del keys  # the keys' arrays let go before the fields' are gathered
         return TireSamples(*(np.concatenate([getattr(s, f) for s in parts])[order] for f in _FIELDS))
 
@@ -407,8 +408,10 @@ def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, up
     Gauss-Newton step would move the parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z²
     s², z in σ without τ): the optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to
     sqrt(1e-8 n) σ short of it. The starts are the ends of descents on a subsample (or a closed-form optimum): 1-4
-    steps. None (the caller then runs scipy's solver on all rows) when a step would leave the bounds' interior (a
-    parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in MAX_STEPS."""
+    steps; a step within the floats' resolution of every parameter ends a descent too (data without noise, whose
+    σ is round-off). None (the caller then runs scipy's solver on all rows) when a step would leave the bounds'
+    interior (a parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in
+    MAX_STEPS."""
     blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
     span = upper - lower
     margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
