@@ -229,7 +229,8 @@ def test_the_moved_passes_share_no_array_they_write(noisy):
 
     _, setup, fs, channels, _, joints, _ = segment(noisy, 0)
     k = coarse_step(joints.traj, fs, setup.settings.decimate, setup.conditioning.cutoff)[0]
-    arrays = {n: v.copy() for n, v in vars(joints).items() if isinstance(v, np.ndarray)}
+    arrays = _arrays(joints)
+    assert {"q", "R6", "ch.imu_ax", "traj.q", "steering.0"} <= arrays.keys()
     moves = [(q, 1e-3 * max(1.0, np.abs(channels[q]).max())) for q in channels if joints.movable(q)]
     first = {(q, e): joints.moved(q, b, every=e) for q, b in moves for e in (1, k)}
     for (q, e), made in first.items():
@@ -237,8 +238,38 @@ def test_the_moved_passes_share_no_array_they_write(noisy):
         made, again = (m.traj if e > 1 else m for m in (made, again))
         for name in ("q", "qd", "qdd", "wheel_wrenches"):
             assert np.array_equal(getattr(made, name), getattr(again, name)), (q, e, name)
-    for n, v in arrays.items():
-        assert np.array_equal(vars(joints)[n], v), n
+    for n, v in _arrays(joints).items():
+        assert np.array_equal(v, arrays[n]), n
+
+
+def _arrays(joints) -> dict[str, np.ndarray]:
+    """Copies of the arrays a pass holds: its fields', and those in its channels, tuples and trajectory."""
+    out = {}
+    for n, v in vars(joints).items():
+        inner = (vars(v).items() if dataclasses.is_dataclass(v) else v.items() if isinstance(v, dict)
+                 else enumerate(v) if isinstance(v, tuple) else None)
+        if inner is None:
+            out.update({n: v.copy()} if isinstance(v, np.ndarray) else {})
+        else:
+            out.update({f"{n}.{k}": a.copy() for k, a in inner if isinstance(a, np.ndarray)})
+    return out
+
+
+def test_a_moved_pass_read_by_rows_leaves_the_whole_pass_as_it_was():
+    """`_Moved[rows]` (a stage's `a[rows]`) is the whole pass's rows with the moved columns: for rows as a slice too,
+    whose rows of the whole pass are a view, never written into (before: the moved column was written into the
+    segment's own array). Oracle: the arrays' own rows and the moved column, and the whole pass's copy."""
+    from dynid.vehicle.estimate import _Moved
+
+    base = np.arange(40.0).reshape(10, 4)
+    kept = base.copy()
+    moved = _Moved(base)
+    moved[:, 1] = np.full(10, -1.0)
+    for rows in (slice(2, 7), slice(None, None, 3), np.array([1, 4, 8]), np.arange(10) % 2 == 0):
+        want = kept[rows].copy()
+        want[:, 1] = -1.0
+        assert np.array_equal(moved[rows], want), rows
+        assert np.array_equal(base, kept), rows
 
 
 def test_the_loads_rows_are_the_engines(noisy):

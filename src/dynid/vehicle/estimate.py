@@ -340,6 +340,8 @@ class _Moved:
             raise TypeError("a moved pass's joints kept on the rows' samples alone are not read back")
         if not isinstance(key, tuple):  # rows, every column
             out = self.base[key]
+            if np.may_share_memory(out, self.base):  # a slice's rows are a view: the whole pass's, not written into
+                out = out.copy()
             for j, c in self.columns.items():
                 out[:, j] = c[key]
             return out

@@ -146,7 +146,8 @@ class TireSamples:
         if not parts:
             return empty_samples()
         keys = [np.concatenate([getattr(s, f) for s in parts]) for f in ("t", "corner")]
-        order = np.lexsort((*keys, np.concatenate([_test_codes(s.test, _test_names(parts)) for s in parts])))
+        names = _test_names(parts)  # once: each part's every name made a Python object
+        order = np.lexsort((*keys, np.concatenate([_test_codes(s.test, names) for s in parts])))
         del keys  # the keys' arrays let go before the fields' are gathered
         return TireSamples(*(np.concatenate([getattr(s, f) for s in parts])[order] for f in _FIELDS))
 
@@ -169,6 +170,14 @@ def _absent(n: int) -> Array:
 def _is_absent(a: Array) -> bool:
     """Whether a is an `_absent` field (a view of _NAN: not any broadcast array a caller may give)."""
     return isinstance(a, np.ndarray) and a.strides == (0,) and np.may_share_memory(a, _NAN)
+
+
+def _carries(s: TireSamples, fields: Sequence[str], what: str) -> None:
+    """Raise when s does not carry a field that `what` reads (an `_absent` one): its NaNs would be read as data."""
+    absent = [f for f in fields if _is_absent(getattr(s, f))]
+    if absent:
+        raise TireCurveError(f"{what} reads {', '.join(absent)}, which these samples do not carry (a selection of "
+                             "other fields, `TireSamples.select(mask, fields)`): select them with these fields too")
 
 
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
@@ -399,8 +408,10 @@ def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, up
     Gauss-Newton step would move the parameters by less than STEP_SIGMA σ (the change of the cost it predicts, ½ z²
     s², z in σ without τ): the optimum to that, where scipy's tolerance (ftol 1e-8 on the cost) stops up to
     sqrt(1e-8 n) σ short of it. The starts are the ends of descents on a subsample (or a closed-form optimum): 1-4
-    steps. None (the caller then runs scipy's solver on all rows) when a step would leave the bounds' interior (a
-    parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in MAX_STEPS."""
+    steps; a step within the floats' resolution of every parameter ends a descent too (data without noise, whose
+    σ is round-off). None (the caller then runs scipy's solver on all rows) when a step would leave the bounds'
+    interior (a parameter at a bound: scipy's bounded solver says which) or a descent fails to converge in
+    MAX_STEPS."""
     blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
     span = upper - lower
     margin = np.where(np.isfinite(span), 1e-9 * span, 0.0)
@@ -438,6 +449,12 @@ def _polish_in_blocks(problem, n: int, starts: Sequence[Array], lower: Array, up
                 done = True
                 break
             xn = x + h / d
+            # a Gauss-Newton step within the floats' resolution of every parameter (1e-13 of it, ~500 of its last
+            # bits; scipy's xtol is 1e-8): the optimum as the floats tell it. Only where σ itself is that small (data
+            # without noise, σ under 1e-6 of a value) does this stop a step short of STEP_SIGMA σ
+            if lam == 0.0 and np.all(np.abs(xn - x) <= 1e-13 * np.abs(x)):
+                done = True
+                break
             if np.any(xn <= inner_lo) or np.any(xn >= inner_hi):
                 return None
             An, gn, cn = sums(xn)
@@ -643,12 +660,14 @@ def _test_names(parts: Sequence[TireSamples]) -> list:
 def _test_codes(test: Array, names: list | None = None) -> Array:
     """Per sample, its test name's index among the names sorted (int64): the order of the names as strings, without
     converting every sample's name (`astype(str)` of an hour's 290k object names cost 20-25 ms a call, 7 calls).
-    names: the sorted names to index in (default: test's own). Integers are such indices already (the fit's
-    selections carry them: `_fit_tire_curves`)."""
+    names: the sorted names to index in (default: test's own). Without names, integers are taken as such indices
+    already (the fit's selections carry them: `_fit_tire_curves`); with names, a caller's integer names are indexed
+    in them as any (their values are no indices in names: `slip_reach`'s names[code])."""
     test = np.asarray(test)
-    if test.dtype.kind in "iu":
-        return test.astype(np.int64)
-    names = sorted(set(test.tolist()), key=str) if names is None else names
+    if names is None:
+        if test.dtype.kind in "iu":
+            return test.astype(np.int64)
+        names = sorted(set(test.tolist()), key=str)
     codes = np.zeros(len(test), dtype=np.int64)
     for i, name in enumerate(names[1:], 1):  # a few tests: one comparison pass each
         codes[test == name] = i
@@ -703,6 +722,7 @@ def pure_longitudinal(s: TireSamples) -> TireSamples:
 def fit_lateral(s: TireSamples, magic: bool | None = None) -> LateralCurve:
     """The lateral law of these (pure lateral) samples: the Magic Formula with load dependence when the samples
     reach the nonlinear range (magic None: decided from the data, module doc), else linear."""
+    _carries(s, LATERAL_FIELDS, "the lateral law")
     if len(s) < MIN_POINTS:
         raise TireCurveError(f"{len(s)} pure-slip samples: the lateral law needs at least {MIN_POINTS}")
     a, fz, fy = s.alpha, s.fz, s.fy
@@ -741,6 +761,7 @@ def fit_tire(s: TireSamples, axle: LateralCurve | None) -> LateralCurve:
     """One tire's lateral law: the axle's curve shape (C, mu0, E, pD2 of its Magic Formula) with the tire's own
     cornering stiffness (k0, Sh, and pK2 when its loads spread); linear on |alpha| <= LINEAR_ALPHA when the axle
     has no Magic Formula."""
+    _carries(s, LATERAL_FIELDS, "a tire's lateral law")
     if axle is None or not axle.magic:
         return fit_lateral(s.select(np.abs(s.alpha) <= LINEAR_ALPHA), magic=False)
     if len(s) < MIN_POINTS:
@@ -863,6 +884,9 @@ def _subsample_ends(fun, jac, starts: Sequence[Array], lower: Array, upper: Arra
 def fit_longitudinal(s: TireSamples, free: TireSamples | None = None) -> LongitudinalLaw:
     """Fx = -Kx (κ - κ0(Fz)) on these (pure longitudinal) samples and the free-rolling samples `free` (|Fx| <=
     FREE_ROLLING Fz at any slip angle: they fix the free-rolling slip's load line κ0(Fz); module doc)."""
+    _carries(s, LONGITUDINAL_FIELDS, "the longitudinal law")
+    if free is not None:
+        _carries(free, LONGITUDINAL_FIELDS, "the longitudinal law's free-rolling samples")
     if free is None or len(free) == 0:
         both, pure = _ordered(s), np.ones(len(s), dtype=bool)
     else:
@@ -1144,6 +1168,7 @@ def _lateral_dict(c: LateralCurve) -> dict:
 def slip_reach(s: TireSamples, codes: Array | None = None) -> list[dict]:
     """Per test and wheel: the slip angle and slip ratio ranges (speed >= MIN_SPEED) and the loads. codes: the
     samples' `_test_codes` when the caller has them (compared, not the names: 20 ms per 100k names)."""
+    _carries(s, ("alpha", "kappa", "gamma", "vx", "fz"), "the slip reach")
     out = []
     fast = s.vx >= MIN_SPEED  # a mask, not a copy of the samples
     names = _test_names([s])
@@ -1192,6 +1217,7 @@ def fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int | No
     each axle's and tire's longitudinal law) run on `workers` threads (default: up to 2, as the segments' map):
     their arithmetic is NumPy's on arrays of tens of thousands of samples, which releases the GIL, and each fit
     is the same sequence of operations as in turn, so the curves are the same bits."""
+    _carries(samples, _FIELDS[len(_KEYS):], "the tire curves' fit")
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit_tire_curves(samples, wheel_radius, workers or min(2, os.cpu_count() or 1))
