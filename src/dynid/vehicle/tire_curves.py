@@ -173,11 +173,18 @@ def _is_absent(a: Array) -> bool:
 
 
 def _carries(s: TireSamples, fields: Sequence[str], what: str) -> None:
-    """Raise when s does not carry a field that `what` reads (an `_absent` one): its NaNs would be read as data."""
+    """Raise when s does not carry a field that `what` reads (an `_absent` one: its NaNs would be read as data), or
+    carries one with a value that is not finite (one NaN slip made a lateral fit's μ0 2.9e-4, silently)."""
     absent = [f for f in fields if _is_absent(getattr(s, f))]
     if absent:
         raise TireCurveError(f"{what} reads {', '.join(absent)}, which these samples do not carry (a selection of "
                              "other fields, `TireSamples.select(mask, fields)`): select them with these fields too")
+    for f in fields:
+        bad = ~np.isfinite(getattr(s, f))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise TireCurveError(f"{what}: {f} is not finite at {int(bad.sum())} of {len(s)} samples, the first "
+                                 f"sample {i} (wheel {s.corner[i]}, t = {s.t[i]:.3f} s): remove or repair them")
 
 
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
