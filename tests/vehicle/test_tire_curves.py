@@ -474,6 +474,38 @@ def test_the_parts_ordered_at_once_are_the_merged_parts_sorted():
     assert len(TireSamples.ordered([])) == 0
 
 
+def test_parts_joined_in_a_fold_give_the_arrays_merged_samples():
+    """`SampleParts` (a map's fold joins the segments' parts, copying no sample) against the arrays merged as the
+    fold merged them before, in the same tree (((a b) c) (d e)): the fit's samples to the bit, and the parts the
+    very arrays the segments gave."""
+    from dynid.vehicle.tire_curves import _FIELDS, SampleParts
+
+    rng = np.random.default_rng(5)
+    parts = []
+    for name in ("spiral", "brake", "spiral", "sine", "brake"):
+        n = int(rng.integers(20, 50))
+        parts.append(TireSamples(np.full(n, name, dtype=object), rng.integers(0, 4, n),
+                                 np.round(rng.integers(0, 20, n) * 0.05, 6), *rng.standard_normal((7, n))))
+    a, b, c, d, e = parts
+    want = TireSamples.ordered([a.merge(b).merge(c).merge(d.merge(e))])
+    joined = SampleParts((a,)).merge(SampleParts((b,))).merge(SampleParts((c,))).merge(
+        SampleParts((d,)).merge(SampleParts((e,))))
+    assert all(x is y for x, y in zip(joined.parts, parts, strict=True)) and len(joined) == sum(map(len, parts))
+    got = joined.samples()
+    for f in _FIELDS:
+        np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
+
+
+def test_every_wheel_sample_refers_to_the_one_test_name():
+    """The samples' test column holds the name given, the one object (a str made per sample cost 57 B each, 16 MB
+    per hour of data), equal to it: the fit's codes are the same."""
+    name = "".join(["sp", "iral"])  # a str of its own, not an interned literal
+    s = tire_samples(Model(car_template()), CarTrajectory(np.arange(3) * 0.01, np.zeros((3, 42)), np.zeros((3, 42)),
+                                                          np.zeros((3, 42)), np.zeros((3, 4, 6)), None, np.zeros(3)),
+                     name, 0.31)
+    assert len(s) == 12 and all(x is name for x in s.test)
+
+
 def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():
     """`TireSamples.select(mask, fields)`: the keys and the fields asked equal the full selection's, the others NaN
     views of no memory, which stay so when selected again; and the fits on such selections are those on every field

@@ -68,7 +68,7 @@ from .sources import (
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
     from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, JointsPass
-    from ..vehicle.tire_curves import TireSamples
+    from ..vehicle.tire_curves import SampleParts
 
 
 @dataclass(frozen=True)
@@ -121,7 +121,7 @@ class Partial:
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
-    tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
+    tires: SampleParts | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
     # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
@@ -313,7 +313,7 @@ def car_setup(cfg: IdentifyConfig) -> CarSetup:
 def reduce_car_segment(job: CarJob) -> Partial:
     """The job's segment read, turned into rows and reduced (module doc)."""
     from ..vehicle.dampers import KneeSearch  # start-up: a car's alone (CarSetup.__init__)
-    from ..vehicle.tire_curves import tire_samples
+    from ..vehicle.tire_curves import SampleParts, tire_samples
     from .car import knee_rows
 
     setup = car_setup(job.cfg)
@@ -350,8 +350,8 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if setup.settings.tire_curves and job.instruments is None and not job.lags:
         # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
         step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
-        part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
-                                  step)
+        part.tires = SampleParts((tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius,
+                                               w.first / w.fs, step),))
     if not job.offsets:  # the main pass is the offsets' alone from here: not held beside the passes below
         joints = compensated = traj = None
     if job.instruments is not None:

@@ -568,7 +568,7 @@ def _tire_curves(parts: dict, vehicle, say: Progress):
     # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
     from ..vehicle.tire_curves import TireSamples, fit_tire_curves
 
-    samples = [p.tires for p in parts.values() if p.tires is not None]
+    samples = [s for p in parts.values() if p.tires is not None for s in p.tires.parts]
     if not samples:
         return None
     # merged once, in the fit's order, and the parts' own let go: the fit's samples held once, not twice (3 h of

@@ -151,6 +151,27 @@ class TireSamples:
         return TireSamples(*(np.concatenate([getattr(s, f) for s in parts])[order] for f in _FIELDS))
 
 
+@dataclass(frozen=True)
+class SampleParts:
+    """Wheel samples in parts, as a run's segments gathered them (`tire_samples` each), joined by `merge` without
+    copying a sample: a map's fold (`pipeline.reduce.combine`) joins lists, and the fit gathers the parts once
+    (`samples`). Merged as arrays, each level of the fold copied every sample gathered so far, and its last combines
+    held them twice (the map's end, where an hour's run peaks)."""
+
+    parts: tuple[TireSamples, ...] = ()
+
+    def __len__(self) -> int:
+        return sum(len(p) for p in self.parts)
+
+    def merge(self, other: SampleParts) -> SampleParts:
+        """self's parts then other's."""
+        return SampleParts(self.parts + other.parts)
+
+    def samples(self) -> TireSamples:
+        """The parts' samples in the fit's order (`TireSamples.ordered`)."""
+        return TireSamples.ordered(self.parts)
+
+
 _FIELDS = ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")
 _KEYS = ("test", "corner", "t")  # a sample's test, wheel and time: every selection carries them
 LATERAL_FIELDS = ("alpha", "fy", "fz")  # what the lateral fits read (`fit_lateral`, `fit_tire`)
@@ -203,8 +224,11 @@ def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, s
         out.append((np.full(n, k), t0 + np.asarray(traj.t)[::step],
                     np.arctan2(vy, den), (vx - wheel_radius * omega) / den, np.arcsin(np.clip(y_wheel[:, 2], -1, 1)),
                     vx, np.einsum("ni,ni->n", force, x_w), np.einsum("ni,ni->n", force, y_w), force[:, 2]))
-    # the four wheels' samples in turn (`TireSamples.merge`'s order), each field concatenated once
-    return TireSamples(np.full(4 * n, test, dtype=object), *(np.concatenate(f) for f in zip(*out, strict=True)))
+    # the four wheels' samples in turn (`TireSamples.merge`'s order), each field concatenated once; every sample's
+    # test the one str (np.full made a str per sample from the name's array: 57 B each, 16 MB an hour of data)
+    names = np.empty(4 * n, dtype=object)
+    names.fill(test)
+    return TireSamples(names, *(np.concatenate(f) for f in zip(*out, strict=True)))
 
 
 def empty_samples() -> TireSamples:
@@ -1294,7 +1318,7 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     return out
 
 
-__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw", "TireCurveError",
-           "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples", "fit_lateral", "fit_longitudinal",
-           "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula", "peak_slip", "simultaneity_factor",
-           "slip_reach", "tire_samples"]
+__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw", "SampleParts",
+           "TireCurveError", "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples", "fit_lateral",
+           "fit_longitudinal", "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula", "peak_slip",
+           "simultaneity_factor", "slip_reach", "tire_samples"]
