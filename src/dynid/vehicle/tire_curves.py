@@ -192,6 +192,34 @@ def _is_absent(a: Array) -> bool:
     return isinstance(a, np.ndarray) and a.strides == (0,) and np.may_share_memory(a, _NAN)
 
 
+PER_PERIOD = 5  # wheel samples per period of the cut-off: the loads and joints are low-passed at it
+MAX_SAMPLES = 2**20  # a run's wheel samples at most (84 MB; 3.6 h of 625 Hz logs at a 4 Hz cut-off): `sample_steps`
+
+
+def sample_steps(tests: Sequence[tuple[float, Sequence[int]]], cutoff: float, budget: int | None = None) -> list[int]:
+    """Each test's step between wheel samples (`tire_samples`' step, from each segment's first sample), chosen before
+    the map so that a run gathers at most `budget` wheel samples whatever its logs' length (the fit's memory bounded):
+    PER_PERIOD samples per period of the cut-off (Hz), times one whole factor m for all the tests, the least whose
+    count (4 wheels per instant, each segment's whole window counted: a bound) is within the budget. Under it, m = 1:
+    the samples, and so the curves, of a run without a budget. Above it the fit sees every m-th sample: its σ come
+    from those, their autocorrelation factor τ counted on them (consecutive samples of a 4 Hz low-passed signal at
+    20 Hz are not independent: thinned, τ drops and σ grows by less than √m). tests: (fs in Hz, the segments'
+    lengths in samples) per test; budget None: MAX_SAMPLES."""
+    budget = MAX_SAMPLES if budget is None else budget
+    if not budget >= 4:
+        raise TireCurveError(f"budget = {budget!r} wheel samples: give at least 4 (one instant of the 4 wheels)")
+    base = [max(1, round(fs / (PER_PERIOD * cutoff))) for fs, _ in tests]
+    longest = max((n for _, lengths in tests for n in lengths), default=1)
+
+    def count(m: int) -> int:
+        return 4 * sum(-(-n // (b * m)) for (_, lengths), b in zip(tests, base, strict=True) for n in lengths)
+
+    m = max(1, -(-count(1) // budget))
+    while count(m) > budget and min(base) * m < longest:  # each segment's ceil: a step further may be needed
+        m += 1
+    return [b * m for b in base]
+
+
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
     """The slips and W-axis forces of the four wheels on every `step`-th sample of `traj` (a `CarTrajectory` of the
     42-frame template; its wheel_wrenches the ground's wrench on each wheel in the tire frame: x forward in the
@@ -1318,7 +1346,7 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     return out
 
 
-__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw", "SampleParts",
-           "TireCurveError", "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples", "fit_lateral",
-           "fit_longitudinal", "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula", "peak_slip",
-           "simultaneity_factor", "slip_reach", "tire_samples"]
+__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MAX_SAMPLES", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw",
+           "SampleParts", "TireCurveError", "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples",
+           "fit_lateral", "fit_longitudinal", "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula",
+           "peak_slip", "sample_steps", "simultaneity_factor", "slip_reach", "tire_samples"]
