@@ -26,6 +26,7 @@ from dynid.vehicle.tire_curves import (
     lateral_force_jacobian,
     magic_formula,
     peak_slip,
+    sample_steps,
     simultaneity_factor,
     tire_samples,
 )
@@ -494,6 +495,37 @@ def test_parts_joined_in_a_fold_give_the_arrays_merged_samples():
     got = joined.samples()
     for f in _FIELDS:
         np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
+
+
+def _gathered(tests, steps) -> int:
+    """The wheel samples a run gathers: 4 per instant, every step-th sample of each segment from its first."""
+    return sum(4 * len(range(0, n, step)) for (_, lengths), step in zip(tests, steps, strict=True) for n in lengths)
+
+
+def test_wheel_sample_steps_under_the_budget_are_the_cut_offs():
+    """Under the budget each test's step is the one the map always took, round(fs / (5 cutoff)) (625 Hz at 4 Hz:
+    31; 100 Hz: 5), whatever the budget: the same samples, so the same curves. An hour of 625 Hz in 60 s segments
+    (benchmarks/bench_fleet.py's: 290k samples) is under the default budget."""
+    hour = [(625.0, [38411] * 59 + [37559])]
+    assert sample_steps(hour, 4.0) == [31]
+    assert sample_steps([(625.0, [38411] * 3), (100.0, [6000] * 2)], 4.0, budget=10**6) == [31, 5]
+    assert sample_steps([(625.0, [31 * 5])], 4.0, budget=20) == [31]  # exactly at the budget: 4 x 5 samples
+
+
+def test_wheel_sample_steps_over_the_budget_keep_the_count_within_it():
+    """Over the budget one whole factor m for every test, the least that keeps the count within it (oracle: the
+    samples counted one by one, with m and with m - 1); 6 h in 60 s segments: every 2nd of the cut-off's samples."""
+    six = [(625.0, [38411] * 359 + [37559])]
+    assert sample_steps(six, 4.0) == [62]
+    assert _gathered(six, [31]) > 2**20 >= _gathered(six, [62])
+    tests = [(625.0, [38411] * 7 + [1000]), (100.0, [6000] * 5 + [13])]
+    for budget in (5000, 2000, 777, 100):
+        steps = sample_steps(tests, 4.0, budget=budget)
+        m = steps[0] // 31
+        assert steps == [31 * m, 5 * m] and m > 1
+        assert _gathered(tests, steps) <= budget < _gathered(tests, [31 * (m - 1), 5 * (m - 1)])
+    with pytest.raises(TireCurveError, match="budget"):
+        sample_steps(tests, 4.0, budget=3)
 
 
 def test_every_wheel_sample_refers_to_the_one_test_name():
