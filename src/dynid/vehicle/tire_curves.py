@@ -48,19 +48,21 @@ Levenberg-Marquardt's with JᵀJ and Jᵀr summed block by block (`_polish_in_bl
 the samples once (the run's parts gathered in the fit's order, `TireSamples.ordered`), each fit's selection made
 when it runs and carrying only the fields it reads, and beyond that O(n) vectors (the residual, the runs' and
 instants' labels), no n × p matrix: on 3 h of benchmarks/bench_fleet.py's workload (871k samples, 70 MB) the fit's
-traced peak over its sorted samples was 0.40 GB, now 0.10 GB (2 threads). Measured 2026-11-29 (issue 28, h-thru2, an
-hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
-processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans' and the MuJoCo car's curves
-moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own starts ended up to 2.4e-4 σ
-apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution, s² = ‖r‖² / (n - p),
-and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of consecutive samples, summed
-while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so consecutive residuals are not
-independent; times the simultaneity factor (`simultaneity_factor`): an axle's two wheels share the chassis
-velocity's estimate and its error in their slips. It assumes the model right (no bias: combined slip, camber thrust,
-relaxation length and the filters' lag are not modelled), the slips and loads exact but for noise (errors in α and κ
-bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor files), the residual stationary with
-one variance, J alike for the wheels of one instant, and the solution inside its bounds (a parameter at a bound gets
-no σ).
+traced peak over its sorted samples was 0.40 GB, now 0.10 GB (2 threads). And the samples bounded: a run gathers at
+most MAX_SAMPLES (`sample_steps`: every m-th of the cut-off's samples, m chosen from the plan before the map; m = 1,
+the same samples, under the budget), in parts the map's fold joins without copying (`SampleParts`). Measured
+2026-11-29 (issue 28, h-thru2, an hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread,
+min of 5 fits, 3 alternated processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans'
+and the MuJoCo car's curves moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own
+starts ended up to 2.4e-4 σ apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the
+solution, s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run
+of consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
+consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
+wheels share the chassis velocity's estimate and its error in their slips. It assumes the model right (no bias:
+combined slip, camber thrust, relaxation length and the filters' lag are not modelled), the slips and loads exact
+but for noise (errors in α and κ bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor
+files), the residual stationary with one variance, J alike for the wheels of one instant, and the solution inside
+its bounds (a parameter at a bound gets no σ).
 """
 
 from __future__ import annotations
