@@ -69,6 +69,20 @@ while it runs and with only the fields it reads, and polishes fits of over 65536
 Jacobian; `--hours 3 --workers --vs <17cb88d>/src --repeat 2`, 15:34-15:40 UTC, load averages 6 to 9): peak 1.07 GB
 on 17cb88d, where the fit after the segments set it, 0.85 GB on the branch, the segments' own: the 3 h target met.
 CPU 33.74, 33.03 s against 30.30, 33.47 (the fit's ~0.6 s of it lost in that noise).
+
+Measured 2026-11-29 (issue 28, h-long: what grows with the log's length, and its bound). RSS sampled every 5 ms in a
+thread through `identify` on 2 threads, one run of each tree alternated per length, 16:03-16:12 UTC, load averages 5.7
+to 7.3 (peaks vary by ~0.1 GB run to run with the segments in flight at the map's end, where the heaviest, the last
+with the error draws and the delays, runs). Before (e9fc232): peak 0.86, 0.97, 1.21 GB at 1, 3, 6 h; after the map
+0.53, 0.67, 0.96 GB. What grew, at the map's end: the wheel samples, 23 MB per hour of data, and a str object per
+sample for its test's name (16.5 MB/h, tracemalloc), copied at each level of the map's fold; the plan's clock, 18
+MB/h. Now the samples' test is one object, the fold joins the segments' parts without copying them, and a run gathers
+at most 2^20 wheel samples (vehicle.tire_curves.sample_steps: 6 h takes every 2nd, 871k, as 3 h; under the budget the
+same samples, the same curves; 3 h's 679 numbers the same bits): peak 0.84, 0.84, 0.95 GB; after the map 0.41, 0.54,
+0.59 GB (a second alternated run, 16:13-16:19, load 3.6 to 4.9: 3 h 0.96 -> 0.88, 6 h 1.21 -> 0.96 GB; after the map
+0.70 -> 0.56, 0.96 -> 0.61). What still grows is the clock (0.11 GB at 6 h: the peak would pass 1 GB near 9 h of this
+workload). The 6 h curves' σ moved by 0 to +4 % (τ halved with the step), the quick demo's, thinned 2 and 4 times, by
+-30 to +8 % and +2 to +19 %, their values by at most 0.26 σ.
 """
 
 from __future__ import annotations

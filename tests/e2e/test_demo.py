@@ -113,6 +113,36 @@ def test_tire_slip_stiffness_against_the_simulators_tires(demo):
         assert c["slip_stiffness_N_per_unit_slip"] == pytest.approx(-out[0] / slip, rel=0.08), axle
 
 
+def test_a_run_over_the_wheel_samples_budget_gathers_at_most_it(demo, monkeypatch):
+    """The demo's config identified again with the run's wheel-sample budget (vehicle.tire_curves.MAX_SAMPLES) at
+    1500, under the 4224 the quick demo gathers (4932 by the plan's bound): every 4th of the cut-off's samples
+    (sample_steps), at most 1500 gathered, each axle's lateral fit on about a quarter of the full run's samples, its
+    cornering stiffness within 3 of its σ of the full run's (the thinned samples a subset of the full's) and, as
+    the test above, within 5 % of the simulated tire's."""
+    import math
+    import re
+
+    import dynid.vehicle.tire_curves as tc
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.demo import simulated_car
+    from dynid.pipeline.run import identify
+
+    out, res = demo
+    monkeypatch.setattr(tc, "MAX_SAMPLES", 1500)
+    said: list[str] = []
+    run = identify(load_config(out / "identify.toml"), progress=lambda m: said.append(str(m)))
+    gathered = [int(m.group(1)) for s in said if (m := re.search(r"tire curves from (\d+) wheel samples", s))]
+    assert len(gathered) == 1 and 1000 < gathered[0] <= 1500
+    thinned, tires = run.tires.to_dict(), simulated_car().tires
+    for axle, k in (("front", 2), ("rear", 0)):
+        full, c = res["tires"]["lateral"][axle], thinned["lateral"][axle]
+        assert 0.2 * full["samples"] < c["samples"] < 0.3 * full["samples"], axle
+        stiffness = c["cornering_stiffness_N_per_deg"]
+        assert abs(stiffness - full["cornering_stiffness_N_per_deg"]) < 3 * c["cornering_stiffness_N_per_deg_std"]
+        true = tires[k].cornering_stiffness(c["mean_load_N"]) * math.pi / 180
+        assert c["cornering_stiffness_N_per_deg"] == pytest.approx(true, rel=0.05), axle
+
+
 @pytest.mark.parametrize("vehicle", ["peugeot406", "compact_suv"])
 def test_the_config_names_the_vehicle_it_was_given(vehicle):
     """The config's header names the simulated vehicle from its own file, whichever vehicle the demo drove."""

@@ -26,6 +26,7 @@ from dynid.vehicle.tire_curves import (
     lateral_force_jacobian,
     magic_formula,
     peak_slip,
+    sample_steps,
     simultaneity_factor,
     tire_samples,
 )
@@ -472,6 +473,69 @@ def test_the_parts_ordered_at_once_are_the_merged_parts_sorted():
         np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
     assert _ordered(got) is got
     assert len(TireSamples.ordered([])) == 0
+
+
+def test_parts_joined_in_a_fold_give_the_arrays_merged_samples():
+    """`SampleParts` (a map's fold joins the segments' parts, copying no sample) against the arrays merged as the
+    fold merged them before, in the same tree (((a b) c) (d e)): the fit's samples to the bit, and the parts the
+    very arrays the segments gave."""
+    from dynid.vehicle.tire_curves import _FIELDS, SampleParts
+
+    rng = np.random.default_rng(5)
+    parts = []
+    for name in ("spiral", "brake", "spiral", "sine", "brake"):
+        n = int(rng.integers(20, 50))
+        parts.append(TireSamples(np.full(n, name, dtype=object), rng.integers(0, 4, n),
+                                 np.round(rng.integers(0, 20, n) * 0.05, 6), *rng.standard_normal((7, n))))
+    a, b, c, d, e = parts
+    want = TireSamples.ordered([a.merge(b).merge(c).merge(d.merge(e))])
+    joined = SampleParts((a,)).merge(SampleParts((b,))).merge(SampleParts((c,))).merge(
+        SampleParts((d,)).merge(SampleParts((e,))))
+    assert all(x is y for x, y in zip(joined.parts, parts, strict=True)) and len(joined) == sum(map(len, parts))
+    got = joined.samples()
+    for f in _FIELDS:
+        np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
+
+
+def _gathered(tests, steps) -> int:
+    """The wheel samples a run gathers: 4 per instant, every step-th sample of each segment from its first."""
+    return sum(4 * len(range(0, n, step)) for (_, lengths), step in zip(tests, steps, strict=True) for n in lengths)
+
+
+def test_wheel_sample_steps_under_the_budget_are_the_cut_offs():
+    """Under the budget each test's step is the one the map always took, round(fs / (5 cutoff)) (625 Hz at 4 Hz:
+    31; 100 Hz: 5), whatever the budget: the same samples, so the same curves. An hour of 625 Hz in 60 s segments
+    (benchmarks/bench_fleet.py's: 290k samples) is under the default budget."""
+    hour = [(625.0, [38411] * 59 + [37559])]
+    assert sample_steps(hour, 4.0) == [31]
+    assert sample_steps([(625.0, [38411] * 3), (100.0, [6000] * 2)], 4.0, budget=10**6) == [31, 5]
+    assert sample_steps([(625.0, [31 * 5])], 4.0, budget=20) == [31]  # exactly at the budget: 4 x 5 samples
+
+
+def test_wheel_sample_steps_over_the_budget_keep_the_count_within_it():
+    """Over the budget one whole factor m for every test, the least that keeps the count within it (oracle: the
+    samples counted one by one, with m and with m - 1); 6 h in 60 s segments: every 2nd of the cut-off's samples."""
+    six = [(625.0, [38411] * 359 + [37559])]
+    assert sample_steps(six, 4.0) == [62]
+    assert _gathered(six, [31]) > 2**20 >= _gathered(six, [62])
+    tests = [(625.0, [38411] * 7 + [1000]), (100.0, [6000] * 5 + [13])]
+    for budget in (5000, 2000, 777, 100):
+        steps = sample_steps(tests, 4.0, budget=budget)
+        m = steps[0] // 31
+        assert steps == [31 * m, 5 * m] and m > 1
+        assert _gathered(tests, steps) <= budget < _gathered(tests, [31 * (m - 1), 5 * (m - 1)])
+    with pytest.raises(TireCurveError, match="budget"):
+        sample_steps(tests, 4.0, budget=3)
+
+
+def test_every_wheel_sample_refers_to_the_one_test_name():
+    """The samples' test column holds the name given, the one object (a str made per sample cost 57 B each, 16 MB
+    per hour of data), equal to it: the fit's codes are the same."""
+    name = "".join(["sp", "iral"])  # a str of its own, not an interned literal
+    s = tire_samples(Model(car_template()), CarTrajectory(np.arange(3) * 0.01, np.zeros((3, 42)), np.zeros((3, 42)),
+                                                          np.zeros((3, 42)), np.zeros((3, 4, 6)), None, np.zeros(3)),
+                     name, 0.31)
+    assert len(s) == 12 and all(x is name for x in s.test)
 
 
 def test_a_selection_of_some_fields_carries_them_and_nans_in_no_memory():

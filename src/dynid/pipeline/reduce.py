@@ -68,7 +68,7 @@ from .sources import (
 if TYPE_CHECKING:
     from ..vehicle.dampers import KneeSearch
     from ..vehicle.estimate import CarTrajectory, CoarseTrajectory, JointsPass
-    from ..vehicle.tire_curves import TireSamples
+    from ..vehicle.tire_curves import SampleParts
 
 
 @dataclass(frozen=True)
@@ -102,6 +102,9 @@ class CarJob:
     # is, scored by the noise-free rows (estimation.offsets.NoiseScores, lag `noise_lag` rows)
     noise: tuple[SegmentWindow, ...] = ()
     noise_lag: int = 0
+    # the step between the wheel samples gathered for the tire curves (vehicle.tire_curves.sample_steps: the run's
+    # budget, chosen from the plan); None: the cut-off's (a job alone)
+    tire_step: int | None = None
 
     @property
     def test(self) -> str:
@@ -121,7 +124,7 @@ class Partial:
     segments: int = 1
     errors: ErrorEffect | None = None  # rows without and with one draw of the sensors' errors (estimation/fit.py)
     shifts: ShiftSums | None = None
-    tires: TireSamples | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
+    tires: SampleParts | None = None  # the wheels' slips and forces (vehicle.tire_curves), a few per second
     zeros: OffsetFactors | None = None  # each test's rows with its offsets' columns (estimation.offsets)
     knees: KneeSearch | None = None  # the damper curves' knees from the data (vehicle.dampers)
     # test -> its data health so far (pipeline.health; a robot's: its joints against the model)
@@ -313,7 +316,7 @@ def car_setup(cfg: IdentifyConfig) -> CarSetup:
 def reduce_car_segment(job: CarJob) -> Partial:
     """The job's segment read, turned into rows and reduced (module doc)."""
     from ..vehicle.dampers import KneeSearch  # start-up: a car's alone (CarSetup.__init__)
-    from ..vehicle.tire_curves import tire_samples
+    from ..vehicle.tire_curves import SampleParts, sample_steps, tire_samples
     from .car import knee_rows
 
     setup = car_setup(job.cfg)
@@ -348,10 +351,9 @@ def reduce_car_segment(job: CarJob) -> Partial:
     if health is not None:  # the data health of the part of the test this segment answers for
         part.health = health
     if setup.settings.tire_curves and job.instruments is None and not job.lags:
-        # the loads and joints are low-passed at the cut-off: five samples per period of it are plenty
-        step = max(1, round(w.fs / (5 * setup.conditioning.cutoff)))
-        part.tires = tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius, w.first / w.fs,
-                                  step)
+        step = job.tire_step or sample_steps([(w.fs, [len(w.clock)])], setup.conditioning.cutoff)[0]
+        part.tires = SampleParts((tire_samples(setup.model, traj, w.test, setup.vehicle.geometry.wheel_radius,
+                                               w.first / w.fs, step),))
     if not job.offsets:  # the main pass is the offsets' alone from here: not held beside the passes below
         joints = compensated = traj = None
     if job.instruments is not None:

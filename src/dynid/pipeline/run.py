@@ -330,6 +330,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     from ..vehicle.excitation import excitation_hint
     from ..vehicle.notes import consistency_text, masses_note, sensors_note
     from ..vehicle.presentation import car_scales, car_sections
+    from ..vehicle.tire_curves import sample_steps
     from .car import sensor_offsets
     from .delays import DELAY_SEGMENTS
 
@@ -376,6 +377,10 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
          f"evaluated on up to {settings.offset_segments} segment(s) per identification test") if moved else
         "no sensor zero offsets propagated: σ from the noise alone")
 
+    # the wheel samples' step per test, chosen before the map so that the run gathers at most MAX_SAMPLES of them
+    # (the tire fit's memory bounded for any length; under that, the cut-off's step: the same samples as unbounded)
+    tire_steps = sample_steps([(p.fs, [hi - lo for lo, hi in p.segments]) for p in plans], cond.cutoff)
+
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
              ) -> list[CarJob]:
         """The map's jobs; health: each segment gathers the data health of the part of its test it answers for
@@ -383,7 +388,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         out = []
         # the rows kept for the report: each identification test's first segment, and the first validation tests'
         shown = [p.test for p in plans if p.role == "validate"][:SHOWN_VALIDATION]
-        for plan in plans:
+        for plan, tire_step in zip(plans, tire_steps, strict=True):
             if instruments is not None and plan.role != "identify":
                 continue
             estimating = settings.estimate_offsets and instruments is None
@@ -403,7 +408,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
                                   and (plan.role == "identify" or plan.test in shown), errors=i in errors,
                                   delays=i in timed, estimate_offsets=estimating and i in picks,
                                   propagate_offsets=not estimating,
-                                  health=own if health else None))
+                                  health=own if health else None, tire_step=tire_step))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:
@@ -568,7 +573,7 @@ def _tire_curves(parts: dict, vehicle, say: Progress):
     # start-up: the car's modules (vehicle, car, delays: scipy.interpolate and optimize, 18 MB) not on a robot's path
     from ..vehicle.tire_curves import TireSamples, fit_tire_curves
 
-    samples = [p.tires for p in parts.values() if p.tires is not None]
+    samples = [s for p in parts.values() if p.tires is not None for s in p.tires.parts]
     if not samples:
         return None
     # merged once, in the fit's order, and the parts' own let go: the fit's samples held once, not twice (3 h of

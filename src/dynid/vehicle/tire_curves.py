@@ -48,19 +48,21 @@ Levenberg-Marquardt's with JᵀJ and Jᵀr summed block by block (`_polish_in_bl
 the samples once (the run's parts gathered in the fit's order, `TireSamples.ordered`), each fit's selection made
 when it runs and carrying only the fields it reads, and beyond that O(n) vectors (the residual, the runs' and
 instants' labels), no n × p matrix: on 3 h of benchmarks/bench_fleet.py's workload (871k samples, 70 MB) the fit's
-traced peak over its sorted samples was 0.40 GB, now 0.10 GB (2 threads). Measured 2026-11-29 (issue 28, h-thru2, an
-hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread, min of 5 fits, 3 alternated
-processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans' and the MuJoCo car's curves
-moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own starts ended up to 2.4e-4 σ
-apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the solution, s² = ‖r‖² / (n - p),
-and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run of consecutive samples, summed
-while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so consecutive residuals are not
-independent; times the simultaneity factor (`simultaneity_factor`): an axle's two wheels share the chassis
-velocity's estimate and its error in their slips. It assumes the model right (no bias: combined slip, camber thrust,
-relaxation length and the filters' lag are not modelled), the slips and loads exact but for noise (errors in α and κ
-bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor files), the residual stationary with
-one variance, J alike for the wheels of one instant, and the solution inside its bounds (a parameter at a bound gets
-no σ).
+traced peak over its sorted samples was 0.40 GB, now 0.10 GB (2 threads). And the samples bounded: a run gathers at
+most MAX_SAMPLES (`sample_steps`: every m-th of the cut-off's samples, m chosen from the plan before the map; m = 1,
+the same samples, under the budget), in parts the map's fold joins without copying (`SampleParts`). Measured
+2026-11-29 (issue 28, h-thru2, an hour's 290k wheel samples of benchmarks/bench_pipeline.py's workload, one thread,
+min of 5 fits, 3 alternated processes, load 11 on the 2-core EPYC): 1.90-2.17 -> 0.75-0.88 s CPU; the demo plans'
+and the MuJoCo car's curves moved by at most 1.1e-7 σ (2.9e-6 relative), the hour's by 1e-4 σ (the old fit's own
+starts ended up to 2.4e-4 σ apart on the demo's samples). σ = sqrt(diag(s² (JᵀJ)⁻¹ τ)) with J the Jacobian at the
+solution, s² = ‖r‖² / (n - p), and τ = 1 + 2 Σ ρ_k the residual's integrated autocorrelation (over each wheel's run
+of consecutive samples, summed while ρ_k > 0): the samples are 4 Hz low-passed signals read at 5 × the cut-off, so
+consecutive residuals are not independent; times the simultaneity factor (`simultaneity_factor`): an axle's two
+wheels share the chassis velocity's estimate and its error in their slips. It assumes the model right (no bias:
+combined slip, camber thrust, relaxation length and the filters' lag are not modelled), the slips and loads exact
+but for noise (errors in α and κ bias slopes down by their variance's share: 0.3 % on the MuJoCo car's sensor
+files), the residual stationary with one variance, J alike for the wheels of one instant, and the solution inside
+its bounds (a parameter at a bound gets no σ).
 """
 
 from __future__ import annotations
@@ -152,6 +154,27 @@ class TireSamples:
         return TireSamples(*(np.concatenate([getattr(s, f) for s in parts])[order] for f in _FIELDS))
 
 
+@dataclass(frozen=True)
+class SampleParts:
+    """Wheel samples in parts, as a run's segments gathered them (`tire_samples` each), joined by `merge` without
+    copying a sample: a map's fold (`pipeline.reduce.combine`) joins lists, and the fit gathers the parts once
+    (`samples`). Merged as arrays, each level of the fold copied every sample gathered so far, and its last combines
+    held them twice (the map's end, where an hour's run peaks)."""
+
+    parts: tuple[TireSamples, ...] = ()
+
+    def __len__(self) -> int:
+        return sum(len(p) for p in self.parts)
+
+    def merge(self, other: SampleParts) -> SampleParts:
+        """self's parts then other's."""
+        return SampleParts(self.parts + other.parts)
+
+    def samples(self) -> TireSamples:
+        """The parts' samples in the fit's order (`TireSamples.ordered`)."""
+        return TireSamples.ordered(self.parts)
+
+
 _FIELDS = ("test", "corner", "t", "alpha", "kappa", "gamma", "vx", "fx", "fy", "fz")
 _KEYS = ("test", "corner", "t")  # a sample's test, wheel and time: every selection carries them
 LATERAL_FIELDS = ("alpha", "fy", "fz")  # what the lateral fits read (`fit_lateral`, `fit_tire`)
@@ -187,6 +210,34 @@ def _carries(s: TireSamples, fields: Sequence[str], what: str) -> None:
                                  f"sample {i} (wheel {s.corner[i]}, t = {s.t[i]:.3f} s): remove or repair them")
 
 
+PER_PERIOD = 5  # wheel samples per period of the cut-off: the loads and joints are low-passed at it
+MAX_SAMPLES = 2**20  # a run's wheel samples at most (84 MB; 3.6 h of 625 Hz logs at a 4 Hz cut-off): `sample_steps`
+
+
+def sample_steps(tests: Sequence[tuple[float, Sequence[int]]], cutoff: float, budget: int | None = None) -> list[int]:
+    """Each test's step between wheel samples (`tire_samples`' step, from each segment's first sample), chosen before
+    the map so that a run gathers at most `budget` wheel samples whatever its logs' length (the fit's memory bounded):
+    PER_PERIOD samples per period of the cut-off (Hz), times one whole factor m for all the tests, the least whose
+    count (4 wheels per instant, each segment's whole window counted: a bound) is within the budget. Under it, m = 1:
+    the samples, and so the curves, of a run without a budget. Above it the fit sees every m-th sample: its σ come
+    from those, their autocorrelation factor τ counted on them (consecutive samples of a 4 Hz low-passed signal at
+    20 Hz are not independent: thinned, τ drops and σ grows by less than √m). tests: (fs in Hz, the segments'
+    lengths in samples) per test; budget None: MAX_SAMPLES."""
+    budget = MAX_SAMPLES if budget is None else budget
+    if not budget >= 4:
+        raise TireCurveError(f"budget = {budget!r} wheel samples: give at least 4 (one instant of the 4 wheels)")
+    base = [max(1, round(fs / (PER_PERIOD * cutoff))) for fs, _ in tests]
+    longest = max((n for _, lengths in tests for n in lengths), default=1)
+
+    def count(m: int) -> int:
+        return 4 * sum(-(-n // (b * m)) for (_, lengths), b in zip(tests, base, strict=True) for n in lengths)
+
+    m = max(1, -(-count(1) // budget))
+    while count(m) > budget and min(base) * m < longest:  # each segment's ceil: a step further may be needed
+        m += 1
+    return [b * m for b in base]
+
+
 def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, step: int = 1) -> TireSamples:
     """The slips and W-axis forces of the four wheels on every `step`-th sample of `traj` (a `CarTrajectory` of the
     42-frame template; its wheel_wrenches the ground's wrench on each wheel in the tire frame: x forward in the
@@ -219,8 +270,11 @@ def tire_samples(model, traj, test: str, wheel_radius: float, t0: float = 0.0, s
         out.append((np.full(n, k), t0 + np.asarray(traj.t)[::step],
                     np.arctan2(vy, den), (vx - wheel_radius * omega) / den, np.arcsin(np.clip(y_wheel[:, 2], -1, 1)),
                     vx, np.einsum("ni,ni->n", force, x_w), np.einsum("ni,ni->n", force, y_w), force[:, 2]))
-    # the four wheels' samples in turn (`TireSamples.merge`'s order), each field concatenated once
-    return TireSamples(np.full(4 * n, test, dtype=object), *(np.concatenate(f) for f in zip(*out, strict=True)))
+    # the four wheels' samples in turn (`TireSamples.merge`'s order), each field concatenated once; every sample's
+    # test the one str (np.full made a str per sample from the name's array: 57 B each, 16 MB an hour of data)
+    names = np.empty(4 * n, dtype=object)
+    names.fill(test)
+    return TireSamples(names, *(np.concatenate(f) for f in zip(*out, strict=True)))
 
 
 def empty_samples() -> TireSamples:
@@ -1327,7 +1381,7 @@ def _fit_tire_curves(samples: TireSamples, wheel_radius: float, workers: int = 1
     return out
 
 
-__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw", "TireCurveError",
-           "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples", "fit_lateral", "fit_longitudinal",
-           "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula", "peak_slip", "simultaneity_factor",
-           "slip_reach", "tire_samples"]
+__all__ = ["ALPHA_PURE", "KAPPA_PURE", "MAX_SAMPLES", "MIN_SPEED", "Fit", "LateralCurve", "LongitudinalLaw",
+           "SampleParts", "TireCurveError", "TireCurves", "TireSamples", "autocorrelation_factor", "empty_samples",
+           "fit_lateral", "fit_longitudinal", "fit_magic_formula", "fit_tire_curves", "lateral_force", "magic_formula",
+           "peak_slip", "sample_steps", "simultaneity_factor", "slip_reach", "tire_samples"]
