@@ -210,6 +210,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
     plans: dict[str, tuple] = {}  # test -> its plan, the channels with a data health error (data_health = "warn")
     mapper, threads = chunk_scheduler(scheduler)
     in_order = isinstance(mapper, LocalScheduler) and mapper.workers == 1  # its chunks one by one, in their order
+    handoff: dict | None = {} if in_order else None  # a chunk's first-stage outputs to the next (`RobotJob.handoff`)
     shown = [t.name for t in cfg.tests if t.role == "validate"][:SHOWN_VALIDATION]
     for spec in cfg.tests:
         say(f"reading and conditioning {spec.name!r}")
@@ -237,7 +238,7 @@ def robot_systems(cfg: IdentifyConfig, model: Model, base: BaseParameters, sched
             window = clock_window(plan, lo, hi)
             keep = all_rows or ((spec.role == "identify" or spec.name in shown) and (i == 0 or kept < PLOT_BYTES))
             jobs.append(RobotJob(cfg, window, (s, e), N, keep_rows=keep, health=True, threads=threads,
-                                 in_order=in_order))
+                                 in_order=in_order, handoff=handoff))
             kept += (e - s) * row_bytes
     parts = mapper.map_reduce(reduce_robot_chunk, jobs, lambda j: j.window.role, combine, say)
     trim_heap()  # the workers' freed chunks (glibc keeps ~25 MB of them otherwise, under the solve and the check)
