@@ -271,8 +271,9 @@ def decimate_parallel_blocked(
     later stages.
 
     known: the first stage's outputs of this input's first samples, made beforehand on the same samples (the chunk
-    before's, `share`): the blocks wholly inside them are not computed, those after are the bits they would be
-    without it (the known rows differ by the round-off of the blocks' bounds: `ROUND_OFF`). share: (h, give):
+    before's, `share`): the blocks wholly inside them are not computed, the first one left starts where they end,
+    the others are the bits they would be without them (the known rows and that block's differ by the round-off
+    of the blocks' bounds: `ROUND_OFF`). share: (h, give):
     give(outputs of the input samples h.. up to the stage's overlap before the input's end, those that do not
     see it), called once the blocks are in; h a multiple of factor[0]."""
     factors = _factors(factor)
@@ -289,6 +290,8 @@ def decimate_parallel_blocked(
                               f"of {first.n_out} first-stage outputs: give at most that many rows of each")
         skip = sum(-(-e // f) <= len(known.W1) for e in ends)
         starts, ends = starts[skip:], ends[skip:]
+        if starts:  # the first block left starts where the known outputs end (its own bits then, the others' kept)
+            starts[0] = max(starts[0], f * len(known.W1))
     # W1: the first stage's output of W's live columns alone (`held`, full-width indices, sorted), the structural
     # zeros (a joint's row holds only its subtree's parameters: 111 of a 7-joint arm's 301) never stored
     out: dict = {"W1": None, "Y1": None, "held": np.zeros(0, dtype=np.intp) if known is None else known.held,
