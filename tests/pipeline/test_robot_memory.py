@@ -311,30 +311,3 @@ def test_a_chunk_in_order_takes_the_first_stage_outputs_of_the_chunk_before(tmp_
     assert a.W.shape == b.W.shape and np.array_equal(a.t, b.t) and np.array_equal(a.groups, b.groups)
     assert np.max(np.abs(a.W - b.W)) <= 1e-9 * np.max(np.abs(b.W))
     assert np.max(np.abs(a.Y - b.Y)) <= 1e-9 * np.max(np.abs(b.Y))
-
-
-def test_a_chunk_decimates_its_speeds_only_for_a_speed_threshold():
-    """Without `Conditioning.min_speed` every row is kept, so a chunk's read does not decimate the joints' speeds
-    (~30 % of it). Oracle: the rows made with the speeds decimated as before (`decimate_parallel` of the filtered
-    positions' derivative over the chunk's span, every |speed| >= 0): the same bits; with a threshold they are
-    decimated and the slow rows dropped."""
-    from dynid.pipeline import robot
-    from dynid.signals import decimate_parallel, derivative
-
-    model = load_model("tx40")
-    base = model.base_parameters()
-    test, c = _test(30000), Conditioning(cutoff=20.0, decimate=(10, 10))
-    chunk = (15000, 20000)
-    qf, speed = robot.chunk_filtered(c, test.q, FS, 0, chunk, 30000)
-    assert speed is None
-    lo, hi = robot._chunk_span(c, FS, chunk, 30000)
-    before, _ = decimate_parallel(derivative(qf, FS)[lo:hi], None, c.decimate, FS, order=robot.DECIMATION_ORDER)
-    args = (model, base, c, None, test.tau, FS, 0, chunk, 30000)
-    now = robot.chunk_rows(*args, filtered=(qf, None))
-    old = robot.chunk_rows(*args, filtered=(qf, before))
-    assert np.array_equal(now.W, old.W) and np.array_equal(now.Y, old.Y) and np.array_equal(now.t, old.t)
-    slow = Conditioning(cutoff=20.0, decimate=(10, 10), min_speed={1: 0.5})
-    _, speed = robot.chunk_filtered(slow, test.q, FS, 0, chunk, 30000)
-    assert speed is not None and np.array_equal(speed, before)
-    fewer = robot.chunk_rows(model, base, slow, test.q, test.tau, FS, 0, chunk, 30000)
-    assert 0 < np.sum(fewer.groups == "joint1") < np.sum(now.groups == "joint1")

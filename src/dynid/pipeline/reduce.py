@@ -599,7 +599,7 @@ class RobotChunkRead:
     tau: np.ndarray  # (samples, frames): its torques
     gains: np.ndarray | None  # (samples, frames, k): the drive gains' columns when identified
     health: dict  # test -> the joints' data health of the positions (pipeline.health.gather_joints)
-    filtered: tuple[np.ndarray, np.ndarray | None]  # `robot.chunk_filtered`'s (qf, speed or None)
+    filtered: tuple[np.ndarray, np.ndarray]  # `robot.chunk_filtered`'s (qf, speed)
     buffers: list[np.ndarray]  # `robot.chunk_buffers`: the chunk's W block buffers, made by the thread that read it
 
 

@@ -224,7 +224,7 @@ def chunk_pad(fs: float, c: Conditioning) -> int:
 def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | None, tau: Array, fs: float, first: int,
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
                payload: tuple[int, Array] | None = None, threads: int = 1,
-               filtered: tuple[Array, Array | None] | None = None,
+               filtered: tuple[Array, Array] | None = None,
                blocks_done: Callable[[], None] | None = None, buffers: list[Array] | None = None,
                before: FirstStage | None = None, after: Callable[[FirstStage], None] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
@@ -298,11 +298,10 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
                                        block_samples=block_samples, threads=threads, blocks_done=freed,
                                        known=before, share=share)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
-    Wd, Yd, td = Wd[k], Yd[k], (lo + k * D) / fs
-    every = np.ones(len(k), dtype=bool)
+    Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
     parts = []
     for i, j in enumerate(rows):
-        ok = every if speed is None else np.abs(speed[k, j - 1]) >= c.min_speed.get(j, 0.0)
+        ok = np.abs(speed[:, j - 1]) >= c.min_speed.get(j, 0.0)
         parts.append(GroupedSystem(Wd[ok, i], Yd[ok, i], np.full(int(ok.sum()), f"joint{j}"), td[ok]))
     return GroupedSystem.stack(parts)
 
@@ -330,16 +329,13 @@ def _block_samples(rows: int, cols: int, extra: int) -> int:
 
 
 def chunk_filtered(c: Conditioning, q: Array, fs: float, first: int, chunk: tuple[int, int],
-                   n_samples: int) -> tuple[Array, Array | None]:
+                   n_samples: int) -> tuple[Array, Array]:
     """`chunk_rows`' filtered positions of its window q (samples first..first + len(q)) and its joints' speeds
     decimated as W's columns over the chunk and its decimation transient (the rows' speed test sees the decimated
-    samples): what a chunk needs before its W blocks, without the model. The speeds are None when no joint has a
-    speed threshold (`Conditioning.min_speed`: every row kept; their decimation was ~30 % of a chunk's read)."""
+    samples): what a chunk needs before its W blocks, without the model."""
     # the filtered positions held for the chunk, their derivatives (`filtered_derivatives`' central differences)
     # made a block at a time from them: the same bits, 2 of the 3 filtered arrays not held (7.5 MB for the Panda's)
     (qf,) = filtered_derivatives(q, fs, c.cutoff, order=c.order, nderiv=0)
-    if not any(v > 0 for v in c.min_speed.values()):
-        return qf, None
     lo, hi = _chunk_span(c, fs, chunk, n_samples)
     speed, _ = decimate_parallel(derivative(qf, fs)[lo - first : hi - first], None, c.decimate, fs,
                                  order=DECIMATION_ORDER)
