@@ -9,6 +9,26 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
 the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (15:15-16:25 UTC, load average 2.6-8 on the 2 cores: other sessions; wall times not
+comparable): where the map's time went (a timeline of each task's thread, perf_counter span and thread_time, the
+tree before this paragraph): per chunk the read 34 ms of CPU (its joints' speeds decimated: 10.5 of it), the W
+blocks ~270 on the two threads, the tail 18 on the calling thread (the second stage 14) while the next read ran on
+the third: one core idle ~16 ms a chunk plus the last block's wait; and every chunk made W on its decimation
+transient (4,900 samples a side: 65,400 of W for 55,600 kept, 15 %) though the chunks run in order. What went: a
+chunk takes the first decimation stage's outputs the chunk before made on their shared span (`RobotJob.handoff`,
+`decimate_parallel_blocked`'s known and share): 2 of its 19 W blocks skipped and the third begun where they end
+(W's samples -13 %). Whole processes, 3 pairs alternated after a warm-up each, medians, against ffe91d6: CPU
+0.949 x (pairs 0.781-0.955; 24.8 s against 29.3, load 2.6-4.7), peak 346.1 MiB (341.6-350.1) against 389.5, wall
+0.69 x (0.64-1.05: the load); an earlier call (the first commit, load 3-5): CPU 0.926 x (0.907-1.015), peak 344.7
+against 386.8. The estimate against 17cb88d's to 1.8e-11 relative (1.0e-15 of the largest value), sigmas 4.7e-12,
+the covariance 9.3e-12 of sqrt(C_ii C_jj), the validation errors 5.5e-11: the shared span's outputs come from the
+chunk before's window and blocks (the filters' tails, 1e-9 of the kept rows' weight, as any chunking). A
+cluster's chunks make their own, so its estimate matches the threads' to 1e-9 of its largest value (its test's
+bound now). Measured, not kept: the speeds decimated only when a joint has a speed threshold (none here: every
+row kept, the same bits): CPU 0.90 x this tree (2 pairs, 0.89-0.91) but the peak 352.4-353.6 MiB against
+344.6-350.2 (the shorter read makes the next chunk's W buffers while the tail still holds W1, likely): a lever once
+the buffers wait for the tail.
+
 Measured 2026-11-29 (14:15-14:16 UTC, a quiet machine: load average 1.2-1.6), this tree (the map one chunk at a
 time, h-rmem6's buffers, one glibc arena for the threads) against ffe91d6 (two chunks side by side), whole
 processes, 3 pairs alternated after a warm-up each, medians: peak 344 MiB (342-349) against 389 (388-392); the

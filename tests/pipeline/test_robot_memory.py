@@ -273,3 +273,41 @@ def test_a_chunks_w_buffers_are_made_by_the_thread_that_read_it(tmp_path, monkey
     assert np.array_equal(ahead.rows["sines"].W, here.rows["sines"].W)
     assert np.array_equal(ahead.rows["sines"].Y, here.rows["sines"].Y)
     assert np.array_equal(ahead.ls.solve().values, here.ls.solve().values)
+
+
+@pytest.mark.slow
+def test_a_chunk_in_order_takes_the_first_stage_outputs_of_the_chunk_before(tmp_path, monkeypatch):
+    """This machine's map does a test's chunks in order: each chunk takes the first decimation stage's outputs the
+    chunk before made on its span (the decimation's transient around their border) instead of W's blocks there.
+    Oracle: the same chunks done apart (as a cluster's workers do them): the rows equal to the filters' tails
+    (1e-9, as above: both are the whole record's to that), and W's samples asked for fewer by the shared spans."""
+    from dynid.pipeline import reduce, robot, run
+    from dynid.pipeline.config import load_config
+    from dynid.pipeline.schedulers import LocalScheduler
+
+    cfg = load_config(robot_log(tmp_path))
+    model = load_model("tx40")
+    base = model.base_parameters()
+    monkeypatch.setattr(robot, "CHUNK_BYTES", 8000 * robot.chunk_sample_bytes(model, base, cfg.conditioning))
+    real, asked = robot.decimate_parallel_blocked, []
+
+    def counted(rows, *args, **kwargs):
+        def rows_counted(lo, hi):
+            asked.append(hi - lo)
+            return rows(lo, hi)
+        return real(rows_counted, *args, **kwargs)
+
+    monkeypatch.setattr(robot, "decimate_parallel_blocked", counted)
+    order = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    in_order = sum(asked)
+    asked.clear()
+    monkeypatch.setattr(run, "RobotJob", lambda *a, **k: reduce.RobotJob(*a, **{**k, "handoff": None}))
+    apart = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    chunks = robot.robot_chunks(30000, FS, model, base, cfg.conditioning)
+    assert len(chunks) >= 3
+    pad = robot._decimation_transient(FS, cfg.conditioning.decimate)  # each border's shared span: 2 pad
+    assert in_order < sum(asked) - (len(chunks) - 1) * pad, (in_order, sum(asked), pad)
+    a, b = order.rows["sines"], apart.rows["sines"]
+    assert a.W.shape == b.W.shape and np.array_equal(a.t, b.t) and np.array_equal(a.groups, b.groups)
+    assert np.max(np.abs(a.W - b.W)) <= 1e-9 * np.max(np.abs(b.W))
+    assert np.max(np.abs(a.Y - b.Y)) <= 1e-9 * np.max(np.abs(b.Y))

@@ -613,6 +613,51 @@ def test_blocked_decimation_on_threads_is_one_threads_to_the_bit(threads):
         decimate_parallel_blocked(rows, n, 10, FS, block_samples=3000, threads=0)
 
 
+@pytest.mark.parametrize("factor", [10, (10, 10)])
+def test_blocked_decimation_takes_the_first_stage_outputs_an_overlapping_input_shared(factor):
+    """Two overlapping inputs of one record X, A = X[:na] and B = X[h:], done in turn (a robot's chunks in order):
+    A shares its first-stage outputs of B's samples (those that do not see A's end), B takes them as known and
+    asks rows() for none of their samples but the first block's overlap. Oracle: X's whole first stage by
+    `decimate_parallel` (one stage of factor 10: the first stage's filter), then its later stages on B's part;
+    B's outputs are X's interior ones from both inputs' blocks (each to ROUND_OFF of its kernel, the recursions'
+    round-off ~1e-14: the bound of the test above, 1e-12 of the largest output), where B done alone has the edge
+    of its start. The blocks after the first left are asked as without the known outputs."""
+    from dynid.signals.decimation import FirstStage, decimate_parallel_blocked
+
+    rng = np.random.default_rng(7)
+    n, na, h = 40007, 22000, 12000
+    X = np.cumsum(rng.normal(size=(n, 2, 4)), axis=0)
+    X[:, 1, 3] = 0.0
+    Y = np.cumsum(rng.normal(size=(n, 2)), axis=0)
+    shared: list[FirstStage] = []
+    decimate_parallel_blocked(lambda lo, hi: (X[lo:hi], Y[lo:hi]), na, factor, FS, block_samples=3000,
+                              share=(h, shared.append))
+    (known,) = shared
+    assert 0 < len(known.W1) * 10 < na - h and len(known.Y1) == len(known.W1)
+    asked: list[tuple[int, int]] = []
+
+    def rows(lo, hi):
+        asked.append((lo, hi))
+        return X[h + lo : h + hi], Y[h + lo : h + hi]
+
+    Wb, Yb = decimate_parallel_blocked(rows, n - h, factor, FS, block_samples=3000, known=known, threads=2)
+    with_known = sorted(asked)
+    asked.clear()
+    alone = decimate_parallel_blocked(rows, n - h, factor, FS, block_samples=3000)
+    first_left = len(known.W1) * 10
+    assert min(lo for lo, _ in with_known) >= first_left - 1000  # the first block's overlap (the stage's: < 1000)
+    assert with_known[1:] == [b for b in sorted(asked) if b[0] > with_known[0][0]]
+    W1 = decimate_parallel(X, Y, 10, FS)
+    if factor == 10:
+        Wd, Yd = W1[0][h // 10 :], W1[1][h // 10 :]
+    else:
+        Wd, Yd = decimate_parallel(W1[0][h // 10 :], W1[1][h // 10 :], 10, FS / 10)
+    assert np.max(np.abs(Wb - Wd)) <= 1e-12 * np.max(np.abs(Wd))
+    assert np.max(np.abs(Yb - Yd)) <= 1e-12 * np.max(np.abs(Yd))
+    assert np.all(Wb[:, 1, 3] == 0.0)
+    assert np.max(np.abs(alone[0] - Wd)) > 1e-6 * np.max(np.abs(Wd))  # alone, B's start is an edge
+
+
 @pytest.mark.parametrize("where", ["calling thread", "helper"])
 def test_blocked_decimation_on_threads_stops_at_a_blocks_error(where):
     """A block's error (a bad sample, Ctrl-C) ends the call once the blocks in flight are done: no thread takes a

@@ -49,6 +49,7 @@ from ..io import Channel
 from ..io.units import unit_factor
 from ..io.windows import forget_blocks_before
 from ..shipped import DEMO_VEHICLE
+from ..signals.decimation import FirstStage
 from ..symbolic.generated import GeneratedRegressor
 from .config import ConfigError, IdentifyConfig
 from .health import CarHealth, RobotHealth, gather_joints, segment_health
@@ -552,6 +553,9 @@ class RobotJob:
     hac: HACSums | None = None  # the second pass of a HAC covariance: the rows' scores at this estimate, alone
     threads: int = 1  # the chunk's W blocks done on this many threads at once (`robot.chunk_rows`)
     in_order: bool = False  # its test's chunks read one after another, by one reader (the block cache keeps less)
+    # in_order's chunks done one after another by this process: (test, a chunk's start) -> the first decimation
+    # stage's outputs the chunk before made on its span (`robot.chunk_rows`' before and after), one at a time
+    handoff: dict[tuple[str, int], FirstStage] | None = field(default=None, compare=False, repr=False)
 
     @property
     def test(self) -> str:
@@ -639,9 +643,17 @@ def robot_chunk_partial(job: RobotJob, read: RobotChunkRead, ready: Callable[[],
     ready: called once the chunk's W blocks are done and freed (`schedulers.Staged`: the next chunk read then)."""
     setup = robot_setup(job.cfg)
     w, health, gains = read.window, read.health, read.gains
+    box, after = job.handoff, None
+    before = None if box is None else box.pop((w.test, job.chunk[0]), None)
+    if box is not None:
+        box.clear()  # nothing stale held (a test's first chunk: the map's chunks are in order)
+
+        def after(stage: FirstStage, key: tuple[str, int] = (w.test, job.chunk[1])) -> None:
+            box[key] = stage
+
     sys = chunk_rows(setup.model, setup.base, job.cfg.conditioning, None, read.tau, w.fs, w.first, job.chunk,
                      job.n_samples, gains=gains, payload=setup.payloads.get(w.test), threads=job.threads,
-                     filtered=read.filtered, blocks_done=ready, buffers=read.buffers)
+                     filtered=read.filtered, blocks_done=ready, buffers=read.buffers, before=before, after=after)
     if job.hac is not None:
         return Partial(StreamingLS(setup.names), hac=_scores(job.hac, sys, w.test))
     if health and gains is None:

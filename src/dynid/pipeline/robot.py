@@ -18,7 +18,7 @@ import numpy as np
 from ..dynamics import BaseParameters, Model
 from ..model.tree import FIXED, INERTIAL, ModelError, Tree, freeze
 from ..signals import border_samples, decimate_parallel, derivative, filtered_derivatives
-from ..signals.decimation import blocked_rows, decimate_parallel_blocked
+from ..signals.decimation import FirstStage, blocked_rows, decimate_parallel_blocked
 
 Array = np.ndarray
 
@@ -225,7 +225,8 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
                chunk: tuple[int, int], n_samples: int, rows: Sequence[int] | None = None, gains: Array | None = None,
                payload: tuple[int, Array] | None = None, threads: int = 1,
                filtered: tuple[Array, Array] | None = None,
-               blocks_done: Callable[[], None] | None = None, buffers: list[Array] | None = None) -> GroupedSystem:
+               blocks_done: Callable[[], None] | None = None, buffers: list[Array] | None = None,
+               before: FirstStage | None = None, after: Callable[[FirstStage], None] | None = None) -> GroupedSystem:
     """The rows `joint_system` gives for the kept samples chunk = (s, e) of a test of n_samples, from the samples
     first..first + len(q) of it (q, tau), which reach `chunk_pad` beyond s and e or the record's ends: filtered
     and differentiated there, W and the torques on the chunk and its decimation transient, decimated, the chunk's
@@ -241,7 +242,15 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
     made here when None. blocks_done: called once the W blocks are done and their buffers freed (the decimation's
     later stages and the rows' own selection left). buffers: `chunk_buffers` of these arguments, made beforehand
     (by the thread that read the chunk, in the heap its reading left free: `reduce.read_robot_chunk`); made here
-    when None."""
+    when None.
+
+    after: given the first decimation stage's outputs this chunk made on the next chunk's span (its decimation
+    transient before the next chunk's samples, `_chunk_span`), away from this chunk's end (not called for a test's
+    last chunk); before: those outputs
+    of the chunk before, taken as this chunk's instead of computing W there again (~26 % of the Panda's W blocks
+    at 55,600 samples a chunk; the rows differ by round-off: each output is made from a window and blocks of its
+    own, both reaching its filters' transients to 1e-12 and `ROUND_OFF`). Only in the chunks' order, by one
+    process: chunks done apart (a cluster's) make their own."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     if filtered is None:
@@ -282,8 +291,12 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
         if blocks_done is not None:
             blocks_done()
 
+    # the next chunk's span starts `h` into this one's (on the decimation grid: a multiple of the first factor)
+    last = e >= n_samples - _border(fs, c)
+    share = None if after is None or last else (_chunk_span(c, fs, (e, e), n_samples)[0] - lo, after)
     Wd, Yd = decimate_parallel_blocked(block, hi - lo, c.decimate, fs, order=DECIMATION_ORDER,
-                                       block_samples=block_samples, threads=threads, blocks_done=freed)
+                                       block_samples=block_samples, threads=threads, blocks_done=freed,
+                                       known=before, share=share)
     k = np.arange((s - lo) // D, -(-(e - lo) // D))  # output k is input lo + k D
     Wd, Yd, speed, td = Wd[k], Yd[k], speed[k], (lo + k * D) / fs
     parts = []

@@ -222,6 +222,17 @@ def _blocks(n: int, f: int, fs: float, cutoff: float, order: int, block_samples:
     return starts, [*starts[1:], n], ov
 
 
+@dataclass(frozen=True)
+class FirstStage:
+    """The first stage's outputs of `decimate_parallel_blocked` for a run of its input samples: W1 (k, len(held)),
+    W's columns `held` (full-width indices, sorted; the others zero), and Y1 (k, m): output i is input sample
+    start + i factor[0] of the input they were made on."""
+
+    W1: NDArray[np.float64]
+    held: NDArray[np.intp]
+    Y1: NDArray[np.float64]
+
+
 def blocked_rows(n: int, factor: int | Sequence[int], fs: float, order: int = 8,
                  cutoff: float | Sequence[float] | None = None, *, block_samples: int) -> int:
     """The most input samples `decimate_parallel_blocked` asks `rows` for at once (a block and its overlaps): the
@@ -242,6 +253,8 @@ def decimate_parallel_blocked(
     block_samples: int,
     threads: int = 1,
     blocks_done: Callable[[], None] | None = None,
+    known: FirstStage | None = None,
+    share: tuple[int, Callable[[FirstStage], None]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """`decimate_parallel(W, Y, ...)` of the W (n, m, p) and Y (n, m) that `rows(0, n)` would give, without ever
     holding them at the input rate: the first stage filters and decimates blocks of about `block_samples` input
@@ -255,7 +268,14 @@ def decimate_parallel_blocked(
     them together and must be safe so, each call's W its own until it returns the next block's). The outputs
     are the same bits for any count: each block is computed alone, its outputs written to their own rows.
     blocks_done: called on the calling thread once every block is in (`rows` is not called again), before the
-    later stages."""
+    later stages.
+
+    known: the first stage's outputs of this input's first samples, made beforehand on the same samples (the chunk
+    before's, `share`): the blocks wholly inside them are not computed, the first one left starts where they end,
+    the others are the bits they would be without them (the known rows and that block's differ by the round-off
+    of the blocks' bounds: `ROUND_OFF`). share: (h, give):
+    give(outputs of the input samples h.. up to the stage's overlap before the input's end, those that do not
+    see it), called once the blocks are in; h a multiple of factor[0]."""
     factors = _factors(factor)
     fs = _checks.rate(fs)
     order = _checks.filter_order(order)
@@ -264,9 +284,18 @@ def decimate_parallel_blocked(
     stages = _stages(n, factors, fs, order, cutoff)
     first, f = stages[0], factors[0]
     starts, ends, ov = _blocks(n, f, fs, first.cutoff, order, block_samples)
+    if known is not None:  # the blocks whose outputs are all known are skipped (the grid kept: the others' bits)
+        if len(known.W1) != len(known.Y1) or len(known.W1) > first.n_out:
+            raise SignalError(f"known first-stage outputs: W1 {known.W1.shape}, Y1 {known.Y1.shape} for an input "
+                              f"of {first.n_out} first-stage outputs: give at most that many rows of each")
+        skip = sum(-(-e // f) <= len(known.W1) for e in ends)
+        starts, ends = starts[skip:], ends[skip:]
+        if starts:  # the first block left starts where the known outputs end (its own bits then, the others' kept)
+            starts[0] = max(starts[0], f * len(known.W1))
     # W1: the first stage's output of W's live columns alone (`held`, full-width indices, sorted), the structural
     # zeros (a joint's row holds only its subtree's parameters: 111 of a 7-joint arm's 301) never stored
-    out: dict = {"W1": None, "Y1": None, "held": np.zeros(0, dtype=np.intp), "shape": None}
+    out: dict = {"W1": None, "Y1": None, "held": np.zeros(0, dtype=np.intp) if known is None else known.held,
+                 "shape": None}
     lock = threading.Lock()
     caller, made = threading.get_ident(), threading.Event()
 
@@ -294,12 +323,16 @@ def decimate_parallel_blocked(
             if out["Y1"] is None:
                 out["shape"] = shape
                 out["Y1"] = np.zeros((first.n_out, *Yb.shape[1:]))
+                if known is not None:
+                    out["Y1"][: len(known.Y1)] = known.Y1
             W1, held = out["W1"], out["held"]
             if W1 is None or not np.isin(live, held).all():  # a column live for the first time: W1 widened (rare)
                 wider = np.union1d(held, live)
                 grown = np.zeros((first.n_out, len(wider)))
                 if W1 is not None:
                     grown[:, np.searchsorted(wider, held)] = W1
+                elif known is not None:
+                    grown[: len(known.W1), np.searchsorted(wider, held)] = known.W1
                 out["W1"], out["held"] = W1, held = grown, wider
             W1[a // f : -(-e // f), np.searchsorted(held, live)] = Wb
             out["Y1"][a // f : -(-e // f)] = Yb
@@ -323,8 +356,10 @@ def decimate_parallel_blocked(
                 return
             guarded(*item)
 
-    helpers = min(threads, len(starts)) - 1  # the calling thread is one of the `threads`
-    if helpers == 0:
+    helpers = max(0, min(threads, len(starts)) - 1)  # the calling thread is one of the `threads`
+    if not starts:  # every output known
+        made.set()
+    elif helpers == 0:
         drain()
     else:
         # the first block the calling thread's: W1 and Y1 made by it, in its heap (glibc's arena), not a helper's;
@@ -342,7 +377,17 @@ def decimate_parallel_blocked(
                 done.result()
     if blocks_done is not None:
         blocks_done()
+    if out["Y1"] is None:  # no block computed: every output known (W's shape is then the known columns' bound)
+        raise SignalError("decimate_parallel_blocked: every first-stage output known, no block to compute; give "
+                          "fewer known rows")
     W1, Y1, held, shape = out["W1"], out["Y1"], out["held"], out["shape"]
+    if share is not None:  # the rows that do not see this input's end (its last block's overlap), copied
+        h, give = share
+        if h % f:
+            raise SignalError(f"share from input sample {h}: not a multiple of the first factor {f}")
+        z = (n - ov) // f
+        if h // f < z:
+            give(FirstStage(W1[h // f : z].copy(), held.copy(), Y1[h // f : z].copy()))
     width = int(np.prod(shape))
     n1 = first.n_out
     if len(stages) == 1:
