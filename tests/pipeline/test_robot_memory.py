@@ -298,8 +298,13 @@ def test_a_chunk_in_order_takes_the_first_stage_outputs_of_the_chunk_before(tmp_
         return real(rows_counted, *args, **kwargs)
 
     monkeypatch.setattr(robot, "decimate_parallel_blocked", counted)
-    order = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]
+    jobs: list = []
+    order = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True,
+                              jobs_out=jobs)["identify"]
     in_order = sum(asked)
+    # one dict for the map's chunks, empty once it is done: no first-stage outputs held after it (or met by a
+    # second map over the same jobs, the HAC pass's)
+    assert len(jobs) >= 3 and all(j.handoff is jobs[0].handoff for j in jobs) and jobs[0].handoff == {}
     asked.clear()
     monkeypatch.setattr(run, "RobotJob", lambda *a, **k: reduce.RobotJob(*a, **{**k, "handoff": None}))
     apart = run.robot_systems(cfg, model, base, LocalScheduler(2), lambda _m: None, all_rows=True)["identify"]

@@ -244,13 +244,16 @@ def chunk_rows(model: Model, base: BaseParameters, c: Conditioning, q: Array | N
     (by the thread that read the chunk, in the heap its reading left free: `reduce.read_robot_chunk`); made here
     when None.
 
-    after: given the first decimation stage's outputs this chunk made on the next chunk's span (its decimation
-    transient before the next chunk's samples, `_chunk_span`), away from this chunk's end (not called for a test's
-    last chunk); before: those outputs
-    of the chunk before, taken as this chunk's instead of computing W there again (~26 % of the Panda's W blocks
-    at 55,600 samples a chunk; the rows differ by round-off: each output is made from a window and blocks of its
-    own, both reaching its filters' transients to 1e-12 and `ROUND_OFF`). Only in the chunks' order, by one
-    process: chunks done apart (a cluster's) make their own."""
+    after: given the first decimation stage's outputs this chunk made on the next chunk's span (from the start of
+    the next chunk's decimation transient, `_chunk_span`, to this chunk's own transient's end less the first
+    stage's overlap: the outputs that do not see this chunk's end; not called for a test's last chunk); before:
+    those outputs of the chunk before, taken as this chunk's instead of computing W there again (W's samples -13 %
+    for the Panda's 55,600-sample chunks: 2 of 19 blocks skipped, the third shortened; benchmarks/
+    bench_robot_memory.py). The rows differ by round-off: each output is made from a window and blocks of its own,
+    both reaching its filters' transients to 1e-12 and `ROUND_OFF`; but where a joint's filtered speed is zero to
+    round-off at a sample, its Coulomb column's sign(q̇) there may differ (as between any two chunkings: 1.1e-7
+    of W's largest in that column's rows around it, for a sine test turning at a sample). Only in the chunks' order,
+    by one process: chunks done apart (a cluster's) make their own."""
     rows = list(model.tree.equations) if rows is None else list(rows)
     s, e = chunk
     if filtered is None:
