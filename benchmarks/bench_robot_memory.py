@@ -9,6 +9,13 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
 the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (16:38-16:49 UTC, load average 1.0-1.8: no other session of ours; the host varied, ffe91d6's
+identification 13.5-17.3 s), this tree against ffe91d6 and 17cb88d, whole processes after a warm-up each, 6 pairs
+against ffe91d6 (3 of them triples with 17cb88d), medians: the identification's wall 15.15 s against 15.7 (pair
+ratios 0.88-1.10, median 0.97; 17cb88d 18.0), process CPU 26.4 s against 28.5 (0.93 x), peak 352 MiB (346-355)
+against 388 (382-392; 17cb88d 345, 344-346): the wall back within the 5 % bound, the peak 7 MB over 17cb88d's (the
+shared span's outputs held for the next chunk).
+
 Measured 2026-11-29 (15:15-16:25 UTC, load average 2.6-8 on the 2 cores: other sessions; wall times not
 comparable): where the map's time went (a timeline of each task's thread, perf_counter span and thread_time, the
 tree before this paragraph): per chunk the read 34 ms of CPU (its joints' speeds decimated: 10.5 of it), the W
