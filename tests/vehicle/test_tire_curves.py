@@ -681,20 +681,14 @@ def test_the_polish_in_blocks_ends_at_the_optimum(monkeypatch):
     np.testing.assert_allclose(fit.std, ref.std, rtol=1e-6)
 
 
-def test_the_polish_in_blocks_holds_no_jacobian_of_every_sample():
-    """The polish in blocks holds, beyond its inputs, the residual and the σ's autocorrelation temporaries (~65
-    bytes a sample), never J (n × p) and the solver's copies of it: under 100 bytes a sample here (p = 3, 200k
-    samples), where scipy's solver on all rows, the way before, held 232 (tracemalloc's peaks; NumPy's arrays are
-    traced). The two end at one optimum: values within 1e-6 σ."""
-    import tracemalloc
-
-    from dynid.vehicle import tire_curves as tc
-
+def _braking_law(n: int, noise: float):
+    """The longitudinal law's rows problem (`tire_curves._least_squares_rows`' form: rows -> (residual, Jacobian)
+    of κ = κ0 - Fx / (kx0 Fz (1 + pKx2 dfz))) on n braking samples of kx0 = 18, κ0 = -0.02, pKx2 = 0.4, Fz0 = 4000
+    N, the slip with white noise of that σ."""
     rng = np.random.default_rng(1)
-    n = 200_000
     fz, slip = rng.uniform(2500.0, 5500.0, n), rng.uniform(0.0, 0.04, n)
     fx = -18.0 * fz * (1 + 0.4 * (fz / 4000.0 - 1)) * slip
-    k = -0.02 + slip + 2e-3 * rng.standard_normal(n)
+    k = -0.02 + slip + (noise * rng.standard_normal(n) if noise else 0.0)
 
     def problem(rows):
         k_, fz_, fx_ = k[rows], fz[rows], fx[rows]
@@ -710,6 +704,20 @@ def test_the_polish_in_blocks_holds_no_jacobian_of_every_sample():
 
         return fun, jac
 
+    return problem
+
+
+def test_the_polish_in_blocks_holds_no_jacobian_of_every_sample():
+    """The polish in blocks holds, beyond its inputs, the residual and the σ's autocorrelation temporaries (~65
+    bytes a sample), never J (n × p) and the solver's copies of it: under 100 bytes a sample here (p = 3, 200k
+    samples), where scipy's solver on all rows, the way before, held 232 (tracemalloc's peaks; NumPy's arrays are
+    traced). The two end at one optimum: values within 1e-6 σ."""
+    import tracemalloc
+
+    from dynid.vehicle import tire_curves as tc
+
+    n = 200_000
+    problem = _braking_law(n, noise=2e-3)
     args = ([[18.5, -0.019, 0.35]], np.array([1e-3, -0.1, -0.9]), np.array([1e3, 0.1, 5.0]),
             ["kx0", "kappa0", "pKx2"], np.ones(n, dtype=np.int64), {}, np.arange(n))
     peaks, fits = [], []
@@ -730,26 +738,8 @@ def test_the_polish_in_blocks_ends_on_data_without_noise():
     here wasted). Oracle: the law's own parameters, to 1e-12 relative."""
     from dynid.vehicle import tire_curves as tc
 
-    rng = np.random.default_rng(1)
     n = 70_000
-    fz, slip = rng.uniform(2500.0, 5500.0, n), rng.uniform(0.0, 0.04, n)
-    fx = -18.0 * fz * (1 + 0.4 * (fz / 4000.0 - 1)) * slip
-    k = -0.02 + slip
-
-    def problem(rows):
-        k_, fz_, fx_ = k[rows], fz[rows], fx[rows]
-        load = fz_ / 4000.0 - 1
-
-        def fun(v):
-            return v[1] - fx_ / (v[0] * fz_ * (1 + v[2] * load)) - k_
-
-        def jac(v):
-            g = 1 + v[2] * load
-            fk = fx_ / (v[0] * fz_ * g)
-            return np.stack([fk / v[0], np.ones_like(fk), fk * load / g], axis=1)
-
-        return fun, jac
-
+    problem = _braking_law(n, noise=0.0)
     fit = tc._polish_in_blocks(problem, n, [[18.5, -0.019, 0.35]], np.array([1e-3, -0.1, -0.9]),
                                np.array([1e3, 0.1, 5.0]), ["kx0", "kappa0", "pKx2"], np.ones(n, dtype=np.int64), {},
                                None)
