@@ -743,12 +743,18 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for i in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
         sp, cp, tt = (np.sin(phi), np.cos(phi), np.tan(theta)) if i or start is None else start
-        u = qb * sp + r * cp
-        dphi = p + u * tt
-        dtheta = qb * cp - r * sp
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
-        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, check_finite=False)).T
+        if _euler_kernel is None:  # without numba: the kernel's formulas through NumPy
+            u = qb * sp + r * cp
+            dphi = p + u * tt
+            dtheta = qb * cp - r * sp
+            integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
+            rest = incl - integ
+        else:  # the rates, their integrals and the inclinometers' part left, in one compiled pass
+            u, dphi, dtheta = np.empty(len(sp)), np.empty(len(sp)), np.empty(len(sp))
+            integ, rest = np.empty((len(sp), 2)), np.empty((len(sp), 2))
+            _euler_kernel(p, qb, r, sp, cp, tt, incl, float(fs), u, dphi, dtheta, integ, rest)
+        phi, theta = (integ + lowpass(rest, fs, c.attitude_crossover, c.order, check_finite=False)).T
     dpsi = u / np.cos(pitch)
     psi = integrate(dpsi, fs, check_finite=False)
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
@@ -760,6 +766,29 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     for k in range(3):
         q[:, 3 + k], qd[:, 3 + k], qdd[:, 3 + k] = low[:, 3 + k] * sign[k], low[:, k] * sign[k], rdf[:, k] * sign[k]
     return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _euler_compiled(p, qb, r, sp, cp, tt, incl, fs, u, dphi, dtheta, integ, rest):  # pragma: no cover - compiled
+    """`_attitude`'s refinement at each sample, its NumPy lines' operations in their order: the Euler rates (into u,
+    dphi, dtheta (N,)) u = qb sp + r cp, dphi = p + u tt, dtheta = qb cp - r sp; dphi's and dtheta's running integrals (`signals.integrate`: the trapezoids'
+    sums scaled by 0.5 / fs, summed in turn from 0, plus x0 = 0) into integ (N, 2), and incl - integ into rest (N, 2),
+    the crossover low-pass's input. p, qb, r, sp, cp, tt (N,) (strided views too), incl (N, 2). One function of
+    explicit loops: its compile is short; the NumPy lines made a dozen passes over the samples."""
+    n = u.shape[0]
+    half = 0.5 / fs  # as signals.integrate
+    prev0 = prev1 = acc0 = acc1 = 0.0
+    for i in range(n):
+        ui = qb[i] * sp[i] + r[i] * cp[i]
+        d0 = p[i] + ui * tt[i]
+        d1 = qb[i] * cp[i] - r[i] * sp[i]
+        u[i], dphi[i], dtheta[i] = ui, d0, d1
+        if i:
+            acc0 = acc0 + (d0 + prev0) * half
+            acc1 = acc1 + (d1 + prev1) * half
+        prev0, prev1 = d0, d1
+        a0, a1 = acc0 + 0.0, acc1 + 0.0  # integrate's x0 added (it turns a -0.0 into 0.0)
+        integ[i, 0], integ[i, 1] = a0, a1
+        rest[i, 0], rest[i, 1] = incl[i, 0] - a0, incl[i, 1] - a1
 
 
 def _inclinometers(ch: Mapping[str, Array]) -> Array:
@@ -1025,5 +1054,6 @@ try:
 
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
     _carry_kernel = njit(cache=True, nogil=True)(_carry_compiled)
+    _euler_kernel = njit(cache=True, nogil=True)(_euler_compiled)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = _carry_kernel = None
+    _corner_kernel = _carry_kernel = _euler_kernel = None
