@@ -256,6 +256,45 @@ def test_the_compiled_carry_of_the_imu_acceleration_is_the_numpy_one(first):
     np.testing.assert_allclose(got, ref, rtol=0, atol=4 * np.finfo(float).eps * (lever + np.abs(ref).max()))
 
 
+@pytest.mark.parametrize("start", [False, True])
+def test_the_compiled_attitude_refinement_is_the_numpy_one(start):
+    """`_attitude`'s compiled refinement (the Euler rates, their trapezoidal integrals and the inclinometers' part
+    left, one pass) against its NumPy path (the products, np.stack, signals.integrate, the difference), the oracle it
+    replaced: the same operations in the same order. Equal here (no multiply-add fused); a machine that fuses
+    qb sp + r cp or p + u tt moves a rate by a rounding of its largest term (eps max|w|), an angle by n of them
+    over the integral (n eps max|w| / fs), their derivatives by fs and fs^2 times that, through the low-passes
+    (gain <= 1.1)."""
+    import dynid.vehicle.estimate as est
+
+    rng = np.random.default_rng(8)
+    n = 3000
+    t = np.arange(n) / FS
+    waves = np.sin(2 * np.pi * rng.uniform(0.1, 2.0, 5) * t[:, None] + rng.uniform(0, 6, 5))
+    ch = {"imu_roll_rate": 0.3 * waves[:, 0], "imu_pitch_rate": 0.2 * waves[:, 1], "imu_yaw_rate": 0.5 * waves[:, 2],
+          "imu_roll": 0.05 * waves[:, 3], "imu_pitch": 0.04 * waves[:, 4]}
+    x = est._Context(FS, None, demo_geometry(), CarConditioning(), None, True, 0)
+    incl = est._inclinometers(ch)
+    angles = est._lowpass(incl, x)
+    # a moved pass's start (`_Unmoved`): the inclinometers' sin, cos and tan as the first refinement reads them
+    first = (np.sin(angles[:, 0]), np.cos(angles[:, 0]), np.tan(angles[:, 1])) if start else None
+
+    def attitude():
+        joints = [np.zeros((n, 42), order="F") for _ in range(3)]
+        R6, w6 = est._attitude(ch, x, *joints, angles, incl if start else None, first)
+        return [R6, w6, *(a[:, 3:6] for a in joints)]
+
+    got = attitude()
+    kernel, est._euler_kernel = est._euler_kernel, None
+    try:
+        ref = attitude()
+    finally:
+        est._euler_kernel = kernel
+    eps, w = np.finfo(float).eps, 0.5
+    angle = 8 * (n * eps * w / FS + eps)
+    for a, b, tol in zip(got, ref, [angle, 0.0, angle, 8 * eps * w, 8 * eps * w * FS], strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=tol)
+
+
 def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     """`_corners` (one compiled pass) against its NumPy path (signals.derivative twice, signals.integrate, the
     columns scattered into q, qd, qdd), the oracle it replaced. The interior differences have no product to fuse:
