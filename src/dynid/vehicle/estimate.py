@@ -770,10 +770,11 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
 
 def _euler_compiled(p, qb, r, sp, cp, tt, incl, fs, u, dphi, dtheta, integ, rest):  # pragma: no cover - compiled
     """`_attitude`'s refinement at each sample, its NumPy lines' operations in their order: the Euler rates (into u,
-    dphi, dtheta (N,)) u = qb sp + r cp, dphi = p + u tt, dtheta = qb cp - r sp; dphi's and dtheta's running integrals (`signals.integrate`: the trapezoids'
-    sums scaled by 0.5 / fs, summed in turn from 0, plus x0 = 0) into integ (N, 2), and incl - integ into rest (N, 2),
-    the crossover low-pass's input. p, qb, r, sp, cp, tt (N,) (strided views too), incl (N, 2). One function of
-    explicit loops: its compile is short; the NumPy lines made a dozen passes over the samples."""
+    dphi, dtheta (N,)) u = qb sp + r cp, dphi = p + u tt, dtheta = qb cp - r sp; dphi's and dtheta's running integrals
+    (`signals.integrate`: the trapezoids' sums scaled by 0.5 / fs, summed in turn from 0, plus x0 = 0) into integ
+    (N, 2), and incl - integ into rest (N, 2), the crossover low-pass's input. p, qb, r, sp, cp, tt (N,) (strided
+    views too), incl (N, 2). One function of explicit loops: its compile is short; the NumPy lines made a dozen passes
+    over the samples."""
     n = u.shape[0]
     half = 0.5 / fs  # as signals.integrate
     prev0 = prev1 = acc0 = acc1 = 0.0
