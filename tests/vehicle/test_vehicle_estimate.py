@@ -295,6 +295,47 @@ def test_the_compiled_attitude_refinement_is_the_numpy_one(start):
         np.testing.assert_allclose(a, b, rtol=0, atol=tol)
 
 
+@pytest.mark.parametrize("deflections", [False, True])
+def test_the_compiled_velocity_is_the_numpy_one(deflections):
+    """`_velocity`'s compiled pass (the sensor's velocity carried to O6, its vertical part from the height's rate,
+    the tire deflections before their low-pass) against its NumPy path (the signed gathers, einsum, the deflections'
+    three passes), the oracle it replaced: the same operations in the same order. Equal here (no multiply-add
+    fused); a machine that fuses one moves a velocity by a rounding or two of its terms (eps (|v| + |w| |pc|)),
+    its integral by n of them over fs; the deflections have no product to fuse."""
+    import dynid.vehicle.estimate as est
+    from dynid.vehicle.sensors import paper_suite
+
+    rng = np.random.default_rng(9)
+    n = 3000
+    t = np.arange(n) / FS
+    waves = np.sin(2 * np.pi * rng.uniform(0.1, 2.0, 20) * t[:, None] + rng.uniform(0, 6, 20))
+    g = demo_geometry()
+    x = est._Context(FS, None, g, CarConditioning(), paper_suite(g), True, 0)
+    ch = {"correvit_vx": 25.0 + waves[:, 0], "correvit_vy": 0.5 * waves[:, 1]}
+    R6 = est._rotation(*(0.1 * waves[:, 2:5].T))
+    w6 = 0.3 * waves[:, 5:8]
+    pz_zz = np.concatenate([0.3 + 0.01 * waves[:, 8:12], 1.0 - 0.01 * np.abs(waves[:, 12:16])], axis=1)
+    z_laser = -0.3 + 0.01 * waves[:, 16:20]
+
+    def velocity():
+        q, qd, qdd = (np.zeros((n, 42), order="F") for _ in range(3))
+        qd[:, 2] = 0.05 * waves[:, 4]
+        est._velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser) if deflections else None)
+        return q, qd, qdd
+
+    got = velocity()
+    kernel, est._velocity_kernel = est._velocity_kernel, None
+    try:
+        ref = velocity()
+    finally:
+        est._velocity_kernel = kernel
+    eps, v = np.finfo(float).eps, 27.0
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_allclose(a[:, :2], b[:, :2], rtol=0, atol=16 * eps * v * max(1.0, n / FS))
+        np.testing.assert_array_equal(a[:, 2:], b[:, 2:])  # the tires' columns (zero without deflections)
+    assert np.count_nonzero(got[0][:, 14]) == (n if deflections else 0)
+
+
 def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     """`_corners` (one compiled pass) against its NumPy path (signals.derivative twice, signals.integrate, the
     columns scattered into q, qd, qdd), the oracle it replaced. The interior differences have no product to fuse:
