@@ -163,6 +163,7 @@ _SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None
 # sign X[:, k]
 _ISO_GATHER = tuple((int(np.flatnonzero(ISO_AXES[:, j])[0]), float(ISO_AXES[:, j].sum())) for j in range(3))
 _ISO_ROWS = tuple((int(np.flatnonzero(ISO_AXES[i])[0]), float(ISO_AXES[i].sum())) for i in range(3))
+_GATHER = (np.array([k for k, _ in _ISO_GATHER]), np.array([s for _, s in _ISO_GATHER]))  # `_velocity_compiled`'s
 assert sorted(np.abs(ISO_AXES).sum(axis=0)) == [1.0] * 3 and sorted(np.abs(ISO_AXES).sum(axis=1)) == [1.0] * 3
 
 
@@ -1022,9 +1023,8 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     if _velocity_kernel is not None:  # the lines below in one compiled pass, the deflections' too
         qdd, pz_zz, z_laser = deflections if deflections is not None else (None, np.empty((0, 8)), np.empty((0, 4)))
         out = np.empty((N, 2 if deflections is None else 6))
-        gather = np.array([(k_, s_) for k_, s_ in _ISO_GATHER], dtype=float)
         c = np.ascontiguousarray
-        _velocity_kernel(c(w6), pc, c(iso[0]), c(iso[1]), gather, c(R6.transpose(1, 2, 0)), k, sign, c(qd[:, 2]),
+        _velocity_kernel(c(w6), pc, c(iso[0]), c(iso[1]), *_GATHER, c(R6.transpose(1, 2, 0)), k, sign, c(qd[:, 2]),
                          c(pz_zz), c(z_laser), out)
         if deflections is None:
             v = _lowpass(out, x)
@@ -1057,34 +1057,30 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
 
 
-def _velocity_compiled(w6, pc, vx, vy, gather, R, k, sign, qd2, pz_zz, z_laser, out):  # pragma: no cover - compiled
+def _velocity_compiled(w6, pc, vx, vy, gk, gs, R, k, sign, qd2, pz_zz, z_laser, out):  # pragma: no cover - compiled
     """`_velocity`'s NumPy lines at each sample, their operations in their order: rel = v_c - w6 x pc (the sensor's
-    velocity [vx, vy, 0] gathered by `_ISO_GATHER` (gather (3, 2): index, sign)), v_known = R6 rel (einsum's sum left
-    to right), the vertical part from qd2 along sign R6[:, :, k], v0 into out[:, :2]; when out has 6 columns,
-    `_deflection`'s -(pz + z_laser) / zz into out[:, 2:6]. R (3, 3, N): 0R6's entries first (`_rotation`'s layout).
-    One function of explicit loops: its compile is short; the NumPy lines made ~30 passes over the samples."""
+    velocity [vx, vy, 0] gathered by `_ISO_GATHER`: component j is gs[j] times the gk[j]-th, none when 2; a product
+    by 1 or -1 is exact), v_known = R6 rel (einsum's sum left to right), the vertical part from qd2 along sign
+    R6[:, :, k], v0 into out[:, :2]; when out has 6 columns, `_deflection`'s -(pz + z_laser) / zz into out[:, 2:6].
+    R (3, 3, N): 0R6's entries first (`_rotation`'s layout). One function of explicit loops and few branches: its
+    compile is short (0.3 s); the NumPy lines made ~30 passes over the samples."""
     n = out.shape[0]
-    rel = np.empty(3)
-    v = np.empty(3)
+    deflections = out.shape[1] == 6
     for i in range(n):
-        for j in range(3):
-            a, b = (j + 1) % 3, (j + 2) % 3
-            wxp = w6[i, a] * pc[b] - w6[i, b] * pc[a]
-            kk, sg = int(gather[j, 0]), gather[j, 1]
-            if kk == 2:  # no measured vertical velocity: 0 - w6 x pc
-                rel[j] = 0.0 - wxp
-            else:
-                vc = vx[i] if kk == 0 else vy[i]
-                rel[j] = (vc if sg > 0 else -vc) - wxp
-        for j in range(3):
-            v[j] = R[j, 0, i] * rel[0] + R[j, 1, i] * rel[1] + R[j, 2, i] * rel[2]
-        ez0, ez1, ez2 = R[0, k, i], R[1, k, i], R[2, k, i]
-        if sign < 0:
-            ez0, ez1, ez2 = -ez0, -ez1, -ez2
-        s = (qd2[i] - v[2]) / ez2
-        out[i, 0] = v[0] + s * ez0
-        out[i, 1] = v[1] + s * ez1
-        if out.shape[1] == 6:
+        w0, w1, w2 = w6[i, 0], w6[i, 1], w6[i, 2]
+        x0 = w1 * pc[2] - w2 * pc[1]  # w6 x pc, np.cross's operations
+        x1 = w2 * pc[0] - w0 * pc[2]
+        x2 = w0 * pc[1] - w1 * pc[0]
+        r0 = 0.0 - x0 if gk[0] == 2 else (vx[i] if gk[0] == 0 else vy[i]) * gs[0] - x0
+        r1 = 0.0 - x1 if gk[1] == 2 else (vx[i] if gk[1] == 0 else vy[i]) * gs[1] - x1
+        r2 = 0.0 - x2 if gk[2] == 2 else (vx[i] if gk[2] == 0 else vy[i]) * gs[2] - x2
+        v0 = R[0, 0, i] * r0 + R[0, 1, i] * r1 + R[0, 2, i] * r2
+        v1 = R[1, 0, i] * r0 + R[1, 1, i] * r1 + R[1, 2, i] * r2
+        v2 = R[2, 0, i] * r0 + R[2, 1, i] * r1 + R[2, 2, i] * r2
+        s = (qd2[i] - v2) / (R[2, k, i] * sign)
+        out[i, 0] = v0 + s * (R[0, k, i] * sign)
+        out[i, 1] = v1 + s * (R[1, k, i] * sign)
+        if deflections:
             for c in range(4):
                 out[i, 2 + c] = -(pz_zz[i, c] + z_laser[i, c]) / pz_zz[i, 4 + c]
 
