@@ -256,6 +256,19 @@ def test_the_compiled_carry_of_the_imu_acceleration_is_the_numpy_one(first):
     np.testing.assert_allclose(got, ref, rtol=0, atol=4 * np.finfo(float).eps * (lever + np.abs(ref).max()))
 
 
+def compiled_and_numpy(kernel: str, run):
+    """run() with the estimator's compiled `kernel`, then with it off (its NumPy path, the oracle)."""
+    import dynid.vehicle.estimate as est
+
+    got = run()
+    compiled = getattr(est, kernel)
+    setattr(est, kernel, None)
+    try:
+        return got, run()
+    finally:
+        setattr(est, kernel, compiled)
+
+
 @pytest.mark.parametrize("start", [False, True])
 def test_the_compiled_attitude_refinement_is_the_numpy_one(start):
     """`_attitude`'s compiled refinement (the Euler rates, their trapezoidal integrals and the inclinometers' part
@@ -283,12 +296,7 @@ def test_the_compiled_attitude_refinement_is_the_numpy_one(start):
         R6, w6 = est._attitude(ch, x, *joints, angles, incl if start else None, first)
         return [R6, w6, *(a[:, 3:6] for a in joints)]
 
-    got = attitude()
-    kernel, est._euler_kernel = est._euler_kernel, None
-    try:
-        ref = attitude()
-    finally:
-        est._euler_kernel = kernel
+    got, ref = compiled_and_numpy("_euler_kernel", attitude)
     eps, w = np.finfo(float).eps, 0.5
     angle = 8 * (n * eps * w / FS + eps)
     for a, b, tol in zip(got, ref, [angle, 0.0, angle, 8 * eps * w, 8 * eps * w * FS], strict=True):
@@ -323,12 +331,7 @@ def test_the_compiled_velocity_is_the_numpy_one(deflections):
         est._velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser) if deflections else None)
         return q, qd, qdd
 
-    got = velocity()
-    kernel, est._velocity_kernel = est._velocity_kernel, None
-    try:
-        ref = velocity()
-    finally:
-        est._velocity_kernel = kernel
+    got, ref = compiled_and_numpy("_velocity_kernel", velocity)
     eps, v = np.finfo(float).eps, 27.0
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_allclose(a[:, :2], b[:, :2], rtol=0, atol=16 * eps * v * max(1.0, n / FS))
