@@ -95,6 +95,35 @@ estimated none`, load 7.1): estimated 37.95 s against none 19.04 s (+99 %). 30 %
 segment, against 0.26-0.29 s above (0.31 s in the hour's run): only compiled stages would reach it (the attitude pass
 in one kernel: its sin, cos and tan then differ from NumPy's at round-off, so the main pass must run it too, and C's
 round-off is redrawn as above; W x without W for the rows).
+
+Then (h-offs, second round, 2026-11-29): the attitude and velocity stages' elementwise NumPy lines in two compiled
+passes that the segment's own pass and the moved ones share, the sines and cosines left to NumPy (`_euler_compiled`:
+the Euler rates, their trapezoidal integrals, the inclinometers' part left, the yaw rate and its integral;
+`_velocity_compiled`: v_c - w6 x pc, R6 rel, the vertical part, v0 and the tire deflections, written straight into
+the low-pass's input), and an attitude pass's tire poses take the 20 corner joints' cos and sin from the segment's
+pass (`forward_kinematics(..., trig=)`). The same operations in the same order: on a 60 s segment of the 10 min log
+the segment's q, qd, qdd, W, Y and the 36 columns C are f15571e's bit for bit; the car-truth tables (240 numbers) and
+the MuJoCo car's results (3005) equal. Per call, in one process with the kernel on and off alternated (min of 15 x 6,
+load 2.3): `_attitude` 8.56 -> 7.30 ms, `_velocity` 4.40 -> 3.10 ms; `_tire_poses` of an attitude pass 6.0-6.5 ->
+5.1-5.6 ms (processes alternated, load 8.5). offset_residuals of the segment (process_time, min of 7, f15571e and
+this branch's processes alternated 4 times, load 2.6-4.0): 295-318 -> 264-285 ms (-7 %; the segment's own joints and
+rows 65-71 -> 62-67 ms). A first run compiles the two kernels: 0.23 and 0.37 s of CPU (an empty NUMBA_CACHE_DIR;
+0.46 s before the velocity kernel's branches were cut), loaded in ~3 ms each afterwards. This benchmark (each tree's
+own script, `--minutes 10 --rounds 2 --modes estimated none`, 2 alternations, load 3.7-9.2; CPU s, min of 2):
+
+    log       f15571e: estimated against none       h-offs: estimated against none
+    demo        5.59, 5.16 against 5.10, 4.82        5.37, 5.20 against 5.04, 4.76
+    10 min      9.23, 8.82 against 6.35, 5.93        8.72, 8.40 against 5.51, 6.17
+
+the estimated runs -5 %, the offsets' added work over the least 'none' of the run (5.51 s) 3.3-3.7 -> 2.9-3.2 s:
+still +52-58 % at 10 min. Tried and dropped: a first-order (tangent) propagation of an attitude offset: the columns'
+even part (C(b) + C(-b)) / 2, second order in b, is 0.2 % (roll rate) to 31 % (yaw rate: 0.6 rad of drift a minute)
+of each column's largest, 3e-5 to 6e-2 of the residual's scale against the test's 1e-13; the chassis rotation's
+products compiled (its six sines and cosines are its time: 1.82 -> 1.72 ms, not worth a compile); the heights'
+R6 p products (an (N, 3) x (3, 4) matmul: OpenBLAS's fused sums are not the loop's, 29 203 of 152 000 entries
+differ, so the main pass's bits would move) left to NumPy. What is left per attitude pass (~21-23 ms): 5 low-pass
+calls (~7 ms, two of them the 2-column crossover's, latency-bound), the tire poses' spline (construction and
+evaluation ~3.2 ms), 10 sines, cosines and tangents of 38k samples (~2.3 ms), the forward kinematics (~1.5 ms).
 """
 
 from __future__ import annotations

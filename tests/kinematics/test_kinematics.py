@@ -108,3 +108,29 @@ def test_forward_kinematics_rows_are_the_whole_poses_rows(rows):
         assert np.array_equal(part.P[j], whole.P[j][rows])
         for c in range(3):
             assert np.array_equal(np.broadcast_to(part.Rc[j][c], part.P[j].shape), whole.Rc[j][c][rows])
+
+
+def test_forward_kinematics_with_some_joints_cos_and_sin_given_is_the_whole_pass():
+    """Oracle: the forward kinematics of the moved joints computed whole. A pass with a few joints moved and the
+    others' cos and sin kept from a first pass (`joint_trig`, what a moved attitude pass of the car reuses) gives the
+    same numbers, bit for bit; the kept pairs are used, not computed again (a pair made up shows in the poses)."""
+    from dynid.kinematics.forward import forward_kinematics, joint_array, joint_trig
+
+    tree = random_tree(seed=25, n=14, floating=True)
+    q, _, _ = random_states(tree, 50, seed=4)
+    qs = joint_array(q, tree, "q")[0]
+    moved = [4, 5, 6]
+    kept = [j for j in range(1, tree.n + 1) if j not in moved]
+    trig = joint_trig(tree, qs, kept)
+    assert trig and all(tree.sigma[j] == 0 for j in trig)
+    qm = qs.copy()
+    qm[[j - 1 for j in moved]] += 0.01
+    whole = forward_kinematics(tree, qm, rows=slice(2, 3))
+    part = forward_kinematics(tree, qm, rows=slice(2, 3), trig=trig)
+    for j in range(1, tree.n + 1):
+        assert np.array_equal(part.P[j], whole.P[j])
+        assert all(np.array_equal(part.Rc[j][c], whole.Rc[j][c]) for c in range(3))
+    j = max(trig)  # the last revolute frame kept: its pair taken as given
+    c, s = trig[j]
+    other = forward_kinematics(tree, qm, rows=slice(2, 3), trig={**trig, j: (s, -c)})
+    assert not np.array_equal(other.Rc[j][0], whole.Rc[j][0])

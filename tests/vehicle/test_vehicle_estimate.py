@@ -256,6 +256,89 @@ def test_the_compiled_carry_of_the_imu_acceleration_is_the_numpy_one(first):
     np.testing.assert_allclose(got, ref, rtol=0, atol=4 * np.finfo(float).eps * (lever + np.abs(ref).max()))
 
 
+def compiled_and_numpy(kernel: str, run):
+    """run() with the estimator's compiled `kernel`, then with it off (its NumPy path, the oracle)."""
+    import dynid.vehicle.estimate as est
+
+    got = run()
+    compiled = getattr(est, kernel)
+    setattr(est, kernel, None)
+    try:
+        return got, run()
+    finally:
+        setattr(est, kernel, compiled)
+
+
+@pytest.mark.parametrize("start", [False, True])
+def test_the_compiled_attitude_refinement_is_the_numpy_one(start):
+    """`_attitude`'s compiled refinement (the Euler rates, their trapezoidal integrals and the inclinometers' part
+    left, one pass) against its NumPy path (the products, np.stack, signals.integrate, the difference), the oracle it
+    replaced: the same operations in the same order. Equal here (no multiply-add fused); a machine that fuses
+    qb sp + r cp or p + u tt moves a rate by a rounding of its largest term (eps max|w|), an angle by n of them
+    over the integral (n eps max|w| / fs), their derivatives by fs and fs^2 times that, through the low-passes
+    (gain <= 1.1)."""
+    import dynid.vehicle.estimate as est
+
+    rng = np.random.default_rng(8)
+    n = 3000
+    t = np.arange(n) / FS
+    waves = np.sin(2 * np.pi * rng.uniform(0.1, 2.0, 5) * t[:, None] + rng.uniform(0, 6, 5))
+    ch = {"imu_roll_rate": 0.3 * waves[:, 0], "imu_pitch_rate": 0.2 * waves[:, 1], "imu_yaw_rate": 0.5 * waves[:, 2],
+          "imu_roll": 0.05 * waves[:, 3], "imu_pitch": 0.04 * waves[:, 4]}
+    x = est._Context(FS, None, demo_geometry(), CarConditioning(), None, True, 0)
+    incl = est._inclinometers(ch)
+    angles = est._lowpass(incl, x)
+    # a moved pass's start (`_Unmoved`): the inclinometers' sin, cos and tan as the first refinement reads them
+    first = (np.sin(angles[:, 0]), np.cos(angles[:, 0]), np.tan(angles[:, 1])) if start else None
+
+    def attitude():
+        joints = [np.zeros((n, 42), order="F") for _ in range(3)]
+        R6, w6 = est._attitude(ch, x, *joints, angles, incl if start else None, first)
+        return [R6, w6, *(a[:, 3:6] for a in joints)]
+
+    got, ref = compiled_and_numpy("_euler_kernel", attitude)
+    eps, w = np.finfo(float).eps, 0.5
+    angle = 8 * (n * eps * w / FS + eps)
+    for a, b, tol in zip(got, ref, [angle, 0.0, angle, 8 * eps * w, 8 * eps * w * FS], strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=tol)
+
+
+@pytest.mark.parametrize("deflections", [False, True])
+def test_the_compiled_velocity_is_the_numpy_one(deflections):
+    """`_velocity`'s compiled pass (the sensor's velocity carried to O6, its vertical part from the height's rate,
+    the tire deflections before their low-pass) against its NumPy path (the signed gathers, einsum, the deflections'
+    three passes), the oracle it replaced: the same operations in the same order. Equal here (no multiply-add
+    fused); a machine that fuses one moves a velocity by a rounding or two of its terms (eps (|v| + |w| |pc|)),
+    its integral by n of them over fs; the deflections have no product to fuse."""
+    import dynid.vehicle.estimate as est
+    from dynid.vehicle.sensors import paper_suite
+
+    rng = np.random.default_rng(9)
+    n = 3000
+    t = np.arange(n) / FS
+    waves = np.sin(2 * np.pi * rng.uniform(0.1, 2.0, 20) * t[:, None] + rng.uniform(0, 6, 20))
+    g = demo_geometry()
+    x = est._Context(FS, None, g, CarConditioning(), paper_suite(g), True, 0)
+    ch = {"correvit_vx": 25.0 + waves[:, 0], "correvit_vy": 0.5 * waves[:, 1]}
+    R6 = est._rotation(*(0.1 * waves[:, 2:5].T))
+    w6 = 0.3 * waves[:, 5:8]
+    pz_zz = np.concatenate([0.3 + 0.01 * waves[:, 8:12], 1.0 - 0.01 * np.abs(waves[:, 12:16])], axis=1)
+    z_laser = -0.3 + 0.01 * waves[:, 16:20]
+
+    def velocity():
+        q, qd, qdd = (np.zeros((n, 42), order="F") for _ in range(3))
+        qd[:, 2] = 0.05 * waves[:, 4]
+        est._velocity(ch, x, q, qd, R6, w6, (qdd, pz_zz, z_laser) if deflections else None)
+        return q, qd, qdd
+
+    got, ref = compiled_and_numpy("_velocity_kernel", velocity)
+    eps, v = np.finfo(float).eps, 27.0
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_allclose(a[:, :2], b[:, :2], rtol=0, atol=16 * eps * v * max(1.0, n / FS))
+        np.testing.assert_array_equal(a[:, 2:], b[:, 2:])  # the tires' columns (zero without deflections)
+    assert np.count_nonzero(got[0][:, 14]) == (n if deflections else 0)
+
+
 def test_the_corners_compiled_pass_is_signals_derivative_and_integrate():
     """`_corners` (one compiled pass) against its NumPy path (signals.derivative twice, signals.integrate, the
     columns scattered into q, qd, qdd), the oracle it replaced. The interior differences have no product to fuse:

@@ -11,7 +11,7 @@ the origin keeps the precision of one at the origin.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,8 +148,20 @@ def needed_frames(tree: Tree, frames: Sequence[int]) -> Array:
     return todo
 
 
+def joint_trig(tree: Tree, q: Array, frames: Sequence[int]) -> dict[int, tuple[Array, Array]]:
+    """cos and sin of theta_j + q_j (each (N,)) of the revolute frames among `frames`, q samples-last (n, N): what
+    `forward_kinematics` computes for them, for a caller that keeps them (`forward_kinematics`' trig)."""
+    out = {}
+    for j in frames:
+        if tree.sigma[j] == REVOLUTE:
+            th = tree.frames[j - 1].theta + q[j - 1]
+            out[j] = (np.cos(th), np.sin(th))
+    return out
+
+
 def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = None,
-                       rows: slice = slice(None)) -> KinematicState:
+                       rows: slice = slice(None), trig: Mapping[int, tuple[Array, Array]] | None = None
+                       ) -> KinematicState:
     """Poses of the frames in frame 0; q samples-last (n, N) as from `joint_array`.
 
     frames: compute only these frames and their ancestors (others stay None).
@@ -158,6 +170,8 @@ def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = N
     0R_a(j) times constants and the joint's cos, sin: the rows propagate apart) for a third of the work.
     Constant rotations that are signed permutations (alpha, gamma multiples of pi/2)
     cost nothing: the frame's columns are the parent's, reordered.
+    trig: frame -> (cos, sin) of its theta + q (`joint_trig` of these q's), for the revolute frames whose column
+    of q the caller knows unchanged since it computed them (a pass with a few joints moved): not computed again.
     """
     n, N = tree.n, q.shape[1]
     todo = needed_frames(tree, range(1, n + 1) if frames is None else frames)
@@ -174,8 +188,11 @@ def forward_kinematics(tree: Tree, q: Array, *, frames: Sequence[int] | None = N
         E, perm, u = plan[j]
         D = _columns(Rc[a], E, perm)
         if f.sigma == REVOLUTE:
-            th = f.theta + q[j - 1]
-            c, s = np.cos(th), np.sin(th)
+            if trig is not None and j in trig:
+                c, s = trig[j]
+            else:
+                th = f.theta + q[j - 1]
+                c, s = np.cos(th), np.sin(th)
             Rj = [c * D[0] + s * D[1], c * D[1] - s * D[0], D[2]]
         else:
             Rj = D
@@ -292,6 +309,7 @@ __all__ = [
     "frame_plan",
     "jacobian",
     "joint_array",
+    "joint_trig",
     "needed_frames",
     "point_velocity",
     "to_local",

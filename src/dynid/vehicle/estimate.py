@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..dynamics import Model
-from ..kinematics.forward import forward_kinematics, joint_array
+from ..kinematics.forward import forward_kinematics, joint_array, joint_trig, needed_frames
 from ..model import ModelError
 from ..model.workspace import PerObject
 from ..signals import border_samples, derivative, integrate, lowpass, lowpass_columns
@@ -163,6 +163,7 @@ _SIGNS = EARTH[np.arange(3)[:, None], _ROWS] * ISO_AXES[_COLS, np.arange(3)[None
 # sign X[:, k]
 _ISO_GATHER = tuple((int(np.flatnonzero(ISO_AXES[:, j])[0]), float(ISO_AXES[:, j].sum())) for j in range(3))
 _ISO_ROWS = tuple((int(np.flatnonzero(ISO_AXES[i])[0]), float(ISO_AXES[i].sum())) for i in range(3))
+_GATHER = (np.array([k for k, _ in _ISO_GATHER]), np.array([s for _, s in _ISO_GATHER]))  # `_velocity_compiled`'s
 assert sorted(np.abs(ISO_AXES).sum(axis=0)) == [1.0] * 3 and sorted(np.abs(ISO_AXES).sum(axis=1)) == [1.0] * 3
 
 
@@ -476,7 +477,7 @@ class JointsPass:
             gyro = channel not in _INCLINOMETERS
             R6, w6 = _attitude(ch, x, q, qd, qdd, self.filtered[:, -2:] if gyro else None,
                                *((kept.incl, kept.start) if gyro else ()))
-            pz_zz = _tire_poses(x, q, kept.poses)
+            pz_zz = _tire_poses(x, q, kept)
         if heights or attitude or channel in _ACCELERATION:
             z = _heights_acceleration(ch, x, q, qd, qdd, filtered, R6, w6, pz_zz, heights,
                                       attitude or channel in _ACCELERATION, kept)
@@ -743,14 +744,23 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     phi, theta = (_lowpass(incl, x) if angles is None else angles).T
     for i in range(2):  # the rates depend on the angles: one refinement is plenty at car attitudes
         sp, cp, tt = (np.sin(phi), np.cos(phi), np.tan(theta)) if i or start is None else start
-        u = qb * sp + r * cp
-        dphi = p + u * tt
-        dtheta = qb * cp - r * sp
-        integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
         pitch = theta  # the yaw rate's: the last pass's alone is used
-        phi, theta = (integ + lowpass(incl - integ, fs, c.attitude_crossover, c.order, check_finite=False)).T
-    dpsi = u / np.cos(pitch)
-    psi = integrate(dpsi, fs, check_finite=False)
+        if _euler_kernel is None:  # without numba: the kernel's formulas through NumPy
+            u = qb * sp + r * cp
+            dphi = p + u * tt
+            dtheta = qb * cp - r * sp
+            integ = integrate(np.stack([dphi, dtheta], axis=1), fs, check_finite=False)
+            rest = incl - integ
+            if i:
+                dpsi = u / np.cos(pitch)
+                psi = integrate(dpsi, fs, check_finite=False)
+        else:  # the rates, their integrals and the inclinometers' part left, in one compiled pass (the yaw's the last)
+            n = len(sp) if i else 0
+            u, dphi, dtheta, dpsi, psi = (np.empty(len(sp)) for _ in range(5))
+            integ, rest = np.empty((len(sp), 2)), np.empty((len(sp), 2))
+            _euler_kernel(p, qb, r, sp, cp, tt, incl, float(fs), np.cos(pitch) if i else np.empty(0), u, dphi, dtheta,
+                          integ, rest, dpsi[:n], psi[:n])
+        phi, theta = (integ + lowpass(rest, fs, c.attitude_crossover, c.order, check_finite=False)).T
     sign = (1.0, -1.0, 1.0)  # yaw, pitch (the template's is nose up), roll
     # the rates (filtered, differentiated) and the angles (filtered) through one low-pass of 6 columns
     low = _lowpass_columns([dpsi, dtheta, dphi, psi, theta, phi], x)
@@ -760,6 +770,39 @@ def _attitude(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, qdd: Ar
     for k in range(3):
         q[:, 3 + k], qd[:, 3 + k], qdd[:, 3 + k] = low[:, 3 + k] * sign[k], low[:, k] * sign[k], rdf[:, k] * sign[k]
     return _rotation(q[:, 3], -q[:, 4], q[:, 5]), w6
+
+
+def _euler_compiled(p, qb, r, sp, cp, tt, incl, fs, cpitch, u, dphi, dtheta, integ, rest, dpsi, psi
+                    ):  # pragma: no cover - compiled
+    """`_attitude`'s refinement at each sample, its NumPy lines' operations in their order: the Euler rates (into u,
+    dphi, dtheta (N,)) u = qb sp + r cp, dphi = p + u tt, dtheta = qb cp - r sp; dphi's and dtheta's running integrals
+    (`signals.integrate`: the trapezoids' sums scaled by 0.5 / fs, summed in turn from 0, plus x0 = 0) into integ
+    (N, 2), and incl - integ into rest (N, 2), the crossover low-pass's input. p, qb, r, sp, cp, tt (N,) (strided
+    views too), incl (N, 2). cpitch (N,): the cos of the pitch the rates were made with, on the last refinement alone
+    (else empty): then the yaw rate u / cpitch and its integral into dpsi, psi (N,) too. One function of explicit
+    loops: its compile is short; the NumPy lines made a dozen passes over the samples."""
+    n = u.shape[0]
+    half = 0.5 / fs  # as signals.integrate
+    yaw = cpitch.shape[0] > 0
+    prev0 = prev1 = prev2 = acc0 = acc1 = acc2 = 0.0
+    for i in range(n):
+        ui = qb[i] * sp[i] + r[i] * cp[i]
+        d0 = p[i] + ui * tt[i]
+        d1 = qb[i] * cp[i] - r[i] * sp[i]
+        u[i], dphi[i], dtheta[i] = ui, d0, d1
+        if i:
+            acc0 = acc0 + (d0 + prev0) * half
+            acc1 = acc1 + (d1 + prev1) * half
+        prev0, prev1 = d0, d1
+        a0, a1 = acc0 + 0.0, acc1 + 0.0  # integrate's x0 added (it turns a -0.0 into 0.0)
+        integ[i, 0], integ[i, 1] = a0, a1
+        rest[i, 0], rest[i, 1] = incl[i, 0] - a0, incl[i, 1] - a1
+        if yaw:
+            d2 = ui / cpitch[i]
+            if i:
+                acc2 = acc2 + (d2 + prev2) * half
+            prev2 = d2
+            dpsi[i], psi[i] = d2, acc2 + 0.0
 
 
 def _inclinometers(ch: Mapping[str, Array]) -> Array:
@@ -783,19 +826,27 @@ class _Unmoved:
     them, made once per pass when a moved attitude pass first asks: the inclinometers (`_inclinometers`) and the first
     refinement's sin, cos of the low-passed roll and tan of the low-passed pitch (a gyro's offset leaves them:
     `_attitude`'s start, 0.9 ms), the specific force in frame 6, the lasers' heights (None without lasers), the tire
-    poses' joints (`_pose_joints`: the attitude's columns are the moved pass's own; 1.3 ms)."""
+    poses' joints (`_pose_joints`: the attitude's columns are the moved pass's own; 1.3 ms) and the cos and sin of
+    their revolute joints but the attitude's (`joint_trig`: the corners'; 20 pairs, 1.2 ms a moved pass)."""
 
     incl: Array
     start: tuple[Array, Array, Array]
     f6: Array
     lasers: Array | None
     poses: Array
+    pose_trig: dict[int, tuple[Array, Array]]
 
 
 def _unmoved(p: JointsPass) -> _Unmoved:
     phi, theta = p.filtered[:, -2:].T  # as `_attitude` reads its angles
+    poses = _pose_joints(p.ctx, p.q)[1]
+    tree = p.ctx.model.tree
+    corners = [j for j in np.flatnonzero(needed_frames(tree, TIRES)) if j not in _ATTITUDE_FRAMES]
     return _Unmoved(_inclinometers(p.ch), (np.sin(phi), np.cos(phi), np.tan(theta)), _specific_force(p.ch, p.ctx),
-                    _laser_heights(p.ch) if p.ctx.lasers else None, _pose_joints(p.ctx, p.q)[1])
+                    _laser_heights(p.ch) if p.ctx.lasers else None, poses, joint_trig(tree, poses, corners))
+
+
+_ATTITUDE_FRAMES = (4, 5, 6)  # yaw, pitch, roll: the joints an attitude offset moves (`_attitude`'s columns 3:6)
 
 
 _UNMOVED: PerObject[JointsPass, _Unmoved] = PerObject(_unmoved)
@@ -817,7 +868,7 @@ def _rotation(yaw: Array, pitch: Array, roll: Array) -> Array:
     return R.transpose(2, 0, 1)
 
 
-def _tire_poses(x: _Context, q: Array, start: Array | None = None) -> Array:
+def _tire_poses(x: _Context, q: Array, start: _Unmoved | None = None) -> Array:
     """Heights and z-axis slopes in frame 0 of the four tire frames (N, 8), from the attitude and the corners'
     joints (q's other columns, written by later stages, are taken as 0).
 
@@ -826,16 +877,18 @@ def _tire_poses(x: _Context, q: Array, start: Array | None = None) -> Array:
     over the wheelbase. q3 translates the whole car along z0, so one pose at q3 = 0 serves the four corners.
     The pose depends only on joints already low-passed at `cutoff`: it is computed on every k-th sample
     (k keeps the reduced Nyquist frequency above 10 x cutoff) and interpolated back, a fifth of the work.
-    start: `_pose_joints` of a pass whose attitude alone q moves (`_Unmoved`): its other joints are taken from it."""
+    start: the pass's `_Unmoved`, when its attitude alone q moves: its other joints (`_pose_joints`) and their cos
+    and sin are taken from it."""
     N = q.shape[0]
+    trig = None
     if start is None:
         sub, qs = _pose_joints(x, q)
     else:  # the pass's joints on those samples, the attitude's (columns 3:6) q's
-        sub, qs = _pose_samples(x, N), start.copy()
-        for j in range(3, 6):
-            qs[j] = q[:, j][sub]
+        sub, qs, trig = _pose_samples(x, N), start.poses.copy(), start.pose_trig
+        for j in _ATTITUDE_FRAMES:
+            qs[j - 1] = q[:, j - 1][sub]
     # the heights and the z axes' z components alone: the poses' row 2 (frame 0's z), a third of the work
-    st = forward_kinematics(x.model.tree, qs, frames=TIRES, rows=slice(2, 3))
+    st = forward_kinematics(x.model.tree, qs, frames=TIRES, rows=slice(2, 3), trig=trig)
     poses = np.stack([st.P[f][0] for f in TIRES] + [st.Rc[f][2][0] for f in TIRES], axis=1)
     # heights and z-axis slopes of the four tire frames, back on every sample by one spline of 8 columns
     return CubicSpline(sub, poses)(np.arange(N))
@@ -966,17 +1019,31 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
     # times the vehicle z axis are signed gathers, and w6 x pc is written out in np.cross's operations: the same
     # numbers without their (N, 3) matrix products (0.8 ms each per 60 s segment) and np.cross's copies
     iso = (ch[f"{tag}_vx"], ch[f"{tag}_vy"], None)
+    k, sign = _ISO_ROWS[2]  # the vehicle z axis in frame 6: R6 ez6 = sign R6[:, :, k]
+    if _velocity_kernel is not None:  # the lines below in one compiled pass, the deflections' too
+        qdd, pz_zz, z_laser = deflections if deflections is not None else (None, np.empty((0, 8)), np.empty((0, 4)))
+        out = np.empty((N, 2 if deflections is None else 6))
+        c = np.ascontiguousarray
+        _velocity_kernel(c(w6), pc, c(iso[0]), c(iso[1]), *_GATHER, c(R6.transpose(1, 2, 0)), k, sign, c(qd[:, 2]),
+                         c(pz_zz), c(z_laser), out)
+        if deflections is None:
+            v = _lowpass(out, x)
+        else:
+            low = _lowpass_columns([out], x)
+            v = low[:, :2]
+            _deflected(x, q, qd, qdd, low[:, 2:6])
+        q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
+        return
     rel = np.empty((N, 3))  # v_c - w6 x pc
     for j, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):
-        k, sign = _ISO_GATHER[j]
+        k_, sign_ = _ISO_GATHER[j]
         wxp = w6[:, a] * pc[b]
         wxp -= w6[:, b] * pc[a]
-        if iso[k] is None:  # 0 - w6 x pc: as the product's +0
+        if iso[k_] is None:  # 0 - w6 x pc: as the product's +0
             np.subtract(0.0, wxp, out=rel[:, j])
         else:
-            np.subtract(iso[k] if sign > 0 else -iso[k], wxp, out=rel[:, j])
+            np.subtract(iso[k_] if sign_ > 0 else -iso[k_], wxp, out=rel[:, j])
     v_known = np.einsum("nij,nj->ni", R6, rel)
-    k, sign = _ISO_ROWS[2]  # the vehicle z axis in frame 6: R6 ez6 = sign R6[:, :, k]
     ez = R6[:, :, k] if sign > 0 else -R6[:, :, k]
     s = (qd[:, 2] - v_known[:, 2]) / ez[:, 2]
     v0 = v_known[:, :2] + s[:, None] * ez[:, :2]
@@ -988,6 +1055,34 @@ def _velocity(ch: Mapping[str, Array], x: _Context, q: Array, qd: Array, R6: Arr
         v = low[:, :2]
         _deflected(x, q, qd, qdd, low[:, 2:6])
     q[:, :2], qd[:, :2] = integrate(v, x.fs, check_finite=False), v
+
+
+def _velocity_compiled(w6, pc, vx, vy, gk, gs, R, k, sign, qd2, pz_zz, z_laser, out):  # pragma: no cover - compiled
+    """`_velocity`'s NumPy lines at each sample, their operations in their order: rel = v_c - w6 x pc (the sensor's
+    velocity [vx, vy, 0] gathered by `_ISO_GATHER`: component j is gs[j] times the gk[j]-th, none when 2; a product
+    by 1 or -1 is exact), v_known = R6 rel (einsum's sum left to right), the vertical part from qd2 along sign
+    R6[:, :, k], v0 into out[:, :2]; when out has 6 columns, `_deflection`'s -(pz + z_laser) / zz into out[:, 2:6].
+    R (3, 3, N): 0R6's entries first (`_rotation`'s layout). One function of explicit loops and few branches: its
+    compile is short (0.3 s); the NumPy lines made ~30 passes over the samples."""
+    n = out.shape[0]
+    deflections = out.shape[1] == 6
+    for i in range(n):
+        w0, w1, w2 = w6[i, 0], w6[i, 1], w6[i, 2]
+        x0 = w1 * pc[2] - w2 * pc[1]  # w6 x pc, np.cross's operations
+        x1 = w2 * pc[0] - w0 * pc[2]
+        x2 = w0 * pc[1] - w1 * pc[0]
+        r0 = 0.0 - x0 if gk[0] == 2 else (vx[i] if gk[0] == 0 else vy[i]) * gs[0] - x0
+        r1 = 0.0 - x1 if gk[1] == 2 else (vx[i] if gk[1] == 0 else vy[i]) * gs[1] - x1
+        r2 = 0.0 - x2 if gk[2] == 2 else (vx[i] if gk[2] == 0 else vy[i]) * gs[2] - x2
+        v0 = R[0, 0, i] * r0 + R[0, 1, i] * r1 + R[0, 2, i] * r2
+        v1 = R[1, 0, i] * r0 + R[1, 1, i] * r1 + R[1, 2, i] * r2
+        v2 = R[2, 0, i] * r0 + R[2, 1, i] * r1 + R[2, 2, i] * r2
+        s = (qd2[i] - v2) / (R[2, k, i] * sign)
+        out[i, 0] = v0 + s * (R[0, k, i] * sign)
+        out[i, 1] = v1 + s * (R[1, k, i] * sign)
+        if deflections:
+            for c in range(4):
+                out[i, 2 + c] = -(pz_zz[i, c] + z_laser[i, c]) / pz_zz[i, 4 + c]
 
 
 def _deflection(pz_zz: Array, z_laser: Array) -> Array:
@@ -1025,5 +1120,7 @@ try:
 
     _corner_kernel = njit(cache=True, nogil=True)(_corners_compiled)
     _carry_kernel = njit(cache=True, nogil=True)(_carry_compiled)
+    _euler_kernel = njit(cache=True, nogil=True)(_euler_compiled)
+    _velocity_kernel = njit(cache=True, nogil=True)(_velocity_compiled)
 except ImportError:  # pragma: no cover - exercised only without numba
-    _corner_kernel = _carry_kernel = None
+    _corner_kernel = _carry_kernel = _euler_kernel = _velocity_kernel = None
