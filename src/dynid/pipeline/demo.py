@@ -25,7 +25,7 @@ from ..vehicle.sim import CarSimulator
 from ..vehicle.sim.car import kernel_cached, prebuild_kernel, while_kernel_builds
 from ..vehicle.sim.recording import write_test
 from .config import load_config
-from .first_run import warm_identification
+from .first_run import WarmUp, warm_identification
 from .run import IdentificationRun, identify
 
 Progress = Callable[[str], None]
@@ -163,9 +163,23 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
              simulation_progress=None, vehicle: str = DEMO_VEHICLE) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
-    while_kernel_builds(lambda: warm_identification(vehicle, demo_config, [t[1] for t in TESTS]))  # a first run
-    results = simulate_tests(quick, say, simulation_progress, vehicle)
-    say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
-    run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)
+    warm = None
+    if prebuild_kernel():  # a first run: the identification compiles in a child on idle time (pipeline.first_run)
+        def task() -> None:
+            warm_identification(vehicle, demo_config, [t[1] for t in TESTS])
+
+        warm = WarmUp(task)  # it starts once this process waits for the kernel; without fork, runs here then
+        while_kernel_builds(warm.go if warm.started else task)
+    try:
+        results = simulate_tests(quick, say, simulation_progress, vehicle)
+        say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
+        config = write_demo(out, results, seed, vehicle=vehicle)
+    except BaseException:
+        if warm is not None:
+            warm.finish(timeout=0.0)  # no identification to come: the child killed at once
+        raise
+    if warm is not None:
+        warm.finish()  # its compiles are in the disk caches: the identification loads them
+    run = identify(load_config(config), progress=say)
     run.notes = TEST_PLAN + run.notes
     return run
