@@ -27,6 +27,15 @@ Wall (load-bound): 69ee46f cold 253, 156, 87 s, warm 59, 32, 28; h-cold2 cold 86
 one round: 69ee46f cold 25.0 s wall, 22.8 s CPU, warm 8.8, 8.5 (2.85, 2.70); h-cold2 cold 20.3, 20.2, warm 9.2, 9.1
 (2.20, 2.23); warm alone, 5 pairs: CPU 8.96 against 8.70 s, ratio 1.02 (0.84-1.04), wall 1.006 (0.85-1.19): the
 NumPy rest state's ~0.1 s per solve (two in a demo) is at the edge of what this resolves.
+Then (branch h-cold: the identification's warm-up in a forked child, pipeline.first_run.WarmUp), `--commands demo`,
+f15571e and h-cold alternated, 3 rounds, load 6-9, so read the CPU: f15571e cold 22.7, 21.9, 21.0 s CPU, warm 11.0,
+9.3, 8.8 (2.07, 2.36, 2.39); h-cold cold 22.3, 21.0, 22.1, warm 11.1, 9.5, 10.0 (2.01, 2.20, 2.21): the same compiles,
+moved to another process, so the same CPU. Wall (load-bound, no speed-up to read): f15571e cold 93, 96, 49 s, warm 45,
+54, 17; h-cold cold 86, 57, 42, warm 50, 35, 20. Warm alone, 5 pairs alternated (load 4-9): CPU median 8.17 s (branch)
+against 7.79, ratio 1.04 (0.97-1.06), where the warm code differs by one check that the kernel is cached (0.3 ms).
+What it moves is a quiet machine's critical path: the warm-up's overrun of the kernel's build (0.3-0.7 s of CPU,
+profile_cold_start.py); the kernel's build (~6 s of CPU after ~1 s of imports, where a warm demo simulates after ~2)
+is now the whole of the cold demo's extra time on a free second core.
 What is left compiles what the demo runs (profile_cold_start.py): 1.3 x needs compiled code that a first run loads
 instead of compiling, which Numba's cache cannot ship: its entries are keyed by the CPU's name and feature flags
 (numba 0.68, measured on a one-function module: an entry written here misses under NUMBA_CPU_NAME=skylake and

@@ -23,18 +23,16 @@ compiles what it left).
 from __future__ import annotations
 
 import contextlib
-import gc
 import os
 import signal
-import sys
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from ..report.apart import can_fork, fork
 from ..symbolic.cache import cache_lock
 from ..vehicle.description import load_vehicle
 from ..vehicle.estimate import required_channels
@@ -54,36 +52,23 @@ class WarmUp:
     def __init__(self, task: Callable[[], object]) -> None:
         self.pid: int | None = None
         self.fd = -1
-        if not (sys.platform.startswith("linux") and threading.active_count() == 1):
+        if not can_fork():
             return
         r, w = os.pipe()
+
+        def child() -> None:
+            os.close(w)
+            null = os.open(os.devnull, os.O_WRONLY)  # its warnings are this process's to give, once
+            os.dup2(null, 1)
+            os.dup2(null, 2)
+            if os.read(r, 1):  # nothing read: this process closed the pipe without go() (it ended)
+                task()
+
         # forked holding the locks the child takes (Numba's compiler lock, the generated modules' loader), as the
-        # kernel's build is; Ctrl-C and TERM held across the fork (report.apart: a raise in the fork's own hooks)
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        ours = gc.get_freeze_count() == 0  # this process's heap out of the child's collections (report.apart)
-        gc.freeze()
-        try:
-            with compile_lock(), cache_lock():
-                pid = os.fork()
-            if pid == 0:  # the child: compile, then leave at once (no atexit, no buffered output flushed twice)
-                code = 1
-                try:
-                    signal.pthread_sigmask(signal.SIG_SETMASK, held)
-                    os.close(w)
-                    null = os.open(os.devnull, os.O_WRONLY)  # its warnings are this process's to give, once
-                    os.dup2(null, 1)
-                    os.dup2(null, 2)
-                    if os.read(r, 1):  # nothing read: this process closed the pipe without go() (it ended)
-                        task()
-                    code = 0
-                finally:
-                    os._exit(code)
-            os.close(r)
-            self.pid, self.fd = pid, w
-        finally:
-            if ours:
-                gc.unfreeze()
-            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        # kernel's build is
+        pid = fork(child, (compile_lock(), cache_lock()))
+        os.close(r)
+        self.pid, self.fd = pid, w
 
     @property
     def started(self) -> bool:
