@@ -35,7 +35,8 @@ forked before the pipeline and the report are imported), `--commands demo`, f155
 (2.01-3.00); cold CPU h-cold / f15571e pair by pair 0.98, 0.96, 1.05, 1.25, 1.11, 0.99, 0.89 (median 0.99): the same
 compiles, moved to another process. Wall ratio (load-bound, no speed-up to read): medians 2.48 against 2.20. Warm
 alone, 5 pairs alternated (load 4-9): CPU median 8.17 s (branch) against 7.79, ratio 1.04 (0.97-1.06), where the
-warm code differs by one check that the kernel is cached (0.3 ms). What it moves is a quiet machine's critical path:
+warm code differs by one check that the kernel is cached (0.3 ms); again with the earlier fork, 5 pairs (load ~3):
+CPU 7.85 s against 7.93, ratio 0.99 (0.98-1.15), wall 8.03 against 8.08 s. What it moves is a quiet machine's critical path:
 the warm-up's overrun of the kernel's build (0.3-0.7 s of CPU, profile_cold_start.py) and the fork 0.14 s earlier;
 the kernel's build (~5 s of CPU after ~0.8 s of imports, where a warm demo simulates after ~2) is now the whole of
 the cold demo's extra time on a free second core. 1.3 x needs it shorter: in one process after a trivial compile it
