@@ -27,6 +27,26 @@ Wall (load-bound): 69ee46f cold 253, 156, 87 s, warm 59, 32, 28; h-cold2 cold 86
 one round: 69ee46f cold 25.0 s wall, 22.8 s CPU, warm 8.8, 8.5 (2.85, 2.70); h-cold2 cold 20.3, 20.2, warm 9.2, 9.1
 (2.20, 2.23); warm alone, 5 pairs: CPU 8.96 against 8.70 s, ratio 1.02 (0.84-1.04), wall 1.006 (0.85-1.19): the
 NumPy rest state's ~0.1 s per solve (two in a demo) is at the edge of what this resolves.
+Then (branch h-cold: the identification's warm-up in a forked child, pipeline.first_run.WarmUp; the kernel's build
+forked before the pipeline and the report are imported), `--commands demo`, f15571e and h-cold alternated, 7 rounds
+(the last 4 with the earlier fork), load 3.5-9, so read the CPU: f15571e cold 22.7, 21.9, 21.0, 19.3, 19.5, 20.5, 25.3
+s CPU (median 21.0), warm 11.0, 9.3, 8.8, 9.8, 8.0, 8.8, 10.5 (9.3), ratio median 2.36 (1.98-2.45); h-cold cold 22.3,
+21.0, 22.1, 24.2, 21.6, 20.3, 22.5 (22.1), warm 11.1, 9.5, 10.0, 8.1, 8.9, 8.9, 9.4 (9.4), ratio median 2.28
+(2.01-3.00); cold CPU h-cold / f15571e pair by pair 0.98, 0.96, 1.05, 1.25, 1.11, 0.99, 0.89 (median 0.99): the same
+compiles, moved to another process. Wall ratio (load-bound, no speed-up to read): medians f15571e 2.48, h-cold 2.20.
+Warm alone, 5 pairs alternated (load 4-9): CPU median 8.17 s (branch) against 7.79, ratio 1.04 (0.97-1.06), where the
+warm code differs by one check that the kernel is cached (0.3 ms); again with the earlier fork, 5 pairs (load ~3): CPU
+7.85 s against 7.93, ratio 0.99 (0.98-1.15), wall 8.03 against 8.08 s. What it moves is a quiet machine's critical
+path: the warm-up's overrun of the kernel's build (0.3-0.7 s of CPU, profile_cold_start.py) and the fork 0.14 s
+earlier; the kernel's build (~5 s of CPU after ~0.8 s of imports, where a warm demo simulates after ~2) is now the
+whole of the cold demo's extra time on a free second core. 1.3 x needs it shorter: in one process after a trivial
+compile it takes 5.0-5.2 s of CPU (typing 1.6, Numba's lowering 1.2, LLVM functions 0.8, LLVM module and machine code
+1.2, of which the internal callees' own libraries, optimised and emitted again in simulate's, ~0.5: derivative 0.3);
+of it, derivative's own lowering and LLVM 1.45 s and simulate's 0.9 s come after all the callees, which cannot be
+compiled elsewhere in time: derivative's typing reaches its last callees (reduced_inertia, lu_solve, 0.34 s) 2.1 s in,
+before this process has loaded the vehicle. Tried: a trivial compile first in the warm-up child (as car._start_numba),
+5 pairs of the warm-up forked as WarmUp forks it: 5.11/5.15, 4.77/5.12, 4.61/4.49 s of the child's CPU without/with
+(and 5.35/4.43, 4.61/4.22): no consistent gain, not kept.
 What is left compiles what the demo runs (profile_cold_start.py): 1.3 x needs compiled code that a first run loads
 instead of compiling, which Numba's cache cannot ship: its entries are keyed by the CPU's name and feature flags
 (numba 0.68, measured on a one-function module: an entry written here misses under NUMBA_CPU_NAME=skylake and

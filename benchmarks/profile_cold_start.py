@@ -8,8 +8,10 @@ triggered, e.g. a callee typed for the first time), wall and CPU (CPU: comparabl
 the number of its specialisations, and the whole run's wall and CPU time. The command's output is
 dropped. The simulator's kernel compiles in a forked process while the vehicle loads
 (vehicle.sim.car.prebuild_kernel), where this listener does not hear it (its CPU is in the run's, as a
-child's): --in-process compiles it here instead, so that every compile is listed. `bench_cold_start.py`
-times cold against warm from outside; this says where the difference goes.
+child's): --in-process compiles it here instead, so that every compile is listed. A first demo's identification
+compiles in a forked child too (pipeline.first_run.WarmUp, started with the kernel's build), unheard likewise:
+--in-process starts none (no kernel build to wait for), so the identification compiles here, at its first call.
+`bench_cold_start.py` times cold against warm from outside; this says where the difference goes.
 --phases splits the compiles' CPU by Numba's steps (typing, lowering, entry points, LLVM).
 Measured 2026-11-27 (`simulate sine`, a 2-core EPYC loaded ~6x, so read the CPU column): the simulator
 (derivative, simulate, driver, the generated models) and the engine's inverse dynamics `_idm_kernel`
@@ -37,6 +39,18 @@ then the branch in one run (load ~13, which inflates both): 35 -> 29 functions c
 `_mul`, `_mul_t`, `_cross`, `_sign` no longer; NumPy's allocations 19 -> 13 times), compiles 21.0 -> 14.9 s of CPU,
 the run 34.1 -> 27.4 s. What is left is what the demo runs: the kernel, the kinematic tables, the filters, the
 corners' estimator, the block kernel; `_data_address` (3 signatures, ~0.2 s) the one multiple compile.
+Then (branch h-cold): the identification's warm-up in a forked child (pipeline.first_run.WarmUp), let go when this
+process starts to wait for the kernel's build. Timeline of one cold demo each (messages and top-level compiles stamped
+with this process's CPU s, the children's CPU read at the waits; load 2-5): f15571e: the kernel's build forked at 0.9,
+`_table_joints` 0.7, the vehicle loaded at 2.8, then the warm-up here 2.8 -> 6.6 (zero-phase filters 1.5, corners'
+estimator and carry 0.9, the block kernel 0.9), the kernel's build (5.3 s) ended before, simulation from 6.6; h-cold:
+fork at 1.1, the vehicle loaded at 3.2, then this process sleeps until the kernel's build ends (5.8 s of CPU) while the
+warm-up child (4.2 s) compiles beside it and on through the simulation; this process compiles none of the
+identification (tests/pipeline/test_cold_start.py) and uses 8.8 s of CPU in all (12.0 before; 10.0 warm). The same
+compiles, moved: the total CPU is unchanged; what leaves the critical path is the warm-up's overrun of the kernel's
+build (0.3-0.7 s of CPU). What is left on it is the kernel's build itself: a cold demo waits for 1 + ~6 s of CPU
+where a warm one simulates after ~2. The kernel's build then forked before `dynid demo` imports the pipeline and the
+report (cli.main.cmd_demo): at 0.81-0.85 s of this process's CPU against 0.95-1.01 (3 cold starts each, alternated).
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """A first run's head starts (issue 28): the identification compiled while the simulator's kernel builds
-(pipeline.first_run through vehicle.sim.car.while_kernel_builds), the rest state solved once per process.
+(pipeline.first_run through vehicle.sim.car.while_kernel_builds), in a forked child (first_run.WarmUp) that goes on
+while the demo simulates; the rest state solved once per process.
 
 Oracles: the identification's own compile events in a fresh process (after the warm-up, identifying the demo's
 files compiles nothing of dynid's); the rest state's own Newton solve (`_solve_rest`, uncached); the rest state
@@ -11,10 +12,13 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
+import time
 
 import numpy as np
 import pytest
 
+from dynid.pipeline.first_run import WarmUp
 from dynid.vehicle import statics
 from dynid.vehicle.sim import car
 
@@ -69,6 +73,59 @@ def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     assert not car._MEANWHILE and not log
 
 
+def _pid_to(path):
+    """A warm-up task that writes the pid of the process it runs in."""
+    return lambda: path.write_text(str(os.getpid()))
+
+
+def test_the_warm_up_runs_in_a_child_once_let_go_and_is_awaited(tmp_path):
+    mark = tmp_path / "ran"
+    warm = WarmUp(_pid_to(mark))
+    assert warm.started
+    time.sleep(0.2)
+    assert not mark.exists()  # not before go()
+    warm.go()
+    warm.finish()
+    assert mark.exists() and int(mark.read_text()) != os.getpid()  # done by finish(), in another process
+
+
+def test_a_warm_up_never_let_go_does_nothing_and_leaves_no_child(tmp_path):
+    mark = tmp_path / "ran"
+    warm = WarmUp(_pid_to(mark))
+    pid = warm.pid
+    warm.finish()
+    assert not mark.exists()
+    with pytest.raises(ChildProcessError):  # reaped
+        os.waitpid(pid, os.WNOHANG)
+
+
+def test_a_stuck_warm_up_is_killed_after_the_timeout(tmp_path):
+    warm = WarmUp(lambda: time.sleep(60))
+    pid = warm.pid
+    warm.go()
+    t = time.monotonic()
+    warm.finish(timeout=0.3)
+    assert time.monotonic() - t < 10.0  # not the task's 60 s
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)
+
+
+def test_no_fork_beside_another_thread(tmp_path):
+    """A second thread's locks would stay held in a fork's copy: no child; the caller runs the task itself."""
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        warm = WarmUp(_pid_to(tmp_path / "ran"))
+    finally:
+        stop.set()
+        other.join()
+    assert not warm.started
+    warm.go()
+    warm.finish()
+    assert not (tmp_path / "ran").exists()
+
+
 # a script's lines that list the process's compiles from then on in `compiled` (Numba's compile events)
 LISTEN = textwrap.dedent("""
     from numba.core import event
@@ -113,6 +170,31 @@ def test_after_the_warm_up_the_demos_identification_compiles_nothing(tmp_path):
                           check=True, capture_output=True, text=True)
     line = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED"))
     assert line == "COMPILED []"
+
+
+PARENT_COMPILES_OF_A_COLD_DEMO = LISTEN + textwrap.dedent("""
+    import sys
+
+    from dynid.cli.main import main
+
+    assert main(["demo", "--quick", "--out", sys.argv[1]]) == 0
+    print("COMPILED", sorted({c for c in compiled if c.startswith("dynid")}))
+""")
+
+
+@pytest.mark.slow
+def test_a_cold_demos_identification_compiles_in_the_warm_up_child(tmp_path):
+    """A cold `dynid demo`: the process that runs it compiles none of the identification's kernels (the zero-phase
+    filters, the corners' estimator, the block kernel), the warm-up child did (its compile events, in this process:
+    the child's are not heard). Before first_run.WarmUp this process compiled them while it waited for the kernel."""
+    env = {**os.environ, "DYNID_CACHE": str(tmp_path / "dynid"), "NUMBA_CACHE_DIR": str(tmp_path / "nb")}
+    proc = subprocess.run([sys.executable, "-c", PARENT_COMPILES_OF_A_COLD_DEMO, str(tmp_path / "demo")], env=env,
+                          check=True, capture_output=True, text=True)
+    line = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED"))
+    assert "dynid.vehicle.table_poly._table_joints" in line  # the listener hears the process's compiles
+    for name in ("_zero_phase._filtfilt_columns", "estimate._corners_compiled", "dynid_blk_"):
+        assert name not in line
+    assert (tmp_path / "demo" / "results.json").exists()
 
 
 def test_the_rest_state_on_the_reference_engine_matches_the_compiled_engines(monkeypatch):

@@ -173,13 +173,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = Path(args.out)
     _say(f"the demo: simulate the tests, write their files, identify, report into {out}")
-    # start-up: the library, 1-5 s (--help 0.1 s)
+    # start-up: the library, 1-5 s (--help 0.1 s); the simulator first: a first run's kernel build, the critical path
+    # (pipeline.demo), forks before the rest is imported (0.24 s of CPU), which this process then imports beside it
+    from ..vehicle.sim.car import prebuild_kernel
+
+    first = prebuild_kernel()  # a first run: the simulator's kernel compiles on the other core while the vehicle loads
     from ..pipeline.demo import FIRST_RUN, run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
-    from ..vehicle.sim.car import prebuild_kernel
 
-    if prebuild_kernel():  # a first run: the simulator's kernel compiles on the other core while the vehicle loads
+    if first:
         _say(FIRST_RUN)  # the vehicle's loading compiles too, silent otherwise
     if args.vehicle:  # a bad vehicle file is refused before the output folder is made
         from ..vehicle.description import load_vehicle  # start-up: the library, 1-5 s (--help 0.1 s)

@@ -25,7 +25,7 @@ from ..vehicle.sim import CarSimulator
 from ..vehicle.sim.car import kernel_cached, prebuild_kernel, while_kernel_builds
 from ..vehicle.sim.recording import write_test
 from .config import load_config
-from .first_run import warm_identification
+from .first_run import WarmUp, warm_identification
 from .run import IdentificationRun, identify
 
 Progress = Callable[[str], None]
@@ -91,9 +91,13 @@ SLOW_BUILD_S = 3.0
 # identification compiled, pipeline.first_run), while the kernel's build takes 7.1 s in a forked process (vehicle.sim.
 # car.prebuild_kernel): the two end together, so a first demo takes ~7 s more than a later one (said as 8; the whole
 # run 16.6 s CPU here cold, 10.3 s warm; 69ee46f, with the engine's compile: 21.4 s, +11.6 s to the files), the longest
-# silent step ~7 s (said as 8). A new vehicle once the kernel is cached:
-# `dynid simulate sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was shared
-# (whole-process timing, 3 pairs)
+# silent step ~7 s (said as 8). Then the identification's warm-up moved to a forked child (pipeline.first_run.WarmUp),
+# which takes this process's core while it sleeps for the kernel and goes on while it simulates: one cold demo each,
+# f15571e then this, messages stamped with this process's CPU (load 2-5): "writing the 6 logger files" at 7.8 s
+# against 4.5 s (a warm run 4.0), the kernel's build 5.3 and 5.8 s of CPU; this process now waits for the kernel alone
+# (the warm-up's overrun of it, 0.3-0.7 s of CPU before, off the critical path). A new vehicle once the kernel is
+# cached: `dynid simulate sine` of the compact SUV after one of the 406, 4.4 s against 12.5 s before the kernel was
+# shared (whole-process timing, 3 pairs)
 FIRST_RUN_S, GENERATE_S, COMPILE_S, NEW_VEHICLE_S = 8, 8, 8, 2
 FIRST_RUN = (f"first run: dynid compiles its simulator and identification for this machine (about {FIRST_RUN_S} s "
              "more than a later run on a free 2-core machine; cached for later runs)")
@@ -163,9 +167,23 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
              simulation_progress=None, vehicle: str = DEMO_VEHICLE) -> IdentificationRun:
     """Simulate, write the files and the config, identify; returns the identification."""
     say = progress or (lambda _m: None)
-    while_kernel_builds(lambda: warm_identification(vehicle, demo_config, [t[1] for t in TESTS]))  # a first run
-    results = simulate_tests(quick, say, simulation_progress, vehicle)
-    say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
-    run = identify(load_config(write_demo(out, results, seed, vehicle=vehicle)), progress=say)
+    warm = None
+    if prebuild_kernel():  # a first run: the identification compiles in a child on idle time (pipeline.first_run)
+        def task() -> None:
+            warm_identification(vehicle, demo_config, [t[1] for t in TESTS])
+
+        warm = WarmUp(task)  # it starts once this process waits for the kernel; without fork, runs here then
+        while_kernel_builds(warm.go if warm.started else task)
+    try:
+        results = simulate_tests(quick, say, simulation_progress, vehicle)
+        say(f"writing the {len(results)} logger files (the sensor suite, seeded noise) to data/ and identify.toml")
+        config = write_demo(out, results, seed, vehicle=vehicle)
+    except BaseException:
+        if warm is not None:
+            warm.finish(timeout=0.0)  # no identification to come: the child killed at once
+        raise
+    if warm is not None:
+        warm.finish()  # its compiles are in the disk caches: the identification loads them
+    run = identify(load_config(config), progress=say)
     run.notes = TEST_PLAN + run.notes
     return run

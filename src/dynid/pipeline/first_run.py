@@ -10,23 +10,101 @@ car driving straight) through the estimator and the rows, so that those compile 
 into the disk caches and this process. The numbers are thrown away: only the compiled code
 stays, the same code the real run calls (same types, same generated model), so the results
 do not change. Any error only costs the time: the real run compiles what is missing.
+
+Where it can fork (Linux, a process of one thread), `WarmUp(task)` forks a child with the kernel's build, which
+waits until `go()`: this process calls it once it sleeps until the kernel is built (vehicle.sim.car.
+while_kernel_builds), so that the child takes this process's core then and goes on, on the idle core, while this
+one simulates and writes the files (one core's work: a warm demo leaves the other mostly idle). Run here, the
+warm-up had the wait only, and its overrun was on the critical path. The child compiles into the disk caches;
+`finish()`, before the identification, waits for it (at most WAIT_S: a stuck child is killed, and this process
+compiles what it left).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import tempfile
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from ..report.apart import can_fork, fork
+from ..symbolic.cache import cache_lock
 from ..vehicle.description import load_vehicle
 from ..vehicle.estimate import required_channels
-from ..vehicle.sim.car import SAMPLE_TIME
+from ..vehicle.sim.car import SAMPLE_TIME, compile_lock
 from .config import load_config
 from .reduce import CarSetup, offset_changes
 
 SECONDS = 2.0  # of synthetic driving: longer than the filters' borders at the demo's cut-off
+WAIT_S = 300.0  # the longest the identification waits for the warm-up child (vehicle.sim.car.WAIT_S's reasoning)
+
+
+class WarmUp:
+    """`task()` (a warm-up: its value dropped) in a forked child that starts at `go()` (module doc); `started` False
+    where this process cannot fork (another platform, or a second thread: its locks would stay held in the child's
+    copy), and then nothing runs."""
+
+    def __init__(self, task: Callable[[], object]) -> None:
+        self.pid: int | None = None
+        self.fd = -1
+        if not can_fork():
+            return
+        r, w = os.pipe()
+
+        def child() -> None:
+            os.close(w)
+            null = os.open(os.devnull, os.O_WRONLY)  # its warnings are this process's to give, once
+            os.dup2(null, 1)
+            os.dup2(null, 2)
+            if os.read(r, 1):  # nothing read: this process closed the pipe without go() (it ended)
+                task()
+
+        # forked holding the locks the child takes (Numba's compiler lock, the generated modules' loader), as the
+        # kernel's build is
+        pid = fork(child, (compile_lock(), cache_lock()))
+        os.close(r)
+        self.pid, self.fd = pid, w
+
+    @property
+    def started(self) -> bool:
+        return self.pid is not None
+
+    def go(self) -> None:
+        """Let the child compile."""
+        if self.fd >= 0:
+            with contextlib.suppress(OSError):
+                os.write(self.fd, b"1")
+            self._close()
+
+    def _close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+    def finish(self, timeout: float = WAIT_S) -> None:
+        """Wait for the child (never let go: it leaves at once), killing it after `timeout` (what it compiled is
+        cached: each entry is written whole, so a kill leaves no half-written one)."""
+        self._close()
+        if self.pid is None:
+            return
+        pid, self.pid = self.pid, None
+        end = time.monotonic() + timeout
+        while os.waitpid(pid, os.WNOHANG)[0] == 0:
+            if time.monotonic() > end:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+                return
+            time.sleep(0.02)
+
+    def __del__(self) -> None:  # dropped unfinished (the run raised): no child left running
+        with contextlib.suppress(Exception):
+            self.finish(timeout=0.0)
 
 
 def warm_identification(vehicle: str, config: Callable[[dict[str, str], str, dict[str, float]], str],

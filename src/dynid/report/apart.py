@@ -17,7 +17,8 @@ import signal
 import sys
 import threading
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
@@ -30,38 +31,20 @@ class Apart(Generic[T]):
         self.fn = fn
         self.pid: int | None = None
         self.fd = -1
-        if not (sys.platform.startswith("linux") and threading.active_count() == 1):
+        if not can_fork():
             return
         r, w = os.pipe()
-        # Ctrl-C and TERM held across the fork: their handlers raise, and a raise inside the fork's own hooks
-        # (logging's lock release) is printed as an ignored exception with its traceback (a run killed while
-        # writing its report, tests/cli/test_output_folder.py); they are delivered once the child is accounted for
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        # this process's objects out of the child's garbage collections (the gc module's advice for a fork): a
-        # collection writes into every object it scans, which copies each page of the inherited heap in the child;
-        # a warm quick demo's report ~1.8 -> ~1.5 s CPU, this process and its child (benchmarks/bench_report.py)
-        ours = gc.get_freeze_count() == 0  # another's freeze left as it is
-        gc.freeze()
-        try:
-            pid = os.fork()
-            if pid == 0:  # the child: its value down the pipe, then leave at once (no atexit, no buffer flushed twice)
-                code = 1
-                try:
-                    signal.pthread_sigmask(signal.SIG_SETMASK, held)
-                    os.close(r)
-                    data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
-                    with os.fdopen(w, "wb") as out:
-                        out.write(data)
-                    code = 0
-                finally:
-                    os._exit(code)
-            os.close(w)
-            self.pid, self.fd = pid, r
-            self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
-        finally:  # this process's (the child left above)
-            if ours:
-                gc.unfreeze()
-            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+        def child() -> None:  # its value down the pipe
+            os.close(r)
+            data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
+            with os.fdopen(w, "wb") as out:
+                out.write(data)
+
+        pid = fork(child)
+        os.close(w)
+        self.pid, self.fd = pid, r
+        self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
 
     def result(self) -> T:
         if self.pid is not None:
@@ -75,6 +58,45 @@ class Apart(Generic[T]):
         return self.fn()  # no fork, or the child failed: here (its error, if any, raised here)
 
 
+def can_fork() -> bool:
+    """Whether this process may fork: Linux, and one thread (another thread's locks would stay held in the child's
+    copy, where nothing frees them)."""
+    return sys.platform.startswith("linux") and threading.active_count() == 1
+
+
+def fork(child: Callable[[], object], locks: Sequence[AbstractContextManager] = ()) -> int:
+    """Fork (where can_fork()); the child runs child() and leaves at once (os._exit: 0, or 1 when it raised; no atexit,
+    no buffered output flushed twice); returns the child's pid. locks: held across the fork, so that no other thread
+    holds one in the child's copy (pipeline.first_run: Numba's compiler lock, the generated modules' loader)."""
+    # Ctrl-C and TERM held across the fork: their handlers raise, and a raise inside the fork's own hooks
+    # (logging's lock release) is printed as an ignored exception with its traceback (a run killed while
+    # writing its report, tests/cli/test_output_folder.py); they are delivered once the child is accounted for
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    # this process's objects out of the child's garbage collections (the gc module's advice for a fork): a
+    # collection writes into every object it scans, which copies each page of the inherited heap in the child;
+    # a warm quick demo's report ~1.8 -> ~1.5 s CPU, this process and its child (benchmarks/bench_report.py)
+    ours = gc.get_freeze_count() == 0  # another's freeze left as it is
+    gc.freeze()
+    try:
+        with contextlib.ExitStack() as stack:
+            for lock in locks:
+                stack.enter_context(lock)
+            pid = os.fork()
+        if pid == 0:  # the child (the locks' copies released above, as in this process)
+            code = 1
+            try:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
+                child()
+                code = 0
+            finally:
+                os._exit(code)
+        return pid
+    finally:  # this process's (the child left above)
+        if ours:
+            gc.unfreeze()
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
 def _kill(pid: int, fd: int) -> None:
     with contextlib.suppress(OSError):
         os.kill(pid, signal.SIGKILL)
@@ -83,4 +105,4 @@ def _kill(pid: int, fd: int) -> None:
         os.waitpid(pid, 0)
 
 
-__all__ = ["Apart"]
+__all__ = ["Apart", "can_fork", "fork"]

@@ -250,9 +250,9 @@ _MEANWHILE: list[Callable[[], object]] = []
 
 def while_kernel_builds(task: Callable[[], object]) -> None:
     """Run `task` in this process while it waits for the kernel's build (prebuild_kernel) at the next
-    kernel_module(): a first run's idle core then compiles what the run needs later (pipeline.first_run). Call it
-    before prebuild_kernel, which drops it when the kernel is cached (no wait). Its errors are dropped: it may only
-    save time, never fail the run."""
+    kernel_module(): a first run's idle core then compiles what the run needs later (pipeline.first_run: or lets
+    the child that compiles it start). Call it before prebuild_kernel, which drops it when the kernel is cached (no
+    wait), or after one that returned True. Its errors are dropped: it may only save time, never fail the run."""
     _MEANWHILE.append(task)
 
 
