@@ -173,11 +173,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = Path(args.out)
     _say(f"the demo: simulate the tests, write their files, identify, report into {out}")
-    # start-up: the library, 1-5 s (--help 0.1 s); the simulator first: a first run's kernel build, the critical path
-    # (pipeline.demo), forks before the rest is imported (0.24 s of CPU), which this process then imports beside it
-    from ..vehicle.sim.car import prebuild_kernel
+    # the simulator first: a first run's kernel build, the critical path (pipeline.demo), forks before the rest of
+    # the library is imported (0.24 s of CPU), which this process then imports beside it
+    from ..vehicle.sim.car import prebuild_kernel  # start-up: the simulator, ~0.8 s (--help 0.1 s)
 
     first = prebuild_kernel()  # a first run: the simulator's kernel compiles on the other core while the vehicle loads
+    # start-up: the library, 1-5 s (--help 0.1 s)
     from ..pipeline.demo import FIRST_RUN, run_demo
     from ..pipeline.run import write_outputs
     from ..vehicle import WHEELS
