@@ -17,6 +17,12 @@ fit's, each after a trim.
 Each does nothing where there is no glibc. `arrow_system_pool` has pyarrow allocate from that same heap (its
 own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB;
 and gives back freed ones that the next segment's read faults in again).
+The resident set also counts every page of a shared library the process ever touched: the imports' (LLVM's
+static initialisers when llvmlite loads, ~36 MB) and Numba's first compiled call (LLVM compiling its runtime and
+linking the cached kernels, ~28 MB more) leave 131 MB of them, a third of a robot map's peak, most never used
+again. `release_library_pages` drops the clean pages of the read-only file mappings from this process's page
+table (the page cache keeps them: one that is used again is mapped back from it, a minor fault), where a map
+starts and once its first job has loaded the kernels the others use.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ import sys
 from functools import cache
 
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
+MADV_DONTNEED = 4  # Linux's madvise advice: a range's pages dropped (a private file mapping's reread from the file)
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # as the adaptive rule sets it
 THREADS_TRIM_THRESHOLD = 2**30  # a map's free heap top kept: at most what its jobs held at once (the peak stays)
@@ -52,6 +59,33 @@ def trim_heap() -> None:
     libc = _glibc()
     if libc is not None:
         libc.malloc_trim(0)
+
+
+def release_library_pages() -> int:
+    """Drop this process's resident pages of its read-only private file mappings (shared libraries' code and
+    constants) that it never wrote (module doc); bytes of mappings released, 0 where there is no glibc on Linux.
+    A mapping with a page copied on write (a library's relocated data, read-only after relocation) is left alone:
+    dropping those pages would revert them to the file's."""
+    libc = _glibc()
+    if libc is None:
+        return 0
+    try:
+        with open("/proc/self/smaps") as f:
+            text = f.read()
+    except OSError:
+        return 0
+    released, span = 0, None
+    for line in text.splitlines():
+        head = line.split(maxsplit=5)
+        if len(head) >= 5 and not head[0].endswith(":"):  # a mapping: range, perms, offset, device, inode[, path]
+            lo, hi = (int(x, 16) for x in head[0].split("-"))
+            span = (lo, hi) if head[4] != "0" and head[1][1] == "-" and head[1][3] == "p" else None
+        elif span is not None and head[0] == "Anonymous:":
+            if int(head[1]) == 0 and libc.madvise(ctypes.c_void_p(span[0]), ctypes.c_size_t(span[1] - span[0]),
+                                                  MADV_DONTNEED) == 0:
+                released += span[1] - span[0]
+            span = None
+    return released
 
 
 def tune_malloc() -> bool:
