@@ -65,7 +65,8 @@ def release_library_pages() -> int:
     """Drop this process's resident pages of its read-only private file mappings (shared libraries' code and
     constants) that it never wrote (module doc); bytes of mappings released, 0 where there is no glibc on Linux.
     A mapping with a page copied on write (a library's relocated data, read-only after relocation) is left alone:
-    dropping those pages would revert them to the file's."""
+    dropping those pages would revert them to the file's. The mappings are read, then advised: a library unloaded
+    and its range mapped again in between (dlclose, which Python's extension modules never call) is the one race."""
     libc = _glibc()
     if libc is None:
         return 0
