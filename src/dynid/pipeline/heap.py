@@ -35,6 +35,11 @@ from functools import cache
 
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
 MADV_DONTNEED = 4  # Linux's madvise advice: a range's pages dropped (a private file mapping's reread from the file)
+# a release (reading /proc/self/smaps, 15-40 ms beside a robot map's heap) is done when the file-backed resident set
+# grew by this much since the last: a car's map gives back 20-25 MB each time, a map's second call after its first
+# job ~3 MB when its kernels were already loaded
+RELEASE_GROWTH = 16 * 2**20
+_released_to = [-RELEASE_GROWTH]  # the file-backed resident bytes the last release left
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # as the adaptive rule sets it
 THREADS_TRIM_THRESHOLD = 2**30  # a map's free heap top kept: at most what its jobs held at once (the peak stays)
@@ -63,30 +68,45 @@ def trim_heap() -> None:
 
 def release_library_pages() -> int:
     """Drop this process's resident pages of its read-only private file mappings (shared libraries' code and
-    constants) that it never wrote (module doc); bytes of mappings released, 0 where there is no glibc on Linux.
+    constants) that it never wrote (module doc), when they grew by RELEASE_GROWTH since the last release; bytes of
+    mappings released (0: none, or no glibc on Linux).
     A mapping with a page copied on write (a library's relocated data, read-only after relocation) is left alone:
     dropping those pages would revert them to the file's. The mappings are read, then advised: a library unloaded
     and its range mapped again in between (dlclose, which Python's extension modules never call) is the one race."""
     libc = _glibc()
-    if libc is None:
+    if libc is None or _file_resident() - _released_to[0] < RELEASE_GROWTH:
         return 0
     try:
         with open("/proc/self/smaps") as f:
             text = f.read()
     except OSError:
         return 0
-    released, span = 0, None
+    released, span, resident = 0, None, 0
     for line in text.splitlines():
-        head = line.split(maxsplit=5)
-        if len(head) >= 5 and not head[0].endswith(":"):  # a mapping: range, perms, offset, device, inode[, path]
-            lo, hi = (int(x, 16) for x in head[0].split("-"))
-            span = (lo, hi) if head[4] != "0" and head[1][1] == "-" and head[1][3] == "p" else None
-        elif span is not None and head[0] == "Anonymous:":
-            if int(head[1]) == 0 and libc.madvise(ctypes.c_void_p(span[0]), ctypes.c_size_t(span[1] - span[0]),
-                                                  MADV_DONTNEED) == 0:
+        if line.startswith("Rss:"):
+            resident = int(line.split()[1])
+        elif line.startswith("Anonymous:"):
+            # a mapping none of whose pages is resident (most) is not advised: a system call saved
+            if span is not None and resident and line.split()[1] == "0" \
+                    and libc.madvise(ctypes.c_void_p(span[0]), ctypes.c_size_t(span[1] - span[0]), MADV_DONTNEED) == 0:
                 released += span[1] - span[0]
             span = None
+        elif line[:1] in "0123456789abcdef":  # a mapping (its fields' names begin with a capital)
+            # range, perms, offset, device, inode[, path]: the file's own, private, read-only
+            head = line.split(maxsplit=5)
+            lo, hi = (int(x, 16) for x in head[0].split("-"))
+            span = (lo, hi) if head[4] != "0" and head[1][1] == "-" and head[1][3] == "p" else None
+    _released_to[0] = _file_resident()
     return released
+
+
+def _file_resident() -> int:
+    """This process's file-backed resident bytes (RssFile), 0 where /proc says nothing."""
+    try:
+        with open("/proc/self/status") as f:
+            return next((int(x.split()[1]) * 1024 for x in f if x.startswith("RssFile:")), 0)
+    except OSError:
+        return 0
 
 
 def tune_malloc() -> bool:
