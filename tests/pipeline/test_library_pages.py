@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from dynid.pipeline.heap import _glibc
+from dynid.pipeline.heap import RELEASE_GROWTH, _glibc
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 
@@ -97,7 +97,8 @@ def test_llvms_clean_pages_leave_the_resident_set_and_the_copied_ones_stay():
 def test_a_local_map_releases_them_where_it_starts_and_after_its_first_job():
     r = _run(MAP)
     seen = r["seen"]
-    assert r["ahead"] > 4096  # LLVM resident before the map
+    assert r["ahead"] > RELEASE_GROWTH // 1024  # LLVM resident before the map: enough for a release
     # the first job's start: released at the map's start (the compiled call before it had made LLVM resident); the
-    # second's: released after the first job, which had used LLVM again; the third's: nothing since
-    assert max(seen) < 4096, seen
+    # second's: released after the first job, which had used LLVM again; the third's: nothing since. A release is
+    # done when the file-backed pages grew by RELEASE_GROWTH, so up to that may stay (~0 here; 69 MB unreleased)
+    assert max(seen) < RELEASE_GROWTH // 1024, seen
