@@ -21,8 +21,8 @@ The resident set also counts every page of a shared library the process ever tou
 static initialisers when llvmlite loads, ~36 MB) and Numba's first compiled call (LLVM compiling its runtime and
 linking the cached kernels, ~28 MB more) leave 131 MB of them, a third of a robot map's peak, most never used
 again. `release_library_pages` drops the clean pages of the read-only file mappings from this process's page
-table (the page cache keeps them: one that is used again is mapped back from it, a minor fault), where a map
-starts and once its first job has loaded the kernels the others use.
+table (the page cache keeps them: one that is used again is mapped back from it, a minor fault) when a local
+scheduler is made, where its map starts and once the map's first job has loaded the kernels the others use.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ from functools import cache
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
 MADV_DONTNEED = 4  # Linux's madvise advice: a range's pages dropped (a private file mapping's reread from the file)
 # a release (reading /proc/self/smaps, 15-40 ms beside a robot map's heap) is done when the file-backed resident set
-# grew by this much since the last: a car's map gives back 20-25 MB each time, a map's second call after its first
-# job ~3 MB when its kernels were already loaded
+# grew by this much since the last: a map whose kernels were loaded before it gives back ~3 MB, not worth the read
+# (a 406 identification's three releases give back 18-100 MB each)
 RELEASE_GROWTH = 16 * 2**20
 _released_to = [-RELEASE_GROWTH]  # the file-backed resident bytes the last release left
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
