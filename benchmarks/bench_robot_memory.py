@@ -9,6 +9,35 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
 the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (18:20-18:25 UTC, load average 1.6-3.6 on the 2 cores: other sessions), this tree against
+f15571e (the command above, the log kept in --folder), whole processes, 3 pairs alternated after a warm-up each,
+medians: peak 235.0 MiB (233.2-237.6) against 345.1 (344.1-346.7): the target met; process CPU 23.85 s against 24.21
+(pair ratios 0.920-1.012, median 1.005; system 0.83 s against 0.92), the identification's wall pair ratios 0.64-0.93
+(median 0.92: the load). Two calls before (the same command): 18:03-18:07 (load 3.8-4.7), peak 236.4 (235.9-238.1)
+against 349.6 (345.1-351.7), CPU pair ratios 0.971-1.102 (median 1.0005), wall 0.53-1.00 (median 0.74); 17:40-17:47
+(load 3.8-8, before the 16 MiB gate): peak 239.0 (233.4-243.2) against 348.3 (345.7-351.1), CPU pair ratios
+0.992-1.018 (median 0.992), wall 0.96-1.89 (median 1.016). The estimate, its sigmas, covariance, validation and
+errors bit-equal (one hash each, both trees, the 1 h log and a 120 s one). What went: the shared libraries' pages
+the process touched once (`heap.release_library_pages`, when LocalScheduler is made, where a local map starts and
+once its first job is done, each when the file-backed pages grew by 16 MiB since the last: 15-40 ms a release; a 406
+identification from files makes 3 with the gate as without, each giving back 18-100 MB: 71-87 ms of its 1.8-2.0 s
+CPU, load ~4): an RSS trace (status and mallinfo2 every 3 ms, smaps at the running maximum) showed at the peak 131
+MB file-backed, libllvmlite.so 67 of it (36 when llvmlite is imported: LLVM's static initialisers; 28 at the first
+compiled call: numba compiling its runtime and linking the cached kernels; ~10 at the map's first chunk: its kernels
+linked), pyarrow's libraries 33, NumPy's and the two OpenBLAS 10, libpython 4, libcrypto 3; none of LLVM's used
+again once the kernels are loaded. Dropped (madvise, clean read-only file pages only: the page cache keeps them),
+the map's file-backed part is 17-22 MB (the pages its chunks use, faulted back from the cache). The anonymous part
+at the peak, now most of what is left (one trace, load 8-9; peak 256 MB, RssFile 22, RssAnon 234): glibc's heap 175
+MB (in use 95-106, free 68-79 of it: the chunks' holes and a 23 MB top kept for the next chunk,
+`heap.tune_threads`), ~60 outside it: Python's small-object arenas 48 (46 of 1 MiB, 46.5 MB of live objects: the
+modules' code and data, numba's typing and lowering registries; sys._debugmallocstats after a 120 s log's
+identification), the rest numba's compiled code and the threads' stacks (not broken down); at the map's start
+RssAnon 111 (heap in use 54). The anonymous part moves by +-15 MB from run to run (where the chunks' arrays fall in
+the heap). Not done: the heap's free 70-80 MB inside the map (the levers measured before: a trim after each chunk or
+the arrays on pages of their own, +5-6 % CPU); the imported modules not needed by then (881 after the imports, 996
+at the peak: pyarrow on the first read, numba's lowering registries with cffi and pycparser at the first compiled
+call): not measured one by one.
+
 Measured 2026-11-29 (16:38-16:49 UTC, load average 1.0-1.8: no other session of ours; the host varied, ffe91d6's
 identification 13.5-17.3 s), this tree against ffe91d6 and 17cb88d, whole processes after a warm-up each, 6 pairs
 against ffe91d6 (3 of them triples with 17cb88d), medians: the identification's wall 15.15 s against 15.7 (pair

@@ -17,6 +17,12 @@ fit's, each after a trim.
 Each does nothing where there is no glibc. `arrow_system_pool` has pyarrow allocate from that same heap (its
 own default, mimalloc or jemalloc, keeps its arenas' pages after the Parquet reads: a 1 h robot log's ~30 MB;
 and gives back freed ones that the next segment's read faults in again).
+The resident set also counts every page of a shared library the process ever touched: the imports' (LLVM's
+static initialisers when llvmlite loads, ~36 MB) and Numba's first compiled call (LLVM compiling its runtime and
+linking the cached kernels, ~28 MB more) leave 131 MB of them, a third of a robot map's peak, most never used
+again. `release_library_pages` drops the clean pages of the read-only file mappings from this process's page
+table (the page cache keeps them: one that is used again is mapped back from it, a minor fault) when a local
+scheduler is made, where its map starts and once the map's first job has loaded the kernels the others use.
 """
 
 from __future__ import annotations
@@ -28,6 +34,12 @@ import sys
 from functools import cache
 
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
+MADV_DONTNEED = 4  # Linux's madvise advice: a range's pages dropped (a private file mapping's reread from the file)
+# a release (reading /proc/self/smaps, 15-40 ms beside a robot map's heap) is done when the file-backed resident set
+# grew by this much since the last: a map whose kernels were loaded before it gives back ~3 MB, not worth the read
+# (a 406 identification's three releases give back 18-100 MB each)
+RELEASE_GROWTH = 16 * 2**20
+_released_to = [-RELEASE_GROWTH]  # the file-backed resident bytes the last release left
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # as the adaptive rule sets it
 THREADS_TRIM_THRESHOLD = 2**30  # a map's free heap top kept: at most what its jobs held at once (the peak stays)
@@ -52,6 +64,49 @@ def trim_heap() -> None:
     libc = _glibc()
     if libc is not None:
         libc.malloc_trim(0)
+
+
+def release_library_pages() -> int:
+    """Drop this process's resident pages of its read-only private file mappings (shared libraries' code and
+    constants) that it never wrote (module doc), when they grew by RELEASE_GROWTH since the last release; bytes of
+    mappings released (0: none, or no glibc on Linux).
+    A mapping with a page copied on write (a library's relocated data, read-only after relocation) is left alone:
+    dropping those pages would revert them to the file's. The mappings are read, then advised: a library unloaded
+    and its range mapped again in between (dlclose, which Python's extension modules never call) is the one race."""
+    libc = _glibc()
+    if libc is None or _file_resident() - _released_to[0] < RELEASE_GROWTH:
+        return 0
+    try:
+        with open("/proc/self/smaps") as f:
+            text = f.read()
+    except OSError:
+        return 0
+    released, span, resident = 0, None, 0
+    for line in text.splitlines():
+        if line.startswith("Rss:"):
+            resident = int(line.split()[1])
+        elif line.startswith("Anonymous:"):
+            # a mapping none of whose pages is resident (most) is not advised: a system call saved
+            if span is not None and resident and line.split()[1] == "0" \
+                    and libc.madvise(ctypes.c_void_p(span[0]), ctypes.c_size_t(span[1] - span[0]), MADV_DONTNEED) == 0:
+                released += span[1] - span[0]
+            span = None
+        elif line[:1] in "0123456789abcdef":  # a mapping (its fields' names begin with a capital)
+            # range, perms, offset, device, inode[, path]: the file's own, private, read-only
+            head = line.split(maxsplit=5)
+            lo, hi = (int(x, 16) for x in head[0].split("-"))
+            span = (lo, hi) if head[4] != "0" and head[1][1] == "-" and head[1][3] == "p" else None
+    _released_to[0] = _file_resident()
+    return released
+
+
+def _file_resident() -> int:
+    """This process's file-backed resident bytes (RssFile), 0 where /proc says nothing."""
+    try:
+        with open("/proc/self/status") as f:
+            return next((int(x.split()[1]) * 1024 for x in f if x.startswith("RssFile:")), 0)
+    except OSError:
+        return 0
 
 
 def tune_malloc() -> bool:

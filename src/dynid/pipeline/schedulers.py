@@ -10,7 +10,9 @@ same answer to the last bit on the same CPU (and to round-off across CPUs).
   One worker is the calling thread itself, the jobs in their order; a `Staged` function's first stage
   of the next job runs on a second thread meanwhile.
   Made, it sets this process's C heap up for them (`heap.tune_threads`, `heap.arrow_system_pool`: one
-  arena kept whole during a map, pyarrow on it), before the plan's reads and the threads start.
+  arena kept whole during a map, pyarrow on it), before the plan's reads and the threads start, and drops the
+  shared libraries' pages the imports touched (`heap.release_library_pages`); again at a map's start and once
+  its first job is done (the compiled kernels the map uses loaded by then).
 - `DaskScheduler(address)`: a dask.distributed cluster ("local" starts a LocalCluster on this
   machine); the jobs are small (a segment's time window of a file the workers can reach), the
   workers read their data themselves, and the fold runs on the workers too. A worker lost
@@ -30,7 +32,7 @@ from threadpoolctl import threadpool_limits
 
 from ..io.errors import MissingDependencyError
 from ..progress import Count
-from .heap import arrow_system_pool, trim_heap, tune_threads
+from .heap import arrow_system_pool, release_library_pages, trim_heap, tune_threads
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -78,9 +80,11 @@ def _by_key(jobs: Sequence, key: Callable) -> dict[Hashable, list[int]]:
 
 @cache
 def _heap_for_threads() -> None:
-    """The C heap set up once per process for the threads' jobs (`heap`), pyarrow's reads on it."""
+    """The C heap set up once per process for the threads' jobs (`heap`), pyarrow's reads on it, and the imports'
+    library pages dropped (LLVM's initialisers' among them, ~50 MB of a robot run's resident set)."""
     tune_threads()
     arrow_system_pool()
+    release_library_pages()
 
 
 class LocalScheduler:
@@ -101,6 +105,7 @@ class LocalScheduler:
         folds = {k: _Fold(idx, combine) for k, idx in _by_key(jobs, key).items()}
         of = {i: folds[k] for k, idx in _by_key(jobs, key).items() for i in idx}
         done = 0
+        release_library_pages()  # what the plan touched (a robot's first compiled call: ~28 MB of LLVM's)
         if self.workers == 1:  # on the calling thread: its heap (glibc's arena) is the one the plan left free space in
             with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(1) as ahead:
                 staged = isinstance(fn, Staged) and len(jobs) > 1
@@ -121,6 +126,8 @@ class LocalScheduler:
                     of[i].put(i, out)
                     del out
                     done += 1
+                    if done == 1:  # the kernels the jobs call are loaded: LLVM's pages that loading touched dropped
+                        release_library_pages()
                     say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
             trim_heap()  # as below
             return {k: fold.result() for k, fold in folds.items()}
@@ -136,6 +143,8 @@ class LocalScheduler:
                     j = running.pop(f)
                     of[j].put(j, f.result())
                     done += 1
+                    if done == 1:  # as above
+                        release_library_pages()
                     say(Count("segments", done, len(jobs), f"segments done {done}/{len(jobs)}", unit="segment"))
             for f in list(running):
                 j = running.pop(f)
