@@ -36,9 +36,10 @@ from functools import cache
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameters
 MADV_DONTNEED = 4  # Linux's madvise advice: a range's pages dropped (a private file mapping's reread from the file)
 # a release (reading /proc/self/smaps, 15-40 ms beside a robot map's heap) is done when the file-backed resident set
-# grew by this much since the last: a map whose kernels were loaded before it gives back ~3 MB, not worth the read
-# (a 406 identification's three releases give back 18-100 MB each)
-RELEASE_GROWTH = 16 * 2**20
+# grew by this much since the last: a map whose kernels were loaded before it gives back ~3 MB, not worth the read.
+# 32 MiB: the 406 demo's identification releases twice (18 ms each of its 4.0 s CPU; three times at 16 MiB), a 1 h
+# robot map peaks at 251-256 MiB (235 at 16 MiB: the map's own growth, ~10 MB of pages, then stays)
+RELEASE_GROWTH = 32 * 2**20
 _released_to = [-RELEASE_GROWTH]  # the file-backed resident bytes the last release left
 MMAP_THRESHOLD = 32 * 2**20  # glibc's largest adaptive value on 64-bit systems
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # as the adaptive rule sets it
