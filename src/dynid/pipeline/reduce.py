@@ -321,7 +321,7 @@ def reduce_car_segment(job: CarJob) -> Partial:
     from .car import knee_rows
 
     setup = car_setup(job.cfg)
-    w = job.window
+    w = clock_read(job.window)  # its stamps read once (a file's clock is not held by the plan), for the health too
     samples: dict[str, Channel] | None = None if job.health is None else {}
     channels = read_segment(w, file_samples=samples)
     health = None

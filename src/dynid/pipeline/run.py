@@ -78,6 +78,7 @@ from .robot import (
 )
 from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
+    clock_at,
     clock_window,
     plan_car_test,
     plan_robot_test,
@@ -384,6 +385,9 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     # the wheel samples' step per test, chosen before the map so that the run gathers at most MAX_SAMPLES of them
     # (the tire fit's memory bounded for any length; under that, the cut-off's step: the same samples as unbounded)
     tire_steps = sample_steps([(p.fs, [hi - lo for lo, hi in p.segments]) for p in plans], cond.cutoff)
+    # each segment's first stamp and the test's last (the parts of the test the segments' health answers for): a
+    # file's clock read once for them, not per segment and per map
+    edges = [clock_at(p.clock, [lo for lo, _ in p.segments] + [p.samples - 1]) for p in plans]
 
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
              ) -> list[CarJob]:
@@ -392,7 +396,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         out = []
         # the rows kept for the report: each identification test's first segment, and the first validation tests'
         shown = [p.test for p in plans if p.role == "validate"][:SHOWN_VALIDATION]
-        for plan, tire_step in zip(plans, tire_steps, strict=True):
+        for plan, tire_step, edge in zip(plans, tire_steps, edges, strict=True):
             if instruments is not None and plan.role != "identify":
                 continue
             estimating = settings.estimate_offsets and instruments is None
@@ -405,7 +409,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
                 last = i + 1 == len(plan.segments)
-                own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
+                own = (float(edge[i]), float(edge[i + 1]), last)
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None
