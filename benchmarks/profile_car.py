@@ -359,10 +359,8 @@ def main() -> None:
                                  setup.vehicle.suite.units, cfg.car.segment, lambda fs: 0, lambda _m: None)
         windows = [sources.segment_window(plan, lo, hi) for lo, hi in plan.segments]
         jobs = []
-        edges = sources.clock_at(plan.clock, [lo for lo, _ in plan.segments] + [plan.samples - 1])
-        for i, w in enumerate(windows):
-            last = i + 1 == len(windows)  # the part of the test it answers for, as the identification's jobs say
-            own = (float(edges[i]), float(edges[i + 1]), last)
+        # the part of the test each answers for, as the identification's jobs say
+        for i, (w, own) in enumerate(zip(windows, sources.segment_edges(plan), strict=True)):
             jobs.append(reduce.CarJob(cfg, w, "identify", i + 1, health=own))
         if args.threads > 1:  # the identification's own scheduler (its heap trims included), its results dropped
             threads.map_reduce(run.reduce_car_segment, jobs, lambda _j: 0, lambda a, _b: a)

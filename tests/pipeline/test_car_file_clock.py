@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import itertools
 import pickle
 
 import numpy as np
@@ -20,7 +21,15 @@ import pytest
 from dynid.io import read_recording
 from dynid.pipeline import sources
 from dynid.pipeline.config import load_config
-from dynid.pipeline.sources import FileClock, clock_at, clock_read, plan_car_test, read_segment, segment_window
+from dynid.pipeline.sources import (
+    FileClock,
+    clock_at,
+    clock_read,
+    plan_car_test,
+    read_segment,
+    segment_edges,
+    segment_window,
+)
 from dynid.vehicle.description import load_vehicle
 from dynid.vehicle.estimate import required_channels
 
@@ -83,8 +92,13 @@ def test_a_parquet_car_plan_leaves_its_clock_in_the_file(tmp_path):
     for lo, hi in plan.segments:  # each segment's window still in the file until its job reads it
         w = segment_window(plan, lo, hi)
         assert isinstance(w.clock, FileClock) and np.array_equal(clock_read(w).clock, t[lo:hi])
-    rows = [lo for lo, _ in plan.segments] + [plan.samples - 1]
-    assert np.array_equal(clock_at(plan.clock, rows), t[rows])  # the segments' edges, in one pass
+        assert w.span == (t[lo], t[hi - 1])  # its read's bounds known without its stamps
+    # the part of the test each segment's health answers for: from its first stamp to the next's, the last to the end
+    firsts = [lo for lo, _ in plan.segments]
+    want = [(t[a], t[b], False) for a, b in itertools.pairwise(firsts)] + [(t[firsts[-1]], t[-1], True)]
+    assert segment_edges(plan) == want
+    rows = [*firsts, plan.samples - 1]
+    assert np.array_equal(clock_at(plan.clock, rows), t[rows])  # stamps of any samples, in one pass
     assert np.array_equal(clock_at(plan.clock, [-1, 0, 2999, 3000, 5]), t[[-1, 0, 2999, 3000, 5]])
     with pytest.raises(IndexError, match="of a clock of"):
         clock_at(plan.clock, [plan.samples])

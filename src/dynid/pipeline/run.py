@@ -78,12 +78,12 @@ from .robot import (
 )
 from .schedulers import LocalScheduler, Scheduler, scheduler_for, tree_fold
 from .sources import (
-    clock_at,
     clock_window,
     plan_car_test,
     plan_robot_test,
     read_robot_window,
     read_segment,
+    segment_edges,
     segment_window,
     transmitted,
 )
@@ -385,9 +385,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     # the wheel samples' step per test, chosen before the map so that the run gathers at most MAX_SAMPLES of them
     # (the tire fit's memory bounded for any length; under that, the cut-off's step: the same samples as unbounded)
     tire_steps = sample_steps([(p.fs, [hi - lo for lo, hi in p.segments]) for p in plans], cond.cutoff)
-    # each segment's first stamp and the test's last (the parts of the test the segments' health answers for): a
-    # file's clock read once for them, not per segment and per map
-    edges = [clock_at(p.clock, [lo for lo, _ in p.segments] + [p.samples - 1]) for p in plans]
+    edges = [segment_edges(p) for p in plans]  # the part of its test each segment's health answers for
 
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
              ) -> list[CarJob]:
@@ -408,15 +406,13 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             errors = picked(len(plan.segments)) if main and with_offsets else {}
             timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
-                last = i + 1 == len(plan.segments)
-                own = (float(edge[i]), float(edge[i + 1]), last)
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None
                                   and (plan.role == "identify" or plan.test in shown), errors=i in errors,
                                   delays=i in timed, estimate_offsets=estimating and i in picks,
                                   propagate_offsets=not estimating,
-                                  health=own if health else None, tire_step=tire_step))
+                                  health=edge[i] if health else None, tire_step=tire_step))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:

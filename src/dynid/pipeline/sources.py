@@ -17,6 +17,7 @@ its slice of the uniform clock from the samples around it (a margin of several s
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 import re
@@ -70,6 +71,9 @@ class CarTestPlan:
     max_gap: float
     base_steps: tuple[float, ...]  # each time base's step, s (their number tells a multi-rate file)
     segments: tuple[tuple[int, int], ...]
+    # each segment's first and last stamp, s (taken while the plan held the clock): where its window's read starts
+    # and ends without its stamps, and the parts of the test the segments' health answers for
+    spans: tuple[tuple[float, float], ...] = ()
 
     @property
     def samples(self) -> int:
@@ -92,6 +96,9 @@ class SegmentWindow:
     max_gap: float
     margin: float  # s
     first: int = 0  # the clock slice's first sample in the test (messages name the test's samples)
+    # the slice's first and last stamp when the plan knows them (a segment's): a file's clock then read after the
+    # window, from the blocks that read decoded, not by a read of its own (each opens the file: its footer parsed)
+    span: tuple[float, float] | None = None
 
     def read(self) -> dict[str, NDArray[np.float64]]:
         """{quantity: values on the clock slice, SI}."""
@@ -216,9 +223,10 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
     bd = border(fs)
     step = N if segment_s is None else max(int(segment_s * fs), 4 * bd)
     segments = tuple((s, min(N, s + step + 2 * bd)) for s in range(0, max(N - 2 * bd, 1), step))
+    spans = tuple((float(clock[lo]), float(clock[hi - 1])) for lo, hi in segments)
     kept = _file_clock(index, clock)  # a Parquet file's stamps left in it: the plan's size not the log's length's
     return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock if kept is None else kept,
-                       fs, timed, spec.max_gap, tuple(s.h for _, s in streams), segments)
+                       fs, timed, spec.max_gap, tuple(s.h for _, s in streams), segments, spans)
 
 
 def _below_nyquist(cfg: IdentifyConfig, spec: TestSpec, cutoff: float, fs: float, timed: bool, file: str) -> None:
@@ -242,8 +250,17 @@ def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
     """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice, or its rows of the
     file's, and the index)."""
     margin = window_margin(plan.max_gap, plan.base_steps)
+    k = bisect.bisect_left(plan.segments, (lo, hi))  # the segments in order: a segment's window knows its span
+    span = plan.spans[k] if k < len(plan.spans) and plan.segments[k] == (lo, hi) else None
     return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
-                         _clock_cut(plan.clock, lo, hi), plan.fs, plan.timed, plan.max_gap, margin, lo)
+                         _clock_cut(plan.clock, lo, hi), plan.fs, plan.timed, plan.max_gap, margin, lo, span)
+
+
+def segment_edges(plan: CarTestPlan) -> list[tuple[float, float, bool]]:
+    """The part of the test each segment answers for (its data health): (t_start, t_end, end included), from its
+    first stamp to the next segment's first; the last to the test's end."""
+    n = len(plan.segments)
+    return [(a, plan.spans[i + 1][0] if i + 1 < n else b, i + 1 == n) for i, (a, b) in enumerate(plan.spans)]
 
 
 def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Channel] | None = None
@@ -254,19 +271,25 @@ def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Chan
     interpolated)}, the data health's scan (`pipeline.health.segment_health`). A channel whose factor to SI is 1 is
     given as read, not multiplied (x * 1.0 is x to the bit): a read-only view where it is the file's samples (the
     product's fresh array cost a sixth of a segment's read, in page faults)."""
-    w = clock_read(w)  # a file's clock: its stamps decoded into the block cache the window's read takes them from
-    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples)
+    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples,
+                    w.span)
     return {q: al[name] * w.factors[q] if si and w.factors[q] != 1.0 else al[name]
             for q, name in w.quantity_names.items()}
 
 
-def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64], margin: float, timed: bool,
-               first: int, kind: Callable[[str], str], file_samples: dict[str, Channel] | None = None):
+def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64] | FileClock, margin: float,
+               timed: bool, first: int, kind: Callable[[str], str], file_samples: dict[str, Channel] | None = None,
+               span: tuple[float, float] | None = None):
     """The channels on the clock slice (`dynid.io.align`), from the window of the file around it: per time base,
     repeated stamps merged (the plan checked the stamps: no gap is refused here, where a window's own median step
     could differ), the samples on the clock used as they are, the others interpolated (kind(name)); the samples
-    used put in file_samples when given."""
-    rec = read_window(index, list(names), float(clock[0]) - margin, float(clock[-1]) + margin)
+    used put in file_samples when given. span: the clock's first and last stamp, if known (a file's clock is then
+    read after the window, from the blocks it decoded)."""
+    if span is None and isinstance(clock, FileClock):
+        clock = clock[0:clock.size]
+    a, b = span if span is not None else (float(clock[0]), float(clock[-1]))
+    rec = read_window(index, list(names), a - margin, b + margin)
+    clock = clock[0:clock.size] if isinstance(clock, FileClock) else clock
     specs, exact = [], True
     with _samples_of_the_test(first, True):
         for members in _shared_bases(rec, names):
@@ -401,7 +424,9 @@ def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | Non
         start += b.rows
     else:
         return None
-    step = max(b.rows for b in index.blocks)
+    # 16 blocks' stamps compared at a time: each read opens the file (its footer parsed, ~20 ms for 6 h of the
+    # suite's channels), so a block at a time took 2.6 s of a 6 h plan's 3.9; still a bounded part of the clock
+    step = 16 * max(b.rows for b in index.blocks)
     for lo in range(0, clock.size, step):
         hi = min(clock.size, lo + step)
         if not np.array_equal(stamp_rows(index, start + lo, start + hi, store=False), clock[lo:hi]):
