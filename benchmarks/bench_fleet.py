@@ -94,11 +94,14 @@ to 9.5): 0.70, 0.73, 0.79 GB against 0.74, 0.80, 0.90. `--hours 1 --workers --vs
 18:17-18:21, load 1.5 to 4.2: CPU 11.56 s median (10.55, 11.41, 13.51, 11.56, 13.49) against 11.44 (10.73, 9.74,
 12.24, 11.44, 11.66): 0.99 x; walls 10.34 against 9.59 s (medians, at that load noise). `--hours 9 --workers --vs
 <f15571e>/src`, 18:21-18:26, load 0.5 to 3: peak 0.90 GB against 0.99, CPU 96.02 against 94.58 s (0.98 x), wall
-62.04 against 68.73 s. The 9 h peak is the plan's pass over the stamps, the same code in both trees:
-`plan_car_test` of the 6 h log alone, in a child that had set up the car (0.15 GB), peaks at 0.64 GB, ~80 MB per
-hour of data (tracemalloc: 0.43 GB at 6 h, 32 bytes a sample at once: the stamps and what their checks and the
-clock's cut make of them, not broken down here), and holds 0.28 GB after it against f15571e's 0.37 (the 6 h
-clock's 0.11 GB). That pass, not the map, is what still grows: it would pass 1 GB near 10.5 h of this workload.
+62.04 against 68.73 s (a first run, 17:52-17:59, load 3 to 9: 0.90 against 0.99 GB, CPU 0.83 x). That 9 h peak was the
+plan's pass over the stamps, the same code in both trees: `plan_car_test` of the 6 h log alone, in a child that had
+set up the car (0.15 GB), peaked at 0.64 GB (tracemalloc 0.43 GB, 32 bytes a sample at once), and held 0.28 GB after
+it against f15571e's 0.37 (the 6 h clock's 0.11 GB). With the file's stamps let go before the median step (and its
+differences partitioned in place): 0.55 GB (tracemalloc 0.32 GB, 24 bytes a sample), and 9 h (the same command,
+18:31-18:35, load 2.8 to 4.4) peaks at 0.83 GB against f15571e's 0.88, CPU 96.59 against 90.83 s (0.94 x; the 9 h
+runs' ratios 0.83, 0.98, 0.94 at those loads), walls 90.18 against 88.67 s. The plan's pass still grows, ~65 MB per
+hour of data while it runs: it would set the peak past ~10 h and pass 1 GB near 13 h of this workload.
 """
 
 from __future__ import annotations
