@@ -83,6 +83,25 @@ same samples, the same curves; 3 h's 679 numbers the same bits): peak 0.84, 0.84
 0.70 -> 0.56, 0.96 -> 0.61). What still grows is the clock (0.11 GB at 6 h: the peak would pass 1 GB near 9 h of this
 workload). The 6 h curves' σ moved by 0 to +4 % (τ halved with the step), the quick demo's, thinned 2 and 4 times, by
 -30 to +8 % and +2 to +19 %, their values by at most 0.26 σ.
+
+Measured 2026-11-29 (issue 28, h-clock: a car plan leaves a Parquet log's clock in the file, `sources.FileClock`, as a
+robot's does; each segment's first and last stamp kept by the plan, its stamps taken after its window's read, from the
+row groups that read decoded). `--hours 1 3 6 --workers --vs <f15571e>/src`, one run of each tree alternated per
+length, 18:08-18:17 UTC, load averages 2.5 to 4.6: peak 0.74, 0.76, 0.79 GB at 1, 3, 6 h against f15571e's 0.74,
+0.81, 0.90; growth from 3 to 6 h 10 MB per hour of data against 30 (single runs: peaks vary by ~0.05-0.1 GB run to
+run). CPU s 11.36, 32.78, 62.07 against 10.70, 33.36, 62.93. An earlier run of the first step (17:35-17:46, load 2
+to 9.5): 0.70, 0.73, 0.79 GB against 0.74, 0.80, 0.90. `--hours 1 --workers --vs <f15571e>/src --repeat 5`,
+18:17-18:21, load 1.5 to 4.2: CPU 11.56 s median (10.55, 11.41, 13.51, 11.56, 13.49) against 11.44 (10.73, 9.74,
+12.24, 11.44, 11.66): 0.99 x; walls 10.34 against 9.59 s (medians, at that load noise). `--hours 9 --workers --vs
+<f15571e>/src`, 18:21-18:26, load 0.5 to 3: peak 0.90 GB against 0.99, CPU 96.02 against 94.58 s (0.98 x), wall
+62.04 against 68.73 s (a first run, 17:52-17:59, load 3 to 9: 0.90 against 0.99 GB, CPU 0.83 x). That 9 h peak was the
+plan's pass over the stamps, the same code in both trees: `plan_car_test` of the 6 h log alone, in a child that had
+set up the car (0.15 GB), peaked at 0.64 GB (tracemalloc 0.43 GB, 32 bytes a sample at once), and held 0.28 GB after
+it against f15571e's 0.37 (the 6 h clock's 0.11 GB). With the file's stamps let go before the median step (and its
+differences partitioned in place): 0.55 GB (tracemalloc 0.32 GB, 24 bytes a sample), and 9 h (the same command,
+18:31-18:35, load 2.8 to 4.4) peaks at 0.83 GB against f15571e's 0.88, CPU 96.59 against 90.83 s (0.94 x; the 9 h
+runs' ratios 0.83, 0.98, 0.94 at those loads), walls 90.18 against 88.67 s. The plan's pass still grows, ~65 MB per
+hour of data while it runs: it would set the peak past ~10 h and pass 1 GB near 13 h of this workload.
 """
 
 from __future__ import annotations

@@ -359,9 +359,8 @@ def main() -> None:
                                  setup.vehicle.suite.units, cfg.car.segment, lambda fs: 0, lambda _m: None)
         windows = [sources.segment_window(plan, lo, hi) for lo, hi in plan.segments]
         jobs = []
-        for i, (w, (lo, _)) in enumerate(zip(windows, plan.segments, strict=True)):
-            last = i + 1 == len(windows)  # the part of the test it answers for, as the identification's jobs say
-            own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
+        # the part of the test each answers for, as the identification's jobs say
+        for i, (w, own) in enumerate(zip(windows, sources.segment_edges(plan), strict=True)):
             jobs.append(reduce.CarJob(cfg, w, "identify", i + 1, health=own))
         if args.threads > 1:  # the identification's own scheduler (its heap trims included), its results dropped
             threads.map_reduce(run.reduce_car_segment, jobs, lambda _j: 0, lambda a, _b: a)

@@ -203,7 +203,7 @@ def test_a_segment_channel_in_si_already_is_the_file_s_samples_read_only(tmp_pat
     plan = SimpleNamespace(test="t", index=index, file_names=("ax", "yaw"),
                            quantity_names={"imu_ax": "ax", "imu_yaw_rate": "yaw"},
                            factors={"imu_ax": 1.0, "imu_yaw_rate": np.pi / 180.0}, clock=t, fs=625.0, timed=True,
-                           max_gap=2.0, base_steps=(1 / 625.0,))
+                           max_gap=2.0, base_steps=(1 / 625.0,), segments=(), spans=())
     whole = read_recording(path)
     w = segment_window(plan, 100, 700)
     got = read_segment(w)

@@ -66,6 +66,8 @@ from .sources import (
     CarTestPlan,
     RobotTestPlan,
     SegmentWindow,
+    clock_at,
+    clock_read,
     driven,
     read_robot_window,
     read_segment,
@@ -231,14 +233,15 @@ def car_health(plan: CarTestPlan, vehicle) -> list[Finding]:
     `vehicle.description.Vehicle`."""
     N = plan.samples
     step = max(2, int(WINDOW_S * plan.fs))
+    starts = range(0, N, step)
+    edges = clock_at(plan.clock, [*starts, N - 1])  # each window's first stamp and the test's last, in one pass
     whole = None
-    for lo in range(0, N, step):
+    for j, lo in enumerate(starts):
         hi = min(N, lo + step)
-        w = segment_window(plan, lo, min(N, hi + 1))  # the next window's first stamp closes this one
+        w = clock_read(segment_window(plan, lo, min(N, hi + 1)))  # the next window's first stamp closes this one
         samples: dict[str, Channel] = {}
         channels = read_segment(w, file_samples=samples)
-        part = segment_health(w, vehicle, (float(plan.clock[lo]), float(plan.clock[hi - 1 if hi == N else hi]),
-                                           hi == N), samples, channels)
+        part = segment_health(w, vehicle, (float(edges[j]), float(edges[j + 1]), hi == N), samples, channels)
         whole = part if whole is None else whole.merged(part)
     return car_findings(whole, vehicle, plan)
 

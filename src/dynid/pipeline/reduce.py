@@ -321,9 +321,10 @@ def reduce_car_segment(job: CarJob) -> Partial:
     from .car import knee_rows
 
     setup = car_setup(job.cfg)
-    w = job.window
     samples: dict[str, Channel] | None = None if job.health is None else {}
-    channels = read_segment(w, file_samples=samples)
+    channels = read_segment(job.window, file_samples=samples)
+    # its stamps in memory (the health's): a file's clock's from the blocks the read just decoded
+    w = clock_read(job.window)
     health = None
     if samples is not None and job.hac is None and not job.knees:  # the segment's data health, its samples then let go
         health = {w.test: segment_health(w, setup.vehicle, job.health, samples, channels)}

@@ -83,6 +83,7 @@ from .sources import (
     plan_robot_test,
     read_robot_window,
     read_segment,
+    segment_edges,
     segment_window,
     transmitted,
 )
@@ -384,6 +385,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
     # the wheel samples' step per test, chosen before the map so that the run gathers at most MAX_SAMPLES of them
     # (the tire fit's memory bounded for any length; under that, the cut-off's step: the same samples as unbounded)
     tire_steps = sample_steps([(p.fs, [hi - lo for lo, hi in p.segments]) for p in plans], cond.cutoff)
+    edges = [segment_edges(p) for p in plans]  # the part of its test each segment's health answers for
 
     def jobs(instruments: dict[str, float] | None = None, with_offsets: bool = True, health: bool = False
              ) -> list[CarJob]:
@@ -392,7 +394,7 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
         out = []
         # the rows kept for the report: each identification test's first segment, and the first validation tests'
         shown = [p.test for p in plans if p.role == "validate"][:SHOWN_VALIDATION]
-        for plan, tire_step in zip(plans, tire_steps, strict=True):
+        for plan, tire_step, edge in zip(plans, tire_steps, edges, strict=True):
             if instruments is not None and plan.role != "identify":
                 continue
             estimating = settings.estimate_offsets and instruments is None
@@ -404,15 +406,13 @@ def _identify_car(cfg: IdentifyConfig, say: Progress, scheduler: Scheduler | Non
             errors = picked(len(plan.segments)) if main and with_offsets else {}
             timed = picked(len(plan.segments), DELAY_SEGMENTS) if main else {}
             for i, (lo, hi) in enumerate(plan.segments):
-                last = i + 1 == len(plan.segments)
-                own = (float(plan.clock[lo]), float(plan.clock[-1 if last else plan.segments[i + 1][0]]), last)
                 out.append(CarJob(cfg, segment_window(plan, lo, hi), plan.role, i + 1,
                                   moved if i in picks else (), picks.get(i, 1.0),
                                   instruments, keep_rows=i == 0 and instruments is None
                                   and (plan.role == "identify" or plan.test in shown), errors=i in errors,
                                   delays=i in timed, estimate_offsets=estimating and i in picks,
                                   propagate_offsets=not estimating,
-                                  health=own if health else None, tire_step=tire_step))
+                                  health=edge[i] if health else None, tire_step=tire_step))
         return out
 
     def picked(n_segments: int, n: int | None = None) -> dict[int, float]:

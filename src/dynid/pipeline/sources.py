@@ -7,7 +7,8 @@ stamps, jitter), the clock of the fastest channels is chosen and cut to the span
 covers and the test's start..end, and the clock is split into overlapping segments. The plan is
 small and picklable: with a file index (`dynid.io.windows`), any process that can reach the
 file reads one segment's time window itself (`read_segment`), so peak memory follows the
-segment's length, not the file's.
+segment's length, not the file's. A Parquet file's clock that is its own stamps is not held by
+the plan (8 bytes a sample) but left in the file (`FileClock`), a segment's read back with it.
 
 On a file whose channels share one uniform clock (a logger's usual export) a segment's samples
 are the file's own, bit for bit; on jittered or multi-rate files each segment is resampled onto
@@ -16,6 +17,7 @@ its slice of the uniform clock from the samples around it (a margin of several s
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 import re
@@ -23,6 +25,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +56,8 @@ def window_margin(max_gap: float, steps: Sequence[float]) -> float:
 @dataclass(frozen=True)
 class CarTestPlan:
     """One test's file, channels and clock, and its segments (clock sample ranges, overlapping by the filter's
-    borders). `clock` stays with the client; a segment's job carries its own slice."""
+    borders). `clock` stays with the client (a Parquet file's stays in the file: `FileClock`); a segment's job
+    carries its own slice."""
 
     test: str
     role: str
@@ -61,12 +65,15 @@ class CarTestPlan:
     file_names: tuple[str, ...]  # the channels read from the file
     quantity_names: dict[str, str]  # quantity (the suite's channel) -> file channel
     factors: dict[str, float]  # quantity -> factor to SI
-    clock: NDArray[np.float64]
+    clock: NDArray[np.float64] | FileClock  # the file's own stamps stay in the file (`FileClock`)
     fs: float
     timed: bool
     max_gap: float
     base_steps: tuple[float, ...]  # each time base's step, s (their number tells a multi-rate file)
     segments: tuple[tuple[int, int], ...]
+    # each segment's first and last stamp, s (taken while the plan held the clock): where its window's read starts
+    # and ends without its stamps, and the parts of the test the segments' health answers for
+    spans: tuple[tuple[float, float], ...] = ()
 
     @property
     def samples(self) -> int:
@@ -75,19 +82,23 @@ class CarTestPlan:
 
 @dataclass(frozen=True)
 class SegmentWindow:
-    """What one segment reads: the file, its channels, and its slice of the clock."""
+    """What one segment reads: the file, its channels, and its slice of the clock (a `FileClock`'s still in the
+    file: `clock_read` reads it, `read_segment` too)."""
 
     test: str
     index: FileIndex
     file_names: tuple[str, ...]
     quantity_names: dict[str, str]
     factors: dict[str, float]
-    clock: NDArray[np.float64]
+    clock: NDArray[np.float64] | FileClock
     fs: float  # the test's rate (the same for every segment)
     timed: bool
     max_gap: float
     margin: float  # s
     first: int = 0  # the clock slice's first sample in the test (messages name the test's samples)
+    # the slice's first and last stamp when the plan knows them (a segment's): a file's clock then read after the
+    # window, from the blocks that read decoded, not by a read of its own (each opens the file: its footer parsed)
+    span: tuple[float, float] | None = None
 
     def read(self) -> dict[str, NDArray[np.float64]]:
         """{quantity: values on the clock slice, SI}."""
@@ -200,20 +211,28 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
     elif not ref.uniform:
         say(f"{spec.name}: every channel on one uniform {1 / h:.6g} Hz clock, {clock.size} samples "
             f"({clock[0]:.6g}..{clock[-1]:.6g} s)")
+    steps = tuple(s.h for _, s in streams)
+    # the file's stamps let go once the clock is cut from them (a copy), and the median's differences partitioned
+    # in place: the plan's pass peaked at 4 arrays of the log's length here (0.43 GB at 6 h of 625 Hz)
+    streams.clear()
+    bases.clear()
+    del ref, s, t, lines, clock_only
     factors = {}
     for q, name in in_file.items():
         unit = channel_unit(cfg, q, name, file_units.get(name, ""), label)
         expect = (unit_factor(units[q])[1],) if q in units else None
         factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
-    fs = 1.0 / float(np.median(np.diff(clock)))
+    fs = 1.0 / float(np.median(np.diff(clock), overwrite_input=True))
     if cfg.car is not None:
         _below_nyquist(cfg, spec, cfg.car.cutoff, fs, timed, label)
     N = clock.size
     bd = border(fs)
     step = N if segment_s is None else max(int(segment_s * fs), 4 * bd)
     segments = tuple((s, min(N, s + step + 2 * bd)) for s in range(0, max(N - 2 * bd, 1), step))
-    return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock, fs, timed, spec.max_gap,
-                       tuple(s.h for _, s in streams), segments)
+    spans = tuple((float(clock[lo]), float(clock[hi - 1])) for lo, hi in segments)
+    kept = _file_clock(index, clock)  # a Parquet file's stamps left in it: the plan's size not the log's length's
+    return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock if kept is None else kept,
+                       fs, timed, spec.max_gap, steps, segments, spans)
 
 
 def _below_nyquist(cfg: IdentifyConfig, spec: TestSpec, cutoff: float, fs: float, timed: bool, file: str) -> None:
@@ -234,10 +253,20 @@ def _below_nyquist(cfg: IdentifyConfig, spec: TestSpec, cutoff: float, fs: float
 
 
 def segment_window(plan: CarTestPlan, lo: int, hi: int) -> SegmentWindow:
-    """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice and the index)."""
+    """What the segment lo..hi of the plan's clock reads (picklable, small: its clock slice, or its rows of the
+    file's, and the index)."""
     margin = window_margin(plan.max_gap, plan.base_steps)
+    k = bisect.bisect_left(plan.segments, (lo, hi))  # the segments in order: a segment's window knows its span
+    span = plan.spans[k] if k < len(plan.spans) and plan.segments[k] == (lo, hi) else None
     return SegmentWindow(plan.test, plan.index, plan.file_names, plan.quantity_names, plan.factors,
-                         plan.clock[lo:hi], plan.fs, plan.timed, plan.max_gap, margin, lo)
+                         _clock_cut(plan.clock, lo, hi), plan.fs, plan.timed, plan.max_gap, margin, lo, span)
+
+
+def segment_edges(plan: CarTestPlan) -> list[tuple[float, float, bool]]:
+    """The part of the test each segment answers for (its data health): (t_start, t_end, end included), from its
+    first stamp to the next segment's first; the last to the test's end."""
+    n = len(plan.segments)
+    return [(a, plan.spans[i + 1][0] if i + 1 < n else b, i + 1 == n) for i, (a, b) in enumerate(plan.spans)]
 
 
 def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Channel] | None = None
@@ -248,18 +277,25 @@ def read_segment(w: SegmentWindow, si: bool = True, file_samples: dict[str, Chan
     interpolated)}, the data health's scan (`pipeline.health.segment_health`). A channel whose factor to SI is 1 is
     given as read, not multiplied (x * 1.0 is x to the bit): a read-only view where it is the file's samples (the
     product's fresh array cost a sixth of a segment's read, in page faults)."""
-    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples)
+    al = _resampled(w.index, w.file_names, w.clock, w.margin, w.timed, w.first, lambda _n: "cubic", file_samples,
+                    w.span)
     return {q: al[name] * w.factors[q] if si and w.factors[q] != 1.0 else al[name]
             for q, name in w.quantity_names.items()}
 
 
-def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64], margin: float, timed: bool,
-               first: int, kind: Callable[[str], str], file_samples: dict[str, Channel] | None = None):
+def _resampled(index: FileIndex, names: Sequence[str], clock: NDArray[np.float64] | FileClock, margin: float,
+               timed: bool, first: int, kind: Callable[[str], str], file_samples: dict[str, Channel] | None = None,
+               span: tuple[float, float] | None = None):
     """The channels on the clock slice (`dynid.io.align`), from the window of the file around it: per time base,
     repeated stamps merged (the plan checked the stamps: no gap is refused here, where a window's own median step
     could differ), the samples on the clock used as they are, the others interpolated (kind(name)); the samples
-    used put in file_samples when given."""
-    rec = read_window(index, list(names), float(clock[0]) - margin, float(clock[-1]) + margin)
+    used put in file_samples when given. span: the clock's first and last stamp, if known (a file's clock is then
+    read after the window, from the blocks it decoded)."""
+    if span is None and isinstance(clock, FileClock):
+        clock = clock[0:clock.size]
+    a, b = span if span is not None else (float(clock[0]), float(clock[-1]))
+    rec = read_window(index, list(names), a - margin, b + margin)
+    clock = clock[0:clock.size] if isinstance(clock, FileClock) else clock
     specs, exact = [], True
     with _samples_of_the_test(first, True):
         for members in _shared_bases(rec, names):
@@ -328,7 +364,7 @@ def _on_clock(s, clock: NDArray[np.float64]) -> dict[str, Channel] | None:
     return None
 
 
-# -------------------------------------------------------------------------------------------------- a robot's test
+# ----------------------------------------------------------------------------------- a clock left in its file
 @dataclass(frozen=True)
 class FileClock:
     """A clock that is the rows first..first + size of a Parquet file's stamps, read back from the file when asked
@@ -357,6 +393,26 @@ class FileClock:
     def cut(self, lo: int, hi: int) -> FileClock:
         return FileClock(self.index, self.first + lo, max(0, hi - lo))
 
+    def at(self, samples: Sequence[int]) -> NDArray[np.float64]:
+        """The stamps of the given samples (any order, negative from the end), each block holding one of them
+        decoded once: a pass over the file's stamps, not one a sample (each sample's block is decoded whole)."""
+        k = np.asarray(samples, dtype=np.int64)
+        k = np.where(k < 0, k + self.size, k)
+        if k.size and not (k.min() >= 0 and k.max() < self.size):
+            raise IndexError(f"samples {list(samples)} of a clock of {self.size}")
+        rows, out, row = k + self.first, np.empty(k.size), 0  # row: the block's first row among the stamps
+        for b in self.index.blocks:
+            inside = (rows >= row) & (rows < row + b.rows)
+            if inside.any():
+                out[inside] = stamp_rows(self.index, row, row + b.rows, store=False)[rows[inside] - row]
+            row += b.rows
+        return out
+
+
+def clock_at(clock: NDArray[np.float64] | FileClock, samples: Sequence[int]) -> NDArray[np.float64]:
+    """The clock's stamps of the given samples (a plan's segment edges): from a `FileClock`, in one pass."""
+    return clock.at(samples) if isinstance(clock, FileClock) else clock[np.asarray(samples, dtype=np.int64)]
+
 
 def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | None:
     """The clock as rows of the file's stamps when it is (every stamp compared, a block at a time), else None."""
@@ -374,7 +430,9 @@ def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | Non
         start += b.rows
     else:
         return None
-    step = max(b.rows for b in index.blocks)
+    # 16 blocks' stamps compared at a time: each read opens the file (its footer parsed, ~20 ms for 6 h of the
+    # suite's channels), so a block at a time took 2.6 s of a 6 h plan's 3.9; still a bounded part of the clock
+    step = 16 * max(b.rows for b in index.blocks)
     for lo in range(0, clock.size, step):
         hi = min(clock.size, lo + step)
         if not np.array_equal(stamp_rows(index, start + lo, start + hi, store=False), clock[lo:hi]):
@@ -382,17 +440,27 @@ def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | Non
     return FileClock(index, start, int(clock.size))
 
 
+def _clock_cut(clock: NDArray[np.float64] | FileClock, lo: int, hi: int) -> NDArray[np.float64] | FileClock:
+    """The clock's samples lo..hi: a file's clock stays in the file, a held one is sliced (a view)."""
+    return clock.cut(lo, hi) if isinstance(clock, FileClock) else clock[lo:hi]
+
+
 def clock_window(plan: RobotTestPlan, lo: int, hi: int) -> RobotTestPlan:
     """The plan cut to its clock's samples lo..hi (a job's window): a file's clock stays in the file."""
-    clock = plan.clock.cut(lo, hi) if isinstance(plan.clock, FileClock) else plan.clock[lo:hi]
-    return dataclasses.replace(plan, clock=clock, first=plan.first + lo)
+    return dataclasses.replace(plan, clock=_clock_cut(plan.clock, lo, hi), first=plan.first + lo)
 
 
-def clock_read(plan: RobotTestPlan) -> RobotTestPlan:
-    """The plan with its clock's stamps in memory (a window's, read from the file when a `FileClock`)."""
-    return dataclasses.replace(plan, clock=plan.clock[0:plan.samples]) if isinstance(plan.clock, FileClock) else plan
+Clocked = TypeVar("Clocked", "RobotTestPlan", "SegmentWindow")
 
 
+def clock_read(plan: Clocked) -> Clocked:
+    """The plan or window with its clock's stamps in memory (a window's, read from the file when a `FileClock`)."""
+    if not isinstance(plan.clock, FileClock):
+        return plan
+    return dataclasses.replace(plan, clock=plan.clock[0:plan.clock.size])
+
+
+# -------------------------------------------------------------------------------------------------- a robot's test
 @dataclass(frozen=True)
 class RobotTestPlan:
     """One robot test's files (q and its effort, tau or current; one file or two) and their clock (q's); cut to the
