@@ -9,6 +9,7 @@ solved with the compiled engine (the code before statics.REST_ENGINE); a warm ru
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -18,6 +19,7 @@ import time
 import numpy as np
 import pytest
 
+from dynid.atomic import Terminated
 from dynid.pipeline.first_run import WarmUp
 from dynid.vehicle import statics
 from dynid.vehicle.sim import car
@@ -108,6 +110,40 @@ def test_a_stuck_warm_up_is_killed_after_the_timeout(tmp_path):
     assert time.monotonic() - t < 10.0  # not the task's 60 s
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)
+
+
+def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
+    """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) that arrives while finish()
+    waits raises out of it: the child is killed and reaped, not left compiling after this process ended (the old
+    finish() dropped the child's pid before its wait, and `__del__` had none left to kill)."""
+
+    def interrupt(_signum, _frame):  # the alarm's handler raises as dynid's TERM handler does
+        raise Terminated(signal.SIGTERM)
+
+    warm = WarmUp(lambda: time.sleep(60))
+    pid = warm.pid
+    warm.go()
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.3)
+        with pytest.raises(Terminated):
+            warm.finish()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        alive = _running(pid)
+        if alive:  # the old code's child: not left behind by the test
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    assert not alive
+
+
+def _running(pid: int) -> bool:
+    """Whether this process's child `pid` is still running (False: ended and reaped, or never ours)."""
+    try:
+        return os.waitpid(pid, os.WNOHANG)[0] == 0
+    except ChildProcessError:
+        return False
 
 
 def test_no_fork_beside_another_thread(tmp_path):
