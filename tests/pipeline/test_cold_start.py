@@ -138,6 +138,26 @@ def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
     assert not alive
 
 
+def test_an_interrupt_just_after_the_child_is_reaped_stays_the_interrupt(tmp_path, monkeypatch):
+    """The TERM that arrives as finish()'s wait returns (the child reaped, its account not yet kept) is what finish()
+    raises, not the ChildProcessError of a second reaping. Oracle: the exception's type; the interrupt made by a
+    wait that reaps the ended child, then raises as dynid's TERM handler does."""
+    import dynid.pipeline.first_run as first_run
+
+    warm = WarmUp(lambda: None)
+    warm.go()
+    real = os.waitpid
+
+    def wait_then_interrupted(pid, options):
+        while real(pid, options)[0] == 0:  # the child's end awaited, and reaped
+            time.sleep(0.01)
+        raise Terminated(signal.SIGTERM)
+
+    monkeypatch.setattr(first_run.os, "waitpid", wait_then_interrupted)
+    with pytest.raises(Terminated):
+        warm.finish()
+
+
 def _running(pid: int) -> bool:
     """Whether this process's child `pid` is still running (False: ended and reaped, or never ours)."""
     try:
