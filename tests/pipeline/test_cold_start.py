@@ -67,6 +67,41 @@ def test_tasks_run_while_a_build_is_awaited_and_never_fail_the_run(monkeypatch):
     assert log == ["task", "after", "wait"]
 
 
+def test_a_build_whose_wait_is_interrupted_is_killed_at_exit(monkeypatch):
+    """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) while the run waits for the
+    kernel's build raises out of kernel_module(); the build stays listed, so that what runs at exit
+    (`_stop_prebuilds`) kills and reaps it, not left compiling (or a zombie) after the run ended. Before, the build
+    was taken off the list before its wait. The build: a forked child that sleeps, in a `_Build` of its pid."""
+    pid = os.fork()
+    if pid == 0:  # the build: longer than the test
+        try:
+            time.sleep(60)
+        finally:
+            os._exit(0)
+    build = object.__new__(car._Build)
+    build.pid, build.proc = pid, None
+    monkeypatch.setitem(car._PREBUILD, car._kernel_key(), build)
+
+    def interrupt(_signum, _frame):  # the alarm's handler raises as dynid's TERM handler does
+        raise Terminated(signal.SIGTERM)
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.3)
+        with pytest.raises(Terminated):
+            car.kernel_module()
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        car._stop_prebuilds()  # as at exit
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        alive = _running(pid)
+        if alive:  # the old code's build: not left behind by the test
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    assert not alive
+
+
 def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     log = []
     monkeypatch.setattr(car, "kernel_cached", lambda module: True)
