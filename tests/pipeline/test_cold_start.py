@@ -7,6 +7,7 @@ files compiles nothing of dynid's); the rest state's own Newton solve (`_solve_r
 solved with the compiled engine (the code before statics.REST_ENGINE); a warm run's results against a cold one's.
 """
 
+import contextlib
 import json
 import os
 import signal
@@ -81,25 +82,41 @@ def test_a_build_whose_wait_is_interrupted_is_killed_at_exit(monkeypatch):
     build = object.__new__(car._Build)
     build.pid, build.proc = pid, None
     monkeypatch.setitem(car._PREBUILD, car._kernel_key(), build)
+    with _reaping(pid) as alive:
+        with _terminated_after(0.3), pytest.raises(Terminated):
+            car.kernel_module()
+        car._stop_prebuilds()  # as at exit
+    assert alive == [False]
 
-    def interrupt(_signum, _frame):  # the alarm's handler raises as dynid's TERM handler does
+
+@contextlib.contextmanager
+def _terminated_after(seconds: float):
+    """Terminated raised after `seconds`, by an alarm's handler, as dynid's TERM handler raises it."""
+
+    def interrupt(_signum, _frame):
         raise Terminated(signal.SIGTERM)
 
     old = signal.signal(signal.SIGALRM, interrupt)
     try:
-        signal.setitimer(signal.ITIMER_REAL, 0.3)
-        with pytest.raises(Terminated):
-            car.kernel_module()
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        car._stop_prebuilds()  # as at exit
+        signal.setitimer(signal.ITIMER_REAL, seconds)
+        yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
-        alive = _running(pid)
-        if alive:  # the old code's build: not left behind by the test
+
+
+@contextlib.contextmanager
+def _reaping(pid: int):
+    """Yields a list that holds, once the block is left, whether this process's child `pid` was still running then;
+    one still running is killed (the old code's: not left behind by the test)."""
+    alive = []
+    try:
+        yield alive
+    finally:
+        alive.append(_running(pid))
+        if alive[0]:
             os.kill(pid, signal.SIGKILL)
             os.waitpid(pid, 0)
-    assert not alive
 
 
 def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
@@ -151,26 +168,11 @@ def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
     """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) that arrives while finish()
     waits raises out of it: the child is killed and reaped, not left compiling after this process ended (the old
     finish() dropped the child's pid before its wait, and `__del__` had none left to kill)."""
-
-    def interrupt(_signum, _frame):  # the alarm's handler raises as dynid's TERM handler does
-        raise Terminated(signal.SIGTERM)
-
     warm = WarmUp(lambda: time.sleep(60))
-    pid = warm.pid
     warm.go()
-    old = signal.signal(signal.SIGALRM, interrupt)
-    try:
-        signal.setitimer(signal.ITIMER_REAL, 0.3)
-        with pytest.raises(Terminated):
-            warm.finish()
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-        alive = _running(pid)
-        if alive:  # the old code's child: not left behind by the test
-            os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-    assert not alive
+    with _reaping(warm.pid) as alive, _terminated_after(0.3), pytest.raises(Terminated):
+        warm.finish()
+    assert alive == [False]
 
 
 def test_an_interrupt_just_after_the_child_is_reaped_stays_the_interrupt(tmp_path, monkeypatch):
