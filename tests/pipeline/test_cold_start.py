@@ -7,8 +7,10 @@ files compiles nothing of dynid's); the rest state's own Newton solve (`_solve_r
 solved with the compiled engine (the code before statics.REST_ENGINE); a warm run's results against a cold one's.
 """
 
+import contextlib
 import json
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -18,6 +20,7 @@ import time
 import numpy as np
 import pytest
 
+from dynid.atomic import Terminated
 from dynid.pipeline.first_run import WarmUp
 from dynid.vehicle import statics
 from dynid.vehicle.sim import car
@@ -65,6 +68,57 @@ def test_tasks_run_while_a_build_is_awaited_and_never_fail_the_run(monkeypatch):
     assert log == ["task", "after", "wait"]
 
 
+def test_a_build_whose_wait_is_interrupted_is_killed_at_exit(monkeypatch):
+    """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) while the run waits for the
+    kernel's build raises out of kernel_module(); the build stays listed, so that what runs at exit
+    (`_stop_prebuilds`) kills and reaps it, not left compiling (or a zombie) after the run ended. Before, the build
+    was taken off the list before its wait. The build: a forked child that sleeps, in a `_Build` of its pid."""
+    pid = os.fork()
+    if pid == 0:  # the build: longer than the test
+        try:
+            time.sleep(60)
+        finally:
+            os._exit(0)
+    build = object.__new__(car._Build)
+    build.pid, build.proc = pid, None
+    monkeypatch.setitem(car._PREBUILD, car._kernel_key(), build)
+    with _reaping(pid) as alive:
+        with _terminated_after(0.3), pytest.raises(Terminated):
+            car.kernel_module()
+        car._stop_prebuilds()  # as at exit
+    assert alive == [False]
+
+
+@contextlib.contextmanager
+def _terminated_after(seconds: float):
+    """Terminated raised after `seconds`, by an alarm's handler, as dynid's TERM handler raises it."""
+
+    def interrupt(_signum, _frame):
+        raise Terminated(signal.SIGTERM)
+
+    old = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, seconds)
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@contextlib.contextmanager
+def _reaping(pid: int):
+    """Yields a list that holds, once the block is left, whether this process's child `pid` was still running then;
+    one still running is killed (the old code's: not left behind by the test)."""
+    alive = []
+    try:
+        yield alive
+    finally:
+        alive.append(_running(pid))
+        if alive[0]:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+
+
 def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     log = []
     monkeypatch.setattr(car, "kernel_cached", lambda module: True)
@@ -108,6 +162,45 @@ def test_a_stuck_warm_up_is_killed_after_the_timeout(tmp_path):
     assert time.monotonic() - t < 10.0  # not the task's 60 s
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)
+
+
+def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
+    """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) that arrives while finish()
+    waits raises out of it: the child is killed and reaped, not left compiling after this process ended (the old
+    finish() dropped the child's pid before its wait, and `__del__` had none left to kill)."""
+    warm = WarmUp(lambda: time.sleep(60))
+    warm.go()
+    with _reaping(warm.pid) as alive, _terminated_after(0.3), pytest.raises(Terminated):
+        warm.finish()
+    assert alive == [False]
+
+
+def test_an_interrupt_just_after_the_child_is_reaped_stays_the_interrupt(tmp_path, monkeypatch):
+    """The TERM that arrives as finish()'s wait returns (the child reaped, its account not yet kept) is what finish()
+    raises, not the ChildProcessError of a second reaping. Oracle: the exception's type; the interrupt made by a
+    wait that reaps the ended child, then raises as dynid's TERM handler does."""
+    import dynid.pipeline.first_run as first_run
+
+    warm = WarmUp(lambda: None)
+    warm.go()
+    real = os.waitpid
+
+    def wait_then_interrupted(pid, options):
+        while real(pid, options)[0] == 0:  # the child's end awaited, and reaped
+            time.sleep(0.01)
+        raise Terminated(signal.SIGTERM)
+
+    monkeypatch.setattr(first_run.os, "waitpid", wait_then_interrupted)
+    with pytest.raises(Terminated):
+        warm.finish()
+
+
+def _running(pid: int) -> bool:
+    """Whether this process's child `pid` is still running (False: ended and reaped, or never ours)."""
+    try:
+        return os.waitpid(pid, os.WNOHANG)[0] == 0
+    except ChildProcessError:
+        return False
 
 
 def test_no_fork_beside_another_thread(tmp_path):

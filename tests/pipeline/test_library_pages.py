@@ -9,6 +9,7 @@ see LLVM's pages still resident."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import subprocess
@@ -102,3 +103,42 @@ def test_a_local_map_releases_them_where_it_starts_and_after_its_first_job():
     # second's: released after the first job, which had used LLVM again; the third's: nothing since. A release is
     # done when the file-backed pages grew by RELEASE_GROWTH, so up to that may stay (~0 here; 69 MB unreleased)
     assert max(seen) < RELEASE_GROWTH // 1024, seen
+
+
+def _smaps_entry(range_: str, perms: str, inode: str, path: str, rss: int, anonymous: int, swap: int) -> str:
+    """One mapping of /proc/self/smaps as Linux 6.1 writes it (kB), the fields that do not matter here at 0."""
+    return "\n".join([f"{range_} {perms} 00000000 fe:00 {inode}    {path}", "Size:  8 kB", "KernelPageSize: 4 kB",
+                      "MMUPageSize: 4 kB", f"Rss:  {rss} kB", "Pss: 0 kB", "Shared_Clean: 0 kB", "Private_Clean: 0 kB",
+                      "Private_Dirty: 0 kB", "Referenced: 0 kB", f"Anonymous:  {anonymous} kB", "LazyFree: 0 kB",
+                      "AnonHugePages: 0 kB", f"Swap:  {swap} kB", "SwapPss: 0 kB", "Locked: 0 kB", "THPeligible: 0",
+                      "VmFlags: rd mr mw me"])
+
+
+def test_a_mapping_with_a_copied_page_in_swap_is_not_released(monkeypatch):
+    """Oracle: the kernel's rule for a private file mapping's copied-on-write page. smaps' Anonymous counts those
+    resident alone; one swapped out (a library's RELRO page, relocated then made read-only, on a machine with swap)
+    counts in Swap, and MADV_DONTNEED would drop it too: the library's relocated pointers read back as the file's.
+    A made-up smaps (the kernel's own would need swap and memory pressure) and a madvise that records its calls."""
+    import dynid.pipeline.heap as heap
+
+    smaps = "\n".join([
+        _smaps_entry("7f0000000000-7f0000002000", "r--p", "11", "/lib/a.so", 8, 0, 0),  # the file's own: released
+        _smaps_entry("7f0000002000-7f0000004000", "r--p", "11", "/lib/a.so", 4, 0, 4),  # its RELRO, a page swapped
+        _smaps_entry("7f0000004000-7f0000006000", "r--p", "11", "/lib/a.so", 8, 4, 0),  # its RELRO, resident
+        _smaps_entry("7f0000006000-7f0000008000", "rw-p", "11", "/lib/a.so", 8, 0, 0),  # writable
+        _smaps_entry("7f0000008000-7f000000a000", "r--p", "0", "", 8, 0, 0),  # anonymous
+        _smaps_entry("7f000000a000-7f000000c000", "r-xp", "12", "/lib/b.so", 8, 0, 0),  # code: released
+    ]) + "\n"
+    files = {"/proc/self/smaps": smaps, "/proc/self/status": "Name: python\nRssFile: 1048576 kB\n"}
+    advised = []
+
+    class Libc:
+        def madvise(self, addr, size, advice):
+            advised.append((addr.value, size.value, advice))
+            return 0
+
+    monkeypatch.setattr(heap, "open", lambda path, *a, **k: io.StringIO(files[path]), raising=False)
+    monkeypatch.setattr(heap, "_glibc", Libc)
+    monkeypatch.setattr(heap, "_released_to", [-heap.RELEASE_GROWTH])
+    assert heap.release_library_pages() == 2 * 8192
+    assert advised == [(0x7F0000000000, 8192, heap.MADV_DONTNEED), (0x7F000000A000, 8192, heap.MADV_DONTNEED)]

@@ -94,13 +94,16 @@ class WarmUp:
             return
         pid, self.pid = self.pid, None
         end = time.monotonic() + timeout
-        while os.waitpid(pid, os.WNOHANG)[0] == 0:
-            if time.monotonic() > end:
+        ended = False
+        try:
+            while not (ended := os.waitpid(pid, os.WNOHANG)[0] != 0) and time.monotonic() <= end:
+                time.sleep(0.02)
+        finally:  # stuck past the timeout, or this process interrupted while it waited (TERM): not left compiling
+            if not ended:  # (or reaped by a wait the interrupt then cut short: nothing left to kill or reap)
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
-                os.waitpid(pid, 0)
-                return
-            time.sleep(0.02)
+                with contextlib.suppress(ChildProcessError):
+                    os.waitpid(pid, 0)
 
     def __del__(self) -> None:  # dropped unfinished (the run raised): no child left running
         with contextlib.suppress(Exception):

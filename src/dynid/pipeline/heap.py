@@ -71,9 +71,10 @@ def release_library_pages() -> int:
     """Drop this process's resident pages of its read-only private file mappings (shared libraries' code and
     constants) that it never wrote (module doc), when they grew by RELEASE_GROWTH since the last release; bytes of
     mappings released (0: none, or no glibc on Linux).
-    A mapping with a page copied on write (a library's relocated data, read-only after relocation) is left alone:
-    dropping those pages would revert them to the file's. The mappings are read, then advised: a library unloaded
-    and its range mapped again in between (dlclose, which Python's extension modules never call) is the one race."""
+    A mapping with a page copied on write (a library's relocated data, read-only after relocation), resident or
+    swapped out, is left alone: dropping those pages would revert them to the file's. The mappings are read, then
+    advised: a library unloaded and its range mapped again in between (dlclose, which Python's extension modules
+    never call) is the one race."""
     libc = _glibc()
     if libc is None or _file_resident() - _released_to[0] < RELEASE_GROWTH:
         return 0
@@ -82,23 +83,35 @@ def release_library_pages() -> int:
             text = f.read()
     except OSError:
         return 0
-    released, span, resident = 0, None, 0
-    for line in text.splitlines():
-        if line.startswith("Rss:"):
-            resident = int(line.split()[1])
-        elif line.startswith("Anonymous:"):
-            # a mapping none of whose pages is resident (most) is not advised: a system call saved
-            if span is not None and resident and line.split()[1] == "0" \
-                    and libc.madvise(ctypes.c_void_p(span[0]), ctypes.c_size_t(span[1] - span[0]), MADV_DONTNEED) == 0:
-                released += span[1] - span[0]
-            span = None
-        elif line[:1] in "0123456789abcdef":  # a mapping (its fields' names begin with a capital)
+    released = 0
+    for lo, hi in _clean_file_maps(text):
+        if libc.madvise(ctypes.c_void_p(lo), ctypes.c_size_t(hi - lo), MADV_DONTNEED) == 0:
+            released += hi - lo
+    _released_to[0] = _file_resident()
+    return released
+
+
+def _clean_file_maps(smaps: str) -> list[tuple[int, int]]:
+    """The ranges of `smaps` (/proc/self/smaps' text) that are a file's own, private and read-only, with pages
+    resident (most have none: a system call saved) and none copied on write: no anonymous page resident and none in
+    swap (a relocated page swapped out is not the file's either). A mapping whose counts are missing is not one."""
+    out = []
+    span, fields = None, {}
+    for line in (*smaps.splitlines(), None):  # None: the last mapping's end
+        if line is None or (line and line[:1] in "0123456789abcdef"):  # a mapping (its fields' names: capitals)
+            if span is not None and fields.get("Rss", 0) and fields.get("Anonymous") == 0 and fields.get("Swap") == 0:
+                out.append(span)
+            if line is None:
+                break
             # range, perms, offset, device, inode[, path]: the file's own, private, read-only
             head = line.split(maxsplit=5)
             lo, hi = (int(x, 16) for x in head[0].split("-"))
             span = (lo, hi) if head[4] != "0" and head[1][1] == "-" and head[1][3] == "p" else None
-    _released_to[0] = _file_resident()
-    return released
+            fields = {}
+        elif span is not None and line.startswith(("Rss:", "Anonymous:", "Swap:")):
+            name, value = line.split()[:2]
+            fields[name[:-1]] = int(value)
+    return out
 
 
 def _file_resident() -> int:

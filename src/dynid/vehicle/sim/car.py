@@ -238,10 +238,11 @@ def kernel_module():
     if module is None:
         module = nb.compile_source(_kernel_body(), list(K.JITTED), key, prefix="dynid_simk",
                                    error_model=KERNEL_ERROR_MODEL, internal=K.INTERNAL)
-    build = _PREBUILD.pop(key, None)
+    build = _PREBUILD.get(key)
     if build is not None:
         _run_meanwhile()
-        build.wait()
+        build.wait()  # kept listed until it ends: an interrupt meanwhile leaves it to _stop_prebuilds at exit
+        _PREBUILD.pop(key, None)
     return module
 
 
@@ -331,9 +332,12 @@ class _Build:
             self.proc.kill()
             self.proc.wait()
         elif self.pid is not None:
-            os.kill(self.pid, signal.SIGKILL)
-            os.waitpid(self.pid, 0)
-            self.pid = None
+            pid, self.pid = self.pid, None
+            # (none left when an interrupt cut short the wait that had reaped it)
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
 
 
 _PREBUILD: dict[str, _Build] = {}
