@@ -67,7 +67,7 @@ def clock_rows(p) -> tuple[int, int] | np.ndarray:
 
 
 def assert_same_plan(new, old, blocks: bool) -> None:
-    """Every field the same bits, but the fitted step when planned in blocks: the pass's exact sums against the old
+    """Every field the same bits, but the fitted step when planned in blocks: the pass's block sums against the old
     BLAS dot, whose rounding over n centred products is within n eps of the sum (the products one-signed: d ~ h c),
     so 1e-10 relative for the logs here (n <= 1e5)."""
     assert isinstance(new.clock, FileClock) is isinstance(old.clock, FileClock)

@@ -8,7 +8,9 @@ covers and the test's start..end, and the clock is split into overlapping segmen
 small and picklable: with a file index (`dynid.io.windows`), any process that can reach the
 file reads one segment's time window itself (`read_segment`), so peak memory follows the
 segment's length, not the file's. A Parquet file's clock that is its own stamps is not held by
-the plan (8 bytes a sample) but left in the file (`FileClock`), a segment's read back with it.
+the plan (8 bytes a sample) but left in the file (`FileClock`), a segment's read back with it; a
+Parquet log of one time base is checked a row group at a time (`_stream_in_blocks`: the planning
+pass's memory a block's, whatever the log's length), any other file's stamps held whole.
 
 On a file whose channels share one uniform clock (a logger's usual export) a segment's samples
 are the file's own, bit for bit; on jittered or multi-rate files each segment is resampled onto
