@@ -277,6 +277,8 @@ class _StepCounts:
     def add(self, steps: NDArray[np.float64]) -> bool:
         """Counted; False past DISTINCT_STEPS distinct values."""
         values, counts = np.unique(steps, return_counts=True)
+        if values.size > DISTINCT_STEPS:  # a jittered clock: told at its first block, not counted
+            return False
         for v, c in zip(values.tolist(), counts.tolist(), strict=True):
             self.counts[v] = self.counts.get(v, 0) + c
         self.n += steps.size
