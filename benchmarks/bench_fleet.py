@@ -114,6 +114,9 @@ against 0.50, 0.57, 0.53 and 1.66, 1.65, 1.61 (two passes over the row groups' s
 match of the clock against the file's rows, the segments' spans read with the file opened once). Every number of
 the car demos from files and of the MuJoCo car the same bits; the plan the same but its fitted step (block sums
 against the whole-array BLAS dot's, ~1e-13 of the step, whose bits depend on BLAS's threads: 1 and 2 differ).
+`--hours 9 --workers --vs <2d7417f>/src`, one run each, 18:54-19:00 UTC, load averages 6.1 to 6.9: peak 0.72 GB
+against 0.71 (0.83 in the run above: single runs vary by ~0.1 GB; the plan's pass alone now peaks at 0.27 GB,
+so the rest of the run sets it), CPU 89.99 against 91.67 s, walls 117.4 against 140.1 s (at that load, noise).
 """
 
 from __future__ import annotations
