@@ -102,6 +102,21 @@ differences partitioned in place): 0.55 GB (tracemalloc 0.32 GB, 24 bytes a samp
 18:31-18:35, load 2.8 to 4.4) peaks at 0.83 GB against f15571e's 0.88, CPU 96.59 against 90.83 s (0.94 x; the 9 h
 runs' ratios 0.83, 0.98, 0.94 at those loads), walls 90.18 against 88.67 s. The plan's pass still grows, ~65 MB per
 hour of data while it runs: it would set the peak past ~10 h and pass 1 GB near 13 h of this workload.
+
+Measured 2026-11-29 (issue 28, h-plan: a car plan of a one-base Parquet log checks its stamps a row group at a time,
+`sources._stream_in_blocks`, the median step counted by value, the clock's line in closed form, the clock left in
+the file). `plan_car_test` alone, in a child that had set up the car (0.155 GB), on 1 h and 6 h logs of this
+workload, one run of each tree alternated, 3 times, 18:52-18:54 UTC, load averages 5.1 to 6.9: peak resident 0.301,
+0.308, 0.310 GB at 1 h and 0.553, 0.555, 0.555 at 6 h on 2d7417f against 0.268, 0.274, 0.272 and 0.269, 0.276, 0.276
+GB on the branch: what the pass leaves over the setup, ~0.12 GB, is the same at 1 and 6 h (not broken down; not the
+stamps); tracemalloc's peak 58.2 and 328.3 MB against 19.4 and 19.5 MB. CPU s 0.61, 0.59, 0.71 and 2.43, 2.63, 2.64
+against 0.50, 0.57, 0.53 and 1.66, 1.65, 1.61 (two passes over the row groups' stamps, no whole-array checks, no
+match of the clock against the file's rows, the segments' spans read with the file opened once). Every number of
+the car demos from files and of the MuJoCo car the same bits; the plan the same but its fitted step (block sums
+against the whole-array BLAS dot's, ~1e-13 of the step, whose bits depend on BLAS's threads: 1 and 2 differ).
+`--hours 9 --workers --vs <2d7417f>/src`, one run each, 18:54-19:00 UTC, load averages 6.1 to 6.9: peak 0.72 GB
+against 0.71 (0.83 in the run above: single runs vary by ~0.1 GB; the plan's pass alone now peaks at 0.27 GB,
+so the rest of the run sets it), CPU 89.99 against 91.67 s, walls 117.4 against 140.1 s (at that load, noise).
 """
 
 from __future__ import annotations

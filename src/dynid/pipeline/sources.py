@@ -8,7 +8,9 @@ covers and the test's start..end, and the clock is split into overlapping segmen
 small and picklable: with a file index (`dynid.io.windows`), any process that can reach the
 file reads one segment's time window itself (`read_segment`), so peak memory follows the
 segment's length, not the file's. A Parquet file's clock that is its own stamps is not held by
-the plan (8 bytes a sample) but left in the file (`FileClock`), a segment's read back with it.
+the plan (8 bytes a sample) but left in the file (`FileClock`), a segment's read back with it; a
+Parquet log of one time base is checked a row group at a time (`_stream_in_blocks`: the planning
+pass's memory a block's, whatever the log's length), any other file's stamps held whole.
 
 On a file whose channels share one uniform clock (a logger's usual export) a segment's samples
 are the file's own, bit for bit; on jittered or multi-rate files each segment is resampled onto
@@ -24,6 +26,7 @@ import re
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import TypeVar
 
@@ -35,12 +38,12 @@ from ..io import Channel, DataError, FileFormatError, align, format_of, to_si, u
 from ..io.align import InterpSpec
 from ..io.rosbag_format import first_joints, is_bag
 from ..io.units import same_unit
-from ..io.windows import FileIndex, index_file, read_window, stamp_rows, time_bases
+from ..io.windows import FileIndex, index_file, one_time_base, read_window, stamp_blocks, stamp_rows, time_bases
 from ..model.tree import PRISMATIC, ModelError, Tree
 from .config import ConfigError, IdentifyConfig, TestSpec
 from .heap import arrow_system_pool
 from .robot import DataJoints, data_joints
-from .timebase import RATE_TOLERANCE, Stream, _rate, opened, stream
+from .timebase import RATE_TOLERANCE, UNIFORM, Stream, _rate, opened, stream
 
 Progress = Callable[[str], None]
 # steps of the slowest base read beyond a window's ends, besides the longest hole the plan allows: a not-a-knot cubic's
@@ -136,6 +139,8 @@ def _test_clock(ref, streams: Sequence, cfg: IdentifyConfig, spec: TestSpec, rec
     a = lo if spec.start is None else max(lo, spec.start)
     b = hi if spec.end is None else min(hi, spec.end)
     h = ref.h
+    if isinstance(ref.t, FileClock):  # its rows in the cut, from the blocks at its ends (the stamps increase)
+        return _rows_between(ref.t, max(a - tol, lo), min(b + tol, hi))
     clock = ref.t if ref.uniform else ref.t0 + h * np.arange(np.ceil((ref.t[0] - ref.t0) / h),
                                                              np.floor((ref.t[-1] - ref.t0) / h) + 1)
     return clock[(clock >= max(a - tol, lo)) & (clock <= min(b + tol, hi))]
@@ -180,12 +185,14 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
     given = None if format_of(path) == "mdf" else spec.fs  # an MDF file's channels always carry their time stamps
     index, timed = opened(lambda fs: index_file(path, channels=names, fs=fs), path, given, spec.name, cfg.path)
     label = str(path)
-    streams = []
-    bases, file_units = _time_bases(index, names, spec.name)
-    for members, t, lines in bases:
-        clock_only = Channel("time", "s", t, t, lines)  # the stamps stand for the base's channels in the checks
-        s = stream([clock_only], label, timed, spec.max_gap, (spec.start, spec.end))
-        streams.append((members, s))
+    # a Parquet log of one time base is checked a block at a time, its clock left in the file; else (or where
+    # that pass answers None) its stamps are held whole
+    in_blocks = _stream_in_blocks(index, label, spec.max_gap, (spec.start, spec.end)) if (
+        timed and index.rows > 2 and one_time_base(index, names)) else None
+    if in_blocks is None:
+        streams, file_units = _streams_held(index, names, spec.name, label, timed, spec.max_gap, (spec.start, spec.end))
+    else:
+        streams, file_units = [(names, in_blocks[0])], {n: index.units.get(n, "") for n in names}
     if timed:
         for members, s in streams:
             listed = ", ".join(members[:3]) + (", ..." if len(members) > 3 else "")
@@ -215,24 +222,179 @@ def plan_car_test(cfg: IdentifyConfig, spec: TestSpec, wanted: Sequence[str], un
     # the file's stamps let go once the clock is cut from them (a copy), and the median's differences partitioned
     # in place: the plan's pass peaked at 4 arrays of the log's length here (0.43 GB at 6 h of 625 Hz)
     streams.clear()
-    bases.clear()
-    del ref, s, t, lines, clock_only
+    del ref, s
     factors = {}
     for q, name in in_file.items():
         unit = channel_unit(cfg, q, name, file_units.get(name, ""), label)
         expect = (unit_factor(units[q])[1],) if q in units else None
         factors[q] = unit_factor(unit, channel=name, source=label, expect=expect)[0]
-    fs = 1.0 / float(np.median(np.diff(clock), overwrite_input=True))
+    if not isinstance(clock, FileClock):
+        fs = 1.0 / float(np.median(np.diff(clock), overwrite_input=True))
+    elif in_blocks is not None and (clock.first, clock.size) == (in_blocks[0].t.first, in_blocks[0].t.size):
+        fs = 1.0 / in_blocks[1]  # the clock is the whole base: its steps' median is the base's
+    else:
+        fs = 1.0 / _median_step(clock)
     if cfg.car is not None:
         _below_nyquist(cfg, spec, cfg.car.cutoff, fs, timed, label)
     N = clock.size
     bd = border(fs)
     step = N if segment_s is None else max(int(segment_s * fs), 4 * bd)
     segments = tuple((s, min(N, s + step + 2 * bd)) for s in range(0, max(N - 2 * bd, 1), step))
-    spans = tuple((float(clock[lo]), float(clock[hi - 1])) for lo, hi in segments)
-    kept = _file_clock(index, clock)  # a Parquet file's stamps left in it: the plan's size not the log's length's
+    ends = clock_at(clock, [k for lo, hi in segments for k in (lo, hi - 1)]).tolist()
+    spans = tuple(zip(ends[::2], ends[1::2], strict=True))
+    # a Parquet file's stamps left in it: the plan's size not the log's length's
+    kept = clock if isinstance(clock, FileClock) else _file_clock(index, clock)
     return CarTestPlan(spec.name, spec.role, index, tuple(names), in_file, factors, clock if kept is None else kept,
                        fs, timed, spec.max_gap, steps, segments, spans)
+
+
+def _streams_held(index: FileIndex, names: list[str], test: str, label: str, timed: bool, max_gap: float,
+                  window: tuple[float | None, float | None]) -> tuple[list[tuple[list[str], Stream]], dict[str, str]]:
+    """Each time base of the file checked (`timebase.stream`) on its stamps held whole: [(members, Stream)], and
+    each channel's unit."""
+    streams = []
+    bases, file_units = _time_bases(index, names, test)
+    while bases:  # each base's stamps let go with its stream's (a stream holds them, or its merged ones)
+        members, t, lines = bases.pop(0)
+        clock_only = Channel("time", "s", t, t, lines)  # the stamps stand for the base's channels in the checks
+        streams.append((members, stream([clock_only], label, timed, max_gap, window)))
+    return streams, file_units
+
+
+# distinct steps counted exactly: a logger's clock takes few (its step and the stamps' float rounding: 26 in the 13.5 M
+# steps of 6 h at 625 Hz); a log of more (a jittered clock: not uniform, its clock resampled) has its stamps held whole
+DISTINCT_STEPS = 4096
+
+
+class _StepCounts:
+    """The time steps of a log as {value: count}: their median the bits of np.median's (the middle value, or the
+    mean of the two middle ones) in O(distinct values) memory."""
+
+    def __init__(self) -> None:
+        self.counts: dict[float, int] = {}
+        self.n = 0
+
+    def add(self, steps: NDArray[np.float64]) -> bool:
+        """Counted; False past DISTINCT_STEPS distinct values."""
+        values, counts = np.unique(steps, return_counts=True)
+        if values.size > DISTINCT_STEPS:  # a jittered clock: told at its first block, not counted
+            return False
+        for v, c in zip(values.tolist(), counts.tolist(), strict=True):
+            self.counts[v] = self.counts.get(v, 0) + c
+        self.n += steps.size
+        return len(self.counts) <= DISTINCT_STEPS
+
+    def median(self) -> float:
+        order = sorted(self.counts.items())
+
+        def kth(k: int) -> float:  # the k-th smallest, from 0
+            seen = 0
+            for v, c in order:
+                seen += c
+                if k < seen:
+                    return v
+            raise IndexError(k)
+
+        m = self.n // 2
+        return kth(m) if self.n % 2 else (kth(m - 1) + kth(m)) / 2
+
+
+def _stamp_steps(index: FileIndex, lo: int, hi: int) -> Iterator[tuple[int, NDArray, NDArray]]:
+    """(first row, stamps, the steps into them) of the rows lo..hi a block at a time (the first row's step left
+    out: a block's steps follow from the previous block's last stamp)."""
+    last = None
+    for row, t in stamp_blocks(index, lo, hi):
+        if t.size:
+            steps = np.diff(t) if last is None else np.diff(t, prepend=last)
+            last = t[-1]
+            yield row, t, steps
+
+
+def _stream_in_blocks(index: FileIndex, label: str, max_gap: float, window: tuple[float | None, float | None]
+                      ) -> tuple[Stream, float] | None:
+    """`timebase.stream` of a Parquet file's one time base from passes over its blocks, its stamps left in the file
+    (the Stream's t a `FileClock`), and the median step: O(blocks) memory whatever the log's length. None where
+    that stream would not be the file's own uniform clock (stamps not finite, going back or repeated, a hole, a
+    skipped sample, steps of over DISTINCT_STEPS values, jitter): the caller then checks the stamps held whole, as
+    before (the same errors, the same resampled clock). The same numbers as `stream`'s but the fitted line's,
+    whose sums are taken in blocks (the whole-array dot's bits depend on BLAS's threads: 1 and 2 differ)."""
+    a, z = 0, index.rows  # the rows checked: the window's, as `stream` cuts them
+    if window != (None, None):
+        counts, ends = _StepCounts(), []  # ends: each block's (first row, first stamp, last stamp)
+        for row, t, steps in _stamp_steps(index, 0, z):
+            if not (np.isfinite(t).all() and (steps >= 0.0).all() and counts.add(steps)):
+                return None
+            ends.append((row, t.size, float(t[0]), float(t[-1])))
+        margin = 2 * max_gap * counts.median()
+        lo = -np.inf if window[0] is None else window[0] - margin
+        hi = np.inf if window[1] is None else window[1] + margin
+        first = next((r + int(np.searchsorted(stamp_rows(index, r, r + n, store=False), lo))
+                      for r, n, _, t1 in ends if t1 >= lo), z)
+        end = next((r + int(np.searchsorted(stamp_rows(index, r, r + n, store=False), hi, side="right"))
+                    for r, n, t0, _ in reversed(ends) if t0 <= hi), 0)
+        if first < end:  # else no stamp in the window: `stream` keeps every row (the test's start, end refused)
+            a, z = first, end
+    n = z - a
+    if n < 3:
+        return None
+    # the clock's line t = t0 + h k over the slots k = 0..n-1 (every step one period, checked below), in closed form
+    # about the slots' mean (n - 1) / 2 (exact): sum((k - mean) t) taken about the first stamp (the same sum: the
+    # centred slots sum to 0), in this pass
+    counts, sums, cds, least, largest = _StepCounts(), [], [], np.inf, -np.inf
+    s_mean, origin = (n - 1) / 2, None
+    for r, t, steps in _stamp_steps(index, a, z):
+        if not (np.isfinite(t).all() and counts.add(steps)):
+            return None
+        origin = float(t[0]) if origin is None else origin
+        sums.append(float(np.sum(t)))
+        cds.append(float(np.sum((np.arange(r - a, r - a + t.size) - s_mean) * (t - origin))))
+        if steps.size:
+            least, largest = min(least, float(steps.min())), max(largest, float(steps.max()))
+    h_step = counts.median()
+    # rint(step / h) is monotonic in the step: every step one period when the least and the largest are
+    periods = (np.rint(least / h_step), np.rint(largest / h_step))
+    if not (least > 0.0 and largest <= max_gap * h_step and periods == (1.0, 1.0)):
+        return None
+    t_mean = math.fsum(sums) / n
+    cc = float(Fraction(n * (n * n - 1), 12))  # the centred slots' squares' sum, exactly rounded
+    cd = math.fsum(cds)
+    h = cd / cc
+    t0 = t_mean - h * s_mean
+    worst, squares = 0.0, []
+    for r, t, _ in _stamp_steps(index, a, z):
+        jitter = t - np.arange(r - a, r - a + t.size) * h  # `stream`'s order: t - slot h - t0
+        jitter -= t0
+        worst = max(worst, float(jitter.max()), float(-jitter.min()))
+        squares.append(float(np.sum(jitter * jitter)))  # numpy's own sum: no BLAS threads' order
+    if not worst <= UNIFORM * h:
+        return None
+    return Stream(label, True, FileClock(index, a, n), {}, h, True, t0, 0, math.sqrt(math.fsum(squares) / n), worst,
+                  largest), h_step
+
+
+def _rows_between(clock: FileClock, lo: float, hi: float) -> FileClock:
+    """The rows of a file's clock (its stamps increasing) whose stamps are within lo..hi, from the blocks that hold
+    its first and last: `clock[(clock >= lo) & (clock <= hi)]` left in the file."""
+    parts = []  # the blocks' (first row, rows, least and largest stamp) within the clock's rows
+    row = 0
+    for b in clock.index.blocks:
+        r0, r1 = max(row, clock.first), min(row + b.rows, clock.first + clock.size)
+        if r0 < r1:
+            parts.append((r0, r1, b.t_min, b.t_max))
+        row += b.rows
+    first = next((r + int(np.searchsorted(stamp_rows(clock.index, r, e, store=False), lo))
+                  for r, e, _, t1 in parts if t1 >= lo), clock.first + clock.size)
+    end = next((r + int(np.searchsorted(stamp_rows(clock.index, r, e, store=False), hi, side="right"))
+                for r, e, t0, _ in reversed(parts) if t0 <= hi), clock.first)
+    return clock.cut(first - clock.first, max(first, end) - clock.first)
+
+
+def _median_step(clock: FileClock) -> float:
+    """np.median of a file's clock's steps, counted a block at a time (the clock cut from a base of few)."""
+    counts = _StepCounts()
+    for _, _, steps in _stamp_steps(clock.index, clock.first, clock.first + clock.size):
+        counts.add(steps)
+    return counts.median()
 
 
 def _below_nyquist(cfg: IdentifyConfig, spec: TestSpec, cutoff: float, fs: float, timed: bool, file: str) -> None:
@@ -400,12 +562,14 @@ class FileClock:
         k = np.where(k < 0, k + self.size, k)
         if k.size and not (k.min() >= 0 and k.max() < self.size):
             raise IndexError(f"samples {list(samples)} of a clock of {self.size}")
-        rows, out, row = k + self.first, np.empty(k.size), 0  # row: the block's first row among the stamps
-        for b in self.index.blocks:
-            inside = (rows >= row) & (rows < row + b.rows)
-            if inside.any():
-                out[inside] = stamp_rows(self.index, row, row + b.rows, store=False)[rows[inside] - row]
-            row += b.rows
+        rows, out = k + self.first, np.empty(k.size)
+        if not k.size:
+            return out
+        # the file opened once for them all (each open parses its footer)
+        for row, part in stamp_blocks(self.index, int(rows.min()), int(rows.max()) + 1,
+                                      only=lambda r, n: bool(((rows >= r) & (rows < r + n)).any())):
+            inside = (rows >= row) & (rows < row + part.size)
+            out[inside] = part[rows[inside] - row]
         return out
 
 
