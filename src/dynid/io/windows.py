@@ -50,7 +50,9 @@ off), so that windows read in time order decode each CSV block or Parquet row gr
 once: a Parquet row group is the smallest unit pyarrow decodes, and other writers often make
 them a million rows long (pyarrow's default), far longer than a window. The memory a window
 needs is therefore bounded by the cache and the row-group size, not by the file's length;
-dynid's `write_parquet` writes row groups of 65536 rows, which need far less.
+dynid's `write_parquet` writes row groups of 65536 rows, which need far less. A Parquet file's footer (its
+metadata, which lists every row group) is parsed once per process too, for at most `FOOTER_FILES` (4) files, and
+again when the file's size or modification time changes.
 
 The CSV index parses only the time column (and checks every row has a stamp); the other
 cells are parsed, and a bad one reported as `read_csv` reports it, when a window reads them.
