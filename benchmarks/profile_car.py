@@ -171,8 +171,9 @@ Measured 2026-11-29 (issue 28, h-footer: a Parquet file's footer parsed once per
 `io.windows.FOOTER_FILES`). Before, "the Arrow schema once per file" above meant once per opening of the file, and
 every window's row groups not in the block cache, every read of a plan's clock from the file and the planning
 pass's null check opened it anew, pyarrow parsing its footer (every row group's column chunks) each time: 12
-parses for an identification of 10 min, 1 after (pyarrow's opens counted). One parse of the suite's file (60
-columns, min of 20-30, CPU): 10 min 0.42 ms, 1 h 1.45 ms, 6 h 9.2 ms (210 row groups, a 1.55 MB footer). One
+parses for an identification of 10 min, 1 after (pyarrow's opens counted). An opening of the suite's file, its
+footer parsed (60 columns, min of 20-30, CPU): 10 min 0.42 ms, 1 h 1.45 ms, 6 h 9.2 ms (210 row groups, a 1.55 MB
+footer). One
 segment's read alone (`sources.read_segment` of the plan's middle segment, decoded blocks dropped before each pass,
 thread CPU, min of 30-40 passes, 2d7417f and the branch in alternated processes, load averages 5 to 7): 10 min
 26.8, 28.6, 27.5 -> 27.4, 26.2, 25.0 ms; 1 h 9.10, 9.15, 8.94, 9.14 -> 7.77, 7.38, 7.54, 7.94 ms; 6 h 31.6, 32.0,
