@@ -165,7 +165,28 @@ one glibc arena (each thread's own grew in heaps of at most 64 MB, unmapped when
 until the map's end instead of handed back beyond glibc's adaptive threshold and every 8th segment, pyarrow's
 reads on that heap rather than its mimalloc pool (car runs never switched it). perf of the hour on 2 threads (one
 run each, load ~11; the settings made by mallopt and the environment): the kernel's clear_page 17 % of the samples
--> 4.5 %."""
+-> 4.5 %.
+
+Measured 2026-11-29 (issue 28, h-footer: a Parquet file's footer parsed once per process while the file is unchanged,
+`io.windows.FOOTER_FILES`). Before, "the Arrow schema once per file" above meant once per opening of the file, and every
+window's row groups not in the block cache, every read of a plan's clock from the file and the planning pass's null
+check opened it anew, pyarrow parsing its footer (every row group's column chunks) each time: 12 parses for an
+identification of 10 min, 43 for 1 h, 228 for 6 h, 1 after (pyarrow's opens counted). An opening of the suite's file,
+its footer parsed (60 columns, min of 20-30, CPU): 10 min 0.42 ms, 1 h 1.45 ms, 6 h 9.2 ms (210 row groups, a 1.55 MB
+footer): ~2.1 CPU s of a 6 h identification's ~64. One segment's read alone (`sources.read_segment` of the plan's middle
+segment, decoded blocks dropped before each pass, so every block opens the file: an upper bound, in a run a segment's
+first block is often the last one's, cached; thread CPU, min of 30-40 passes, 2d7417f and the branch in alternated
+processes, load averages 5 to 7): 10 min 26.8, 28.6, 27.5 -> 27.4, 26.2, 25.0 ms; 1 h 9.10, 9.15, 8.94, 9.14 -> 7.77,
+7.38, 7.54, 7.94 ms; 6 h 31.6, 32.0, 32.4 -> 15.0, 13.9, 18.7 ms. This table at --minutes 10 --cpu (4 alternated rounds,
+load 6.4 to 7.1) cannot resolve a 10 min file's 5 ms: read 0.64, 0.85, 0.72, 0.70 -> 0.83, 0.78, 0.74, 0.69 s per hour,
+the rounds' spread. bench_fleet.py --hours 1 --workers --repeat 3 --vs <2d7417f>/src (load 7.1 to 7.3): CPU 11.02
+(11.49, 11.02, 11.02) against 11.29 (12.79, 11.40, 11.29) s, 1.03 x (the hour's 43 parses are ~0.06 s of it: mostly the
+load), peak 0.61 against 0.62 GB. A footer kept costs ~8 times its size in the file in memory (~11 MB for 6 h of the
+suite), one per file, against one per read in flight before. The 6 h identification whole (inline, one thread, the 1 h
+file's row groups written 6 times; whole processes, 3 each, alternated, load 0.5 to 3): CPU 52.2, 59.3, 60.4 against
+52.5, 59.6, 65.6 s (0.99 x, the parses' 2 s within the runs' spread); peak 879, 887, 907 against 843, 865, 886 MiB, the
+ranges overlapping; likely the footer kept (~12 MB for 6 h), alive after the segments (where the peak falls not
+checked)."""
 
 from __future__ import annotations
 

@@ -692,3 +692,146 @@ def test_windows_of_a_parquet_file_decode_each_row_group_about_once(tmp_path: Pa
         t0 += 55.0
     assert {c for _, c in decoded} == {"time", *names}
     assert len(decoded) == groups * (len(names) + 1) and max(decoded.values()) == 1, decoded
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Parquet footers parsed once per process while the file is unchanged
+
+
+def footer_parses(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The files whose footer pyarrow parses from now on (a `ParquetFile` opened without `metadata`), in order."""
+    import pyarrow.parquet as pq
+
+    parsed: list[str] = []
+    real = pq.ParquetFile.__init__
+
+    def counting(self, source, *args, metadata=None, **kw):
+        if metadata is None:
+            parsed.append(os.fspath(source))
+        real(self, source, *args, metadata=metadata, **kw)
+
+    monkeypatch.setattr(pq.ParquetFile, "__init__", counting)
+    windows.clear_cache()
+    return parsed
+
+
+def small_log(path: Path, seed: int, n: int = 1000, row_group_size: int = 300,
+              compression: str = "snappy") -> Recording:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = np.arange(n) / 100.0
+    rng = np.random.default_rng(seed)
+    cols = {"time": t, "a": rng.normal(size=n), "b": rng.normal(size=n)}
+    pq.write_table(pa.table(cols), path, row_group_size=row_group_size, compression=compression)
+    return read_recording(path)
+
+
+@needs_pyarrow
+def test_a_parquet_footer_is_parsed_once_while_the_file_is_unchanged(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oracle: pyarrow's own footer parses, counted (a `ParquetFile` opened without metadata), and the whole-file
+    reader for the windows' samples. Before, every window's row groups and every stamps' read opened the file
+    and parsed its footer anew: 8 parses here."""
+    path = tmp_path / "log.parquet"
+    whole = small_log(path, seed=1)
+    parsed = footer_parses(monkeypatch)
+    index = index_file(path)
+    assert time_bases(index, ["a", "b"])[0][1].size == 1000
+    for k in range(20):
+        t0 = 0.4 * k
+        got = read_window(index, ["a", "b"], t0, t0 + 1.5)
+        keep = (whole.channels["a"].time >= t0) & (whole.channels["a"].time <= t0 + 1.5)
+        for n in ("a", "b"):
+            assert_same_channel(got.channels[n], whole.channels[n], keep)
+        windows.forget_blocks_before(index, t0 + 0.4)  # each window decodes again: the file is opened each time
+    stamps = windows.stamp_rows(index, 10, 990, store=False)
+    np.testing.assert_array_equal(bits(stamps), bits(whole.channels["a"].time[10:990]))
+    assert parsed == [str(path)]
+    windows.clear_cache()  # forgets the footers too
+    read_window(index, ["a"], 0.0, 1.0)
+    assert parsed == [str(path)] * 2
+
+
+@needs_pyarrow
+@pytest.mark.parametrize("how", ["in place, same size, new mtime", "replaced by a rename, another layout"])
+def test_a_rewritten_parquet_file_is_read_anew(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, how: str) -> None:
+    """Oracle: the whole-file reader on the new file. A file written over in place keeps its inode; with the same
+    shape and no compression it keeps its size too: its modification time alone tells the new content (set 1 s on,
+    as a logger's rewrite within the clock's tick would not). A stale footer would give the old row groups' layout
+    (the renamed file's: 250 rows, not 300) and the old statistics."""
+    path = tmp_path / "log.parquet"
+    in_place = how.startswith("in place")
+    small_log(path, seed=1, compression="none")
+    parsed = footer_parses(monkeypatch)
+    old = index_file(path)
+    read_window(old, ["a"], 0.0, 5.0)
+    size, mtime = path.stat().st_size, path.stat().st_mtime_ns
+    if in_place:
+        new = small_log(path, seed=2, compression="none")
+        os.utime(path, ns=(mtime, mtime + 1_000_000_000))
+        assert path.stat().st_size == size
+    else:
+        small_log(tmp_path / "next.parquet", seed=2, row_group_size=250)
+        os.replace(tmp_path / "next.parquet", path)
+        new = read_recording(path)
+    parsed.clear()  # (the whole-file reader parses it too)
+    index = index_file(path)
+    assert parsed == [str(path)]  # the new file's footer
+    assert [b.rows for b in index.blocks] == ([300, 300, 300, 100] if in_place else [250] * 4)
+    got = read_window(index, ["a", "b"], 0.0, 10.0)
+    for n in ("a", "b"):
+        assert_same_channel(got.channels[n], new.channels[n])
+    with pytest.raises(FileFormatError, match="changed since it was indexed"):
+        read_window(old, ["a"], 0.0, 5.0)
+
+
+@needs_pyarrow
+def test_the_kept_footers_are_a_few_files_least_recently_used_out_first(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oracle: the count of footer parses. FOOTER_FILES files stay; one more drops the one read longest ago."""
+    keep = windows.FOOTER_FILES
+    paths = [tmp_path / f"log{k}.parquet" for k in range(keep + 3)]
+    for k, p in enumerate(paths):
+        small_log(p, seed=k)
+    parsed = footer_parses(monkeypatch)
+    indexes = [index_file(p) for p in paths[:keep]]
+    read_window(indexes[0], ["a"], 0.0, 1.0)  # log0 the most recently used now, log1 the least
+    assert len(parsed) == keep and len(windows._footers) == keep
+    for p in paths[keep:]:
+        index_file(p)
+        assert len(windows._footers) == keep
+    parsed.clear()
+    with windows._lock:
+        windows._cache.clear()  # decoded blocks gone, footers kept: the windows below open their files
+        windows._recent.clear()
+        windows._used[0] = 0
+    read_window(index_file(paths[-1]), ["a"], 0.0, 1.0)  # kept
+    assert parsed == []
+    read_window(indexes[1], ["a"], 0.0, 1.0)  # log1 was dropped first; log0 was read after it, but 3 more came
+    assert parsed == [str(paths[1])]
+    assert len(windows._footers) == keep
+
+
+@needs_pyarrow
+def test_windows_read_by_two_threads_share_the_footers(tmp_path: Path) -> None:
+    """Oracle: the whole-file reader. Two threads read windows of more files than the footers kept, in turn, so
+    footers are added and dropped while the other thread reads: every window holds its file's samples."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    paths = [tmp_path / f"log{k}.parquet" for k in range(windows.FOOTER_FILES + 2)]
+    wholes = [small_log(p, seed=k) for k, p in enumerate(paths)]
+    windows.clear_cache()
+    indexes = [index_file(p) for p in paths]
+
+    def check(job: int) -> None:
+        k = job % len(paths)
+        t0 = 0.37 * (job % 23)
+        got = read_window(indexes[k], ["a", "b"], t0, t0 + 1.0)
+        time = wholes[k].channels["a"].time
+        for n in ("a", "b"):
+            assert_same_channel(got.channels[n], wholes[k].channels[n], (time >= t0) & (time <= t0 + 1.0))
+
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(check, range(200)))
+    assert len(windows._footers) <= windows.FOOTER_FILES

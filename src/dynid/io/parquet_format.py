@@ -116,18 +116,19 @@ def _footer_length(path: Any, filesystem: Any) -> int | None:
     return int.from_bytes(tail[:4], "little") if tail[4:] == b"PAR1" else None
 
 
-def open_parquet(path: Any, label: str, filesystem: Any = None) -> Any:
+def open_parquet(path: Any, label: str, filesystem: Any = None, metadata: Any = None) -> Any:
     """A `pyarrow.parquet.ParquetFile`; a file that is not Parquet, or whose footer or row-group count passes the
-    bounds (MAX_FOOTER, MAX_ROW_GROUPS), is a one-line `FileFormatError`."""
+    bounds (MAX_FOOTER, MAX_ROW_GROUPS), is a one-line `FileFormatError`. metadata: the file's footer
+    (`ParquetFile.metadata`) parsed before, by a caller sure the file is unchanged since: not read again."""
     pa = require("pyarrow", "Reading Parquet files")
     pq = require("pyarrow.parquet", "Reading Parquet files")
-    footer = _footer_length(path, filesystem)
+    footer = _footer_length(path, filesystem) if metadata is None else None
     if footer is not None and footer > MAX_FOOTER:
         raise FileFormatError(f"{label}: its Parquet footer is {footer:,} bytes (more than {MAX_FOOTER:,}): too many "
                               "row groups or columns to index; rewrite it with fewer, larger row groups (pyarrow's "
                               "row_group_size of 100 000 rows or more)", source=label)
     try:
-        pfile = pq.ParquetFile(path, filesystem=filesystem) if filesystem is not None else pq.ParquetFile(path)
+        pfile = pq.ParquetFile(path, metadata=metadata, filesystem=filesystem)
     except (pa.ArrowInvalid, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
