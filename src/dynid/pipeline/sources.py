@@ -100,7 +100,7 @@ class SegmentWindow:
     margin: float  # s
     first: int = 0  # the clock slice's first sample in the test (messages name the test's samples)
     # the slice's first and last stamp when the plan knows them (a segment's): a file's clock then read after the
-    # window, from the blocks that read decoded, not by a read of its own (each opens the file: its footer parsed)
+    # window, from the blocks that read decoded, not by a read of its own (each opens the file)
     span: tuple[float, float] | None = None
 
     def read(self) -> dict[str, NDArray[np.float64]]:
@@ -594,8 +594,8 @@ def _file_clock(index: FileIndex, clock: NDArray[np.float64]) -> FileClock | Non
         start += b.rows
     else:
         return None
-    # 16 blocks' stamps compared at a time: each read opens the file (its footer parsed, ~20 ms for 6 h of the
-    # suite's channels), so a block at a time took 2.6 s of a 6 h plan's 3.9; still a bounded part of the clock
+    # 16 blocks' stamps compared at a time, a bounded part of the clock (a read opens the file: a block at a time took
+    # 2.6 s of a 6 h plan's 3.9 when each opening parsed the footer, which io.windows now keeps)
     step = 16 * max(b.rows for b in index.blocks)
     for lo in range(0, clock.size, step):
         hi = min(clock.size, lo + step)
