@@ -9,6 +9,14 @@ process runs the identification alone and prints its own peak resident set (ru_m
 process's RSS after the imports, its file-backed part at the end (RssFile: shared libraries' pages, Linux), and
 the identification's wall time. Target: under 300 MB.
 
+Measured 2026-11-29 (19:20-19:23 UTC, load average 1.6-1.7, nothing else of ours running), main with the gate at
+32 MiB (`heap.RELEASE_GROWTH`: the 406 demo's identification releases twice, 18 ms each of its 4.0 s CPU) against
+f15571e and ffe91d6, whole processes, 3 triples alternated after a warm-up each: peak 247-257 MiB against 344-395 and
+389-396 (file-backed at the end 41-42 MB against 136-141); the identification's wall 15.3, 14.2, 15.4 s against
+20.7, 14.9, 14.9 (f15571e) and 15.6, 14.2, 13.0 (ffe91d6): pair ratios to ffe91d6 0.98, 1.00, 1.18 (median 1.00);
+process CPU 26.8, 24.6, 27.0 s against 27.4, 26.0, 24.1 (median of ratios 0.98). The host varied run to run by
+~20 % (f15571e's 20.7 s).
+
 Measured 2026-11-29 (18:20-18:25 UTC, load average 1.6-3.6 on the 2 cores: other sessions), this tree against
 f15571e (the command above, the log kept in --folder), whole processes, 3 pairs alternated after a warm-up each,
 medians: peak 235.0 MiB (233.2-237.6) against 345.1 (344.1-346.7): the target met; process CPU 23.85 s against 24.21
