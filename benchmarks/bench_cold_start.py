@@ -52,6 +52,11 @@ instead of compiling, which Numba's cache cannot ship: its entries are keyed by 
 (numba 0.68, measured on a one-function module: an entry written here misses under NUMBA_CPU_NAME=skylake and
 compiles again, cleanly; a new mtime alone still hits, the source stamp being a hash of the file), so a shipped cache
 serves only machines of the builder's CPU, and a generic-CPU one would make every run's code slower.
+Measured 2026-11-29 (19:27-19:34 UTC, quiet: load 1.2-1.5; `--commands demo`, main with the warm-up child
+(pipeline.first_run.WarmUp) and f15571e alternated, 3 rounds): main cold/warm 1.99, 1.68, 1.44 (cold 16.0, 11.9,
+13.9 s; warm 8.0, 7.1, 9.6; CPU ratios 2.58, 2.32, 2.03), f15571e 1.38, 1.85, 1.66 (CPU 1.76, 2.36, 2.14): medians 1.68
+against 1.66, no gain measured on a quiet machine; the child's gain was under load, where the parent's core was
+contended. The simulator kernel's build (~5 s of CPU after ~0.8 s of imports) is the critical path.
 """
 
 from __future__ import annotations

@@ -117,6 +117,12 @@ against the whole-array BLAS dot's, ~1e-13 of the step, whose bits depend on BLA
 `--hours 9 --workers --vs <2d7417f>/src`, one run each, 18:54-19:00 UTC, load averages 6.1 to 6.9: peak 0.72 GB
 against 0.71 (0.83 in the run above: single runs vary by ~0.1 GB; the plan's pass alone now peaks at 0.27 GB,
 so the rest of the run sets it), CPU 89.99 against 91.67 s, walls 117.4 against 140.1 s (at that load, noise).
+Measured 2026-11-29 (19:19-19:20 UTC, quiet: load average 0.9-1.6; main d22a752's code, `--hours 1 --workers --vs
+<f15571e>/src <fddb8ab>/src --repeat 3`): this tree 8.80 s wall (9.62, 8.80, 8.48), CPU 13.75, peak 0.63 GB; f15571e
+9.26 (9.53, 8.90, 9.26), CPU 14.49, 0.75 GB; fddb8ab 9.98 (10.20, 9.98, 9.10), CPU 17.31, 0.92 GB: throughput 1.13 x
+fddb8ab's (CPU 1.26 x), 1.05 x f15571e's. `--hours 12 --workers` (1ba5598, the plan's clock in the file and its pass in
+blocks, the libraries' pages released; load 1-3): 12 h of data (2.4 GB of Parquet) 103.7 s wall, 160 s CPU, peak 0.76
+GB (0.13 GB over 1 h's).
 """
 
 from __future__ import annotations

@@ -124,6 +124,10 @@ R6 p products (an (N, 3) x (3, 4) matmul: OpenBLAS's fused sums are not the loop
 differ, so the main pass's bits would move) left to NumPy. What is left per attitude pass (~21-23 ms): 5 low-pass
 calls (~7 ms, two of them the 2-column crossover's, latency-bound), the tire poses' spline (construction and
 evaluation ~3.2 ms), 10 sines, cosines and tangents of 38k samples (~2.3 ms), the forward kinematics (~1.5 ms).
+Measured 2026-11-29 (19:23-19:25 UTC, load 1.2-1.7; `--minutes 10 --rounds 1 --modes estimated none`, main (the
+attitude and velocity compiled) and f15571e alternated twice): main estimated 10.42, 11.01 s against f15571e's 10.65,
+12.77; the "none" runs, the same code, 6.28-8.52 s (the host's drift): against the run's least "none" (6.64 s) main
++57 %, +66 %, f15571e +60 %, +92 %. The demo: main -12 %, +15 %; f15571e +2 %, +11 %.
 """
 
 from __future__ import annotations
