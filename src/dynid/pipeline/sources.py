@@ -320,20 +320,17 @@ def _stream_in_blocks(index: FileIndex, label: str, max_gap: float, window: tupl
     whose sums are taken in blocks (the whole-array dot's bits depend on BLAS's threads: 1 and 2 differ)."""
     a, z = 0, index.rows  # the rows checked: the window's, as `stream` cuts them
     if window != (None, None):
-        counts, ends = _StepCounts(), []  # ends: each block's (first row, first stamp, last stamp)
-        for row, t, steps in _stamp_steps(index, 0, z):
+        counts = _StepCounts()
+        for _, t, steps in _stamp_steps(index, 0, z):
             if not (np.isfinite(t).all() and (steps >= 0.0).all() and counts.add(steps)):
                 return None
-            ends.append((row, t.size, float(t[0]), float(t[-1])))
         margin = 2 * max_gap * counts.median()
         lo = -np.inf if window[0] is None else window[0] - margin
         hi = np.inf if window[1] is None else window[1] + margin
-        first = next((r + int(np.searchsorted(stamp_rows(index, r, r + n, store=False), lo))
-                      for r, n, _, t1 in ends if t1 >= lo), z)
-        end = next((r + int(np.searchsorted(stamp_rows(index, r, r + n, store=False), hi, side="right"))
-                    for r, n, t0, _ in reversed(ends) if t0 <= hi), 0)
-        if first < end:  # else no stamp in the window: `stream` keeps every row (the test's start, end refused)
-            a, z = first, end
+        # the stamps checked finite and increasing: each block's extremes (the index's) are its ends
+        cut = _rows_between(FileClock(index, 0, z), lo, hi)
+        if cut.size:  # else no stamp in the window: `stream` keeps every row (the test's start, end refused)
+            a, z = cut.first, cut.first + cut.size
     n = z - a
     if n < 3:
         return None
