@@ -11,6 +11,7 @@ either the complete old set of results or the complete new one, whatever stops t
 
 from __future__ import annotations
 
+import _thread
 import ctypes
 import errno
 import hashlib
@@ -136,11 +137,11 @@ class _Signals:
     def __enter__(self) -> _Signals:
         if threading.current_thread() is not threading.main_thread():
             return self
-        wanted = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+        wanted = {signal.SIGINT: (signal.default_int_handler, interrupt), signal.SIGTERM: (signal.SIG_DFL,)}
         if hasattr(signal, "SIGHUP"):
-            wanted[signal.SIGHUP] = signal.SIG_DFL
-        for sig, default in wanted.items():
-            if signal.getsignal(sig) is default:
+            wanted[signal.SIGHUP] = (signal.SIG_DFL,)
+        for sig, defaults in wanted.items():
+            if signal.getsignal(sig) in defaults:
                 self.saved[sig] = signal.signal(sig, self._handle)
         return self
 
@@ -150,9 +151,12 @@ class _Signals:
         if self.pending is not None and kind is None:
             _raise_for(self.pending)
 
-    def _handle(self, signum: int, _frame) -> None:
+    def _handle(self, signum: int, frame) -> None:
         if self.critical:
             self.pending = signum
+            return
+        if unraisable(frame):
+            _again(signum)
             return
         _raise_for(signum)
 
@@ -175,6 +179,54 @@ def _raise_for(signum: int) -> None:
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     raise Terminated(signum)
+
+
+# ctypes callbacks through which LLVM calls Numba's object cache back while it compiles (llvmlite's executionengine)
+_LLVM_CALLBACKS = frozenset({"_raw_object_cache_notify", "_raw_object_cache_getbuffer"})
+
+
+def unraisable(frame) -> bool:
+    """Whether an exception raised in `frame` would be printed and dropped instead of reaching the caller: inside a
+    ctypes callback (LLVM calls llvmlite back each time Numba compiles a function: much of a first run's time) or
+    an object's __del__. A Ctrl-C raised there was lost: the run went on, or failed later ("no compiled object
+    yet")."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or (code.co_name in _LLVM_CALLBACKS and "llvmlite" in code.co_filename):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def interrupt(signum: int, frame) -> None:
+    """SIGINT's handler for a whole command (`interrupts`): KeyboardInterrupt, but where Python would drop it
+    (`unraisable`) the signal is raised again a moment later (`_again`)."""
+    if unraisable(frame):
+        _again(signum)
+        return
+    raise KeyboardInterrupt
+
+
+def _again(signum: int) -> None:
+    """The signal raised again in 5 ms, from another thread: this thread handles it at its first instruction then,
+    normally out of the callback (if not, it goes round again). Raised from this thread, it would be handled at
+    once, inside the callback still."""
+    threading.Timer(0.005, _thread.interrupt_main, (signum,)).start()
+
+
+@contextmanager
+def interrupts() -> Iterator[None]:
+    """SIGINT handled by `interrupt` inside (a command's run, cli.main), where Python's default handler is set and
+    this is the main thread; the handler before restored after."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    before = signal.signal(signal.SIGINT, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 # staging folder -> the output folder it becomes: kept after the run, so that an error raised inside it can

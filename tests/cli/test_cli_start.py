@@ -84,3 +84,13 @@ def test_a_first_demo_says_how_long_its_compiles_take(first, monkeypatch, capsys
         main(["--debug", "demo", "--out", str(tmp_path / "out")])
     said = capsys.readouterr()
     assert (f"about {demo.FIRST_RUN_S} s more than a later run" in said.out + said.err) is first
+
+
+def test_python_m_dynid_is_the_command_line():
+    from dynid import __version__
+
+    proc = subprocess.run([sys.executable, "-m", "dynid", "--version"], capture_output=True, text=True, timeout=60)
+    assert (proc.returncode, proc.stdout.strip()) == (0, f"dynid {__version__}"), proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "dynid", "vehicle", "nosuchcommand"], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 2 and proc.stderr.startswith("dynid: error:"), proc.stderr  # the same errors

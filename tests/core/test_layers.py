@@ -34,6 +34,7 @@ TIERS: tuple[frozenset[str], ...] = tuple(frozenset(t) for t in (
     {"report"},
     {"pipeline"},
     {"cli"},
+    {"__main__"},  # `python -m dynid`: the command line
     {"dynid"},
 ))
 PEERS = {"io": {"signals"}}  # the readers check channels with the signal layer's border and resampling helpers

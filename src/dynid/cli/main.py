@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from .._version import __version__
-from ..atomic import OutputError, Terminated, final_text, staged_folder, write_atomic
+from ..atomic import OutputError, Terminated, final_text, interrupts, staged_folder, write_atomic
 from ..progress import Count
 from ..shipped import CAR_TEMPLATE, DEMO_VEHICLE
 from ..textfiles import TextEncodingError
@@ -345,7 +345,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         check_options(args)
         try:
-            return int(args.func(args) or 0)
+            with interrupts():  # a Ctrl-C while Numba compiles is not lost in LLVM's callbacks
+                return int(args.func(args) or 0)
         finally:  # a bar an error interrupted is ended (its line finished) before the error's line
             _end_bars()
     except _user_errors() as exc:
