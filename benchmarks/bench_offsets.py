@@ -128,6 +128,20 @@ Measured 2026-11-29 (19:23-19:25 UTC, load 1.2-1.7; `--minutes 10 --rounds 1 --m
 attitude and velocity compiled) and f15571e alternated twice): main estimated 10.42, 11.01 s against f15571e's 10.65,
 12.77; the "none" runs, the same code, 6.28-8.52 s (the host's drift): against the run's least "none" (6.64 s) main
 +57 %, +66 %, f15571e +60 %, +92 %. The demo: main -12 %, +15 %; f15571e +2 %, +11 %.
+
+Then (h-att, 2026-11-29, load 3.3-6.7; tried, not kept): the 5 attitude channels' moved passes with their first stage
+in lockstep (each low-pass call taking every pass's columns: 2 -> 10, 6 -> 30; the same bits, C and the car-truth
+tables equal) gained 1.7 % of offset_residuals in one process (215.8 -> 212.1 ms, min of 15) and nothing measurable
+between processes (228-259 against 220-265 ms): a wide call's fill of its C-order work array is half its time (32
+columns 2.9 ms against the kernel's 2.0), and the columns come from memory. Not kept: +186 lines for that. Also tried
+and dropped, each the same bits: the tire poses' spline evaluated in NumPy (2.1-2.4 ms against SciPy's 1.6); the 9
+moved trajectories' aerodynamic wrenches stacked into one call (20.8 ms against 9 x 1.5: the kinematics' arrays leave
+the cache); the five passes' splines in one construction (6.9 against 5 x 1.5 ms to build, 9.5 against 5 x 1.8 to
+evaluate); the 12 CarResidual calls stacked (53.6-57.1 ms against 27.4-28.9, and other bits). What is left per 60 s
+segment (load ~5): the 12 staged passes 131 ms (gyros 20 ms each, inclinometers 22.5-23.4, accelerometers 0.5,
+lasers 1.2-1.4), each moved trajectory's rows 2.1 ms (+1.5 for an aerodynamic wrench), the loads 17 ms: every stage
+a few NumPy or filter passes at the memory's pace, so 30 % (~0.07-0.1 s per segment) needs the attitude pass fused
+into compiled stages (first-run compile time and redrawn round-off, as weighed above).
 """
 
 from __future__ import annotations
