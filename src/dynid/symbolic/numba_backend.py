@@ -249,7 +249,8 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     Numba types and lowers no check per division; it changes the machine code, so the caller's key must hold it).
     internal: functions only the module's jitted code calls (not Python): of `names`, or dispatchers the body
     imports (recompiled here from their Python functions); compiled without entry points (_NO_ENTRIES), which a
-    first run would otherwise lower, optimise and emit for nothing (the key must hold the list).
+    first run would otherwise lower, optimise and emit for nothing, and kept as LLVM IR that their callers link
+    (link_only: not cached themselves, their code is in their callers'; the key must hold the list).
 
     Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache
