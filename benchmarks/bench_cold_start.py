@@ -62,7 +62,9 @@ emitted in their own; the kernel's build ~1 s of CPU shorter, profile_cold_start
 the branch alternated, 3 rounds, load 3.4-6.2 (loaded: read the CPU, and the ratios only roughly): 721f59d cold 26.3,
 27.4, 49.0 s (CPU 20.8, 20.8, 24.0), warm 11.2, 12.1, 19.5 (CPU 8.5, 8.3, 9.6), ratio 2.34, 2.26, 2.52 (CPU 2.44, 2.50,
 2.50); the branch cold 30.7, 35.8, 44.7 (CPU 22.4, 21.1, 22.1), warm 12.9, 17.1, 19.9 (CPU 8.4, 9.2, 9.7), ratio 2.38,
-2.09, 2.25 (CPU 2.65, 2.30, 2.28): ~1 s of a cold run's ~12 s of compile CPU is below what a loaded machine resolves.
+2.09, 2.25 (CPU 2.65, 2.30, 2.28); again, 3 rounds at load 3.8-4.4: 721f59d cold CPU 20.2, 19.3, 19.2 s, warm 8.4, 7.7,
+7.6; the branch cold 19.7, 18.7, 18.9, warm 8.0, 7.8, 7.9: cold CPU branch / 721f59d pair by pair 0.98, 0.97, 0.98
+(0.4-0.6 s less); wall ratios 1.82, 2.74, 1.62 against 2.46, 2.58, 2.32 (load-bound, no gain or loss to read).
 1.3 x stays out of reach this way: the kernel's build (~4.2 s of CPU) ends ~3.4 s after a warm demo starts simulating.
 A portable cache measured (NUMBA_CPU_NAME=generic, whose features are then empty: baseline x86-64): the kernel's
 simulations the same bits, a 40 s sine 0.61-0.67 s of CPU against 0.58-0.61 for this CPU (emeraldrapids); its entries,
