@@ -57,6 +57,19 @@ Measured 2026-11-29 (19:27-19:34 UTC, quiet: load 1.2-1.5; `--commands demo`, ma
 13.9 s; warm 8.0, 7.1, 9.6; CPU ratios 2.58, 2.32, 2.03), f15571e 1.38, 1.85, 1.66 (CPU 1.76, 2.36, 2.14): medians 1.68
 against 1.66, no gain measured on a quiet machine; the child's gain was under load, where the parent's core was
 contended. The simulator kernel's build (~5 s of CPU after ~0.8 s of imports) is the critical path.
+Then (branch h-cold: symbolic.link_only, the kernel's helpers linked into simulate's library instead of optimised and
+emitted in their own; the kernel's build ~1 s of CPU shorter, profile_cold_start.py): `--commands demo`, 721f59d and
+the branch alternated, 3 rounds, load 3.4-6.2 (loaded: read the CPU, and the ratios only roughly): 721f59d cold 26.3,
+27.4, 49.0 s (CPU 20.8, 20.8, 24.0), warm 11.2, 12.1, 19.5 (CPU 8.5, 8.3, 9.6), ratio 2.34, 2.26, 2.52 (CPU 2.44, 2.50,
+2.50); the branch cold 30.7, 35.8, 44.7 (CPU 22.4, 21.1, 22.1), warm 12.9, 17.1, 19.9 (CPU 8.4, 9.2, 9.7), ratio 2.38,
+2.09, 2.25 (CPU 2.65, 2.30, 2.28); again, 3 rounds at load 3.8-4.4: 721f59d cold CPU 20.2, 19.3, 19.2 s, warm 8.4, 7.7,
+7.6; the branch cold 19.7, 18.7, 18.9, warm 8.0, 7.8, 7.9: cold CPU branch / 721f59d pair by pair 0.98, 0.97, 0.98
+(0.4-0.6 s less); wall ratios 1.82, 2.74, 1.62 against 2.46, 2.58, 2.32 (load-bound, no gain or loss to read).
+1.3 x stays out of reach this way: the kernel's build (~4.2 s of CPU) ends ~3.4 s after a warm demo starts simulating.
+A portable cache measured (NUMBA_CPU_NAME=generic, whose features are then empty: baseline x86-64): the kernel's
+simulations the same bits, a 40 s sine 0.61-0.67 s of CPU against 0.58-0.61 for this CPU (emeraldrapids); its entries,
+keyed (triple, "generic", ""), would serve any x86-64 machine of the same Python and Numba, but shipping them means
+compiled code in the package per platform and version: not done.
 """
 
 from __future__ import annotations

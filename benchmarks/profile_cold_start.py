@@ -51,6 +51,18 @@ compiles, moved: the total CPU is unchanged; what leaves the critical path is th
 build (0.3-0.7 s of CPU). What is left on it is the kernel's build itself: a cold demo waits for 1 + ~6 s of CPU
 where a warm one simulates after ~2. The kernel's build then forked before `dynid demo` imports the pipeline and the
 report (cli.main.cmd_demo): at 0.81-0.85 s of this process's CPU against 0.95-1.01 (3 cold starts each, alternated).
+Then (branch h-cold: symbolic.link_only, the kernel's helpers kept as LLVM IR that simulate links, optimises and emits
+once, not module-optimised and emitted in libraries of their own): `demo --in-process --phases`, 721f59d and the branch
+alternated, 2 rounds (load 5-5.5, so read the CPU): compiles 11.9, 11.2 s of CPU against 11.5, 10.3; LLVM's linking,
+module optimisation and machine code 3.31, 3.14 against 2.69, 2.45; the whole run 21.5, 20.7 against 21.1, 19.1 s.
+The kernel's build alone (one process, fresh caches, after a trivial compile as the forked build runs it; 4 pairs
+alternated, load 4-6): 5.5, 4.9, 5.4, 6.1 s of CPU against 4.7, 4.1, 4.4, 4.4 (LLVM 1.85 -> 1.10 s: module passes
+0.67 -> 0.29, machine code 0.63 -> 0.30), the simulations the same bits. What is left of it (~4.0-4.5 s at load 4):
+typing 1.6, Numba's lowering 1.7, LLVM 1.1 (the functions' own passes 0.5); derivative's own compile 1.6 s, simulate's
+1.0, the driver's family 0.7, NumPy's allocations in simulate 0.3. Tried and not kept (the kernel's build CPU, pairs
+alternated): the helpers' function passes skipped too (4.9, 4.9 against 4.2, 4.8 s; the simulation 10 % slower);
+simulate without its C entry (4.0, 4.1, 4.0 against 3.9, 4.1, 4.0: nothing); Numba's OPT for the whole kernel: 1
+(5.4 s against 6.1 at 3, the simulation 22 % slower), 0 (4.2 s, LLVM's passes 0.14 s, the simulation 10 x slower).
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@ is compiled by Numba from Python, with a warning."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -159,6 +160,33 @@ def test_internal_functions_compile_without_entry_points(tmp_path, monkeypatch):
     for f in (mod.twice, mod._cell):
         assert f.targetoptions["no_cpython_wrapper"] and f.targetoptions["no_cfunc_wrapper"]
     assert mod._cell is not _cell and _cell(b, 3, 2.5) == 2  # the original, unchanged, from Python
+
+
+def test_internal_functions_are_linked_into_their_callers_not_emitted(tmp_path, monkeypatch):
+    """compile_source(internal=...): a helper only jitted code calls is kept as LLVM IR (link_only: no module
+    optimisation, no machine code, not cached) and linked into its caller's library, which alone is emitted and
+    cached; the caller's numbers are those of the same body compiled with the helpers emitted as usual (the oracle,
+    to the bit: a loop, a division, libm's atan and tanh)."""
+    from numba.core.caching import NullCache
+    from numba.core.codegen import JITCodeLibrary
+
+    from dynid.symbolic.link_only import LinkOnlyLibrary
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    body = ("import math\n\n\ndef helper(a, x):\n    s = 0.0\n    for v in a:\n        s += math.atan(v / x)\n"
+            "    return s\n\n\ndef entry(a, x):\n    return math.tanh(helper(a, x)) / 3.0 + helper(a, 2.0 * x)\n")
+    key = nb.source_key("test link only", body)
+    linked = nb.compile_source(body, ["helper", "entry"], key, prefix="dynid_test_link", internal=["helper"])
+    usual = nb.compile_source(body, ["helper", "entry"], key, prefix="dynid_test_usual")
+    a = np.linspace(-3.0, 7.0, 101)
+    for x in (0.1, 0.7, 1.0 / 3.0, 5.0):
+        assert linked.entry(a, x) == usual.entry(a, x), x
+    (sig,) = linked.helper.signatures
+    lib = linked.helper.overloads[sig].library
+    assert isinstance(lib, LinkOnlyLibrary) and lib.get_pointer_to_function("anything") == 0
+    assert type(linked.entry.overloads[linked.entry.signatures[0]].library) is JITCodeLibrary
+    assert isinstance(linked.helper._cache, NullCache)  # not cached: its code is, in entry's
+    assert os.path.exists(linked.entry._cache._cache_file._index_path)
 
 
 def test_generated_sine_and_cosine_are_trigs_to_the_bit(tmp_path, monkeypatch):

@@ -72,12 +72,15 @@ def jit(fn):
 
 
 def internal_copy(dispatcher: Callable) -> Callable:
-    """A copy of a jitted function for jitted callers only: its options, without entry points (_NO_ENTRIES), not
-    cached (compile_source's `internal`)."""
+    """A copy of a jitted function for jitted callers only: its options, without entry points (_NO_ENTRIES), kept
+    as LLVM IR for its callers (link_only), not cached (compile_source's `internal`)."""
     from numba import njit  # start-up: numba 0.5 s
 
+    from .link_only import LinkOnlyCompiler
+
     options = {k: v for k, v in dispatcher.targetoptions.items() if k != "nopython"}  # njit sets it (and warns)
-    return njit(**options, no_cpython_wrapper=True, no_cfunc_wrapper=True)(dispatcher.py_func)
+    return njit(**options, no_cpython_wrapper=True, no_cfunc_wrapper=True,
+                pipeline_class=LinkOnlyCompiler)(dispatcher.py_func)
 
 
 _WARNED = [False]
@@ -179,8 +182,10 @@ def _cos(x):
 
 
 # what a function only jitted code calls goes without: the Python entry (unboxing each argument: large for a
-# function of many arrays) and the C entry, each lowered by Numba and optimised and emitted by LLVM
-_NO_ENTRIES = "no_cpython_wrapper=True, no_cfunc_wrapper=True"
+# function of many arrays) and the C entry, each lowered by Numba and optimised and emitted by LLVM; and without
+# its own module optimisation and machine code (link_only: its callers link its IR, optimise and emit it), so it
+# is not cached (its code is, in its callers')
+_NO_ENTRIES = "no_cpython_wrapper=True, no_cfunc_wrapper=True, pipeline_class=LinkOnlyCompiler"
 
 
 def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], error_model: str = "python",
@@ -188,10 +193,13 @@ def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], err
     """jit every name; those in `straight` (name -> its arguments) through their LLVM IR (llvm_code):
     a thin jitted wrapper calls the intrinsic, so that Python and jitted callers see one dispatcher.
     `internal` (compile_source): jitted without entry points, the imported ones from their Python function."""
-    opts = "cache=True" if error_model == "python" else f"cache=True, error_model={error_model!r}"
+    model = "" if error_model == "python" else f", error_model={error_model!r}"
+    opts = f"cache=True{model}"
     lines = ["", f"JITTED = {tuple(names)!r}", "try:", "    from numba import njit",
              "except ImportError:", "    NUMBA = False", "else:", "    NUMBA = True",
              *(f"    {f} = njit({opts})({f})" for f in ("_sign", "_sincos", "_sin", "_cos"))]
+    if any(n in internal for n in names):
+        lines.append("    from dynid.symbolic.link_only import LinkOnlyCompiler")
     # an imported dispatcher's copy keeps its own options (error model...), not this module's; it is not cached:
     # Numba's cache of it (by its file and name, not its flags) is the original's, which Python calls; the copy's
     # code is cached in its callers'
@@ -199,8 +207,8 @@ def _footer(names: list[str], mod_name: str, straight: dict[str, list[str]], err
     if copies:
         lines.append("    from dynid.symbolic.numba_backend import internal_copy")
     lines += [f"    {n} = internal_copy({n})" for n in copies]
-    lines += [f"    {n} = njit({opts}{', ' + _NO_ENTRIES if n in internal else ''})({n})" for n in names
-              if n not in straight]
+    lines += [f"    {n} = njit({model[2:] + ', ' if model else ''}{_NO_ENTRIES})({n})" if n in internal
+              else f"    {n} = njit({opts})({n})" for n in names if n not in straight]
     if straight:
         lines.append("    from dynid.symbolic.llvm_code import straight_line")
     for n, args in straight.items():
@@ -241,7 +249,8 @@ def compile_source(body: str | None, names: list[str], key: str, prefix: str = "
     Numba types and lowers no check per division; it changes the machine code, so the caller's key must hold it).
     internal: functions only the module's jitted code calls (not Python): of `names`, or dispatchers the body
     imports (recompiled here from their Python functions); compiled without entry points (_NO_ENTRIES), which a
-    first run would otherwise lower, optimise and emit for nothing (the key must hold the list).
+    first run would otherwise lower, optimise and emit for nothing, and kept as LLVM IR that their callers link
+    (link_only: not cached themselves, their code is in their callers'; the key must hold the list).
 
     Functions are compiled lazily by numba (at their first call); `warm` calls them. Without
     numba the module runs as plain Python (NumbaMissingWarning). body None: load from the cache

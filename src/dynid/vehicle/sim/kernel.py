@@ -518,5 +518,6 @@ def call_model(address, arrays):
 JITTED = ("smoothstep", "path_offset", "fishhook_angle", "random_angle", "table_value", "driver",
           "reduced_inertia", "lu_solve", "derivative", "simulate")
 # called by the kernel only: compiled without Python and C entry points (numba_backend.compile_source), a
-# first run's kernel compile 0.8-0.9 s of CPU less (of ~7.5: the entries of derivative's 35 arrays the most)
+# first run's kernel compile 0.8-0.9 s of CPU less (of ~7.5: the entries of derivative's 35 arrays the most), and
+# kept as LLVM IR for simulate to link (symbolic.link_only: ~1 s less, of ~5.4)
 INTERNAL = (*JITTED[:-1], "eval_table", "magic_formula", "eval_ppoly")
