@@ -189,6 +189,23 @@ def test_internal_functions_are_linked_into_their_callers_not_emitted(tmp_path, 
     assert os.path.exists(linked.entry._cache._cache_file._index_path)
 
 
+def test_a_numba_without_what_link_only_uses_compiles_the_usual_way(tmp_path, monkeypatch):
+    """Where Numba's private code library lacks what LinkOnlyLibrary uses (another version), a helper compiles the
+    usual way, with the same numbers, instead of failing: simulated by asking for an attribute no version has."""
+    from dynid.symbolic import link_only
+
+    monkeypatch.setenv("DYNID_CACHE", str(tmp_path))
+    monkeypatch.setattr(link_only, "_USED", (*link_only._USED, "_no_such_attribute"))
+    monkeypatch.setattr(link_only, "_FITS", [])
+    body = "def helper(x):\n    return x / 3.0\n\n\ndef entry(x):\n    return helper(x) + 1.0\n"
+    mod = nb.compile_source(body, ["helper", "entry"], nb.source_key("test link only off", body),
+                            prefix="dynid_test_link_off", internal=["helper"])
+    assert mod.entry(2.0) == 2.0 / 3.0 + 1.0
+    (sig,) = mod.helper.signatures
+    assert not isinstance(mod.helper.overloads[sig].library, link_only.LinkOnlyLibrary)
+    assert link_only._FITS == [False]
+
+
 def test_generated_sine_and_cosine_are_trigs_to_the_bit(tmp_path, monkeypatch):
     """A generated model's sine and cosine (a revolute joint's dgm: T1 holds cos q1 and sin q1) are
     dynamics.trig's, run by Python, to the bit: compiled from LLVM IR (native_functions: the simulator's models;

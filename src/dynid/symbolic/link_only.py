@@ -67,6 +67,21 @@ class LinkOnlyCompiler(compiler.Compiler):
     no_cpython_wrapper=True, no_cfunc_wrapper=True)`, without cache=True)."""
 
     def compile_extra(self, func):
-        if self.state.library is None:
+        if self.state.library is None and _fits(self.state.targetctx.codegen()):
             self.state.library = LinkOnlyLibrary(self.state.targetctx.codegen(), func.__qualname__)
         return super().compile_extra(func)
+
+
+# what LinkOnlyLibrary.finalize uses of Numba's private JITCodeLibrary (as of Numba 0.60-0.68)
+_USED = ("_linking_libraries", "_final_module", "_reload_init", "_get_module_for_linking",
+         "_finalize_dynamic_globals", "_raise_if_finalized", "_codegen")
+_FITS: list[bool] = []
+
+
+def _fits(cg) -> bool:
+    """Whether this Numba's code library has what LinkOnlyLibrary uses; if not (another version), the functions
+    compile the usual way: a first run a second slower, nothing else."""
+    if not _FITS:
+        probe = cg.create_library("dynid_link_only_probe")
+        _FITS.append(isinstance(probe, codegen.JITCodeLibrary) and all(hasattr(probe, a) for a in _USED))
+    return _FITS[0]
