@@ -536,7 +536,9 @@ def _open_binary(path: str) -> BinaryIO:
 # local file's footer over FOOTER_WHOLE bytes in the file (~1 h of 60 channels at 625 Hz in 65536-row groups) is kept
 # cut per row group instead (`parquet_format.SplitFooter`: its bytes around the row-group list and each group's place,
 # a few kB whatever the length), and a window opens its row group through a footer of that group alone (0.3 ms more
-# than through a kept footer, a 60 s segment's two groups 0.7 ms of its ~150 ms).
+# than through a kept footer, a 60 s segment's two groups 0.7 ms of its ~150 ms). An hour of such a log's `identify`:
+# 156 opens, 0.2 s of CPU in all (the cut once 0.08 s: it walks the footer in Python, ~60 ms an hour of data), its
+# CPU within the noise of the footer kept whole (12.2 against 12.9 s, load 5); the kept footer 2 kB, not 1.9 MB.
 FOOTER_FILES = 4
 FOOTER_WHOLE = 256 * 2**10
 # file key -> (FileMetaData or SplitFooter, Arrow schema)
