@@ -155,3 +155,23 @@ def test_a_parquet_car_identification_equals_the_held_clock_s(tmp_path, monkeypa
 def plan_of_spec(cfg, spec):
     return plan_car_test(cfg, spec, required_channels(spin=False, suite=VEHICLE.suite), VEHICLE.suite.units,
                          cfg.car.segment, lambda fs: 40)
+
+
+def test_a_car_plan_and_its_segments_read_through_a_footer_cut_per_row_group_are_the_same(tmp_path, monkeypatch):
+    """A long log's footer is kept cut per row group (`io.windows.FOOTER_WHOLE`, 0 here: this short log's too): the
+    plan (its clock, segments, rates) and every segment's channels equal those read through the footer kept whole,
+    the code before, bit for bit."""
+    from dynid.io import parquet_format, windows
+
+    cfg, _ = write_log(tmp_path, 20_000)
+    windows.clear_cache()
+    whole = plan_of(cfg)
+    want = [read_segment(segment_window(whole, lo, hi)) for lo, hi in whole.segments]
+    monkeypatch.setattr(windows, "FOOTER_WHOLE", 0)
+    windows.clear_cache()
+    cut = plan_of(cfg)
+    assert any(isinstance(k[0], parquet_format.SplitFooter) for k in windows._footers.values())
+    assert pickle.dumps(cut) == pickle.dumps(whole)
+    for (lo, hi), a in zip(cut.segments, want, strict=True):
+        b = read_segment(segment_window(cut, lo, hi))
+        assert a.keys() == b.keys() and all(np.array_equal(a[q].view(np.int64), b[q].view(np.int64)) for q in a)

@@ -140,22 +140,38 @@ def noise_deviation(x: NDArray[np.float64], resolution: float = 0.0) -> float:
 
 @dataclass
 class _Spans:
-    """Spans (t_start, t_end) of one kind in a channel, with the samples they hold."""
+    """Spans (t_start, t_end) of one kind in a channel, with the samples they hold, in what a finding says of them
+    alone (a long log of a spiky channel finds thousands: none held beyond these): their count, the first
+    `_SHOWN` in time order and the last, the `_SHOWN` + 1 first of the values read there as the finding writes them
+    (`suffix`: the unit), and the farthest from 0 (the first of the farthest, in the order added)."""
 
-    spans: list[tuple[float, float]] = field(default_factory=list)
+    suffix: str = ""
+    count: int = 0
     samples: int = 0
-    values: list[float] = field(default_factory=list)  # what the channel read there (the plateau, the spike)
+    first: list[tuple[float, float]] = field(default_factory=list)  # sorted
+    last: tuple[float, float] | None = None
+    levels: list[str] = field(default_factory=list)  # distinct, sorted
+    top: float | None = None
 
     def add(self, t0: float, t1: float, n: int, value: float) -> None:
-        self.spans.append((t0, t1))
+        self.count += 1
         self.samples += n
-        self.values.append(value)
+        self.first = sorted([*self.first, (t0, t1)])[:_SHOWN]
+        self.last = (t0, t1) if self.last is None else max(self.last, (t0, t1))
+        self.levels = sorted({*self.levels, f"{value:g}{self.suffix}"})[:_SHOWN + 1]
+        if self.top is None or abs(value) > abs(self.top):
+            self.top = value
 
     def copy(self) -> _Spans:
-        return _Spans(list(self.spans), self.samples, list(self.values))
+        return _Spans(self.suffix, self.count, self.samples, list(self.first), self.last, list(self.levels), self.top)
 
     def merged(self, other: _Spans) -> _Spans:
-        return _Spans(self.spans + other.spans, self.samples + other.samples, self.values + other.values)
+        """self's spans then other's."""
+        top = self.top if other.top is None or (self.top is not None and abs(other.top) <= abs(self.top)) else other.top
+        last = max((s for s in (self.last, other.last) if s is not None), default=None)
+        levels = sorted({*self.levels, *other.levels})[:_SHOWN + 1]
+        return _Spans(self.suffix, self.count + other.count, self.samples + other.samples,
+                      sorted(self.first + other.first)[:_SHOWN], last, levels, top)
 
 
 class ChannelScan:
@@ -181,11 +197,12 @@ class ChannelScan:
         self.first_value: float | None = None
         self.constant = True
         self.t_first = self.t_last = float("nan")
-        self.out = _Spans()
-        self.at_limit = _Spans()
-        self.plateau = _Spans()
-        self.spikes = _Spans()
-        self.wild = _Spans()  # spikes beyond any value the rest of the channel has (WILD)
+        u = f" {unit}" if unit else ""  # as the findings write a value
+        self.out = _Spans(u)
+        self.at_limit = _Spans(u)
+        self.plateau = _Spans(u)
+        self.spikes = _Spans(u)
+        self.wild = _Spans(u)  # spikes beyond any value the rest of the channel has (WILD)
         self.span = (float("inf"), float("-inf"))  # the rest's extent (0.1 %..99.9 % of each block)
 
     def add(self, t: NDArray[np.float64], x: NDArray[np.float64]) -> None:
@@ -361,14 +378,13 @@ class ChannelScan:
                                   (self.plateau, "clipped", "flat at its extreme")):
             if not spans.samples:
                 continue
-            spans.spans.sort()
             share = spans.samples / self.n
             severe = share >= SEVERE_SHARE or kind == "out of range"
             lim = f"({self.limits[0]:g}..{self.limits[1]:g}{u})" if self.limits else ""
-            level = sorted({f"{v:g}{u}" for v in spans.values})
+            level = spans.levels
             detail = (f"{what.format(lim=lim)} on {spans.samples} sample(s), {100 * share:.3g} % of the test "
                       f"({', '.join(level[:_SHOWN])}{', ...' if len(level) > _SHOWN else ''}), in "
-                      f"{len(spans.spans)} span(s) ({_listed(spans.spans)})")
+                      f"{spans.count} span(s) ({_listed(spans)})")
             if kind == "out of range":
                 fix = ("the sensor cannot give these values: a corrupt sample or a wrong unit or scale; cut the test "
                        "(start, end) to leave them out, or fix the export")
@@ -377,21 +393,21 @@ class ChannelScan:
                        "range that covers the test, or cut the test (start, end) to a part without them")
             else:
                 fix = "short saturations: check the sensor's range; estimates may be biased if they grow"
-            out.append(Finding(self.name, kind, ERROR if severe else WARNING, spans.spans[0][0], spans.spans[-1][1],
+            out.append(Finding(self.name, kind, ERROR if severe else WARNING, spans.first[0][0], spans.last[1],
                                detail, fix, share))
         if self.wild.samples:
             sp = self.wild
             out.append(Finding(
-                self.name, "spike", ERROR, sp.spans[0][0], sp.spans[-1][1],
-                f"{len(sp.spans)} spike(s) far beyond the rest of the channel ({_listed(sp.spans)}; up to "
-                f"{max(sp.values, key=abs):g}{u}, the rest within {self.span[0]:g}..{self.span[1]:g}{u})",
+                self.name, "spike", ERROR, sp.first[0][0], sp.last[1],
+                f"{sp.count} spike(s) far beyond the rest of the channel ({_listed(sp)}; up to "
+                f"{sp.top:g}{u}, the rest within {self.span[0]:g}..{self.span[1]:g}{u})",
                 "no sensor reads that: a corrupt sample or a logger's error code; fix or remove the sample in the "
                 "file (its neighbours' mean), or cut the test (start, end) to leave it out", sp.samples / self.n))
         elif self.spikes.samples:
             sp = self.spikes
             out.append(Finding(
-                self.name, "spike", WARNING, sp.spans[0][0], sp.spans[-1][1],
-                f"{len(sp.spans)} spike(s) ({_listed(sp.spans)}; up to {max(sp.values, key=abs):g}{u})",
+                self.name, "spike", WARNING, sp.first[0][0], sp.last[1],
+                f"{sp.count} spike(s) ({_listed(sp)}; up to {sp.top:g}{u})",
                 "a spike is low-passed into a bump of the equations around it: cut the test (start, end) to leave "
                 "it out, or replace the sample by its neighbours' mean in the file", sp.samples / self.n))
         return sorted(out, key=lambda f: f.severity != ERROR)
@@ -404,9 +420,9 @@ def _noisy(y: NDArray[np.float64]) -> bool:
     return step.size >= NEAR // 2 and float(np.mean(step[1:] != step[:-1])) >= REVERSALS
 
 
-def _listed(spans: list[tuple[float, float]]) -> str:
-    shown = [f"t = {a:.6g} s" if a == b else f"t = {a:.6g}..{b:.6g} s" for a, b in spans[:_SHOWN]]
-    return "; ".join(shown) + (" ..." if len(spans) > _SHOWN else "")
+def _listed(spans: _Spans) -> str:
+    shown = [f"t = {a:.6g} s" if a == b else f"t = {a:.6g}..{b:.6g} s" for a, b in spans.first]
+    return "; ".join(shown) + (" ..." if spans.count > _SHOWN else "")
 
 
 __all__ = ["ERROR", "NOTE", "SEVERE_SHARE", "WARNING", "ChannelScan", "Finding", "holds", "noise_deviation"]

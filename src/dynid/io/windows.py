@@ -52,7 +52,9 @@ them a million rows long (pyarrow's default), far longer than a window. The memo
 needs is therefore bounded by the cache and the row-group size, not by the file's length;
 dynid's `write_parquet` writes row groups of 65536 rows, which need far less. A Parquet file's footer (its
 metadata, which lists every row group) is parsed once per process too, for at most `FOOTER_FILES` (4) files, and
-again when the file's size or modification time changes.
+again when the file's size or modification time changes; a local file's footer of more than `FOOTER_WHOLE` bytes is
+kept cut per row group (`parquet_format.SplitFooter`), a window's row group read through a footer of its own, so
+that what is kept does not grow with the file's length.
 
 The CSV index parses only the time column (and checks every row has a stamp); the other
 cells are parsed, and a bad one reported as `read_csv` reports it, when a window reads them.
@@ -373,7 +375,7 @@ TINY_ROW_GROUP = 100
 
 def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
     """Every row of every column asked for holds a sample (statistics of every row group say no null)."""
-    pfile, schema = _open_parquet(index.path)
+    pfile, schema, _ = _open_parquet(index.path)
     meta = pfile.metadata
     where = {schema.names[i]: i for i in range(meta.num_columns)}
     columns = index.info("columns", {})
@@ -389,7 +391,7 @@ def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
 def _parquet_stamps(index: FileIndex) -> NDArray[np.float64]:
     """The file's time column (or row / fs), decoded block by block as the whole-file reader decodes it."""
     _check_unchanged(index)
-    opened: list[Any] = []
+    opened: dict[int | None, tuple] = {}
     out = np.empty(sum(b.rows for b in index.blocks))  # filled block by block: no list of parts to concatenate
     at = 0
     for b in index.blocks:
@@ -426,7 +428,7 @@ def stamp_blocks(index: FileIndex, lo: int = 0, hi: int | None = None, store: bo
         raise ValueError(f"stamp_rows reads a Parquet file's stamps, not a {index.format} file's")
     _check_unchanged(index)
     hi = index.rows if hi is None else hi
-    opened: list[Any] = []
+    opened: dict[int | None, tuple] = {}
     row = 0  # the block's first row among the stamps
     for b in index.blocks:
         if row >= hi:
@@ -530,9 +532,17 @@ def _open_binary(path: str) -> BinaryIO:
 
 # Parquet footers (FileMetaData) kept per process, least recently used dropped first: a file's windows each open
 # it, and parsing its footer, which lists every row group's column chunks, cost 0.3 ms for 10 min of 56 columns and
-# 7 ms for 6 h, each time. In memory a footer is ~8 times its size in the file: ~11 MB for 6 h of 56 columns.
+# 7 ms for 6 h, each time. In memory a footer is ~8 times its size in the file: ~11 MB for 6 h of 56 columns; so a
+# local file's footer over FOOTER_WHOLE bytes in the file (~1 h of 60 channels at 625 Hz in 65536-row groups) is kept
+# cut per row group instead (`parquet_format.SplitFooter`: its bytes around the row-group list and each group's place,
+# a few kB whatever the length), and a window opens its row group through a footer of that group alone (0.3 ms more
+# than through a kept footer, a 60 s segment's two groups 0.7 ms of its ~150 ms). An hour of such a log's `identify`:
+# 156 opens, 0.2 s of CPU in all (the cut once 0.08 s: it walks the footer in Python, ~60 ms an hour of data), its
+# CPU within the noise of the footer kept whole (12.2 against 12.9 s, load 5); kept: 10.5 kB (4 h: 13 kB), not 1.9 MB.
 FOOTER_FILES = 4
-_footers: OrderedDict[tuple, tuple[Any, Any]] = OrderedDict()  # file key -> (FileMetaData, Arrow schema)
+FOOTER_WHOLE = 256 * 2**10
+# file key -> (FileMetaData or SplitFooter, Arrow schema)
+_footers: OrderedDict[tuple, tuple[Any, Any]] = OrderedDict()
 
 
 def _footer_key(path: str, where: tuple[Any, str] | None) -> tuple:
@@ -544,15 +554,23 @@ def _footer_key(path: str, where: tuple[Any, str] | None) -> tuple:
     return (path, *_stat(path))
 
 
-def _open_parquet(path: str) -> tuple[Any, Any]:
-    """(the `ParquetFile`, its Arrow schema); the footer parsed (and the schema built) once per process while the
-    file is unchanged (`FOOTER_FILES`), both immutable and so shared by the threads."""
+def _open_parquet(path: str, group: int | None = None) -> tuple[Any, Any, int | None]:
+    """(a `ParquetFile`, its Arrow schema, None: the file's every row group is in it at its own index; or 0: it holds
+    `group` alone, as its row group 0); the footer parsed (and the schema built) once per process while the file is
+    unchanged (`FOOTER_FILES`), both immutable and so shared by the threads. group: the row group to read (None: the
+    whole footer asked for); a footer kept cut per row group (`FOOTER_WHOLE`) gives a file of that group alone, or,
+    for None, the whole footer parsed anew and not kept."""
     where = _where(path)
     key = _footer_key(path, where)
     with _lock:
         kept = _footers.get(key)
         if kept is not None:
             _footers.move_to_end(key)
+    if kept is not None and isinstance(kept[0], parquet_format.SplitFooter):
+        if group is not None:
+            meta = kept[0].group_metadata(path, group)
+            return parquet_format.open_parquet(path, path, metadata=meta), kept[1], 0
+        return parquet_format.open_parquet(path, path), kept[1], None
     meta = None if kept is None else kept[0]
     if where is None:
         pfile = parquet_format.open_parquet(path, path, metadata=meta)
@@ -560,15 +578,18 @@ def _open_parquet(path: str) -> tuple[Any, Any]:
         fs, inner = where
         pfile = parquet_format.open_parquet(inner, path, filesystem=fs, metadata=meta)
     if kept is None:
-        kept = (pfile.metadata, pfile.schema_arrow)
+        full = pfile.metadata
+        split = (parquet_format.split_footer(path, full) if where is None and full.serialized_size > FOOTER_WHOLE
+                 else None)
+        kept = (full if split is None else split, pfile.schema_arrow)
         if _footer_key(path, where) != key:  # rewritten while its footer was read: not kept under the old key
-            return pfile, kept[1]
+            return pfile, kept[1], None
         with _lock:
             _footers[key] = kept
             _footers.move_to_end(key)
             while len(_footers) > FOOTER_FILES:
                 _footers.popitem(last=False)
-    return pfile, kept[1]
+    return pfile, kept[1], None
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -780,7 +801,7 @@ def _block_recording(
             cols = columns[:1]  # the row count of a table without time column
     else:
         lines = None
-        opened: list[Any] = []  # the ParquetFile and its schema, opened on the first column not in the cache
+        opened: dict[int | None, tuple] = {}  # each row group's file, opened on its first column not in the cache
         cols = [_parquet_column(index, block, n, opened, store) for n in wanted]
     label = Path(index.path)
     row0 = block.row0
@@ -989,7 +1010,7 @@ def _index_csv(p: Path, label: str, options: dict[str, Any], block_rows: int, st
 
 def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int, stat: tuple[int, int]) -> FileIndex:
     pa = require("pyarrow", "Reading Parquet files")
-    pfile, schema = _open_parquet(label)
+    pfile, schema, _ = _open_parquet(label)
     metadata = parquet_format.schema_metadata(schema)
     fields = [f for f in schema if parquet_format.is_numeric(pa, f.type)]
     skipped = {f.name: f"column of type {f.type}, not numeric" for f in schema if f not in fields}
@@ -1040,15 +1061,23 @@ def _index_parquet(p: Path, label: str, options: dict[str, Any], block_rows: int
     )
 
 
-def _parquet_column(index: FileIndex, block: Block, name: str, opened: list[Any], store: bool) -> Column:
+def _parquet_column(index: FileIndex, block: Block, name: str, opened: dict[int | None, tuple], store: bool
+                    ) -> Column:
+    """opened: the file opened for the caller's reads, by the first column not in the cache: under None when its
+    every row group is in it, else under the group it alone holds (a footer kept cut per row group: only the last
+    group's file kept, a pass over the blocks holds one file open, not one per group)."""
     def make() -> Column:
         pa = require("pyarrow", "Reading Parquet files")
-        if not opened:  # the file and its Arrow schema, opened on the first column not in the cache
-            opened.extend(_open_parquet(index.path))
-        pfile, schema = opened
+        hit = opened.get(None) or opened.get(block.group)
+        if hit is None:
+            hit = _open_parquet(index.path, block.group)
+            opened.clear()
+            opened[None if hit[2] is None else block.group] = hit
+        pfile, schema, own = hit
+        group = block.group if own is None else own
         column = index.info("columns", {}).get(name, name)  # the file's name of the channel
         field = schema.field(column)
-        col = parquet_format.read_columns(pfile, index.path, [column], block.group).column(0)
+        col = parquet_format.read_columns(pfile, index.path, [column], group).column(0)
         # read-only views of the decoded buffers, not copies: what the cache keeps is shared by every window anyway
         return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path,
                                              copy=False)
