@@ -103,3 +103,28 @@ def test_a_dropped_job_leaves_no_child_running():
         else:
             raise AssertionError("the dropped job's child is still there")
     """)
+
+
+@linux
+def test_a_cancelled_job_is_gone_before_cancel_returns_and_its_work_never_done():
+    """cancel(): the child killed and reaped at once, even while its caller still holds the job (a caller that
+    raised: its frame keeps the job alive, and the folder the child writes into is about to be removed)."""
+    in_a_fresh_process("""
+        import os, tempfile, time
+        from pathlib import Path
+        from dynid.report.apart import Apart
+        mark = Path(tempfile.mkdtemp()) / "late"
+        job = Apart(lambda: (time.sleep(1.0), mark.write_text("written")))
+        pid = job.pid
+        assert pid is not None
+        job.cancel()
+        try:  # killed and reaped: no such child any more
+            os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            pass
+        else:
+            raise AssertionError("the cancelled job's child is still there")
+        time.sleep(1.5)
+        assert not mark.exists()
+        job.cancel()  # twice: nothing more to do
+    """)
