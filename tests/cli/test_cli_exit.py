@@ -1,8 +1,10 @@
 """The `dynid` command ends its process once a command is done (cli.main._leave): its output flushed, the atexit
 handlers run, its exit status kept, Python's teardown of the modules skipped; main(argv) called in a process returns.
+`dynid demo` runs with the library's objects frozen out of the collector's full scans, and gives them back.
 
 Oracle: what a fresh interpreter running the entry point prints (an object's __del__ writes only if the teardown
-runs; an atexit handler; the command's own last line, printed by the in-process call) and its exit status.
+runs; an atexit handler; the command's own last line, printed by the in-process call) and its exit status; gc's
+count of frozen objects.
 """
 
 import subprocess
@@ -47,3 +49,26 @@ def test_a_failed_command_keeps_its_exit_status_and_message():
     assert proc.returncode == 2
     assert proc.stderr.startswith("dynid: error: no-such-model.toml")
     assert proc.stdout.splitlines() == ["ATEXIT"]
+
+
+def test_the_demo_runs_with_the_library_frozen_out_of_the_collector_and_gives_it_back(tmp_path, monkeypatch, capsys):
+    """cmd_demo freezes the objects alive once the library is imported (gc.freeze: the collector's full scans skip
+    them) and unfreezes them when it ends, here on an error (the caller's process, as it was)."""
+    import gc
+
+    import dynid.pipeline.demo as demo
+    from dynid.cli.main import main
+    from dynid.pipeline.config import ConfigError
+
+    seen = []
+
+    def run_demo(*_a, **_k):
+        seen.append(gc.get_freeze_count())
+        raise ConfigError("stopped here")
+
+    monkeypatch.setattr(demo, "run_demo", run_demo)
+    assert gc.get_freeze_count() == 0
+    assert main(["demo", "--quick", "--out", str(tmp_path / "out")]) == 2
+    assert "stopped here" in capsys.readouterr().err
+    assert seen and seen[0] > 10_000  # the library's objects (numpy, scipy, numba, dynid: ~185k)
+    assert gc.get_freeze_count() == 0
