@@ -212,7 +212,8 @@ def simulate_and_write(out: Path, quick: bool = False, seed: int = 406, progress
     before = cpu_times()
     sim = _ready_simulator(say, vehicle)
     if share is None:
-        share = idle_cores(before, cpu_times(), len(os.sched_getaffinity(0))) >= IDLE_CORES
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        share = idle_cores(before, cpu_times(), cores) >= IDLE_CORES
     suite = load_vehicle(vehicle).suite
     (out / "data").mkdir(parents=True, exist_ok=True)
     durations = [short if quick else full for *_, full, short in TESTS]
@@ -285,9 +286,8 @@ def run_demo(out: Path, quick: bool = False, seed: int = 406, progress: Progress
         warm = WarmUp(task)  # it starts once this process waits for the kernel; without fork, runs here then
         while_kernel_builds(warm.go if warm.started else task)
     try:
-        # a first run's warm-up child has the other core: the tests in this process alone then
-        config = simulate_and_write(out, quick, seed, say, simulation_progress, vehicle, share=None if warm is None
-                                    else False)
+        share = None if warm is None else False  # a first run's warm-up child has the other core: no share then
+        config = simulate_and_write(out, quick, seed, say, simulation_progress, vehicle, share)
     except BaseException:
         if warm is not None:
             warm.finish(timeout=0.0)  # no identification to come: the child killed at once
