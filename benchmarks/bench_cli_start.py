@@ -31,13 +31,11 @@ TARGET_S = 0.5
 
 # runs the command as the entry point does, then names the heavy libraries it imported
 PROBE = f"""
-import runpy, sys
+import atexit, runpy, sys
+# at exit: a command that ends normally ends the process in the entry point (cli.main._leave), atexit handlers run
+atexit.register(lambda: print("HEAVY:", *[m for m in {HEAVY!r} if m in sys.modules], file=sys.stderr))
 sys.argv = ["dynid", *sys.argv[1:]]
-try:
-    runpy.run_module("dynid.cli.main", run_name="__main__")
-except SystemExit:
-    pass
-print("HEAVY:", *[m for m in {HEAVY!r} if m in sys.modules], file=sys.stderr)
+runpy.run_module("dynid.cli.main", run_name="__main__")
 """
 
 

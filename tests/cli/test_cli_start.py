@@ -13,13 +13,11 @@ HEAVY = ("numpy", "scipy", "numba", "matplotlib", "sympy")
 
 # the command as the `dynid` script runs it, then the heavy libraries that were imported
 PROBE = f"""
-import runpy, sys
+import atexit, runpy, sys
+# at exit: a command that ends normally ends the process in the entry point (cli.main._leave), atexit handlers run
+atexit.register(lambda: print("HEAVY:", *[m for m in {HEAVY!r} if m in sys.modules]))
 sys.argv = ["dynid", *sys.argv[1:]]
-try:
-    runpy.run_module("dynid.cli.main", run_name="__main__")
-except SystemExit:
-    pass
-print("HEAVY:", *[m for m in {HEAVY!r} if m in sys.modules])
+runpy.run_module("dynid.cli.main", run_name="__main__")
 """
 
 

@@ -87,19 +87,26 @@ def test_no_fork_beside_another_thread():
 
 
 @linux
-def test_a_dropped_job_leaves_no_child_running():
-    in_a_fresh_process("""
-        import gc, os, time
+@pytest.mark.parametrize("end", ["del job; gc.collect()", "job.cancel(); job.cancel()"], ids=["dropped", "cancelled"])
+def test_a_dropped_or_cancelled_job_leaves_no_child_running_and_its_work_undone(end):
+    """A job dropped uncollected (the caller raised), or cancelled (at once, even while a caller that raised still
+    holds it in its frame: the folder its child writes into is about to be removed): its child killed and reaped,
+    its work never done; a second cancel does nothing."""
+    in_a_fresh_process(f"""
+        import gc, os, tempfile, time
+        from pathlib import Path
         from dynid.report.apart import Apart
-        job = Apart(lambda: time.sleep(60))
+        mark = Path(tempfile.mkdtemp()) / "late"
+        job = Apart(lambda: (time.sleep(1.0), mark.write_text("written")))
         pid = job.pid
         assert pid is not None
-        del job
-        gc.collect()
+        {end}
         try:  # killed and reaped: no such child any more
             os.waitpid(pid, os.WNOHANG)
         except ChildProcessError:
             pass
         else:
-            raise AssertionError("the dropped job's child is still there")
+            raise AssertionError("the job's child is still there")
+        time.sleep(1.5)
+        assert not mark.exists()
     """)

@@ -57,6 +57,13 @@ class Apart(Generic[T]):
                 return pickle.loads(data)
         return self.fn()  # no fork, or the child failed: here (its error, if any, raised here)
 
+    def cancel(self) -> None:
+        """The child killed and reaped now, its value dropped (the caller raised and will not ask for it: a child
+        still writing files after the caller has removed their folder would leave them behind)."""
+        if self.pid is not None:
+            self.pid = None
+            self._reap()
+
 
 def can_fork() -> bool:
     """Whether this process may fork: Linux, and one thread (another thread's locks would stay held in the child's

@@ -1,0 +1,74 @@
+"""The `dynid` command ends its process once a command is done (cli.main._leave): its output flushed, the atexit
+handlers run, its exit status kept, Python's teardown of the modules skipped; main(argv) called in a process returns.
+`dynid demo` runs with the library's objects frozen out of the collector's full scans, and gives them back.
+
+Oracle: what a fresh interpreter running the entry point prints (an object's __del__ writes only if the teardown
+runs; an atexit handler; the command's own last line, printed by the in-process call) and its exit status; gc's
+count of frozen objects.
+"""
+
+import subprocess
+import sys
+
+# the entry point as the `dynid` script runs it, with an object that says when the teardown deletes it
+PROBE = """
+import atexit, os, runpy, sys
+
+
+class Watch:
+    def __del__(self, write=os.write):  # the teardown clears this module's names: write bound now
+        write(1, b"TEARDOWN\\n")
+
+
+watch = Watch()
+atexit.register(lambda: print("ATEXIT"))
+sys.argv = ["dynid", *sys.argv[1:]]
+runpy.run_module("dynid.cli.main", run_name="__main__")
+print("AFTER")  # reached only if main() returned
+"""
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, timeout=120)
+
+
+def test_a_command_ends_the_process_with_its_output_and_atexit_handlers_but_no_teardown(capsys):
+    from dynid.cli.main import main
+
+    assert main(["model", "show", "tx40"]) == 0  # in a process: main returns
+    last = capsys.readouterr().out.rstrip().splitlines()[-1]
+    proc = _run("model", "show", "tx40")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.rstrip().splitlines()
+    assert lines[-2:] == [last, "ATEXIT"]  # the whole output (a pipe: buffered), then the handlers
+    assert "AFTER" not in lines and "TEARDOWN" not in lines
+
+
+def test_a_failed_command_keeps_its_exit_status_and_message():
+    proc = _run("model", "show", "no-such-model.toml")
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("dynid: error: no-such-model.toml")
+    assert proc.stdout.splitlines() == ["ATEXIT"]
+
+
+def test_the_demo_runs_with_the_library_frozen_out_of_the_collector_and_gives_it_back(tmp_path, monkeypatch, capsys):
+    """cmd_demo freezes the objects alive once the library is imported (gc.freeze: the collector's full scans skip
+    them) and unfreezes them when it ends, here on an error (the caller's process, as it was)."""
+    import gc
+
+    import dynid.pipeline.demo as demo
+    from dynid.cli.main import main
+    from dynid.pipeline.config import ConfigError
+
+    seen = []
+
+    def run_demo(*_a, **_k):
+        seen.append(gc.get_freeze_count())
+        raise ConfigError("stopped here")
+
+    monkeypatch.setattr(demo, "run_demo", run_demo)
+    assert gc.get_freeze_count() == 0
+    assert main(["demo", "--quick", "--out", str(tmp_path / "out")]) == 2
+    assert "stopped here" in capsys.readouterr().err
+    assert seen and seen[0] > 10_000  # the library's objects (numpy, scipy, numba, dynid: ~185k)
+    assert gc.get_freeze_count() == 0
