@@ -127,11 +127,22 @@ def test_tasks_are_dropped_when_the_kernel_is_cached(monkeypatch):
     assert not car._MEANWHILE and not log
 
 
+@pytest.fixture
+def forkable(monkeypatch):
+    """The warm-up's child made whatever other threads this test process has: an earlier test file on the same
+    worker can leave an idle daemon thread behind (Dask's offload pool, for the process's life), and then can_fork()
+    refuses, as it must in a run (test_no_fork_beside_another_thread); these tests are of the child's life."""
+    import dynid.pipeline.first_run as first_run
+
+    monkeypatch.setattr(first_run, "can_fork", lambda: sys.platform.startswith("linux"))
+
+
 def _pid_to(path):
     """A warm-up task that writes the pid of the process it runs in."""
     return lambda: path.write_text(str(os.getpid()))
 
 
+@pytest.mark.usefixtures("forkable")
 def test_the_warm_up_runs_in_a_child_once_let_go_and_is_awaited(tmp_path):
     mark = tmp_path / "ran"
     warm = WarmUp(_pid_to(mark))
@@ -143,6 +154,7 @@ def test_the_warm_up_runs_in_a_child_once_let_go_and_is_awaited(tmp_path):
     assert mark.exists() and int(mark.read_text()) != os.getpid()  # done by finish(), in another process
 
 
+@pytest.mark.usefixtures("forkable")
 def test_a_warm_up_never_let_go_does_nothing_and_leaves_no_child(tmp_path):
     mark = tmp_path / "ran"
     warm = WarmUp(_pid_to(mark))
@@ -153,6 +165,7 @@ def test_a_warm_up_never_let_go_does_nothing_and_leaves_no_child(tmp_path):
         os.waitpid(pid, os.WNOHANG)
 
 
+@pytest.mark.usefixtures("forkable")
 def test_a_stuck_warm_up_is_killed_after_the_timeout(tmp_path):
     warm = WarmUp(lambda: time.sleep(60))
     pid = warm.pid
@@ -164,6 +177,7 @@ def test_a_stuck_warm_up_is_killed_after_the_timeout(tmp_path):
         os.waitpid(pid, os.WNOHANG)
 
 
+@pytest.mark.usefixtures("forkable")
 def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
     """Oracle: the kernel's process table. A TERM (or a Ctrl-C to this process alone) that arrives while finish()
     waits raises out of it: the child is killed and reaped, not left compiling after this process ended (the old
@@ -175,6 +189,7 @@ def test_a_warm_up_awaited_when_this_process_is_interrupted_is_killed(tmp_path):
     assert alive == [False]
 
 
+@pytest.mark.usefixtures("forkable")
 def test_an_interrupt_just_after_the_child_is_reaped_stays_the_interrupt(tmp_path, monkeypatch):
     """The TERM that arrives as finish()'s wait returns (the child reaped, its account not yet kept) is what finish()
     raises, not the ChildProcessError of a second reaping. Oracle: the exception's type; the interrupt made by a
