@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import pickle
+import re
 import tempfile
 from pathlib import Path
 
@@ -898,3 +899,27 @@ def test_what_is_kept_of_a_long_files_footer_does_not_grow_with_its_row_groups(t
         kept.append(len(pickle.dumps(entry[0])))
     # 3 int64 a row group (its bytes' start and end, its rows), and a few bytes of pickle's framing over the 6
     assert (kept[1] - kept[0]) / 6 <= 3 * 8 + 4, kept
+
+
+@needs_pyarrow
+def test_a_cut_footers_row_group_written_over_in_place_is_a_clear_error(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Oracle: the file's own bytes. A footer kept cut per row group reads a group's footer bytes again at each open:
+    written over in place with its size and modification time kept (what the cache's key cannot see), they no longer
+    parse. Before, pyarrow's OSError ("Couldn't deserialize thrift") came out naming no file; now a
+    `FileFormatError` naming the file and the row group."""
+    monkeypatch.setattr(windows, "FOOTER_WHOLE", 0)
+    path = tmp_path / "log.parquet"
+    many_groups_log(path, 10)
+    windows.clear_cache()
+    index = index_file(path)
+    read_window(index, ["c0"], 0.0, 0.5)
+    (kept,) = windows._footers.values()
+    a, b = (int(x) for x in kept[0].spans[5])
+    st = path.stat()
+    with open(path, "r+b") as fh:
+        fh.seek(kept[0].start + a)
+        fh.write(b"\xff" * (b - a))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    with pytest.raises(FileFormatError, match=re.escape(f"{path}: row group 5's footer no longer reads")):
+        read_window(index, ["c0"], 5.1, 5.2)

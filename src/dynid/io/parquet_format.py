@@ -258,7 +258,19 @@ class SplitFooter:
         # num_rows the group's (a zigzag varint: 2 x rows), a list of one RowGroup, the group's bytes
         body = b"".join((self.before, _uvarint(2 * int(self.rows[group])), self.between, bytes([0x10 | _STRUCT]),
                          own, self.after))
-        return pq.read_metadata(pa.BufferReader(body + struct.pack("<i", len(body)) + b"PAR1"))
+        # the group's bytes are read again at each open, long after the footer was cut: a file written over in place
+        # (its size and modification time unchanged, which the cache's key cannot see) gives other bytes there
+        try:
+            meta = pq.read_metadata(pa.BufferReader(body + struct.pack("<i", len(body)) + b"PAR1"))
+            same = (len(own) == b - a and meta.num_row_groups == 1
+                    and meta.row_group(0).num_rows == int(self.rows[group]))
+        except (OSError, pa.ArrowException):
+            same = False
+        if not same:
+            raise FileFormatError(f"{path}: row group {group}'s footer no longer reads as when the file was opened: "
+                                  "the file was written over while being read; index it again (index_file)",
+                                  source=str(path))
+        return meta
 
 
 def split_footer(path: str | os.PathLike[str], metadata: Any) -> SplitFooter | None:
