@@ -923,3 +923,28 @@ def test_a_cut_footers_row_group_written_over_in_place_is_a_clear_error(tmp_path
     os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
     with pytest.raises(FileFormatError, match=re.escape(f"{path}: row group 5's footer no longer reads")):
         read_window(index, ["c0"], 5.1, 5.2)
+
+
+@needs_pyarrow
+@pytest.mark.parametrize("cut", [False, True])
+def test_a_damaged_page_is_named_by_its_row_group_in_the_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                               cut: bool) -> None:
+    """Oracle: pyarrow's own metadata, where c0's data page of row group 5 starts (its header overwritten). The
+    error names row group 5, whether the footer is kept whole or cut per row group (`FOOTER_WHOLE` 0). Before, the
+    cut footer's error named "row group 0": the group's number in its own one-group footer."""
+    import pyarrow.parquet as pq
+
+    if cut:
+        monkeypatch.setattr(windows, "FOOTER_WHOLE", 0)
+    path = tmp_path / "log.parquet"
+    many_groups_log(path, 10)
+    meta = pq.read_metadata(path)
+    chunk = meta.row_group(5).column(meta.schema.names.index("c0"))
+    with open(path, "r+b") as fh:
+        fh.seek(chunk.dictionary_page_offset or chunk.data_page_offset)
+        fh.write(b"\xff" * 16)
+    windows.clear_cache()
+    index = index_file(path)  # reads the time column only
+    read_window(index, ["c0"], 0.0, 0.5)
+    with pytest.raises(FileFormatError, match=re.escape(f"{path}: row group 5, column(s) c0: not readable")):
+        read_window(index, ["c0"], 5.1, 5.2)

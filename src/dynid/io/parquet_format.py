@@ -310,9 +310,11 @@ def split_footer(path: str | os.PathLike[str], metadata: Any) -> SplitFooter | N
         return None
 
 
-def read_columns(pfile: Any, label: str, columns: list[str], group: int | None = None) -> Any:
+def read_columns(pfile: Any, label: str, columns: list[str], group: int | None = None,
+                 named: int | None = None) -> Any:
     """`pfile.read_row_group(group, columns)` (group None: the whole file's); a damaged data page (pyarrow's
-    OSError or ArrowException, which name no file) is a one-line `FileFormatError` naming the file."""
+    OSError or ArrowException, which name no file) is a one-line `FileFormatError` naming the file and the row
+    group (`named`, when `pfile` holds the group under another number: a footer cut per row group's group 0)."""
     pa = require("pyarrow", "Reading Parquet files")
     try:
         if group is None:
@@ -321,7 +323,7 @@ def read_columns(pfile: Any, label: str, columns: list[str], group: int | None =
     except (OSError, pa.ArrowException) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
-        where = "" if group is None else f"row group {group}, "
+        where = "" if group is None else f"row group {group if named is None else named}, "
         shown = ", ".join(columns[:3]) + (", ..." if len(columns) > 3 else "")
         raise FileFormatError(
             f"{label}: {where}column(s) {shown}: not readable Parquet data ({' '.join(str(exc).split())}); the file is "

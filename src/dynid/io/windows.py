@@ -1077,7 +1077,7 @@ def _parquet_column(index: FileIndex, block: Block, name: str, opened: dict[int 
         group = block.group if own is None else own
         column = index.info("columns", {}).get(name, name)  # the file's name of the channel
         field = schema.field(column)
-        col = parquet_format.read_columns(pfile, index.path, [column], group).column(0)
+        col = parquet_format.read_columns(pfile, index.path, [column], group, block.group).column(0)
         # read-only views of the decoded buffers, not copies: what the cache keeps is shared by every window anyway
         return parquet_format.convert_column(pa, field, col, index.info("first_ticks", {}).get(column), index.path,
                                              copy=False)
