@@ -948,3 +948,28 @@ def test_a_damaged_page_is_named_by_its_row_group_in_the_file(tmp_path: Path, mo
     read_window(index, ["c0"], 0.0, 0.5)
     with pytest.raises(FileFormatError, match=re.escape(f"{path}: row group 5, column(s) c0: not readable")):
         read_window(index, ["c0"], 5.1, 5.2)
+
+
+@needs_pyarrow
+def test_the_time_bases_of_a_file_with_a_struct_column(tmp_path: Path) -> None:
+    """Oracle: the whole-file reader. A struct column (a position's x and y: two Parquet leaf columns, one Arrow
+    field, not a channel) before the channels: the time bases and whether they are one read from the right
+    column's statistics. Before, the leaf columns were looked up by the Arrow fields' positions: IndexError."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 1000
+    rng = np.random.default_rng(3)
+    pos = pa.array([{"x": float(i), "y": -float(i)} for i in range(n)])
+    table = pa.table({"time": np.arange(n) / 100.0, "pos": pos, "a": rng.normal(size=n),
+                      "b": pa.array(rng.normal(size=n), mask=rng.random(n) < 0.3)})
+    path = tmp_path / "log.parquet"
+    pq.write_table(table, path, row_group_size=300)
+    whole = read_recording(path)
+    index = index_file(path)
+    assert windows.one_time_base(index, ["a"]) and not windows.one_time_base(index, ["a", "b"])
+    for names in (["a"], ["a", "b"]):
+        bases = time_bases(index, names)
+        for n_ in names:
+            (home,) = [b for b in bases if n_ in b[0]]
+            np.testing.assert_array_equal(bits(home[1]), bits(whole.channels[n_].time))

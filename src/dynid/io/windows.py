@@ -375,9 +375,12 @@ TINY_ROW_GROUP = 100
 
 def _parquet_dense(index: FileIndex, names: list[str]) -> bool:
     """Every row of every column asked for holds a sample (statistics of every row group say no null)."""
-    pfile, schema, _ = _open_parquet(index.path)
+    pfile, _, _ = _open_parquet(index.path)
     meta = pfile.metadata
-    where = {schema.names[i]: i for i in range(meta.num_columns)}
+    # the statistics are per leaf column: a struct column (a GPS position's x and y) has several, a top-level
+    # column is the leaf whose path is its name
+    leaves = (meta.schema.column(i) for i in range(meta.num_columns))
+    where = {c.path: i for i, c in enumerate(leaves) if c.path == c.name}
     columns = index.info("columns", {})
     for g in range(meta.num_row_groups):
         rg = meta.row_group(g)
