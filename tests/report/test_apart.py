@@ -110,3 +110,70 @@ def test_a_dropped_or_cancelled_job_leaves_no_child_running_and_its_work_undone(
         time.sleep(1.5)
         assert not mark.exists()
     """)
+
+
+@linux
+@pytest.mark.parametrize("when", ["fork", "registered"], ids=["during the fork", "before the job holds its child"])
+def test_a_signal_raised_as_the_job_starts_leaves_no_child_running(when):
+    """Ctrl-C or TERM while the process forks (they are held across the fork, so their handler raises as they are
+    let through, before the caller has the job) or just after it: the child killed and reaped, its work never done.
+    Oracle: the kernel's process table and the file the child would have written. Old code: the raise came out of
+    fork() with the child's pid lost, and the child ran on (wrote its file into a folder being removed)."""
+    in_a_fresh_process(f"""
+        import os, signal, tempfile, time
+        from pathlib import Path
+        import dynid.report.apart as apart
+
+        class Stop(Exception):
+            pass
+
+        def stop(_s, _f):
+            raise Stop
+        signal.signal(signal.SIGINT, stop)
+        mark = Path(tempfile.mkdtemp()) / "late"
+        children = []
+        real_fork, real_finalize = os.fork, apart.weakref.finalize
+
+        def fork():  # the signal arrives while the fork is under way
+            pid = real_fork()
+            if pid:
+                children.append(pid)
+                os.kill(os.getpid(), signal.SIGINT)
+            return pid
+
+        def finalize(*args):  # the signal arrives just before the job keeps its child
+            os.kill(os.getpid(), signal.SIGINT)
+            return real_finalize(*args)
+        if {when!r} == "fork":
+            apart.os.fork = fork
+        else:
+            apart.os.fork = lambda: children.append(real_fork()) or children[-1]
+            apart.weakref.finalize = finalize
+        try:
+            apart.Apart(lambda: (time.sleep(1.0), mark.write_text("written")))
+        except Stop:
+            pass
+        else:
+            raise AssertionError("the signal was not raised")
+        pid, = children
+        try:  # killed and reaped: no such child any more
+            os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            pass
+        else:
+            raise AssertionError("the job's child is still there")
+        time.sleep(1.5)
+        assert not mark.exists()
+    """)
+
+
+@linux
+def test_the_child_takes_ctrl_c_and_term_as_this_process_does():
+    """The signals held while the job starts are let through in the child (else a Ctrl-C or TERM sent to it would
+    wait for its end). Oracle: the child's own signal mask, as the kernel reports it."""
+    in_a_fresh_process("""
+        import signal
+        from dynid.report.apart import Apart
+        blocked = Apart(lambda: signal.pthread_sigmask(signal.SIG_BLOCK, set())).result()
+        assert signal.SIGINT not in blocked and signal.SIGTERM not in blocked, blocked
+    """)
