@@ -106,3 +106,36 @@ def test_the_tests_are_shared_only_when_a_core_was_idle(tmp_path):
     """
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-3000:]
+
+
+@linux
+def test_a_child_killed_in_the_middle_of_a_file_leaves_no_temporary(tmp_path):
+    """The forked process killed while it writes a file (kill -9, the OOM killer: no Python cleanup runs): this
+    process writes that share itself, and data/ holds the tests' files and nothing else (the temporary the child
+    left beside its file removed). Oracle: the file names one process writes. Old code: `.spiral.csv.<random>.tmp.csv`
+    stayed, and went into the output folder."""
+    body = f"""
+        import os, signal
+        from pathlib import Path
+        import dynid.pipeline.demo as demo
+        from dynid.atomic import atomic_path
+
+        here = os.getpid()
+        demo._ready_simulator = lambda say, vehicle: None
+        demo._drive = lambda sim, test, quick, say, bars=None: test[1]
+        demo.preload = lambda: None
+
+        def write_test(result, path, **kw):
+            with atomic_path(path) as tmp:
+                tmp.write_text(result)
+                if os.getpid() != here:
+                    os.kill(os.getpid(), signal.SIGKILL)
+
+        demo.write_test = write_test
+        out = Path({str(tmp_path)!r})
+        demo.simulate_and_write(out, share=True)
+        names = sorted(p.name for p in (out / "data").iterdir())
+        assert names == sorted(f"{{t[1]}}.csv" for t in demo.TESTS), names
+    """
+    out = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-3000:]
