@@ -371,11 +371,11 @@ def _leave(code: int) -> None:
         return
     atexit._run_exitfuncs()
     try:
-        if sys.stdout is not None:  # None: started with its descriptor closed
+        if sys.stdout is not None and not sys.stdout.closed:  # None: started with its descriptor closed
             sys.stdout.flush()
     except BrokenPipeError:  # a pipe closed by its reader (`| head`): not an error, as in _main
         pass
-    except (OSError, ValueError) as exc:  # the last of the output lost (a full disk): said, as Python's teardown did
+    except OSError as exc:  # the last of the output lost (a full disk): said, as Python's teardown did
         what = " ".join(str(getattr(exc, "strerror", None) or exc).split())
         with contextlib.suppress(Exception):
             print(f"dynid: error: the command's output (stdout) could not be written: {what}", file=sys.stderr)
