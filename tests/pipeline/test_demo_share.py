@@ -77,23 +77,30 @@ def test_cpu_times_reads_the_machines_ticks():
     assert a is not None and b is not None and 0 <= a[0] <= a[1] <= b[1] and a[0] <= b[0]
 
 
+# a fresh interpreter's demo with the simulation stubbed: each test's file holds the id of the process that wrote it
+STUBBED = """
+import os
+from pathlib import Path
+import dynid.pipeline.demo as demo
+
+demo._ready_simulator = lambda say, vehicle: None
+demo._drive = lambda sim, test, quick, say, bars=None: test[1]
+demo.preload = lambda: None
+
+
+def write_test(result, path, **kw):
+    Path(path).write_text(str(os.getpid()))
+
+
+demo.write_test = write_test
+"""
+
+
 @linux
 def test_the_tests_are_shared_only_when_a_core_was_idle(tmp_path):
     # the simulation and the files stubbed (each file says which process wrote it); a fresh interpreter: the share
     # forks only from a process of one thread
-    body = f"""
-        import os
-        from pathlib import Path
-        import dynid.pipeline.demo as demo
-
-        demo._ready_simulator = lambda say, vehicle: None
-        demo._drive = lambda sim, test, quick, say, bars=None: test[1]
-        demo.preload = lambda: None
-
-        def write_test(result, path, **kw):
-            Path(path).write_text(str(os.getpid()))
-
-        demo.write_test = write_test
+    body = STUBBED + textwrap.dedent(f"""
         cores = len(os.sched_getaffinity(0))
         for idle, forks in (({IDLE_CORES} - 0.05, False), ({IDLE_CORES} + 0.05, True)):
             ticks = iter([(0, 0), (round(1000 * idle / cores), 1000)])
@@ -103,7 +110,7 @@ def test_the_tests_are_shared_only_when_a_core_was_idle(tmp_path):
             pids = {{p.stem: int(p.read_text()) for p in (out / "data").glob("*.csv")}}
             assert len(pids) == len(demo.TESTS)
             assert any(pid != os.getpid() for pid in pids.values()) == forks, (idle, pids)
-    """
+    """)
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-3000:]
 
@@ -158,25 +165,13 @@ def test_no_share_on_one_allowed_core_of_an_idle_machine(tmp_path):
     """Pinned to one core (taskset -c 0, a container's cpuset), the machine's other cores idle: no share (both
     processes would take turns on that one core, more CPU for no time). Oracle: the writers' process ids. Old code:
     /proc/stat's whole-machine line times the one allowed core read half idle, and forked."""
-    body = f"""
-        import os
-        from pathlib import Path
-        import dynid.pipeline.demo as demo
-
+    body = STUBBED + textwrap.dedent(f"""
         os.sched_setaffinity(0, {{0}})
-        demo._ready_simulator = lambda say, vehicle: None
-        demo._drive = lambda sim, test, quick, say, bars=None: test[1]
-        demo.preload = lambda: None
-
-        def write_test(result, path, **kw):
-            Path(path).write_text(str(os.getpid()))
-
-        demo.write_test = write_test
         ticks = iter([(0, 0), (500, 1000)])  # the machine (2 cores): one idle, one this process's
         demo.cpu_times = lambda cpus=None: next(ticks)
         demo.simulate_and_write(Path({str(tmp_path)!r}))
         pids = {{int(p.read_text()) for p in (Path({str(tmp_path)!r}) / "data").glob("*.csv")}}
         assert pids == {{os.getpid()}}, pids
-    """
+    """)
     out = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-3000:]

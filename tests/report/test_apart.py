@@ -14,10 +14,29 @@ from dynid.report.apart import Apart
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork: Linux only")
 
 
+# given to every fresh process: a job's child `pid` killed and reaped (no such child left), the file `mark` its work
+# would write never written (its 1 s sleep is over)
+GONE = """
+import os as _os, time as _time
+
+
+def gone_undone(pid, mark):
+    try:
+        _os.waitpid(pid, _os.WNOHANG)
+    except ChildProcessError:
+        pass
+    else:
+        raise AssertionError("the job's child is still there")
+    _time.sleep(1.5)
+    assert not mark.exists()
+"""
+
+
 def in_a_fresh_process(body: str) -> None:
     """Run `body` in a new interpreter: Apart forks only from a process of one thread, and a test worker may hold
     threads that earlier test files left (thread pools), which made these tests depend on the files' order."""
-    out = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True, timeout=120)
+    out = subprocess.run([sys.executable, "-c", GONE + textwrap.dedent(body)], capture_output=True, text=True,
+                         timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
 
 
@@ -101,14 +120,7 @@ def test_a_dropped_or_cancelled_job_leaves_no_child_running_and_its_work_undone(
         pid = job.pid
         assert pid is not None
         {end}
-        try:  # killed and reaped: no such child any more
-            os.waitpid(pid, os.WNOHANG)
-        except ChildProcessError:
-            pass
-        else:
-            raise AssertionError("the job's child is still there")
-        time.sleep(1.5)
-        assert not mark.exists()
+        gone_undone(pid, mark)
     """)
 
 
@@ -156,14 +168,7 @@ def test_a_signal_raised_as_the_job_starts_leaves_no_child_running(when):
         else:
             raise AssertionError("the signal was not raised")
         pid, = children
-        try:  # killed and reaped: no such child any more
-            os.waitpid(pid, os.WNOHANG)
-        except ChildProcessError:
-            pass
-        else:
-            raise AssertionError("the job's child is still there")
-        time.sleep(1.5)
-        assert not mark.exists()
+        gone_undone(pid, mark)
     """)
 
 
