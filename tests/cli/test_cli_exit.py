@@ -72,3 +72,35 @@ def test_the_demo_runs_with_the_library_frozen_out_of_the_collector_and_gives_it
     assert "stopped here" in capsys.readouterr().err
     assert seen and seen[0] > 10_000  # the library's objects (numpy, scipy, numba, dynid: ~185k)
     assert gc.get_freeze_count() == 0
+
+
+# the command's last output still in stdout's buffer when the process ends, and the disk full for it
+FULL = """
+import errno, io, sys
+from dynid.cli.main import _leave
+
+
+class Full(io.RawIOBase):
+    def writable(self):
+        return True
+
+    def write(self, b):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+
+sys.stdout = io.TextIOWrapper(io.BufferedWriter(Full()))
+print("the command's last line")  # buffered: refused only when flushed
+_leave(0)
+"""
+
+
+def test_output_lost_at_the_end_is_an_error_not_a_silent_success():
+    """A write of the output refused as the process ends (a full disk) is said and fails the command, as Python's own
+    teardown did (its exit status 120 and the error) before the command ended by _leave; a reader gone (`| head`)
+    is no error. Old code: exit status 0, nothing said."""
+    proc = subprocess.run([sys.executable, "-c", FULL], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr == "dynid: error: the command's output (stdout) could not be written: No space left on device\n"
+    gone = subprocess.run([sys.executable, "-c", FULL.replace("errno.ENOSPC, ", "errno.EPIPE, ")],
+                          capture_output=True, text=True, timeout=60)
+    assert (gone.returncode, gone.stderr) == (0, "")

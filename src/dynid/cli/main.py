@@ -370,9 +370,18 @@ def _leave(code: int) -> None:
     if threading.active_count() != 1:
         return
     atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):  # closed, or a pipe closed by its reader: nothing more to show
-            stream.flush()
+    try:
+        if sys.stdout is not None and not sys.stdout.closed:  # None: started with its descriptor closed
+            sys.stdout.flush()
+    except BrokenPipeError:  # a pipe closed by its reader (`| head`): not an error, as in _main
+        pass
+    except OSError as exc:  # the last of the output lost (a full disk): said, as Python's teardown did
+        what = " ".join(str(getattr(exc, "strerror", None) or exc).split())
+        with contextlib.suppress(Exception):
+            print(f"dynid: error: the command's output (stdout) could not be written: {what}", file=sys.stderr)
+        code = code or 2
+    with contextlib.suppress(Exception):  # closed, or gone: nothing more to show
+        sys.stderr.flush()
     os._exit(code)
 
 

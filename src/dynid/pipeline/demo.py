@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 
 from ..atomic import write_atomic
@@ -185,16 +185,27 @@ def forked_share(durations: Sequence[float], head_start: float = FORK_HEAD_START
 IDLE_CORES = 0.5
 
 
-def cpu_times() -> tuple[int, int] | None:
-    """The machine's (idle, total) CPU time so far in clock ticks (/proc/stat, all cores); None where unknown."""
+def cpu_times(cpus: Collection[int] | None = None) -> tuple[int, int] | None:
+    """The (idle, total) CPU time so far in clock ticks of the cores `cpus` (their /proc/stat lines; None: the
+    machine's, all cores); None where unknown."""
+    wanted = None if cpus is None else {f"cpu{c}" for c in cpus}
+    idle = total = 0
     try:
         with open("/proc/stat") as f:
-            ticks = [int(x) for x in f.readline().split()[1:]]
+            for line in f:
+                name, *fields = line.split()
+                if not name.startswith("cpu"):
+                    break  # the cpu lines come first
+                if (name != "cpu") if wanted is None else (name not in wanted):
+                    continue
+                ticks = [int(x) for x in fields]
+                if len(ticks) < 5:
+                    return None
+                idle += ticks[3] + ticks[4]  # idle + iowait; user .. steal (guest time is inside user)
+                total += sum(ticks[:8])
     except (OSError, ValueError):
         return None
-    if len(ticks) < 5:
-        return None
-    return ticks[3] + ticks[4], sum(ticks[:8])  # idle + iowait; user .. steal (guest time is inside user)
+    return (idle, total) if total else None
 
 
 def idle_cores(before: tuple[int, int] | None, after: tuple[int, int] | None, cores: int) -> float:
@@ -211,11 +222,13 @@ def simulate_and_write(out: Path, quick: bool = False, seed: int = 406, progress
     while the car was built, IDLE_CORES), while this process drives the others and imports the report's plotting;
     returns the config's path."""
     say = progress or (lambda _m: None)
-    before = cpu_times()
+    # the cores this process may run on (taskset, a container's cpuset): the machine's others idle are no use to it
+    cpus = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    before = cpu_times(cpus)
     sim = _ready_simulator(say, vehicle)
     if share is None:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        share = idle_cores(before, cpu_times(), cores) >= IDLE_CORES
+        cores = len(cpus) if cpus is not None else os.cpu_count() or 1
+        share = cores > 1 and idle_cores(before, cpu_times(cpus), cores) >= IDLE_CORES
     suite = load_vehicle(vehicle).suite
     (out / "data").mkdir(parents=True, exist_ok=True)
     durations = [short if quick else full for *_, full, short in TESTS]
@@ -238,6 +251,10 @@ def simulate_and_write(out: Path, quick: bool = False, seed: int = 406, progress
         if other is not None:
             preload()  # the report's plotting imported while the other process finishes (report.figures)
             other.result()  # its files written (or, had it failed, written here now)
+            # a child killed in the middle of a file (kill -9, the kernel's OOM killer) left its temporary beside it
+            # (atomic_path's `.<name>.<random>.tmp<suffix>`); no writer is left in data/ now
+            for tmp in (out / "data").glob(".*.tmp*"):
+                tmp.unlink(missing_ok=True)
     except BaseException:
         if other is not None:
             other.cancel()  # no file written into a folder the caller removes

@@ -23,6 +23,8 @@ from typing import Generic, TypeVar
 
 T = TypeVar("T")
 
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
 
 class Apart(Generic[T]):
     """fn() in a forked child, started now; result() its value (or fn() here: module doc)."""
@@ -36,15 +38,25 @@ class Apart(Generic[T]):
         r, w = os.pipe()
 
         def child() -> None:  # its value down the pipe
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)  # Ctrl-C and TERM let through, as before the job
             os.close(r)
             data = pickle.dumps(fn(), protocol=pickle.HIGHEST_PROTOCOL)
             with os.fdopen(w, "wb") as out:
                 out.write(data)
 
-        pid = fork(child)
-        os.close(w)
-        self.pid, self.fd = pid, r
-        self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
+        # Ctrl-C and TERM held until the child is this job's to kill: raised in between, they left it running
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+        try:
+            pid = fork(child)
+            os.close(w)
+            self.pid, self.fd = pid, r
+            self._reap = weakref.finalize(self, _kill, pid, r)  # dropped uncollected: no child left running
+        finally:
+            try:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)  # a signal held meanwhile is raised here
+            except BaseException:
+                self.cancel()  # at once: the caller never gets this job, and may remove what the child writes into
+                raise
 
     def result(self) -> T:
         if self.pid is not None:
@@ -78,12 +90,13 @@ def fork(child: Callable[[], object], locks: Sequence[AbstractContextManager] = 
     # Ctrl-C and TERM held across the fork: their handlers raise, and a raise inside the fork's own hooks
     # (logging's lock release) is printed as an ignored exception with its traceback (a run killed while
     # writing its report, tests/cli/test_output_folder.py); they are delivered once the child is accounted for
-    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
     # this process's objects out of the child's garbage collections (the gc module's advice for a fork): a
     # collection writes into every object it scans, which copies each page of the inherited heap in the child;
     # a warm quick demo's report ~1.8 -> ~1.5 s CPU, this process and its child (benchmarks/bench_report.py)
     ours = gc.get_freeze_count() == 0  # another's freeze left as it is
     gc.freeze()
+    pid = -1
     try:
         with contextlib.ExitStack() as stack:
             for lock in locks:
@@ -101,13 +114,19 @@ def fork(child: Callable[[], object], locks: Sequence[AbstractContextManager] = 
     finally:  # this process's (the child left above)
         if ours:
             gc.unfreeze()
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        try:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)  # a signal held across the fork is raised here
+        except BaseException:  # ... before the caller has the pid: the child killed, not left running unknown
+            if pid > 0:
+                _kill(pid, -1)
+            raise
 
 
 def _kill(pid: int, fd: int) -> None:
     with contextlib.suppress(OSError):
         os.kill(pid, signal.SIGKILL)
-    os.close(fd)
+    if fd >= 0:
+        os.close(fd)
     with contextlib.suppress(OSError):
         os.waitpid(pid, 0)
 
