@@ -211,7 +211,9 @@ def _again(signum: int) -> None:
     """The signal raised again in 5 ms, from another thread: this thread handles it at its first instruction then,
     normally out of the callback (if not, it goes round again). Raised from this thread, it would be handled at
     once, inside the callback still."""
-    threading.Timer(0.005, _thread.interrupt_main, (signum,)).start()
+    timer = threading.Timer(0.005, _thread.interrupt_main, (signum,))
+    timer.daemon = True  # never what keeps a process from ending
+    timer.start()
 
 
 @contextmanager
