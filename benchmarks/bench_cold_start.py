@@ -70,6 +70,11 @@ A portable cache measured (NUMBA_CPU_NAME=generic, whose features are then empty
 simulations the same bits, a 40 s sine 0.61-0.67 s of CPU against 0.58-0.61 for this CPU (emeraldrapids); its entries,
 keyed (triple, "generic", ""), would serve any x86-64 machine of the same Python and Numba, but shipping them means
 compiled code in the package per platform and version: not done.
+Measured 2026-11-29 (22:06-22:09 UTC, quiet: load 1.2-1.6; `--commands demo`, main (link_only, and a warm demo's tests
+shared with a forked process when a core is idle) and 721f59d alternated twice): main cold 11.6, 13.5 s (CPU 19.6,
+22.3), warm 6.9, 7.2 (CPU 10.0, 10.4), ratio 1.68, 1.86; 721f59d cold 12.6, 13.1 (CPU 20.5, 21.2), warm 7.8, 7.7 (CPU
+9.4, 9.5), ratio 1.62, 1.70. The cold runs are the same within the host's noise; the warm one is shorter (a first run
+shares nothing: its warm-up child has the other core), so the ratio did not fall.
 """
 
 from __future__ import annotations

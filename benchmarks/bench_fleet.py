@@ -123,6 +123,14 @@ Measured 2026-11-29 (19:19-19:20 UTC, quiet: load average 0.9-1.6; main d22a752'
 fddb8ab's (CPU 1.26 x), 1.05 x f15571e's. `--hours 12 --workers` (1ba5598, the plan's clock in the file and its pass in
 blocks, the libraries' pages released; load 1-3): 12 h of data (2.4 GB of Parquet) 103.7 s wall, 160 s CPU, peak 0.76
 GB (0.13 GB over 1 h's).
+Measured 2026-11-29 (21:59-22:09 UTC, quiet: load 1.2-2.0; main with the footer cut per row group for long files and
+the health's spans bounded): `--hours 1 --workers --vs <721f59d>/src <fddb8ab>/src --repeat 3`: this tree 9.55 s wall
+(9.91, 9.26, 9.55), CPU 14.90, peak 0.64 GB; 721f59d 9.11 (9.23, 8.00, 9.11), CPU 14.27, 0.63 GB; fddb8ab 9.99 (10.33,
+9.99, 9.15), CPU 17.22, 0.88 GB: 1.05 x fddb8ab's throughput (CPU 1.16 x). Six more alternated pairs of `identify`
+alone on the same 1 h log (22:10-22:13, load 1.5-1.8): CPU pair ratios against 721f59d 0.91, 1.06, 1.15, 0.99, 0.99,
+0.96 (median 0.99): the run above's 0.96 x is the host's drift. `--hours 6 --workers --vs <721f59d>/src`: 38.49 s
+wall, CPU 60.84, peak 0.69 GB against 41.45 s, 65.20, 0.69 GB (1.07 x: the whole footer's parse per window grew with
+the file).
 """
 
 from __future__ import annotations
