@@ -7,8 +7,11 @@ runs; an atexit handler; the command's own last line, printed by the in-process 
 count of frozen objects.
 """
 
+import os
 import subprocess
 import sys
+
+import pytest
 
 # the entry point as the `dynid` script runs it, with an object that says when the teardown deletes it
 PROBE = """
@@ -104,3 +107,19 @@ def test_output_lost_at_the_end_is_an_error_not_a_silent_success():
     gone = subprocess.run([sys.executable, "-c", FULL.replace("errno.ENOSPC, ", "errno.EPIPE, ")],
                           capture_output=True, text=True, timeout=60)
     assert (gone.returncode, gone.stderr) == (0, "")
+
+
+@pytest.mark.slow
+def test_a_reader_that_leaves_does_not_stop_the_run(tmp_path):
+    """`dynid demo ... | head -1`: once the pipe's reader has gone, the rest of the output goes nowhere and the run
+    ends with its folder written, status 0. Oracle: the folder's report and results after the reader closed the
+    pipe at the first line (unbuffered output: every print meets the closed pipe; before, the first one stopped the
+    run and its folder was removed, with status 0)."""
+    out = tmp_path / "demo"
+    proc = subprocess.Popen([sys.executable, "-m", "dynid", "demo", "--quick", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.stdout.readline()
+    proc.stdout.close()  # the reader leaves, as head -1 does
+    assert proc.wait(timeout=600) == 0
+    assert (out / "report.html").is_file() and (out / "results.json").is_file()

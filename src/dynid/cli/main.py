@@ -385,13 +385,65 @@ def _leave(code: int) -> None:
     os._exit(code)
 
 
+class _ReaderMayLeave:
+    """stdout, but once its pipe's reader has gone (`dynid demo | head -1`: BrokenPipeError) the rest of the output
+    goes to /dev/null and the command runs on: its files are its result. Before, the first print after the reader
+    left stopped the run, its output folder removed, with exit status 0."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def _gone(self) -> None:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, self._stream.fileno())  # what the stream still holds is written there
+        finally:
+            os.close(devnull)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def _reader_may_leave():
+    """sys.stdout as `_ReaderMayLeave` inside, where it is a stream on a file descriptor."""
+    stream = sys.stdout
+    try:
+        usable = stream is not None and stream.fileno() >= 0
+    except (AttributeError, OSError, ValueError):  # captured (no descriptor), or closed
+        usable = False
+    if not usable:
+        yield
+        return
+    sys.stdout = _ReaderMayLeave(stream)
+    try:
+        yield
+    finally:
+        sys.stdout = stream
+
+
 def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         check_options(args)
         try:
-            with interrupts():  # a Ctrl-C while Numba compiles is not lost in LLVM's callbacks
+            # a Ctrl-C while Numba compiles is not lost in LLVM's callbacks; a reader that leaves (`| head`) does
+            # not stop the run
+            with interrupts(), _reader_may_leave():
                 return int(args.func(args) or 0)
         finally:  # a bar an error interrupted is ended (its line finished) before the error's line
             _end_bars()
