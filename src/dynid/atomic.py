@@ -258,6 +258,14 @@ def _names(folder: Path) -> Iterator[str]:
             yield Path(root, name).relative_to(folder).as_posix()
 
 
+def remove_temporaries(folder: str | os.PathLike[str]) -> None:
+    """Delete the temporaries a killed writer left in `folder` (`atomic_path`'s names); call it only when no writer
+    is left there."""
+    for p in Path(folder).iterdir():
+        if _TMP.match(p.name):
+            p.unlink(missing_ok=True)
+
+
 def _ours(rel: str) -> bool:
     """Left by file browsers or by a killed atomic write: not a user's file."""
     name = rel.rsplit("/", 1)[-1]

@@ -17,7 +17,7 @@ import os
 from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 
-from ..atomic import write_atomic
+from ..atomic import remove_temporaries, write_atomic
 from ..progress import notice_if_slow
 from ..report.apart import Apart, can_fork
 from ..report.figures import preload
@@ -251,10 +251,9 @@ def simulate_and_write(out: Path, quick: bool = False, seed: int = 406, progress
         if other is not None:
             preload()  # the report's plotting imported while the other process finishes (report.figures)
             other.result()  # its files written (or, had it failed, written here now)
-            # a child killed in the middle of a file (kill -9, the kernel's OOM killer) left its temporary beside it
-            # (atomic_path's `.<name>.<random>.tmp<suffix>`); no writer is left in data/ now
-            for tmp in (out / "data").glob(".*.tmp*"):
-                tmp.unlink(missing_ok=True)
+            # a child killed in the middle of a file (kill -9, the kernel's OOM killer) left its temporary beside it;
+            # no writer is left in data/ now
+            remove_temporaries(out / "data")
     except BaseException:
         if other is not None:
             other.cancel()  # no file written into a folder the caller removes
